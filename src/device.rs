@@ -1,0 +1,67 @@
+//! Choosing the compute device once, at the edge. Burn 0.22 dispatches on the `Device` at run
+//! time, so model code is backend-agnostic; this maps a config/CLI name to a device that the
+//! build has compiled in.
+
+use crate::error::{Error, Result};
+pub use burn::tensor::Device;
+
+/// Names accepted: "flex" (default CPU), "ndarray", "wgpu", "cuda" / "cuda:N".
+pub fn device_from_name(name: &str) -> Result<Device> {
+    let (kind, index) = match name.split_once(':') {
+        Some((k, i)) => (
+            k,
+            i.parse::<usize>()
+                .map_err(|_| Error::Invalid(format!("device '{name}': bad index '{i}'")))?,
+        ),
+        None => (name, 0),
+    };
+    let _ = index;
+    match kind {
+        #[cfg(feature = "flex")]
+        "flex" | "cpu" => Ok(Device::flex()),
+        #[cfg(feature = "ndarray")]
+        #[allow(deprecated)]
+        "ndarray" => Ok(Device::ndarray()),
+        #[cfg(feature = "wgpu")]
+        "wgpu" => Ok(Device::wgpu(burn::tensor::DeviceKind::DefaultDevice)),
+        #[cfg(feature = "cuda")]
+        "cuda" => Ok(Device::cuda(index)),
+        _ => Err(Error::Invalid(format!(
+            "device '{name}' is not available in this build (compiled in: {}); \
+             enable the cargo feature of the same name",
+            compiled_backends().join(", ")
+        ))),
+    }
+}
+
+pub fn compiled_backends() -> Vec<&'static str> {
+    let mut v = Vec::new();
+    if cfg!(feature = "flex") {
+        v.push("flex");
+    }
+    if cfg!(feature = "ndarray") {
+        v.push("ndarray");
+    }
+    if cfg!(feature = "wgpu") {
+        v.push("wgpu");
+    }
+    if cfg!(feature = "cuda") {
+        v.push("cuda");
+    }
+    v
+}
+
+#[cfg(all(test, feature = "flex"))]
+mod tests {
+    use super::*;
+    use burn::tensor::Tensor;
+    #[test]
+    fn flex_computes() {
+        let dev = device_from_name("flex").expect("flex device");
+        let t = Tensor::<2>::from_floats([[1.0, 2.0], [3.0, 4.0]], &dev);
+        let s: f32 = t.clone().matmul(t).sum().into_scalar();
+        // [[7,10],[15,22]] sums to 54.
+        assert_eq!(s, 54.0);
+        assert!(device_from_name("tpu").is_err());
+    }
+}

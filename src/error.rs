@@ -1,0 +1,79 @@
+//! The library's one error type. Every variant about a file names the file.
+
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    #[error("{}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// The file exists but its content cannot be decoded (truncated, corrupt, wrong format).
+    #[error("{}: cannot decode: {msg}", path.display())]
+    Decode { path: PathBuf, msg: String },
+    /// The file decodes but holds something we do not support (channels, bit depth, alpha).
+    #[error("{}: unsupported: {msg}", path.display())]
+    Unsupported { path: PathBuf, msg: String },
+    /// Pixels that are NaN or infinite are never passed on silently.
+    #[error("{}: {count} non-finite pixel values (NaN/Inf); first at x={x}, y={y}", path.display())]
+    NonFinite {
+        path: PathBuf,
+        count: usize,
+        x: usize,
+        y: usize,
+    },
+    #[error("{}: cannot encode: {msg}", path.display())]
+    Encode { path: PathBuf, msg: String },
+    /// A TOML config or manifest that does not parse or validate.
+    #[error("{}: {msg}", path.display())]
+    Config { path: PathBuf, msg: String },
+    /// A dataset folder that does not match the layout it claims or seems to have.
+    #[error("{}: {msg}", path.display())]
+    Layout { path: PathBuf, msg: String },
+    /// Invalid parameters passed by code (not tied to a file).
+    #[error("{0}")]
+    Invalid(String),
+}
+
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+impl Error {
+    pub fn io(path: impl AsRef<Path>, source: std::io::Error) -> Self {
+        Error::Io {
+            path: path.as_ref().to_path_buf(),
+            source,
+        }
+    }
+    pub fn decode(path: impl AsRef<Path>, msg: impl ToString) -> Self {
+        Error::Decode {
+            path: path.as_ref().to_path_buf(),
+            msg: msg.to_string(),
+        }
+    }
+    pub fn unsupported(path: impl AsRef<Path>, msg: impl ToString) -> Self {
+        Error::Unsupported {
+            path: path.as_ref().to_path_buf(),
+            msg: msg.to_string(),
+        }
+    }
+    pub fn encode(path: impl AsRef<Path>, msg: impl ToString) -> Self {
+        Error::Encode {
+            path: path.as_ref().to_path_buf(),
+            msg: msg.to_string(),
+        }
+    }
+    pub fn config(path: impl AsRef<Path>, msg: impl ToString) -> Self {
+        Error::Config {
+            path: path.as_ref().to_path_buf(),
+            msg: msg.to_string(),
+        }
+    }
+    pub fn layout(path: impl AsRef<Path>, msg: impl ToString) -> Self {
+        Error::Layout {
+            path: path.as_ref().to_path_buf(),
+            msg: msg.to_string(),
+        }
+    }
+}

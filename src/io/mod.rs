@@ -1,0 +1,145 @@
+//! Image I/O: one image type and readers/writers for OpenEXR, Radiance .hdr, PNG and TIFF.
+//!
+//! Conventions: EXR and .hdr hold linear values and are returned as stored. PNG and TIFF are
+//! returned as code values in [0, 1] (v / 255 or v / 65535), with no transfer function undone:
+//! the caller knows whether the file is sRGB, a device response or raw DN.
+
+pub mod atomic;
+mod exr;
+mod hdr;
+pub mod image;
+mod ldr;
+pub mod srgb;
+
+pub use image::{Image, dynamic_range_stops, luminance};
+pub use srgb::{srgb_decode, srgb_encode};
+
+use crate::error::{Error, Result};
+use std::path::Path;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Format {
+    Exr,
+    Hdr,
+    Png,
+    Tiff,
+}
+
+impl Format {
+    pub fn from_path(path: &Path) -> Result<Format> {
+        let ext = path
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase())
+            .unwrap_or_default();
+        match ext.as_str() {
+            "exr" => Ok(Format::Exr),
+            "hdr" | "pic" => Ok(Format::Hdr),
+            "png" => Ok(Format::Png),
+            "tif" | "tiff" => Ok(Format::Tiff),
+            _ => Err(Error::unsupported(
+                path,
+                format!("unknown image extension '.{ext}' (expected exr, hdr, png, tif, tiff)"),
+            )),
+        }
+    }
+}
+
+/// Bit depth of an integer (LDR) file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum BitDepth {
+    #[serde(rename = "8")]
+    Eight,
+    #[serde(rename = "16")]
+    Sixteen,
+}
+
+impl BitDepth {
+    pub fn max_code(self) -> f32 {
+        match self {
+            BitDepth::Eight => 255.0,
+            BitDepth::Sixteen => 65535.0,
+        }
+    }
+    pub fn from_bits(bits: u32) -> Option<BitDepth> {
+        match bits {
+            8 => Some(BitDepth::Eight),
+            16 => Some(BitDepth::Sixteen),
+            _ => None,
+        }
+    }
+}
+
+/// Sample type written to EXR.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ExrPrecision {
+    Half,
+    #[default]
+    Float,
+}
+
+/// What a reader found besides the pixels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ReadInfo {
+    pub format: Format,
+    /// Bits per sample for PNG/TIFF integer files; None for float formats.
+    pub bit_depth: Option<BitDepth>,
+}
+
+/// Read any supported image; fails with the file named on missing, truncated, corrupt or
+/// unsupported files, and on NaN/Inf pixels.
+pub fn read_image(path: &Path) -> Result<Image> {
+    read_image_info(path).map(|(img, _)| img)
+}
+
+pub fn read_image_info(path: &Path) -> Result<(Image, ReadInfo)> {
+    let format = Format::from_path(path)?;
+    if !path.exists() {
+        return Err(Error::io(
+            path,
+            std::io::Error::new(std::io::ErrorKind::NotFound, "file not found"),
+        ));
+    }
+    let (img, bit_depth) = match format {
+        Format::Exr => (exr::read(path)?, None),
+        Format::Hdr => (hdr::read(path)?, None),
+        Format::Png | Format::Tiff => {
+            let (img, d) = ldr::read(path)?;
+            (img, Some(d))
+        }
+    };
+    if let Some((count, x, y)) = img.non_finite() {
+        return Err(Error::NonFinite {
+            path: path.to_path_buf(),
+            count,
+            x,
+            y,
+        });
+    }
+    Ok((img, ReadInfo { format, bit_depth }))
+}
+
+/// Write linear values to OpenEXR (RGB, ZIP compression), atomically.
+pub fn write_exr(path: &Path, img: &Image, precision: ExrPrecision) -> Result<()> {
+    exr::write(path, img, precision)
+}
+
+/// Write linear values to Radiance RGBE (.hdr), atomically. Negative values are clamped to 0.
+pub fn write_hdr(path: &Path, img: &Image) -> Result<()> {
+    hdr::write(path, img)
+}
+
+/// Write code values in [0, 1] to PNG or TIFF (by extension) at 8 or 16 bits, atomically:
+/// clamped to [0, 1], quantised as round(v · (2^bits − 1)).
+pub fn write_ldr(path: &Path, img: &Image, depth: BitDepth) -> Result<()> {
+    ldr::write(path, img, depth)
+}
+
+/// Write by extension with defaults: EXR float, .hdr, PNG/TIFF 16-bit.
+pub fn write_image(path: &Path, img: &Image) -> Result<()> {
+    match Format::from_path(path)? {
+        Format::Exr => write_exr(path, img, ExrPrecision::Float),
+        Format::Hdr => write_hdr(path, img),
+        Format::Png | Format::Tiff => write_ldr(path, img, BitDepth::Sixteen),
+    }
+}

@@ -1,0 +1,13 @@
+//! hdrsynth: sensor-realistic synthetic data for multi-frame HDR networks.
+//! See ARCHITECTURE in docs/architecture.md for the one-way flow and where things live.
+
+pub mod cli;
+pub mod config;
+pub mod data;
+pub mod device;
+pub mod error;
+pub mod io;
+pub mod rng;
+pub mod sensor;
+
+pub use error::{Error, Result};
