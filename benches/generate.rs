@@ -7,7 +7,9 @@ use hdrsynth::data::scene::Generator;
 use std::time::Duration;
 
 fn config(width: usize, height: usize) -> GenerateConfig {
-    let text = format!("seed = 7\ncount = 1\nwidth = {width}\nheight = {height}\nevs = [-2.0, 0.0, 2.0]\n");
+    let text = format!(
+        "seed = 7\ncount = 1\nwidth = {width}\nheight = {height}\nevs = [-2.0, 0.0, 2.0]\n"
+    );
     toml::from_str(&text).expect("bench config")
 }
 
@@ -29,7 +31,7 @@ fn bench(c: &mut Criterion) {
                 let mut acc = 0.0f32;
                 for (i, dynamic) in s.dynamic_radiance.iter().enumerate() {
                     for img in [&s.static_radiance, dynamic] {
-                        let f = s.linear_frame(img, i).map(|v| curve.apply(v));
+                        let f = curve.display(img, s.frame_gain(i));
                         acc += f.data[0];
                     }
                 }

@@ -76,7 +76,9 @@ impl GenerateConfig {
     }
 
     fn origin(&self) -> PathBuf {
-        self.source.clone().unwrap_or_else(|| PathBuf::from("<config>"))
+        self.source
+            .clone()
+            .unwrap_or_else(|| PathBuf::from("<config>"))
     }
 
     pub fn validate(&self) -> Result<()> {
@@ -87,10 +89,16 @@ impl GenerateConfig {
             return bad("count must be ≥ 1".into());
         }
         if self.evs.is_empty() || !self.evs.contains(&0.0) {
-            return bad(format!("evs {:?} must contain 0 (the reference frame)", self.evs));
+            return bad(format!(
+                "evs {:?} must contain 0 (the reference frame)",
+                self.evs
+            ));
         }
         if self.evs.windows(2).any(|w| w[0] >= w[1]) || self.evs.iter().any(|e| !e.is_finite()) {
-            return bad(format!("evs {:?} must be finite and strictly ascending", self.evs));
+            return bad(format!(
+                "evs {:?} must be finite and strictly ascending",
+                self.evs
+            ));
         }
         if BitDepth::from_bits(self.bit_depth).is_none() {
             return bad(format!("bit_depth {} must be 8 or 16", self.bit_depth));
@@ -101,13 +109,16 @@ impl GenerateConfig {
         }
         for (name, v) in [
             ("scene.articulated_fraction", s.articulated_fraction),
-            ("scene.real_background_probability", s.real_background_probability),
+            (
+                "scene.real_background_probability",
+                s.real_background_probability,
+            ),
         ] {
             if !(0.0..=1.0).contains(&v) {
                 return bad(format!("{name} = {v} must be in [0, 1]"));
             }
         }
-        if !(s.motion_scale >= 0.0) {
+        if s.motion_scale.is_nan() || s.motion_scale < 0.0 {
             return bad("scene.motion_scale must be ≥ 0".into());
         }
         let c = &self.camera;
@@ -120,7 +131,10 @@ impl GenerateConfig {
                 c.target_over, c.target_under
             ));
         }
-        if !(c.under_threshold > 0.0 && c.under_threshold < c.over_threshold && c.over_threshold < 1.0) {
+        if !(c.under_threshold > 0.0
+            && c.under_threshold < c.over_threshold
+            && c.over_threshold < 1.0)
+        {
             return bad("camera thresholds need 0 < under_threshold < over_threshold < 1".into());
         }
         Ok(())

@@ -8,7 +8,8 @@ use hdrsynth::io::{read_image, read_image_info};
 use std::path::{Path, PathBuf};
 
 fn cfg(extra: &str) -> GenerateConfig {
-    let text = format!("seed = 11\ncount = 2\nwidth = 160\nheight = 120\nevs = [-2.0, 0.0, 2.0]\n{extra}");
+    let text =
+        format!("seed = 11\ncount = 2\nwidth = 160\nheight = 120\nevs = [-2.0, 0.0, 2.0]\n{extra}");
     let mut c: GenerateConfig = parse_toml(&text, Path::new("test.toml")).expect("config parses");
     c.validate().expect("config valid");
     c.source = None;
@@ -22,13 +23,19 @@ fn generate(c: &GenerateConfig, out: &Path) {
 /// Independent inverse of the engine curve: sRGB decode, then solve
 /// y = x(2.51x+0.03)/(x(2.43x+0.59)+0.14) for x (Narkowicz 2015).
 fn filmic_inverse(v: f64) -> f64 {
-    let y = if v <= 0.04045 { v / 12.92 } else { ((v + 0.055) / 1.055).powf(2.4) };
+    let y = if v <= 0.04045 {
+        v / 12.92
+    } else {
+        ((v + 0.055) / 1.055).powf(2.4)
+    };
     let (a, b, c) = (2.51 - 2.43 * y, 0.03 - 0.59 * y, -0.14 * y);
     (-b + (b * b - 4.0 * a * c).sqrt()) / (2.0 * a)
 }
 
 fn frame(root: &Path, set: &str, kind: &str, ev: f32, ext: &str) -> PathBuf {
-    root.join(set).join(kind).join(format!("{}.{ext}", ev_tag(ev)))
+    root.join(set)
+        .join(kind)
+        .join(format!("{}.{ext}", ev_tag(ev)))
 }
 
 #[test]
@@ -42,12 +49,17 @@ fn bracket_ratios_are_two_to_the_delta_ev_where_nothing_clips() {
         let hi = read_image(&frame(dir.path(), set, "static", 2.0, "exr")).expect("exr");
         for (a, b) in lo.data.iter().zip(&hi.data) {
             if *a > 1e-6 {
-                assert!(((b / a) - 16.0).abs() < 16.0 * 1e-5, "linear ratio {} ", b / a);
+                assert!(
+                    ((b / a) - 16.0).abs() < 16.0 * 1e-5,
+                    "linear ratio {} ",
+                    b / a
+                );
             }
         }
         // Display PNGs (16-bit): undo the documented curve; where neither frame clips
         // (code values in [0.05, 0.95]) the ratio of EV+0 to EV−2 must be 4.
-        let (d_lo, info) = read_image_info(&frame(dir.path(), set, "static", -2.0, "png")).expect("png");
+        let (d_lo, info) =
+            read_image_info(&frame(dir.path(), set, "static", -2.0, "png")).expect("png");
         assert_eq!(info.bit_depth, Some(hdrsynth::io::BitDepth::Sixteen));
         let d_mid = read_image(&frame(dir.path(), set, "static", 0.0, "png")).expect("png");
         let mut n = 0;
@@ -62,7 +74,10 @@ fn bracket_ratios_are_two_to_the_delta_ev_where_nothing_clips() {
         }
         assert!(n > 1000, "too few unclipped pixels ({n}) to test set {set}");
         // 16-bit quantisation gives < 0.1% relative error at code value ≥ 0.05.
-        assert!(worst < 2e-3, "set {set}: worst relative ratio error {worst}");
+        assert!(
+            worst < 2e-3,
+            "set {set}: worst relative ratio error {worst}"
+        );
     }
 }
 
@@ -75,8 +90,13 @@ fn static_and_dynamic_sets_agree_exactly_outside_the_motion_masks() {
         for ev in [-2.0f32, 0.0, 2.0] {
             let s = read_image(&frame(dir.path(), set, "static", ev, "exr")).expect("static");
             let d = read_image(&frame(dir.path(), set, "dynamic", ev, "exr")).expect("dynamic");
-            let m = read_image(&dir.path().join(set).join("dynamic").join(format!("mask_{}.png", ev_tag(ev))))
-                .expect("mask");
+            let m = read_image(
+                &dir.path()
+                    .join(set)
+                    .join("dynamic")
+                    .join(format!("mask_{}.png", ev_tag(ev))),
+            )
+            .expect("mask");
             let (mut masked, mut differ_inside) = (0, 0);
             for i in 0..s.pixel_count() {
                 let moving = m.data[i * 3] > 0.5;
@@ -85,17 +105,26 @@ fn static_and_dynamic_sets_agree_exactly_outside_the_motion_masks() {
                     masked += 1;
                     differ_inside += (!same) as usize;
                 } else {
-                    assert!(same, "set {set} ev {ev}: pixel {i} differs outside the mask");
+                    assert!(
+                        same,
+                        "set {set} ev {ev}: pixel {i} differs outside the mask"
+                    );
                 }
             }
             if ev == 0.0 {
                 // The reference frame is shared: nothing moves.
                 assert_eq!(masked, 0);
             } else {
-                assert!(masked > 50, "set {set} ev {ev}: mask nearly empty ({masked})");
+                assert!(
+                    masked > 50,
+                    "set {set} ev {ev}: mask nearly empty ({masked})"
+                );
                 // The mask marks motion, not the whole frame, and motion changes pixels there.
                 assert!(masked < s.pixel_count() * 3 / 4);
-                assert!(differ_inside * 2 > masked, "set {set} ev {ev}: {differ_inside}/{masked}");
+                assert!(
+                    differ_inside * 2 > masked,
+                    "set {set} ev {ev}: {differ_inside}/{masked}"
+                );
             }
         }
     }
@@ -138,7 +167,10 @@ fn mean_fractions(c: &GenerateConfig, n: u64) -> (f32, f32) {
         let s = g.render(i);
         let ev0 = s.linear_frame(&s.static_radiance, s.reference);
         let total = ev0.pixel_count() as f32;
-        let maxc: Vec<f32> = ev0.pixels().map(|p| c.tone_curve.apply(p[0].max(p[1]).max(p[2]))).collect();
+        let maxc: Vec<f32> = ev0
+            .pixels()
+            .map(|p| c.tone_curve.apply(p[0].max(p[1]).max(p[2])))
+            .collect();
         over += maxc.iter().filter(|v| **v >= 0.98).count() as f32 / total;
         under += maxc.iter().filter(|v| **v <= 0.02).count() as f32 / total;
     }
@@ -160,15 +192,24 @@ fn viewpoint_control_moves_exposure_fractions_toward_targets() {
     assert!((u1 - 0.03).abs() < 0.04, "under {u1} for target 0.03");
     assert!((o2 - 0.15).abs() < 0.05, "over {o2} for target 0.15");
     // Under-exposure is bounded by the dark content a world has; it must still rise clearly.
-    assert!(u2 > u1 + 0.08 && u2 > 0.12, "under {u2} for target 0.25 (vs {u1})");
+    assert!(
+        u2 > u1 + 0.08 && u2 > 0.12,
+        "under {u2} for target 0.25 (vs {u1})"
+    );
 }
 
 #[test]
 fn rendering_is_deterministic_and_thread_count_independent() {
     let c = cfg("");
     let g = Generator::new(&c).expect("generator");
-    let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("pool");
-    let four = rayon::ThreadPoolBuilder::new().num_threads(4).build().expect("pool");
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .expect("pool");
+    let four = rayon::ThreadPoolBuilder::new()
+        .num_threads(4)
+        .build()
+        .expect("pool");
     let a = one.install(|| g.render(3));
     let b = four.install(|| g.render(3));
     assert_eq!(a.static_radiance, b.static_radiance);
@@ -190,10 +231,13 @@ fn interrupted_generation_resumes_and_other_configs_are_refused() {
     std::fs::remove_file(dir.path().join("000001/hdr_gt.exr")).expect("rm");
     let s = hdrsynth::cli::generate::generate(&c, dir.path(), false).expect("resume");
     assert_eq!((s.generated, s.resumed), (1, 2));
-    assert_eq!(std::fs::read(dir.path().join("000001/hdr_gt.exr")).expect("gt"), gt1);
+    assert_eq!(
+        std::fs::read(dir.path().join("000001/hdr_gt.exr")).expect("gt"),
+        gt1
+    );
     let mut other = c.clone();
     other.seed += 1;
-    let err = hdrsynth::cli::generate::generate(&other, dir.path(), false).err().expect("refused");
+    let err = hdrsynth::cli::generate::generate(&other, dir.path(), false).expect_err("refused");
     assert!(err.to_string().contains("different config"), "{err}");
 }
 
@@ -201,14 +245,32 @@ fn interrupted_generation_resumes_and_other_configs_are_refused() {
 fn bad_configs_name_file_and_problem() {
     let dir = tempfile::tempdir().expect("tempdir");
     let p = dir.path().join("gen.toml");
-    std::fs::write(&p, "seed = 1\ncount = 1\nwidth = 64\nheight = 48\nevs = [-3.0, 0.0]\nbogus = 3\n").expect("write");
-    let e = GenerateConfig::load(&p).err().expect("unknown key rejected").to_string();
+    std::fs::write(
+        &p,
+        "seed = 1\ncount = 1\nwidth = 64\nheight = 48\nevs = [-3.0, 0.0]\nbogus = 3\n",
+    )
+    .expect("write");
+    let e = GenerateConfig::load(&p)
+        .expect_err("unknown key rejected")
+        .to_string();
     assert!(e.contains("gen.toml:6") && e.contains("bogus"), "{e}");
-    std::fs::write(&p, "seed = 1\ncount = 1\nwidth = 4033\nheight = 3024\nevs = [-3.0, 0.0]\n").expect("write");
-    let e = GenerateConfig::load(&p).err().expect("size rejected").to_string();
+    std::fs::write(
+        &p,
+        "seed = 1\ncount = 1\nwidth = 4033\nheight = 3024\nevs = [-3.0, 0.0]\n",
+    )
+    .expect("write");
+    let e = GenerateConfig::load(&p)
+        .expect_err("size rejected")
+        .to_string();
     assert!(e.contains("gen.toml") && e.contains("4032"), "{e}");
-    std::fs::write(&p, "seed = 1\ncount = 1\nwidth = 64\nheight = 48\nevs = [-3.0, -1.0]\n").expect("write");
-    let e = GenerateConfig::load(&p).err().expect("no reference rejected").to_string();
+    std::fs::write(
+        &p,
+        "seed = 1\ncount = 1\nwidth = 64\nheight = 48\nevs = [-3.0, -1.0]\n",
+    )
+    .expect("write");
+    let e = GenerateConfig::load(&p)
+        .expect_err("no reference rejected")
+        .to_string();
     assert!(e.contains("must contain 0"), "{e}");
 }
 
@@ -216,7 +278,10 @@ fn bad_configs_name_file_and_problem() {
 fn real_radiance_backgrounds_are_used_when_configured() {
     let real = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/real_hdr");
     if !real.is_dir() {
-        eprintln!("skipping: {} not found (shared data absent)", real.display());
+        eprintln!(
+            "skipping: {} not found (shared data absent)",
+            real.display()
+        );
         return;
     }
     let mut c = cfg("");
@@ -226,5 +291,38 @@ fn real_radiance_backgrounds_are_used_when_configured() {
     let s = g.render(0);
     let name = s.stats.background.clone().expect("real background used");
     assert!(name.ends_with(".exr"), "{name}");
-    assert!(s.static_radiance.data.iter().all(|v| v.is_finite() && *v >= 0.0));
+    assert!(
+        s.static_radiance
+            .data
+            .iter()
+            .all(|v| v.is_finite() && *v >= 0.0)
+    );
+}
+
+#[test]
+fn generated_dataset_is_detected_loaded_and_reported() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let c = cfg("");
+    generate(&c, dir.path());
+    let info = hdrsynth::data::layout::detect(dir.path()).expect("detect");
+    assert_eq!(info.layout, hdrsynth::data::layout::LayoutKind::Hdrsynth);
+    assert_eq!(info.sets.len(), 2);
+    let set = &info.sets[0];
+    assert_eq!((set.width, set.height), (160, 120));
+    assert_eq!(set.evs, vec![-2.0, 0.0, 2.0]);
+    assert_eq!(set.reference, 1);
+    let loaded = hdrsynth::data::layout::load_set(set).expect("load");
+    assert_eq!(loaded.static_frames.len(), 3);
+    assert_eq!(loaded.dynamic_frames.len(), 3);
+    // The display reference frame is the tone-mapped ground truth, to 8-bit precision.
+    let gt = loaded.ground_truth.expect("gt");
+    let curve = hdrsynth::sensor::response::ToneCurve::Filmic;
+    for (d, g) in loaded.static_frames[1].data.iter().zip(&gt.data) {
+        assert!((d - curve.apply(*g)).abs() <= 0.5 / 255.0 + 1e-6);
+    }
+    let report = hdrsynth::cli::dataset::info_report(dir.path()).expect("report");
+    assert!(
+        report.contains("hdrsynth") && report.contains("000001"),
+        "{report}"
+    );
 }

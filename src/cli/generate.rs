@@ -9,6 +9,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use std::path::Path;
 use std::time::Instant;
 
+#[derive(Debug)]
 pub struct Summary {
     pub generated: usize,
     pub resumed: usize,
@@ -55,8 +56,10 @@ pub fn generate(cfg: &GenerateConfig, out: &Path, progress: bool) -> Result<Summ
         ProgressBar::hidden()
     };
     bar.set_style(
-        ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} sets {msg}")
-            .expect("static template"),
+        ProgressStyle::with_template(
+            "{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} sets {msg}",
+        )
+        .expect("static template"),
     );
     let start = Instant::now();
     let mut s = Summary {

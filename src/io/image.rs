@@ -20,7 +20,11 @@ impl Image {
 
     /// Panics if `data.len() != width * height * 3` (a programming error, not bad input).
     pub fn from_vec(width: usize, height: usize, data: Vec<f32>) -> Self {
-        assert_eq!(data.len(), width * height * 3, "Image::from_vec: wrong length");
+        assert_eq!(
+            data.len(),
+            width * height * 3,
+            "Image::from_vec: wrong length"
+        );
         Image {
             width,
             height,
@@ -28,7 +32,11 @@ impl Image {
         }
     }
 
-    pub fn from_fn(width: usize, height: usize, mut f: impl FnMut(usize, usize) -> [f32; 3]) -> Self {
+    pub fn from_fn(
+        width: usize,
+        height: usize,
+        mut f: impl FnMut(usize, usize) -> [f32; 3],
+    ) -> Self {
         let mut img = Image::new(width, height);
         for y in 0..height {
             for x in 0..width {

@@ -12,7 +12,7 @@ mod ldr;
 pub mod srgb;
 
 pub use image::{Image, dynamic_range_stops, luminance};
-pub use srgb::{srgb_decode, srgb_encode};
+pub use srgb::{srgb_decode, srgb_encode, srgb_encode_fast};
 
 use crate::error::{Error, Result};
 use std::path::Path;

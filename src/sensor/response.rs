@@ -6,7 +6,8 @@
 //! followed by the sRGB transfer function. It saturates at x = X_SAT ≈ 7.24 (scene-linear,
 //! where 0.18 is mid grey), about 5.3 stops above mid grey.
 
-use crate::io::{srgb_decode, srgb_encode};
+use crate::io::{Image, srgb_decode, srgb_encode_fast};
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 #[derive(Clone, Copy, Debug, PartialEq, Default, Serialize, Deserialize)]
@@ -54,8 +55,8 @@ impl ToneCurve {
     #[inline]
     pub fn apply(self, x: f32) -> f32 {
         match self {
-            ToneCurve::Filmic => srgb_encode(aces_fit(x)),
-            ToneCurve::Srgb => srgb_encode(x.clamp(0.0, 1.0)),
+            ToneCurve::Filmic => srgb_encode_fast(aces_fit(x)),
+            ToneCurve::Srgb => srgb_encode_fast(x),
             ToneCurve::Linear => x.clamp(0.0, 1.0),
         }
     }
@@ -69,6 +70,20 @@ impl ToneCurve {
             ToneCurve::Srgb => srgb_decode(v),
             ToneCurve::Linear => v,
         }
+    }
+
+    /// Display frame of `radiance · gain` in one parallel pass (no intermediate image).
+    pub fn display(self, radiance: &Image, gain: f32) -> Image {
+        let mut out = Image::new(radiance.width, radiance.height);
+        out.data
+            .par_chunks_mut(4096)
+            .zip(radiance.data.par_chunks(4096))
+            .for_each(|(o, r)| {
+                for (o, r) in o.iter_mut().zip(r) {
+                    *o = self.apply(r * gain);
+                }
+            });
+        out
     }
 
     /// Smallest linear value that maps to code value 1 (clips).
@@ -85,13 +100,14 @@ mod tests {
     use super::*;
     #[test]
     fn filmic_hand_values() {
-        // f(0.18) = 0.18(2.51·0.18+0.03)/(0.18(2.43·0.18+0.59)+0.14) = 0.086724/0.325928 = 0.266083
+        // f(0.18) = 0.18(2.51·0.18+0.03)/(0.18(2.43·0.18+0.59)+0.14) = 0.086724/0.324932 = 0.266899
         let lin = 0.18f32 * (2.51 * 0.18 + 0.03) / (0.18 * (2.43 * 0.18 + 0.59) + 0.14);
-        assert!((lin - 0.266_083).abs() < 1e-5);
-        assert!((ToneCurve::Filmic.apply(0.18) - srgb_encode(0.266_083)).abs() < 1e-5);
+        assert!((lin - 0.266_899).abs() < 1e-5);
+        let srgb = 1.055 * 0.266_899f32.powf(1.0 / 2.4) - 0.055;
+        assert!((ToneCurve::Filmic.apply(0.18) - srgb).abs() < 1e-5);
         // Saturation: 0.08x² − 0.56x − 0.14 = 0 → x = (0.56 + √0.3584)/0.16 = 7.2416
         assert!((filmic_saturation() - 7.241_64).abs() < 1e-3);
-        assert_eq!(ToneCurve::Filmic.apply(10.0), 1.0);
+        assert!((ToneCurve::Filmic.apply(10.0) - 1.0).abs() < 1e-6);
     }
     #[test]
     fn inverse_round_trip() {

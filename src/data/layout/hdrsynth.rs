@@ -121,12 +121,12 @@ pub fn write_set(
     jobs.par_iter().try_for_each(|job| -> Result<()> {
         match job {
             Job::Frame(set, radiance, i) => {
-                let lin = sample.linear_frame(radiance, *i);
                 let ev = sample.evs[*i];
                 if cfg.write_linear {
+                    let lin = sample.linear_frame(radiance, *i);
                     write_exr(&frame_path(&dir, set, ev, "exr"), &lin, cfg.exr_precision)?;
                 }
-                let display = lin.map(|v| curve.apply(v));
+                let display = curve.display(radiance, sample.frame_gain(*i));
                 write_ldr(&frame_path(&dir, set, ev, "png"), &display, depth)
             }
             Job::Mask(i) => {

@@ -98,8 +98,11 @@ impl Material {
                 let fu = (uu - col - 0.5) * bw; // distance from brick centre, world units
                 let fv = (v / bh - row - 0.5) * bh;
                 let mortar_hw = bh * 0.07;
-                let cov = line_cov(bw * 0.5 - fu.abs(), mortar_hw, px)
-                    .max(line_cov(bh * 0.5 - fv.abs(), mortar_hw, px));
+                let cov = line_cov(bw * 0.5 - fu.abs(), mortar_hw, px).max(line_cov(
+                    bh * 0.5 - fv.abs(),
+                    mortar_hw,
+                    px,
+                ));
                 mix(brick, self.c2, cov * band_weight(f * 3.0, px))
             }
             Pattern::Tiles => {
@@ -109,8 +112,11 @@ impl Material {
                 let tile = mix(self.c1, self.c2, check);
                 let fu = (u / s - iu - 0.5) * s;
                 let fv = (v / s - iv - 0.5) * s;
-                let cov = line_cov(s * 0.5 - fu.abs(), s * 0.03, px)
-                    .max(line_cov(s * 0.5 - fv.abs(), s * 0.03, px));
+                let cov = line_cov(s * 0.5 - fu.abs(), s * 0.03, px).max(line_cov(
+                    s * 0.5 - fv.abs(),
+                    s * 0.03,
+                    px,
+                ));
                 mix(tile, [0.05, 0.05, 0.05], cov * band_weight(f * 8.0, px))
             }
             Pattern::Stripes => {
@@ -120,7 +126,8 @@ impl Material {
                 mix(self.c1, self.c2, t)
             }
             Pattern::Wood => {
-                let r = (u * u + 0.05 * v * v).sqrt() + 0.08 * fbm(self.seed, u, v, f * 0.5, 0.5, px);
+                let r =
+                    (u * u + 0.05 * v * v).sqrt() + 0.08 * fbm(self.seed, u, v, f * 0.5, 0.5, px);
                 let w = band_weight(f * 4.0, px);
                 let t = 0.5 + 0.5 * w * (r * f * 4.0 * std::f32::consts::TAU).sin();
                 mix(self.c1, self.c2, t)

@@ -151,9 +151,13 @@ pub struct RenderedSample {
 }
 
 impl RenderedSample {
+    /// Gain from radiance to frame `i`'s linear value: key · 2^ev_i.
+    pub fn frame_gain(&self, i: usize) -> f32 {
+        self.stats.exposure_key * self.evs[i].exp2()
+    }
     /// Linear value of frame `i` of a set: radiance · key · 2^ev_i.
     pub fn linear_frame(&self, radiance: &Image, i: usize) -> Image {
-        let g = self.stats.exposure_key * self.evs[i].exp2();
+        let g = self.frame_gain(i);
         radiance.map(|v| v * g)
     }
     /// The HDR ground truth: static radiance at the reference exposure (EV0).
@@ -177,18 +181,28 @@ impl Generator {
                 .filter_map(|e| e.ok().map(|e| e.path()))
                 .filter(|p| {
                     matches!(
-                        p.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref(),
+                        p.extension()
+                            .and_then(|e| e.to_str())
+                            .map(str::to_ascii_lowercase)
+                            .as_deref(),
                         Some("exr" | "hdr")
                     )
                 })
                 .collect();
             files.sort();
             if files.is_empty() {
-                return Err(Error::config(dir, "backgrounds_dir holds no .exr or .hdr files"));
+                return Err(Error::config(
+                    dir,
+                    "backgrounds_dir holds no .exr or .hdr files",
+                ));
             }
             for f in files {
                 let img = read_image(&f)?;
-                let name = f.file_name().unwrap_or_default().to_string_lossy().into_owned();
+                let name = f
+                    .file_name()
+                    .unwrap_or_default()
+                    .to_string_lossy()
+                    .into_owned();
                 backgrounds.push((name, Arc::new(img)));
             }
         }
@@ -206,14 +220,13 @@ impl Generator {
     pub fn render(&self, index: u64) -> RenderedSample {
         let cfg = &self.cfg;
         let mut rng = Rng::from_parts(cfg.seed, &[index]);
-        let (world, background) = if !self.backgrounds.is_empty()
-            && rng.chance(cfg.scene.real_background_probability)
-        {
-            let (name, img) = rng.pick(&self.backgrounds).clone();
-            (World::real(&mut rng, img), Some(name))
-        } else {
-            (World::procedural(&mut rng), None)
-        };
+        let (world, background) =
+            if !self.backgrounds.is_empty() && rng.chance(cfg.scene.real_background_probability) {
+                let (name, img) = rng.pick(&self.backgrounds).clone();
+                (World::real(&mut rng, img), Some(name))
+            } else {
+                (World::procedural(&mut rng), None)
+            };
         let (camera, key) = choose_viewpoint(&world, cfg, &mut rng);
 
         let n = rng.int(cfg.scene.subjects[0], cfg.scene.subjects[1]);
@@ -240,7 +253,8 @@ impl Generator {
         let times: Vec<f32> = (0..cfg.evs.len())
             .map(|i| i as f32 - reference as f32)
             .collect();
-        let (static_radiance, _) = composite(&background_img, &world, &subjects, &camera, 0.0, None);
+        let (static_radiance, _) =
+            composite(&background_img, &world, &subjects, &camera, 0.0, None);
         let mut dynamic_radiance = Vec::with_capacity(times.len());
         let mut masks = Vec::with_capacity(times.len());
         for &t in &times {
@@ -248,7 +262,8 @@ impl Generator {
                 dynamic_radiance.push(static_radiance.clone());
                 masks.push(vec![0u8; camera.width * camera.height]);
             } else {
-                let (img, mask) = composite(&background_img, &world, &subjects, &camera, t, Some(0.0));
+                let (img, mask) =
+                    composite(&background_img, &world, &subjects, &camera, t, Some(0.0));
                 dynamic_radiance.push(img);
                 masks.push(mask);
             }
@@ -388,7 +403,14 @@ fn composite(
         None => Vec::new(),
     };
     let mut img = background.clone();
-    let mut mask = vec![0u8; if mask_against.is_some() { cam.pixel_count() } else { 0 }];
+    let mut mask = vec![
+        0u8;
+        if mask_against.is_some() {
+            cam.pixel_count()
+        } else {
+            0
+        }
+    ];
     let px = cam.px();
     let w = cam.width;
     // Pixel rectangle touched by a posed subject (its bbox plus one pixel).
@@ -439,10 +461,10 @@ fn composite(
                     if row < r0 || row >= r1 {
                         continue;
                     }
-                    for col in c0..c1 {
+                    for (col, mv) in m.iter_mut().enumerate().take(c1).skip(c0) {
                         let (x, y) = cam.world(col, row);
                         if p.coverage(x, y, px).0 > 0.0 {
-                            m[col] = 1;
+                            *mv = 1;
                         }
                     }
                 }

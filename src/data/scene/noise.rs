@@ -56,7 +56,13 @@ pub fn fbm(seed: u32, x: f32, y: f32, freq: f32, gain: f32, px: f32) -> f32 {
             break;
         }
         // Offset each octave so lattice points do not line up across octaves.
-        sum += amp * w * value_noise(seed.wrapping_add(o * 0x9e37), x * f + o as f32 * 17.3, y * f);
+        sum += amp
+            * w
+            * value_noise(
+                seed.wrapping_add(o * 0x9e37),
+                x * f + o as f32 * 17.3,
+                y * f,
+            );
         norm += amp;
         f *= 2.0;
         amp *= gain;

@@ -8,10 +8,20 @@ use crate::rng::Rng;
 
 #[derive(Clone, Debug)]
 pub enum Shape {
-    Ellipse { a: f32, b: f32 },
+    Ellipse {
+        a: f32,
+        b: f32,
+    },
     /// Regular polygon with `n` sides and circumradius `r`.
-    Polygon { n: usize, r: f32 },
-    RoundRect { hw: f32, hh: f32, r: f32 },
+    Polygon {
+        n: usize,
+        r: f32,
+    },
+    RoundRect {
+        hw: f32,
+        hh: f32,
+        r: f32,
+    },
     /// Stick figure: torso, head, two two-segment arms and legs (capsules).
     Figure(Figure),
 }
@@ -82,7 +92,14 @@ pub struct Posed<'a> {
 }
 
 impl Subject {
-    pub fn random(rng: &mut Rng, cx: f32, cy: f32, view_w: f32, motion: f32, articulated: bool) -> Subject {
+    pub fn random(
+        rng: &mut Rng,
+        cx: f32,
+        cy: f32,
+        view_w: f32,
+        motion: f32,
+        articulated: bool,
+    ) -> Subject {
         let size = view_w * rng.range(0.06, 0.16);
         let shape = if articulated {
             let mut joints = [[0.0f32; 4]; 9];
@@ -122,7 +139,11 @@ impl Subject {
         let dir = rng.range(0.0, std::f32::consts::TAU);
         let emissive = (!articulated && rng.chance(0.15)).then(|| {
             let level = rng.stops(4.0, 9.0);
-            [level, level * rng.range(0.6, 1.0), level * rng.range(0.3, 1.0)]
+            [
+                level,
+                level * rng.range(0.6, 1.0),
+                level * rng.range(0.3, 1.0),
+            ]
         });
         Subject {
             shape,
@@ -149,7 +170,12 @@ impl Subject {
             Shape::RoundRect { hw, hh, .. } => (hw * hw + hh * hh).sqrt(),
             Shape::Figure(fig) => {
                 capsules = fig.capsules(cx, cy, t);
-                let mut bb = [f32::INFINITY, f32::INFINITY, f32::NEG_INFINITY, f32::NEG_INFINITY];
+                let mut bb = [
+                    f32::INFINITY,
+                    f32::INFINITY,
+                    f32::NEG_INFINITY,
+                    f32::NEG_INFINITY,
+                ];
                 for c in &capsules {
                     bb[0] = bb[0].min(c.ax.min(c.bx) - c.r);
                     bb[1] = bb[1].min(c.ay.min(c.by) - c.r);
@@ -298,7 +324,11 @@ impl Posed<'_> {
     pub fn radiance(&self, u: f32, v: f32, px: f32, e: f32) -> [f32; 3] {
         let a = self.subject.material.albedo(u, v, px);
         match self.subject.emissive {
-            Some(c) => [c[0] * (0.6 + 0.4 * a[0]), c[1] * (0.6 + 0.4 * a[1]), c[2] * (0.6 + 0.4 * a[2])],
+            Some(c) => [
+                c[0] * (0.6 + 0.4 * a[0]),
+                c[1] * (0.6 + 0.4 * a[1]),
+                c[2] * (0.6 + 0.4 * a[2]),
+            ],
             None => [a[0] * e, a[1] * e, a[2] * e],
         }
     }

@@ -329,13 +329,20 @@ impl World {
         let t = (y / self.horizon.max(1e-3)).clamp(0.0, 1.0);
         let mut c = lerp(self.sky_zenith, self.sky_horizon, t * t);
         let cloud = (fbm(self.seed ^ 0xc10d, x, y * 2.5, 2.0, 0.5, px) - 0.1).max(0.0);
-        c = lerp(c, mul([1.0, 1.0, 1.0], 2.5 * self.sky_horizon[1]), (cloud * 1.6).min(1.0));
+        c = lerp(
+            c,
+            mul([1.0, 1.0, 1.0], 2.5 * self.sky_horizon[1]),
+            (cloud * 1.6).min(1.0),
+        );
         if let Some(sun) = &self.sun {
             let d = ((x - sun.x).powi(2) + (y - sun.y).powi(2)).sqrt();
             let cov = coverage(d - sun.r, px);
             // Aureole: scattered sunlight falling off with the square of angular distance.
             let halo = (sun.r / d.max(sun.r)).powi(2) * (2.0f32).powi(-10);
-            c = add(lerp(c, sun.radiance, cov), mul(sun.radiance, halo * (1.0 - cov)));
+            c = add(
+                lerp(c, sun.radiance, cov),
+                mul(sun.radiance, halo * (1.0 - cov)),
+            );
         }
         c
     }
@@ -393,7 +400,10 @@ impl World {
     #[inline]
     fn deep(&self, seed: u32, x: f32, y: f32, px: f32) -> [f32; 3] {
         let t = 0.5 + 0.5 * fbm(seed ^ 0xdee9, x, y, 20.0, 0.6, px);
-        mul([0.6, 0.5, 0.4], self.deep_e * (0.15 + 0.85 * t.clamp(0.0, 1.0)))
+        mul(
+            [0.6, 0.5, 0.4],
+            self.deep_e * (0.15 + 0.85 * t.clamp(0.0, 1.0)),
+        )
     }
 
     fn outdoor(&self, x: f32, y: f32, px: f32) -> [f32; 3] {
