@@ -1,3 +1,5 @@
-//! The sensor model. For now: the response curves shared by the scene engine (its display
-//! tone curve) and, later, the device model. `response` depends on nothing else in the crate.
+//! The sensor model: device profiles, response curves, colour and noise calibration, and the
+//! realism operator that turns pure synthetic frames into sensor-realistic ones.
+pub mod effects;
+pub mod profile;
 pub mod response;

@@ -1,0 +1,274 @@
+//! SensorProfile: one device's sensor model, serialised as TOML under configs/sensors/, with
+//! the provenance of every number.
+//!
+//! Units and conventions:
+//! - Colour: `colour.matrix` is T, mapping synthetic linear RGB (linear sRGB/Rec.709 primaries,
+//!   what the scene engine and renders produce) to the device's linear RGB, real = T · synthetic
+//!   (the paper's Eq. 1). Device linear RGB is white-balanced camera RGB: a neutral stays
+//!   (approximately) neutral. `root_polynomial` (3×6, terms R, G, B, √RG, √GB, √RB) replaces T
+//!   when `use_root_polynomial = true`.
+//! - Signal: DN (digital numbers) as the sensor stores them, with `black_level` and
+//!   `white_level` in DN and `bit_depth` bits per sample. Linear value 1.0 maps to the white
+//!   level: DN = black + v · (white − black) · exposure.
+//! - Noise: in darktable's normalised convention, σ²(x) = a · x + b with x = (DN − black) /
+//!   (white − black) the signal normalised to [0, 1], per ISO and per channel (R, G, B). In DN:
+//!   σ²_DN = a·(W−B)·I + b·(W−B)² for I DN above black. Between calibrated ISOs a and b are
+//!   interpolated linearly in log(ISO); outside the calibrated range is an error, never a silent
+//!   extrapolation. A profile may have no noise (or no colour) calibration yet: the realism
+//!   operator then refuses to run the missing step unless told to skip it.
+
+use crate::config::load_toml;
+use crate::error::{Error, Result};
+use crate::sensor::response::ToneCurve;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// Where each group of numbers came from. Free text, but every field is required: a profile
+/// whose numbers have no source is not a device profile.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Provenance {
+    pub colour: String,
+    pub noise: String,
+    pub levels: String,
+    pub response: String,
+    #[serde(default)]
+    pub notes: Option<String>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ProfileKind {
+    /// Every number measured on, or published for, the named real device.
+    Measured,
+    /// Invented numbers for examples and tests; never a real device.
+    SyntheticExample,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Colour {
+    /// T (3×3): synthetic linear RGB → device linear RGB.
+    pub matrix: [[f64; 3]; 3],
+    /// Optional root-polynomial degree-2 matrix (3×6: R, G, B, √RG, √GB, √RB).
+    #[serde(default)]
+    pub root_polynomial: Option<[[f64; 6]; 3]>,
+    #[serde(default)]
+    pub use_root_polynomial: bool,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Levels {
+    pub black_level: f64,
+    pub white_level: f64,
+    pub bit_depth: u32,
+}
+
+/// Noise at one ISO: σ²(x) = a·x + b, x the signal normalised to [0, 1], per channel R, G, B.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NoiseAtIso {
+    pub iso: f64,
+    pub a: [f64; 3],
+    pub b: [f64; 3],
+    /// Standard errors of a and b where the calibration reported them.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub a_stderr: Option<[f64; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub b_stderr: Option<[f64; 3]>,
+}
+
+/// A response curve: linear value in [0, 1] → code value in [0, 1].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
+pub enum Response {
+    Linear,
+    Srgb,
+    Gamma { gamma: f64 },
+    /// The scene engine's display curve (docs/scene.md).
+    Filmic,
+    /// Sampled curve: `lut[i]` is the code value at linear i / (n − 1); monotone increasing.
+    Lut { lut: Vec<f64> },
+}
+
+/// An extra physical effect, applied by the realism operator in physical order. Filled by the
+/// gap workflow; `id` must name an effect of the catalogue (src/sensor/effects/).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct EffectSpec {
+    pub id: String,
+    #[serde(flatten)]
+    pub params: toml::Table,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SensorProfile {
+    pub format: String,
+    pub name: String,
+    pub kind: ProfileKind,
+    pub provenance: Provenance,
+    /// Absent until a colour calibration has been made.
+    #[serde(default)]
+    pub colour: Option<Colour>,
+    pub levels: Levels,
+    /// Ascending ISO; empty until a noise calibration has been made.
+    #[serde(default)]
+    pub noise: Vec<NoiseAtIso>,
+    /// Device response: how the device turns linear signal into its output code values.
+    pub response: Response,
+    /// Source response: how to linearise the pure synthetic frames fed to this profile.
+    pub source_response: Response,
+    #[serde(default)]
+    pub effects: Vec<EffectSpec>,
+}
+
+pub const PROFILE_FORMAT: &str = "hdrsynth-sensor/1";
+
+impl Response {
+    /// Linear → code value, both in [0, 1].
+    pub fn apply(&self, x: f64) -> f64 {
+        let x = x.clamp(0.0, 1.0);
+        match self {
+            Response::Linear => x,
+            Response::Srgb => ToneCurve::Srgb.apply(x as f32) as f64,
+            Response::Gamma { gamma } => x.powf(1.0 / gamma),
+            Response::Filmic => ToneCurve::Filmic.apply(x as f32) as f64,
+            Response::Lut { lut } => {
+                let t = x * (lut.len() - 1) as f64;
+                let i = (t.floor() as usize).min(lut.len() - 2);
+                lut[i] + (lut[i + 1] - lut[i]) * (t - i as f64)
+            }
+        }
+    }
+
+    /// Code value → linear value (inverse of `apply` below clipping).
+    pub fn invert(&self, v: f64) -> f64 {
+        let v = v.clamp(0.0, 1.0);
+        match self {
+            Response::Linear => v,
+            Response::Srgb => crate::io::srgb_decode(v as f32) as f64,
+            Response::Gamma { gamma } => v.powf(*gamma),
+            Response::Filmic => ToneCurve::Filmic.invert(v as f32) as f64,
+            Response::Lut { lut } => {
+                // Monotone: binary search the segment holding v.
+                let i = lut.partition_point(|&c| c <= v).clamp(1, lut.len() - 1) - 1;
+                let (c0, c1) = (lut[i], lut[i + 1]);
+                let f = if c1 > c0 { (v - c0) / (c1 - c0) } else { 0.0 };
+                ((i as f64 + f.clamp(0.0, 1.0)) / (lut.len() - 1) as f64).clamp(0.0, 1.0)
+            }
+        }
+    }
+
+    fn validate(&self, what: &str) -> std::result::Result<(), String> {
+        match self {
+            Response::Gamma { gamma } if !(*gamma > 0.0 && gamma.is_finite()) => {
+                Err(format!("{what}: gamma {gamma} must be > 0"))
+            }
+            Response::Lut { lut } => {
+                if lut.len() < 2 {
+                    return Err(format!("{what}: lut needs at least 2 samples"));
+                }
+                if lut.windows(2).any(|w| w[1] < w[0]) || lut.iter().any(|v| !(0.0..=1.0).contains(v)) {
+                    return Err(format!("{what}: lut must be non-decreasing values in [0, 1]"));
+                }
+                Ok(())
+            }
+            _ => Ok(()),
+        }
+    }
+}
+
+impl SensorProfile {
+    pub fn load(path: &Path) -> Result<SensorProfile> {
+        let p: SensorProfile = load_toml(path)?;
+        p.validate().map_err(|m| Error::config(path, m))?;
+        Ok(p)
+    }
+
+    /// Write atomically as TOML.
+    pub fn save(&self, path: &Path) -> Result<()> {
+        self.validate().map_err(|m| Error::config(path, m))?;
+        let text = toml::to_string(self).map_err(|e| Error::encode(path, e))?;
+        crate::io::atomic::write_atomic(path, text.as_bytes())
+    }
+
+    pub fn validate(&self) -> std::result::Result<(), String> {
+        if self.format != PROFILE_FORMAT {
+            return Err(format!("format '{}' is not '{PROFILE_FORMAT}'", self.format));
+        }
+        let l = &self.levels;
+        if !(l.bit_depth >= 1 && l.bit_depth <= 16) {
+            return Err(format!("levels.bit_depth {} must be in 1..=16", l.bit_depth));
+        }
+        let max = ((1u32 << l.bit_depth) - 1) as f64;
+        if !(l.black_level >= 0.0 && l.black_level < l.white_level && l.white_level <= max) {
+            return Err(format!(
+                "levels: need 0 ≤ black_level ({}) < white_level ({}) ≤ 2^bit_depth − 1 ({max})",
+                l.black_level, l.white_level
+            ));
+        }
+        if self.noise.windows(2).any(|w| w[0].iso >= w[1].iso) {
+            return Err("noise: ISOs must be strictly ascending".into());
+        }
+        for n in &self.noise {
+            if !(n.iso > 0.0) || n.a.iter().chain(&n.b).any(|v| !v.is_finite() || *v < 0.0) {
+                return Err(format!("noise at ISO {}: iso > 0 and a, b ≥ 0 finite required", n.iso));
+            }
+        }
+        if let Some(c) = &self.colour {
+            if c.matrix.iter().flatten().any(|v| !v.is_finite()) {
+                return Err("colour.matrix has non-finite entries".into());
+            }
+            if c.use_root_polynomial && c.root_polynomial.is_none() {
+                return Err("colour.use_root_polynomial = true but no root_polynomial matrix".into());
+            }
+        }
+        self.response.validate("response")?;
+        self.source_response.validate("source_response")?;
+        for e in &self.effects {
+            if !crate::sensor::effects::is_known(&e.id) {
+                return Err(format!(
+                    "effects: '{}' is not in this build's effect catalogue ({})",
+                    e.id,
+                    crate::sensor::effects::known().join(", ")
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Noise parameters (a, b) per channel at `iso`, interpolated linearly in log(ISO).
+    pub fn noise_at(&self, iso: f64) -> Result<([f64; 3], [f64; 3])> {
+        if self.noise.is_empty() {
+            return Err(Error::Invalid(format!(
+                "profile '{}' has no noise calibration (run `hdrsynth calibrate noise` or \
+                 `hdrsynth profile import-darktable`)",
+                self.name
+            )));
+        }
+        let first = &self.noise[0];
+        let last = &self.noise[self.noise.len() - 1];
+        let eps = 1e-9 * iso.abs();
+        if !(iso >= first.iso - eps && iso <= last.iso + eps) {
+            return Err(Error::Invalid(format!(
+                "profile '{}': ISO {iso} is outside the calibrated range {}–{}",
+                self.name, first.iso, last.iso
+            )));
+        }
+        let hi = self.noise.partition_point(|n| n.iso < iso - eps).min(self.noise.len() - 1);
+        if hi == 0 || (self.noise[hi].iso - iso).abs() <= eps {
+            let n = &self.noise[hi];
+            return Ok((n.a, n.b));
+        }
+        let (n0, n1) = (&self.noise[hi - 1], &self.noise[hi]);
+        let w = (iso.ln() - n0.iso.ln()) / (n1.iso.ln() - n0.iso.ln());
+        let lerp = |x: [f64; 3], y: [f64; 3]| std::array::from_fn(|c| x[c] + (y[c] - x[c]) * w);
+        Ok((lerp(n0.a, n1.a), lerp(n0.b, n1.b)))
+    }
+
+    /// The profile files shipped under configs/sensors/.
+    pub fn shipped_dir() -> PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/sensors")
+    }
+}
