@@ -21,6 +21,8 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
     },
+    /// Apply a sensor profile (colour, noise, levels, response) to synthetic frames offline.
+    Realism(hdrsynth::cli::realism::Args),
     /// Inspect datasets.
     Dataset {
         #[command(subcommand)]
@@ -41,6 +43,7 @@ fn main() -> Result<()> {
             let summary = hdrsynth::cli::generate::run(&config, &out, true)?;
             println!("{}", summary.report(&out));
         }
+        Command::Realism(args) => println!("{}", hdrsynth::cli::realism::run(&args)?),
         Command::Dataset {
             command: DatasetCommand::Info { dir },
         } => {

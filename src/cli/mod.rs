@@ -3,3 +3,4 @@ pub mod calibrate;
 pub mod dataset;
 pub mod generate;
 pub mod profile;
+pub mod realism;

@@ -85,11 +85,15 @@ pub struct NoiseAtIso {
 pub enum Response {
     Linear,
     Srgb,
-    Gamma { gamma: f64 },
+    Gamma {
+        gamma: f64,
+    },
     /// The scene engine's display curve (docs/scene.md).
     Filmic,
     /// Sampled curve: `lut[i]` is the code value at linear i / (n − 1); monotone increasing.
-    Lut { lut: Vec<f64> },
+    Lut {
+        lut: Vec<f64>,
+    },
 }
 
 /// An extra physical effect, applied by the realism operator in physical order. Filled by the
@@ -169,8 +173,12 @@ impl Response {
                 if lut.len() < 2 {
                     return Err(format!("{what}: lut needs at least 2 samples"));
                 }
-                if lut.windows(2).any(|w| w[1] < w[0]) || lut.iter().any(|v| !(0.0..=1.0).contains(v)) {
-                    return Err(format!("{what}: lut must be non-decreasing values in [0, 1]"));
+                if lut.windows(2).any(|w| w[1] < w[0])
+                    || lut.iter().any(|v| !(0.0..=1.0).contains(v))
+                {
+                    return Err(format!(
+                        "{what}: lut must be non-decreasing values in [0, 1]"
+                    ));
                 }
                 Ok(())
             }
@@ -195,11 +203,17 @@ impl SensorProfile {
 
     pub fn validate(&self) -> std::result::Result<(), String> {
         if self.format != PROFILE_FORMAT {
-            return Err(format!("format '{}' is not '{PROFILE_FORMAT}'", self.format));
+            return Err(format!(
+                "format '{}' is not '{PROFILE_FORMAT}'",
+                self.format
+            ));
         }
         let l = &self.levels;
         if !(l.bit_depth >= 1 && l.bit_depth <= 16) {
-            return Err(format!("levels.bit_depth {} must be in 1..=16", l.bit_depth));
+            return Err(format!(
+                "levels.bit_depth {} must be in 1..=16",
+                l.bit_depth
+            ));
         }
         let max = ((1u32 << l.bit_depth) - 1) as f64;
         if !(l.black_level >= 0.0 && l.black_level < l.white_level && l.white_level <= max) {
@@ -213,7 +227,10 @@ impl SensorProfile {
         }
         for n in &self.noise {
             if !(n.iso > 0.0) || n.a.iter().chain(&n.b).any(|v| !v.is_finite() || *v < 0.0) {
-                return Err(format!("noise at ISO {}: iso > 0 and a, b ≥ 0 finite required", n.iso));
+                return Err(format!(
+                    "noise at ISO {}: iso > 0 and a, b ≥ 0 finite required",
+                    n.iso
+                ));
             }
         }
         if let Some(c) = &self.colour {
@@ -221,7 +238,9 @@ impl SensorProfile {
                 return Err("colour.matrix has non-finite entries".into());
             }
             if c.use_root_polynomial && c.root_polynomial.is_none() {
-                return Err("colour.use_root_polynomial = true but no root_polynomial matrix".into());
+                return Err(
+                    "colour.use_root_polynomial = true but no root_polynomial matrix".into(),
+                );
             }
         }
         self.response.validate("response")?;
@@ -256,7 +275,10 @@ impl SensorProfile {
                 self.name, first.iso, last.iso
             )));
         }
-        let hi = self.noise.partition_point(|n| n.iso < iso - eps).min(self.noise.len() - 1);
+        let hi = self
+            .noise
+            .partition_point(|n| n.iso < iso - eps)
+            .min(self.noise.len() - 1);
         if hi == 0 || (self.noise[hi].iso - iso).abs() <= eps {
             let n = &self.noise[hi];
             return Ok((n.a, n.b));

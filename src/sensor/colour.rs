@@ -1,0 +1,1092 @@
+//! Colour calibration: the ColorChecker24 reference, colour maths (linear sRGB → XYZ → CIE Lab,
+//! CIEDE2000), the least-squares fit of T (the paper's Eq. 1, real = T · synthetic) and its
+//! root-polynomial variant, ΔE00 reports with leave-one-patch-out, synthetic chart rendering and
+//! robust patch sampling (full frame or four corners through a homography).
+//!
+//! Conventions (see docs/colour.md):
+//! - Linear sRGB is linear RGB with Rec. 709 primaries and D65 white, converted to XYZ with
+//!   colour-science's sRGB matrix (IEC 61966-2-1, 4 decimals). Lab is CIE 1976 L*a*b* relative to
+//!   D50, reached from D65 XYZ by the Bradford chromatic adaptation built exactly as colour-science
+//!   builds it (`matrix_chromatic_adaptation_VonKries(..., 'Bradford')`). The D50 white is the
+//!   ColorChecker dataset's own (xy 0.345702914918791, 0.358538596679933; XYZ 0.9642, 1, 0.8249,
+//!   the ICC PCS white), so the shipped reference linear sRGB maps back to the shipped Lab.
+//! - ΔE00 of a fit is always computed on colours treated as linear sRGB (D65), for the real and the
+//!   synthetic set alike: device RGB is white-balanced camera RGB, not sRGB, so the number is a
+//!   perceptual yardstick for the fit residual, not a colorimetric error of the camera.
+//! - Chart geometry: the 24 patches form a 6 × 4 grid of equal cells in reading order (patch 1
+//!   "dark skin" top-left, patch 24 "black" bottom-right). Image coordinates are continuous pixel
+//!   coordinates: x right, y down, the image spans [0, W] × [0, H], pixel (i, j) covers
+//!   [i, i + 1) × [j, j + 1) with its centre at (i + 0.5, j + 0.5).
+#![allow(clippy::needless_range_loop)]
+
+use crate::error::{Error, Result};
+use crate::io::Image;
+use crate::sensor::profile::Colour;
+use rayon::prelude::*;
+use std::fmt;
+use std::str::FromStr;
+
+/// One ColorChecker24 patch.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Patch {
+    /// 1-based number in reading order.
+    pub number: u8,
+    pub name: &'static str,
+    /// Linear sRGB (D65), reflectance scale (a perfect white diffuser is Y = 1).
+    pub linear_srgb: [f64; 3],
+    /// CIE L*a*b* under D50.
+    pub lab_d50: [f64; 3],
+}
+
+/// ColorChecker24 "After November 2014", colour-science colour-checker dataset, BSD-3
+/// (`colour.CCS_COLOURCHECKERS['ColorChecker24 - After November 2014']`; linear sRGB derived
+/// from its xyY (D50) with the Bradford transform to D65, rounded to 6 decimals). Reading order.
+pub const COLORCHECKER24: [Patch; 24] = [
+    Patch {
+        number: 1,
+        name: "dark skin",
+        linear_srgb: [0.173683, 0.078793, 0.052856],
+        lab_d50: [37.54, 14.37, 14.92],
+    },
+    Patch {
+        number: 2,
+        name: "light skin",
+        linear_srgb: [0.559784, 0.277447, 0.210892],
+        lab_d50: [64.66, 19.27, 17.5],
+    },
+    Patch {
+        number: 3,
+        name: "blue sky",
+        linear_srgb: [0.104201, 0.188915, 0.32893],
+        lab_d50: [49.32, -3.82, -22.54],
+    },
+    Patch {
+        number: 4,
+        name: "foliage",
+        linear_srgb: [0.105744, 0.150754, 0.050837],
+        lab_d50: [43.46, -12.74, 22.72],
+    },
+    Patch {
+        number: 5,
+        name: "blue flower",
+        linear_srgb: [0.227439, 0.212408, 0.426446],
+        lab_d50: [54.94, 9.61, -24.79],
+    },
+    Patch {
+        number: 6,
+        name: "bluish green",
+        linear_srgb: [0.115293, 0.507441, 0.411129],
+        lab_d50: [70.48, -32.26, -0.37],
+    },
+    Patch {
+        number: 7,
+        name: "orange",
+        linear_srgb: [0.745903, 0.202143, 0.029868],
+        lab_d50: [62.73, 35.83, 56.5],
+    },
+    Patch {
+        number: 8,
+        name: "purplish blue",
+        linear_srgb: [0.058742, 0.101182, 0.387748],
+        lab_d50: [39.43, 10.75, -45.17],
+    },
+    Patch {
+        number: 9,
+        name: "moderate red",
+        linear_srgb: [0.56013, 0.080153, 0.114586],
+        lab_d50: [50.57, 48.64, 16.67],
+    },
+    Patch {
+        number: 10,
+        name: "purple",
+        linear_srgb: [0.109167, 0.042, 0.138137],
+        lab_d50: [30.1, 22.54, -20.87],
+    },
+    Patch {
+        number: 11,
+        name: "yellow green",
+        linear_srgb: [0.33275, 0.497386, 0.042596],
+        lab_d50: [71.77, -24.13, 58.19],
+    },
+    Patch {
+        number: 12,
+        name: "orange yellow",
+        linear_srgb: [0.771037, 0.357918, 0.020449],
+        lab_d50: [71.51, 18.24, 67.37],
+    },
+    Patch {
+        number: 13,
+        name: "blue",
+        linear_srgb: [0.020956, 0.047534, 0.284129],
+        lab_d50: [28.37, 15.42, -49.8],
+    },
+    Patch {
+        number: 14,
+        name: "green",
+        linear_srgb: [0.046062, 0.292048, 0.061479],
+        lab_d50: [54.38, -39.72, 32.27],
+    },
+    Patch {
+        number: 15,
+        name: "red",
+        linear_srgb: [0.446171, 0.036406, 0.040551],
+        lab_d50: [42.43, 51.05, 28.62],
+    },
+    Patch {
+        number: 16,
+        name: "yellow",
+        linear_srgb: [0.841684, 0.574408, 0.004662],
+        lab_d50: [81.8, 2.67, 80.41],
+    },
+    Patch {
+        number: 17,
+        name: "magenta",
+        linear_srgb: [0.522342, 0.077817, 0.289313],
+        lab_d50: [50.63, 51.28, -14.12],
+    },
+    Patch {
+        number: 18,
+        name: "cyan",
+        linear_srgb: [-0.043918, 0.233662, 0.37719],
+        lab_d50: [49.57, -29.71, -28.32],
+    },
+    Patch {
+        number: 19,
+        name: "white 9.5 (.05 D)",
+        linear_srgb: [0.879529, 0.885028, 0.834247],
+        lab_d50: [95.19, -1.03, 2.93],
+    },
+    Patch {
+        number: 20,
+        name: "neutral 8 (.23 D)",
+        linear_srgb: [0.584493, 0.592168, 0.584478],
+        lab_d50: [81.29, -0.57, 0.44],
+    },
+    Patch {
+        number: 21,
+        name: "neutral 6.5 (.44 D)",
+        linear_srgb: [0.357694, 0.367077, 0.365266],
+        lab_d50: [66.89, -0.75, -0.06],
+    },
+    Patch {
+        number: 22,
+        name: "neutral 5 (.70 D)",
+        linear_srgb: [0.190094, 0.190866, 0.189814],
+        lab_d50: [50.76, -0.13, 0.14],
+    },
+    Patch {
+        number: 23,
+        name: "neutral 3.5 (1.05 D)",
+        linear_srgb: [0.085929, 0.088735, 0.089804],
+        lab_d50: [35.63, -0.46, -0.48],
+    },
+    Patch {
+        number: 24,
+        name: "black 2 (1.5 D)",
+        linear_srgb: [0.031354, 0.031496, 0.032323],
+        lab_d50: [20.64, 0.07, -0.46],
+    },
+];
+
+/// Columns and rows of the chart grid.
+pub const CHART_COLS: usize = 6;
+pub const CHART_ROWS: usize = 4;
+
+/// 0-based indices of the neutral patches 20–23 (neutral 8 … neutral 3.5) used for white balance
+/// and exposure normalisation: patch 19 (white) is the first to clip and patch 24 (black) the
+/// most sensitive to flare and black-level error, so both are left out.
+pub const NEUTRAL_PATCHES: [usize; 4] = [19, 20, 21, 22];
+
+/// Reference linear sRGB of the 24 patches, in reading order.
+pub fn reference_linear_srgb() -> Vec<[f64; 3]> {
+    COLORCHECKER24.iter().map(|p| p.linear_srgb).collect()
+}
+
+// ---------------------------------------------------------------------------------------------
+// Colour maths
+// ---------------------------------------------------------------------------------------------
+
+pub type Mat3 = [[f64; 3]; 3];
+
+/// colour-science's sRGB RGB → XYZ matrix (`RGB_COLOURSPACES['sRGB'].matrix_RGB_to_XYZ`).
+pub const SRGB_TO_XYZ: Mat3 = [
+    [0.4124, 0.3576, 0.1805],
+    [0.2126, 0.7152, 0.0722],
+    [0.0193, 0.1192, 0.9505],
+];
+
+/// The Bradford cone-response matrix (colour-science `CHROMATIC_ADAPTATION_TRANSFORMS`).
+pub const BRADFORD: Mat3 = [
+    [0.8951, 0.2664, -0.1614],
+    [-0.7502, 1.7135, 0.0367],
+    [0.0389, -0.0685, 1.0296],
+];
+
+/// CIE 1931 2° chromaticities of the whites used here.
+pub const D65_XY: [f64; 2] = [0.3127, 0.329];
+/// The ColorChecker dataset's D50 (ICC PCS white, XYZ 0.9642, 1, 0.8249).
+pub const D50_XY: [f64; 2] = [0.345702914918791, 0.358538596679933];
+pub const A_XY: [f64; 2] = [0.44758, 0.40745];
+
+pub fn mat_vec(m: &Mat3, v: [f64; 3]) -> [f64; 3] {
+    std::array::from_fn(|i| m[i][0] * v[0] + m[i][1] * v[1] + m[i][2] * v[2])
+}
+
+pub fn mat_mul(a: &Mat3, b: &Mat3) -> Mat3 {
+    std::array::from_fn(|i| std::array::from_fn(|j| (0..3).map(|k| a[i][k] * b[k][j]).sum()))
+}
+
+/// Inverse of a 3×3 matrix; None when singular.
+pub fn mat_inv(m: &Mat3) -> Option<Mat3> {
+    let c =
+        |r0: usize, r1: usize, c0: usize, c1: usize| m[r0][c0] * m[r1][c1] - m[r0][c1] * m[r1][c0];
+    let cof = [
+        [c(1, 2, 1, 2), -c(1, 2, 0, 2), c(1, 2, 0, 1)],
+        [-c(0, 2, 1, 2), c(0, 2, 0, 2), -c(0, 2, 0, 1)],
+        [c(0, 1, 1, 2), -c(0, 1, 0, 2), c(0, 1, 0, 1)],
+    ];
+    let det = m[0][0] * cof[0][0] + m[0][1] * cof[0][1] + m[0][2] * cof[0][2];
+    let scale = m.iter().flatten().fold(0.0f64, |a, v| a.max(v.abs()));
+    if !det.is_finite() || det.abs() <= 1e-300 || det.abs() <= 1e-14 * scale.powi(3) {
+        return None;
+    }
+    // Inverse = adjugate / det; the adjugate is the transposed cofactor matrix.
+    Some(std::array::from_fn(|i| {
+        std::array::from_fn(|j| cof[j][i] / det)
+    }))
+}
+
+/// XYZ (Y = 1) of a chromaticity.
+pub fn xy_to_xyz(xy: [f64; 2]) -> [f64; 3] {
+    [xy[0] / xy[1], 1.0, (1.0 - xy[0] - xy[1]) / xy[1]]
+}
+
+/// von Kries chromatic adaptation matrix with the Bradford cone space, from white `src` to white
+/// `dst` (XYZ), built as colour-science's `matrix_chromatic_adaptation_VonKries` builds it.
+pub fn bradford(src: [f64; 3], dst: [f64; 3]) -> Mat3 {
+    let w = mat_vec(&BRADFORD, src);
+    let wr = mat_vec(&BRADFORD, dst);
+    let d: Mat3 = [
+        [wr[0] / w[0], 0.0, 0.0],
+        [0.0, wr[1] / w[1], 0.0],
+        [0.0, 0.0, wr[2] / w[2]],
+    ];
+    let inv = mat_inv(&BRADFORD).expect("Bradford matrix is invertible");
+    mat_mul(&mat_mul(&inv, &d), &BRADFORD)
+}
+
+/// Linear sRGB → XYZ (D65, Y of the sRGB white = 1).
+pub fn linear_srgb_to_xyz(rgb: [f64; 3]) -> [f64; 3] {
+    mat_vec(&SRGB_TO_XYZ, rgb)
+}
+
+/// XYZ → linear sRGB (exact inverse of [`SRGB_TO_XYZ`]).
+pub fn xyz_to_linear_srgb(xyz: [f64; 3]) -> [f64; 3] {
+    let inv = mat_inv(&SRGB_TO_XYZ).expect("sRGB matrix is invertible");
+    mat_vec(&inv, xyz)
+}
+
+/// Bradford D65 → D50 (the ColorChecker D50, [`D50_XY`]).
+pub fn xyz_d65_to_d50(xyz: [f64; 3]) -> [f64; 3] {
+    mat_vec(&bradford(xy_to_xyz(D65_XY), xy_to_xyz(D50_XY)), xyz)
+}
+
+/// CIE 1976 L*a*b* of `xyz` relative to the white `white` (XYZ), as colour-science's
+/// `XYZ_to_Lab` (L in 0..100).
+pub fn xyz_to_lab(xyz: [f64; 3], white: [f64; 3]) -> [f64; 3] {
+    let f = |t: f64| {
+        if t > (24.0f64 / 116.0).powi(3) {
+            t.cbrt()
+        } else {
+            (841.0 / 108.0) * t + 16.0 / 116.0
+        }
+    };
+    let (fx, fy, fz) = (
+        f(xyz[0] / white[0]),
+        f(xyz[1] / white[1]),
+        f(xyz[2] / white[2]),
+    );
+    [116.0 * fy - 16.0, 500.0 * (fx - fy), 200.0 * (fy - fz)]
+}
+
+/// Lab (D50) of a colour treated as linear sRGB (D65): sRGB → XYZ D65 → Bradford → Lab D50.
+pub fn linear_srgb_to_lab_d50(rgb: [f64; 3]) -> [f64; 3] {
+    let m = mat_mul(
+        &bradford(xy_to_xyz(D65_XY), xy_to_xyz(D50_XY)),
+        &SRGB_TO_XYZ,
+    );
+    xyz_to_lab(mat_vec(&m, rgb), xy_to_xyz(D50_XY))
+}
+
+/// CIEDE2000 colour difference (Sharma, Wu and Dalal 2005; k_L = k_C = k_H = 1), the same
+/// formulation and edge cases (zero chroma, hue wrap-around) as colour-science's
+/// `delta_E_CIE2000`.
+pub fn delta_e_2000(lab1: [f64; 3], lab2: [f64; 3]) -> f64 {
+    let [l1, a1, b1] = lab1;
+    let [l2, a2, b2] = lab2;
+    let c1 = a1.hypot(b1);
+    let c2 = a2.hypot(b2);
+    let c_bar7 = ((c1 + c2) / 2.0).powi(7);
+    let p25_7 = 25.0f64.powi(7);
+    let g = 0.5 * (1.0 - (c_bar7 / (c_bar7 + p25_7)).sqrt());
+    let ap1 = (1.0 + g) * a1;
+    let ap2 = (1.0 + g) * a2;
+    let cp1 = ap1.hypot(b1);
+    let cp2 = ap2.hypot(b2);
+    let hue = |b: f64, ap: f64| {
+        if b == 0.0 && ap == 0.0 {
+            0.0
+        } else {
+            b.atan2(ap).to_degrees().rem_euclid(360.0)
+        }
+    };
+    let hp1 = hue(b1, ap1);
+    let hp2 = hue(b2, ap2);
+    let dl = l2 - l1;
+    let dc = cp2 - cp1;
+    let dh_raw = hp2 - hp1;
+    let cc = cp1 * cp2;
+    let dh = if cc == 0.0 {
+        0.0
+    } else if dh_raw.abs() <= 180.0 {
+        dh_raw
+    } else if dh_raw > 180.0 {
+        dh_raw - 360.0
+    } else {
+        dh_raw + 360.0
+    };
+    let d_big_h = 2.0 * cc.sqrt() * (dh / 2.0).to_radians().sin();
+    let l_bar = (l1 + l2) / 2.0;
+    let c_bar_p = (cp1 + cp2) / 2.0;
+    let abs_diff = (hp1 - hp2).abs();
+    let sum = hp1 + hp2;
+    let h_bar = if cc == 0.0 {
+        sum
+    } else if abs_diff <= 180.0 {
+        sum / 2.0
+    } else if sum < 360.0 {
+        (sum + 360.0) / 2.0
+    } else {
+        (sum - 360.0) / 2.0
+    };
+    let t = 1.0 - 0.17 * (h_bar - 30.0).to_radians().cos()
+        + 0.24 * (2.0 * h_bar).to_radians().cos()
+        + 0.32 * (3.0 * h_bar + 6.0).to_radians().cos()
+        - 0.20 * (4.0 * h_bar - 63.0).to_radians().cos();
+    let d_theta = 30.0 * (-((h_bar - 275.0) / 25.0).powi(2)).exp();
+    let c_bar_p7 = c_bar_p.powi(7);
+    let r_c = 2.0 * (c_bar_p7 / (c_bar_p7 + p25_7)).sqrt();
+    let l50 = (l_bar - 50.0).powi(2);
+    let s_l = 1.0 + 0.015 * l50 / (20.0 + l50).sqrt();
+    let s_c = 1.0 + 0.045 * c_bar_p;
+    let s_h = 1.0 + 0.015 * c_bar_p * t;
+    let r_t = -(2.0 * d_theta).to_radians().sin() * r_c;
+    let (ql, qc, qh) = (dl / s_l, dc / s_c, d_big_h / s_h);
+    (ql * ql + qc * qc + qh * qh + r_t * qc * qh).sqrt()
+}
+
+/// ΔE00 between two colours both treated as linear sRGB (D65), compared in Lab D50.
+pub fn delta_e_linear_srgb(a: [f64; 3], b: [f64; 3]) -> f64 {
+    delta_e_2000(linear_srgb_to_lab_d50(a), linear_srgb_to_lab_d50(b))
+}
+
+// ---------------------------------------------------------------------------------------------
+// Fitting T and the root-polynomial
+// ---------------------------------------------------------------------------------------------
+
+/// Sign-preserving power sign(a)·|a|^p, colour-science's `spow` (its default, enabled).
+pub fn spow(a: f64, p: f64) -> f64 {
+    let r = a.signum() * a.abs().powf(p);
+    if a == 0.0 || r.is_nan() { 0.0 } else { r }
+}
+
+/// Root-polynomial degree-2 terms of Finlayson et al. 2015: R, G, B, √RG, √GB, √RB, the square
+/// roots taken with [`spow`] (sign-preserving) as colour-science's
+/// `polynomial_expansion_Finlayson2015(RGB, 2)` does, so negative inputs give finite terms.
+pub fn root_polynomial_terms(rgb: [f64; 3]) -> [f64; 6] {
+    let [r, g, b] = rgb;
+    [
+        r,
+        g,
+        b,
+        spow(r * g, 0.5),
+        spow(g * b, 0.5),
+        spow(r * b, 0.5),
+    ]
+}
+
+/// Which colour correction to fit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Model {
+    /// 3×3 T, real = T · synthetic (the paper's Eq. 1).
+    Matrix,
+    /// 3×6 root-polynomial degree 2, real = M · terms(synthetic).
+    RootPolynomial,
+}
+
+impl Model {
+    pub fn terms(self) -> usize {
+        match self {
+            Model::Matrix => 3,
+            Model::RootPolynomial => 6,
+        }
+    }
+    fn expand(self, rgb: [f64; 3]) -> Vec<f64> {
+        match self {
+            Model::Matrix => rgb.to_vec(),
+            Model::RootPolynomial => root_polynomial_terms(rgb).to_vec(),
+        }
+    }
+}
+
+/// A fitted correction.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Fitted {
+    Matrix(Mat3),
+    RootPolynomial([[f64; 6]; 3]),
+}
+
+impl Fitted {
+    pub fn apply(&self, rgb: [f64; 3]) -> [f64; 3] {
+        match self {
+            Fitted::Matrix(t) => mat_vec(t, rgb),
+            Fitted::RootPolynomial(m) => apply_root_polynomial(m, rgb),
+        }
+    }
+    pub fn model(&self) -> Model {
+        match self {
+            Fitted::Matrix(_) => Model::Matrix,
+            Fitted::RootPolynomial(_) => Model::RootPolynomial,
+        }
+    }
+}
+
+pub fn apply_matrix(t: &Mat3, rgb: [f64; 3]) -> [f64; 3] {
+    mat_vec(t, rgb)
+}
+
+pub fn apply_root_polynomial(m: &[[f64; 6]; 3], rgb: [f64; 3]) -> [f64; 3] {
+    let e = root_polynomial_terms(rgb);
+    std::array::from_fn(|i| (0..6).map(|k| m[i][k] * e[k]).sum())
+}
+
+/// Least squares: the k×3 X minimising ‖A·X − B‖ (A n×k, rows `a`), by Householder QR. This is
+/// the solution colour-science's Moore–Penrose mapping gives when A has full column rank; a
+/// rank-deficient A (patches that do not span the terms) is an error, not a minimum-norm guess.
+fn least_squares(a: &[Vec<f64>], b: &[[f64; 3]]) -> Result<Vec<[f64; 3]>> {
+    let n = a.len();
+    let k = a.first().map_or(0, |r| r.len());
+    if n != b.len() {
+        return Err(Error::Invalid(format!(
+            "colour fit: {n} synthetic colours but {} real colours",
+            b.len()
+        )));
+    }
+    if k == 0 || n < k {
+        return Err(Error::Invalid(format!(
+            "colour fit: {n} patches cannot determine {k} terms per channel"
+        )));
+    }
+    if a.iter()
+        .flatten()
+        .chain(b.iter().flatten())
+        .any(|v| !v.is_finite())
+    {
+        return Err(Error::Invalid("colour fit: non-finite patch values".into()));
+    }
+    // Column-major copy of A and a copy of B we transform in place.
+    let mut q: Vec<Vec<f64>> = (0..k).map(|j| a.iter().map(|r| r[j]).collect()).collect();
+    let mut rhs: Vec<[f64; 3]> = b.to_vec();
+    let scale = q.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
+    let mut diag = vec![0.0; k];
+    for j in 0..k {
+        let norm = q[j][j..].iter().map(|v| v * v).sum::<f64>().sqrt();
+        if norm <= 1e-12 * scale * (n as f64).sqrt() || norm == 0.0 {
+            return Err(Error::Invalid(format!(
+                "colour fit: the patches do not determine term {} (rank-deficient design; are \
+                 the synthetic colours degenerate?)",
+                j + 1
+            )));
+        }
+        let alpha = if q[j][j] > 0.0 { -norm } else { norm };
+        // v = x − alpha·e1, stored in q[j][j..].
+        q[j][j] -= alpha;
+        let vnorm2: f64 = q[j][j..].iter().map(|v| v * v).sum();
+        diag[j] = alpha;
+        let v: Vec<f64> = q[j][j..].to_vec();
+        for c in j + 1..k {
+            let dot: f64 = v.iter().zip(&q[c][j..]).map(|(x, y)| x * y).sum();
+            let f = 2.0 * dot / vnorm2;
+            for (i, vi) in v.iter().enumerate() {
+                q[c][j + i] -= f * vi;
+            }
+        }
+        for ch in 0..3 {
+            let dot: f64 = v
+                .iter()
+                .enumerate()
+                .map(|(i, vi)| vi * rhs[j + i][ch])
+                .sum();
+            let f = 2.0 * dot / vnorm2;
+            for (i, vi) in v.iter().enumerate() {
+                rhs[j + i][ch] -= f * vi;
+            }
+        }
+    }
+    // Back substitution with R (upper triangle in q above the diagonal, diagonal in diag).
+    let mut x = vec![[0.0; 3]; k];
+    for j in (0..k).rev() {
+        for ch in 0..3 {
+            let mut s = rhs[j][ch];
+            for c in j + 1..k {
+                s -= q[c][j] * x[c][ch];
+            }
+            x[j][ch] = s / diag[j];
+        }
+    }
+    Ok(x)
+}
+
+/// Fit `model` so that real ≈ correction(synthetic), least squares over the patches.
+pub fn fit(model: Model, synthetic: &[[f64; 3]], real: &[[f64; 3]]) -> Result<Fitted> {
+    let a: Vec<Vec<f64>> = synthetic.iter().map(|&s| model.expand(s)).collect();
+    let x = least_squares(&a, real)?;
+    Ok(match model {
+        Model::Matrix => Fitted::Matrix(std::array::from_fn(|i| std::array::from_fn(|k| x[k][i]))),
+        Model::RootPolynomial => {
+            Fitted::RootPolynomial(std::array::from_fn(|i| std::array::from_fn(|k| x[k][i])))
+        }
+    })
+}
+
+/// T (3×3), real = T · synthetic, least squares (colour-science `matrix_colour_correction`,
+/// method 'Finlayson 2015', degree 1).
+pub fn fit_matrix(synthetic: &[[f64; 3]], real: &[[f64; 3]]) -> Result<Mat3> {
+    match fit(Model::Matrix, synthetic, real)? {
+        Fitted::Matrix(t) => Ok(t),
+        Fitted::RootPolynomial(_) => unreachable!("matrix model fits a matrix"),
+    }
+}
+
+/// Root-polynomial degree-2 matrix (3×6), colour-science 'Finlayson 2015', degree 2.
+pub fn fit_root_polynomial(synthetic: &[[f64; 3]], real: &[[f64; 3]]) -> Result<[[f64; 6]; 3]> {
+    match fit(Model::RootPolynomial, synthetic, real)? {
+        Fitted::RootPolynomial(m) => Ok(m),
+        Fitted::Matrix(_) => unreachable!("root-polynomial model fits a 3×6 matrix"),
+    }
+}
+
+/// Per-patch ΔE00 with mean and max.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DeltaE {
+    pub per_patch: Vec<f64>,
+    pub mean: f64,
+    pub max: f64,
+}
+
+impl DeltaE {
+    pub fn from_values(per_patch: Vec<f64>) -> DeltaE {
+        let n = per_patch.len().max(1) as f64;
+        let mean = per_patch.iter().sum::<f64>() / n;
+        let max = per_patch.iter().fold(0.0f64, |m, &v| m.max(v));
+        DeltaE {
+            per_patch,
+            mean,
+            max,
+        }
+    }
+}
+
+/// ΔE00 per pair, both colours treated as linear sRGB (D65).
+pub fn delta_e_sets(a: &[[f64; 3]], b: &[[f64; 3]]) -> DeltaE {
+    DeltaE::from_values(
+        a.iter()
+            .zip(b)
+            .map(|(&x, &y)| delta_e_linear_srgb(x, y))
+            .collect(),
+    )
+}
+
+/// Leave-one-patch-out: for each patch, fit on the others and measure ΔE00 of the held-out one.
+pub fn leave_one_out(model: Model, synthetic: &[[f64; 3]], real: &[[f64; 3]]) -> Result<DeltaE> {
+    let n = synthetic.len();
+    let mut out = Vec::with_capacity(n);
+    for held in 0..n {
+        let s: Vec<[f64; 3]> = (0..n)
+            .filter(|&i| i != held)
+            .map(|i| synthetic[i])
+            .collect();
+        let r: Vec<[f64; 3]> = (0..n).filter(|&i| i != held).map(|i| real[i]).collect();
+        let f = fit(model, &s, &r)?;
+        out.push(delta_e_linear_srgb(f.apply(synthetic[held]), real[held]));
+    }
+    Ok(DeltaE::from_values(out))
+}
+
+/// A fit with its ΔE00 before (identity), after (in-sample) and leave-one-out.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Evaluation {
+    pub fitted: Fitted,
+    pub before: DeltaE,
+    pub after: DeltaE,
+    pub loo: DeltaE,
+}
+
+pub fn fit_and_evaluate(
+    model: Model,
+    synthetic: &[[f64; 3]],
+    real: &[[f64; 3]],
+) -> Result<Evaluation> {
+    let fitted = fit(model, synthetic, real)?;
+    let corrected: Vec<[f64; 3]> = synthetic.iter().map(|&s| fitted.apply(s)).collect();
+    Ok(Evaluation {
+        before: delta_e_sets(synthetic, real),
+        after: delta_e_sets(&corrected, real),
+        loo: leave_one_out(model, synthetic, real)?,
+        fitted,
+    })
+}
+
+/// Apply a 3×3 matrix to every pixel.
+pub fn apply_matrix_image(t: &Mat3, img: &Image) -> Image {
+    map_pixels(img, |p| apply_matrix(t, p))
+}
+
+/// Apply a root-polynomial matrix to every pixel.
+pub fn apply_root_polynomial_image(m: &[[f64; 6]; 3], img: &Image) -> Image {
+    map_pixels(img, |p| apply_root_polynomial(m, p))
+}
+
+/// Apply a profile's colour transform (root-polynomial when `use_root_polynomial`, else T).
+pub fn apply_colour_image(colour: &Colour, img: &Image) -> Image {
+    match (&colour.root_polynomial, colour.use_root_polynomial) {
+        (Some(m), true) => apply_root_polynomial_image(m, img),
+        _ => apply_matrix_image(&colour.matrix, img),
+    }
+}
+
+fn map_pixels(img: &Image, f: impl Fn([f64; 3]) -> [f64; 3] + Sync) -> Image {
+    let mut out = img.clone();
+    out.data.par_chunks_mut(3).for_each(|p| {
+        let v = f([p[0] as f64, p[1] as f64, p[2] as f64]);
+        for c in 0..3 {
+            p[c] = v[c] as f32;
+        }
+    });
+    out
+}
+
+// ---------------------------------------------------------------------------------------------
+// White balance
+// ---------------------------------------------------------------------------------------------
+
+/// Per-channel gains that make the mean of the neutral patches 20–23 neutral, green kept:
+/// gain_c = mean_G / mean_c over those patches.
+pub fn neutral_gains(patches: &[[f64; 3]]) -> Result<[f64; 3]> {
+    if patches.len() != 24 {
+        return Err(Error::Invalid(format!(
+            "white balance needs the 24 chart patches, got {}",
+            patches.len()
+        )));
+    }
+    let m: [f64; 3] =
+        std::array::from_fn(|c| NEUTRAL_PATCHES.iter().map(|&i| patches[i][c]).sum::<f64>() / 4.0);
+    if m.iter().any(|v| v.is_nan() || *v <= 0.0) {
+        return Err(Error::Invalid(format!(
+            "white balance: the neutral patches 20–23 have a non-positive mean ({:.4}, {:.4}, \
+             {:.4}); is the chart located correctly and the black level right?",
+            m[0], m[1], m[2]
+        )));
+    }
+    Ok([m[1] / m[0], 1.0, m[1] / m[2]])
+}
+
+/// Mean over the neutral patches 20–23 and the three channels.
+pub fn neutral_mean(patches: &[[f64; 3]]) -> f64 {
+    NEUTRAL_PATCHES
+        .iter()
+        .map(|&i| patches[i].iter().sum::<f64>())
+        .sum::<f64>()
+        / 12.0
+}
+
+// ---------------------------------------------------------------------------------------------
+// Synthetic chart
+// ---------------------------------------------------------------------------------------------
+
+/// The light the synthetic chart is rendered under, as linear-sRGB white gains.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Illuminant {
+    D65,
+    D50,
+    A,
+    /// Explicit linear RGB gains.
+    Gains([f64; 3]),
+}
+
+impl Illuminant {
+    /// Linear-sRGB gains: the D65 white adapted to the illuminant's white by the Bradford
+    /// transform, in linear sRGB (M = sRGB⁻¹ · Bradford(D65 → W) · sRGB, gains = M · (1, 1, 1)).
+    /// The adapted white has luminance Y = 1, so the gains keep luminance. D65 gives (1, 1, 1).
+    /// Multiplying the reference RGB by these gains is a von Kries-type RGB approximation of the
+    /// chart under that light: only RGB reflectances are known, not spectra.
+    pub fn gains(&self) -> [f64; 3] {
+        let white = match self {
+            Illuminant::D65 => return [1.0; 3],
+            Illuminant::D50 => D50_XY,
+            Illuminant::A => A_XY,
+            Illuminant::Gains(g) => return *g,
+        };
+        let cat = bradford(xy_to_xyz(D65_XY), xy_to_xyz(white));
+        let inv = mat_inv(&SRGB_TO_XYZ).expect("sRGB matrix is invertible");
+        let m = mat_mul(&inv, &mat_mul(&cat, &SRGB_TO_XYZ));
+        mat_vec(&m, [1.0; 3])
+    }
+}
+
+impl FromStr for Illuminant {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        match s.trim().to_ascii_uppercase().as_str() {
+            "D65" => Ok(Illuminant::D65),
+            "D50" => Ok(Illuminant::D50),
+            "A" => Ok(Illuminant::A),
+            _ => {
+                let v = parse_floats(s, 3, "illuminant gains")
+                    .map_err(|e| Error::Invalid(format!("{e} (or one of D65, D50, A)")))?;
+                if v.iter().any(|g| *g <= 0.0) {
+                    return Err(Error::Invalid(format!(
+                        "illuminant gains '{s}' must be > 0"
+                    )));
+                }
+                Ok(Illuminant::Gains([v[0], v[1], v[2]]))
+            }
+        }
+    }
+}
+
+impl fmt::Display for Illuminant {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Illuminant::D65 => write!(f, "D65"),
+            Illuminant::D50 => write!(f, "D50"),
+            Illuminant::A => write!(f, "A"),
+            Illuminant::Gains(g) => write!(f, "{},{},{}", g[0], g[1], g[2]),
+        }
+    }
+}
+
+/// Parse `n` comma-separated numbers.
+pub fn parse_floats(s: &str, n: usize, what: &str) -> Result<Vec<f64>> {
+    let v: std::result::Result<Vec<f64>, _> =
+        s.split(',').map(|t| t.trim().parse::<f64>()).collect();
+    match v {
+        Ok(v) if v.len() == n && v.iter().all(|x| x.is_finite()) => Ok(v),
+        _ => Err(Error::Invalid(format!(
+            "{what}: expected {n} comma-separated numbers, got '{s}'"
+        ))),
+    }
+}
+
+/// The patch colours of the synthetic chart: reference linear sRGB × illuminant gains × exposure.
+pub fn chart_colours(illuminant: &Illuminant, exposure: f64) -> Vec<[f64; 3]> {
+    let g = illuminant.gains();
+    COLORCHECKER24
+        .iter()
+        .map(|p| std::array::from_fn(|c| p.linear_srgb[c] * g[c] * exposure))
+        .collect()
+}
+
+/// Render the chart: the 24 patches fill the frame as a 6 × 4 grid of equal cells in reading
+/// order (patch 1 top-left); pixel (x, y) belongs to the cell holding its centre. Linear values
+/// = reference linear sRGB × illuminant gains × exposure, not clipped. A frame smaller than
+/// 6 × 4 cannot show every patch; sampling it fails.
+pub fn render_chart(width: usize, height: usize, illuminant: &Illuminant, exposure: f64) -> Image {
+    let colours = chart_colours(illuminant, exposure);
+    Image::from_fn(width, height, |x, y| {
+        let i =
+            (((x as f64 + 0.5) / width as f64 * CHART_COLS as f64) as usize).min(CHART_COLS - 1);
+        let j =
+            (((y as f64 + 0.5) / height as f64 * CHART_ROWS as f64) as usize).min(CHART_ROWS - 1);
+        colours[j * CHART_COLS + i].map(|v| v as f32)
+    })
+}
+
+// ---------------------------------------------------------------------------------------------
+// Locating and sampling the chart
+// ---------------------------------------------------------------------------------------------
+
+/// A projective map (3×3, h[2][2] = 1) from chart coordinates (u, v) ∈ [0, 6] × [0, 4] to image
+/// pixel coordinates.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Homography(pub Mat3);
+
+impl Homography {
+    /// The homography taking the four `src` points to the four `dst` points.
+    pub fn from_points(src: [[f64; 2]; 4], dst: [[f64; 2]; 4]) -> Result<Homography> {
+        let mut a = [[0.0f64; 9]; 8];
+        for k in 0..4 {
+            let [x, y] = src[k];
+            let [u, v] = dst[k];
+            a[2 * k] = [x, y, 1.0, 0.0, 0.0, 0.0, -u * x, -u * y, u];
+            a[2 * k + 1] = [0.0, 0.0, 0.0, x, y, 1.0, -v * x, -v * y, v];
+        }
+        // Gaussian elimination with partial pivoting on the 8×8 system.
+        for col in 0..8 {
+            let piv = (col..8)
+                .max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))
+                .expect("non-empty");
+            if a[piv][col].abs() < 1e-12 {
+                return Err(Error::Invalid(
+                    "chart corners are degenerate (three of them on a line?)".into(),
+                ));
+            }
+            a.swap(col, piv);
+            for r in 0..8 {
+                if r != col {
+                    let f = a[r][col] / a[col][col];
+                    for c in col..9 {
+                        a[r][c] -= f * a[col][c];
+                    }
+                }
+            }
+        }
+        let h: Vec<f64> = (0..8).map(|r| a[r][8] / a[r][r]).collect();
+        Ok(Homography([
+            [h[0], h[1], h[2]],
+            [h[3], h[4], h[5]],
+            [h[6], h[7], 1.0],
+        ]))
+    }
+
+    /// Chart (6 × 4 cells) → image through the four image corners of the patch area: top-left,
+    /// top-right, bottom-right, bottom-left.
+    pub fn chart_to_image(corners: [[f64; 2]; 4]) -> Result<Homography> {
+        let (w, h) = (CHART_COLS as f64, CHART_ROWS as f64);
+        Homography::from_points([[0.0, 0.0], [w, 0.0], [w, h], [0.0, h]], corners)
+    }
+
+    pub fn apply(&self, p: [f64; 2]) -> [f64; 2] {
+        let q = mat_vec(&self.0, [p[0], p[1], 1.0]);
+        [q[0] / q[2], q[1] / q[2]]
+    }
+
+    pub fn inverse(&self) -> Option<Homography> {
+        mat_inv(&self.0).map(Homography)
+    }
+}
+
+/// Where the chart's 6 × 4 patch area lies in an image.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ChartRegion {
+    /// The chart fills the frame (what [`render_chart`] makes).
+    FullFrame,
+    /// Image coordinates of the patch area's corners: top-left, top-right, bottom-right,
+    /// bottom-left (the outer corners of patches 1, 6, 24 and 19).
+    Corners([[f64; 2]; 4]),
+}
+
+impl ChartRegion {
+    /// Parse `x0,y0,x1,y1,x2,y2,x3,y3` (top-left, top-right, bottom-right, bottom-left).
+    pub fn parse_corners(s: &str) -> Result<ChartRegion> {
+        let v = parse_floats(s, 8, "chart corners (x0,y0,x1,y1,x2,y2,x3,y3)")?;
+        Ok(ChartRegion::Corners(std::array::from_fn(|k| {
+            [v[2 * k], v[2 * k + 1]]
+        })))
+    }
+
+    pub fn corners(&self, width: usize, height: usize) -> [[f64; 2]; 4] {
+        match self {
+            ChartRegion::FullFrame => {
+                let (w, h) = (width as f64, height as f64);
+                [[0.0, 0.0], [w, 0.0], [w, h], [0.0, h]]
+            }
+            ChartRegion::Corners(c) => *c,
+        }
+    }
+}
+
+impl fmt::Display for ChartRegion {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ChartRegion::FullFrame => write!(f, "full frame"),
+            ChartRegion::Corners(c) => {
+                let s: Vec<String> = c.iter().flatten().map(|v| format!("{v}")).collect();
+                write!(f, "{}", s.join(","))
+            }
+        }
+    }
+}
+
+/// One sampled patch: mean and sample standard deviation per channel over its pixels.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PatchSample {
+    pub mean: [f64; 3],
+    pub std: [f64; 3],
+    pub pixels: usize,
+}
+
+/// Fewest pixels a patch's sampling window may hold.
+pub const MIN_PATCH_PIXELS: usize = 4;
+/// A patch is clipped when any sampled pixel has a channel at or above this fraction of the
+/// clip level.
+pub const CLIP_FRACTION: f64 = 0.98;
+
+/// Sample the 24 patches: each cell's central half (chart coordinates [i + ¼, i + ¾) ×
+/// [j + ¼, j + ¾)), pixels taken by their centres mapped back through the homography, so gaps
+/// between patches, edges and blur stay out of the means. With `clip_level` Some(c), a patch with
+/// any channel of any sampled pixel ≥ 0.98 · c is an error naming the patch. A window outside the
+/// image or with fewer than 4 pixels is an error too.
+pub fn sample_chart(
+    img: &Image,
+    region: &ChartRegion,
+    clip_level: Option<f64>,
+) -> Result<Vec<PatchSample>> {
+    let corners = region.corners(img.width, img.height);
+    let h = Homography::chart_to_image(corners)?;
+    let inv = h
+        .inverse()
+        .ok_or_else(|| Error::Invalid("chart corners give a singular mapping".into()))?;
+    // The patch area must be a convex quadrilateral in the given order (no flips or bow-ties).
+    let cross = |a: [f64; 2], b: [f64; 2], c: [f64; 2]| {
+        (b[0] - a[0]) * (c[1] - b[1]) - (b[1] - a[1]) * (c[0] - b[0])
+    };
+    let turns: Vec<f64> = (0..4)
+        .map(|k| cross(corners[k], corners[(k + 1) % 4], corners[(k + 2) % 4]))
+        .collect();
+    if !(turns.iter().all(|&t| t > 0.0) || turns.iter().all(|&t| t < 0.0)) {
+        return Err(Error::Invalid(format!(
+            "chart corners {} do not form a convex quadrilateral in the order top-left, \
+             top-right, bottom-right, bottom-left",
+            region
+        )));
+    }
+    let (w, hgt) = (img.width as f64, img.height as f64);
+    let mut out = Vec::with_capacity(24);
+    for (p, patch) in COLORCHECKER24.iter().enumerate() {
+        let (i, j) = ((p % CHART_COLS) as f64, (p / CHART_COLS) as f64);
+        let (u0, u1, v0, v1) = (i + 0.25, i + 0.75, j + 0.25, j + 0.75);
+        let quad = [[u0, v0], [u1, v0], [u1, v1], [u0, v1]].map(|q| h.apply(q));
+        if quad
+            .iter()
+            .any(|q| !(q[0] >= 0.0 && q[0] <= w && q[1] >= 0.0 && q[1] <= hgt))
+        {
+            return Err(Error::Invalid(format!(
+                "patch {} ({}): its sampling window lies outside the {}×{} image; check the \
+                 chart corners",
+                patch.number, patch.name, img.width, img.height
+            )));
+        }
+        let xmin = quad
+            .iter()
+            .map(|q| q[0])
+            .fold(f64::INFINITY, f64::min)
+            .floor()
+            .max(0.0) as usize;
+        let xmax = (quad
+            .iter()
+            .map(|q| q[0])
+            .fold(f64::NEG_INFINITY, f64::max)
+            .ceil() as usize)
+            .min(img.width);
+        let ymin = quad
+            .iter()
+            .map(|q| q[1])
+            .fold(f64::INFINITY, f64::min)
+            .floor()
+            .max(0.0) as usize;
+        let ymax = (quad
+            .iter()
+            .map(|q| q[1])
+            .fold(f64::NEG_INFINITY, f64::max)
+            .ceil() as usize)
+            .min(img.height);
+        let mut vals: Vec<[f64; 3]> = Vec::new();
+        for y in ymin..ymax {
+            for x in xmin..xmax {
+                let [u, v] = inv.apply([x as f64 + 0.5, y as f64 + 0.5]);
+                if u >= u0 && u < u1 && v >= v0 && v < v1 {
+                    let px = img.get(x, y);
+                    vals.push([px[0] as f64, px[1] as f64, px[2] as f64]);
+                }
+            }
+        }
+        if vals.len() < MIN_PATCH_PIXELS {
+            return Err(Error::Invalid(format!(
+                "patch {} ({}): only {} pixels in its sampling window (need {MIN_PATCH_PIXELS}); \
+                 the chart is too small in the image or the corners are wrong",
+                patch.number,
+                patch.name,
+                vals.len()
+            )));
+        }
+        if let Some(clip) = clip_level {
+            let limit = CLIP_FRACTION * clip;
+            let mut worst: Option<(usize, f64)> = None;
+            let mut count = 0usize;
+            for v in &vals {
+                for c in 0..3 {
+                    if v[c] >= limit {
+                        count += 1;
+                        if worst.is_none_or(|(_, w)| v[c] > w) {
+                            worst = Some((c, v[c]));
+                        }
+                    }
+                }
+            }
+            if let Some((c, v)) = worst {
+                return Err(Error::Invalid(format!(
+                    "patch {} ({}) is clipped: {count} sampled values at or above {:.4} \
+                     ({CLIP_FRACTION} × clip level {clip}), up to {v:.4} in channel {}; lower \
+                     the exposure or leave it out of the capture",
+                    patch.number,
+                    patch.name,
+                    limit,
+                    ["R", "G", "B"][c]
+                )));
+            }
+        }
+        let n = vals.len() as f64;
+        let mean: [f64; 3] = std::array::from_fn(|c| vals.iter().map(|v| v[c]).sum::<f64>() / n);
+        let std: [f64; 3] = std::array::from_fn(|c| {
+            if vals.len() < 2 {
+                0.0
+            } else {
+                (vals.iter().map(|v| (v[c] - mean[c]).powi(2)).sum::<f64>() / (n - 1.0)).sqrt()
+            }
+        });
+        out.push(PatchSample {
+            mean,
+            std,
+            pixels: vals.len(),
+        });
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn d65_gains_are_one_and_a_is_warm() {
+        assert_eq!(Illuminant::D65.gains(), [1.0; 3]);
+        let a = Illuminant::A.gains();
+        assert!(a[0] > 1.5 && a[2] < 0.3, "{a:?}");
+        let y = 0.2126 * a[0] + 0.7152 * a[1] + 0.0722 * a[2];
+        assert!((y - 1.0).abs() < 1e-3, "{y}");
+    }
+
+    #[test]
+    fn homography_round_trip() {
+        let c = [[10.0, 20.0], [200.0, 5.0], [220.0, 150.0], [5.0, 160.0]];
+        let h = Homography::chart_to_image(c).unwrap();
+        for (k, p) in [[0.0, 0.0], [6.0, 0.0], [6.0, 4.0], [0.0, 4.0]]
+            .iter()
+            .enumerate()
+        {
+            let q = h.apply(*p);
+            assert!((q[0] - c[k][0]).abs() < 1e-9 && (q[1] - c[k][1]).abs() < 1e-9);
+        }
+    }
+}

@@ -1,0 +1,320 @@
+//! The realism operator: pure synthetic frame + (ISO, exposure, seed) → sensor-realistic frame.
+//!
+//! Per pixel, in physical order:
+//! 1. linearise the synthetic code values with the profile's *source* response, normalised so
+//!    the source's clipping point is 1 (for the engine's filmic curve, code 1.0 ↔ 7.24 → 1);
+//! 2. colour: device = T · synthetic (or the root-polynomial), negative results clamped to 0;
+//! 3. scale to DN: signal I = device · exposure · (white − black);
+//! 4. noise: the paper's normal approximation I + N(0, a·I + b), or exact Poisson-Gaussian
+//!    a·Poisson(I / a) + N(0, b) (a, b in DN, from the profile's normalised a, b at this ISO);
+//! 5. add the black level; 6. extra effects of the profile (catalogue, physical order);
+//! 7. clip to [0, white]; 8. quantise to integer DN;
+//! 9. device response of (DN − black)/(white − black) → code value, quantised to 8 or 16 bits.
+//!
+//! Random draws come from a generator seeded by (seed, row), so output bits do not depend on the
+//! number of threads. The same operator simulates captures for the sim-to-real gap workflow
+//! (`to_dn`), so training data and simulation cannot drift apart.
+
+use crate::error::{Error, Result};
+use crate::io::{BitDepth, Image};
+use crate::rng::hash;
+use crate::sensor::profile::SensorProfile;
+use rand::SeedableRng;
+use rand_distr::{Distribution, Poisson, StandardNormal};
+use rand_xoshiro::Xoshiro256PlusPlus;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum NoiseModel {
+    /// The paper's N(0, a·I + b).
+    #[default]
+    Gaussian,
+    /// Exact shot noise a·Poisson(I/a) plus Gaussian read noise N(0, b).
+    PoissonGaussian,
+    /// No noise (colour and quantisation only): for ablations and tests.
+    None,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RealismOptions {
+    pub iso: f64,
+    /// Multiplier on the linearised signal (1 = the source's clipping point at white level).
+    #[serde(default = "one")]
+    pub exposure: f64,
+    #[serde(default)]
+    pub noise: NoiseModel,
+    /// Apply the profile's colour transform (the colour ablation turns it off).
+    #[serde(default = "yes")]
+    pub colour: bool,
+    /// Bits of the LDR output.
+    #[serde(default = "eight")]
+    pub output_bits: u32,
+}
+
+fn one() -> f64 {
+    1.0
+}
+fn yes() -> bool {
+    true
+}
+fn eight() -> u32 {
+    8
+}
+
+impl RealismOptions {
+    pub fn new(iso: f64) -> Self {
+        RealismOptions {
+            iso,
+            exposure: 1.0,
+            noise: NoiseModel::Gaussian,
+            colour: true,
+            output_bits: 8,
+        }
+    }
+}
+
+enum ColourOp {
+    Identity,
+    Matrix([[f32; 3]; 3]),
+    RootPoly([[f32; 6]; 3]),
+}
+
+/// A profile prepared for one ISO and option set: tables precomputed, ready for many frames.
+pub struct Realism {
+    /// Source linearisation over code values [0, 1] (LUT_N + 2 entries, linear interpolation).
+    source_lut: Vec<f32>,
+    colour: ColourOp,
+    scale: f32,
+    a_dn: [f32; 3],
+    b_dn: [f32; 3],
+    noise: NoiseModel,
+    black: f32,
+    white: f32,
+    /// Integer DN → final output code value (device response, quantised to the output bits).
+    output_lut: Vec<f32>,
+}
+
+const LUT_N: usize = 1 << 16;
+
+#[inline]
+fn lut_lookup(lut: &[f32], v: f32) -> f32 {
+    let t = v.clamp(0.0, 1.0) * LUT_N as f32;
+    let i = t as usize;
+    lut[i] + (lut[i + 1] - lut[i]) * (t - i as f32)
+}
+
+impl Realism {
+    pub fn new(profile: &SensorProfile, opts: &RealismOptions) -> Result<Realism> {
+        let out_depth = BitDepth::from_bits(opts.output_bits).ok_or_else(|| {
+            Error::Invalid(format!("output bits {} must be 8 or 16", opts.output_bits))
+        })?;
+        if !(opts.exposure > 0.0 && opts.exposure.is_finite()) {
+            return Err(Error::Invalid(format!(
+                "exposure {} must be > 0",
+                opts.exposure
+            )));
+        }
+        if !profile.effects.is_empty() {
+            // The catalogue is empty in this build; profile validation already rejects ids.
+            return Err(Error::Invalid(format!(
+                "profile '{}' lists effects this build cannot simulate",
+                profile.name
+            )));
+        }
+        let src = &profile.source_response;
+        let sat = src.invert(1.0).max(1e-12);
+        let source_lut = (0..=LUT_N + 1)
+            .map(|i| (src.invert((i as f64 / LUT_N as f64).min(1.0)) / sat) as f32)
+            .collect();
+        let colour = if !opts.colour {
+            ColourOp::Identity
+        } else {
+            let c = profile.colour.as_ref().ok_or_else(|| {
+                Error::Invalid(format!(
+                    "profile '{}' has no colour calibration (run `hdrsynth calibrate colour`, \
+                     or turn colour off)",
+                    profile.name
+                ))
+            })?;
+            match (&c.root_polynomial, c.use_root_polynomial) {
+                (Some(rp), true) => ColourOp::RootPoly(rp.map(|r| r.map(|v| v as f32))),
+                _ => ColourOp::Matrix(c.matrix.map(|r| r.map(|v| v as f32))),
+            }
+        };
+        let l = &profile.levels;
+        let range = l.white_level - l.black_level;
+        let (a_dn, b_dn) = match opts.noise {
+            NoiseModel::None => ([0.0; 3], [0.0; 3]),
+            _ => {
+                let (a, b) = profile.noise_at(opts.iso)?;
+                (
+                    a.map(|v| (v * range) as f32),
+                    b.map(|v| (v * range * range) as f32),
+                )
+            }
+        };
+        let white_dn = l.white_level.floor() as usize;
+        let max_code = out_depth.max_code() as f64;
+        let output_lut = (0..=white_dn)
+            .map(|dn| {
+                let x = (dn as f64 - l.black_level) / range;
+                ((profile.response.apply(x) * max_code).round() / max_code) as f32
+            })
+            .collect();
+        Ok(Realism {
+            source_lut,
+            colour,
+            scale: (opts.exposure * range) as f32,
+            a_dn,
+            b_dn,
+            noise: opts.noise,
+            black: l.black_level as f32,
+            white: l.white_level.floor() as f32,
+            output_lut,
+        })
+    }
+
+    /// Signal above black in DN (noise-free) for one synthetic pixel.
+    #[inline(always)]
+    fn signal(&self, v: &[f32]) -> [f32; 3] {
+        let lin = [
+            lut_lookup(&self.source_lut, v[0]),
+            lut_lookup(&self.source_lut, v[1]),
+            lut_lookup(&self.source_lut, v[2]),
+        ];
+        let mut dev = lin;
+        match &self.colour {
+            ColourOp::Identity => {}
+            ColourOp::Matrix(m) => {
+                for (d, row) in dev.iter_mut().zip(m) {
+                    *d = row[0] * lin[0] + row[1] * lin[1] + row[2] * lin[2];
+                }
+            }
+            ColourOp::RootPoly(m) => {
+                let t = [
+                    lin[0],
+                    lin[1],
+                    lin[2],
+                    (lin[0] * lin[1]).max(0.0).sqrt(),
+                    (lin[1] * lin[2]).max(0.0).sqrt(),
+                    (lin[0] * lin[2]).max(0.0).sqrt(),
+                ];
+                for (d, row) in dev.iter_mut().zip(m) {
+                    *d = row.iter().zip(&t).map(|(a, b)| a * b).sum();
+                }
+            }
+        }
+        for d in &mut dev {
+            *d = d.max(0.0) * self.scale;
+        }
+        dev
+    }
+
+    /// One row of quantised DN (`out`, interleaved RGB) from one row of synthetic code values.
+    /// Staged so each pass is a simple loop the CPU can overlap or vectorise: signal, noise
+    /// standard deviation, normal draws (the only sequential part), then combine.
+    fn row_dn(&self, input: &[f32], out: &mut [f32], seed: u64, row: usize, z: &mut Vec<f32>) {
+        let mut rng = Self::row_rng(seed, row);
+        for (o, i) in out.chunks_exact_mut(3).zip(input.chunks_exact(3)) {
+            o.copy_from_slice(&self.signal(i));
+        }
+        match self.noise {
+            NoiseModel::None => {}
+            NoiseModel::Gaussian => {
+                z.clear();
+                z.extend((0..out.len()).map(|_| {
+                    let v: f64 = StandardNormal.sample(&mut rng);
+                    v as f32
+                }));
+                for (px, zp) in out.chunks_exact_mut(3).zip(z.chunks_exact(3)) {
+                    for c in 0..3 {
+                        let i = px[c];
+                        px[c] = i + (self.a_dn[c] * i + self.b_dn[c]).sqrt() * zp[c];
+                    }
+                }
+            }
+            NoiseModel::PoissonGaussian => {
+                for px in out.chunks_exact_mut(3) {
+                    for c in 0..3 {
+                        let i = px[c];
+                        let shot = if self.a_dn[c] > 0.0 && i > 0.0 {
+                            let lambda = (i / self.a_dn[c]) as f64;
+                            let k: f64 = Poisson::new(lambda)
+                                .map(|p| p.sample(&mut rng))
+                                .unwrap_or(lambda);
+                            k as f32 * self.a_dn[c]
+                        } else {
+                            i
+                        };
+                        let zv: f64 = StandardNormal.sample(&mut rng);
+                        px[c] = shot + self.b_dn[c].sqrt() * zv as f32;
+                    }
+                }
+            }
+        }
+        for v in out.iter_mut() {
+            // Non-negative after the clamp: +0.5 and truncation rounds half up, without the
+            // libm `roundf` call that baseline x86-64 would make.
+            *v = ((*v + self.black).clamp(0.0, self.white) + 0.5) as u32 as f32;
+        }
+    }
+
+    fn row_rng(seed: u64, row: usize) -> Xoshiro256PlusPlus {
+        Xoshiro256PlusPlus::seed_from_u64(hash(seed, &[row as u64]))
+    }
+
+    /// The sensor frame in DN (integers stored as f32), before the device response.
+    pub fn to_dn(&self, input: &Image, seed: u64) -> Image {
+        let mut out = Image::new(input.width, input.height);
+        let w3 = input.width * 3;
+        out.data
+            .par_chunks_mut(w3)
+            .zip(input.data.par_chunks(w3))
+            .enumerate()
+            .for_each_init(Vec::new, |z, (row, (o, i))| self.row_dn(i, o, seed, row, z));
+        out
+    }
+
+    /// Device response of a DN frame: code values in [0, 1], quantised to the output bits.
+    pub fn dn_to_ldr(&self, dn: &Image) -> Image {
+        dn.map(|d| self.output_lut[(d.clamp(0.0, self.white)) as usize])
+    }
+
+    /// Synthetic frame → sensor-realistic LDR frame in one pass (same draws as `to_dn`).
+    pub fn apply(&self, input: &Image, seed: u64) -> Image {
+        let mut out = Image::new(input.width, input.height);
+        self.apply_into(input, seed, &mut out);
+        out
+    }
+
+    /// `apply` into a caller's buffer (resized as needed), so loaders reuse their allocations.
+    pub fn apply_into(&self, input: &Image, seed: u64, out: &mut Image) {
+        out.width = input.width;
+        out.height = input.height;
+        out.data.resize(input.data.len(), 0.0);
+        let w3 = input.width * 3;
+        out.data
+            .par_chunks_mut(w3)
+            .zip(input.data.par_chunks(w3))
+            .enumerate()
+            .for_each_init(Vec::new, |z, (row, (o, i))| {
+                self.row_dn(i, o, seed, row, z);
+                for v in o.iter_mut() {
+                    *v = self.output_lut[*v as usize];
+                }
+            });
+    }
+
+    /// Expected DN (noise-free, unclipped, unquantised) of a synthetic pixel: for tests/diagnosis.
+    pub fn expected_dn(&self, v: [f32; 3]) -> [f32; 3] {
+        self.signal(&v).map(|s| s + self.black)
+    }
+
+    /// Noise variance in DN² at a signal of `i` DN above black, per channel.
+    pub fn variance_dn(&self, i: [f32; 3]) -> [f32; 3] {
+        std::array::from_fn(|c| self.a_dn[c] * i[c] + self.b_dn[c])
+    }
+}

@@ -1,0 +1,971 @@
+//! Colour calibration: colour maths and fits against colour-science oracles, recovery of a known
+//! T from a noisy chart, leave-one-out, homography sampling, clipping, the DNG reader and the
+//! `calibrate colour` command end to end.
+#![allow(clippy::needless_range_loop)]
+
+use hdrsynth::cli::calibrate::colour::{Args, run};
+use hdrsynth::io::{Image, write_exr};
+use hdrsynth::rng::Rng;
+use hdrsynth::sensor::colour::{
+    self as col, COLORCHECKER24, ChartRegion, Homography, Illuminant, Model,
+};
+use hdrsynth::sensor::dng::{read_dng, read_dng_info, read_dng_mosaic};
+use hdrsynth::sensor::profile::{
+    Levels, NoiseAtIso, PROFILE_FORMAT, ProfileKind, Provenance, Response, SensorProfile,
+};
+use std::path::{Path, PathBuf};
+
+fn shared(rel: &str) -> Option<PathBuf> {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data")
+        .join(rel);
+    if p.exists() {
+        Some(p)
+    } else {
+        println!(
+            "skipped: {} is absent (shared data not checked out)",
+            p.display()
+        );
+        None
+    }
+}
+
+// --- a minimal JSON reader for oracles.json (no JSON crate in the dependencies) ---------------
+
+#[derive(Debug, Clone)]
+enum Json {
+    Null,
+    Bool,
+    Num(f64),
+    Str(String),
+    Arr(Vec<Json>),
+    Obj(Vec<(String, Json)>),
+}
+
+impl Json {
+    fn parse(s: &str) -> Json {
+        let b = s.as_bytes();
+        let mut i = 0;
+        Self::value(b, &mut i)
+    }
+    fn ws(b: &[u8], i: &mut usize) {
+        while *i < b.len() && b[*i].is_ascii_whitespace() {
+            *i += 1;
+        }
+    }
+    fn value(b: &[u8], i: &mut usize) -> Json {
+        Self::ws(b, i);
+        match b[*i] {
+            b'{' => {
+                *i += 1;
+                let mut items = Vec::new();
+                loop {
+                    Self::ws(b, i);
+                    if b[*i] == b'}' {
+                        *i += 1;
+                        break;
+                    }
+                    let Json::Str(k) = Self::value(b, i) else {
+                        panic!("object key")
+                    };
+                    Self::ws(b, i);
+                    assert_eq!(b[*i], b':');
+                    *i += 1;
+                    items.push((k, Self::value(b, i)));
+                    Self::ws(b, i);
+                    if b[*i] == b',' {
+                        *i += 1;
+                    }
+                }
+                Json::Obj(items)
+            }
+            b'[' => {
+                *i += 1;
+                let mut items = Vec::new();
+                loop {
+                    Self::ws(b, i);
+                    if b[*i] == b']' {
+                        *i += 1;
+                        break;
+                    }
+                    items.push(Self::value(b, i));
+                    Self::ws(b, i);
+                    if b[*i] == b',' {
+                        *i += 1;
+                    }
+                }
+                Json::Arr(items)
+            }
+            b'"' => {
+                *i += 1;
+                let mut s = Vec::new();
+                while b[*i] != b'"' {
+                    if b[*i] == b'\\' {
+                        *i += 1;
+                    }
+                    s.push(b[*i]);
+                    *i += 1;
+                }
+                *i += 1;
+                Json::Str(String::from_utf8_lossy(&s).into_owned())
+            }
+            b't' => {
+                *i += 4;
+                Json::Bool
+            }
+            b'f' => {
+                *i += 5;
+                Json::Bool
+            }
+            b'n' => {
+                *i += 4;
+                Json::Null
+            }
+            _ => {
+                let start = *i;
+                while *i < b.len()
+                    && (b[*i] == b'-'
+                        || b[*i] == b'+'
+                        || b[*i] == b'.'
+                        || b[*i] == b'e'
+                        || b[*i] == b'E'
+                        || b[*i].is_ascii_digit())
+                {
+                    *i += 1;
+                }
+                Json::Num(std::str::from_utf8(&b[start..*i]).unwrap().parse().unwrap())
+            }
+        }
+    }
+    fn get(&self, key: &str) -> &Json {
+        match self {
+            Json::Obj(items) => {
+                &items
+                    .iter()
+                    .find(|(k, _)| k == key)
+                    .unwrap_or_else(|| panic!("no key {key}"))
+                    .1
+            }
+            _ => panic!("not an object"),
+        }
+    }
+    fn arr(&self) -> &[Json] {
+        match self {
+            Json::Arr(a) => a,
+            _ => panic!("not an array"),
+        }
+    }
+    fn num(&self) -> f64 {
+        match self {
+            Json::Num(v) => *v,
+            _ => panic!("not a number"),
+        }
+    }
+    fn vec3(&self) -> [f64; 3] {
+        let a = self.arr();
+        assert_eq!(a.len(), 3);
+        [a[0].num(), a[1].num(), a[2].num()]
+    }
+    fn rows3(&self) -> Vec<[f64; 3]> {
+        self.arr().iter().map(|r| r.vec3()).collect()
+    }
+    fn matrix(&self) -> Vec<Vec<f64>> {
+        self.arr()
+            .iter()
+            .map(|r| r.arr().iter().map(|v| v.num()).collect())
+            .collect()
+    }
+}
+
+fn oracles() -> Option<Json> {
+    let p = shared("oracles/oracles.json")?;
+    Some(Json::parse(&std::fs::read_to_string(p).unwrap()))
+}
+
+// --- oracles -------------------------------------------------------------------------------------
+
+#[test]
+fn delta_e_2000_matches_colour_science_on_40_pairs() {
+    let Some(o) = oracles() else { return };
+    let pairs = o.get("delta_e_2000").arr();
+    assert_eq!(pairs.len(), 40);
+    for (k, p) in pairs.iter().enumerate() {
+        let (l1, l2, want) = (
+            p.get("lab1").vec3(),
+            p.get("lab2").vec3(),
+            p.get("de00").num(),
+        );
+        let got = col::delta_e_2000(l1, l2);
+        assert!((got - want).abs() < 1e-6, "pair {k}: {got} vs {want}");
+        // Symmetric.
+        assert!(
+            (col::delta_e_2000(l2, l1) - want).abs() < 1e-6,
+            "pair {k} swapped"
+        );
+    }
+}
+
+#[test]
+fn delta_e_2000_edge_cases() {
+    // Identical colours, zero chroma on one side, hue wrap-around (Sharma 2005 test pairs 7, 17).
+    assert_eq!(col::delta_e_2000([50.0, 0.0, 0.0], [50.0, 0.0, 0.0]), 0.0);
+    let d = col::delta_e_2000([50.0, 0.0, 0.0], [50.0, -1.0, 2.0]);
+    assert!((d - 2.3669).abs() < 1e-4, "{d}");
+    let d = col::delta_e_2000([50.0, 2.5, 0.0], [73.0, 25.0, -18.0]);
+    assert!((d - 27.1492).abs() < 1e-4, "{d}");
+    let d = col::delta_e_2000([2.0776, 0.0795, -1.135], [0.9033, -0.0636, -0.5514]);
+    assert!((d - 0.9082).abs() < 1e-4, "{d}");
+}
+
+#[test]
+fn least_squares_and_root_polynomial_match_colour_science() {
+    let Some(o) = oracles() else { return };
+    let cc = o.get("colour_correction");
+    let syn = cc.get("synthetic_rgb").rows3();
+    let real = cc.get("real_rgb").rows3();
+    assert_eq!(syn.len(), 24);
+    assert!(
+        syn.iter().flatten().any(|v| *v < 0.0),
+        "the oracle has a negative synthetic value"
+    );
+    let want_t = cc.get("T_least_squares_3x3").matrix();
+    let t = col::fit_matrix(&syn, &real).unwrap();
+    for i in 0..3 {
+        for j in 0..3 {
+            assert!(
+                (t[i][j] - want_t[i][j]).abs() < 1e-6,
+                "T[{i}][{j}] {} vs {}",
+                t[i][j],
+                want_t[i][j]
+            );
+        }
+    }
+    let want_rp = cc.get("root_polynomial_degree2_matrix").matrix();
+    let rp = col::fit_root_polynomial(&syn, &real).unwrap();
+    for i in 0..3 {
+        for j in 0..6 {
+            assert!(
+                (rp[i][j] - want_rp[i][j]).abs() < 1e-6,
+                "RP[{i}][{j}] {} vs {}",
+                rp[i][j],
+                want_rp[i][j]
+            );
+        }
+    }
+    // The synthetic set is the shipped reference table.
+    for (s, p) in syn.iter().zip(COLORCHECKER24.iter()) {
+        assert_eq!(*s, p.linear_srgb, "patch {}", p.number);
+    }
+    // Applying the fits to colours and images agrees.
+    let img = Image::from_fn(24, 1, |x, _| syn[x].map(|v| v as f32));
+    let out = col::apply_root_polynomial_image(&rp, &img);
+    for x in 0..24 {
+        let want = col::apply_root_polynomial(&rp, syn[x]);
+        let got = out.get(x, 0);
+        for c in 0..3 {
+            assert!((got[c] as f64 - want[c]).abs() < 1e-5);
+        }
+    }
+}
+
+#[test]
+fn reference_table_round_trips_to_its_lab() {
+    // linear sRGB → XYZ D65 → Bradford → Lab D50 of the shipped linear values gives the shipped
+    // Lab (the linear values are rounded to 6 decimals, hence the small tolerance).
+    for p in &COLORCHECKER24 {
+        let lab = col::linear_srgb_to_lab_d50(p.linear_srgb);
+        let de = col::delta_e_2000(lab, p.lab_d50);
+        assert!(de < 0.01, "patch {} ({}): ΔE00 {de}", p.number, p.name);
+    }
+    // Patch 1 through colour-science 0.4.7 (RGB_to_XYZ 'sRGB' with Bradford to the chart's D50,
+    // XYZ_to_Lab), computed at development time.
+    let lab = col::linear_srgb_to_lab_d50(COLORCHECKER24[0].linear_srgb);
+    let want = [37.54081845880617, 14.368174961664648, 14.920555790621492];
+    for c in 0..3 {
+        assert!((lab[c] - want[c]).abs() < 1e-9, "{lab:?}");
+    }
+}
+
+// --- fits on noisy charts -----------------------------------------------------------------------
+
+fn gauss(rng: &mut Rng) -> f64 {
+    // Box–Muller.
+    let u1 = (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
+    let u2 = (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
+    (-2.0 * (1.0 - u1).ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
+}
+
+fn add_noise(img: &Image, sigma: f64, seed: u64) -> Image {
+    let mut rng = Rng::new(seed);
+    let mut out = img.clone();
+    for v in out.data.iter_mut() {
+        *v += (sigma * gauss(&mut rng)) as f32;
+    }
+    out
+}
+
+const KNOWN_T: [[f64; 3]; 3] = [[0.82, 0.21, -0.03], [0.06, 0.88, 0.06], [0.01, -0.17, 1.16]];
+
+#[test]
+fn known_matrix_is_recovered_from_a_noisy_chart() {
+    // Real chart = KNOWN_T · rendered chart + N(0, σ²) per pixel. Each patch mean then carries
+    // noise σ_m = σ/√n (n pixels in the central half), and the least-squares row estimate has
+    // covariance σ_m² (SᵀS)⁻¹ (S the 24×3 synthetic colours): entry (i, j) has standard error
+    // σ_m √[(SᵀS)⁻¹]_jj. We allow 5 standard errors.
+    let sigma = 0.02;
+    let syn_img = col::render_chart(600, 400, &Illuminant::D65, 1.0);
+    let real_img = add_noise(&col::apply_matrix_image(&KNOWN_T, &syn_img), sigma, 7);
+    let samples = col::sample_chart(&real_img, &ChartRegion::FullFrame, None).unwrap();
+    let n = samples[0].pixels;
+    assert_eq!(n, 50 * 50);
+    for s in &samples {
+        for c in 0..3 {
+            assert!(
+                (s.std[c] / sigma - 1.0).abs() < 0.1,
+                "per-patch std {:?}",
+                s.std
+            );
+        }
+    }
+    let syn = col::reference_linear_srgb();
+    let real: Vec<[f64; 3]> = samples.iter().map(|s| s.mean).collect();
+    let t = col::fit_matrix(&syn, &real).unwrap();
+    let mut sts = [[0.0; 3]; 3];
+    for s in &syn {
+        for i in 0..3 {
+            for j in 0..3 {
+                sts[i][j] += s[i] * s[j];
+            }
+        }
+    }
+    let inv = col::mat_inv(&sts).unwrap();
+    let sigma_m = sigma / (n as f64).sqrt();
+    for i in 0..3 {
+        for j in 0..3 {
+            let se = sigma_m * inv[j][j].sqrt();
+            let err = (t[i][j] - KNOWN_T[i][j]).abs();
+            assert!(
+                err < 5.0 * se,
+                "T[{i}][{j}] = {} vs {} (error {err:.2e}, 5 SE {:.2e})",
+                t[i][j],
+                KNOWN_T[i][j],
+                5.0 * se
+            );
+        }
+    }
+}
+
+#[test]
+fn leave_one_out_exceeds_in_sample_on_noisy_data() {
+    let syn = col::reference_linear_srgb();
+    let mut rng = Rng::new(11);
+    let real: Vec<[f64; 3]> = syn
+        .iter()
+        .map(|&s| col::apply_matrix(&KNOWN_T, s).map(|v| v + 0.01 * gauss(&mut rng)))
+        .collect();
+    for model in [Model::Matrix, Model::RootPolynomial] {
+        let e = col::fit_and_evaluate(model, &syn, &real).unwrap();
+        assert!(
+            e.loo.mean > e.after.mean,
+            "{model:?}: LOO {} vs in-sample {}",
+            e.loo.mean,
+            e.after.mean
+        );
+        assert!(e.after.mean < e.before.mean, "{model:?}");
+        assert_eq!(e.loo.per_patch.len(), 24);
+    }
+    // Noise-free: the fit is exact and LOO is exact too.
+    let exact: Vec<[f64; 3]> = syn
+        .iter()
+        .map(|&s| col::apply_matrix(&KNOWN_T, s))
+        .collect();
+    let e = col::fit_and_evaluate(Model::Matrix, &syn, &exact).unwrap();
+    assert!(
+        e.after.max < 1e-6 && e.loo.max < 1e-6,
+        "{} {}",
+        e.after.max,
+        e.loo.max
+    );
+}
+
+// --- chart rendering and sampling ------------------------------------------------------------------
+
+#[test]
+fn rendered_chart_layout_and_illuminants() {
+    let img = col::render_chart(60, 40, &Illuminant::D65, 2.0);
+    let at = |x, y| img.get(x, y).map(|v| v as f64);
+    let p1 = COLORCHECKER24[0].linear_srgb;
+    let p24 = COLORCHECKER24[23].linear_srgb;
+    let p6 = COLORCHECKER24[5].linear_srgb;
+    for c in 0..3 {
+        assert!((at(0, 0)[c] - 2.0 * p1[c]).abs() < 1e-6);
+        assert!((at(59, 39)[c] - 2.0 * p24[c]).abs() < 1e-6);
+        assert!((at(59, 0)[c] - 2.0 * p6[c]).abs() < 1e-6);
+    }
+    let a = Illuminant::A.gains();
+    let ia = col::render_chart(60, 40, &Illuminant::A, 1.0);
+    let px = ia.get(0, 0);
+    for c in 0..3 {
+        assert!((px[c] as f64 - p1[c] * a[c]).abs() < 1e-6);
+    }
+    assert_eq!("d50".parse::<Illuminant>().unwrap(), Illuminant::D50);
+    assert_eq!(
+        "1,0.5,2".parse::<Illuminant>().unwrap(),
+        Illuminant::Gains([1.0, 0.5, 2.0])
+    );
+    assert!("D75".parse::<Illuminant>().is_err());
+    // Gains cross-checked with numpy and colour-science 0.4.7's Bradford
+    // (matrix_chromatic_adaptation_VonKries) at development time.
+    for (ill, want) in [
+        (Illuminant::D50, [1.17626, 0.97572, 0.72157]),
+        (Illuminant::A, [1.84537, 0.82612, 0.23323]),
+    ] {
+        let g = ill.gains();
+        for c in 0..3 {
+            assert!((g[c] - want[c]).abs() < 1e-5, "{ill}: {g:?}");
+        }
+    }
+    let d50 = Illuminant::D50.gains();
+    assert!(
+        d50[0] > 1.0 && d50[2] < 1.0,
+        "D50 is warmer than D65: {d50:?}"
+    );
+}
+
+/// A chart seen through `h` (chart → image) on a dark background, with dark gaps between the
+/// patches (each patch covers 84% of its cell), so only the central half is clean.
+fn warped_chart(w: usize, h_px: usize, h: &Homography) -> Image {
+    let inv = h.inverse().unwrap();
+    Image::from_fn(w, h_px, |x, y| {
+        let [u, v] = inv.apply([x as f64 + 0.5, y as f64 + 0.5]);
+        if !(0.0..6.0).contains(&u) || !(0.0..4.0).contains(&v) {
+            return [0.05; 3];
+        }
+        let (i, j) = (u as usize, v as usize);
+        let (fu, fv) = (u - i as f64, v - j as f64);
+        if !(0.08..0.92).contains(&fu) || !(0.08..0.92).contains(&fv) {
+            return [0.02; 3];
+        }
+        COLORCHECKER24[j * 6 + i]
+            .linear_srgb
+            .map(|v| v.max(0.0) as f32)
+    })
+}
+
+#[test]
+fn corner_sampling_recovers_patches_through_a_homography() {
+    let corners = [[120.3, 80.7], [610.2, 60.1], [650.8, 430.4], [90.5, 460.9]];
+    let h = Homography::chart_to_image(corners).unwrap();
+    let img = warped_chart(720, 520, &h);
+    let region =
+        ChartRegion::parse_corners("120.3,80.7,610.2,60.1,650.8,430.4,90.5,460.9").unwrap();
+    assert_eq!(region, ChartRegion::Corners(corners));
+    let s = col::sample_chart(&img, &region, Some(1.0)).unwrap();
+    for (k, p) in COLORCHECKER24.iter().enumerate() {
+        assert!(s[k].pixels > 500, "patch {}: {} px", p.number, s[k].pixels);
+        for c in 0..3 {
+            let want = p.linear_srgb[c].max(0.0);
+            assert!(
+                (s[k].mean[c] - want).abs() < 1e-6,
+                "patch {}: {:?}",
+                p.number,
+                s[k].mean
+            );
+            assert!(s[k].std[c] < 1e-6);
+        }
+    }
+    // Corners off by 4 px still land inside every patch.
+    let off = [[124.0, 77.0], [606.0, 64.0], [654.0, 427.0], [87.0, 464.0]];
+    let s = col::sample_chart(&img, &ChartRegion::Corners(off), None).unwrap();
+    for (k, p) in COLORCHECKER24.iter().enumerate() {
+        for c in 0..3 {
+            assert!(
+                (s[k].mean[c] - p.linear_srgb[c].max(0.0)).abs() < 1e-6,
+                "patch {}",
+                p.number
+            );
+        }
+    }
+    // Out of the image, and corners in the wrong order, are errors.
+    let out = ChartRegion::Corners([
+        [-300.0, 80.0],
+        [610.0, 60.0],
+        [650.0, 430.0],
+        [-300.0, 460.0],
+    ]);
+    assert!(
+        col::sample_chart(&img, &out, None)
+            .unwrap_err()
+            .to_string()
+            .contains("outside")
+    );
+    let twisted = ChartRegion::Corners([corners[0], corners[2], corners[1], corners[3]]);
+    assert!(col::sample_chart(&img, &twisted, None).is_err());
+    assert!(ChartRegion::parse_corners("1,2,3").is_err());
+}
+
+#[test]
+fn clipped_patch_error_names_the_patch() {
+    // Exposure 1.12 puts patch 19 (white, G 0.885) at 0.991 ≥ 0.98 while patch 20 stays at 0.66.
+    let img = col::render_chart(600, 400, &Illuminant::D65, 1.12);
+    let err = col::sample_chart(&img, &ChartRegion::FullFrame, Some(1.0))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("patch 19") && err.contains("white 9.5") && err.contains("clipped"),
+        "{err}"
+    );
+    // No clip level: no check.
+    assert!(col::sample_chart(&img, &ChartRegion::FullFrame, None).is_ok());
+}
+
+// --- DNG ----------------------------------------------------------------------------------------
+
+#[test]
+fn real_dng_reads_with_expected_size_pattern_and_levels() {
+    let Some(p) = shared("real_raw/colorchart.dng") else {
+        return;
+    };
+    let info = read_dng_info(&p).unwrap();
+    assert_eq!(info.cfa_string(), "RGGB");
+    assert_eq!((info.raw_width, info.raw_height), (1888, 1182));
+    assert_eq!(info.active_area, [26, 152, 1182, 1886]);
+    assert_eq!((info.width, info.height), (1734, 1156));
+    assert_eq!(info.bits_per_sample, 14);
+    assert_eq!(info.compression, 1);
+    assert_eq!(info.black_level_mean(), 2056.0);
+    assert_eq!(info.white_level, 15000.0);
+    let cm = info.color_matrix1.expect("ColorMatrix1");
+    assert!((cm[0][0] - 0.6461).abs() < 1e-9 && (cm[2][2] - 0.6039).abs() < 1e-9);
+    let n = info.as_shot_neutral.expect("AsShotNeutral");
+    assert!((n[1] - 2.477).abs() < 1e-9);
+    let dng = read_dng(&p).unwrap();
+    assert_eq!((dng.image.width, dng.image.height), (1734, 1156));
+    // Normalised values: the scene is below white, with mean well above black.
+    let mean: f64 =
+        dng.image.data.iter().map(|&v| v as f64).sum::<f64>() / dng.image.data.len() as f64;
+    assert!(mean > 0.01 && mean < 0.5, "{mean}");
+    assert!(dng.image.data.iter().all(|&v| v < 1.0 && v > -0.1));
+    // Green photosites agree between the two green positions of the RGGB pattern.
+    let (m, _) = read_dng_mosaic(&p).unwrap();
+    let (mut g1, mut g2) = (0.0f64, 0.0f64);
+    for y in (0..m.height).step_by(2) {
+        for x in (0..m.width).step_by(2) {
+            g1 += m.data[y * m.width + x + 1] as f64;
+            g2 += m.data[(y + 1) * m.width + x] as f64;
+        }
+    }
+    assert!((g1 / g2 - 1.0).abs() < 0.02, "{g1} {g2}");
+}
+
+/// A little-endian uncompressed CFA DNG: one IFD, strips of 3 rows (the last one shorter when
+/// the height is not a multiple of 3), `bits`-bit samples packed MSB-first, each strip starting
+/// on a byte boundary.
+fn write_test_dng(
+    path: &Path,
+    w: usize,
+    h: usize,
+    bits: usize,
+    pattern: [u8; 4],
+    compression: u16,
+    samples: &[u16],
+) {
+    let rps = 3usize;
+    let pack = |rows: &[u16]| -> Vec<u8> {
+        let mut packed = Vec::new();
+        let (mut acc, mut n) = (0u64, 0usize);
+        for &s in rows {
+            if bits == 16 {
+                // 16-bit samples are stored in the file's byte order (little-endian here).
+                packed.extend(s.to_le_bytes());
+                continue;
+            }
+            acc = (acc << bits) | s as u64;
+            n += bits;
+            while n >= 8 {
+                packed.push((acc >> (n - 8)) as u8);
+                n -= 8;
+            }
+        }
+        if n > 0 {
+            packed.push((acc << (8 - n)) as u8);
+        }
+        packed
+    };
+    let strips: Vec<Vec<u8>> = samples.chunks(rps * w).map(pack).collect();
+    let ns = strips.len() as u32;
+    let short = |v: u16| v.to_le_bytes().to_vec();
+    let long = |v: u32| v.to_le_bytes().to_vec();
+    // Entries: (tag, type, count, value bytes); values over 4 bytes go after the IFD.
+    let mut entries: Vec<(u16, u16, u32, Vec<u8>)> = vec![
+        (254, 4, 1, long(0)),
+        (256, 4, 1, long(w as u32)),
+        (257, 4, 1, long(h as u32)),
+        (258, 3, 1, short(bits as u16)),
+        (259, 3, 1, short(compression)),
+        (262, 3, 1, short(32803)),
+        (273, 4, ns, vec![]), // strip offsets, filled below
+        (277, 3, 1, short(1)),
+        (278, 4, 1, long(rps as u32)),
+        (
+            279,
+            4,
+            ns,
+            strips.iter().flat_map(|s| long(s.len() as u32)).collect(),
+        ),
+        (33421, 3, 2, [short(2), short(2)].concat()),
+        (33422, 1, 4, pattern.to_vec()),
+        (50714, 3, 1, short(64)),
+        (50717, 3, 1, short(((1u32 << bits) - 1) as u16)),
+    ];
+    let ifd_off = 8usize;
+    let data_off = ifd_off + 2 + 12 * entries.len() + 4;
+    // Layout after the IFD: strip data, then the out-of-line values.
+    let mut extra: Vec<u8> = Vec::new();
+    let mut offsets = Vec::new();
+    for st in &strips {
+        offsets.extend(long((data_off + extra.len()) as u32));
+        extra.extend(st);
+    }
+    entries[6].3 = offsets;
+    let mut out = b"II".to_vec();
+    out.extend(42u16.to_le_bytes());
+    out.extend((ifd_off as u32).to_le_bytes());
+    out.extend((entries.len() as u16).to_le_bytes());
+    for (tag, typ, count, mut val) in entries {
+        out.extend(tag.to_le_bytes());
+        out.extend(typ.to_le_bytes());
+        out.extend(count.to_le_bytes());
+        if val.len() > 4 {
+            let at = data_off + extra.len();
+            extra.extend(&val);
+            val = long(at as u32);
+        }
+        val.resize(4, 0);
+        out.extend(val);
+    }
+    out.extend(0u32.to_le_bytes());
+    out.extend(extra);
+    std::fs::write(path, out).unwrap();
+}
+
+#[test]
+fn synthetic_dng_unpacks_bits_and_reads_the_cfa_pattern() {
+    let dir = tempfile::tempdir().unwrap();
+    // 6 × 4 photosites in strips of 3 rows: the second strip holds one row.
+    let (w, h) = (6usize, 4usize);
+    for (bits, pattern, name) in [
+        (12, [1u8, 0, 2, 1], "GRBG"),
+        (14, [2, 1, 1, 0], "BGGR"),
+        (16, [0, 1, 1, 2], "RGGB"),
+    ] {
+        let max = (1u32 << bits) - 1;
+        let samples: Vec<u16> = (0..w * h)
+            .map(|i| (64 + i as u32 * 37 % (max - 64)) as u16)
+            .collect();
+        let p = dir.path().join(format!("t{bits}.dng"));
+        write_test_dng(&p, w, h, bits, pattern, 1, &samples);
+        let (m, info) = read_dng_mosaic(&p).unwrap();
+        assert_eq!(info.cfa_string(), name);
+        assert_eq!((m.width, m.height), (w, h));
+        for i in 0..w * h {
+            let want = (samples[i] as f64 - 64.0) / (max as f64 - 64.0);
+            assert!(
+                (m.data[i] as f64 - want).abs() < 1e-6,
+                "{bits} bits, sample {i}"
+            );
+        }
+        // Bilinear demosaic keeps each photosite's own colour.
+        let img = read_dng(&p).unwrap().image;
+        for y in 0..h {
+            for x in 0..w {
+                let c = pattern[(y % 2) * 2 + x % 2] as usize;
+                assert_eq!(img.get(x, y)[c], m.data[y * w + x]);
+            }
+        }
+    }
+    // Unsupported compression and CFA patterns name the file.
+    let p = dir.path().join("ljpeg.dng");
+    write_test_dng(&p, w, h, 12, [0, 1, 1, 2], 7, &vec![100; w * h]);
+    let e = read_dng(&p).unwrap_err().to_string();
+    assert!(
+        e.contains("ljpeg.dng") && e.contains("lossless-JPEG"),
+        "{e}"
+    );
+    let p = dir.path().join("cyan.dng");
+    write_test_dng(&p, w, h, 12, [0, 1, 3, 2], 1, &vec![100; w * h]);
+    let e = read_dng(&p).unwrap_err().to_string();
+    assert!(e.contains("cyan.dng") && e.contains("CFA pattern"), "{e}");
+    let p = dir.path().join("not.dng");
+    std::fs::write(&p, b"hello world").unwrap();
+    let e = read_dng(&p).unwrap_err().to_string();
+    assert!(e.contains("not.dng"), "{e}");
+}
+
+// --- calibrate colour end to end --------------------------------------------------------------
+
+/// Corners of the ColorChecker's 6×4 patch area in colorchart.dng (active-area pixels), found on
+/// a preview: the outer corners of patches 1, 6, 24, 19 (fitted through all 24 patch centres).
+const DNG_CORNERS: &str = "665,579,1303,564,1316,974,645,984";
+
+fn args(words: &[&str]) -> Args {
+    Args::parse_from(words.iter().copied()).unwrap()
+}
+
+#[test]
+fn calibrate_colour_on_the_real_dng_writes_a_profile() {
+    let Some(dng) = shared("real_raw/colorchart.dng") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("canon.toml");
+    let d = dng.to_str().unwrap();
+    let o = out.to_str().unwrap();
+    let report = run(&args(&["--real", d, "--out", o, "--corners", DNG_CORNERS])).unwrap();
+    println!("{report}");
+    println!("{}", std::fs::read_to_string(&out).unwrap());
+    let p = SensorProfile::load(&out).unwrap();
+    assert_eq!(p.format, PROFILE_FORMAT);
+    assert_eq!(p.kind, ProfileKind::Measured);
+    assert_eq!(
+        p.levels,
+        Levels {
+            black_level: 2056.0,
+            white_level: 15000.0,
+            bit_depth: 14
+        }
+    );
+    assert!(p.noise.is_empty());
+    assert_eq!(p.response, Response::Linear);
+    let c = p.colour.clone().unwrap();
+    assert!(!c.use_root_polynomial && c.root_polynomial.is_none());
+    // A neutral stays roughly neutral with unit gain: row sums of T near 1.
+    for r in c.matrix {
+        let s: f64 = r.iter().sum();
+        assert!((s - 1.0).abs() < 0.15, "{:?}", c.matrix);
+    }
+    assert!(
+        p.provenance.colour.contains("colorchart.dng") && p.provenance.colour.contains("ΔE00 mean")
+    );
+    assert!(p.provenance.levels.contains("BlackLevel"));
+    assert!(report.contains("leave-one-patch-out"));
+    // The fit helps and generalises sensibly.
+    let parse = |key: &str| -> f64 {
+        let line = report.lines().find(|l| l.starts_with(key)).unwrap();
+        line.split("mean ")
+            .nth(1)
+            .unwrap()
+            .split(',')
+            .next()
+            .unwrap()
+            .trim()
+            .parse()
+            .unwrap()
+    };
+    let (before, after) = (parse("ΔE00 before"), parse("ΔE00 after T"));
+    assert!(after < before, "{after} vs {before}");
+
+    // Second run with the root-polynomial updates the existing profile and keeps the rest.
+    let mut edited = p.clone();
+    edited.provenance.notes = Some("keep me".into());
+    edited.save(&out).unwrap();
+    let report = run(&args(&[
+        "--real",
+        d,
+        "--out",
+        o,
+        "--corners",
+        DNG_CORNERS,
+        "--root-polynomial",
+    ]))
+    .unwrap();
+    println!("{report}");
+    let q = SensorProfile::load(&out).unwrap();
+    assert_eq!(q.provenance.notes.as_deref(), Some("keep me"));
+    assert_eq!(q.levels, p.levels);
+    let qc = q.colour.unwrap();
+    assert!(qc.use_root_polynomial && qc.root_polynomial.is_some());
+    assert!(q.provenance.colour.contains("--root-polynomial"));
+}
+
+fn example_profile() -> SensorProfile {
+    SensorProfile {
+        format: PROFILE_FORMAT.into(),
+        name: "example".into(),
+        kind: ProfileKind::SyntheticExample,
+        provenance: Provenance {
+            colour: "none yet".into(),
+            noise: "invented".into(),
+            levels: "invented".into(),
+            response: "invented".into(),
+            notes: None,
+        },
+        colour: None,
+        levels: Levels {
+            black_level: 64.0,
+            white_level: 1023.0,
+            bit_depth: 10,
+        },
+        noise: vec![NoiseAtIso {
+            iso: 100.0,
+            a: [1e-4; 3],
+            b: [1e-6; 3],
+            a_stderr: None,
+            b_stderr: None,
+        }],
+        response: Response::Srgb,
+        source_response: Response::Filmic,
+        effects: Vec::new(),
+    }
+}
+
+#[test]
+fn calibrate_colour_updates_an_existing_profile_from_an_exr() {
+    // A "real" capture made with a known T and a different exposure, warped into a frame.
+    let dir = tempfile::tempdir().unwrap();
+    let corners = [[40.0, 30.0], [560.0, 42.0], [548.0, 380.0], [35.0, 370.0]];
+    let h = Homography::chart_to_image(corners).unwrap();
+    let chart = warped_chart(600, 420, &h);
+    let real = col::apply_matrix_image(&KNOWN_T, &chart).map(|v| v * 0.5);
+    let real_path = dir.path().join("real.exr");
+    write_exr(&real_path, &real, hdrsynth::io::ExrPrecision::Float).unwrap();
+    let out = dir.path().join("profile.toml");
+    example_profile().save(&out).unwrap();
+    let corner_arg = "40,30,560,42,548,380,35,370";
+    let report = run(&args(&[
+        "--real",
+        real_path.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--corners",
+        corner_arg,
+        "--white-balance",
+        "none",
+    ]))
+    .unwrap();
+    let p = SensorProfile::load(&out).unwrap();
+    assert_eq!(p.noise, example_profile().noise);
+    assert_eq!(p.levels, example_profile().levels);
+    assert_eq!(p.provenance.noise, "invented");
+    let t = p.colour.unwrap().matrix;
+    // Exposure is normalised on the neutral patches 20–23, so T = KNOWN_T / g with g the mean
+    // response of KNOWN_T on them relative to the synthetic neutrals.
+    let refs = col::reference_linear_srgb();
+    let mapped: Vec<[f64; 3]> = refs
+        .iter()
+        .map(|&s| col::apply_matrix(&KNOWN_T, s.map(|v| v.max(0.0))))
+        .collect();
+    let g = col::neutral_mean(&mapped) / col::neutral_mean(&refs);
+    // Patch 18 (cyan) has R < 0 in the table but the warped chart stores 0: the fit maps the
+    // rendered (negative) synthetic value to what the capture holds.
+    let want = col::fit_matrix(
+        &refs,
+        &mapped.iter().map(|m| m.map(|v| v / g)).collect::<Vec<_>>(),
+    )
+    .unwrap();
+    for i in 0..3 {
+        for j in 0..3 {
+            assert!(
+                (t[i][j] - want[i][j]).abs() < 1e-4,
+                "T {t:?} vs {want:?}\n{report}"
+            );
+        }
+    }
+    assert!(report.contains("updated"));
+}
+
+#[test]
+fn calibrate_colour_writes_nothing_on_failure() {
+    let dir = tempfile::tempdir().unwrap();
+    // A PNG capture that clips patch 19 (white, G 0.885 × 1.12 = 0.991) and no other.
+    let img = col::render_chart(300, 200, &Illuminant::D65, 1.12);
+    let png = dir.path().join("clipped.png");
+    hdrsynth::io::write_ldr(
+        &png,
+        &img.map(|v| v.clamp(0.0, 1.0)),
+        hdrsynth::io::BitDepth::Sixteen,
+    )
+    .unwrap();
+    let out = dir.path().join("new.toml");
+    let o = out.to_str().unwrap();
+    let e = run(&args(&[
+        "--real",
+        png.to_str().unwrap(),
+        "--out",
+        o,
+        "--black",
+        "0",
+        "--white",
+        "65535",
+        "--bits",
+        "16",
+    ]))
+    .unwrap_err();
+    let msg = format!("{e:#}");
+    assert!(
+        msg.contains("clipped.png") && msg.contains("patch 19"),
+        "{msg}"
+    );
+    assert!(!out.exists());
+    // A good capture but no levels for a new profile: refused, nothing written.
+    let img = col::render_chart(300, 200, &Illuminant::D65, 0.9);
+    let png = dir.path().join("good.png");
+    hdrsynth::io::write_ldr(
+        &png,
+        &img.map(|v| v.clamp(0.0, 1.0)),
+        hdrsynth::io::BitDepth::Sixteen,
+    )
+    .unwrap();
+    let e = run(&args(&["--real", png.to_str().unwrap(), "--out", o])).unwrap_err();
+    assert!(format!("{e:#}").contains("--black"), "{e:#}");
+    assert!(!out.exists());
+    // With levels it works; 16-bit PNG is read as linear by default; an identity T results
+    // (the negative R of patch 18 is clamped in the PNG, so allow a small deviation).
+    let report = run(&args(&[
+        "--real",
+        png.to_str().unwrap(),
+        "--out",
+        o,
+        "--black",
+        "0",
+        "--white",
+        "65535",
+        "--bits",
+        "16",
+    ]))
+    .unwrap();
+    let p = SensorProfile::load(&out).unwrap();
+    assert_eq!(p.response, Response::Linear);
+    let t = p.colour.unwrap().matrix;
+    for i in 0..3 {
+        for j in 0..3 {
+            let want = if i == j { 1.0 } else { 0.0 };
+            assert!((t[i][j] - want).abs() < 0.03, "{t:?}\n{report}");
+        }
+    }
+    // Options that contradict each other are refused.
+    assert!(
+        run(&args(&[
+            "--real",
+            png.to_str().unwrap(),
+            "--out",
+            o,
+            "--synthetic",
+            png.to_str().unwrap(),
+            "--exposure",
+            "2"
+        ]))
+        .is_err()
+    );
+    assert!(
+        run(&args(&[
+            "--real",
+            png.to_str().unwrap(),
+            "--out",
+            o,
+            "--real-response",
+            "gamma:x"
+        ]))
+        .is_err()
+    );
+}
