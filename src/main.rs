@@ -21,6 +21,16 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
     },
+    /// Fit a sensor profile's colour transform or noise model from real captures.
+    Calibrate {
+        #[command(subcommand)]
+        command: CalibrateCommand,
+    },
+    /// Build or edit sensor profiles (e.g. import darktable's measured noise profiles).
+    Profile {
+        #[command(subcommand)]
+        command: hdrsynth::cli::profile::ProfileCommand,
+    },
     /// Apply a sensor profile (colour, noise, levels, response) to synthetic frames offline.
     Realism(hdrsynth::cli::realism::Args),
     /// Inspect datasets.
@@ -28,6 +38,14 @@ enum Command {
         #[command(subcommand)]
         command: DatasetCommand,
     },
+}
+
+#[derive(Subcommand)]
+enum CalibrateCommand {
+    /// Colour transform T from a ColorChecker24 capture (real) vs its synthetic rendering.
+    Colour(hdrsynth::cli::calibrate::colour::Args),
+    /// Noise σ² = a·I + b per ISO and channel from a capture set (captures.toml).
+    Noise(hdrsynth::cli::calibrate::noise::Args),
 }
 
 #[derive(Subcommand)]
@@ -43,6 +61,13 @@ fn main() -> Result<()> {
             let summary = hdrsynth::cli::generate::run(&config, &out, true)?;
             println!("{}", summary.report(&out));
         }
+        Command::Calibrate {
+            command: CalibrateCommand::Colour(args),
+        } => println!("{}", hdrsynth::cli::calibrate::colour::run(&args)?),
+        Command::Calibrate {
+            command: CalibrateCommand::Noise(args),
+        } => println!("{}", hdrsynth::cli::calibrate::noise::run(&args)?),
+        Command::Profile { command } => println!("{}", hdrsynth::cli::profile::run(&command)?),
         Command::Realism(args) => println!("{}", hdrsynth::cli::realism::run(&args)?),
         Command::Dataset {
             command: DatasetCommand::Info { dir },

@@ -645,18 +645,24 @@ fn darktable_import_reproduces_the_csv() {
             .contains("--set 3 does not exist")
     );
     assert!(!out.exists());
-    // Set 1 has negative b (ISO 200–3200): refused unless clamping is asked for.
+    // Set 1 has negative b (ISO 200–3200): copied verbatim by default.
     args.set = Some(1);
-    let err = import(&args).unwrap_err().to_string();
-    assert!(
-        err.contains("negative") && err.contains("--clamp-negative"),
-        "{err}"
-    );
-    assert!(!out.exists());
+    import(&args).expect("verbatim import");
+    let rows = csv_rows(&csv, "Canon", "EOS 550D");
+    let verbatim = SensorProfile::load(&out).unwrap();
+    let mut negatives = 0;
+    for n in &verbatim.noise {
+        let r = rows.iter().find(|r| r.0 == n.iso).expect("iso in csv");
+        assert_eq!((n.a, n.b), (r.1, r.2), "ISO {} verbatim", n.iso);
+        negatives += n.b.iter().chain(&n.a).filter(|v| **v < 0.0).count();
+    }
+    assert!(negatives > 0);
+    assert!(verbatim.provenance.noise.contains("kept verbatim"));
+    std::fs::remove_file(&out).unwrap();
+    // With --clamp-negative they become 0.
     args.clamp_negative = true;
     let report = import(&args).unwrap();
     println!("{report}");
-    let rows = csv_rows(&csv, "Canon", "EOS 550D");
     let mut first: Vec<_> = Vec::new();
     for r in &rows {
         if !first

@@ -50,7 +50,7 @@ pub struct ImportArgs {
     /// Name of a new profile (default "MAKER MODEL").
     #[arg(long)]
     pub name: Option<String>,
-    /// Write negative darktable values as 0 (listed in provenance) instead of refusing.
+    /// Write negative darktable values as 0 instead of verbatim (both are listed in provenance).
     #[arg(long)]
     pub clamp_negative: bool,
 }
@@ -73,8 +73,8 @@ fn import_darktable(args: &ImportArgs) -> anyhow::Result<String> {
         set: args.set,
     };
     let sel = darktable::select(&rows, &q, &args.csv)?;
-    let (noise, clamped) = darktable::to_noise(&sel, args.clamp_negative, &args.csv)?;
-    let noise_source = darktable::provenance(&q, &sel, &args.csv, &clamped);
+    let (noise, negative) = darktable::to_noise(&sel, args.clamp_negative);
+    let noise_source = darktable::provenance(&q, &sel, &args.csv, &negative, args.clamp_negative);
     let levels = Levels {
         black_level: args.black,
         white_level: args.white,
@@ -126,8 +126,9 @@ fn import_darktable(args: &ImportArgs) -> anyhow::Result<String> {
             n.iso, n.a[0], n.a[1], n.a[2], n.b[0], n.b[1], n.b[2]
         ));
     }
-    for c in &clamped {
-        report.push_str(&format!("clamped to 0: {c}\n"));
+    let how = if args.clamp_negative { "clamped to 0" } else { "negative, kept verbatim" };
+    for c in &negative {
+        report.push_str(&format!("{how}: {c}\n"));
     }
     Ok(report)
 }

@@ -6,8 +6,9 @@
 //! the same ISO (the JSON lists the model twice, or several shots per ISO), often under the
 //! same `profile_name`. Rows are then told apart by `--profile-name` (the name with its
 //! trailing " iso N" removed, or the full name) and by `--set K`: the K-th row at each ISO in
-//! CSV order. darktable fits can give negative a or b; a profile holds only values ≥ 0, so
-//! those are refused unless clamping to 0 is asked for, and every clamped value is recorded.
+//! CSV order. darktable fits can give negative a or b (1,155 of 7,045 rows). They are copied
+//! verbatim by default (the realism operator clamps the variance a·x + b at 0) and listed in
+//! the provenance; `--clamp-negative` writes them as 0 instead.
 
 use crate::error::{Error, Result};
 use crate::sensor::profile::NoiseAtIso;
@@ -317,13 +318,9 @@ fn quote_list(v: &[String]) -> String {
         .join(", ")
 }
 
-/// The selection as profile noise entries, a and b verbatim. Negative values are an error
-/// listing them, unless `clamp_negative`: then they become 0 and are returned as notes.
-pub fn to_noise(
-    sel: &Selection,
-    clamp_negative: bool,
-    csv: &Path,
-) -> Result<(Vec<NoiseAtIso>, Vec<String>)> {
+/// The selection as profile noise entries, a and b verbatim; negative values are returned as
+/// notes, and with `clamp_negative` written as 0.
+pub fn to_noise(sel: &Selection, clamp_negative: bool) -> (Vec<NoiseAtIso>, Vec<String>) {
     const CH: [&str; 3] = ["R", "G", "B"];
     let mut negative = Vec::new();
     let mut noise = Vec::new();
@@ -335,7 +332,7 @@ pub fn to_noise(
                         "ISO {} {name}_{} = {:e} (line {})",
                         r.iso, CH[c], v[c], r.line
                     ));
-                    0.0
+                    if clamp_negative { 0.0 } else { v[c] }
                 } else {
                     v[c]
                 }
@@ -351,23 +348,17 @@ pub fn to_noise(
             b_stderr: None,
         });
     }
-    if !negative.is_empty() && !clamp_negative {
-        return Err(Error::config(
-            csv,
-            format!(
-                "{} negative noise parameter(s) in the selected darktable profile; a profile \
-                 needs a, b ≥ 0. Pass --clamp-negative to write them as 0 (recorded in the \
-                 provenance), or choose another --set/--profile-name. Negative: {}",
-                negative.len(),
-                negative.join("; ")
-            ),
-        ));
-    }
-    Ok((noise, negative))
+    (noise, negative)
 }
 
 /// Text for `provenance.noise`.
-pub fn provenance(q: &Query, sel: &Selection, csv: &Path, clamped: &[String]) -> String {
+pub fn provenance(
+    q: &Query,
+    sel: &Selection,
+    csv: &Path,
+    negative: &[String],
+    clamped: bool,
+) -> String {
     let first = sel.rows.first();
     let last = sel.rows.last();
     let lines: Vec<usize> = sel.rows.iter().map(|r| r.line).collect();
@@ -396,11 +387,13 @@ pub fn provenance(q: &Query, sel: &Selection, csv: &Path, clamped: &[String]) ->
             .collect::<Vec<_>>()
             .join(","),
     );
-    if !clamped.is_empty() {
-        s.push_str(&format!(
-            "; negative values clamped to 0: {}",
-            clamped.join("; ")
-        ));
+    if !negative.is_empty() {
+        let how = if clamped {
+            "clamped to 0"
+        } else {
+            "kept verbatim (the realism operator clamps a·x + b at 0)"
+        };
+        s.push_str(&format!("; negative values {how}: {}", negative.join("; ")));
     }
     s
 }

@@ -209,7 +209,7 @@ impl SensorProfile {
             ));
         }
         let l = &self.levels;
-        if !(l.bit_depth >= 1 && l.bit_depth <= 16) {
+        if !(1..=16).contains(&l.bit_depth) {
             return Err(format!(
                 "levels.bit_depth {} must be in 1..=16",
                 l.bit_depth
@@ -226,9 +226,11 @@ impl SensorProfile {
             return Err("noise: ISOs must be strictly ascending".into());
         }
         for n in &self.noise {
-            if !(n.iso > 0.0) || n.a.iter().chain(&n.b).any(|v| !v.is_finite() || *v < 0.0) {
+            // Negative a or b occur in real published fits (darktable has 1,155 such rows);
+            // they are kept verbatim and the realism operator clamps the variance at 0.
+            if n.iso.is_nan() || n.iso <= 0.0 || n.a.iter().chain(&n.b).any(|v| !v.is_finite()) {
                 return Err(format!(
-                    "noise at ISO {}: iso > 0 and a, b ≥ 0 finite required",
+                    "noise at ISO {}: iso > 0 and finite a, b required",
                     n.iso
                 ));
             }

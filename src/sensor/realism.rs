@@ -238,8 +238,8 @@ impl Realism {
             }
             NoiseModel::PoissonGaussian => {
                 for px in out.chunks_exact_mut(3) {
-                    for c in 0..3 {
-                        let i = px[c];
+                    for (c, v) in px.iter_mut().enumerate() {
+                        let i = *v;
                         let shot = if self.a_dn[c] > 0.0 && i > 0.0 {
                             let lambda = (i / self.a_dn[c]) as f64;
                             let k: f64 = Poisson::new(lambda)
@@ -250,7 +250,7 @@ impl Realism {
                             i
                         };
                         let zv: f64 = StandardNormal.sample(&mut rng);
-                        px[c] = shot + self.b_dn[c].sqrt() * zv as f32;
+                        *v = shot + self.b_dn[c].sqrt() * zv as f32;
                     }
                 }
             }
