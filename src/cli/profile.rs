@@ -1,5 +1,6 @@
 //! `hdrsynth profile ...`: manage sensor profiles. `import-darktable` copies a camera's
-//! measured noise from darktable's noise profiles (flattened CSV) into a profile.
+//! measured noise from darktable's noise profiles (flattened CSV) into a profile;
+//! `colour-from-matrix` sets T from a published XYZ→camera matrix (DNG ColorMatrix).
 
 use crate::sensor::darktable::{self, Query};
 use crate::sensor::noise::new_measured_profile;
@@ -12,6 +13,25 @@ pub enum ProfileCommand {
     /// Copy a camera's noise profile (a, b per ISO and channel) from darktable's noise
     /// profiles, flattened to CSV, into a sensor profile (created if missing).
     ImportDarktable(ImportArgs),
+    /// Set an existing profile's colour transform T from a published XYZ→camera colour matrix
+    /// (Adobe DNG ColorMatrix / dcraw adobe_coeff, D65), rows normalised to keep neutrals.
+    ColourFromMatrix(MatrixArgs),
+}
+
+#[derive(clap::Args, Clone, Debug)]
+pub struct MatrixArgs {
+    /// Nine numbers, row-major XYZ → camera RGB, as published (e.g. "6461,-1164,-857,...").
+    #[arg(long, allow_hyphen_values = true)]
+    pub matrix: String,
+    /// Divide the published numbers by this (dcraw's table and DNG tags use 10000).
+    #[arg(long, default_value_t = 10000.0)]
+    pub scale: f64,
+    /// Where the matrix comes from (stored as provenance.colour).
+    #[arg(long)]
+    pub source: String,
+    /// The profile to update.
+    #[arg(long)]
+    pub out: PathBuf,
 }
 
 #[derive(clap::Args, Clone, Debug)]
@@ -58,7 +78,43 @@ pub struct ImportArgs {
 pub fn run(cmd: &ProfileCommand) -> anyhow::Result<String> {
     match cmd {
         ProfileCommand::ImportDarktable(args) => import_darktable(args),
+        ProfileCommand::ColourFromMatrix(args) => colour_from_matrix(args),
     }
+}
+
+fn colour_from_matrix(args: &MatrixArgs) -> anyhow::Result<String> {
+    if args.source.trim().is_empty() {
+        anyhow::bail!("--source must say where the matrix comes from");
+    }
+    let v = crate::sensor::colour::parse_floats(&args.matrix, 9, "--matrix")?;
+    let cam_xyz: [[f64; 3]; 3] =
+        std::array::from_fn(|r| std::array::from_fn(|c| v[r * 3 + c] / args.scale));
+    let t = crate::sensor::colour::t_from_camera_xyz(&cam_xyz)?;
+    let mut p = SensorProfile::load(&args.out)?;
+    p.colour = Some(crate::sensor::profile::Colour {
+        matrix: t,
+        root_polynomial: None,
+        use_root_polynomial: false,
+    });
+    p.provenance.colour = format!(
+        "{}; XYZ→camera matrix [{}]/{} converted by `hdrsynth profile colour-from-matrix`: \
+         T = rownorm(M · sRGB→XYZ(D65)), rows scaled to sum 1 (dcraw's cam_rgb normalisation)",
+        args.source.trim(),
+        args.matrix,
+        args.scale
+    );
+    p.save(&args.out)?;
+    let mut report = format!(
+        "updated {} (colour and provenance.colour)\nT (real = T · synthetic):\n",
+        args.out.display()
+    );
+    for row in &t {
+        report.push_str(&format!(
+            "  [{:>9.5}, {:>9.5}, {:>9.5}]\n",
+            row[0], row[1], row[2]
+        ));
+    }
+    Ok(report)
 }
 
 fn import_darktable(args: &ImportArgs) -> anyhow::Result<String> {
@@ -126,7 +182,11 @@ fn import_darktable(args: &ImportArgs) -> anyhow::Result<String> {
             n.iso, n.a[0], n.a[1], n.a[2], n.b[0], n.b[1], n.b[2]
         ));
     }
-    let how = if args.clamp_negative { "clamped to 0" } else { "negative, kept verbatim" };
+    let how = if args.clamp_negative {
+        "clamped to 0"
+    } else {
+        "negative, kept verbatim"
+    };
     for c in &negative {
         report.push_str(&format!("{how}: {c}\n"));
     }
