@@ -1064,6 +1064,27 @@ pub fn sample_chart(
     Ok(out)
 }
 
+/// T from a published XYZ→camera colour matrix (Adobe DNG `ColorMatrix`, the dcraw/LibRaw
+/// `adobe_coeff` table): camera = M · XYZ, so camera = M · SRGB_TO_XYZ · linear sRGB; rows are
+/// then scaled to sum to 1 so that a neutral stays neutral (white-balanced camera RGB, the
+/// profile's convention), exactly as dcraw normalises its `cam_rgb`.
+pub fn t_from_camera_xyz(cam_xyz: &Mat3) -> Result<Mat3> {
+    let m = mat_mul(cam_xyz, &SRGB_TO_XYZ);
+    let mut t = m;
+    for row in &mut t {
+        let s: f64 = row.iter().sum();
+        if s.abs() < 1e-9 {
+            return Err(Error::Invalid(
+                "colour matrix row sums to 0: cannot white-balance".into(),
+            ));
+        }
+        for v in row.iter_mut() {
+            *v /= s;
+        }
+    }
+    Ok(t)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1089,25 +1110,4 @@ mod tests {
             assert!((q[0] - c[k][0]).abs() < 1e-9 && (q[1] - c[k][1]).abs() < 1e-9);
         }
     }
-}
-
-/// T from a published XYZ→camera colour matrix (Adobe DNG `ColorMatrix`, the dcraw/LibRaw
-/// `adobe_coeff` table): camera = M · XYZ, so camera = M · SRGB_TO_XYZ · linear sRGB; rows are
-/// then scaled to sum to 1 so that a neutral stays neutral (white-balanced camera RGB, the
-/// profile's convention), exactly as dcraw normalises its `cam_rgb`.
-pub fn t_from_camera_xyz(cam_xyz: &Mat3) -> Result<Mat3> {
-    let m = mat_mul(cam_xyz, &SRGB_TO_XYZ);
-    let mut t = m;
-    for row in &mut t {
-        let s: f64 = row.iter().sum();
-        if s.abs() < 1e-9 {
-            return Err(Error::Invalid(
-                "colour matrix row sums to 0: cannot white-balance".into(),
-            ));
-        }
-        for v in row.iter_mut() {
-            *v /= s;
-        }
-    }
-    Ok(t)
 }
