@@ -18,7 +18,11 @@ fn bench(c: &mut Criterion) {
     let mut g = c.benchmark_group("realism");
     g.sample_size(10).measurement_time(Duration::from_secs(15));
     g.throughput(Throughput::Elements((w * h) as u64));
-    for noise in [NoiseModel::Gaussian, NoiseModel::PoissonGaussian] {
+    for noise in [
+        NoiseModel::Gaussian,
+        NoiseModel::None,
+        NoiseModel::PoissonGaussian,
+    ] {
         let mut opts = RealismOptions::new(800.0);
         opts.noise = noise;
         let r = Realism::new(&profile, &opts).expect("realism");

@@ -203,3 +203,26 @@ fn output_bits_do_not_depend_on_thread_count() {
     // The fused path equals DN then response.
     assert_eq!(a, r.dn_to_ldr(&r.to_dn(&input, 9)));
 }
+
+#[test]
+fn non_finite_inputs_cannot_escape_the_dn_range() {
+    // Readers reject NaN/Inf, but frames built in code might carry them: the operator must
+    // still produce in-range DN (NaN → black, +inf → white) for every source kind.
+    for source in [LINEAR, r#"{ kind = "filmic" }"#] {
+        let p = profile(source, LINEAR, IDENTITY);
+        let r = Realism::new(&p, &RealismOptions::new(100.0)).expect("realism");
+        let input = Image::from_vec(
+            2,
+            1,
+            vec![f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 0.5, -1.0, 2.0],
+        );
+        let dn = r.to_dn(&input, 3);
+        assert!(
+            dn.data.iter().all(|v| (0.0..=4095.0).contains(v)),
+            "{source}: {:?}",
+            dn.data
+        );
+        let ldr = r.apply(&input, 3);
+        assert!(ldr.data.iter().all(|v| (0.0..=1.0).contains(v)));
+    }
+}

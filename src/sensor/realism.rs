@@ -3,6 +3,7 @@
 //! Per pixel, in physical order:
 //! 1. linearise the synthetic code values with the profile's *source* response, normalised so
 //!    the source's clipping point is 1 (for the engine's filmic curve, code 1.0 ↔ 7.24 → 1);
+//!    a linear source (EXR renders) passes values through unclipped;
 //! 2. colour: device = T · synthetic (or the root-polynomial), negative results clamped to 0;
 //! 3. scale to DN: signal I = device · exposure · (white − black);
 //! 4. noise: the paper's normal approximation I + N(0, a·I + b), or exact Poisson-Gaussian
@@ -18,7 +19,7 @@
 use crate::error::{Error, Result};
 use crate::io::{BitDepth, Image};
 use crate::rng::hash;
-use crate::sensor::profile::SensorProfile;
+use crate::sensor::profile::{Response, SensorProfile};
 use rand::SeedableRng;
 use rand_distr::{Distribution, Poisson, StandardNormal};
 use rand_xoshiro::Xoshiro256PlusPlus;
@@ -84,8 +85,11 @@ enum ColourOp {
 
 /// A profile prepared for one ISO and option set: tables precomputed, ready for many frames.
 pub struct Realism {
-    /// Source linearisation over code values [0, 1] (LUT_N + 2 entries, linear interpolation).
-    source_lut: Vec<f32>,
+    /// Source linearisation: None for a linear source (values pass through, unclipped, so
+    /// exposure < 1 can bring render highlights into range); else a table over the 65536
+    /// 16-bit code values, exact for 8- and 16-bit inputs (k/255 = 257k/65535) and within half
+    /// a 16-bit step for float inputs.
+    source_lut: Option<Vec<f32>>,
     colour: ColourOp,
     scale: f32,
     a_dn: [f32; 3],
@@ -97,13 +101,38 @@ pub struct Realism {
     output_lut: Vec<f32>,
 }
 
-const LUT_N: usize = 1 << 16;
+/// x limited to [0, hi], with NaN → 0 (f32::clamp would pass NaN through).
+#[inline(always)]
+#[allow(clippy::manual_clamp)]
+fn bound(x: f32, hi: f32) -> f32 {
+    x.max(0.0).min(hi)
+}
 
-#[inline]
-fn lut_lookup(lut: &[f32], v: f32) -> f32 {
-    let t = v.clamp(0.0, 1.0) * LUT_N as f32;
-    let i = t as usize;
-    lut[i] + (lut[i + 1] - lut[i]) * (t - i as f32)
+/// Truncating float → index for values already clamped to [0, 2^24): a plain conversion
+/// instruction, without the saturation checks of `as` (a third of the per-pixel work here).
+#[inline(always)]
+fn index(x: f32) -> usize {
+    debug_assert!((0.0..16_777_216.0).contains(&x));
+    // SAFETY: every caller limits x with `bound` (NaN → 0, ±inf → the ends) to
+    // [0, 65535.5] or [0, white + 0.5] with white < 2^16, so x is finite and fits in u32.
+    unsafe { x.to_int_unchecked::<u32>() as usize }
+}
+
+/// Per-thread row buffers: normal draws, and a and b repeated per value of a row.
+#[derive(Default)]
+struct Scratch {
+    z: Vec<f32>,
+    a: Vec<f32>,
+    b: Vec<f32>,
+}
+
+impl Scratch {
+    fn prepare(&mut self, n: usize, a: &[f32; 3], b: &[f32; 3]) {
+        if self.a.len() != n {
+            self.a = (0..n).map(|k| a[k % 3]).collect();
+            self.b = (0..n).map(|k| b[k % 3]).collect();
+        }
+    }
 }
 
 impl Realism {
@@ -126,9 +155,14 @@ impl Realism {
         }
         let src = &profile.source_response;
         let sat = src.invert(1.0).max(1e-12);
-        let source_lut = (0..=LUT_N + 1)
-            .map(|i| (src.invert((i as f64 / LUT_N as f64).min(1.0)) / sat) as f32)
-            .collect();
+        let source_lut = match src {
+            Response::Linear => None,
+            _ => Some(
+                (0..=65535u32)
+                    .map(|k| (src.invert(k as f64 / 65535.0) / sat) as f32)
+                    .collect(),
+            ),
+        };
         let colour = if !opts.colour {
             ColourOp::Identity
         } else {
@@ -180,11 +214,13 @@ impl Realism {
     /// Signal above black in DN (noise-free) for one synthetic pixel.
     #[inline(always)]
     fn signal(&self, v: &[f32]) -> [f32; 3] {
-        let lin = [
-            lut_lookup(&self.source_lut, v[0]),
-            lut_lookup(&self.source_lut, v[1]),
-            lut_lookup(&self.source_lut, v[2]),
-        ];
+        let lin = match &self.source_lut {
+            None => [v[0].max(0.0), v[1].max(0.0), v[2].max(0.0)],
+            Some(lut) => {
+                let at = |x: f32| lut[index(bound(x, 1.0) * 65535.0 + 0.5)];
+                [at(v[0]), at(v[1]), at(v[2])]
+            }
+        };
         let mut dev = lin;
         match &self.colour {
             ColourOp::Identity => {}
@@ -216,7 +252,7 @@ impl Realism {
     /// One row of quantised DN (`out`, interleaved RGB) from one row of synthetic code values.
     /// Staged so each pass is a simple loop the CPU can overlap or vectorise: signal, noise
     /// standard deviation, normal draws (the only sequential part), then combine.
-    fn row_dn(&self, input: &[f32], out: &mut [f32], seed: u64, row: usize, z: &mut Vec<f32>) {
+    fn row_dn(&self, input: &[f32], out: &mut [f32], seed: u64, row: usize, s: &mut Scratch) {
         let mut rng = Self::row_rng(seed, row);
         for (o, i) in out.chunks_exact_mut(3).zip(input.chunks_exact(3)) {
             o.copy_from_slice(&self.signal(i));
@@ -224,16 +260,15 @@ impl Realism {
         match self.noise {
             NoiseModel::None => {}
             NoiseModel::Gaussian => {
-                z.clear();
-                z.extend((0..out.len()).map(|_| {
+                s.prepare(out.len(), &self.a_dn, &self.b_dn);
+                s.z.clear();
+                s.z.extend((0..out.len()).map(|_| {
                     let v: f64 = StandardNormal.sample(&mut rng);
                     v as f32
                 }));
-                for (px, zp) in out.chunks_exact_mut(3).zip(z.chunks_exact(3)) {
-                    for c in 0..3 {
-                        let i = px[c];
-                        px[c] = i + (self.a_dn[c] * i + self.b_dn[c]).sqrt() * zp[c];
-                    }
+                // Flat loop over per-value parameters so it vectorises (sqrtps).
+                for (((o, z), a), b) in out.iter_mut().zip(&s.z).zip(&s.a).zip(&s.b) {
+                    *o += (a * *o + b).max(0.0).sqrt() * z;
                 }
             }
             NoiseModel::PoissonGaussian => {
@@ -250,15 +285,15 @@ impl Realism {
                             i
                         };
                         let zv: f64 = StandardNormal.sample(&mut rng);
-                        *v = shot + self.b_dn[c].sqrt() * zv as f32;
+                        *v = shot + self.b_dn[c].max(0.0).sqrt() * zv as f32;
                     }
                 }
             }
         }
         for v in out.iter_mut() {
-            // Non-negative after the clamp: +0.5 and truncation rounds half up, without the
-            // libm `roundf` call that baseline x86-64 would make.
-            *v = ((*v + self.black).clamp(0.0, self.white) + 0.5) as u32 as f32;
+            // Non-negative after the clamp, so +0.5 and truncation rounds half up; i32 keeps it
+            // vectorisable and avoids the libm `roundf` call of baseline x86-64.
+            *v = index(bound(*v + self.black, self.white) + 0.5) as f32;
         }
     }
 
@@ -274,13 +309,15 @@ impl Realism {
             .par_chunks_mut(w3)
             .zip(input.data.par_chunks(w3))
             .enumerate()
-            .for_each_init(Vec::new, |z, (row, (o, i))| self.row_dn(i, o, seed, row, z));
+            .for_each_init(Scratch::default, |sc, (row, (o, i))| {
+                self.row_dn(i, o, seed, row, sc)
+            });
         out
     }
 
     /// Device response of a DN frame: code values in [0, 1], quantised to the output bits.
     pub fn dn_to_ldr(&self, dn: &Image) -> Image {
-        dn.map(|d| self.output_lut[(d.clamp(0.0, self.white)) as usize])
+        dn.map(|d| self.output_lut[index(bound(d, self.white))])
     }
 
     /// Synthetic frame → sensor-realistic LDR frame in one pass (same draws as `to_dn`).
@@ -300,10 +337,10 @@ impl Realism {
             .par_chunks_mut(w3)
             .zip(input.data.par_chunks(w3))
             .enumerate()
-            .for_each_init(Vec::new, |z, (row, (o, i))| {
-                self.row_dn(i, o, seed, row, z);
+            .for_each_init(Scratch::default, |sc, (row, (o, i))| {
+                self.row_dn(i, o, seed, row, sc);
                 for v in o.iter_mut() {
-                    *v = self.output_lut[*v as usize];
+                    *v = self.output_lut[index(*v)];
                 }
             });
     }
