@@ -303,15 +303,8 @@ impl Realism {
 
     /// The sensor frame in DN (integers stored as f32), before the device response.
     pub fn to_dn(&self, input: &Image, seed: u64) -> Image {
-        let mut out = Image::new(input.width, input.height);
-        let w3 = input.width * 3;
-        out.data
-            .par_chunks_mut(w3)
-            .zip(input.data.par_chunks(w3))
-            .enumerate()
-            .for_each_init(Scratch::default, |sc, (row, (o, i))| {
-                self.row_dn(i, o, seed, row, sc)
-            });
+        let mut out = Image::new(0, 0);
+        self.rows_into(input, seed, &mut out, false);
         out
     }
 
@@ -322,13 +315,18 @@ impl Realism {
 
     /// Synthetic frame → sensor-realistic LDR frame in one pass (same draws as `to_dn`).
     pub fn apply(&self, input: &Image, seed: u64) -> Image {
-        let mut out = Image::new(input.width, input.height);
+        let mut out = Image::new(0, 0);
         self.apply_into(input, seed, &mut out);
         out
     }
 
     /// `apply` into a caller's buffer (resized as needed), so loaders reuse their allocations.
     pub fn apply_into(&self, input: &Image, seed: u64, out: &mut Image) {
+        self.rows_into(input, seed, out, true);
+    }
+
+    /// Rows in parallel into `out`: DN, then (with `ldr`) the device response.
+    fn rows_into(&self, input: &Image, seed: u64, out: &mut Image, ldr: bool) {
         out.width = input.width;
         out.height = input.height;
         out.data.resize(input.data.len(), 0.0);
@@ -339,8 +337,10 @@ impl Realism {
             .enumerate()
             .for_each_init(Scratch::default, |sc, (row, (o, i))| {
                 self.row_dn(i, o, seed, row, sc);
-                for v in o.iter_mut() {
-                    *v = self.output_lut[index(*v)];
+                if ldr {
+                    for v in o.iter_mut() {
+                        *v = self.output_lut[index(*v)];
+                    }
                 }
             });
     }
