@@ -4,3 +4,4 @@ pub mod dataset;
 pub mod generate;
 pub mod profile;
 pub mod realism;
+pub mod weights;

@@ -1,3 +1,6 @@
 //! Synthetic sources and datasets: the procedural scene engine and dataset layouts.
+pub mod ground_truth;
 pub mod layout;
+pub mod loader;
+pub mod pyramid;
 pub mod scene;

@@ -83,6 +83,36 @@ enum ColourOp {
     RootPoly([[f32; 6]; 3]),
 }
 
+impl ColourOp {
+    /// Plain loops, not `array::from_fn`: the closure form was not inlined in the hot path.
+    #[inline(always)]
+    fn apply(&self, lin: [f32; 3]) -> [f32; 3] {
+        let mut dev = lin;
+        match self {
+            ColourOp::Identity => {}
+            ColourOp::Matrix(m) => {
+                for (d, row) in dev.iter_mut().zip(m) {
+                    *d = row[0] * lin[0] + row[1] * lin[1] + row[2] * lin[2];
+                }
+            }
+            ColourOp::RootPoly(m) => {
+                let t = [
+                    lin[0],
+                    lin[1],
+                    lin[2],
+                    (lin[0] * lin[1]).max(0.0).sqrt(),
+                    (lin[1] * lin[2]).max(0.0).sqrt(),
+                    (lin[0] * lin[2]).max(0.0).sqrt(),
+                ];
+                for (d, row) in dev.iter_mut().zip(m) {
+                    *d = row.iter().zip(&t).map(|(a, b)| a * b).sum();
+                }
+            }
+        }
+        dev
+    }
+}
+
 /// A profile prepared for one ISO and option set: tables precomputed, ready for many frames.
 pub struct Realism {
     /// Source linearisation: None for a linear source (values pass through, unclipped, so
@@ -91,6 +121,9 @@ pub struct Realism {
     /// a 16-bit step for float inputs.
     source_lut: Option<Vec<f32>>,
     colour: ColourOp,
+    /// Linear value of the source's clipping point (the normalisation of step 1).
+    source_sat: f32,
+    exposure: f32,
     scale: f32,
     a_dn: [f32; 3],
     b_dn: [f32; 3],
@@ -201,6 +234,8 @@ impl Realism {
         Ok(Realism {
             source_lut,
             colour,
+            source_sat: sat as f32,
+            exposure: opts.exposure as f32,
             scale: (opts.exposure * range) as f32,
             a_dn,
             b_dn,
@@ -221,28 +256,7 @@ impl Realism {
                 [at(v[0]), at(v[1]), at(v[2])]
             }
         };
-        let mut dev = lin;
-        match &self.colour {
-            ColourOp::Identity => {}
-            ColourOp::Matrix(m) => {
-                for (d, row) in dev.iter_mut().zip(m) {
-                    *d = row[0] * lin[0] + row[1] * lin[1] + row[2] * lin[2];
-                }
-            }
-            ColourOp::RootPoly(m) => {
-                let t = [
-                    lin[0],
-                    lin[1],
-                    lin[2],
-                    (lin[0] * lin[1]).max(0.0).sqrt(),
-                    (lin[1] * lin[2]).max(0.0).sqrt(),
-                    (lin[0] * lin[2]).max(0.0).sqrt(),
-                ];
-                for (d, row) in dev.iter_mut().zip(m) {
-                    *d = row.iter().zip(&t).map(|(a, b)| a * b).sum();
-                }
-            }
-        }
+        let mut dev = self.colour.apply(lin);
         for d in &mut dev {
             *d = d.max(0.0) * self.scale;
         }
@@ -343,6 +357,20 @@ impl Realism {
                     }
                 }
             });
+    }
+
+    /// A linear HDR image (e.g. ground truth, in the source's linear units) in this device's
+    /// linear space: T · (v / source saturation) · exposure, so 1 = the sensor's white level.
+    /// No noise, no clipping: the Network-2 target that matches realistic inputs.
+    pub fn device_linear(&self, linear: &Image) -> Image {
+        let k = self.exposure / self.source_sat;
+        let mut out = linear.clone();
+        for p in out.data.chunks_exact_mut(3) {
+            let v = [p[0].max(0.0) * k, p[1].max(0.0) * k, p[2].max(0.0) * k];
+            let d = self.colour.apply(v);
+            p.copy_from_slice(&d.map(|x| x.max(0.0)));
+        }
+        out
     }
 
     /// Expected DN (noise-free, unclipped, unquantised) of a synthetic pixel: for tests/diagnosis.

@@ -1,0 +1,407 @@
+//! Training samples with online sensor realism.
+//!
+//! Every sample is a pure function of (seed, epoch, index): the set (a per-epoch permutation),
+//! the crop, the flips/rot90, the ISO and the noise all derive from it. Workers only change how
+//! fast samples arrive, never what they are; batches come out in index order.
+//!
+//! Per sample: read the pure synthetic set → random crop → realism (profile + ISO drawn from the
+//! configured list; skipped in "pure" mode, the paper's Net_P baseline) → target → the same
+//! flip/rot90 on inputs and target.
+//! - Network-1: frames (EV−3, EV0) of the static set, 8-bit quantised → 6×H×W input; target
+//!   the 256-class blend map computed from those (realistic) frames.
+//! - Network-2: frames (EV−2, 0, +2), the reference (EV0) from the static set and the others
+//!   from the dynamic set (paper §4.2); inputs as Wu et al.: per frame LDR in [0, 1] and
+//!   LDR^2.2 / t (t = 2^EV) → 18×H×W; target the set's linear HDR ground truth (hdrsynth's
+//!   `hdr_gt.exr`, Kalantari's `HDRImg.hdr`, Wu's `ref_hdr_aligned*.hdr`), else the triangle
+//!   merge of the static frames; with realism, mapped into the device's linear space
+//!   (T · HDR / source saturation · exposure: 1 = the sensor's white level).
+
+use crate::config::load_toml;
+use crate::data::ground_truth::{blend_classes, triangle_merge};
+use crate::data::layout::{self, GroundTruthKind, SetInfo};
+use crate::error::{Error, Result};
+use crate::io::{Image, read_image};
+use crate::rng::{Rng, hash};
+use crate::sensor::profile::SensorProfile;
+use crate::sensor::realism::{NoiseModel, Realism, RealismOptions};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::mpsc::{Receiver, sync_channel};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SampleKind {
+    Network1,
+    Network2,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RealismConfig {
+    pub profile: PathBuf,
+    /// ISO drawn uniformly per sample from this list (one entry = fixed ISO).
+    pub isos: Vec<f64>,
+    #[serde(default)]
+    pub noise: NoiseModel,
+    #[serde(default = "one")]
+    pub exposure: f64,
+    /// Apply the profile's colour transform (false for the colour ablation).
+    #[serde(default = "yes")]
+    pub colour: bool,
+}
+
+fn one() -> f64 {
+    1.0
+}
+fn yes() -> bool {
+    true
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LoaderConfig {
+    /// A dataset folder in any layout the readers know.
+    pub dataset: PathBuf,
+    pub kind: SampleKind,
+    /// Square crop side in pixels (rot90 needs square crops).
+    pub patch: usize,
+    pub batch_size: usize,
+    #[serde(default = "default_workers")]
+    pub workers: usize,
+    /// Samples computed ahead of the consumer, at most.
+    #[serde(default = "default_prefetch")]
+    pub prefetch: usize,
+    pub seed: u64,
+    /// Random horizontal/vertical flips and rot90.
+    #[serde(default = "yes")]
+    pub augment: bool,
+    /// Absent: "pure" mode, no sensor realism (the Net_P baseline).
+    #[serde(default)]
+    pub realism: Option<RealismConfig>,
+}
+
+fn default_workers() -> usize {
+    2
+}
+fn default_prefetch() -> usize {
+    8
+}
+
+impl LoaderConfig {
+    pub fn load(path: &Path) -> Result<LoaderConfig> {
+        load_toml(path)
+    }
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub enum Target {
+    /// Network-1: blend-map class per pixel (H×W).
+    Classes(Vec<u8>),
+    /// Network-2: linear HDR, 3×H×W.
+    Hdr(Vec<f32>),
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Sample {
+    /// C×H×W, channel-major.
+    pub input: Vec<f32>,
+    pub channels: usize,
+    pub size: usize,
+    pub target: Target,
+    /// Exposure time of each input frame relative to the reference (2^EV).
+    pub exposure_times: Vec<f32>,
+    pub set: String,
+    pub iso: Option<f64>,
+}
+
+pub struct Loader {
+    cfg: LoaderConfig,
+    sets: Vec<SetInfo>,
+    /// One prepared operator per configured ISO.
+    realism: Vec<(f64, Realism)>,
+}
+
+/// Indices of the frames with the wanted EVs (error naming the set when one is missing).
+fn frames_at(set: &SetInfo, evs: &[f32]) -> Result<Vec<usize>> {
+    evs.iter()
+        .map(|ev| {
+            set.evs.iter().position(|e| (e - ev).abs() < 1e-3).ok_or_else(|| {
+                Error::layout(
+                    &set.dir,
+                    format!("set '{}' has EVs {:?}; this sample kind needs {:?}", set.name, set.evs, evs),
+                )
+            })
+        })
+        .collect()
+}
+
+/// Crop `size`×`size` at (x0, y0).
+fn crop(img: &Image, x0: usize, y0: usize, size: usize) -> Image {
+    let mut out = Image::new(size, size);
+    for y in 0..size {
+        let src = ((y0 + y) * img.width + x0) * 3;
+        out.data[y * size * 3..(y + 1) * size * 3].copy_from_slice(&img.data[src..src + size * 3]);
+    }
+    out
+}
+
+/// The dihedral transform `t` (0..8: a horizontal flip if bit 2 is set, then `t & 3` quarter
+/// turns) of a square plane of `c` interleaved channels. Inputs and targets get the same `t`.
+pub fn dihedral<T: Copy>(data: &[T], size: usize, c: usize, t: u8) -> Vec<T> {
+    let n = size - 1;
+    // dest(x, y) = src(f(x, y)).
+    let remap = |src: &[T], f: &dyn Fn(usize, usize) -> (usize, usize)| -> Vec<T> {
+        let mut out = Vec::with_capacity(src.len());
+        for y in 0..size {
+            for x in 0..size {
+                let (sx, sy) = f(x, y);
+                let i = (sy * size + sx) * c;
+                out.extend_from_slice(&src[i..i + c]);
+            }
+        }
+        out
+    };
+    let mut cur = data.to_vec();
+    if t & 4 != 0 {
+        cur = remap(&cur, &|x, y| (n - x, y));
+    }
+    for _ in 0..(t & 3) {
+        // (x, y) → (y, n − x) applied four times is the identity: a quarter turn.
+        cur = remap(&cur, &|x, y| (y, n - x));
+    }
+    cur
+}
+
+impl Loader {
+    pub fn new(cfg: &LoaderConfig) -> Result<Loader> {
+        if cfg.patch < 8 || cfg.batch_size == 0 || cfg.workers == 0 {
+            return Err(Error::Invalid("loader: patch ≥ 8, batch_size ≥ 1, workers ≥ 1".into()));
+        }
+        let info = layout::detect(&cfg.dataset)?;
+        if info.sets.is_empty() {
+            return Err(Error::layout(&cfg.dataset, "no sets"));
+        }
+        let need: &[f32] = match cfg.kind {
+            SampleKind::Network1 => &[-3.0, 0.0],
+            SampleKind::Network2 => &[-2.0, 0.0, 2.0],
+        };
+        for s in &info.sets {
+            frames_at(s, need)?;
+            if s.width < cfg.patch || s.height < cfg.patch {
+                return Err(Error::layout(
+                    &s.dir,
+                    format!("set '{}' is {}×{}, smaller than the {} px patch", s.name, s.width, s.height, cfg.patch),
+                ));
+            }
+        }
+        let mut realism = Vec::new();
+        if let Some(r) = &cfg.realism {
+            if r.isos.is_empty() {
+                return Err(Error::Invalid("loader: realism.isos is empty".into()));
+            }
+            let profile = SensorProfile::load(&r.profile)?;
+            for &iso in &r.isos {
+                let opts = RealismOptions {
+                    iso,
+                    exposure: r.exposure,
+                    noise: r.noise,
+                    colour: r.colour,
+                    output_bits: 8,
+                };
+                realism.push((iso, Realism::new(&profile, &opts)?));
+            }
+        }
+        Ok(Loader {
+            cfg: cfg.clone(),
+            sets: info.sets,
+            realism,
+        })
+    }
+
+    /// Samples per epoch (one per set).
+    pub fn len(&self) -> usize {
+        self.sets.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.sets.is_empty()
+    }
+
+    pub fn config(&self) -> &LoaderConfig {
+        &self.cfg
+    }
+
+    /// Set index of sample `index` in `epoch`: a seeded Fisher–Yates permutation per epoch.
+    fn set_of(&self, epoch: u64, index: usize) -> usize {
+        let mut order: Vec<usize> = (0..self.sets.len()).collect();
+        let mut rng = Rng::from_parts(self.cfg.seed, &[0x5e75, epoch]);
+        for i in (1..order.len()).rev() {
+            order.swap(i, rng.int(0, i));
+        }
+        order[index % order.len()]
+    }
+
+    /// Sample `index` of `epoch`: a pure function of (config, epoch, index).
+    pub fn sample(&self, epoch: u64, index: usize) -> Result<Sample> {
+        let set = &self.sets[self.set_of(epoch, index)];
+        let mut rng = Rng::from_parts(self.cfg.seed, &[epoch, index as u64]);
+        let p = self.cfg.patch;
+        let x0 = rng.int(0, set.width - p);
+        let y0 = rng.int(0, set.height - p);
+        let t = if self.cfg.augment { rng.int(0, 7) as u8 } else { 0 };
+        let op = (!self.realism.is_empty()).then(|| &self.realism[rng.int(0, self.realism.len() - 1)]);
+        let noise_seed = hash(self.cfg.seed, &[0x0153, epoch, index as u64]);
+        // One realism seed per frame, so frames of a sample get independent noise.
+        let realistic = |img: &Image, k: u64| -> Image {
+            let c = crop(img, x0, y0, p);
+            match op {
+                Some((_, r)) => r.apply(&c, hash(noise_seed, &[k])),
+                // Pure mode still quantises to 8 bits, as the networks see 8-bit frames.
+                None => c.map(|v| (v.clamp(0.0, 1.0) * 255.0).round() / 255.0),
+            }
+        };
+        let (channels, input_hwc, target, times) = match self.cfg.kind {
+            SampleKind::Network1 => {
+                let idx = frames_at(set, &[-3.0, 0.0])?;
+                let frames = if set.static_frames.is_empty() { &set.dynamic_frames } else { &set.static_frames };
+                let low = realistic(&read_image(&frames[idx[0]])?, 0);
+                let high = realistic(&read_image(&frames[idx[1]])?, 1);
+                let classes = blend_classes(&low, &high)?;
+                let mut hwc = Vec::with_capacity(p * p * 6);
+                for (l, h) in low.data.chunks_exact(3).zip(high.data.chunks_exact(3)) {
+                    hwc.extend_from_slice(l);
+                    hwc.extend_from_slice(h);
+                }
+                let classes = dihedral(&classes, p, 1, t);
+                (6, hwc, Target::Classes(classes), vec![0.125, 1.0])
+            }
+            SampleKind::Network2 => {
+                let idx = frames_at(set, &[-2.0, 0.0, 2.0])?;
+                let stat = !set.static_frames.is_empty();
+                let pick = |i: usize| -> &Path {
+                    // The reference from the static set, the others from the dynamic set.
+                    if i == 1 && stat { &set.static_frames[idx[i]] } else { &set.dynamic_frames[idx[i]] }
+                };
+                let times = [0.25f32, 1.0, 4.0];
+                let mut frames = Vec::with_capacity(3);
+                for i in 0..3 {
+                    frames.push(realistic(&read_image(pick(i))?, i as u64));
+                }
+                let hdr = match &set.ground_truth {
+                    Some(gt) if gt.kind == GroundTruthKind::Linear => crop(&read_image(&gt.path)?, x0, y0, p),
+                    _ if stat => {
+                        let s: Vec<Image> = idx.iter().map(|&i| read_image(&set.static_frames[i]).map(|f| crop(&f, x0, y0, p))).collect::<Result<_>>()?;
+                        triangle_merge(&[s[0].clone(), s[1].clone(), s[2].clone()], times, 2.2)?
+                    }
+                    _ => {
+                        return Err(Error::layout(&set.dir, format!("set '{}' has no linear ground truth and no static frames", set.name)));
+                    }
+                };
+                let hdr = match op {
+                    Some((_, r)) => r.device_linear(&hdr),
+                    None => hdr,
+                };
+                let mut hwc = Vec::with_capacity(p * p * 18);
+                for px in 0..p * p {
+                    for (f, &ti) in frames.iter().zip(&times) {
+                        let v = &f.data[px * 3..px * 3 + 3];
+                        hwc.extend_from_slice(v);
+                        hwc.extend(v.iter().map(|x| x.powf(2.2) / ti));
+                    }
+                }
+                let hdr = dihedral(&hdr.data, p, 3, t);
+                (18, hwc, Target::Hdr(to_chw(&hdr, p, 3)), times.to_vec())
+            }
+        };
+        let input = to_chw(&dihedral(&input_hwc, p, channels, t), p, channels);
+        Ok(Sample {
+            input,
+            channels,
+            size: p,
+            target,
+            exposure_times: times,
+            set: set.name.clone(),
+            iso: op.map(|(iso, _)| *iso),
+        })
+    }
+
+    /// Batches of one epoch, computed on `workers` threads with bounded prefetch, in index
+    /// order. The last batch may be smaller.
+    pub fn epoch(self: &Arc<Self>, epoch: u64) -> Batches {
+        let n = self.len();
+        let (tx, rx) = sync_channel(self.cfg.prefetch.max(1));
+        let next = Arc::new(AtomicUsize::new(0));
+        for _ in 0..self.cfg.workers {
+            let (me, tx, next) = (Arc::clone(self), tx.clone(), Arc::clone(&next));
+            std::thread::spawn(move || {
+                loop {
+                    let i = next.fetch_add(1, Ordering::Relaxed);
+                    if i >= n || tx.send((i, me.sample(epoch, i))).is_err() {
+                        break;
+                    }
+                }
+            });
+        }
+        Batches {
+            rx,
+            pending: BTreeMap::new(),
+            next: 0,
+            total: n,
+            batch_size: self.cfg.batch_size,
+        }
+    }
+}
+
+fn to_chw(hwc: &[f32], size: usize, c: usize) -> Vec<f32> {
+    let mut out = vec![0.0; hwc.len()];
+    for (px, v) in hwc.chunks_exact(c).enumerate() {
+        for (k, &x) in v.iter().enumerate() {
+            out[k * size * size + px] = x;
+        }
+    }
+    out
+}
+
+/// Iterator over an epoch's batches; reorders worker output by index.
+pub struct Batches {
+    rx: Receiver<(usize, Result<Sample>)>,
+    pending: BTreeMap<usize, Result<Sample>>,
+    next: usize,
+    total: usize,
+    batch_size: usize,
+}
+
+impl Iterator for Batches {
+    type Item = Result<Vec<Sample>>;
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.next >= self.total {
+            return None;
+        }
+        let end = (self.next + self.batch_size).min(self.total);
+        let mut batch = Vec::with_capacity(end - self.next);
+        while self.next < end {
+            let item = match self.pending.remove(&self.next) {
+                Some(s) => s,
+                None => match self.rx.recv() {
+                    Ok((i, s)) => {
+                        self.pending.insert(i, s);
+                        continue;
+                    }
+                    Err(_) => return Some(Err(Error::Invalid("loader workers stopped".into()))),
+                },
+            };
+            match item {
+                Ok(s) => batch.push(s),
+                Err(e) => {
+                    self.next = self.total;
+                    return Some(Err(e));
+                }
+            }
+            self.next += 1;
+        }
+        Some(Ok(batch))
+    }
+}
