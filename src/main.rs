@@ -52,6 +52,10 @@ enum CalibrateCommand {
 enum DatasetCommand {
     /// Detect a folder's layout and list its sets, sizes, EVs and dynamic range.
     Info { dir: PathBuf },
+    /// Blend-class maps per set, class frequencies and inverse-frequency weights (+ plot).
+    Weights(hdrsynth::cli::weights::Args),
+    /// Contact sheet of loader samples: pure frames, realistic frames, target.
+    Preview(hdrsynth::cli::preview::Args),
 }
 
 fn main() -> Result<()> {
@@ -69,11 +73,13 @@ fn main() -> Result<()> {
         } => println!("{}", hdrsynth::cli::calibrate::noise::run(&args)?),
         Command::Profile { command } => println!("{}", hdrsynth::cli::profile::run(&command)?),
         Command::Realism(args) => println!("{}", hdrsynth::cli::realism::run(&args)?),
-        Command::Dataset {
-            command: DatasetCommand::Info { dir },
-        } => {
-            print!("{}", hdrsynth::cli::dataset::info_report(&dir)?);
-        }
+        Command::Dataset { command } => match command {
+            DatasetCommand::Info { dir } => {
+                print!("{}", hdrsynth::cli::dataset::info_report(&dir)?)
+            }
+            DatasetCommand::Weights(args) => println!("{}", hdrsynth::cli::weights::run(&args)?),
+            DatasetCommand::Preview(args) => println!("{}", hdrsynth::cli::preview::run(&args)?),
+        },
     }
     Ok(())
 }

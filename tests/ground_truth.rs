@@ -187,7 +187,7 @@ fn laplacian_pyramid_collapses_to_the_input_and_blend_is_linear() {
         assert!((v - 0.5).abs() < 1e-5, "mean of v and 1−v is ½, got {v}");
     }
     // Mismatches are errors.
-    assert!(laplacian_blend(&[img.clone()], &[vec![1f32; 3]]).is_err());
+    assert!(laplacian_blend(std::slice::from_ref(&img), &[vec![1f32; 3]]).is_err());
     assert!(laplacian_blend::<Vec<f32>>(&[], &[]).is_err());
 }
 

@@ -9,16 +9,22 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 fn dataset(evs: &str, dir: &Path) {
-    let text = format!("seed = 5\ncount = 4\nwidth = 96\nheight = 80\nevs = {evs}\n[camera]\ncandidates = 4\n");
+    let text = format!(
+        "seed = 5\ncount = 4\nwidth = 96\nheight = 80\nevs = {evs}\n[camera]\ncandidates = 4\n"
+    );
     let mut c: GenerateConfig = parse_toml(&text, Path::new("t.toml")).expect("config");
     c.source = None;
     hdrsynth::cli::generate::generate(&c, dir, false).expect("generate");
 }
 
 fn loader_cfg(dir: &Path, kind: &str, workers: usize, realism: bool) -> LoaderConfig {
-    let profile: PathBuf = hdrsynth::sensor::profile::SensorProfile::shipped_dir().join("example_synthetic.toml");
+    let profile: PathBuf =
+        hdrsynth::sensor::profile::SensorProfile::shipped_dir().join("example_synthetic.toml");
     let r = if realism {
-        format!("[realism]\nprofile = {:?}\nisos = [100.0, 800.0, 3200.0]\n", profile)
+        format!(
+            "[realism]\nprofile = {:?}\nisos = [100.0, 800.0, 3200.0]\n",
+            profile
+        )
     } else {
         String::new()
     };
@@ -41,10 +47,17 @@ fn samples_are_identical_for_1_2_and_4_workers_and_noise_changes_per_epoch() {
     let one = epoch(&loader_cfg(dir.path(), "network1", 1, true), 0);
     assert_eq!(one.len(), 4);
     for w in [2, 4] {
-        assert_eq!(one, epoch(&loader_cfg(dir.path(), "network1", w, true), 0), "{w} workers");
+        assert_eq!(
+            one,
+            epoch(&loader_cfg(dir.path(), "network1", w, true), 0),
+            "{w} workers"
+        );
     }
     let next = epoch(&loader_cfg(dir.path(), "network1", 2, true), 1);
-    assert_ne!(one[0].input, next[0].input, "epoch 1 must draw new crops/noise");
+    assert_ne!(
+        one[0].input, next[0].input,
+        "epoch 1 must draw new crops/noise"
+    );
     // Same (seed, epoch, index) → same sample, also when asked directly.
     let l = Loader::new(&loader_cfg(dir.path(), "network1", 1, true)).expect("loader");
     assert_eq!(l.sample(0, 2).expect("sample"), one[2]);
@@ -52,7 +65,11 @@ fn samples_are_identical_for_1_2_and_4_workers_and_noise_changes_per_epoch() {
     assert_eq!((s.channels, s.size, s.input.len()), (6, 48, 6 * 48 * 48));
     assert!(s.iso.is_some());
     // 8-bit quantised inputs.
-    assert!(s.input.iter().all(|v| ((v * 255.0).round() - v * 255.0).abs() < 1e-3));
+    assert!(
+        s.input
+            .iter()
+            .all(|v| ((v * 255.0).round() - v * 255.0).abs() < 1e-3)
+    );
 }
 
 #[test]
@@ -70,15 +87,31 @@ fn noise_differs_between_epochs_for_the_same_crop() {
     cfg.realism.as_mut().expect("realism").isos = vec![800.0];
     let l = Loader::new(&cfg).expect("loader");
     let a = l.sample(0, 0).expect("a");
-    let b = (0..3).map(|j| l.sample(1, j).expect("b")).find(|b| b.set == a.set).expect("same set in epoch 1");
-    assert_ne!(a.input, b.input, "same set and crop in another epoch must get new noise");
-    assert_eq!(a, l.sample(0, 0).expect("again"), "same (seed, epoch, index) must repeat");
+    let b = (0..3)
+        .map(|j| l.sample(1, j).expect("b"))
+        .find(|b| b.set == a.set)
+        .expect("same set in epoch 1");
+    assert_ne!(
+        a.input, b.input,
+        "same set and crop in another epoch must get new noise"
+    );
+    assert_eq!(
+        a,
+        l.sample(0, 0).expect("again"),
+        "same (seed, epoch, index) must repeat"
+    );
     let mut pure_cfg = cfg.clone();
     pure_cfg.realism = None;
     let pure = Loader::new(&pure_cfg).expect("pure");
     let pa = pure.sample(0, 0).expect("pure");
-    let pb = (0..3).map(|j| pure.sample(1, j).expect("pb")).find(|p| p.set == a.set).expect("pure same set");
-    assert_eq!(pa.input, pb.input, "pure mode: the same set and crop give the same frames");
+    let pb = (0..3)
+        .map(|j| pure.sample(1, j).expect("pb"))
+        .find(|p| p.set == a.set)
+        .expect("pure same set");
+    assert_eq!(
+        pa.input, pb.input,
+        "pure mode: the same set and crop give the same frames"
+    );
 }
 
 #[test]
@@ -99,13 +132,19 @@ fn augmentation_keeps_inputs_and_targets_aligned() {
     assert_eq!(r, plane);
     // The loader's pairing: blend classes of transformed frames = transformed classes.
     let size = 16;
-    let low = Image::from_fn(size, size, |x, y| [x as f32 / 20.0, (y * y) as f32 / 300.0, 0.1]);
+    let low = Image::from_fn(size, size, |x, y| {
+        [x as f32 / 20.0, (y * y) as f32 / 300.0, 0.1]
+    });
     let high = low.map(|v| (v * 8.0).min(1.0));
     let classes = blend_classes(&low, &high).expect("classes");
     for t in 0..8u8 {
         let tl = Image::from_vec(size, size, dihedral(&low.data, size, 3, t));
         let th = Image::from_vec(size, size, dihedral(&high.data, size, 3, t));
-        assert_eq!(blend_classes(&tl, &th).expect("classes"), dihedral(&classes, size, 1, t), "t = {t}");
+        assert_eq!(
+            blend_classes(&tl, &th).expect("classes"),
+            dihedral(&classes, size, 1, t),
+            "t = {t}"
+        );
     }
 }
 
@@ -119,7 +158,10 @@ fn network2_reference_comes_from_the_static_set() {
     let info = hdrsynth::data::layout::detect(dir.path()).expect("detect");
     for i in 0..4 {
         let s = l.sample(0, i).expect("sample");
-        assert_eq!((s.channels, s.exposure_times.clone()), (18, vec![0.25, 1.0, 4.0]));
+        assert_eq!(
+            (s.channels, s.exposure_times.clone()),
+            (18, vec![0.25, 1.0, 4.0])
+        );
         let set = info.sets.iter().find(|x| x.name == s.set).expect("set");
         let stat = hdrsynth::io::read_image(&set.static_frames[1]).expect("static ref");
         let dynm = hdrsynth::io::read_image(&set.dynamic_frames[0]).expect("dynamic low");
@@ -132,7 +174,8 @@ fn network2_reference_comes_from_the_static_set() {
             for x0 in 0..=set.width - p {
                 let ok = (0..p * p).all(|q| {
                     let (x, y) = (x0 + q % p, y0 + q / p);
-                    (plane(6)[q] - stat.get(x, y)[0]).abs() < 1e-6 && (plane(0)[q] - dynm.get(x, y)[0]).abs() < 1e-6
+                    (plane(6)[q] - stat.get(x, y)[0]).abs() < 1e-6
+                        && (plane(0)[q] - dynm.get(x, y)[0]).abs() < 1e-6
                 });
                 if ok {
                     found = true;
@@ -140,14 +183,41 @@ fn network2_reference_comes_from_the_static_set() {
                 }
             }
         }
-        assert!(found, "sample {i}: reference not from the static set at any crop");
+        assert!(
+            found,
+            "sample {i}: reference not from the static set at any crop"
+        );
         match &s.target {
             Target::Hdr(h) => assert_eq!(h.len(), 3 * p * p),
             Target::Classes(_) => panic!("network2 target must be HDR"),
         }
     }
     // The kind is checked against the dataset's EVs.
-    let e = Loader::new(&loader_cfg(dir.path(), "network1", 1, false)).err().expect("needs EV −3");
+    let e = Loader::new(&loader_cfg(dir.path(), "network1", 1, false))
+        .err()
+        .expect("needs EV −3");
     assert!(e.to_string().contains("needs"), "{e}");
     let _ = SampleKind::Network1;
+}
+
+#[test]
+fn preview_writes_a_contact_sheet_of_the_expected_size() {
+    let dir = tempfile::tempdir().expect("tmp");
+    dataset("[-3.0, 0.0]", dir.path());
+    let out = dir.path().join("sheet.png");
+    let args = hdrsynth::cli::preview::Args {
+        dir: dir.path().to_path_buf(),
+        profile: hdrsynth::sensor::profile::SensorProfile::shipped_dir()
+            .join("canon_eos_550d.toml"),
+        iso: 800.0,
+        kind: None,
+        count: 3,
+        patch: 48,
+        seed: 0,
+        out: out.clone(),
+    };
+    hdrsynth::cli::preview::run(&args).expect("preview");
+    let img = hdrsynth::io::read_image(&out).expect("sheet");
+    // Network-1: 2 pure + 2 realistic frames + target = 5 tiles of 48 px + 4 px gaps, 3 rows.
+    assert_eq!((img.width, img.height), (5 * 52, 3 * 52));
 }

@@ -2,6 +2,7 @@
 pub mod calibrate;
 pub mod dataset;
 pub mod generate;
+pub mod preview;
 pub mod profile;
 pub mod realism;
 pub mod weights;

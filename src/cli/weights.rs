@@ -65,10 +65,10 @@ impl Args {
 /// when the set has both, else its lowest EV and the reference.
 pub fn pick_pair(set: &SetInfo) -> Result<(usize, usize)> {
     let r = set.reference;
-    if let Some(i) = set.evs.iter().position(|&e| e == PAPER_LOW_EV) {
-        if i != r {
-            return Ok((i, r));
-        }
+    if let Some(i) = set.evs.iter().position(|&e| e == PAPER_LOW_EV)
+        && i != r
+    {
+        return Ok((i, r));
     }
     let lowest = (0..set.evs.len())
         .min_by(|&a, &b| set.evs[a].total_cmp(&set.evs[b]))
@@ -322,7 +322,7 @@ fn arg_by(v: &[f64], better: impl Fn(f64, f64) -> bool) -> (usize, f64) {
 // Bar chart
 
 /// Plot size (width, height) in pixels.
-pub const PLOT_SIZE: (usize, usize) = (LEFT as usize + 3 * CLASSES + RIGHT as usize, 560);
+pub const PLOT_SIZE: (usize, usize) = (LEFT as usize + 3 * CLASSES + RIGHT as usize, 572);
 
 const LEFT: i32 = 64;
 const RIGHT: i32 = 20;

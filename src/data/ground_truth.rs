@@ -8,7 +8,7 @@
 //! same bytes as BGR; where the channel order matters (the grey conversion) this module applies
 //! OpenCV's coefficients to the channels OpenCV would apply them to.
 
-use super::pyramid::laplacian_blend;
+use super::pyramid::{laplacian_blend, reflect101};
 use crate::error::{Error, Result};
 use crate::io::atomic::write_atomic;
 use crate::io::{BitDepth, Image, read_image_info, write_ldr};
@@ -93,45 +93,89 @@ fn pow(v: f32, e: f32) -> f32 {
     }
 }
 
+/// OpenCV's float for an 8-bit code value: `convertTo(CV_32F, 1/255.)` multiplies by 1/255 as
+/// f32 and rounds once, which differs from `code / 255` by one ulp for 126 of the 256 codes.
+/// Values within 1e-3 of a code (8-bit frames read as code / 255) are snapped to OpenCV's float;
+/// anything else (16-bit code values, linear data) is returned unchanged.
+#[inline]
+pub fn opencv_code_value(v: f32) -> f32 {
+    let scaled = v * 255.0;
+    let code = scaled.round();
+    if (0.0..=255.0).contains(&code) && (scaled - code).abs() < 1e-3 {
+        code * INV_255
+    } else {
+        v
+    }
+}
+
+/// 1/255 as OpenCV passes it to `convertTo` (a double rounded to f32).
+const INV_255: f32 = (1.0f64 / 255.0) as f32;
+/// 1/3 as OpenCV's `mean /= 3` applies it (`convertTo` with alpha = 1./3 as f32).
+const INV_3: f32 = (1.0f64 / 3.0) as f32;
+/// −1/0.08 as OpenCV's `-expo / 0.08f` applies it (a `convertTo` alpha, f32): −12.5.
+const NEG_INV_WELL: f32 = (-1.0f64 / WELL_EXPOSED_DENOM as f64) as f32;
+
+/// [`opencv_code_value`] of every sample: the frame as MergeMertens holds it after
+/// `convertTo(CV_32F, 1/255.)`.
+pub fn opencv_frame(img: &Image) -> Image {
+    Image {
+        width: img.width,
+        height: img.height,
+        data: img.data.par_iter().map(|&v| opencv_code_value(v)).collect(),
+    }
+}
+
 /// Un-normalised Mertens weight of every pixel of one frame, as MergeMertens computes it:
-/// |Laplacian(grey)|^c · saturation^s · well-exposedness^e + 1e-12.
+/// |Laplacian(grey)|^c · saturation^s · well-exposedness^e + 1e-12, with the samples first
+/// mapped by [`opencv_code_value`].
+///
+/// Bit-exact with OpenCV 5.0 (x86-64 wheels) in the parts where a rounding can flip a weight
+/// between the 1e-12 floor and a tiny positive value (exact zeros of the contrast and the
+/// saturation): the grey conversion uses OpenCV's SIMD order
+/// `fma(ch2, 0.114, fma(ch0, 0.299, ch1 · 0.587))` on OpenCV's channels (ch0 = our blue), the
+/// Laplacian sums the taps in filter2D's order `((up + left) + (−4·centre)) + right) + down`,
+/// the channel mean is `((B + G) + R) · f32(1/3)` and the squared deviations add in the order
+/// B, G, R. Such flips, at pixels where all frames have almost no weight, are what moves
+/// OpenCV's output by up to 0.09 (docs/ground_truth.md).
 pub fn raw_weights(img: &Image, w: MertensWeights) -> Vec<f32> {
     let (wd, ht) = (img.width, img.height);
     if wd == 0 || ht == 0 {
         return Vec::new();
     }
+    let cv = opencv_frame(img);
     // OpenCV gets BGR bytes and converts with COLOR_RGB2GRAY: 0.299 goes to its channel 0,
-    // which is blue; in our RGB order grey = 0.299·B + 0.587·G + 0.114·R.
-    let grey: Vec<f32> = img
+    // which is our blue; grey = 0.299·B + 0.587·G + 0.114·R, in OpenCV's fma order.
+    let grey: Vec<f32> = cv
         .data
         .par_chunks_exact(3)
-        .map(|p| GREY[0] * p[2] + GREY[1] * p[1] + GREY[2] * p[0])
+        .map(|p| p[0].mul_add(GREY[2], p[2].mul_add(GREY[0], p[1] * GREY[1])))
         .collect();
     let mut out = vec![0f32; wd * ht];
     out.par_chunks_mut(wd).enumerate().for_each(|(y, row)| {
         let yi = y as isize;
-        let up = &grey[super::pyramid::reflect101(yi - 1, ht) * wd..][..wd];
+        let up = &grey[reflect101(yi - 1, ht) * wd..][..wd];
         let mid = &grey[y * wd..][..wd];
-        let down = &grey[super::pyramid::reflect101(yi + 1, ht) * wd..][..wd];
-        let px = &img.data[y * wd * 3..(y + 1) * wd * 3];
+        let down = &grey[reflect101(yi + 1, ht) * wd..][..wd];
+        let px = &cv.data[y * wd * 3..(y + 1) * wd * 3];
         for (x, o) in row.iter_mut().enumerate() {
             let xi = x as isize;
-            let l = mid[super::pyramid::reflect101(xi - 1, wd)];
-            let r = mid[super::pyramid::reflect101(xi + 1, wd)];
-            // Laplacian ksize=1: [0 1 0; 1 −4 1; 0 1 0], BORDER_REFLECT_101.
-            let contrast = (up[x] + l + r + down[x] - 4.0 * mid[x]).abs();
-            let p = &px[x * 3..x * 3 + 3];
-            let mean = (p[0] + p[1] + p[2]) / 3.0;
+            let l = mid[reflect101(xi - 1, wd)];
+            let r = mid[reflect101(xi + 1, wd)];
+            // Laplacian ksize=1: [0 1 0; 1 −4 1; 0 1 0], BORDER_REFLECT_101, filter2D's order.
+            let contrast = ((((up[x] + l) + (-4.0 * mid[x])) + r) + down[x]).abs();
+            // OpenCV's channel order: B, G, R.
+            let bgr = [px[x * 3 + 2], px[x * 3 + 1], px[x * 3]];
+            let mean = ((bgr[0] + bgr[1]) + bgr[2]) * INV_3;
             // Standard deviation over the channels without the 1/3 (OpenCV).
-            let saturation = p
-                .iter()
-                .map(|&c| (c - mean) * (c - mean))
-                .sum::<f32>()
-                .sqrt();
-            let well_exposed = p
-                .iter()
-                .map(|&c| (-((c - 0.5) * (c - 0.5)) / WELL_EXPOSED_DENOM).exp())
-                .product::<f32>();
+            let mut sq = 0f32;
+            let mut well_exposed = 1f32;
+            for &c in &bgr {
+                let d = c - mean;
+                sq += d * d;
+                let e = c - 0.5;
+                well_exposed *= ((e * e) * NEG_INV_WELL).exp();
+            }
+            let saturation = sq.sqrt();
             *o = pow(contrast, w.contrast)
                 * pow(saturation, w.saturation)
                 * pow(well_exposed, w.exposure)
@@ -177,7 +221,8 @@ pub fn mertens(
         exposure: exposure_w,
     };
     let weights = mertens_weights(frames, w)?;
-    laplacian_blend(frames, &weights)
+    let cv: Vec<Image> = frames.iter().map(opencv_frame).collect();
+    laplacian_blend(&cv, &weights)
 }
 
 /// Per-pixel normalised Mertens weight w_high ∈ [0, 1] of the long exposure `high` in the pair

@@ -128,12 +128,18 @@ pub struct Loader {
 fn frames_at(set: &SetInfo, evs: &[f32]) -> Result<Vec<usize>> {
     evs.iter()
         .map(|ev| {
-            set.evs.iter().position(|e| (e - ev).abs() < 1e-3).ok_or_else(|| {
-                Error::layout(
-                    &set.dir,
-                    format!("set '{}' has EVs {:?}; this sample kind needs {:?}", set.name, set.evs, evs),
-                )
-            })
+            set.evs
+                .iter()
+                .position(|e| (e - ev).abs() < 1e-3)
+                .ok_or_else(|| {
+                    Error::layout(
+                        &set.dir,
+                        format!(
+                            "set '{}' has EVs {:?}; this sample kind needs {:?}",
+                            set.name, set.evs, evs
+                        ),
+                    )
+                })
         })
         .collect()
 }
@@ -178,7 +184,9 @@ pub fn dihedral<T: Copy>(data: &[T], size: usize, c: usize, t: u8) -> Vec<T> {
 impl Loader {
     pub fn new(cfg: &LoaderConfig) -> Result<Loader> {
         if cfg.patch < 8 || cfg.batch_size == 0 || cfg.workers == 0 {
-            return Err(Error::Invalid("loader: patch ≥ 8, batch_size ≥ 1, workers ≥ 1".into()));
+            return Err(Error::Invalid(
+                "loader: patch ≥ 8, batch_size ≥ 1, workers ≥ 1".into(),
+            ));
         }
         let info = layout::detect(&cfg.dataset)?;
         if info.sets.is_empty() {
@@ -193,7 +201,10 @@ impl Loader {
             if s.width < cfg.patch || s.height < cfg.patch {
                 return Err(Error::layout(
                     &s.dir,
-                    format!("set '{}' is {}×{}, smaller than the {} px patch", s.name, s.width, s.height, cfg.patch),
+                    format!(
+                        "set '{}' is {}×{}, smaller than the {} px patch",
+                        s.name, s.width, s.height, cfg.patch
+                    ),
                 ));
             }
         }
@@ -251,8 +262,13 @@ impl Loader {
         let p = self.cfg.patch;
         let x0 = rng.int(0, set.width - p);
         let y0 = rng.int(0, set.height - p);
-        let t = if self.cfg.augment { rng.int(0, 7) as u8 } else { 0 };
-        let op = (!self.realism.is_empty()).then(|| &self.realism[rng.int(0, self.realism.len() - 1)]);
+        let t = if self.cfg.augment {
+            rng.int(0, 7) as u8
+        } else {
+            0
+        };
+        let op =
+            (!self.realism.is_empty()).then(|| &self.realism[rng.int(0, self.realism.len() - 1)]);
         let noise_seed = hash(self.cfg.seed, &[0x0153, epoch, index as u64]);
         // One realism seed per frame, so frames of a sample get independent noise.
         let realistic = |img: &Image, k: u64| -> Image {
@@ -266,7 +282,11 @@ impl Loader {
         let (channels, input_hwc, target, times) = match self.cfg.kind {
             SampleKind::Network1 => {
                 let idx = frames_at(set, &[-3.0, 0.0])?;
-                let frames = if set.static_frames.is_empty() { &set.dynamic_frames } else { &set.static_frames };
+                let frames = if set.static_frames.is_empty() {
+                    &set.dynamic_frames
+                } else {
+                    &set.static_frames
+                };
                 let low = realistic(&read_image(&frames[idx[0]])?, 0);
                 let high = realistic(&read_image(&frames[idx[1]])?, 1);
                 let classes = blend_classes(&low, &high)?;
@@ -283,7 +303,11 @@ impl Loader {
                 let stat = !set.static_frames.is_empty();
                 let pick = |i: usize| -> &Path {
                     // The reference from the static set, the others from the dynamic set.
-                    if i == 1 && stat { &set.static_frames[idx[i]] } else { &set.dynamic_frames[idx[i]] }
+                    if i == 1 && stat {
+                        &set.static_frames[idx[i]]
+                    } else {
+                        &set.dynamic_frames[idx[i]]
+                    }
                 };
                 let times = [0.25f32, 1.0, 4.0];
                 let mut frames = Vec::with_capacity(3);
@@ -291,13 +315,26 @@ impl Loader {
                     frames.push(realistic(&read_image(pick(i))?, i as u64));
                 }
                 let hdr = match &set.ground_truth {
-                    Some(gt) if gt.kind == GroundTruthKind::Linear => crop(&read_image(&gt.path)?, x0, y0, p),
+                    Some(gt) if gt.kind == GroundTruthKind::Linear => {
+                        crop(&read_image(&gt.path)?, x0, y0, p)
+                    }
                     _ if stat => {
-                        let s: Vec<Image> = idx.iter().map(|&i| read_image(&set.static_frames[i]).map(|f| crop(&f, x0, y0, p))).collect::<Result<_>>()?;
+                        let s: Vec<Image> = idx
+                            .iter()
+                            .map(|&i| {
+                                read_image(&set.static_frames[i]).map(|f| crop(&f, x0, y0, p))
+                            })
+                            .collect::<Result<_>>()?;
                         triangle_merge(&[s[0].clone(), s[1].clone(), s[2].clone()], times, 2.2)?
                     }
                     _ => {
-                        return Err(Error::layout(&set.dir, format!("set '{}' has no linear ground truth and no static frames", set.name)));
+                        return Err(Error::layout(
+                            &set.dir,
+                            format!(
+                                "set '{}' has no linear ground truth and no static frames",
+                                set.name
+                            ),
+                        ));
                     }
                 };
                 let hdr = match op {

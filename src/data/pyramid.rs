@@ -149,7 +149,7 @@ fn up_taps(n_out: usize, n_src: usize, vertical: bool) -> Vec<Taps> {
         let mut t = NO_TAPS;
         for (d, &w) in KERNEL.iter().enumerate() {
             let p = reflect101(x as isize + d as isize - 2, grid);
-            if p % 2 == 0 {
+            if p.is_multiple_of(2) {
                 t.push(p / 2, w);
             }
         }
