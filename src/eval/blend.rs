@@ -1,0 +1,72 @@
+//! Network-1's output stage: blend map → weight of the long exposure → Laplacian-pyramid blend
+//! of the two input frames (the data pipeline's pyramid code) → exponential tone curve.
+//!
+//! - Weight from class probabilities: the expected class, w = Σ_c p_c · c / 255 (default; smooth
+//!   where the network is unsure), or the argmax class / 255.
+//! - The fused frame before the curve is the "linear" (L) output of the metrics; after the
+//!   curve, the "tone-mapped" (T) output.
+//! - Tone curve: T(x) = (1 − e^(−k·x)) / (1 − e^(−k)) for x ≥ 0 (k > 0; T(0) = 0, T(1) = 1,
+//!   slope k/(1 − e^(−k)) at 0: k lifts shadows); k = 0 means identity.
+
+use crate::data::pyramid::laplacian_blend;
+use crate::error::{Error, Result};
+use crate::io::Image;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum BlendWeight {
+    /// Σ_c p_c · c / 255.
+    #[default]
+    Expected,
+    /// argmax_c p_c / 255.
+    Argmax,
+}
+
+/// Long-exposure weight per pixel from class probabilities laid out C×H×W (C = 256).
+pub fn weight_from_probabilities(
+    probs: &[f32],
+    classes: usize,
+    pixels: usize,
+    mode: BlendWeight,
+) -> Result<Vec<f32>> {
+    if classes < 2 || probs.len() != classes * pixels {
+        return Err(Error::Invalid(format!(
+            "blend map: {} values for {classes} classes × {pixels} pixels",
+            probs.len()
+        )));
+    }
+    let top = (classes - 1) as f32;
+    Ok((0..pixels)
+        .map(|p| match mode {
+            BlendWeight::Expected => {
+                (0..classes)
+                    .map(|c| probs[c * pixels + p] * c as f32)
+                    .sum::<f32>()
+                    / top
+            }
+            BlendWeight::Argmax => {
+                let best = (0..classes)
+                    .max_by(|&a, &b| probs[a * pixels + p].total_cmp(&probs[b * pixels + p]))
+                    .unwrap_or(0);
+                best as f32 / top
+            }
+        })
+        .collect())
+}
+
+/// The exponential tone curve (module docs).
+#[inline]
+pub fn tone_curve(x: f32, k: f32) -> f32 {
+    if k == 0.0 {
+        return x;
+    }
+    (1.0 - (-k * x.max(0.0)).exp()) / (1.0 - (-k).exp())
+}
+
+/// Fuse the (low, high) frames with per-pixel long-exposure weights: (L, T) outputs.
+pub fn fuse(low: &Image, high: &Image, w_high: &[f32], k: f32) -> Result<(Image, Image)> {
+    let w_low: Vec<f32> = w_high.iter().map(|w| 1.0 - w).collect();
+    let linear = laplacian_blend(&[low.clone(), high.clone()], &[w_low, w_high.to_vec()])?;
+    let toned = linear.map(|v| tone_curve(v, k));
+    Ok((linear, toned))
+}

@@ -1,0 +1,145 @@
+//! Tiled full-resolution inference and Network-1's fusion stage, against hand values and an
+//! untiled reference.
+
+use hdrsynth::error::Result;
+use hdrsynth::eval::blend::{BlendWeight, fuse, tone_curve, weight_from_probabilities};
+use hdrsynth::eval::tiling::{Planar, Tiling, run_tiled};
+use hdrsynth::io::Image;
+
+fn reflect101(p: isize, n: usize) -> usize {
+    let n = n as isize;
+    let mut p = p;
+    while p < 0 || p >= n {
+        p = if p < 0 { -p } else { 2 * n - 2 - p };
+    }
+    p as usize
+}
+
+/// A (2r+1)² box mean with reflect-101 borders: receptive-field radius r.
+fn box_filter(x: &Planar, r: isize) -> Result<Planar> {
+    let mut out = Planar::new(x.channels, x.width, x.height);
+    for c in 0..x.channels {
+        for y in 0..x.height {
+            for xx in 0..x.width {
+                let mut s = 0.0;
+                for dy in -r..=r {
+                    for dx in -r..=r {
+                        s += x.at(
+                            c,
+                            reflect101(xx as isize + dx, x.width),
+                            reflect101(y as isize + dy, x.height),
+                        );
+                    }
+                }
+                out.data[(c * x.height + y) * x.width + xx] =
+                    s / ((2 * r + 1) * (2 * r + 1)) as f32;
+            }
+        }
+    }
+    Ok(out)
+}
+
+fn random_planar(c: usize, w: usize, h: usize) -> Planar {
+    let mut p = Planar::new(c, w, h);
+    let mut s = 12345u64;
+    for v in &mut p.data {
+        s = s
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        *v = (s >> 40) as f32 / (1u64 << 24) as f32;
+    }
+    p
+}
+
+#[test]
+fn tiled_equals_untiled_when_the_receptive_field_fits_the_overlap() {
+    let input = random_planar(2, 101, 77);
+    let whole = box_filter(&input, 3).expect("untiled");
+    for (tile, multiple) in [(32, 8), (40, 1), (17, 4)] {
+        let t = Tiling {
+            tile,
+            overlap: 4,
+            multiple,
+        };
+        let tiled = run_tiled(&input, 2, t, |x| box_filter(x, 3)).expect("tiled");
+        let worst = whole
+            .data
+            .iter()
+            .zip(&tiled.data)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0f32, f32::max);
+        assert!(
+            worst <= 1e-6,
+            "tile {tile}, multiple {multiple}: max diff {worst}"
+        );
+    }
+    // With too little overlap the seams show: the test can fail.
+    let t = Tiling {
+        tile: 32,
+        overlap: 1,
+        multiple: 8,
+    };
+    let tiled = run_tiled(&input, 2, t, |x| box_filter(x, 3)).expect("tiled");
+    let worst = whole
+        .data
+        .iter()
+        .zip(&tiled.data)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0f32, f32::max);
+    assert!(
+        worst > 1e-3,
+        "seams expected with overlap 1 < radius 3 (max diff {worst})"
+    );
+}
+
+#[test]
+fn tiles_must_come_back_the_size_they_went_in() {
+    let input = random_planar(1, 20, 20);
+    let t = Tiling {
+        tile: 8,
+        overlap: 2,
+        multiple: 4,
+    };
+    let err = run_tiled(&input, 1, t, |x| Ok(Planar::new(1, x.width + 1, x.height)))
+        .expect_err("size mismatch");
+    assert!(err.to_string().contains("expected"), "{err}");
+}
+
+#[test]
+fn blend_weights_from_probabilities_by_hand() {
+    // 4 classes, 2 pixels, C×P layout. Pixel 0: p = [0.1, 0.2, 0.3, 0.4] → E[c]/3 =
+    // (0.2 + 0.6 + 1.2)/3 = 2/3; argmax 3 → 1. Pixel 1: p = [0.7, 0.1, 0.1, 0.1] → (0.1 + 0.2 +
+    // 0.3)/3 = 0.2; argmax 0 → 0.
+    let probs = [0.1, 0.7, 0.2, 0.1, 0.3, 0.1, 0.4, 0.1];
+    let e = weight_from_probabilities(&probs, 4, 2, BlendWeight::Expected).expect("expected");
+    assert!(
+        (e[0] - 2.0 / 3.0).abs() < 1e-6 && (e[1] - 0.2).abs() < 1e-6,
+        "{e:?}"
+    );
+    let a = weight_from_probabilities(&probs, 4, 2, BlendWeight::Argmax).expect("argmax");
+    assert_eq!(a, vec![1.0, 0.0]);
+    assert!(weight_from_probabilities(&probs, 4, 3, BlendWeight::Expected).is_err());
+}
+
+#[test]
+fn exponential_tone_curve_by_hand() {
+    assert_eq!(tone_curve(0.0, 4.0), 0.0);
+    assert!((tone_curve(1.0, 4.0) - 1.0).abs() < 1e-6);
+    // (1 − e^−2)/(1 − e^−4) = 0.864665/0.981684 = 0.880797
+    assert!((tone_curve(0.5, 4.0) - 0.880_797).abs() < 1e-5);
+    assert_eq!(tone_curve(0.3, 0.0), 0.3);
+}
+
+#[test]
+fn fusion_with_all_or_nothing_weights_returns_one_input() {
+    let low = Image::from_fn(37, 29, |x, y| [x as f32 / 40.0, y as f32 / 30.0, 0.2]);
+    let high = low.map(|v| (v * 8.0).min(1.0));
+    let n = low.pixel_count();
+    let (l1, _) = fuse(&low, &high, &vec![1.0; n], 4.0).expect("fuse");
+    let (l0, t0) = fuse(&low, &high, &vec![0.0; n], 4.0).expect("fuse");
+    for i in 0..l1.data.len() {
+        assert!((l1.data[i] - high.data[i]).abs() < 1e-5);
+        assert!((l0.data[i] - low.data[i]).abs() < 1e-5);
+        assert!((t0.data[i] - tone_curve(l0.data[i], 4.0)).abs() < 1e-6);
+    }
+}
