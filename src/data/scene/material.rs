@@ -126,10 +126,13 @@ impl Material {
                 mix(self.c1, self.c2, t)
             }
             Pattern::Wood => {
-                let r =
-                    (u * u + 0.05 * v * v).sqrt() + 0.08 * fbm(self.seed, u, v, f * 0.5, 0.5, px);
+                // Rings 1/(4f) apart, warped by at most ~a third of a ring so the grain stays
+                // wood-like instead of turning into zebra stripes.
+                let ring = 1.0 / (4.0 * f);
+                let r = (u * u + 0.05 * v * v).sqrt()
+                    + 0.35 * ring * fbm(self.seed, u, v, f * 0.5, 0.5, px);
                 let w = band_weight(f * 4.0, px);
-                let t = 0.5 + 0.5 * w * (r * f * 4.0 * std::f32::consts::TAU).sin();
+                let t = 0.5 + 0.35 * w * (r / ring * std::f32::consts::TAU).sin();
                 mix(self.c1, self.c2, t)
             }
         };
