@@ -8,7 +8,9 @@ pub mod device;
 pub mod error;
 pub mod eval;
 pub mod io;
+pub mod models;
 pub mod rng;
 pub mod sensor;
+pub mod train;
 
 pub use error::{Error, Result};

@@ -1,0 +1,138 @@
+//! Losses and batch assembly for training.
+//!
+//! Network-1 (paper Eq. 4): the class-weighted L1 distance between the predicted class
+//! distribution and the one-hot target, per pixel
+//!
+//! ```text
+//!   ℓᵢ = α[tᵢ] · Σ_c |p_c(i) − 1[c = tᵢ]|,      L = mean over batch and pixels of ℓᵢ
+//! ```
+//!
+//! with α the inverse-frequency class weights of `data::ground_truth::ClassWeights`. Because
+//! the probabilities sum to 1, Σ_c |p_c − onehot_c| = (1 − p_t) + Σ_{c≠t} p_c = 2(1 − p_t):
+//! [`weighted_l1`] uses that closed form (one gather instead of a B×C×H×W one-hot);
+//! [`weighted_l1_explicit`] is the literal sum. Their gradients through a softmax agree too
+//! (the softmax Jacobian annihilates the constant vector), so either can train.
+//! The mean divides by the pixel count B·H·W, not by Σα.
+
+use crate::data::ground_truth::{CLASSES, ClassWeights};
+use crate::data::loader::{Sample, Target};
+use crate::error::{Error, Result};
+use burn::tensor::{Device, Int, Tensor, TensorData};
+
+fn check_shapes(probs: &Tensor<4>, target: &Tensor<3, Int>, alpha: &Tensor<1>) -> [usize; 4] {
+    let [b, c, h, w] = probs.dims();
+    let [tb, th, tw] = target.dims();
+    let [ac] = alpha.dims();
+    assert!(
+        tb == b && th == h && tw == w,
+        "weighted_l1: target is {tb}×{th}×{tw}, probabilities are {b}×{c}×{h}×{w}"
+    );
+    assert!(
+        ac == c,
+        "weighted_l1: alpha has {ac} entries for {c} classes"
+    );
+    [b, c, h, w]
+}
+
+/// α of each pixel's target class, [B, 1, H, W].
+fn alpha_of_target(
+    target: Tensor<3, Int>,
+    alpha: Tensor<1>,
+    [b, _, h, w]: [usize; 4],
+) -> Tensor<4> {
+    alpha
+        .select(0, target.reshape([b * h * w]))
+        .reshape([b, 1, h, w])
+}
+
+/// Paper Eq. 4 via the closed form 2·(1 − p_target): `probs` [B, C, H, W] (a softmax over dim
+/// 1), `target` [B, H, W] class indices in 0..C, `alpha` [C]. Returns the scalar loss, shape [1].
+///
+/// # Panics
+/// On mismatched shapes. Class indices outside 0..C are not checked here (the batch builders
+/// produce u8 classes, and C = 256).
+pub fn weighted_l1(probs: Tensor<4>, target: Tensor<3, Int>, alpha: Tensor<1>) -> Tensor<1> {
+    let dims = check_shapes(&probs, &target, &alpha);
+    let p_t = probs.gather(1, target.clone().unsqueeze_dim::<4>(1));
+    let a_t = alpha_of_target(target, alpha, dims);
+    (p_t.neg().add_scalar(1.0).mul_scalar(2.0) * a_t).mean()
+}
+
+/// Paper Eq. 4 literally: α[t] · Σ_c |p_c − onehot_c|, averaged over batch and pixels. Same
+/// arguments and result as [`weighted_l1`] for probabilities that sum to 1; builds a
+/// B×C×H×W one-hot, so it is the slower of the two.
+pub fn weighted_l1_explicit(
+    probs: Tensor<4>,
+    target: Tensor<3, Int>,
+    alpha: Tensor<1>,
+) -> Tensor<1> {
+    let dims = check_shapes(&probs, &target, &alpha);
+    let onehot = target
+        .clone()
+        .one_hot_fill::<4>(dims[1], 1.0, 0.0, 1)
+        .float();
+    let l1 = (probs - onehot).abs().sum_dim(1);
+    let a_t = alpha_of_target(target, alpha, dims);
+    (l1 * a_t).mean()
+}
+
+/// The class weights α as a [CLASSES] tensor on `device`.
+pub fn alpha_tensor(weights: &ClassWeights, device: &Device) -> Result<Tensor<1>> {
+    if weights.alpha.len() != CLASSES {
+        return Err(Error::Invalid(format!(
+            "class weights hold {} α values, expected {CLASSES}",
+            weights.alpha.len()
+        )));
+    }
+    let a: Vec<f32> = weights.alpha.iter().map(|&a| a as f32).collect();
+    Ok(Tensor::from_data(TensorData::new(a, [CLASSES]), device))
+}
+
+/// A Network-1 batch from loader samples: input [B, C, H, W] (the samples' C×H×W data
+/// stacked) and target [B, H, W] (the class maps). All samples must have the same channel count
+/// and size and a [`Target::Classes`] target of size×size entries.
+pub fn network1_batch(samples: &[Sample], device: &Device) -> Result<(Tensor<4>, Tensor<3, Int>)> {
+    let first = samples
+        .first()
+        .ok_or_else(|| Error::Invalid("network1_batch: no samples".into()))?;
+    let (c, s) = (first.channels, first.size);
+    let mut input = Vec::with_capacity(samples.len() * c * s * s);
+    let mut target = Vec::with_capacity(samples.len() * s * s);
+    for sample in samples {
+        if sample.channels != c || sample.size != s || sample.input.len() != c * s * s {
+            return Err(Error::Invalid(format!(
+                "network1_batch: sample of set '{}' is {}×{}×{} with {} values; the batch is \
+                 {c}×{s}×{s}",
+                sample.set,
+                sample.channels,
+                sample.size,
+                sample.size,
+                sample.input.len()
+            )));
+        }
+        match &sample.target {
+            Target::Classes(classes) if classes.len() == s * s => {
+                target.extend(classes.iter().map(|&k| k as i32));
+            }
+            Target::Classes(classes) => {
+                return Err(Error::Invalid(format!(
+                    "network1_batch: sample of set '{}' has {} classes for {s}×{s} pixels",
+                    sample.set,
+                    classes.len()
+                )));
+            }
+            Target::Hdr(_) => {
+                return Err(Error::Invalid(format!(
+                    "network1_batch: sample of set '{}' has an HDR target (a Network-2 sample)",
+                    sample.set
+                )));
+            }
+        }
+        input.extend_from_slice(&sample.input);
+    }
+    let b = samples.len();
+    Ok((
+        Tensor::from_data(TensorData::new(input, [b, c, s, s]), device),
+        Tensor::from_data(TensorData::new(target, [b, s, s]), device),
+    ))
+}
