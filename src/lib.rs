@@ -9,6 +9,7 @@ pub mod error;
 pub mod eval;
 pub mod io;
 pub mod models;
+pub mod plot;
 pub mod rng;
 pub mod sensor;
 pub mod train;

@@ -350,33 +350,7 @@ mod plot {
     use embedded_graphics::primitives::{Line, PrimitiveStyle, Rectangle};
     use embedded_graphics::text::{Alignment, Text};
 
-    struct Canvas {
-        w: usize,
-        h: usize,
-        px: Vec<[u8; 3]>,
-    }
-
-    impl OriginDimensions for Canvas {
-        fn size(&self) -> Size {
-            Size::new(self.w as u32, self.h as u32)
-        }
-    }
-
-    impl DrawTarget for Canvas {
-        type Color = Rgb888;
-        type Error = core::convert::Infallible;
-        fn draw_iter<I>(&mut self, pixels: I) -> Result<(), Self::Error>
-        where
-            I: IntoIterator<Item = Pixel<Self::Color>>,
-        {
-            for Pixel(p, c) in pixels {
-                if p.x >= 0 && p.y >= 0 && (p.x as usize) < self.w && (p.y as usize) < self.h {
-                    self.px[p.y as usize * self.w + p.x as usize] = [c.r(), c.g(), c.b()];
-                }
-            }
-            Ok(())
-        }
-    }
+    use crate::plot::Canvas;
 
     const INK: Rgb888 = Rgb888::new(20, 20, 20);
     const GRID: Rgb888 = Rgb888::new(222, 222, 222);
@@ -467,11 +441,7 @@ mod plot {
 
     pub(super) fn render(cw: &ClassWeights) -> Image {
         let (w, h) = PLOT_SIZE;
-        let mut cv = Canvas {
-            w,
-            h,
-            px: vec![[255, 255, 255]; w * h],
-        };
+        let mut cv = Canvas::new(w, h);
         let bold = MonoTextStyle::new(&FONT_7X13_BOLD, INK);
         let _ = Text::new(
             &format!(
@@ -515,11 +485,6 @@ mod plot {
             ALPHA,
         );
 
-        let data = cv
-            .px
-            .iter()
-            .flat_map(|p| p.map(|v| v as f32 / 255.0))
-            .collect();
-        Image::from_vec(w, h, data)
+        cv.into_image()
     }
 }

@@ -1002,33 +1002,7 @@ mod plot {
     use embedded_graphics::primitives::{Circle, Line, PrimitiveStyle, Rectangle};
     use embedded_graphics::text::{Alignment, Text};
 
-    struct Canvas {
-        w: usize,
-        h: usize,
-        px: Vec<[u8; 3]>,
-    }
-
-    impl OriginDimensions for Canvas {
-        fn size(&self) -> Size {
-            Size::new(self.w as u32, self.h as u32)
-        }
-    }
-
-    impl DrawTarget for Canvas {
-        type Color = Rgb888;
-        type Error = core::convert::Infallible;
-        fn draw_iter<I>(&mut self, pixels: I) -> Result<(), Self::Error>
-        where
-            I: IntoIterator<Item = Pixel<Self::Color>>,
-        {
-            for Pixel(p, c) in pixels {
-                if p.x >= 0 && p.y >= 0 && (p.x as usize) < self.w && (p.y as usize) < self.h {
-                    self.px[p.y as usize * self.w + p.x as usize] = [c.r(), c.g(), c.b()];
-                }
-            }
-            Ok(())
-        }
-    }
+    use crate::plot::Canvas;
 
     const COLOURS: [Rgb888; 3] = [
         Rgb888::new(210, 40, 40),
@@ -1054,11 +1028,7 @@ mod plot {
 
     pub(super) fn render(cal: &NoiseCalibration) -> Image {
         let (w, h) = ptc_plot_size(cal.isos.len());
-        let mut cv = Canvas {
-            w,
-            h,
-            px: vec![[255, 255, 255]; w * h],
-        };
+        let mut cv = Canvas::new(w, h);
         let ink = MonoTextStyle::new(&FONT_6X10, INK);
         let bold = MonoTextStyle::new(&FONT_7X13_BOLD, INK);
         let _ = Text::new(
@@ -1240,11 +1210,6 @@ mod plot {
             }
         }
 
-        let data = cv
-            .px
-            .iter()
-            .flat_map(|p| p.map(|v| v as f32 / 255.0))
-            .collect();
-        Image::from_vec(w, h, data)
+        cv.into_image()
     }
 }
