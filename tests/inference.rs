@@ -51,6 +51,14 @@ fn random_planar(c: usize, w: usize, h: usize) -> Planar {
     p
 }
 
+fn max_diff(a: &Planar, b: &Planar) -> f32 {
+    a.data
+        .iter()
+        .zip(&b.data)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f32::max)
+}
+
 #[test]
 fn tiled_equals_untiled_when_the_receptive_field_fits_the_overlap() {
     let input = random_planar(2, 101, 77);
@@ -62,12 +70,7 @@ fn tiled_equals_untiled_when_the_receptive_field_fits_the_overlap() {
             multiple,
         };
         let tiled = run_tiled(&input, 2, t, |x| box_filter(x, 3)).expect("tiled");
-        let worst = whole
-            .data
-            .iter()
-            .zip(&tiled.data)
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0f32, f32::max);
+        let worst = max_diff(&whole, &tiled);
         assert!(
             worst <= 1e-6,
             "tile {tile}, multiple {multiple}: max diff {worst}"
@@ -80,12 +83,7 @@ fn tiled_equals_untiled_when_the_receptive_field_fits_the_overlap() {
         multiple: 8,
     };
     let tiled = run_tiled(&input, 2, t, |x| box_filter(x, 3)).expect("tiled");
-    let worst = whole
-        .data
-        .iter()
-        .zip(&tiled.data)
-        .map(|(a, b)| (a - b).abs())
-        .fold(0.0f32, f32::max);
+    let worst = max_diff(&whole, &tiled);
     assert!(
         worst > 1e-3,
         "seams expected with overlap 1 < radius 3 (max diff {worst})"

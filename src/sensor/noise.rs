@@ -224,7 +224,7 @@ pub fn calibrate(set: &CaptureSet, opts: &CalibrateOptions) -> Result<NoiseCalib
                 means.push(robust_frame_mean(&set.read_frame(i, j)?));
             }
         }
-        Some(median_f64(&mut means))
+        Some(median(&mut means))
     };
     let black_declared = sensor.black_level;
     let (black_level, black_source) = match (opts.black_level, black_declared, black_estimated) {
@@ -459,8 +459,8 @@ fn channel_bins(
                 if k == 0 {
                     return (f32::NAN, f32::NAN);
                 }
-                let med_mean = median_f32(&mut means[..k]);
-                let med_var = (median_f32(&mut vars[..k]) as f64).max(QUANTISATION_VARIANCE);
+                let med_mean = median(&mut means[..k]);
+                let med_var = (median(&mut vars[..k]) as f64).max(QUANTISATION_VARIANCE);
                 let z = (st.mean[idx(p)] as f64 - med_mean as f64) / (med_var / nf).sqrt();
                 (z as f32, med_mean)
             })
@@ -472,9 +472,9 @@ fn channel_bins(
         .map(|&v| v as f64)
         .collect();
     if !finite.is_empty() {
-        let med = median_f64(&mut finite);
+        let med = median(&mut finite);
         let mut dev: Vec<f64> = finite.iter().map(|v| (v - med).abs()).collect();
-        let sigma = (MAD_TO_SIGMA * median_f64(&mut dev)).max(0.5);
+        let sigma = (MAD_TO_SIGMA * median(&mut dev)).max(0.5);
         for (s, &z) in status.iter_mut().zip(&z) {
             if *s == OK && (z as f64 - med).abs() > DEFECT_SIGMAS * sigma {
                 *s = DEFECTIVE;
@@ -505,11 +505,9 @@ fn channel_bins(
     let mut bins = Vec::new();
     for pixels in groups.values() {
         let mut vars: Vec<f64> = pixels.iter().map(|&p| st.var[idx(p)] as f64).collect();
-        let med = median_f64(&mut vars);
+        let med = median(&mut vars);
         let mut dev: Vec<f64> = vars.iter().map(|v| (v - med).abs()).collect();
-        let sigma = (MAD_TO_SIGMA * median_f64(&mut dev))
-            .max(0.1 * med)
-            .max(0.1);
+        let sigma = (MAD_TO_SIGMA * median(&mut dev)).max(0.1 * med).max(0.1);
         let limit = med + DEFECT_SIGMAS * sigma;
         let keep: Vec<usize> = pixels
             .iter()
@@ -595,33 +593,32 @@ fn robust_frame_mean(img: &Image) -> f64 {
     sum / cnt.max(1) as f64
 }
 
-fn median_f32(v: &mut [f32]) -> f32 {
+/// Median (mean of the two middle values for even lengths); NaN when empty. One generic
+/// function for the f32 per-pixel statistics and the f64 fit inputs.
+fn median<T>(v: &mut [T]) -> T
+where
+    T: Copy
+        + PartialOrd
+        + Into<f64>
+        + From<f32>
+        + std::ops::Add<Output = T>
+        + std::ops::Mul<Output = T>,
+{
     if v.is_empty() {
-        return f32::NAN;
+        return T::from(f32::NAN);
     }
     let m = v.len() / 2;
-    let (_, x, _) = v.select_nth_unstable_by(m, f32::total_cmp);
+    let cmp = |a: &T, b: &T| a.partial_cmp(b).unwrap_or(std::cmp::Ordering::Equal);
+    let (_, x, _) = v.select_nth_unstable_by(m, cmp);
     let hi = *x;
     if v.len() % 2 == 1 {
         hi
     } else {
-        let lo = v[..m].iter().copied().fold(f32::NEG_INFINITY, f32::max);
-        0.5 * (lo + hi)
-    }
-}
-
-fn median_f64(v: &mut [f64]) -> f64 {
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    let m = v.len() / 2;
-    let (_, x, _) = v.select_nth_unstable_by(m, f64::total_cmp);
-    let hi = *x;
-    if v.len() % 2 == 1 {
-        hi
-    } else {
-        let lo = v[..m].iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        0.5 * (lo + hi)
+        let lo = v[..m]
+            .iter()
+            .copied()
+            .fold(v[0], |a, b| if cmp(&a, &b).is_lt() { b } else { a });
+        T::from(0.5) * (lo + hi)
     }
 }
 
@@ -695,7 +692,7 @@ fn wls(bins: &[Bin]) -> std::result::Result<Wls, String> {
         .map(|b| b.stderr * (b.pixels as f64).sqrt() / b.variance)
         .collect();
     if !rel.is_empty() {
-        let c = median_f64(&mut rel);
+        let c = median(&mut rel);
         for _ in 0..3 {
             se = bins
                 .iter()
