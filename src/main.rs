@@ -33,6 +33,10 @@ enum Command {
     },
     /// Apply a sensor profile (colour, noise, levels, response) to synthetic frames offline.
     Realism(hdrsynth::cli::realism::Args),
+    /// Train Network-1 or Network-2 from a TOML config (pretrain, fine-tune, --resume).
+    Train(hdrsynth::cli::train::Args),
+    /// Run a trained network (any checkpoint) on one input of any size, tiled.
+    Infer(hdrsynth::cli::infer::Args),
     /// Inspect datasets.
     Dataset {
         #[command(subcommand)]
@@ -73,6 +77,13 @@ fn main() -> Result<()> {
         } => println!("{}", hdrsynth::cli::calibrate::noise::run(&args)?),
         Command::Profile { command } => println!("{}", hdrsynth::cli::profile::run(&command)?),
         Command::Realism(args) => println!("{}", hdrsynth::cli::realism::run(&args)?),
+        Command::Train(args) => {
+            println!(
+                "{}",
+                hdrsynth::cli::train::report(&hdrsynth::cli::train::run(&args)?)
+            )
+        }
+        Command::Infer(args) => println!("{}", hdrsynth::cli::infer::run(&args)?),
         Command::Dataset { command } => match command {
             DatasetCommand::Info { dir } => {
                 print!("{}", hdrsynth::cli::dataset::info_report(&dir)?)

@@ -3,7 +3,7 @@
 
 use hdrsynth::error::Result;
 use hdrsynth::eval::blend::{BlendWeight, fuse, tone_curve, weight_from_probabilities};
-use hdrsynth::eval::tiling::{Planar, Tiling, run_tiled};
+use hdrsynth::eval::tiling::{Planar, Tiling, run_tiled, run_untiled};
 use hdrsynth::io::Image;
 
 fn reflect101(p: isize, n: usize) -> usize {
@@ -63,7 +63,7 @@ fn max_diff(a: &Planar, b: &Planar) -> f32 {
 fn tiled_equals_untiled_when_the_receptive_field_fits_the_overlap() {
     let input = random_planar(2, 101, 77);
     let whole = box_filter(&input, 3).expect("untiled");
-    for (tile, multiple) in [(32, 8), (40, 1), (17, 4)] {
+    for (tile, multiple) in [(32, 8), (40, 1), (16, 4), (17, 1)] {
         let t = Tiling {
             tile,
             overlap: 4,
@@ -140,4 +140,96 @@ fn fusion_with_all_or_nothing_weights_returns_one_input() {
         assert!((l0.data[i] - low.data[i]).abs() < 1e-5);
         assert!((t0.data[i] - tone_curve(l0.data[i], 4.0)).abs() < 1e-6);
     }
+}
+
+#[test]
+fn tiles_off_the_down_sampling_grid_are_refused() {
+    let input = random_planar(1, 40, 40);
+    let t = Tiling {
+        tile: 17,
+        overlap: 2,
+        multiple: 4,
+    };
+    let err = run_tiled(&input, 1, t, |x| Ok(x.clone())).expect_err("off grid");
+    assert!(err.to_string().contains("multiple"), "{err}");
+}
+
+/// The real Network-1 (tiny widths, depth 2; receptive-field radius 28 px): tiles with overlap ≥ 28 reproduce the untiled output.
+#[test]
+fn blend_unet_tiled_equals_untiled_when_the_overlap_covers_the_receptive_field() {
+    use burn::module::Module;
+    use burn::tensor::{Device, Tensor, TensorData};
+    use hdrsynth::models::BlendUNetConfig;
+    let cfg = BlendUNetConfig {
+        base_width: 4,
+        depth: 2,
+        batch_norm: true,
+        classes: 256,
+    };
+    assert_eq!(cfg.receptive_radius(), 28);
+    assert_eq!(BlendUNetConfig::default().receptive_radius(), 124);
+    let dev = Device::flex();
+    let model = hdrsynth::train::seeded_init(&dev, 5, || cfg.init(&dev))
+        .expect("init")
+        .valid();
+    // Smooth-ish content with edges, 6 channels, a size that is no multiple of anything.
+    let (w, h) = (150, 101);
+    let mut input = Planar::new(6, w, h);
+    for c in 0..6 {
+        for y in 0..h {
+            for x in 0..w {
+                let v = ((x as f32 * 0.07 + c as f32).sin() * (y as f32 * 0.05).cos() + 1.0) / 2.0;
+                let edge = if (x + 2 * y + 7 * c) % 53 < 20 {
+                    0.3
+                } else {
+                    0.0
+                };
+                input.data[(c * h + y) * w + x] = (v + edge).min(1.0);
+            }
+        }
+    }
+    // One class's logit: the untrained softmax is nearly uniform, so logits show seams best.
+    let logit = |win: &Planar| -> Result<Planar> {
+        let x = Tensor::<4>::from_data(
+            TensorData::new(win.data.clone(), [1, 6, win.height, win.width]),
+            &dev,
+        );
+        let data = model
+            .forward(x)
+            .slice([0..1, 100..101, 0..win.height, 0..win.width])
+            .into_data()
+            .try_to_vec::<f32>()
+            .expect("f32");
+        Ok(Planar {
+            channels: 1,
+            width: win.width,
+            height: win.height,
+            data,
+        })
+    };
+    let whole = run_untiled(&input, 1, 28, 4, logit).expect("untiled");
+    for tile in [32, 48] {
+        let t = Tiling {
+            tile,
+            overlap: 28,
+            multiple: 4,
+        };
+        let tiled = run_tiled(&input, 1, t, logit).expect("tiled");
+        let worst = max_diff(&whole, &tiled);
+        println!("tile {tile}, overlap 28: max |tiled − untiled| = {worst:e}");
+        assert!(worst <= 1e-4, "tile {tile}: max diff {worst}");
+    }
+    // Too little context: seams.
+    let t = Tiling {
+        tile: 32,
+        overlap: 4,
+        multiple: 4,
+    };
+    let tiled = run_tiled(&input, 1, t, logit).expect("tiled");
+    let worst = max_diff(&whole, &tiled);
+    println!("tile 32, overlap 4: max |tiled − untiled| = {worst:e}");
+    assert!(
+        worst > 1e-4,
+        "seams expected with overlap 4 < 28 (max diff {worst})"
+    );
 }

@@ -2,7 +2,9 @@
 pub mod calibrate;
 pub mod dataset;
 pub mod generate;
+pub mod infer;
 pub mod preview;
 pub mod profile;
 pub mod realism;
+pub mod train;
 pub mod weights;

@@ -28,7 +28,7 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, sync_channel};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -368,15 +368,30 @@ impl Loader {
     /// Batches of one epoch, computed on `workers` threads with bounded prefetch, in index
     /// order. The last batch may be smaller.
     pub fn epoch(self: &Arc<Self>, epoch: u64) -> Batches {
-        let n = self.len();
+        let n = self.len() as u64;
+        self.range(epoch * n, (epoch + 1) * n)
+    }
+
+    /// Sample number `g` of the endless stream the trainer reads: sample `g mod len` of epoch
+    /// `g div len`. A training step s reads g = s·batch_size … (s+1)·batch_size − 1, so a
+    /// resumed run reads exactly the samples an uninterrupted one would have.
+    pub fn stream_sample(&self, g: u64) -> Result<Sample> {
+        let n = self.len() as u64;
+        self.sample(g / n, (g % n) as usize)
+    }
+
+    /// Batches of the stream samples `start..end` (see [`stream_sample`](Self::stream_sample)),
+    /// computed on `workers` threads with bounded prefetch and returned in order; batches never
+    /// straddle `end`, so the last may be smaller.
+    pub fn range(self: &Arc<Self>, start: u64, end: u64) -> Batches {
         let (tx, rx) = sync_channel(self.cfg.prefetch.max(1));
-        let next = Arc::new(AtomicUsize::new(0));
+        let next = Arc::new(AtomicU64::new(start));
         for _ in 0..self.cfg.workers {
             let (me, tx, next) = (Arc::clone(self), tx.clone(), Arc::clone(&next));
             std::thread::spawn(move || {
                 loop {
-                    let i = next.fetch_add(1, Ordering::Relaxed);
-                    if i >= n || tx.send((i, me.sample(epoch, i))).is_err() {
+                    let g = next.fetch_add(1, Ordering::Relaxed);
+                    if g >= end || tx.send((g, me.stream_sample(g))).is_err() {
                         break;
                     }
                 }
@@ -385,9 +400,9 @@ impl Loader {
         Batches {
             rx,
             pending: BTreeMap::new(),
-            next: 0,
-            total: n,
-            batch_size: self.cfg.batch_size,
+            next: start,
+            end,
+            batch_size: self.cfg.batch_size as u64,
         }
     }
 }
@@ -402,23 +417,23 @@ fn to_chw(hwc: &[f32], size: usize, c: usize) -> Vec<f32> {
     out
 }
 
-/// Iterator over an epoch's batches; reorders worker output by index.
+/// Iterator over batches of stream samples; reorders worker output by index.
 pub struct Batches {
-    rx: Receiver<(usize, Result<Sample>)>,
-    pending: BTreeMap<usize, Result<Sample>>,
-    next: usize,
-    total: usize,
-    batch_size: usize,
+    rx: Receiver<(u64, Result<Sample>)>,
+    pending: BTreeMap<u64, Result<Sample>>,
+    next: u64,
+    end: u64,
+    batch_size: u64,
 }
 
 impl Iterator for Batches {
     type Item = Result<Vec<Sample>>;
     fn next(&mut self) -> Option<Self::Item> {
-        if self.next >= self.total {
+        if self.next >= self.end {
             return None;
         }
-        let end = (self.next + self.batch_size).min(self.total);
-        let mut batch = Vec::with_capacity(end - self.next);
+        let end = (self.next + self.batch_size).min(self.end);
+        let mut batch = Vec::with_capacity((end - self.next) as usize);
         while self.next < end {
             let item = match self.pending.remove(&self.next) {
                 Some(s) => s,
@@ -433,7 +448,7 @@ impl Iterator for Batches {
             match item {
                 Ok(s) => batch.push(s),
                 Err(e) => {
-                    self.next = self.total;
+                    self.next = self.end;
                     return Some(Err(e));
                 }
             }

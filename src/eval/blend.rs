@@ -12,7 +12,21 @@ use crate::data::pyramid::laplacian_blend;
 use crate::error::{Error, Result};
 use crate::io::Image;
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+/// Default k of the tone curve. The paper names an exponential curve without its parameter;
+/// k = 2 lifts the darkest tones 2.3× (slope k/(1 − e^−k) at 0) and leaves T(1) = 1.
+pub const DEFAULT_TONE_K: f32 = 2.0;
+
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    PartialEq,
+    Eq,
+    Default,
+    serde::Serialize,
+    serde::Deserialize,
+    clap::ValueEnum,
+)]
 #[serde(rename_all = "lowercase")]
 pub enum BlendWeight {
     /// Σ_c p_c · c / 255.

@@ -106,6 +106,25 @@ impl BlendUNetConfig {
         1 << self.depth
     }
 
+    /// Receptive-field radius in input pixels: how far from a pixel the inputs that can change
+    /// its output lie (a bound: 2×2 pooling and the 2×2 transposed convolutions count one
+    /// step of their stride). Tiled inference with at least this overlap equals untiled
+    /// inference. Default (depth 4): 124 px.
+    pub fn receptive_radius(&self) -> usize {
+        let (mut r, mut s) = (2, 1); // level-0 block: two 3×3 convolutions
+        for _ in 1..=self.depth {
+            r += s; // 2×2 max-pool
+            s *= 2;
+            r += 2 * s; // block
+        }
+        for _ in 0..self.depth {
+            r += s / 2; // 2×2 stride-2 transposed convolution
+            s /= 2;
+            r += 2 * s; // block
+        }
+        r + 2 // 5×5 head
+    }
+
     /// Trainable parameters, counted from the architecture (weights, biases, BatchNorm γ and
     /// β; not BatchNorm's running mean and variance).
     pub fn trainable_parameters(&self) -> usize {

@@ -1,21 +1,40 @@
-//! Training: losses, batch assembly and the optimisation step.
+//! The one trainer. A [`task::Task`] says how to build a network and score a batch; [`run`]
+//! does the rest for either network: data stream, Adam with a step-pure LR schedule,
+//! validation, JSONL log, atomic checkpoints, resume, NaN stop. docs/training.md documents the
+//! config and the run folder.
 //!
-//! Burn 0.22: train on an autodiff device (`device.clone().autodiff()`); build the model and the
-//! batch tensors on it; `loss.backward()` gives `Gradients`, `GradientsParams::from_grads`
-//! ties them to the module's parameters, and `ModuleOptimizer::step` (from
-//! `AdamConfig::new().init()`) returns the updated module.
+//! Burn 0.22: train on an autodiff device (`device.clone().autodiff()`); `loss.backward()`
+//! gives `Gradients`, `GradientsParams::from_grads` ties them to the module's parameters, and
+//! `ModuleOptimizer::step` returns the updated module. Validation uses `model.valid()` (no
+//! autodiff; BatchNorm on running statistics) with inputs on the plain device.
 
+pub mod checkpoint;
+pub mod config;
 pub mod loss;
+pub mod task;
 
+use crate::data::ground_truth::{CLASSES, ClassWeights, MertensWeights, class_histogram};
+use crate::data::loader::{Loader, LoaderConfig, Sample, Target};
+use crate::device::device_from_name;
+use crate::error::{Error, Result};
+use crate::io::atomic::write_atomic;
 use crate::models::BlendUNet;
-use burn::optim::{GradientsParams, ModuleOptimizer};
+use burn::module::Module;
+use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
 use burn::tensor::activation::softmax;
-use burn::tensor::{Int, Tensor};
+use burn::tensor::{Device, Int, Tensor};
+use checkpoint::CheckpointState;
+use config::{ModelConfig, TrainConfig};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+use task::{CHECKPOINT_ALPHA_FILE, Network1, Task};
 
 /// One Network-1 optimisation step: forward, softmax, [`loss::weighted_l1`], backward, optimiser
 /// update. `input`, `target` and `alpha` must be on the model's (autodiff) device. Returns the
-/// updated model and the step's loss (detached, before the update; reading it with
-/// `into_scalar` waits for the step to finish).
+/// updated model and the step's loss (detached, before the update). Used by the step benchmark;
+/// the trainer goes through [`Task::loss`].
 pub fn network1_step(
     model: BlendUNet,
     optim: &mut ModuleOptimizer,
@@ -29,4 +48,419 @@ pub fn network1_step(
     let grads = GradientsParams::from_grads(loss.backward(), &model);
     let model = optim.step(lr, model, grads);
     (model, loss.detach())
+}
+
+/// Burn's seed is global to a backend: seeding and initialising under one lock keeps
+/// concurrent initialisations (tests, library users) reproducible.
+pub fn seeded_init<T>(device: &Device, seed: u64, init: impl FnOnce() -> T) -> T {
+    static INIT: Mutex<()> = Mutex::new(());
+    let _guard = INIT.lock().unwrap_or_else(|e| e.into_inner());
+    device.seed(seed);
+    init()
+}
+
+#[derive(Clone, Debug, Default)]
+pub struct TrainOptions {
+    /// Continue the run in `run.out` from its latest checkpoint.
+    pub resume: bool,
+    /// Draw a progress bar on stderr.
+    pub progress: bool,
+}
+
+#[derive(Clone, Debug)]
+pub struct TrainSummary {
+    pub run: PathBuf,
+    /// Step the run started from (0, or the resumed checkpoint's).
+    pub start_step: u64,
+    pub steps: u64,
+    /// Mean loss of the first and the last logged intervals of this invocation.
+    pub first_loss: f64,
+    pub last_loss: f64,
+    pub checkpoint: PathBuf,
+    pub samples_per_s: f64,
+    /// The last validation scores, if validation ran.
+    pub validation: Vec<(String, f64)>,
+}
+
+/// The resolved config of a run, written as `RUN/config.toml`.
+pub const RUN_CONFIG: &str = "config.toml";
+/// The metrics log, one JSON object per line.
+pub const LOG_FILE: &str = "log.jsonl";
+
+/// Train as configured. Errors name what is wrong; a non-finite loss stops the run with the
+/// last good checkpoint in place.
+pub fn run(cfg: &TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
+    cfg.validate()?;
+    let kind = cfg.model.sample_kind();
+    let loader = Arc::new(Loader::new(&cfg.data.loader(kind, cfg.run.seed)?)?);
+    match &cfg.model {
+        ModelConfig::BlendUnet(m) => {
+            let alpha = network1_alpha(cfg, opts, &loader)?;
+            let task = Network1 {
+                config: m.clone(),
+                alpha,
+            };
+            train(&task, cfg, opts, loader)
+        }
+    }
+}
+
+/// Network-1's α as `loss.alpha` asks (see `config::LossConfig`); on resume, the checkpoint's.
+fn network1_alpha(cfg: &TrainConfig, opts: &TrainOptions, loader: &Loader) -> Result<ClassWeights> {
+    let from_checkpoint = |dir: &Path| ClassWeights::load(&dir.join(CHECKPOINT_ALPHA_FILE));
+    if opts.resume
+        && let Some(dir) = checkpoint::latest(&cfg.run.out)?
+    {
+        return from_checkpoint(&dir);
+    }
+    match cfg.loss.alpha.as_str() {
+        "stream" => {
+            let n = cfg.loss.alpha_samples.max(1);
+            let samples: Vec<Sample> = (0..n)
+                .map(|g| loader.stream_sample(g))
+                .collect::<Result<_>>()?;
+            let hist = class_histogram(samples.iter().map(|s| match &s.target {
+                Target::Classes(c) => c.as_slice(),
+                Target::Hdr(_) => &[],
+            }));
+            Ok(ClassWeights::new(
+                &hist,
+                MertensWeights::OPENCV_DEFAULT,
+                loader.len(),
+            ))
+        }
+        "uniform" => Ok(ClassWeights::new(
+            &[1; CLASSES],
+            MertensWeights::OPENCV_DEFAULT,
+            0,
+        )),
+        "checkpoint" => {
+            let init = cfg.init.as_ref().ok_or_else(|| {
+                Error::Invalid("loss.alpha = \"checkpoint\" needs an [init] checkpoint".into())
+            })?;
+            from_checkpoint(&checkpoint::resolve(&init.checkpoint)?)
+        }
+        path => ClassWeights::load(Path::new(path)),
+    }
+}
+
+/// The resolved config as TOML with `run.steps` blanked: what must not change on resume.
+fn identity_of(cfg: &TrainConfig) -> Result<String> {
+    let mut c = cfg.clone();
+    c.run.steps = 0;
+    toml::to_string(&c).map_err(|e| Error::encode(RUN_CONFIG, e))
+}
+
+struct Log {
+    path: PathBuf,
+    file: std::fs::File,
+}
+
+impl Log {
+    /// Open the run's log; on resume keep only lines up to `step` (later ones were written
+    /// after the checkpoint and will be written again).
+    fn open(run: &Path, resume_step: Option<u64>) -> Result<Log> {
+        let path = run.join(LOG_FILE);
+        match resume_step {
+            Some(step) => {
+                let text = std::fs::read_to_string(&path).unwrap_or_default();
+                let kept: String = text
+                    .lines()
+                    .filter(|l| line_step(l).is_some_and(|s| s <= step))
+                    .map(|l| format!("{l}\n"))
+                    .collect();
+                write_atomic(&path, kept.as_bytes())?;
+            }
+            None => write_atomic(&path, b"")?,
+        }
+        let file = std::fs::OpenOptions::new()
+            .append(true)
+            .open(&path)
+            .map_err(|e| Error::io(&path, e))?;
+        Ok(Log { path, file })
+    }
+
+    fn write(&mut self, fields: &[(&str, String)]) -> Result<()> {
+        let body: Vec<String> = fields.iter().map(|(k, v)| format!("\"{k}\":{v}")).collect();
+        writeln!(self.file, "{{{}}}", body.join(","))
+            .and_then(|_| self.file.flush())
+            .map_err(|e| Error::io(&self.path, e))
+    }
+}
+
+fn line_step(line: &str) -> Option<u64> {
+    let rest = line.strip_prefix("{\"step\":")?;
+    rest.split([',', '}']).next()?.parse().ok()
+}
+
+fn json_f64(v: f64) -> String {
+    if v.is_finite() {
+        format!("{v}")
+    } else {
+        format!("\"{v}\"")
+    }
+}
+
+/// The training loop shared by both networks.
+pub fn train<T: Task>(
+    task: &T,
+    cfg: &TrainConfig,
+    opts: &TrainOptions,
+    loader: Arc<Loader>,
+) -> Result<TrainSummary> {
+    let run = &cfg.run.out;
+    std::fs::create_dir_all(run).map_err(|e| Error::io(run, e))?;
+    let device = device_from_name(&cfg.run.backend)?;
+    let ad = device.clone().autodiff();
+    let identity = identity_of(cfg)?;
+    let existing = checkpoint::latest(run)?;
+    let mut optim = AdamConfig::new()
+        .with_beta_1(cfg.optim.beta1)
+        .with_beta_2(cfg.optim.beta2)
+        .with_epsilon(cfg.optim.epsilon)
+        .with_weight_decay(
+            (cfg.optim.weight_decay > 0.0)
+                .then(|| burn::optim::decay::WeightDecayConfig::new(cfg.optim.weight_decay)),
+        )
+        .init();
+
+    let (mut model, start) = match (&existing, opts.resume) {
+        (Some(dir), true) => {
+            let saved = std::fs::read_to_string(run.join(RUN_CONFIG))
+                .map_err(|e| Error::io(run.join(RUN_CONFIG), e))?;
+            if saved != identity {
+                return Err(Error::config(
+                    run.join(RUN_CONFIG),
+                    "the run was started with a different config (only run.steps may change on \
+                     resume); start a new run folder instead",
+                ));
+            }
+            let state = checkpoint::read_state(dir)?;
+            if state.model != task.model_config() {
+                return Err(Error::config(
+                    dir.join(checkpoint::STATE_FILE),
+                    "checkpoint holds a different model",
+                ));
+            }
+            let model = checkpoint::load_model(task.init(&ad)?, dir)?;
+            optim = checkpoint::load_optimizer(optim, dir)?;
+            (model, state.step)
+        }
+        (None, true) => {
+            return Err(Error::layout(
+                run,
+                "--resume: the run has no checkpoint yet",
+            ));
+        }
+        (Some(dir), false) => {
+            return Err(Error::layout(
+                run,
+                format!(
+                    "the run folder already holds checkpoints ({}): pass --resume to continue it, \
+                     or set run.out to a new folder",
+                    dir.display()
+                ),
+            ));
+        }
+        (None, false) => {
+            let mut model = seeded_init(&ad, cfg.run.seed, || task.init(&ad))?;
+            if let Some(init) = &cfg.init {
+                let dir = checkpoint::resolve(&init.checkpoint)?;
+                let state = checkpoint::read_state(&dir)?;
+                if state.model != task.model_config() {
+                    return Err(Error::config(
+                        dir.join(checkpoint::STATE_FILE),
+                        format!(
+                            "init checkpoint holds {:?}, the config asks for {:?}",
+                            state.model,
+                            task.model_config()
+                        ),
+                    ));
+                }
+                model = checkpoint::load_model(model, &dir)?;
+            }
+            write_atomic(&run.join(RUN_CONFIG), identity.as_bytes())?;
+            (model, 0)
+        }
+    };
+    if start >= cfg.run.steps {
+        return Err(Error::Invalid(format!(
+            "{}: already at step {start} of {}; raise run.steps to train further",
+            run.display(),
+            cfg.run.steps
+        )));
+    }
+
+    let mut log = Log::open(run, opts.resume.then_some(start))?;
+    let validation = match &cfg.validation {
+        Some(v) => {
+            let mut lc: LoaderConfig = cfg.data.loader(loader.config().kind, cfg.run.seed)?;
+            lc.dataset = v.dataset.clone();
+            lc.augment = false;
+            lc.patch = v.patch.unwrap_or(cfg.data.patch);
+            let l = Arc::new(Loader::new(&lc)?);
+            let n = v.samples.min(l.len()) as u64;
+            let samples: Vec<Sample> = (0..n).map(|g| l.stream_sample(g)).collect::<Result<_>>()?;
+            Some((v.every, samples))
+        }
+        None => None,
+    };
+
+    let bs = cfg.data.batch_size as u64;
+    let total = cfg.run.steps;
+    let bar = progress_bar(opts.progress, start, total);
+    let mut batches = loader.range(start * bs, total * bs);
+    let (mut interval_loss, mut interval_steps) = (0.0f64, 0u64);
+    let (mut first_loss, mut last_loss) = (None, f64::NAN);
+    let mut last_checkpoint = existing.clone();
+    let mut last_validation = Vec::new();
+    let began = Instant::now();
+    let mut interval_start = Instant::now();
+    let state_at = |step: u64, loss: Option<f64>| CheckpointState {
+        format: checkpoint::FORMAT.into(),
+        step,
+        samples: step * bs,
+        epoch: step * bs / loader.len() as u64,
+        rng_seed: cfg.run.seed,
+        loss,
+        model: task.model_config(),
+    };
+
+    let validate_and_log =
+        |log: &mut Log, model: &T::Model, done: u64| -> Result<Vec<(String, f64)>> {
+            let Some((_, samples)) = &validation else {
+                return Ok(Vec::new());
+            };
+            let scores = validate(task, model, samples, bs as usize, &device)?;
+            let fields: Vec<String> = scores
+                .iter()
+                .map(|(k, v)| format!("\"{k}\":{}", json_f64(*v)))
+                .collect();
+            log.write(&[
+                ("step", done.to_string()),
+                ("validation", format!("{{{}}}", fields.join(","))),
+            ])?;
+            Ok(scores)
+        };
+    // The untrained (or freshly initialised-from) model's scores: the baseline of the run.
+    if start == 0 {
+        validate_and_log(&mut log, &model, 0)?;
+    }
+
+    for step in start..total {
+        let batch = batches
+            .next()
+            .ok_or_else(|| Error::Invalid("data stream ended early".into()))??;
+        let lr = cfg.schedule.lr(cfg.optim.lr, step, total);
+        let loss = task.loss(&model, &batch, &ad)?;
+        let value = loss.clone().into_scalar::<f32>() as f64;
+        if !value.is_finite() {
+            log.write(&[
+                ("step", step.to_string()),
+                ("loss", json_f64(value)),
+                ("error", "\"non-finite loss\"".into()),
+            ])?;
+            bar.abandon();
+            let kept = match &last_checkpoint {
+                Some(d) => format!("the last good checkpoint is {}", d.display()),
+                None => "no checkpoint was written yet".into(),
+            };
+            return Err(Error::Invalid(format!(
+                "step {step}: the training loss is {value} (non-finite; lr {lr:e}); training \
+                 stopped and nothing after the last checkpoint was saved: {kept}. Lower \
+                 optim.lr or check the data"
+            )));
+        }
+        let grads = GradientsParams::from_grads(loss.backward(), &model);
+        model = optim.step(lr, model, grads);
+        interval_loss += value;
+        interval_steps += 1;
+        let done = step + 1;
+        bar.set_position(done);
+
+        if done % cfg.run.log_every == 0 || done == total {
+            let mean = interval_loss / interval_steps as f64;
+            let secs = interval_start.elapsed().as_secs_f64();
+            let sps = (interval_steps * bs) as f64 / secs.max(1e-9);
+            first_loss.get_or_insert(mean);
+            last_loss = mean;
+            bar.set_message(format!("loss {mean:.4} · {sps:.1} samples/s"));
+            log.write(&[
+                ("step", done.to_string()),
+                ("epoch", json_f64((done * bs) as f64 / loader.len() as f64)),
+                ("loss", json_f64(mean)),
+                ("lr", json_f64(lr)),
+                ("samples_per_s", json_f64(sps)),
+                ("elapsed_s", json_f64(began.elapsed().as_secs_f64())),
+            ])?;
+            (interval_loss, interval_steps) = (0.0, 0);
+            interval_start = Instant::now();
+        }
+        if let Some((every, _)) = &validation
+            && (done % every == 0 || done == total)
+        {
+            last_validation = validate_and_log(&mut log, &model, done)?;
+        }
+        if done % cfg.run.checkpoint_every == 0 || done == total {
+            let dir = checkpoint::save(
+                run,
+                &state_at(done, Some(last_loss).filter(|l| l.is_finite())),
+                &model,
+                Some(&optim),
+                cfg.run.keep_checkpoints,
+                |d| task.save_extra(d),
+            )?;
+            last_checkpoint = Some(dir);
+        }
+    }
+    bar.finish();
+    let secs = began.elapsed().as_secs_f64();
+    Ok(TrainSummary {
+        run: run.clone(),
+        start_step: start,
+        steps: total,
+        first_loss: first_loss.unwrap_or(f64::NAN),
+        last_loss,
+        checkpoint: last_checkpoint.unwrap_or_default(),
+        samples_per_s: ((total - start) * bs) as f64 / secs.max(1e-9),
+        validation: last_validation,
+    })
+}
+
+/// Mean validation scores over `samples`, in batches, on the inference model.
+fn validate<T: Task>(
+    task: &T,
+    model: &T::Model,
+    samples: &[Sample],
+    batch: usize,
+    device: &Device,
+) -> Result<Vec<(String, f64)>> {
+    let m = model.valid();
+    let mut sums: Vec<(String, f64)> = Vec::new();
+    for chunk in samples.chunks(batch.max(1)) {
+        for (i, (k, v)) in task.validate(&m, chunk, device)?.into_iter().enumerate() {
+            match sums.get_mut(i) {
+                Some(s) => s.1 += v,
+                None => sums.push((k.to_string(), v)),
+            }
+        }
+    }
+    let n = samples.len().max(1) as f64;
+    Ok(sums.into_iter().map(|(k, v)| (k, v / n)).collect())
+}
+
+fn progress_bar(show: bool, start: u64, total: u64) -> indicatif::ProgressBar {
+    if !show {
+        return indicatif::ProgressBar::hidden();
+    }
+    let bar = indicatif::ProgressBar::new(total);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{elapsed_precise} [{bar:30}] step {pos}/{len} · {msg} · ETA {eta}",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+        .progress_chars("=> "),
+    );
+    bar.set_position(start);
+    bar
 }

@@ -1,0 +1,108 @@
+//! Running trained networks on whole images of any size: tensors per window of
+//! [`tiling::run_tiled`](crate::eval::tiling), reduced on the device to what the output needs
+//! (Network-1: one blend weight per pixel, never 256 class maps of a full frame).
+
+use crate::error::{Error, Result};
+use crate::eval::blend::{BlendWeight, fuse};
+use crate::eval::tiling::{Planar, Tiling, run_tiled};
+use crate::io::Image;
+use crate::models::{BlendUNet, BlendUNetConfig};
+use burn::tensor::activation::softmax;
+use burn::tensor::{Device, Tensor, TensorData};
+
+/// Default core tile side for full-resolution inference (a multiple of 16).
+pub const DEFAULT_TILE: usize = 384;
+
+/// Planar C×H×W from interleaved images stacked channel-wise (e.g. (low, high) → 6 channels).
+pub fn planar_from_images(frames: &[&Image]) -> Result<Planar> {
+    let first = frames
+        .first()
+        .ok_or_else(|| Error::Invalid("no frames".into()))?;
+    let (w, h) = (first.width, first.height);
+    if let Some(f) = frames.iter().find(|f| (f.width, f.height) != (w, h)) {
+        return Err(Error::Invalid(format!(
+            "frames differ in size: {w}×{h} and {}×{}",
+            f.width, f.height
+        )));
+    }
+    let mut p = Planar::new(3 * frames.len(), w, h);
+    for (k, f) in frames.iter().enumerate() {
+        for (px, v) in f.data.chunks_exact(3).enumerate() {
+            for c in 0..3 {
+                p.data[(3 * k + c) * w * h + px] = v[c];
+            }
+        }
+    }
+    Ok(p)
+}
+
+/// Network-1's default tiling: the overlap covers the receptive field, so tiles are exact.
+pub fn network1_tiling(cfg: &BlendUNetConfig) -> Tiling {
+    Tiling {
+        tile: DEFAULT_TILE,
+        overlap: cfg.receptive_radius(),
+        multiple: cfg.size_multiple(),
+    }
+}
+
+/// Long-exposure blend weight per pixel (H×W) of the pair (low = EV−3, high = EV0), frames in
+/// [0, 1] as the network was trained on. `model` must be an inference model (`valid()`) on
+/// `device`.
+pub fn network1_weight(
+    model: &BlendUNet,
+    low: &Image,
+    high: &Image,
+    tiling: Tiling,
+    mode: BlendWeight,
+    device: &Device,
+) -> Result<Vec<f32>> {
+    let input = planar_from_images(&[low, high])?;
+    let classes = model.classes();
+    let levels: Vec<f32> = (0..classes)
+        .map(|c| c as f32 / (classes - 1) as f32)
+        .collect();
+    let levels = Tensor::<1>::from_data(TensorData::new(levels, [classes]), device).reshape([
+        1,
+        classes as i32,
+        1,
+        1,
+    ]);
+    let out = run_tiled(&input, 1, tiling, |win| {
+        model.check_input(win.channels, win.height, win.width)?;
+        let x = Tensor::<4>::from_data(
+            TensorData::new(win.data.clone(), [1, win.channels, win.height, win.width]),
+            device,
+        );
+        let logits = model.forward(x);
+        let w = match mode {
+            BlendWeight::Expected => (softmax(logits, 1) * levels.clone()).sum_dim(1),
+            BlendWeight::Argmax => logits.argmax(1).float().div_scalar((classes - 1) as f32),
+        };
+        let data = w
+            .into_data()
+            .try_to_vec::<f32>()
+            .map_err(|e| Error::Invalid(format!("reading the blend weights: {e:?}")))?;
+        Ok(Planar {
+            channels: 1,
+            width: win.width,
+            height: win.height,
+            data,
+        })
+    })?;
+    Ok(out.data)
+}
+
+/// Network-1 on a whole pair: (weight, linear L output, tone-mapped T output).
+pub fn network1_fuse(
+    model: &BlendUNet,
+    low: &Image,
+    high: &Image,
+    tiling: Tiling,
+    mode: BlendWeight,
+    tone_k: f32,
+    device: &Device,
+) -> Result<(Vec<f32>, Image, Image)> {
+    let w = network1_weight(model, low, high, tiling, mode, device)?;
+    let (linear, toned) = fuse(low, high, &w, tone_k)?;
+    Ok((w, linear, toned))
+}

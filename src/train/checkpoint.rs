@@ -1,0 +1,217 @@
+//! Checkpoints: one folder per saved step, written whole or not at all.
+//!
+//! ```text
+//! RUN/checkpoints/step-00000200/
+//!     model.bpk          weights and BatchNorm statistics (Burn burnpack; parameter ids kept)
+//!     optimizer.bpk      Adam moments and step counts (absent in an inference-only export)
+//!     state.toml         step, stream position, seed, model config (CheckpointState)
+//!     class_weights.toml Network-1's α
+//! RUN/checkpoints/latest   the name of the newest complete checkpoint
+//! ```
+//!
+//! A checkpoint is written into `.tmp-step-…`, synced, then renamed; `latest` is replaced
+//! atomically afterwards. A run killed at any moment leaves the previous checkpoint intact.
+//! The data stream and the learning-rate schedule are pure functions of (seed, step), so the
+//! step is the whole random state: `rng_seed` and `samples` record it.
+
+use crate::config::load_toml;
+use crate::error::{Error, Result};
+use crate::io::atomic::write_atomic;
+use crate::train::config::ModelConfig;
+use burn::module::Module;
+use burn::optim::ModuleOptimizer;
+use burn::store::ModuleRecord;
+use burn::tensor::Bytes;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+pub const FORMAT: &str = "hdrsynth-checkpoint/1";
+pub const MODEL_FILE: &str = "model.bpk";
+pub const OPTIMIZER_FILE: &str = "optimizer.bpk";
+pub const STATE_FILE: &str = "state.toml";
+const LATEST: &str = "latest";
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CheckpointState {
+    pub format: String,
+    /// Optimisation steps completed.
+    pub step: u64,
+    /// Stream samples consumed (step · batch size): the next sample to read.
+    pub samples: u64,
+    /// Epoch of the next sample (samples div training sets).
+    pub epoch: u64,
+    /// The data/initialisation seed; with `samples` the complete random state.
+    pub rng_seed: u64,
+    /// Mean training loss of the last logged interval.
+    #[serde(default)]
+    pub loss: Option<f64>,
+    pub model: ModelConfig,
+}
+
+/// The checkpoints folder of a run.
+pub fn dir_of(run: &Path) -> PathBuf {
+    run.join("checkpoints")
+}
+
+fn name_of(step: u64) -> String {
+    format!("step-{step:08}")
+}
+
+fn sync_dir(dir: &Path) {
+    // Directory fsync makes the rename durable; not all platforms allow opening a directory.
+    if let Ok(f) = std::fs::File::open(dir) {
+        let _ = f.sync_all();
+    }
+}
+
+fn write_file(path: &Path, bytes: &[u8]) -> Result<()> {
+    use std::io::Write;
+    let mut f = std::fs::File::create(path).map_err(|e| Error::io(path, e))?;
+    f.write_all(bytes).map_err(|e| Error::io(path, e))?;
+    f.sync_all().map_err(|e| Error::io(path, e))
+}
+
+/// Save a checkpoint of `run` at `state.step`; `extra` writes task files into the new folder.
+/// Prunes all but the newest `keep` checkpoints. Returns the checkpoint folder.
+pub fn save<M: Module>(
+    run: &Path,
+    state: &CheckpointState,
+    model: &M,
+    optim: Option<&ModuleOptimizer>,
+    keep: usize,
+    extra: impl FnOnce(&Path) -> Result<()>,
+) -> Result<PathBuf> {
+    let root = dir_of(run);
+    let name = name_of(state.step);
+    let tmp = root.join(format!(".tmp-{name}"));
+    let fin = root.join(&name);
+    if tmp.exists() {
+        std::fs::remove_dir_all(&tmp).map_err(|e| Error::io(&tmp, e))?;
+    }
+    std::fs::create_dir_all(&tmp).map_err(|e| Error::io(&tmp, e))?;
+    let model_path = tmp.join(MODEL_FILE);
+    // `valid()` first: BatchNorm's running statistics (Burn's RunningState) hold their newest
+    // update in a per-thread buffer that recording does not read; valid() folds it in.
+    let bytes = model
+        .valid()
+        .into_record()
+        .into_bytes()
+        .map_err(|e| Error::encode(&model_path, e))?;
+    write_file(&model_path, &bytes)?;
+    if let Some(optim) = optim {
+        let path = tmp.join(OPTIMIZER_FILE);
+        let bytes = optim.into_bytes().map_err(|e| Error::encode(&path, e))?;
+        write_file(&path, &bytes)?;
+    }
+    let path = tmp.join(STATE_FILE);
+    let text = toml::to_string(state).map_err(|e| Error::encode(&path, e))?;
+    write_file(&path, text.as_bytes())?;
+    extra(&tmp)?;
+    sync_dir(&tmp);
+    if fin.exists() {
+        std::fs::remove_dir_all(&fin).map_err(|e| Error::io(&fin, e))?;
+    }
+    std::fs::rename(&tmp, &fin).map_err(|e| Error::io(&fin, e))?;
+    sync_dir(&root);
+    write_atomic(&root.join(LATEST), name.as_bytes())?;
+    prune(&root, keep.max(1))?;
+    Ok(fin)
+}
+
+/// Complete checkpoint folders of a checkpoints root, oldest first.
+fn list(root: &Path) -> Result<Vec<(u64, PathBuf)>> {
+    let mut out = Vec::new();
+    let entries = match std::fs::read_dir(root) {
+        Ok(e) => e,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(out),
+        Err(e) => return Err(Error::io(root, e)),
+    };
+    for entry in entries {
+        let entry = entry.map_err(|e| Error::io(root, e))?;
+        let name = entry.file_name().to_string_lossy().into_owned();
+        if let Some(step) = name
+            .strip_prefix("step-")
+            .and_then(|s| s.parse::<u64>().ok())
+            && entry.path().join(STATE_FILE).is_file()
+        {
+            out.push((step, entry.path()));
+        }
+    }
+    out.sort();
+    Ok(out)
+}
+
+fn prune(root: &Path, keep: usize) -> Result<()> {
+    let all = list(root)?;
+    for (_, dir) in all.iter().take(all.len().saturating_sub(keep)) {
+        std::fs::remove_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    }
+    Ok(())
+}
+
+/// The newest complete checkpoint of a run, if any (`latest`, else the highest step folder).
+pub fn latest(run: &Path) -> Result<Option<PathBuf>> {
+    let root = dir_of(run);
+    if let Ok(name) = std::fs::read_to_string(root.join(LATEST)) {
+        let dir = root.join(name.trim());
+        if dir.join(STATE_FILE).is_file() {
+            return Ok(Some(dir));
+        }
+    }
+    Ok(list(&root)?.pop().map(|(_, d)| d))
+}
+
+/// A checkpoint folder from a path naming either a checkpoint or a run folder (its latest).
+pub fn resolve(path: &Path) -> Result<PathBuf> {
+    if path.join(STATE_FILE).is_file() {
+        return Ok(path.to_path_buf());
+    }
+    if !path.exists() {
+        return Err(Error::io(
+            path,
+            std::io::Error::new(std::io::ErrorKind::NotFound, "no such checkpoint or run"),
+        ));
+    }
+    latest(path)?.ok_or_else(|| {
+        Error::layout(
+            path,
+            format!("neither a checkpoint (no {STATE_FILE}) nor a run with checkpoints"),
+        )
+    })
+}
+
+pub fn read_state(dir: &Path) -> Result<CheckpointState> {
+    let path = dir.join(STATE_FILE);
+    let state: CheckpointState = load_toml(&path)?;
+    if state.format != FORMAT {
+        return Err(Error::config(
+            &path,
+            format!("format '{}' is not '{FORMAT}'", state.format),
+        ));
+    }
+    Ok(state)
+}
+
+fn read_bytes(path: &Path) -> Result<Bytes> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    Ok(Bytes::from_bytes_vec(bytes))
+}
+
+/// Load the checkpoint's weights into `model` (built from the checkpoint's model config).
+pub fn load_model<M: Module>(model: M, dir: &Path) -> Result<M> {
+    let path = dir.join(MODEL_FILE);
+    let record =
+        ModuleRecord::from_bytes(read_bytes(&path)?).map_err(|e| Error::decode(&path, e))?;
+    model
+        .try_load_record(record)
+        .map_err(|e| Error::decode(&path, e))
+}
+
+/// Restore the optimizer state saved with the checkpoint.
+pub fn load_optimizer(optim: ModuleOptimizer, dir: &Path) -> Result<ModuleOptimizer> {
+    let path = dir.join(OPTIMIZER_FILE);
+    optim
+        .from_bytes(read_bytes(&path)?)
+        .map_err(|e| Error::decode(&path, e))
+}

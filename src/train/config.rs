@@ -1,0 +1,359 @@
+//! `hdrsynth train --config F`: the training config (TOML, unknown keys are errors). Paths are
+//! relative to the working directory. See docs/training.md for every key.
+
+use crate::config::load_toml;
+use crate::data::loader::{LoaderConfig, RealismConfig, SampleKind};
+use crate::error::{Error, Result};
+use crate::models::BlendUNetConfig;
+use crate::sensor::realism::NoiseModel;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrainConfig {
+    pub run: RunConfig,
+    pub model: ModelConfig,
+    pub data: DataConfig,
+    #[serde(default)]
+    pub optim: OptimConfig,
+    #[serde(default)]
+    pub schedule: Schedule,
+    /// Fine-tuning: start from a checkpoint's weights (the optimizer starts fresh).
+    #[serde(default)]
+    pub init: Option<InitConfig>,
+    #[serde(default)]
+    pub loss: LossConfig,
+    #[serde(default)]
+    pub validation: Option<ValidationConfig>,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RunConfig {
+    /// Run folder: checkpoints, log, the resolved config.
+    pub out: PathBuf,
+    /// Seeds the initialisation and the data stream (crops, flips, ISO, noise).
+    pub seed: u64,
+    /// Optimisation steps in total (one batch each).
+    pub steps: u64,
+    /// "flex" (CPU, default), "ndarray", "wgpu", "cuda[:N]": the backends compiled in.
+    #[serde(default = "default_backend")]
+    pub backend: String,
+    #[serde(default = "default_checkpoint_every")]
+    pub checkpoint_every: u64,
+    /// Checkpoints kept (the newest); the final one is always kept.
+    #[serde(default = "default_keep")]
+    pub keep_checkpoints: usize,
+    /// Steps averaged into one log line.
+    #[serde(default = "default_log_every")]
+    pub log_every: u64,
+}
+
+fn default_backend() -> String {
+    "flex".into()
+}
+fn default_checkpoint_every() -> u64 {
+    500
+}
+fn default_keep() -> usize {
+    3
+}
+fn default_log_every() -> u64 {
+    10
+}
+
+/// The network, tagged by `kind`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum ModelConfig {
+    /// Network-1, the blend-map U-Net.
+    BlendUnet(BlendUNetConfig),
+}
+
+impl ModelConfig {
+    pub fn sample_kind(&self) -> SampleKind {
+        match self {
+            ModelConfig::BlendUnet(_) => SampleKind::Network1,
+        }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DataConfig {
+    /// Training dataset folder in any known layout.
+    pub dataset: PathBuf,
+    /// When `dataset` does not exist yet: generate it first with this `generate` config.
+    #[serde(default)]
+    pub generate: Option<PathBuf>,
+    pub patch: usize,
+    pub batch_size: usize,
+    #[serde(default = "default_workers")]
+    pub workers: usize,
+    #[serde(default = "yes")]
+    pub augment: bool,
+    /// A sensor profile TOML, or "pure" (no realism: the paper's Net_P).
+    pub profile: String,
+    /// ISOs drawn per sample (with a profile).
+    #[serde(default)]
+    pub isos: Vec<f64>,
+    #[serde(default)]
+    pub noise: NoiseModel,
+    #[serde(default = "one")]
+    pub exposure: f64,
+    /// Apply the profile's colour transform.
+    #[serde(default = "yes")]
+    pub colour: bool,
+}
+
+fn default_workers() -> usize {
+    2
+}
+fn yes() -> bool {
+    true
+}
+fn one() -> f64 {
+    1.0
+}
+
+impl DataConfig {
+    /// The loader config of this data section (training: augmentation as configured).
+    pub fn loader(&self, kind: SampleKind, seed: u64) -> Result<LoaderConfig> {
+        let realism = if self.profile == "pure" {
+            None
+        } else {
+            if self.isos.is_empty() {
+                return Err(Error::Invalid(format!(
+                    "data: profile '{}' needs a non-empty `isos` list",
+                    self.profile
+                )));
+            }
+            Some(RealismConfig {
+                profile: PathBuf::from(&self.profile),
+                isos: self.isos.clone(),
+                noise: self.noise,
+                exposure: self.exposure,
+                colour: self.colour,
+            })
+        };
+        Ok(LoaderConfig {
+            dataset: self.dataset.clone(),
+            kind,
+            patch: self.patch,
+            batch_size: self.batch_size,
+            workers: self.workers,
+            prefetch: (2 * self.batch_size).max(4),
+            seed,
+            augment: self.augment,
+            realism,
+        })
+    }
+}
+
+/// Adam (Kingma and Ba) with decoupled-free L2 weight decay as Burn implements it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OptimConfig {
+    #[serde(default = "default_lr")]
+    pub lr: f64,
+    #[serde(default = "default_beta1")]
+    pub beta1: f32,
+    #[serde(default = "default_beta2")]
+    pub beta2: f32,
+    #[serde(default = "default_eps")]
+    pub epsilon: f32,
+    #[serde(default)]
+    pub weight_decay: f32,
+}
+
+fn default_lr() -> f64 {
+    1e-4
+}
+fn default_beta1() -> f32 {
+    0.9
+}
+fn default_beta2() -> f32 {
+    0.999
+}
+fn default_eps() -> f32 {
+    1e-8
+}
+
+impl Default for OptimConfig {
+    fn default() -> Self {
+        OptimConfig {
+            lr: default_lr(),
+            beta1: default_beta1(),
+            beta2: default_beta2(),
+            epsilon: default_eps(),
+            weight_decay: 0.0,
+        }
+    }
+}
+
+/// Learning-rate schedule, a pure function of the step (so resuming needs no state): a
+/// linear warm-up from 0 over `warmup_steps`, then the chosen decay of `optim.lr`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct Schedule {
+    #[serde(default)]
+    pub kind: ScheduleKind,
+    #[serde(default)]
+    pub warmup_steps: u64,
+    /// `step`: multiply by `gamma` every `every` steps.
+    #[serde(default)]
+    pub every: Option<u64>,
+    #[serde(default)]
+    pub gamma: Option<f64>,
+    /// `cosine`: the final learning rate (default 0).
+    #[serde(default)]
+    pub min_lr: Option<f64>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum ScheduleKind {
+    #[default]
+    Constant,
+    Step,
+    Cosine,
+}
+
+impl Schedule {
+    pub fn validate(&self) -> Result<()> {
+        if self.kind == ScheduleKind::Step
+            && (self.every.is_none_or(|e| e == 0) || self.gamma.is_none())
+        {
+            return Err(Error::Invalid(
+                "schedule: kind = \"step\" needs `every` ≥ 1 and `gamma`".into(),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Learning rate of step `step` (0-based) of `total`.
+    pub fn lr(&self, base: f64, step: u64, total: u64) -> f64 {
+        if step < self.warmup_steps {
+            return base * (step + 1) as f64 / self.warmup_steps as f64;
+        }
+        let s = step - self.warmup_steps;
+        match self.kind {
+            ScheduleKind::Constant => base,
+            ScheduleKind::Step => {
+                let every = self.every.unwrap_or(1).max(1);
+                base * self.gamma.unwrap_or(1.0).powi((s / every) as i32)
+            }
+            ScheduleKind::Cosine => {
+                let span = total.saturating_sub(self.warmup_steps).max(1) as f64;
+                let min = self.min_lr.unwrap_or(0.0);
+                let t = (s as f64 / span).min(1.0);
+                min + (base - min) * 0.5 * (1.0 + (std::f64::consts::PI * t).cos())
+            }
+        }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InitConfig {
+    /// A checkpoint folder, or a run folder (its final checkpoint, else its latest).
+    pub checkpoint: PathBuf,
+}
+
+/// Network-1's class weights α: "stream" (inverse class frequencies of the training stream's
+/// first samples, i.e. of the data actually trained on, realism included: real and synthetic
+/// data have different α, paper Fig. 6), "uniform", "checkpoint" (those stored in the `init`
+/// checkpoint), or the path of a `class_weights.toml` (`hdrsynth dataset weights`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LossConfig {
+    #[serde(default = "default_alpha")]
+    pub alpha: String,
+    /// Samples of the stream counted for `alpha = "stream"`.
+    #[serde(default = "default_alpha_samples")]
+    pub alpha_samples: u64,
+}
+
+fn default_alpha() -> String {
+    "stream".into()
+}
+fn default_alpha_samples() -> u64 {
+    64
+}
+
+impl Default for LossConfig {
+    fn default() -> Self {
+        LossConfig {
+            alpha: default_alpha(),
+            alpha_samples: default_alpha_samples(),
+        }
+    }
+}
+
+/// Held-out validation: a fixed set of samples (epoch 0, no augmentation) scored every
+/// `every` steps.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ValidationConfig {
+    pub dataset: PathBuf,
+    #[serde(default)]
+    pub generate: Option<PathBuf>,
+    pub every: u64,
+    /// Samples scored (at most one per set).
+    #[serde(default = "default_val_samples")]
+    pub samples: usize,
+    /// Crop side; default: the training patch.
+    #[serde(default)]
+    pub patch: Option<usize>,
+}
+
+fn default_val_samples() -> usize {
+    16
+}
+
+impl TrainConfig {
+    pub fn load(path: &Path) -> Result<TrainConfig> {
+        let cfg: TrainConfig = load_toml(path)?;
+        cfg.validate()
+            .map_err(|e| Error::config(path, e.to_string()))?;
+        Ok(cfg)
+    }
+
+    pub fn validate(&self) -> Result<()> {
+        let r = &self.run;
+        if r.steps == 0 || r.checkpoint_every == 0 || r.log_every == 0 || r.keep_checkpoints == 0 {
+            return Err(Error::Invalid(
+                "run: steps, checkpoint_every, log_every and keep_checkpoints must be ≥ 1".into(),
+            ));
+        }
+        if !(self.optim.lr > 0.0 && self.optim.lr.is_finite()) {
+            return Err(Error::Invalid(format!(
+                "optim: lr {} must be > 0",
+                self.optim.lr
+            )));
+        }
+        if !(0.0..1.0).contains(&self.optim.beta1) || !(0.0..1.0).contains(&self.optim.beta2) {
+            return Err(Error::Invalid("optim: betas must lie in [0, 1)".into()));
+        }
+        self.schedule.validate()?;
+        match &self.model {
+            ModelConfig::BlendUnet(m) => {
+                m.validate()?;
+                if !self.data.patch.is_multiple_of(m.size_multiple()) {
+                    return Err(Error::Invalid(format!(
+                        "data: patch {} is not a multiple of 2^depth = {}",
+                        self.data.patch,
+                        m.size_multiple()
+                    )));
+                }
+            }
+        }
+        if let Some(v) = &self.validation
+            && v.every == 0
+        {
+            return Err(Error::Invalid("validation: every must be ≥ 1".into()));
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,344 @@
+//! The shared trainer: learning on a small generated set, checkpoints (bit-identical reload,
+//! kill -9 and resume equals an uninterrupted run), the NaN stop, config refusals, schedules.
+
+use burn::module::{Module, ModuleVisitor, Param};
+use burn::tensor::{Device, Tensor, TensorData};
+use hdrsynth::config::{GenerateConfig, parse_toml};
+use hdrsynth::models::BlendUNetConfig;
+use hdrsynth::train::checkpoint::{self, CheckpointState};
+use hdrsynth::train::config::{ModelConfig, Schedule, ScheduleKind, TrainConfig};
+use hdrsynth::train::{TrainOptions, seeded_init};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::OnceLock;
+use std::time::{Duration, Instant};
+
+/// One small generated dataset (EV −3/0) shared by the tests of this file.
+fn dataset() -> &'static Path {
+    static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();
+    DIR.get_or_init(|| {
+        let dir = tempfile::tempdir().expect("tmp");
+        let text = "seed = 21\ncount = 6\nwidth = 96\nheight = 80\nevs = [-3.0, 0.0]\n\
+                    [camera]\ncandidates = 4\n";
+        let mut c: GenerateConfig = parse_toml(text, Path::new("gen.toml")).expect("config");
+        c.source = None;
+        hdrsynth::cli::generate::generate(&c, dir.path(), false).expect("generate");
+        dir
+    })
+    .path()
+}
+
+/// A tiny Network-1 run config (TOML text) writing to `out`.
+fn config_text(out: &Path, steps: u64, extra_run: &str, lr: f64, batch_norm: bool) -> String {
+    format!(
+        "[run]\nout = {out:?}\nseed = 3\nsteps = {steps}\ncheckpoint_every = 4\nlog_every = 2\n\
+         keep_checkpoints = 2\n{extra_run}\n\
+         [model]\nkind = \"blend_unet\"\nbase_width = 4\ndepth = 2\nbatch_norm = {batch_norm}\n\
+         [data]\ndataset = {:?}\npatch = 32\nbatch_size = 2\nworkers = 2\nprofile = \"pure\"\n\
+         [optim]\nlr = {lr:e}\n[schedule]\nkind = \"cosine\"\nwarmup_steps = 2\n",
+        dataset()
+    )
+}
+
+fn parse(text: &str) -> TrainConfig {
+    let cfg: TrainConfig = parse_toml(text, Path::new("train.toml")).expect("train config");
+    cfg.validate().expect("valid");
+    cfg
+}
+
+/// Every float parameter (weights, biases, BatchNorm statistics) in visiting order.
+fn params<M: Module>(m: &M) -> Vec<Vec<f32>> {
+    struct V(Vec<Vec<f32>>);
+    impl ModuleVisitor for V {
+        fn visit_float<const D: usize>(&mut self, p: &Param<Tensor<D>>) {
+            self.0
+                .push(p.val().into_data().try_to_vec::<f32>().expect("f32"));
+        }
+    }
+    let mut v = V(Vec::new());
+    m.visit(&mut v);
+    v.0
+}
+
+fn load_final(run: &Path) -> Vec<Vec<f32>> {
+    let dir = checkpoint::resolve(run).expect("checkpoint");
+    let state = checkpoint::read_state(&dir).expect("state");
+    let ModelConfig::BlendUnet(cfg) = state.model;
+    let model =
+        checkpoint::load_model(cfg.init(&Device::flex()).expect("init"), &dir).expect("load");
+    params(&model)
+}
+
+fn log_losses(run: &Path) -> Vec<String> {
+    std::fs::read_to_string(run.join("log.jsonl"))
+        .expect("log")
+        .lines()
+        .filter(|l| !l.contains("validation"))
+        .map(|l| {
+            // {"step":N,"epoch":E,"loss":L,...}: step and loss, not the timings.
+            let f: Vec<&str> = l.split(',').collect();
+            format!("{} {}", f[0], f[2])
+        })
+        .collect()
+}
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_hdrsynth"))
+}
+
+#[test]
+fn killed_with_sigkill_and_resumed_ends_with_the_same_weights() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let steps = 40;
+    let write = |name: &str| -> (PathBuf, PathBuf) {
+        let run = tmp.path().join(name);
+        let cfg = tmp.path().join(format!("{name}.toml"));
+        std::fs::write(&cfg, config_text(&run, steps, "", 3e-3, true)).expect("write");
+        (run, cfg)
+    };
+    let (run_a, cfg_a) = write("uninterrupted");
+    let st = bin()
+        .args(["train", "--quiet", "--config"])
+        .arg(&cfg_a)
+        .status()
+        .expect("run");
+    assert!(st.success());
+
+    let (run_b, cfg_b) = write("killed");
+    let mut child = bin()
+        .args(["train", "--quiet", "--config"])
+        .arg(&cfg_b)
+        .spawn()
+        .expect("spawn");
+    // Kill as soon as the first checkpoint is complete: mid-way through later steps.
+    let began = Instant::now();
+    loop {
+        if checkpoint::latest(&run_b).expect("latest").is_some() {
+            break;
+        }
+        assert!(
+            began.elapsed() < Duration::from_secs(300),
+            "no checkpoint appeared"
+        );
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    child.kill().expect("SIGKILL");
+    child.wait().expect("wait");
+    let at_kill = checkpoint::read_state(&checkpoint::latest(&run_b).unwrap().unwrap())
+        .expect("state")
+        .step;
+    assert!(
+        at_kill < steps,
+        "the run finished before the kill (step {at_kill})"
+    );
+    let st = bin()
+        .args(["train", "--quiet", "--resume", "--config"])
+        .arg(&cfg_b)
+        .status()
+        .expect("resume");
+    assert!(st.success());
+
+    let (a, b) = (load_final(&run_a), load_final(&run_b));
+    assert_eq!(a.len(), b.len());
+    for (i, (x, y)) in a.iter().zip(&b).enumerate() {
+        assert!(
+            x.iter().zip(y).all(|(p, q)| p.to_bits() == q.to_bits()),
+            "parameter {i} differs after kill at step {at_kill} and resume"
+        );
+    }
+    // The resumed log holds every step once, with the same losses.
+    assert_eq!(log_losses(&run_a), log_losses(&run_b));
+    // Resuming a finished run, or starting over in a folder with checkpoints, is refused.
+    let out = bin()
+        .args(["train", "--quiet", "--config"])
+        .arg(&cfg_b)
+        .output()
+        .expect("rerun");
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--resume"), "{err}");
+}
+
+#[test]
+fn checkpoint_reload_gives_bit_identical_outputs() {
+    let dev = Device::flex();
+    let cfg = BlendUNetConfig {
+        base_width: 4,
+        depth: 2,
+        batch_norm: true,
+        classes: 256,
+    };
+    // Non-trivial BatchNorm statistics: one training-mode forward on an autodiff device.
+    let ad = dev.clone().autodiff();
+    let model = seeded_init(&ad, 17, || cfg.init(&ad)).expect("init");
+    let x: Vec<f32> = (0..2 * 6 * 32 * 32)
+        .map(|i| ((i * 37) % 101) as f32 / 100.0)
+        .collect();
+    let _ = model.forward(Tensor::from_data(
+        TensorData::new(x.clone(), [2, 6, 32, 32]),
+        &ad,
+    ));
+    let model = model.valid();
+    let tmp = tempfile::tempdir().expect("tmp");
+    let state = CheckpointState {
+        format: checkpoint::FORMAT.into(),
+        step: 7,
+        samples: 14,
+        epoch: 2,
+        rng_seed: 17,
+        loss: Some(1.5),
+        model: ModelConfig::BlendUnet(cfg.clone()),
+    };
+    let dir = checkpoint::save(tmp.path(), &state, &model, None, 1, |_| Ok(())).expect("save");
+    assert_eq!(checkpoint::read_state(&dir).expect("state"), state);
+    let other = seeded_init(&dev, 99, || cfg.init(&dev)).expect("init");
+    let loaded = checkpoint::load_model(other, &dir).expect("load");
+    let run = |m: &hdrsynth::models::BlendUNet| {
+        m.forward(Tensor::from_data(
+            TensorData::new(x.clone(), [2, 6, 32, 32]),
+            &dev,
+        ))
+        .into_data()
+        .try_to_vec::<f32>()
+        .expect("f32")
+    };
+    let (a, b) = (run(&model), run(&loaded));
+    assert!(a.iter().zip(&b).all(|(p, q)| p.to_bits() == q.to_bits()));
+    // A model of another shape does not load, and says which file.
+    let wide = BlendUNetConfig {
+        base_width: 8,
+        ..cfg
+    };
+    let err = checkpoint::load_model(wide.init(&dev).expect("init"), &dir).expect_err("shape");
+    assert!(err.to_string().contains("model.bpk"), "{err}");
+}
+
+#[test]
+fn non_finite_loss_stops_with_a_clear_message_and_keeps_the_last_checkpoint() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let run = tmp.path().join("nan");
+    // Without BatchNorm, a huge learning rate overflows the activations within a few steps.
+    let mut cfg = parse(&config_text(&run, 60, "", 1e30, false));
+    cfg.schedule.warmup_steps = 0;
+    cfg.schedule.kind = ScheduleKind::Constant;
+    let err = hdrsynth::train::run(&cfg, &TrainOptions::default()).expect_err("NaN stop");
+    let msg = err.to_string();
+    assert!(msg.contains("non-finite"), "{msg}");
+    let log = std::fs::read_to_string(run.join("log.jsonl")).expect("log");
+    assert!(log.contains("\"error\":\"non-finite loss\""), "{log}");
+    // Whatever checkpoint exists is complete and from before the failure.
+    if let Some(dir) = checkpoint::latest(&run).expect("latest") {
+        let s = checkpoint::read_state(&dir).expect("state");
+        assert!(msg.contains(&dir.display().to_string()), "{msg}");
+        assert!(s.loss.is_some_and(f64::is_finite));
+    }
+}
+
+#[test]
+fn resume_refuses_a_changed_config_and_a_missing_run() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let run = tmp.path().join("r");
+    let cfg = parse(&config_text(&run, 4, "", 1e-3, true));
+    let resume = TrainOptions {
+        resume: true,
+        progress: false,
+    };
+    let err = hdrsynth::train::run(&cfg, &resume).expect_err("nothing to resume");
+    assert!(err.to_string().contains("no checkpoint"), "{err}");
+    hdrsynth::train::run(&cfg, &TrainOptions::default()).expect("train");
+    let mut changed = cfg.clone();
+    changed.optim.lr = 2e-3;
+    changed.run.steps = 8;
+    let err = hdrsynth::train::run(&changed, &resume).expect_err("changed config");
+    assert!(err.to_string().contains("different config"), "{err}");
+    // Only the step count may change: extending a finished run continues it.
+    let mut longer = cfg.clone();
+    longer.run.steps = 6;
+    let s = hdrsynth::train::run(&longer, &resume).expect("extend");
+    assert_eq!((s.start_step, s.steps), (4, 6));
+}
+
+#[test]
+fn unknown_keys_and_bad_values_are_config_errors_naming_the_line() {
+    let text = config_text(Path::new("/tmp/x"), 4, "colour = true", 1e-3, true);
+    let err = parse_toml::<TrainConfig>(&text, Path::new("train.toml")).expect_err("unknown");
+    assert!(err.to_string().contains("train.toml:"), "{err}");
+    let text =
+        config_text(Path::new("/tmp/x"), 4, "", 1e-3, true).replace("patch = 32", "patch = 30");
+    let cfg: TrainConfig = parse_toml(&text, Path::new("train.toml")).expect("parses");
+    let err = cfg.validate().expect_err("patch not a multiple of 4");
+    assert!(err.to_string().contains("multiple"), "{err}");
+}
+
+#[test]
+fn schedules_by_hand() {
+    let s = Schedule {
+        kind: ScheduleKind::Cosine,
+        warmup_steps: 4,
+        min_lr: Some(0.0),
+        ..Schedule::default()
+    };
+    // Warm-up: (step + 1)/4 of the base.
+    assert_eq!(s.lr(1.0, 0, 104), 0.25);
+    assert_eq!(s.lr(1.0, 3, 104), 1.0);
+    // Cosine over the remaining 100 steps: half-way 0.5, a quarter 0.5(1 + cos(π/4)).
+    assert!((s.lr(1.0, 54, 104) - 0.5).abs() < 1e-12);
+    assert!((s.lr(1.0, 29, 104) - 0.5 * (1.0 + std::f64::consts::FRAC_1_SQRT_2)).abs() < 1e-12);
+    let st = Schedule {
+        kind: ScheduleKind::Step,
+        every: Some(10),
+        gamma: Some(0.5),
+        ..Schedule::default()
+    };
+    assert_eq!(st.lr(2.0, 9, 100), 2.0);
+    assert_eq!(st.lr(2.0, 25, 100), 0.5);
+    assert!(
+        Schedule {
+            kind: ScheduleKind::Step,
+            ..Schedule::default()
+        }
+        .validate()
+        .is_err()
+    );
+}
+
+/// Validation scores logged at `step` (the trainer logs step 0 before training).
+fn validation_at(run: &Path, step: u64) -> (f64, f64) {
+    let log = std::fs::read_to_string(run.join("log.jsonl")).expect("log");
+    let line = log
+        .lines()
+        .find(|l| l.starts_with(&format!("{{\"step\":{step},\"validation\"")))
+        .unwrap_or_else(|| panic!("no validation at step {step}:\n{log}"));
+    let num = |key: &str| -> f64 {
+        let rest = &line[line.find(&format!("\"{key}\":")).expect(key) + key.len() + 3..];
+        rest.split([',', '}'])
+            .next()
+            .unwrap()
+            .parse()
+            .expect("number")
+    };
+    (num("loss"), num("weight_mae"))
+}
+
+#[test]
+fn a_short_run_learns_the_blend_weights() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let run = tmp.path().join("learn");
+    let text = config_text(&run, 300, "", 3e-3, true).replace("batch_size = 2", "batch_size = 4")
+        + &format!(
+            "[validation]\ndataset = {:?}\nevery = 300\nsamples = 6\npatch = 64\n",
+            dataset()
+        );
+    let mut cfg = parse(&text);
+    cfg.run.checkpoint_every = 300;
+    let s = hdrsynth::train::run(&cfg, &TrainOptions::default()).expect("train");
+    let (loss0, mae0) = validation_at(&run, 0);
+    let (loss1, mae1) = validation_at(&run, 300);
+    println!(
+        "train loss {:.4} → {:.4}; validation Eq. 4 loss {loss0:.4} → {loss1:.4}, blend-weight \
+         MAE {mae0:.4} → {mae1:.4}",
+        s.first_loss, s.last_loss
+    );
+    assert!(loss1 < loss0, "validation loss {loss0} → {loss1}");
+    assert!(mae1 < 0.5 * mae0, "blend-weight MAE {mae0} → {mae1}");
+}
