@@ -28,8 +28,8 @@ pub fn planar_from_images(frames: &[&Image]) -> Result<Planar> {
     let mut p = Planar::new(3 * frames.len(), w, h);
     for (k, f) in frames.iter().enumerate() {
         for (px, v) in f.data.chunks_exact(3).enumerate() {
-            for c in 0..3 {
-                p.data[(3 * k + c) * w * h + px] = v[c];
+            for (c, &x) in v.iter().enumerate() {
+                p.data[(3 * k + c) * w * h + px] = x;
             }
         }
     }

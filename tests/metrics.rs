@@ -1,0 +1,323 @@
+//! Evaluation metrics against the field's Python convention (oracle values computed with
+//! scikit-image on shared/data/oracles), hand values, PU21 and the bootstrap.
+
+use hdrsynth::error::Error;
+use hdrsynth::eval::metrics::{
+    self, MU, MetricOptions, Pu21Scale, bootstrap_ci, mu_law, psnr, pu21_encode, score, score_pair,
+    ssim,
+};
+use hdrsynth::io::{Image, read_image};
+use hdrsynth::rng::Rng;
+use std::path::{Path, PathBuf};
+
+fn oracle_dir() -> Option<PathBuf> {
+    let d = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/oracles");
+    if d.join("oracles.json").exists() {
+        Some(d)
+    } else {
+        println!(
+            "SKIP: {} is absent (a fresh clone has no shared/ data)",
+            d.display()
+        );
+        None
+    }
+}
+
+/// Pulls `"key": number` out of the JSON text after `from` (no JSON crate in the dependencies).
+fn json_number(text: &str, from: usize, key: &str) -> f64 {
+    let pat = format!("\"{key}\":");
+    let at = from + text[from..].find(&pat).expect("key") + pat.len();
+    let rest = text[at..].trim_start();
+    let end = rest
+        .find(|c: char| !(c.is_ascii_digit() || "+-.eE".contains(c)))
+        .unwrap_or(rest.len());
+    rest[..end].parse().expect("number")
+}
+
+fn json_string(text: &str, from: usize, key: &str) -> String {
+    let pat = format!("\"{key}\":");
+    let at = from + text[from..].find(&pat).expect("key") + pat.len();
+    let rest = text[at..].trim_start().strip_prefix('"').expect("string");
+    rest[..rest.find('"').unwrap()].to_string()
+}
+
+const CASES: [&str; 6] = [
+    "desk_noise",
+    "desk_gain",
+    "desk_blur",
+    "carrots_noise",
+    "carrots_gain",
+    "carrots_blur",
+];
+
+/// PU21 (ReferenceMax, peak 4000) from tools/metrics_reference.py: a numpy transcription of
+/// pu21's MATLAB pu21_metric (PSNR over RGB, peak 256; MATLAB-style SSIM of PU luminance).
+const PU21_REF: [(&str, f64, f64); 6] = [
+    ("desk_noise", 10.028119858750378, 0.34490662002262434),
+    ("desk_gain", 38.4744995756787, 0.9992280465520751),
+    ("desk_blur", 18.345229273739925, 0.7520288656921813),
+    ("carrots_noise", 24.271493973066676, 0.9410241492057004),
+    ("carrots_gain", 34.40821985788024, 0.9998992804053741),
+    ("carrots_blur", 25.393857564639415, 0.8636912256947583),
+];
+
+#[test]
+fn oracle_cases_match_skimage_to_1e6() {
+    let Some(dir) = oracle_dir() else { return };
+    let text = std::fs::read_to_string(dir.join("oracles.json")).unwrap();
+    let metrics_at = text.find("\"metrics\"").expect("metrics key");
+    let mut worst = [0.0f64; 6];
+    for (case, (pu_name, pu_psnr, pu_ssim)) in CASES.iter().zip(PU21_REF) {
+        assert_eq!(*case, pu_name);
+        let at = metrics_at + text[metrics_at..].find(&format!("\"{case}\"")).expect(case);
+        let gt = read_image(&dir.join(json_string(&text, at, "gt"))).unwrap();
+        let pred = read_image(&dir.join(json_string(&text, at, "pred"))).unwrap();
+        let s = score(&gt, &pred, &MetricOptions::default()).unwrap();
+        let want = [
+            json_number(&text, at, "psnr_l"),
+            json_number(&text, at, "psnr_t"),
+            json_number(&text, at, "ssim_l"),
+            json_number(&text, at, "ssim_t"),
+            pu_psnr,
+            pu_ssim,
+        ];
+        let got = [
+            s.psnr_l,
+            s.psnr_t,
+            s.ssim_l,
+            s.ssim_t,
+            s.pu21_psnr,
+            s.pu21_ssim,
+        ];
+        for (i, (g, w)) in got.iter().zip(want).enumerate() {
+            let d = (g - w).abs();
+            worst[i] = worst[i].max(d);
+            assert!(
+                d <= 1e-6,
+                "{case} metric #{i}: got {g}, want {w} (|diff| {d:e})"
+            );
+        }
+    }
+    println!(
+        "max |diff| psnr_l {:e} psnr_t {:e} ssim_l {:e} ssim_t {:e} pu21_psnr {:e} pu21_ssim {:e}",
+        worst[0], worst[1], worst[2], worst[3], worst[4], worst[5]
+    );
+}
+
+fn ramp(w: usize, h: usize) -> Image {
+    Image::from_fn(w, h, |x, y| {
+        let v = ((x * 7 + y * 13) % 97) as f32 / 97.0;
+        [v * 0.8, (v * v).min(0.9), 0.9 - v * 0.5]
+    })
+}
+
+#[test]
+fn psnr_of_constant_offset_is_20_db() {
+    let gt = ramp(40, 30);
+    let pred = gt.map(|v| v + 0.1);
+    let p = psnr(&gt, &pred, 1.0).unwrap();
+    // f32 storage makes the offset 0.1 only to ~1e-8, i.e. ~1e-6 dB.
+    assert!((p - 20.0).abs() < 1e-5, "{p}");
+    // Range 2 adds 20·log10(2).
+    let p2 = psnr(&gt, &pred, 2.0).unwrap();
+    assert!((p2 - p - 20.0 * 2f64.log10()).abs() < 1e-9);
+}
+
+#[test]
+fn identical_images_give_infinite_psnr_and_unit_ssim() {
+    let gt = ramp(64, 48);
+    let s = score(&gt, &gt, &MetricOptions::default()).unwrap();
+    assert_eq!(s.psnr_l, f64::INFINITY);
+    assert_eq!(s.psnr_t, f64::INFINITY);
+    assert_eq!(s.pu21_psnr, f64::INFINITY);
+    for v in [s.ssim_l, s.ssim_t, s.pu21_ssim] {
+        assert!((v - 1.0).abs() < 1e-12, "{v}");
+    }
+}
+
+#[test]
+fn ssim_saturates_above_one_and_drops_with_noise() {
+    let gt = ramp(64, 48);
+    // Everything above 1 clips to 255: two different over-range images are identical to SSIM.
+    let a = gt.map(|v| v + 2.0);
+    let b = gt.map(|v| v + 3.0);
+    assert!((ssim(&a, &b).unwrap() - 1.0).abs() < 1e-12);
+    let mut r = Rng::new(3);
+    let noisy = gt.map(|v| v);
+    let noisy = Image::from_vec(
+        noisy.width,
+        noisy.height,
+        noisy
+            .data
+            .iter()
+            .map(|&v| v + r.range(-0.05, 0.05))
+            .collect(),
+    );
+    let s = ssim(&gt, &noisy).unwrap();
+    assert!(s > 0.3 && s < 0.99, "{s}");
+}
+
+#[test]
+fn mismatched_sizes_error_names_both() {
+    let a = ramp(32, 24);
+    let b = ramp(24, 32);
+    let err = score(&a, &b, &MetricOptions::default()).unwrap_err();
+    let msg = err.to_string();
+    assert!(matches!(err, Error::Invalid(_)));
+    assert!(msg.contains("32x24") && msg.contains("24x32"), "{msg}");
+    assert!(psnr(&a, &b, 1.0).is_err());
+    assert!(ssim(&a, &b).is_err());
+}
+
+#[test]
+fn bad_inputs_are_clear_errors() {
+    let gt = ramp(32, 24);
+    let mut nan = gt.clone();
+    nan.data[3 * (5 * 32 + 7) + 1] = f32::NAN;
+    let msg = score(&gt, &nan, &MetricOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        msg.contains("non-finite") && msg.contains("x=7, y=5"),
+        "{msg}"
+    );
+    // Below −1/μ the μ-law is undefined.
+    let neg = gt.map(|v| v - 0.5);
+    let msg = score(&gt, &neg, &MetricOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(msg.contains("mu-law"), "{msg}");
+    // SSIM needs the 11×11 window.
+    let tiny = ramp(10, 20);
+    assert!(
+        ssim(&tiny, &tiny)
+            .unwrap_err()
+            .to_string()
+            .contains("11x11")
+    );
+    assert!(psnr(&gt, &gt, 0.0).is_err());
+}
+
+#[test]
+fn mu_law_values() {
+    assert_eq!(mu_law(0.0), 0.0);
+    assert!((mu_law(1.0) - 1.0).abs() < 1e-15);
+    let x = 0.01;
+    assert!((mu_law(x) - (1.0 + MU * x).ln() / 5001f64.ln()).abs() < 1e-15);
+}
+
+#[test]
+fn pu21_encoder_values() {
+    // From the pu21 formula with the banding_glare parameters (tools/metrics_reference.py).
+    let cases = [
+        (0.001, 5.470456654038225e-10), // clamped to L_min = 0.005
+        (0.005, 5.470456654038225e-10),
+        (0.1, 5.717073839669447),
+        (1.0, 36.5439111394192),
+        (10.0, 123.64748355384738),
+        (100.0, 256.3838973127039), // ~256 at 100 cd/m²: an SDR display's range
+        (1000.0, 420.0969213492443),
+        (4000.0, 527.4939005367281),
+        (10000.0, 595.393920020095),
+        (20000.0, 595.393920020095), // clamped to L_max = 10000
+    ];
+    for (y, v) in cases {
+        let got = pu21_encode(y);
+        assert!(
+            (got - v).abs() <= 1e-9 * v.max(1.0),
+            "encode({y}) = {got}, want {v}"
+        );
+    }
+}
+
+#[test]
+fn pu21_scaling_options() {
+    let gt = ramp(32, 24);
+    let pred = gt.map(|v| v * 0.9);
+    let max = gt.data.iter().fold(0f32, |m, &v| m.max(v)) as f64;
+    let opts = MetricOptions::default();
+    assert_eq!(opts.peak_luminance, 4000.0);
+    assert!((metrics::pu21_scale_factor(&gt, &opts).unwrap() - 4000.0 / max).abs() < 1e-9);
+    let unit = MetricOptions {
+        pu21_scale: Pu21Scale::UnitValue,
+        ..opts
+    };
+    assert_eq!(metrics::pu21_scale_factor(&gt, &unit).unwrap(), 4000.0);
+    // ReferenceMax is invariant to the images' common exposure.
+    let a = metrics::pu21_psnr(&gt, &pred, &opts).unwrap();
+    let b = metrics::pu21_psnr(&gt.map(|v| v * 4.0), &pred.map(|v| v * 4.0), &opts).unwrap();
+    assert!((a - b).abs() < 1e-4, "{a} vs {b}");
+    let black = Image::new(32, 24);
+    assert!(metrics::pu21_psnr(&black, &black, &opts).is_err());
+}
+
+#[test]
+fn score_pair_uses_given_tonemapped_images() {
+    let gt = ramp(48, 40);
+    let pred = gt.map(|v| v * 0.95 + 0.01);
+    let opts = MetricOptions::default();
+    let curve = |v: f32| (mu_law(v as f64)) as f32;
+    let s = score(&gt, &pred, &opts).unwrap();
+    let p = score_pair(&gt, &pred, &gt.map(curve), &pred.map(curve), &opts).unwrap();
+    assert_eq!((s.psnr_l, s.ssim_l), (p.psnr_l, p.ssim_l));
+    assert_eq!((s.pu21_psnr, s.pu21_ssim), (p.pu21_psnr, p.pu21_ssim));
+    // Only f32 rounding of the tonemapped values separates the two.
+    assert!(
+        (s.psnr_t - p.psnr_t).abs() < 1e-3,
+        "{} {}",
+        s.psnr_t,
+        p.psnr_t
+    );
+    assert!(
+        (s.ssim_t - p.ssim_t).abs() < 1e-5,
+        "{} {}",
+        s.ssim_t,
+        p.ssim_t
+    );
+    let small = ramp(40, 40);
+    assert!(score_pair(&gt, &pred, &small, &small, &opts).is_err());
+}
+
+#[test]
+fn bootstrap_constant_sample_has_zero_width() {
+    let v = vec![0.1; 25];
+    let (m, lo, hi) = bootstrap_ci(&v, 1000, 42, 0.95);
+    assert_eq!(lo, m);
+    assert_eq!(hi, m);
+    assert!((m - 0.1).abs() < 1e-15);
+}
+
+#[test]
+fn bootstrap_matches_normal_interval_and_is_deterministic() {
+    // n = 400 normal draws (Box–Muller), mean 30, sd 2.
+    let mut r = Rng::new(11);
+    let n = 400;
+    let xs: Vec<f64> = (0..n)
+        .map(|_| {
+            let u1 = 1.0 - r.f32() as f64;
+            let u2 = r.f32() as f64;
+            30.0 + 2.0 * (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+        })
+        .collect();
+    let mean = xs.iter().sum::<f64>() / n as f64;
+    let sd = (xs.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1) as f64).sqrt();
+    let half = 1.96 * sd / (n as f64).sqrt();
+    let (m, lo, hi) = bootstrap_ci(&xs, 4000, 7, 0.95);
+    assert!((m - mean).abs() < 1e-12);
+    assert!(lo < m && m < hi);
+    // Loose: the percentile bootstrap of a mean is close to the normal interval.
+    assert!(
+        (m - lo - half).abs() < 0.15 * half,
+        "lo {lo} mean {m} half {half}"
+    );
+    assert!(
+        (hi - m - half).abs() < 0.15 * half,
+        "hi {hi} mean {m} half {half}"
+    );
+    assert_eq!(bootstrap_ci(&xs, 4000, 7, 0.95), (m, lo, hi));
+    assert_ne!(bootstrap_ci(&xs, 4000, 8, 0.95), (m, lo, hi));
+    // Edge cases.
+    let (a, b, c) = bootstrap_ci(&[], 100, 1, 0.9);
+    assert!(a.is_nan() && b.is_nan() && c.is_nan());
+    assert_eq!(bootstrap_ci(&[3.0], 100, 1, 0.9), (3.0, 3.0, 3.0));
+}
