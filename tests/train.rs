@@ -63,7 +63,9 @@ fn params<M: Module>(m: &M) -> Vec<Vec<f32>> {
 fn load_final(run: &Path) -> Vec<Vec<f32>> {
     let dir = checkpoint::resolve(run).expect("checkpoint");
     let state = checkpoint::read_state(&dir).expect("state");
-    let ModelConfig::BlendUnet(cfg) = state.model;
+    let ModelConfig::BlendUnet(cfg) = state.model else {
+        panic!("a Network-1 checkpoint expected");
+    };
     let model =
         checkpoint::load_model(cfg.init(&Device::flex()).expect("init"), &dir).expect("load");
     params(&model)

@@ -1,20 +1,28 @@
-//! `hdrsynth infer --checkpoint C --inputs LOW HIGH --out DIR`: run a trained network on one
-//! input of any size, tiled with bounded memory; the network is the checkpoint's.
+//! `hdrsynth infer --checkpoint C (--inputs LOW HIGH | --set DIR) --out OUT`: run a trained
+//! network on one input of any size, tiled with bounded memory; the network is the
+//! checkpoint's.
 //!
-//! Network-1 writes `linear.exr` (the fused frame before the tone curve: the metrics' L),
-//! `tonemapped.exr` and `tonemapped.png` (after it: T) and `blend_weight.png` (the long
-//! exposure's weight, 0 black … 1 white).
+//! Network-1 (`--inputs LOW HIGH`, or `--set` with an EV−3/EV0 pair) writes `linear.exr` (the
+//! fused frame before the tone curve: the metrics' L), `tonemapped.exr` and `tonemapped.png`
+//! (after it: T) and `blend_weight.png` (the long exposure's weight, 0 black … 1 white).
+//! Network-2 (`--set DIR`, a set with three exposures; the EVs come from the set) writes
+//! `hdr.exr` (linear, 1 = the reference exposure's white) and `hdr_mulaw.png` (μ-law preview
+//! of the network's [0, 1] range).
 
 use crate::device::device_from_name;
 use crate::eval::blend::{BlendWeight, DEFAULT_TONE_K};
-use crate::eval::infer::{network1_fuse, network1_tiling};
+use crate::data::layout::{self, SetInfo};
+use crate::eval::infer::{
+    network1_fuse, network1_tiling, network2_frames, network2_hdr, network2_tiling,
+};
+use crate::eval::metrics::mu_law;
 use crate::eval::tiling::Tiling;
 use crate::io::{BitDepth, ExrPrecision, Image, read_image, write_exr, write_ldr};
 use crate::train::checkpoint;
 use crate::train::config::ModelConfig;
 use anyhow::{Context, Result, bail};
 use burn::module::Module;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 #[derive(clap::Args, Debug, Clone)]
@@ -23,8 +31,11 @@ pub struct Args {
     #[arg(long)]
     pub checkpoint: PathBuf,
     /// Network-1: the EV−3 and EV0 frames (PNG/TIFF/EXR, values in [0, 1]).
-    #[arg(long, num_args = 2, value_names = ["LOW", "HIGH"])]
+    #[arg(long, num_args = 2, value_names = ["LOW", "HIGH"], conflicts_with = "set")]
     pub inputs: Vec<PathBuf>,
+    /// A set folder of any known layout (frames and EVs read from it).
+    #[arg(long)]
+    pub set: Option<PathBuf>,
     /// Output folder.
     #[arg(long)]
     pub out: PathBuf,
@@ -45,28 +56,71 @@ pub struct Args {
     pub backend: String,
 }
 
+/// The set in folder `dir`: a set of the dataset that contains it, or a dataset of one set.
+pub fn find_set(dir: &Path) -> Result<SetInfo> {
+    let want = dir
+        .canonicalize()
+        .with_context(|| format!("set folder {}", dir.display()))?;
+    if let Some(parent) = want.parent()
+        && let Ok(info) = layout::detect(parent)
+        && let Some(set) = info
+            .sets
+            .into_iter()
+            .find(|s| s.dir.canonicalize().is_ok_and(|d| d == want))
+    {
+        return Ok(set);
+    }
+    let info = layout::detect(&want)?;
+    match <[SetInfo; 1]>::try_from(info.sets) {
+        Ok([set]) => Ok(set),
+        Err(sets) => bail!(
+            "{}: not a set folder (a dataset of {} sets); pass one set's folder",
+            dir.display(),
+            sets.len()
+        ),
+    }
+}
+
+fn tiling_of(mut t: Tiling, args: &Args) -> Tiling {
+    if let Some(v) = args.tile {
+        t.tile = v;
+    }
+    if let Some(v) = args.overlap {
+        t.overlap = v;
+    }
+    t
+}
+
 pub fn run(args: &Args) -> Result<String> {
     let dir = checkpoint::resolve(&args.checkpoint)?;
     let state = checkpoint::read_state(&dir)?;
     let device = device_from_name(&args.backend)?;
     let began = Instant::now();
+    let set = args.set.as_deref().map(find_set).transpose()?;
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
     match &state.model {
         ModelConfig::BlendUnet(cfg) => {
-            let [low, high] = args.inputs.as_slice() else {
-                bail!("Network-1 needs --inputs LOW HIGH (the EV−3 and EV0 frames)");
+            let (low_img, high_img) = match (&set, args.inputs.as_slice()) {
+                (Some(set), _) => {
+                    let (lo, hi) = crate::cli::weights::pick_pair(set)?;
+                    let frames = if set.static_frames.is_empty() {
+                        &set.dynamic_frames
+                    } else {
+                        &set.static_frames
+                    };
+                    (read_image(&frames[lo])?, read_image(&frames[hi])?)
+                }
+                (None, [low, high]) => {
+                    let read = |p: &PathBuf| -> Result<Image> {
+                        read_image(p).with_context(|| format!("reading input {}", p.display()))
+                    };
+                    (read(low)?, read(high)?)
+                }
+                _ => bail!("Network-1 needs --inputs LOW HIGH (the EV−3 and EV0 frames) or --set"),
             };
-            let read = |p: &PathBuf| -> Result<Image> {
-                read_image(p).with_context(|| format!("reading input {}", p.display()))
-            };
-            let (low_img, high_img) = (read(low)?, read(high)?);
             let model = checkpoint::load_model(cfg.init(&device)?, &dir)?.valid();
-            let mut tiling: Tiling = network1_tiling(cfg);
-            if let Some(t) = args.tile {
-                tiling.tile = t;
-            }
-            if let Some(o) = args.overlap {
-                tiling.overlap = o;
-            }
+            let tiling = tiling_of(network1_tiling(cfg), args);
             let (w, linear, toned) = network1_fuse(
                 &model,
                 &low_img,
@@ -76,14 +130,8 @@ pub fn run(args: &Args) -> Result<String> {
                 args.tone_k,
                 &device,
             )?;
-            std::fs::create_dir_all(&args.out)
-                .with_context(|| format!("creating {}", args.out.display()))?;
             write_exr(&args.out.join("linear.exr"), &linear, ExrPrecision::Float)?;
-            write_exr(
-                &args.out.join("tonemapped.exr"),
-                &toned,
-                ExrPrecision::Float,
-            )?;
+            write_exr(&args.out.join("tonemapped.exr"), &toned, ExrPrecision::Float)?;
             write_ldr(&args.out.join("tonemapped.png"), &toned, BitDepth::Eight)?;
             let grey = Image::from_vec(
                 linear.width,
@@ -97,6 +145,33 @@ pub fn run(args: &Args) -> Result<String> {
                 dir.display(),
                 linear.width,
                 linear.height,
+                began.elapsed().as_secs_f64(),
+                tiling.tile,
+                tiling.overlap,
+                args.out.display()
+            ))
+        }
+        ModelConfig::Wu(cfg) => {
+            let Some(set) = &set else {
+                bail!("Network-2 needs --set DIR (three exposures and their EVs)");
+            };
+            let (frames, times) = network2_frames(set)?;
+            let model = checkpoint::load_model(cfg.init(&device)?, &dir)?.valid();
+            let tiling = tiling_of(network2_tiling(cfg), args);
+            let [a, b, c] = &frames;
+            let hdr = network2_hdr(&model, [a, b, c], times, tiling, &device)?;
+            write_exr(&args.out.join("hdr.exr"), &hdr, ExrPrecision::Float)?;
+            let s = cfg.hdr_input_scale as f32;
+            let preview = hdr.map(|v| mu_law((v * s).clamp(0.0, 1.0) as f64) as f32);
+            write_ldr(&args.out.join("hdr_mulaw.png"), &preview, BitDepth::Eight)?;
+            Ok(format!(
+                "Network-2 ({}) on set {} ({}×{}, t = {:?}) in {:.1} s (tile {}, overlap {}): \
+                 wrote hdr.exr, hdr_mulaw.png to {}",
+                dir.display(),
+                set.name,
+                hdr.width,
+                hdr.height,
+                times,
                 began.elapsed().as_secs_f64(),
                 tiling.tile,
                 tiling.overlap,

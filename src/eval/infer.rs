@@ -6,7 +6,9 @@ use crate::error::{Error, Result};
 use crate::eval::blend::{BlendWeight, fuse};
 use crate::eval::tiling::{Planar, Tiling, run_tiled};
 use crate::io::Image;
-use crate::models::{BlendUNet, BlendUNetConfig};
+use crate::data::layout::SetInfo;
+use crate::io::read_image;
+use crate::models::{BlendUNet, BlendUNetConfig, WuConfig, WuNet};
 use burn::tensor::activation::softmax;
 use burn::tensor::{Device, Tensor, TensorData};
 
@@ -105,4 +107,107 @@ pub fn network1_fuse(
     let w = network1_weight(model, low, high, tiling, mode, device)?;
     let (linear, toned) = fuse(low, high, &w, tone_k)?;
     Ok((w, linear, toned))
+}
+
+/// Network-2's default tiling: the overlap covers the receptive field, so tiles are exact.
+pub fn network2_tiling(cfg: &WuConfig) -> Tiling {
+    Tiling {
+        tile: DEFAULT_TILE,
+        overlap: cfg.receptive_radius(),
+        multiple: cfg.size_multiple(),
+    }
+}
+
+/// A set's three Network-2 inputs (shortest, reference, longest exposure) and their exposure
+/// times relative to the reference (2^EV), chosen as the loader does: the reference from the
+/// static frames where the set has them (its ground truth is aligned to it), the others from
+/// the dynamic frames where it has them.
+pub fn network2_frames(set: &SetInfo) -> Result<([Image; 3], [f32; 3])> {
+    if set.evs.len() < 3 {
+        return Err(Error::layout(
+            &set.dir,
+            format!(
+                "set '{}' has {} exposures; Network-2 needs three",
+                set.name,
+                set.evs.len()
+            ),
+        ));
+    }
+    let r = set.reference;
+    let (lo, hi) = (0, set.evs.len() - 1);
+    if r == lo || r == hi {
+        return Err(Error::layout(
+            &set.dir,
+            format!(
+                "set '{}': the reference (EV {}) is not between a shorter and a longer exposure",
+                set.name, set.evs[r]
+            ),
+        ));
+    }
+    let pick = |i: usize| -> Result<Image> {
+        let frames = if (i == r && !set.static_frames.is_empty()) || set.dynamic_frames.is_empty()
+        {
+            &set.static_frames
+        } else {
+            &set.dynamic_frames
+        };
+        read_image(&frames[i])
+    };
+    let times = [lo, r, hi].map(|i| 2f32.powf(set.evs[i] - set.evs[r]));
+    Ok(([pick(lo)?, pick(r)?, pick(hi)?], times))
+}
+
+/// Network-2 on a whole set of three frames (values in [0, 1]) with exposure times relative to
+/// the reference: linear HDR relative to the reference exposure's white (the unit of the
+/// loader's targets; the network's [0, 1] output divided by its `hdr_input_scale`). `model`
+/// must be an inference model (`valid()`) on `device`.
+pub fn network2_hdr(
+    model: &WuNet,
+    frames: [&Image; 3],
+    times: [f32; 3],
+    tiling: Tiling,
+    device: &Device,
+) -> Result<Image> {
+    let (w, h) = (frames[0].width, frames[0].height);
+    let ldr = planar_from_images(&frames)?;
+    // Per frame: 3 LDR channels, then LDR^2.2 / t (the loader's layout).
+    let mut input = Planar::new(18, w, h);
+    let plane = w * h;
+    for (k, &t) in times.iter().enumerate() {
+        for c in 0..3 {
+            let src = &ldr.data[(3 * k + c) * plane..(3 * k + c + 1) * plane];
+            input.data[(6 * k + c) * plane..(6 * k + c + 1) * plane].copy_from_slice(src);
+            let dst = &mut input.data[(6 * k + 3 + c) * plane..(6 * k + 4 + c) * plane];
+            for (d, &v) in dst.iter_mut().zip(src) {
+                *d = v.powf(2.2) / t;
+            }
+        }
+    }
+    let unit = 1.0 / model.config().hdr_input_scale as f32;
+    let out = run_tiled(&input, 3, tiling, |win| {
+        model.check_input(win.channels, win.height, win.width)?;
+        let x = Tensor::<4>::from_data(
+            TensorData::new(win.data.clone(), [1, win.channels, win.height, win.width]),
+            device,
+        );
+        let data = model
+            .forward(x)
+            .mul_scalar(unit)
+            .into_data()
+            .try_to_vec::<f32>()
+            .map_err(|e| Error::Invalid(format!("reading the HDR output: {e:?}")))?;
+        Ok(Planar {
+            channels: 3,
+            width: win.width,
+            height: win.height,
+            data,
+        })
+    })?;
+    let mut img = Image::new(w, h);
+    for (px, v) in img.data.chunks_exact_mut(3).enumerate() {
+        for (c, x) in v.iter_mut().enumerate() {
+            *x = out.data[c * plane + px];
+        }
+    }
+    Ok(img)
 }

@@ -2,7 +2,12 @@
 //! device of the input tensors) picks the backend at run time.
 //!
 //! - [`blend_unet`]: Network-1, the U-Net that predicts a 256-class blend map from (EV−3, EV0).
+//! - [`wu`]: Network-2, Wu et al. (ECCV 2018), three exposures → linear HDR; [`import`] moves
+//!   weights to and from PyTorch-style SafeTensors files.
 
 pub mod blend_unet;
+pub mod import;
+pub mod wu;
 
 pub use blend_unet::{BlendUNet, BlendUNetConfig};
+pub use wu::{DeconvAlignment, WuConfig, WuNet, WuVariant};

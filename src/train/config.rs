@@ -4,7 +4,7 @@
 use crate::config::load_toml;
 use crate::data::loader::{LoaderConfig, RealismConfig, SampleKind};
 use crate::error::{Error, Result};
-use crate::models::BlendUNetConfig;
+use crate::models::{BlendUNetConfig, WuConfig};
 use crate::sensor::realism::NoiseModel;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -69,12 +69,31 @@ fn default_log_every() -> u64 {
 pub enum ModelConfig {
     /// Network-1, the blend-map U-Net.
     BlendUnet(BlendUNetConfig),
+    /// Network-2, Wu et al.'s three-exposure merger.
+    Wu(WuConfig),
 }
 
 impl ModelConfig {
     pub fn sample_kind(&self) -> SampleKind {
         match self {
             ModelConfig::BlendUnet(_) => SampleKind::Network1,
+            ModelConfig::Wu(_) => SampleKind::Network2,
+        }
+    }
+
+    /// H and W of an input must be multiples of this.
+    pub fn size_multiple(&self) -> usize {
+        match self {
+            ModelConfig::BlendUnet(m) => m.size_multiple(),
+            ModelConfig::Wu(m) => m.size_multiple(),
+        }
+    }
+
+    /// Receptive-field radius in input pixels: the overlap that makes tiling exact.
+    pub fn receptive_radius(&self) -> usize {
+        match self {
+            ModelConfig::BlendUnet(m) => m.receptive_radius(),
+            ModelConfig::Wu(m) => m.receptive_radius(),
         }
     }
 }
@@ -254,11 +273,16 @@ impl Schedule {
     }
 }
 
+/// Where fine-tuning starts: exactly one of a checkpoint (or run folder: its latest) or a
+/// SafeTensors file of weights trained elsewhere (names: docs/network2.md). The optimizer
+/// starts fresh either way.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct InitConfig {
-    /// A checkpoint folder, or a run folder (its final checkpoint, else its latest).
-    pub checkpoint: PathBuf,
+    #[serde(default)]
+    pub checkpoint: Option<PathBuf>,
+    #[serde(default)]
+    pub safetensors: Option<PathBuf>,
 }
 
 /// Network-1's class weights α: "stream" (inverse class frequencies of the training stream's
@@ -338,16 +362,22 @@ impl TrainConfig {
         }
         self.schedule.validate()?;
         match &self.model {
-            ModelConfig::BlendUnet(m) => {
-                m.validate()?;
-                if !self.data.patch.is_multiple_of(m.size_multiple()) {
-                    return Err(Error::Invalid(format!(
-                        "data: patch {} is not a multiple of 2^depth = {}",
-                        self.data.patch,
-                        m.size_multiple()
-                    )));
-                }
-            }
+            ModelConfig::BlendUnet(m) => m.validate()?,
+            ModelConfig::Wu(m) => m.validate()?,
+        }
+        let m = self.model.size_multiple();
+        if !self.data.patch.is_multiple_of(m) {
+            return Err(Error::Invalid(format!(
+                "data: patch {} is not a multiple of {m}, the network's down-sampling factor",
+                self.data.patch
+            )));
+        }
+        if let Some(i) = &self.init
+            && i.checkpoint.is_some() == i.safetensors.is_some()
+        {
+            return Err(Error::Invalid(
+                "init: give exactly one of `checkpoint` and `safetensors`".into(),
+            ));
         }
         if let Some(v) = &self.validation
             && v.every == 0

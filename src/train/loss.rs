@@ -136,3 +136,90 @@ pub fn network1_batch(samples: &[Sample], device: &Device) -> Result<(Tensor<4>,
         Tensor::from_data(TensorData::new(target, [b, s, s]), device),
     ))
 }
+
+// ═════════════════════════════════════════════════════════════════════════════════════════════
+// Network-2 (Wu et al., ECCV 2018): L2 between μ-law tone-mapped images.
+// ═════════════════════════════════════════════════════════════════════════════════════════════
+//
+//   T(x) = log(1 + μx) / log(1 + μ),  μ = 5000,   L = mean over B·3·H·W of (T(pred) − T(target))²
+//
+// The authors' `model.py` takes `tf.reduce_mean` (a mean, not a sum) of the squared difference
+// of their `tonemap`, which returns 2·T − 1 (images in [−1, 1]): their loss is 4 × this one,
+// with the same minimiser (Adam is insensitive to that scale apart from its ε).
+
+/// μ of the μ-law tone mapping (`MU = 5000.` in Wu et al.'s `model.py`).
+pub const MU: f64 = 5000.0;
+
+/// μ-law tone mapping T(x) = log(1 + μx) / log(1 + μ), element-wise (T(0) = 0, T(1) = 1).
+/// Negative values are treated as 0 (log(1 + μx) is undefined below −1/μ).
+pub fn mu_law<const D: usize>(t: Tensor<D>, mu: f64) -> Tensor<D> {
+    t.clamp_min(0.0)
+        .mul_scalar(mu)
+        .log1p()
+        .div_scalar((1.0 + mu).ln())
+}
+
+/// The Network-2 loss: mean of (T(pred) − T(target))² over all elements, μ = [`MU`]. `pred`
+/// and `target` are linear HDR `[B, 3, H, W]`; returns the scalar loss, shape [1].
+///
+/// # Panics
+/// If the shapes differ.
+pub fn mu_law_l2(pred: Tensor<4>, target: Tensor<4>) -> Tensor<1> {
+    assert_eq!(
+        pred.dims(),
+        target.dims(),
+        "mu_law_l2: prediction and target shapes differ"
+    );
+    (mu_law(pred, MU) - mu_law(target, MU)).square().mean()
+}
+
+/// A Network-2 batch from loader samples: input `[B, 18, H, W]` (the samples' 18×H×W data
+/// stacked) and target `[B, 3, H, W]` (the linear HDR ground truth). All samples must have 18
+/// channels, the same size and a [`Target::Hdr`] target of 3·size² values.
+pub fn network2_batch(samples: &[Sample], device: &Device) -> Result<(Tensor<4>, Tensor<4>)> {
+    use crate::models::wu::{INPUT_CHANNELS, OUTPUT_CHANNELS};
+    let first = samples
+        .first()
+        .ok_or_else(|| Error::Invalid("network2_batch: no samples".into()))?;
+    let (c, s) = (INPUT_CHANNELS, first.size);
+    let mut input = Vec::with_capacity(samples.len() * c * s * s);
+    let mut target = Vec::with_capacity(samples.len() * OUTPUT_CHANNELS * s * s);
+    for sample in samples {
+        if sample.channels != c || sample.size != s || sample.input.len() != c * s * s {
+            return Err(Error::Invalid(format!(
+                "network2_batch: sample of set '{}' is {}×{}×{} with {} values; the batch is \
+                 {c}×{s}×{s}",
+                sample.set,
+                sample.channels,
+                sample.size,
+                sample.size,
+                sample.input.len()
+            )));
+        }
+        match &sample.target {
+            Target::Hdr(hdr) if hdr.len() == OUTPUT_CHANNELS * s * s => {
+                target.extend_from_slice(hdr);
+            }
+            Target::Hdr(hdr) => {
+                return Err(Error::Invalid(format!(
+                    "network2_batch: sample of set '{}' has {} HDR values for 3×{s}×{s}",
+                    sample.set,
+                    hdr.len()
+                )));
+            }
+            Target::Classes(_) => {
+                return Err(Error::Invalid(format!(
+                    "network2_batch: sample of set '{}' has a class-map target (a Network-1 \
+                     sample)",
+                    sample.set
+                )));
+            }
+        }
+        input.extend_from_slice(&sample.input);
+    }
+    let b = samples.len();
+    Ok((
+        Tensor::from_data(TensorData::new(input, [b, c, s, s]), device),
+        Tensor::from_data(TensorData::new(target, [b, OUTPUT_CHANNELS, s, s]), device),
+    ))
+}

@@ -29,7 +29,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
-use task::{CHECKPOINT_ALPHA_FILE, Network1, Task};
+use task::{CHECKPOINT_ALPHA_FILE, Network1, Network2, Task};
 
 /// One Network-1 optimisation step: forward, softmax, [`loss::weighted_l1`], backward, optimiser
 /// update. `input`, `target` and `alpha` must be on the model's (autodiff) device. Returns the
@@ -102,6 +102,7 @@ pub fn run(cfg: &TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
             };
             train(&task, cfg, opts, loader)
         }
+        ModelConfig::Wu(m) => train(&Network2 { config: m.clone() }, cfg, opts, loader),
     }
 }
 
@@ -135,10 +136,16 @@ fn network1_alpha(cfg: &TrainConfig, opts: &TrainOptions, loader: &Loader) -> Re
             0,
         )),
         "checkpoint" => {
-            let init = cfg.init.as_ref().ok_or_else(|| {
-                Error::Invalid("loss.alpha = \"checkpoint\" needs an [init] checkpoint".into())
-            })?;
-            from_checkpoint(&checkpoint::resolve(&init.checkpoint)?)
+            let init = cfg
+                .init
+                .as_ref()
+                .and_then(|i| i.checkpoint.as_ref())
+                .ok_or_else(|| {
+                    Error::Invalid(
+                        "loss.alpha = \"checkpoint\" needs an [init] checkpoint".into(),
+                    )
+                })?;
+            from_checkpoint(&checkpoint::resolve(init)?)
         }
         path => ClassWeights::load(Path::new(path)),
     }
@@ -264,8 +271,11 @@ pub fn train<T: Task>(
         }
         (None, false) => {
             let mut model = seeded_init(&ad, cfg.run.seed, || task.init(&ad))?;
-            if let Some(init) = &cfg.init {
-                let dir = checkpoint::resolve(&init.checkpoint)?;
+            if let Some(path) = cfg.init.as_ref().and_then(|i| i.safetensors.as_ref()) {
+                model = crate::models::import::import_weights(model, path)?;
+            }
+            if let Some(init) = cfg.init.as_ref().and_then(|i| i.checkpoint.as_ref()) {
+                let dir = checkpoint::resolve(init)?;
                 let state = checkpoint::read_state(&dir)?;
                 if state.model != task.model_config() {
                     return Err(Error::config(

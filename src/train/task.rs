@@ -5,9 +5,9 @@
 use crate::data::ground_truth::{CLASSES, ClassWeights};
 use crate::data::loader::Sample;
 use crate::error::Result;
-use crate::models::{BlendUNet, BlendUNetConfig};
+use crate::models::{BlendUNet, BlendUNetConfig, WuConfig, WuNet};
 use crate::train::config::ModelConfig;
-use crate::train::loss::{alpha_tensor, network1_batch, weighted_l1};
+use crate::train::loss::{MU, alpha_tensor, mu_law, mu_law_l2, network1_batch, network2_batch, weighted_l1};
 use burn::module::Module;
 use burn::tensor::activation::softmax;
 use burn::tensor::{Device, Tensor, TensorData};
@@ -103,5 +103,71 @@ impl Task for Network1 {
 
     fn save_extra(&self, dir: &Path) -> Result<()> {
         self.alpha.save(&dir.join(CHECKPOINT_ALPHA_FILE))
+    }
+}
+
+/// Network-2: Wu et al.'s merger with the μ-law L2 loss. Targets (linear HDR relative to the
+/// reference exposure's white, as the loader gives them) are multiplied by the network's
+/// `hdr_input_scale` (its output unit) and clipped to [0, 1], the range of its tanh output.
+pub struct Network2 {
+    pub config: WuConfig,
+}
+
+impl Network2 {
+    fn batch(&self, batch: &[Sample], device: &Device) -> Result<(Tensor<4>, Tensor<4>)> {
+        let (x, t) = network2_batch(batch, device)?;
+        let t = t
+            .mul_scalar(self.config.hdr_input_scale)
+            .clamp(0.0, 1.0);
+        Ok((x, t))
+    }
+}
+
+/// Per-sample PSNR (data range 1) of two [B, C, H, W] tensors, summed over the batch.
+fn psnr_sum(a: Tensor<4>, b: Tensor<4>) -> Result<f64> {
+    let [n, ..] = a.dims();
+    let mse = (a - b).square().reshape([n as i32, -1]).mean_dim(1);
+    let v = mse
+        .into_data()
+        .try_to_vec::<f32>()
+        .map_err(|e| crate::error::Error::Invalid(format!("reading the MSE: {e:?}")))?;
+    Ok(v.iter().map(|&m| -10.0 * (m.max(1e-20) as f64).log10()).sum())
+}
+
+impl Task for Network2 {
+    type Model = WuNet;
+
+    fn model_config(&self) -> ModelConfig {
+        ModelConfig::Wu(self.config.clone())
+    }
+
+    fn init(&self, device: &Device) -> Result<WuNet> {
+        self.config.init(device)
+    }
+
+    fn loss(&self, model: &WuNet, batch: &[Sample], device: &Device) -> Result<Tensor<1>> {
+        let (x, t) = self.batch(batch, device)?;
+        Ok(mu_law_l2(model.forward(x), t))
+    }
+
+    /// `loss`, `psnr_t` (μ-law, per sample, dB) and `psnr_l` (linear, in the network's output
+    /// unit), each summed over the batch's samples.
+    fn validate(
+        &self,
+        model: &WuNet,
+        batch: &[Sample],
+        device: &Device,
+    ) -> Result<Vec<(&'static str, f64)>> {
+        let (x, t) = self.batch(batch, device)?;
+        let b = batch.len() as f64;
+        let y = model.forward(x);
+        let loss = mu_law_l2(y.clone(), t.clone()).into_scalar::<f32>() as f64;
+        let psnr_t = psnr_sum(mu_law(y.clone(), MU), mu_law(t.clone(), MU))?;
+        let psnr_l = psnr_sum(y, t)?;
+        Ok(vec![
+            ("loss", loss * b),
+            ("psnr_t", psnr_t),
+            ("psnr_l", psnr_l),
+        ])
     }
 }
