@@ -1,16 +1,22 @@
-//! One Network-1 training step — forward, softmax, Eq. 4 loss, backward, Adam update — at batch
-//! 4 of 6×128×128 inputs with the default widths (32 … 512, BatchNorm, 256 classes), on the
-//! flex CPU backend with autodiff. Throughput is reported in samples/s (4 per step).
+//! One training step of each network exactly as the trainer runs it (`train::train_step`:
+//! batch assembly from loader samples, forward, loss, loss read-back, backward, Adam update),
+//! default widths, on the backend named by `HDRSYNTH_BENCH_BACKEND` (default flex) with
+//! autodiff:
+//! - Network-1: batch 4 of 6×128×128 (Eq. 4 loss);
+//! - Network-2: batch 4 of 18×256×256 (μ-law L2), the authors' patch size.
+//!
+//! Throughput is reported in samples/s.
 
 use burn::optim::AdamConfig;
-use burn::tensor::{Device, Int, Tensor, TensorData};
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use hdrsynth::models::BlendUNetConfig;
-use hdrsynth::train::network1_step;
+use hdrsynth::data::ground_truth::{ClassWeights, MertensWeights};
+use hdrsynth::data::loader::{Sample, Target};
+use hdrsynth::models::{BlendUNetConfig, WuConfig};
+use hdrsynth::train::task::{Network1, Network2, Task};
+use hdrsynth::train::train_step;
 use std::time::{Duration, Instant};
 
 const BATCH: usize = 4;
-const SIZE: usize = 128;
 
 /// Deterministic values in [0, 1) (splitmix64).
 fn values(n: usize, seed: u64) -> Vec<f32> {
@@ -26,39 +32,49 @@ fn values(n: usize, seed: u64) -> Vec<f32> {
         .collect()
 }
 
-fn bench(c: &mut Criterion) {
-    let dev = Device::flex().autodiff();
-    dev.seed(1);
-    let cfg = BlendUNetConfig::default();
-    let mut model = Some(cfg.init(&dev).expect("init"));
-    let x = Tensor::<4>::from_data(
-        TensorData::new(values(BATCH * 6 * SIZE * SIZE, 2), [BATCH, 6, SIZE, SIZE]),
-        &dev,
-    );
-    let classes: Vec<i32> = values(BATCH * SIZE * SIZE, 3)
-        .iter()
-        .map(|v| (v * 256.0) as i32)
-        .collect();
-    let target = Tensor::<3, Int>::from_data(TensorData::new(classes, [BATCH, SIZE, SIZE]), &dev);
-    let alpha = Tensor::<1>::from_data(
-        TensorData::new(values(256, 4).iter().map(|v| 0.5 + v).collect(), [256]),
-        &dev,
-    );
+fn samples(channels: usize, size: usize, hdr: bool) -> Vec<Sample> {
+    (0..BATCH)
+        .map(|i| Sample {
+            input: values(channels * size * size, 10 + i as u64),
+            channels,
+            size,
+            target: if hdr {
+                Target::Hdr(values(3 * size * size, 20 + i as u64))
+            } else {
+                Target::Classes(
+                    values(size * size, 20 + i as u64)
+                        .iter()
+                        .map(|v| (v * 256.0) as u8)
+                        .collect(),
+                )
+            },
+            exposure_times: vec![],
+            set: format!("bench{i}"),
+            iso: None,
+        })
+        .collect()
+}
+
+fn bench_task<T: Task>(c: &mut Criterion, name: &str, task: &T, batch: &[Sample]) {
+    let backend = std::env::var("HDRSYNTH_BENCH_BACKEND").unwrap_or_else(|_| "flex".into());
+    let dev = hdrsynth::device::device_from_name(&backend)
+        .expect("backend")
+        .autodiff();
+    let mut model = Some(hdrsynth::train::seeded_init(&dev, 1, || task.init(&dev)).expect("init"));
     let mut optim = AdamConfig::new().init();
     let mut step = || {
-        let m = model.take().expect("model");
-        let (m, loss) = network1_step(
-            m,
+        let (m, loss) = train_step(
+            task,
+            model.take().expect("model"),
             &mut optim,
             1e-4,
-            x.clone(),
-            target.clone(),
-            alpha.clone(),
-        );
+            batch,
+            &dev,
+        )
+        .expect("step");
         model = Some(m);
-        loss.into_scalar::<f32>()
+        loss
     };
-
     // A plain timing first, so the figure is in the log even without criterion's report.
     step();
     let n = 3;
@@ -68,21 +84,33 @@ fn bench(c: &mut Criterion) {
     }
     let per = t0.elapsed().as_secs_f64() / n as f64;
     eprintln!(
-        "train_step (flex, batch {BATCH}, {SIZE}×{SIZE}, {} trainable parameters): \
-         {per:.3} s/step, {:.2} samples/s",
-        cfg.trainable_parameters(),
+        "{name} ({backend}): {per:.3} s/step, {:.2} samples/s",
         BATCH as f64 / per
     );
-
     let mut g = c.benchmark_group("train_step");
     g.sample_size(10)
         .warm_up_time(Duration::from_secs(1))
         .measurement_time(Duration::from_secs(20));
     g.throughput(Throughput::Elements(BATCH as u64));
-    g.bench_function(format!("network1/flex/b{BATCH}/{SIZE}px"), |b| {
-        b.iter(&mut step)
-    });
+    g.bench_function(format!("{name}/{backend}"), |b| b.iter(&mut step));
     g.finish();
+}
+
+fn bench(c: &mut Criterion) {
+    let alpha = ClassWeights::new(
+        &std::array::from_fn(|i| 1 + i as u64),
+        MertensWeights::OPENCV_DEFAULT,
+        1,
+    );
+    let net1 = Network1 {
+        config: BlendUNetConfig::default(),
+        alpha,
+    };
+    bench_task(c, "network1/b4/128px", &net1, &samples(6, 128, false));
+    let net2 = Network2 {
+        config: WuConfig::default(),
+    };
+    bench_task(c, "network2/b4/256px", &net2, &samples(18, 256, true));
 }
 
 criterion_group!(benches, bench);

@@ -37,6 +37,10 @@ enum Command {
     Train(hdrsynth::cli::train::Args),
     /// Run a trained network (any checkpoint) on one input of any size, tiled.
     Infer(hdrsynth::cli::infer::Args),
+    /// Score a test set: predictions made elsewhere, or a checkpoint's network run here.
+    Eval(hdrsynth::cli::eval::Args),
+    /// Build a static test set from real HDR radiance through a sensor profile.
+    Testset(hdrsynth::cli::testset::Args),
     /// Inspect datasets.
     Dataset {
         #[command(subcommand)]
@@ -84,6 +88,8 @@ fn main() -> Result<()> {
             )
         }
         Command::Infer(args) => println!("{}", hdrsynth::cli::infer::run(&args)?),
+        Command::Eval(args) => println!("{}", hdrsynth::cli::eval::run(&args)?),
+        Command::Testset(args) => println!("{}", hdrsynth::cli::testset::run(&args)?),
         Command::Dataset { command } => match command {
             DatasetCommand::Info { dir } => {
                 print!("{}", hdrsynth::cli::dataset::info_report(&dir)?)

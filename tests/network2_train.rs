@@ -31,7 +31,11 @@ fn validation_at(run: &Path, step: u64) -> (f64, f64) {
         .unwrap_or_else(|| panic!("no validation at step {step}:\n{log}"));
     let num = |key: &str| -> f64 {
         let rest = &line[line.find(&format!("\"{key}\":")).expect(key) + key.len() + 3..];
-        rest.split([',', '}']).next().unwrap().parse().expect("number")
+        rest.split([',', '}'])
+            .next()
+            .unwrap()
+            .parse()
+            .expect("number")
     };
     (num("psnr_t"), num("psnr_l"))
 }
@@ -188,7 +192,10 @@ fn shipped_training_configs_parse_and_validate() {
         assert!(cfg.run.steps > 0, "{name}");
         if name.contains("finetune") {
             assert!(cfg.init.is_some(), "{name} must start from a checkpoint");
-            assert_ne!(cfg.data.profile, "pure", "{name} is the sensor-realistic stage");
+            assert_ne!(
+                cfg.data.profile, "pure",
+                "{name} is the sensor-realistic stage"
+            );
         }
     }
 }

@@ -9,9 +9,9 @@
 //! `hdr.exr` (linear, 1 = the reference exposure's white) and `hdr_mulaw.png` (μ-law preview
 //! of the network's [0, 1] range).
 
+use crate::data::layout::{self, SetInfo};
 use crate::device::device_from_name;
 use crate::eval::blend::{BlendWeight, DEFAULT_TONE_K};
-use crate::data::layout::{self, SetInfo};
 use crate::eval::infer::{
     network1_fuse, network1_tiling, network2_frames, network2_hdr, network2_tiling,
 };
@@ -131,7 +131,11 @@ pub fn run(args: &Args) -> Result<String> {
                 &device,
             )?;
             write_exr(&args.out.join("linear.exr"), &linear, ExrPrecision::Float)?;
-            write_exr(&args.out.join("tonemapped.exr"), &toned, ExrPrecision::Float)?;
+            write_exr(
+                &args.out.join("tonemapped.exr"),
+                &toned,
+                ExrPrecision::Float,
+            )?;
             write_ldr(&args.out.join("tonemapped.png"), &toned, BitDepth::Eight)?;
             let grey = Image::from_vec(
                 linear.width,

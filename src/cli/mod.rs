@@ -1,10 +1,12 @@
 //! Subcommands, one file each. The binary (src/main.rs) only parses and dispatches.
 pub mod calibrate;
 pub mod dataset;
+pub mod eval;
 pub mod generate;
 pub mod infer;
 pub mod preview;
 pub mod profile;
 pub mod realism;
+pub mod testset;
 pub mod train;
 pub mod weights;

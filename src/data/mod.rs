@@ -4,3 +4,4 @@ pub mod layout;
 pub mod loader;
 pub mod pyramid;
 pub mod scene;
+pub mod testset;

@@ -2,11 +2,11 @@
 //! [`tiling::run_tiled`](crate::eval::tiling), reduced on the device to what the output needs
 //! (Network-1: one blend weight per pixel, never 256 class maps of a full frame).
 
+use crate::data::layout::SetInfo;
 use crate::error::{Error, Result};
 use crate::eval::blend::{BlendWeight, fuse};
 use crate::eval::tiling::{Planar, Tiling, run_tiled};
 use crate::io::Image;
-use crate::data::layout::SetInfo;
 use crate::io::read_image;
 use crate::models::{BlendUNet, BlendUNetConfig, WuConfig, WuNet};
 use burn::tensor::activation::softmax;
@@ -145,8 +145,7 @@ pub fn network2_frames(set: &SetInfo) -> Result<([Image; 3], [f32; 3])> {
         ));
     }
     let pick = |i: usize| -> Result<Image> {
-        let frames = if (i == r && !set.static_frames.is_empty()) || set.dynamic_frames.is_empty()
-        {
+        let frames = if (i == r && !set.static_frames.is_empty()) || set.dynamic_frames.is_empty() {
             &set.static_frames
         } else {
             &set.dynamic_frames

@@ -50,6 +50,26 @@ pub fn network1_step(
     (model, loss.detach())
 }
 
+/// One optimisation step of any task: loss of `batch`, then — only if the loss is finite —
+/// backward and the optimizer update. Returns the model (unchanged when the loss is not
+/// finite) and the loss.
+pub fn train_step<T: Task>(
+    task: &T,
+    model: T::Model,
+    optim: &mut ModuleOptimizer,
+    lr: f64,
+    batch: &[Sample],
+    device: &Device,
+) -> Result<(T::Model, f64)> {
+    let loss = task.loss(&model, batch, device)?;
+    let value = loss.clone().into_scalar::<f32>() as f64;
+    if !value.is_finite() {
+        return Ok((model, value));
+    }
+    let grads = GradientsParams::from_grads(loss.backward(), &model);
+    Ok((optim.step(lr, model, grads), value))
+}
+
 /// Burn's seed is global to a backend: seeding and initialising under one lock keeps
 /// concurrent initialisations (tests, library users) reproducible.
 pub fn seeded_init<T>(device: &Device, seed: u64, init: impl FnOnce() -> T) -> T {
@@ -141,9 +161,7 @@ fn network1_alpha(cfg: &TrainConfig, opts: &TrainOptions, loader: &Loader) -> Re
                 .as_ref()
                 .and_then(|i| i.checkpoint.as_ref())
                 .ok_or_else(|| {
-                    Error::Invalid(
-                        "loss.alpha = \"checkpoint\" needs an [init] checkpoint".into(),
-                    )
+                    Error::Invalid("loss.alpha = \"checkpoint\" needs an [init] checkpoint".into())
                 })?;
             from_checkpoint(&checkpoint::resolve(init)?)
         }
@@ -362,8 +380,8 @@ pub fn train<T: Task>(
             .next()
             .ok_or_else(|| Error::Invalid("data stream ended early".into()))??;
         let lr = cfg.schedule.lr(cfg.optim.lr, step, total);
-        let loss = task.loss(&model, &batch, &ad)?;
-        let value = loss.clone().into_scalar::<f32>() as f64;
+        let (next, value) = train_step(task, model, &mut optim, lr, &batch, &ad)?;
+        model = next;
         if !value.is_finite() {
             log.write(&[
                 ("step", step.to_string()),
@@ -381,8 +399,6 @@ pub fn train<T: Task>(
                  optim.lr or check the data"
             )));
         }
-        let grads = GradientsParams::from_grads(loss.backward(), &model);
-        model = optim.step(lr, model, grads);
         interval_loss += value;
         interval_steps += 1;
         let done = step + 1;

@@ -7,7 +7,9 @@ use crate::data::loader::Sample;
 use crate::error::Result;
 use crate::models::{BlendUNet, BlendUNetConfig, WuConfig, WuNet};
 use crate::train::config::ModelConfig;
-use crate::train::loss::{MU, alpha_tensor, mu_law, mu_law_l2, network1_batch, network2_batch, weighted_l1};
+use crate::train::loss::{
+    MU, alpha_tensor, mu_law, mu_law_l2, network1_batch, network2_batch, weighted_l1,
+};
 use burn::module::Module;
 use burn::tensor::activation::softmax;
 use burn::tensor::{Device, Tensor, TensorData};
@@ -116,9 +118,7 @@ pub struct Network2 {
 impl Network2 {
     fn batch(&self, batch: &[Sample], device: &Device) -> Result<(Tensor<4>, Tensor<4>)> {
         let (x, t) = network2_batch(batch, device)?;
-        let t = t
-            .mul_scalar(self.config.hdr_input_scale)
-            .clamp(0.0, 1.0);
+        let t = t.mul_scalar(self.config.hdr_input_scale).clamp(0.0, 1.0);
         Ok((x, t))
     }
 }
@@ -131,7 +131,9 @@ fn psnr_sum(a: Tensor<4>, b: Tensor<4>) -> Result<f64> {
         .into_data()
         .try_to_vec::<f32>()
         .map_err(|e| crate::error::Error::Invalid(format!("reading the MSE: {e:?}")))?;
-    Ok(v.iter().map(|&m| -10.0 * (m.max(1e-20) as f64).log10()).sum())
+    Ok(v.iter()
+        .map(|&m| -10.0 * (m.max(1e-20) as f64).log10())
+        .sum())
 }
 
 impl Task for Network2 {

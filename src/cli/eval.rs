@@ -1,0 +1,188 @@
+//! `hdrsynth eval --testset DIR --out OUT (--predictions DIR | --checkpoint C)`: score outputs
+//! on a test set in any known layout — predictions made elsewhere (`<set>.exr`/`.hdr`, linear),
+//! or a checkpoint's network run here at full resolution with tiles — and write per-image and
+//! summary tables with bootstrap intervals, outputs, previews and a report (docs/evaluation.md).
+
+use crate::device::device_from_name;
+use crate::eval::blend::{BlendWeight, DEFAULT_TONE_K};
+use crate::eval::evaluate::{
+    self, EvalOptions, EvalSummary, Method, NetworkOptions, Predictions, from_checkpoint,
+};
+use crate::eval::metrics::{MetricOptions, Pu21Scale};
+use crate::eval::report;
+use anyhow::{Result, bail};
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+#[derive(clap::Args, Debug, Clone)]
+#[command(group(clap::ArgGroup::new("source").required(true).args(["predictions", "checkpoint"])))]
+pub struct Args {
+    /// Test set folder in any known layout (hdrsynth, Kalantari, Wu, paper Dataset-1).
+    #[arg(long)]
+    pub testset: PathBuf,
+    /// Output folder.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Folder of linear HDR predictions named `<set name>.exr` (or `.hdr`).
+    #[arg(long)]
+    pub predictions: Option<PathBuf>,
+    /// A checkpoint folder, or a run folder (its latest checkpoint): run its network here.
+    #[arg(long)]
+    pub checkpoint: Option<PathBuf>,
+    /// Skip sets without a prediction (listed in the summary) instead of failing.
+    #[arg(long)]
+    pub allow_missing: bool,
+    /// Core tile side for --checkpoint (a multiple of the network's 2^depth).
+    #[arg(long)]
+    pub tile: Option<usize>,
+    /// Context per tile side; default: the network's receptive-field radius (exact tiling).
+    #[arg(long)]
+    pub overlap: Option<usize>,
+    /// Network-1's blend weight from the class probabilities.
+    #[arg(long, value_enum, default_value_t = BlendWeight::Expected)]
+    pub weight: BlendWeight,
+    /// Network-1's tone curve k (output and reference alike).
+    #[arg(long, default_value_t = DEFAULT_TONE_K)]
+    pub tone_k: f32,
+    /// Compute device for --checkpoint: flex (CPU), ndarray, wgpu, cuda.
+    #[arg(long, default_value = "flex")]
+    pub backend: String,
+    /// Bootstrap resamples for the confidence intervals.
+    #[arg(long, default_value_t = 2000)]
+    pub resamples: usize,
+    /// Bootstrap seed.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Confidence level.
+    #[arg(long, default_value_t = 0.95)]
+    pub level: f64,
+    /// PU21 absolute scale: reference-max (ground truth max → peak) or unit-value (1.0 → peak).
+    #[arg(long, default_value = "reference-max", value_parser = parse_pu21_scale)]
+    pub pu21_scale: Pu21Scale,
+    /// PU21 peak luminance in cd/m².
+    #[arg(long, default_value_t = 4000.0)]
+    pub peak_luminance: f64,
+    /// Largest side of the report's thumbnails in pixels.
+    #[arg(long, default_value_t = 512)]
+    pub thumb: usize,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+fn parse_pu21_scale(s: &str) -> Result<Pu21Scale, String> {
+    match s {
+        "reference-max" => Ok(Pu21Scale::ReferenceMax),
+        "unit-value" => Ok(Pu21Scale::UnitValue),
+        _ => Err(format!("'{s}': expected reference-max or unit-value")),
+    }
+}
+
+impl Args {
+    /// Arguments with the defaults, scoring predictions.
+    pub fn predictions(
+        testset: impl Into<PathBuf>,
+        predictions: impl Into<PathBuf>,
+        out: impl Into<PathBuf>,
+    ) -> Args {
+        Args {
+            testset: testset.into(),
+            out: out.into(),
+            predictions: Some(predictions.into()),
+            checkpoint: None,
+            allow_missing: false,
+            tile: None,
+            overlap: None,
+            weight: BlendWeight::Expected,
+            tone_k: DEFAULT_TONE_K,
+            backend: "flex".into(),
+            resamples: 2000,
+            seed: 0,
+            level: 0.95,
+            pu21_scale: Pu21Scale::ReferenceMax,
+            peak_luminance: 4000.0,
+            thumb: 512,
+            quiet: true,
+        }
+    }
+
+    /// Arguments with the defaults, running a checkpoint.
+    pub fn checkpoint(
+        testset: impl Into<PathBuf>,
+        checkpoint: impl Into<PathBuf>,
+        out: impl Into<PathBuf>,
+    ) -> Args {
+        Args {
+            predictions: None,
+            checkpoint: Some(checkpoint.into()),
+            ..Args::predictions(testset, PathBuf::new(), out)
+        }
+    }
+
+    pub fn options(&self) -> EvalOptions {
+        EvalOptions {
+            metrics: MetricOptions {
+                peak_luminance: self.peak_luminance,
+                pu21_scale: self.pu21_scale,
+            },
+            resamples: self.resamples,
+            seed: self.seed,
+            level: self.level,
+            allow_missing: self.allow_missing,
+            thumb: self.thumb.max(16),
+            progress: !self.quiet,
+        }
+    }
+}
+
+pub fn evaluate(args: &Args) -> Result<EvalSummary> {
+    let method: Box<dyn Method> = match (&args.predictions, &args.checkpoint) {
+        (Some(dir), None) => {
+            if !dir.is_dir() {
+                bail!("--predictions {}: not a folder", dir.display());
+            }
+            Box::new(Predictions { dir: dir.clone() })
+        }
+        (None, Some(ckpt)) => {
+            let device = device_from_name(&args.backend)?;
+            let opts = NetworkOptions {
+                tile: args.tile,
+                overlap: args.overlap,
+                weight: args.weight,
+                tone_k: args.tone_k,
+            };
+            from_checkpoint(ckpt, &opts, &device)?
+        }
+        _ => bail!("give exactly one of --predictions and --checkpoint"),
+    };
+    Ok(evaluate::evaluate(
+        &args.testset,
+        method.as_ref(),
+        &args.out,
+        &args.options(),
+    )?)
+}
+
+pub fn run(args: &Args) -> Result<String> {
+    let r = evaluate(args)?;
+    let mut s = format!(
+        "{} set(s) scored in {:.1} s; {}\n\n{}",
+        r.rows.len(),
+        r.seconds,
+        r.method,
+        report::summary_table(&r.summary, args.level)
+    );
+    if !r.missing.is_empty() {
+        let _ = writeln!(s, "\n{} set(s) skipped (no output):", r.missing.len());
+        for (set, looked) in &r.missing {
+            let _ = writeln!(s, "  {set}: looked for {looked}");
+        }
+    }
+    let _ = write!(
+        s,
+        "\nwrote {}/{{per_image.csv, summary.csv, summary.md, report.md}}, <set>.exr, <set>.png, \
+         grids/<set>.png",
+        r.out.display()
+    );
+    Ok(s)
+}

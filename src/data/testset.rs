@@ -1,0 +1,703 @@
+//! Static test sets from real HDR radiance rendered through a measured sensor model
+//! (`hdrsynth testset`, docs/evaluation.md).
+//!
+//! Per radiance map (scene) and ISO one set named `<scene>_iso<N>` in hdrsynth's own layout
+//! (docs/layout.md), so `layout::detect`, the loader and `hdrsynth eval` read it back:
+//! - the radiance, converted to linear Rec. 709 primaries where the EXR says otherwise, is
+//!   scaled by a key k that puts its `key_percentile`-th luminance percentile at `key_level` of
+//!   sensor white in the EV0 frame (times the user's `exposure` factor);
+//! - each bracket frame is the realism operator (colour T, noise at that ISO, levels, device
+//!   response, 8-bit) applied to radiance · k · 2^EV with the profile's source response set to
+//!   linear, seeded by (seed, scene, ISO, EV);
+//! - `hdr_gt.exr` is the radiance in the device's linear space at EV0, `T · radiance · k`
+//!   ([`Realism::device_linear`], 1 = sensor white), the Network-2 loader's target convention.
+//!
+//! The scene is static: the dynamic frames are copies of the static ones and every motion mask
+//! is 0. This is real scene radiance through a measured sensor model, not a real bracketed
+//! capture: real brackets in a known layout are evaluated directly.
+
+use crate::data::layout::hdrsynth::{self as own, Manifest, SET_META, SetMeta};
+use crate::data::scene::{Camera, SampleStats, ev_tag};
+use crate::error::{Error, Result};
+use crate::io::atomic::write_atomic;
+use crate::io::{BitDepth, ExrPrecision, Image, luminance, read_image, write_exr, write_ldr};
+use crate::rng::hash;
+use crate::sensor::profile::{Response, SensorProfile};
+use crate::sensor::realism::{NoiseModel, Realism, RealismOptions};
+use crate::sensor::response::ToneCurve;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// The recipe, written to `OUT/testset.toml` (read by nothing else; provenance and resume).
+pub const RECIPE: &str = "testset.toml";
+pub const RECIPE_FORMAT: &str = "hdrsynth-testset/1";
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TestsetOptions {
+    /// One set per ISO (within the profile's calibrated range).
+    pub isos: Vec<f64>,
+    /// Bracket EVs relative to the reference; must hold 0.
+    pub evs: Vec<f32>,
+    pub seed: u64,
+    /// Extra factor on the automatic exposure key (1 = the placement below).
+    pub exposure: f64,
+    /// Luminance percentile (0–100) placed at `key_level` of sensor white at EV0.
+    pub key_percentile: f64,
+    /// Fraction of sensor white that percentile lands at.
+    pub key_level: f64,
+    pub noise: NoiseModel,
+    /// Apply the profile's colour transform T (frames and ground truth alike).
+    pub colour: bool,
+    /// Bits of the frames (8 or 16).
+    pub output_bits: u32,
+    /// Resample every radiance map to this size (width, height) first.
+    pub resize: Option<(usize, usize)>,
+}
+
+impl Default for TestsetOptions {
+    fn default() -> Self {
+        TestsetOptions {
+            isos: vec![100.0, 800.0, 3200.0],
+            evs: vec![-3.0, 0.0],
+            seed: 0,
+            exposure: 1.0,
+            key_percentile: 99.0,
+            key_level: 0.9,
+            noise: NoiseModel::Gaussian,
+            colour: true,
+            output_bits: 8,
+            resize: None,
+        }
+    }
+}
+
+/// `testset.toml`: what was rendered from what.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Recipe {
+    pub format: String,
+    pub note: String,
+    pub profile: SensorProfile,
+    pub options: TestsetOptions,
+    pub scenes: Vec<SceneEntry>,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneEntry {
+    pub name: String,
+    pub file: PathBuf,
+}
+
+/// One written set.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BuiltSet {
+    pub name: String,
+    pub iso: f64,
+    pub width: usize,
+    pub height: usize,
+    /// Radiance → EV0 linear (1 = sensor white before T).
+    pub key: f32,
+    /// Fraction of EV0 pixels with a channel at ≥ 0.98 code value, and ≤ 0.02.
+    pub over_fraction: f32,
+    pub under_fraction: f32,
+    /// False when the set was already complete (resumed run).
+    pub written: bool,
+}
+
+#[derive(Clone, Debug)]
+pub struct TestsetSummary {
+    pub sets: Vec<BuiltSet>,
+    /// Notes for the user (e.g. primaries converted).
+    pub notes: Vec<String>,
+}
+
+/// The radiance files of `input`: the file itself, or every .exr/.hdr directly in the folder,
+/// sorted by name.
+pub fn radiance_files(input: &Path) -> Result<Vec<PathBuf>> {
+    let is_hdr = |p: &Path| {
+        matches!(
+            p.extension()
+                .and_then(|e| e.to_str())
+                .map(str::to_ascii_lowercase)
+                .as_deref(),
+            Some("exr" | "hdr" | "pic")
+        )
+    };
+    if input.is_file() {
+        return if is_hdr(input) {
+            Ok(vec![input.to_path_buf()])
+        } else {
+            Err(Error::unsupported(
+                input,
+                "radiance must be linear HDR (.exr or .hdr)",
+            ))
+        };
+    }
+    let mut files: Vec<PathBuf> = std::fs::read_dir(input)
+        .map_err(|e| Error::io(input, e))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.is_file() && is_hdr(p))
+        .collect();
+    files.sort();
+    if files.is_empty() {
+        return Err(Error::layout(
+            input,
+            "holds no radiance maps (.exr or .hdr files)",
+        ));
+    }
+    Ok(files)
+}
+
+/// Scene name from a file stem: characters other than ASCII letters, digits, '-' and '_'
+/// become '_' so the name is a safe folder and file name.
+pub fn scene_name(path: &Path) -> String {
+    let stem = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    stem.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
+/// `<scene>_iso<N>` (N as the shortest decimal, e.g. `iso100`, `iso12.5`).
+pub fn set_name(scene: &str, iso: f64) -> String {
+    format!("{scene}_iso{iso}")
+}
+
+fn validate(opts: &TestsetOptions, profile: &SensorProfile) -> Result<()> {
+    if opts.isos.is_empty() {
+        return Err(Error::Invalid("testset: no ISOs given".into()));
+    }
+    if !opts.evs.contains(&0.0) {
+        return Err(Error::Invalid(format!(
+            "testset: EVs {:?} must include 0 (the reference frame)",
+            opts.evs
+        )));
+    }
+    let mut sorted = opts.evs.clone();
+    sorted.sort_by(f32::total_cmp);
+    if sorted.windows(2).any(|w| w[0] == w[1]) || sorted.iter().any(|e| !e.is_finite()) {
+        return Err(Error::Invalid(format!(
+            "testset: EVs {:?} must be finite and distinct",
+            opts.evs
+        )));
+    }
+    if !(opts.key_percentile > 0.0 && opts.key_percentile <= 100.0) {
+        return Err(Error::Invalid(format!(
+            "testset: key percentile {} must be in (0, 100]",
+            opts.key_percentile
+        )));
+    }
+    if !(opts.key_level > 0.0 && opts.key_level.is_finite()) {
+        return Err(Error::Invalid(format!(
+            "testset: key level {} must be > 0",
+            opts.key_level
+        )));
+    }
+    if let Some((w, h)) = opts.resize
+        && (w == 0 || h == 0)
+    {
+        return Err(Error::Invalid(format!(
+            "testset: resize to {w}×{h} is empty"
+        )));
+    }
+    if opts.noise != NoiseModel::None {
+        for &iso in &opts.isos {
+            profile.noise_at(iso)?;
+        }
+    }
+    Ok(())
+}
+
+/// Build the test set under `out` from the radiance file or folder `input`. Sets already
+/// complete under `out` (same recipe) are kept; a different recipe there is an error.
+pub fn build(
+    input: &Path,
+    profile: &SensorProfile,
+    opts: &TestsetOptions,
+    out: &Path,
+) -> Result<TestsetSummary> {
+    let mut opts = opts.clone();
+    opts.evs.sort_by(f32::total_cmp);
+    validate(&opts, profile)?;
+    let files = radiance_files(input)?;
+    let scenes: Vec<SceneEntry> = files
+        .iter()
+        .map(|f| SceneEntry {
+            name: scene_name(f),
+            file: f.clone(),
+        })
+        .collect();
+    for (i, a) in scenes.iter().enumerate() {
+        if let Some(b) = scenes[i + 1..].iter().find(|b| b.name == a.name) {
+            return Err(Error::layout(
+                &b.file,
+                format!(
+                    "scene name '{}' is also that of {}; rename one",
+                    a.name,
+                    a.file.display()
+                ),
+            ));
+        }
+    }
+    // The frames are rendered from scene-linear radiance: the source is linear, whatever the
+    // profile's source response for synthetic frames is.
+    let mut device = profile.clone();
+    device.source_response = Response::Linear;
+    let recipe = Recipe {
+        format: RECIPE_FORMAT.into(),
+        note: "real scene radiance rendered through a measured sensor model (colour, noise, \
+               levels, response); not a real bracketed capture"
+            .into(),
+        profile: device.clone(),
+        options: opts.clone(),
+        scenes: scenes.clone(),
+    };
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    let recipe_path = out.join(RECIPE);
+    if recipe_path.is_file() {
+        let old: Recipe = crate::config::load_toml(&recipe_path)?;
+        if old != recipe {
+            return Err(Error::layout(
+                &recipe_path,
+                "this folder holds a test set made with a different recipe (radiance, profile \
+                 or options); choose another output folder or delete it",
+            ));
+        }
+    } else if out.join(own::MANIFEST).is_file() {
+        return Err(Error::layout(
+            out,
+            "holds an hdrsynth dataset that is not a test set; choose another output folder",
+        ));
+    }
+    let text = toml::to_string(&recipe).map_err(|e| Error::encode(&recipe_path, e))?;
+    write_atomic(&recipe_path, text.as_bytes())?;
+
+    let mut sets = Vec::new();
+    let mut notes = Vec::new();
+    let mut manifest_written = false;
+    for (si, scene) in scenes.iter().enumerate() {
+        let (radiance, note) = load_radiance(&scene.file, opts.resize)?;
+        notes.extend(note);
+        let key = exposure_key(&radiance, &opts).map_err(|m| Error::layout(&scene.file, m))?;
+        if !manifest_written {
+            // Sets may differ in size; each set's meta.toml has its own. The manifest carries
+            // the first one for tools that want a nominal size.
+            write_manifest(out, &device, &opts, radiance.width, radiance.height)?;
+            manifest_written = true;
+        }
+        for (ii, &iso) in opts.isos.iter().enumerate() {
+            let index = (si * opts.isos.len() + ii) as u64;
+            sets.push(write_set(
+                out, scene, index, iso, &radiance, key, &device, &opts,
+            )?);
+        }
+    }
+    Ok(TestsetSummary { sets, notes })
+}
+
+fn write_manifest(
+    out: &Path,
+    device: &SensorProfile,
+    opts: &TestsetOptions,
+    width: usize,
+    height: usize,
+) -> Result<()> {
+    // The manifest's curve vocabulary is the engine's; a gamma or sampled device response is
+    // recorded exactly in testset.toml.
+    let tone_curve = match device.response {
+        Response::Linear => ToneCurve::Linear,
+        Response::Filmic => ToneCurve::Filmic,
+        _ => ToneCurve::Srgb,
+    };
+    own::write_manifest(
+        out,
+        &Manifest {
+            format: own::FORMAT.into(),
+            width,
+            height,
+            evs: opts.evs.clone(),
+            tone_curve,
+            bit_depth: opts.output_bits,
+            generator: None,
+        },
+    )
+}
+
+/// FNV-1a of the scene name: a seed part that does not depend on which other scenes exist.
+fn name_hash(name: &str) -> u64 {
+    name.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
+        (h ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3)
+    })
+}
+
+/// Noise seed of one frame.
+pub fn frame_seed(seed: u64, scene: &str, iso: f64, ev: f32) -> u64 {
+    hash(
+        seed,
+        &[name_hash(scene), iso.to_bits(), ev.to_bits() as u64],
+    )
+}
+
+#[allow(clippy::too_many_arguments)]
+fn write_set(
+    out: &Path,
+    scene: &SceneEntry,
+    index: u64,
+    iso: f64,
+    radiance: &Image,
+    key: f32,
+    device: &SensorProfile,
+    opts: &TestsetOptions,
+) -> Result<BuiltSet> {
+    let name = set_name(&scene.name, iso);
+    let dir = out.join(&name);
+    let reference = opts.evs.iter().position(|&e| e == 0.0).unwrap_or(0);
+    let (w, h) = (radiance.width, radiance.height);
+    if dir.join(SET_META).is_file() {
+        let meta = own::read_set_meta(&dir)?;
+        return Ok(BuiltSet {
+            name,
+            iso,
+            width: w,
+            height: h,
+            key,
+            over_fraction: meta.stats.over_fraction,
+            under_fraction: meta.stats.under_fraction,
+            written: false,
+        });
+    }
+    let depth = BitDepth::from_bits(opts.output_bits).ok_or_else(|| {
+        Error::Invalid(format!("output bits {} must be 8 or 16", opts.output_bits))
+    })?;
+    let realism = |ev: f32| {
+        Realism::new(
+            device,
+            &RealismOptions {
+                iso,
+                exposure: key as f64 * (ev as f64).exp2(),
+                noise: opts.noise,
+                colour: opts.colour,
+                output_bits: opts.output_bits,
+            },
+        )
+    };
+    let (mut over, mut under) = (0.0, 0.0);
+    for &ev in &opts.evs {
+        let frame = realism(ev)?.apply(radiance, frame_seed(opts.seed, &scene.name, iso, ev));
+        if ev == 0.0 {
+            (over, under) = clip_fractions(&frame);
+        }
+        let tag = ev_tag(ev);
+        let path = dir.join("static").join(format!("{tag}.png"));
+        write_ldr(&path, &frame, depth)?;
+        drop(frame);
+        // A static scene: the "dynamic" capture is the same frame (same noise, byte-identical
+        // file) and no pixel moves, so every mask is 0.
+        let bytes = std::fs::read(&path).map_err(|e| Error::io(&path, e))?;
+        write_atomic(&dir.join("dynamic").join(format!("{tag}.png")), &bytes)?;
+        write_ldr(
+            &dir.join("dynamic").join(format!("mask_{tag}.png")),
+            &Image::new(w, h),
+            BitDepth::Eight,
+        )?;
+    }
+    let gt = realism(0.0)?.device_linear(radiance);
+    write_exr(&dir.join("hdr_gt.exr"), &gt, ExrPrecision::Float)?;
+    drop(gt);
+    let meta = SetMeta {
+        name: name.clone(),
+        index,
+        width: w,
+        height: h,
+        evs: opts.evs.clone(),
+        reference,
+        times: vec![0.0; opts.evs.len()],
+        stats: SampleStats {
+            exposure_key: key,
+            over_fraction: over,
+            under_fraction: under,
+            dynamic_range_stops: crate::io::dynamic_range_stops(radiance, 0.1, 99.9).unwrap_or(0.0)
+                as f32,
+            camera: Camera {
+                cx: 0.0,
+                cy: 0.0,
+                view_w: w as f32,
+                width: w,
+                height: h,
+            },
+            background: scene
+                .file
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned()),
+            subjects: 0,
+            articulated: 0,
+        },
+    };
+    let path = dir.join(SET_META);
+    let text = toml::to_string(&meta).map_err(|e| Error::encode(&path, e))?;
+    write_atomic(&path, text.as_bytes())?;
+    Ok(BuiltSet {
+        name,
+        iso,
+        width: w,
+        height: h,
+        key,
+        over_fraction: over,
+        under_fraction: under,
+        written: true,
+    })
+}
+
+/// Fractions of pixels over- and under-exposed as the scene engine counts them: largest
+/// channel ≥ 0.98 (over), largest channel ≤ 0.02 (under).
+fn clip_fractions(frame: &Image) -> (f32, f32) {
+    let n = frame.pixel_count().max(1) as f32;
+    let (o, u) = frame
+        .data
+        .par_chunks_exact(3)
+        .map(|p| {
+            let m = p[0].max(p[1]).max(p[2]);
+            ((m >= 0.98) as u32, (m <= 0.02) as u32)
+        })
+        .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+    (o as f32 / n, u as f32 / n)
+}
+
+/// k (radiance → EV0 linear signal, 1 = sensor white) such that the `key_percentile` luminance
+/// percentile (nearest rank) of `radiance` lands at `key_level` (× `exposure`) at EV0:
+/// k = level · exposure / percentile.
+pub fn exposure_key(radiance: &Image, opts: &TestsetOptions) -> std::result::Result<f32, String> {
+    let mut lum: Vec<f32> = radiance
+        .data
+        .par_chunks_exact(3)
+        .map(|p| luminance([p[0], p[1], p[2]]))
+        .collect();
+    if lum.is_empty() {
+        return Err("empty radiance map".into());
+    }
+    let idx = ((opts.key_percentile / 100.0) * (lum.len() - 1) as f64).round() as usize;
+    let idx = idx.min(lum.len() - 1);
+    let (_, p, _) = lum.select_nth_unstable_by(idx, f32::total_cmp);
+    let p = *p as f64;
+    if p <= 0.0 {
+        return Err(format!(
+            "the {}th luminance percentile is {p}: the map is black there; no exposure places it",
+            opts.key_percentile
+        ));
+    }
+    Ok((opts.key_level * opts.exposure / p) as f32)
+}
+
+/// Read a radiance map as linear Rec. 709 RGB (negatives clamped to 0), resized if asked.
+/// Returns a note when the primaries were converted.
+pub fn load_radiance(
+    path: &Path,
+    resize_to: Option<(usize, usize)>,
+) -> Result<(Image, Option<String>)> {
+    let mut img = read_image(path)?;
+    let mut note = None;
+    if let Some(m) = to_rec709_matrix(path)? {
+        img.data.par_chunks_exact_mut(3).for_each(|p| {
+            let v = [p[0], p[1], p[2]];
+            for (o, row) in p.iter_mut().zip(&m) {
+                *o = row[0] * v[0] + row[1] * v[1] + row[2] * v[2];
+            }
+        });
+        note = Some(format!(
+            "{}: converted from the file's chromaticities to linear Rec. 709 (Bradford to D65)",
+            path.display()
+        ));
+    }
+    img.data.par_iter_mut().for_each(|v| *v = v.max(0.0));
+    if let Some((w, h)) = resize_to
+        && (w, h) != (img.width, img.height)
+    {
+        img = resize(&img, w, h);
+    }
+    Ok((img, note))
+}
+
+type M3 = [[f64; 3]; 3];
+
+fn mul(a: &M3, b: &M3) -> M3 {
+    std::array::from_fn(|i| std::array::from_fn(|j| (0..3).map(|k| a[i][k] * b[k][j]).sum()))
+}
+
+fn inverse(m: &M3) -> Option<M3> {
+    let det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
+    if !det.is_finite() || det.abs() < 1e-15 {
+        return None;
+    }
+    let c =
+        |r0: usize, r1: usize, c0: usize, c1: usize| m[r0][c0] * m[r1][c1] - m[r0][c1] * m[r1][c0];
+    Some([
+        [
+            c(1, 2, 1, 2) / det,
+            -c(0, 2, 1, 2) / det,
+            c(0, 1, 1, 2) / det,
+        ],
+        [
+            -c(1, 2, 0, 2) / det,
+            c(0, 2, 0, 2) / det,
+            -c(0, 1, 0, 2) / det,
+        ],
+        [
+            c(1, 2, 0, 1) / det,
+            -c(0, 2, 0, 1) / det,
+            c(0, 1, 0, 1) / det,
+        ],
+    ])
+}
+
+/// Rec. 709 primaries and D65 white, as (x, y): red, green, blue, white.
+const REC709: [[f64; 2]; 4] = [[0.64, 0.33], [0.30, 0.60], [0.15, 0.06], [0.3127, 0.3290]];
+
+fn xyz(p: [f64; 2]) -> [f64; 3] {
+    [p[0] / p[1], 1.0, (1.0 - p[0] - p[1]) / p[1]]
+}
+
+/// RGB → XYZ of a set of primaries (columns scaled so RGB (1,1,1) is the white at Y = 1).
+fn rgb_to_xyz(c: [[f64; 2]; 4]) -> Option<M3> {
+    let cols = [xyz(c[0]), xyz(c[1]), xyz(c[2])];
+    let p: M3 = std::array::from_fn(|i| std::array::from_fn(|j| cols[j][i]));
+    let w = xyz(c[3]);
+    let inv = inverse(&p)?;
+    let s: [f64; 3] = std::array::from_fn(|i| (0..3).map(|k| inv[i][k] * w[k]).sum());
+    Some(std::array::from_fn(|i| {
+        std::array::from_fn(|j| p[i][j] * s[j])
+    }))
+}
+
+/// The file's RGB → linear Rec. 709 RGB (Bradford adaptation of its white to D65), or None
+/// when the file has no chromaticities attribute (OpenEXR's default is Rec. 709) or already
+/// has Rec. 709 / D65 ones, or is not an EXR (Radiance .hdr: Rec. 709 assumed).
+pub fn to_rec709_matrix(path: &Path) -> Result<Option<[[f32; 3]; 3]>> {
+    if crate::io::Format::from_path(path)? != crate::io::Format::Exr {
+        return Ok(None);
+    }
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut reader = std::io::BufReader::new(file);
+    // Unvalidated header read, as the image reader does (it accepts subsampled chroma).
+    let meta = exr::meta::MetaData::read_from_buffered(&mut reader, false)
+        .map_err(|e| Error::decode(path, format!("EXR header: {e}")))?;
+    let Some(ch) = meta
+        .headers
+        .first()
+        .and_then(|h| h.shared_attributes.chromaticities)
+    else {
+        return Ok(None);
+    };
+    let c = [ch.red, ch.green, ch.blue, ch.white].map(|v| [v.x() as f64, v.y() as f64]);
+    if c.iter()
+        .flatten()
+        .zip(REC709.iter().flatten())
+        .all(|(a, b)| (a - b).abs() < 1e-4)
+    {
+        return Ok(None);
+    }
+    let bad = || Error::unsupported(path, format!("degenerate chromaticities {c:?}"));
+    let src = rgb_to_xyz(c).ok_or_else(bad)?;
+    let dst_inv = inverse(&rgb_to_xyz(REC709).expect("Rec. 709 is well formed"))
+        .expect("Rec. 709 is invertible");
+    const BRADFORD: M3 = [
+        [0.8951, 0.2664, -0.1614],
+        [-0.7502, 1.7135, 0.0367],
+        [0.0389, -0.0685, 1.0296],
+    ];
+    let b_inv = inverse(&BRADFORD).expect("Bradford is invertible");
+    let cone = |w: [f64; 3]| -> [f64; 3] {
+        std::array::from_fn(|i| (0..3).map(|k| BRADFORD[i][k] * w[k]).sum())
+    };
+    let (s, d) = (cone(xyz(c[3])), cone(xyz(REC709[3])));
+    if s.iter().any(|v| v.abs() < 1e-12) {
+        return Err(bad());
+    }
+    let scale: M3 =
+        std::array::from_fn(|i| std::array::from_fn(|j| if i == j { d[i] / s[i] } else { 0.0 }));
+    let adapt = mul(&b_inv, &mul(&scale, &BRADFORD));
+    let m = mul(&dst_inv, &mul(&adapt, &src));
+    Ok(Some(m.map(|r| r.map(|v| v as f32))))
+}
+
+/// Resample to `w`×`h`, separably: each output pixel averages the input over its footprint
+/// (a box filter, exact with fractional coverage) when shrinking, bilinear (pixel centres
+/// aligned, edges clamped) when enlarging. Values are averaged as given (linear in, linear out).
+pub fn resize(img: &Image, w: usize, h: usize) -> Image {
+    if (w, h) == (img.width, img.height) || img.width == 0 || img.height == 0 {
+        return img.clone();
+    }
+    let cols = taps(img.width, w);
+    let rows = taps(img.height, h);
+    // Horizontal pass into an intermediate w × source height image, then vertical.
+    let mut mid = vec![0f32; w * img.height * 3];
+    mid.par_chunks_mut(w * 3)
+        .zip(img.data.par_chunks(img.width * 3))
+        .for_each(|(o, src)| {
+            for (x, t) in cols.iter().enumerate() {
+                let mut acc = [0f32; 3];
+                for &(i, wt) in t {
+                    for c in 0..3 {
+                        acc[c] += wt * src[i * 3 + c];
+                    }
+                }
+                o[x * 3..x * 3 + 3].copy_from_slice(&acc);
+            }
+        });
+    let mut out = Image::new(w, h);
+    out.data
+        .par_chunks_mut(w * 3)
+        .zip(rows.par_iter())
+        .for_each(|(o, t)| {
+            for &(i, wt) in t {
+                let src = &mid[i * w * 3..(i + 1) * w * 3];
+                for (a, b) in o.iter_mut().zip(src) {
+                    *a += wt * b;
+                }
+            }
+        });
+    out
+}
+
+/// Per output index, the (input index, weight) pairs of a 1-D resampling from n to m.
+fn taps(n: usize, m: usize) -> Vec<Vec<(usize, f32)>> {
+    let scale = n as f64 / m as f64;
+    (0..m)
+        .map(|o| {
+            if scale > 1.0 {
+                let (a, b) = (o as f64 * scale, (o + 1) as f64 * scale);
+                let mut t = Vec::new();
+                let mut i = a.floor() as usize;
+                while (i as f64) < b && i < n {
+                    let cover = (b.min(i as f64 + 1.0) - a.max(i as f64)).max(0.0);
+                    if cover > 0.0 {
+                        t.push((i, (cover / scale) as f32));
+                    }
+                    i += 1;
+                }
+                t
+            } else {
+                let x = ((o as f64 + 0.5) * scale - 0.5).clamp(0.0, (n - 1) as f64);
+                let i = x.floor() as usize;
+                let f = x - i as f64;
+                if i + 1 < n && f > 0.0 {
+                    vec![(i, (1.0 - f) as f32), (i + 1, f as f32)]
+                } else {
+                    vec![(i, 1.0)]
+                }
+            }
+        })
+        .collect()
+}

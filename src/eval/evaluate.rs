@@ -1,0 +1,815 @@
+//! Test-set evaluation (`hdrsynth eval`, docs/evaluation.md): per set, an output from a
+//! [`Method`] (predictions made elsewhere, or a checkpoint's network run here at full
+//! resolution), its reference, the field's metrics, and the files of [`evaluate`].
+//!
+//! Scoring:
+//! - HDR outputs (`--predictions`, Network-2) against the set's linear ground truth with
+//!   [`metrics::score`] (T = μ-law inside).
+//! - Network-1 outputs a display-referred fusion of the static (EV−3, EV0) pair, not radiance.
+//!   Its reference is what it was trained to reproduce: the Mertens fusion (OpenCV defaults,
+//!   [`ground_truth::mertens`]) of the same pair; L = the fusion before the tone curve, T =
+//!   after it (the same curve for both), scored with [`metrics::score_pair`].
+//!
+//! Memory: one set at a time; per set at most about four full-size images live at once (output,
+//! reference and, for Network-1, their tone-mapped copies), plus the tiled inference's own.
+
+use crate::data::ground_truth::{self, MertensWeights};
+use crate::data::layout::{self, GroundTruthKind, SetInfo};
+use crate::data::scene::ev_tag;
+use crate::data::testset::resize;
+use crate::error::{Error, Result};
+use crate::eval::blend::{BlendWeight, tone_curve};
+use crate::eval::infer::{self, network1_fuse, network1_tiling};
+use crate::eval::metrics::{self, MetricOptions, Pu21Scale, Scores};
+use crate::eval::report::{self, Cell, MetricSummary, SetScore};
+use crate::eval::tiling::Tiling;
+use crate::io::{BitDepth, ExrPrecision, Image, read_image, write_exr, write_ldr};
+use crate::models::BlendUNet;
+use crate::train::checkpoint;
+use crate::train::config::ModelConfig;
+use burn::module::Module;
+use burn::tensor::Device;
+use indicatif::{ProgressBar, ProgressStyle};
+use rayon::prelude::*;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// How an output and its reference are turned into scores and display images.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Scoring {
+    /// Linear HDR against linear ground truth; display = μ-law.
+    Hdr,
+    /// Network-1: L = before the curve, T = `tone_curve(L, k)` for output and reference.
+    Network1 { tone_k: f32 },
+}
+
+impl Scoring {
+    /// The display (T) value of a linear (L) value.
+    pub fn display(self, v: f32) -> f32 {
+        match self {
+            Scoring::Hdr => metrics::mu_law(v.max(0.0) as f64) as f32,
+            Scoring::Network1 { tone_k } => tone_curve(v, tone_k),
+        }
+    }
+
+    pub fn score(self, reference: &Image, output: &Image, opts: &MetricOptions) -> Result<Scores> {
+        match self {
+            Scoring::Hdr => metrics::score(reference, output, opts),
+            Scoring::Network1 { .. } => {
+                let (rt, ot) = rayon::join(
+                    || reference.map(|v| self.display(v)),
+                    || output.map(|v| self.display(v)),
+                );
+                metrics::score_pair(reference, output, &rt, &ot, opts)
+            }
+        }
+    }
+}
+
+/// A set's output and what it is scored against.
+pub struct Outcome {
+    /// Linear output (written as `<set>.exr`).
+    pub output: Image,
+    /// Reference, same size and space as `output`.
+    pub reference: Image,
+    pub scoring: Scoring,
+    /// The input frames to show in the grid.
+    pub inputs: Vec<(String, Frame)>,
+    /// Remarks for the summary (e.g. values clamped).
+    pub notes: Vec<String>,
+}
+
+/// An input frame for the grid: read when its thumbnail is made, or already in memory (made
+/// into a thumbnail before the scoring, so it does not stay alive with the full-size images).
+pub enum Frame {
+    File(PathBuf),
+    Loaded(Image),
+}
+
+/// Where a set's output comes from.
+pub trait Method {
+    /// One line for the report.
+    fn describe(&self) -> String;
+    /// `Some(what was looked for)` when the set's output does not exist (checked for every set
+    /// before any work starts).
+    fn missing(&self, _set: &SetInfo) -> Option<String> {
+        None
+    }
+    fn run(&self, set: &SetInfo) -> Result<Outcome>;
+}
+
+/// Display frames of a set for the grid: the dynamic frames (what a network sees), else the
+/// static ones.
+fn set_inputs(set: &SetInfo) -> Vec<(String, Frame)> {
+    let frames = if set.dynamic_frames.is_empty() {
+        &set.static_frames
+    } else {
+        &set.dynamic_frames
+    };
+    frames
+        .iter()
+        .zip(&set.evs)
+        .map(|(p, &ev)| (format!("input {}", ev_tag(ev)), Frame::File(p.clone())))
+        .collect()
+}
+
+fn linear_ground_truth(set: &SetInfo) -> Result<Image> {
+    match &set.ground_truth {
+        Some(gt) if gt.kind == GroundTruthKind::Linear => {
+            let img = read_image(&gt.path)?;
+            if (img.width, img.height) != (set.width, set.height) {
+                return Err(Error::layout(
+                    &gt.path,
+                    format!(
+                        "size {}×{} differs from the set's {}×{}",
+                        img.width, img.height, set.width, set.height
+                    ),
+                ));
+            }
+            Ok(img)
+        }
+        Some(gt) => Err(Error::layout(
+            &gt.path,
+            format!(
+                "set '{}': the ground truth is display-referred (8-bit), so linear HDR outputs \
+                 cannot be scored against it",
+                set.name
+            ),
+        )),
+        None => Err(Error::layout(
+            &set.dir,
+            format!("set '{}' has no ground truth", set.name),
+        )),
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Predictions made elsewhere
+
+/// Linear HDR predictions `DIR/<set name>.exr` (or `.hdr`), scored against each set's linear
+/// ground truth. Negative values are clamped to 0 (μ-law is undefined below −1/5000).
+pub struct Predictions {
+    pub dir: PathBuf,
+}
+
+impl Predictions {
+    /// The candidates for a set, in order of preference.
+    pub fn candidates(&self, set: &SetInfo) -> [PathBuf; 2] {
+        [
+            self.dir.join(format!("{}.exr", set.name)),
+            self.dir.join(format!("{}.hdr", set.name)),
+        ]
+    }
+
+    pub fn find(&self, set: &SetInfo) -> Option<PathBuf> {
+        self.candidates(set).into_iter().find(|p| p.is_file())
+    }
+}
+
+impl Method for Predictions {
+    fn describe(&self) -> String {
+        format!(
+            "predictions from {} (linear HDR, scored against each set's linear ground truth; \
+             T = μ-law, μ = 5000)",
+            self.dir.display()
+        )
+    }
+
+    fn missing(&self, set: &SetInfo) -> Option<String> {
+        if self.find(set).is_some() {
+            return None;
+        }
+        let [a, b] = self.candidates(set);
+        Some(format!("{} or {}", a.display(), b.display()))
+    }
+
+    fn run(&self, set: &SetInfo) -> Result<Outcome> {
+        let path = self.find(set).ok_or_else(|| {
+            let [a, b] = self.candidates(set);
+            Error::layout(
+                &self.dir,
+                format!(
+                    "no prediction for set '{}': looked for {} and {}",
+                    set.name,
+                    a.display(),
+                    b.display()
+                ),
+            )
+        })?;
+        // One after the other: a file's bytes and decoded planes are transient copies of the
+        // image, so parallel reads would double the peak memory for little gain (each decode
+        // is parallel already).
+        let reference = linear_ground_truth(set)?;
+        let mut output = read_image(&path)?;
+        if (output.width, output.height) != (reference.width, reference.height) {
+            return Err(Error::layout(
+                &path,
+                format!(
+                    "prediction is {}×{}, the ground truth of set '{}' is {}×{}",
+                    output.width, output.height, set.name, reference.width, reference.height
+                ),
+            ));
+        }
+        let negative = output
+            .data
+            .par_iter_mut()
+            .map(|v| {
+                let neg = *v < 0.0;
+                *v = v.max(0.0);
+                neg as usize
+            })
+            .sum::<usize>();
+        let mut notes = Vec::new();
+        if negative > 0 {
+            notes.push(format!(
+                "{}: {negative} negative values clamped to 0",
+                path.display()
+            ));
+        }
+        Ok(Outcome {
+            output,
+            reference,
+            scoring: Scoring::Hdr,
+            inputs: set_inputs(set),
+            notes,
+        })
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Networks from a checkpoint
+
+/// How to run a checkpoint's network.
+#[derive(Clone, Debug)]
+pub struct NetworkOptions {
+    /// Core tile side; None = the network's default.
+    pub tile: Option<usize>,
+    /// Context per tile side; None = the network's receptive-field radius (exact tiling).
+    pub overlap: Option<usize>,
+    /// Network-1's blend weight from its class probabilities.
+    pub weight: BlendWeight,
+    /// Network-1's tone curve k.
+    pub tone_k: f32,
+}
+
+impl Default for NetworkOptions {
+    fn default() -> Self {
+        NetworkOptions {
+            tile: None,
+            overlap: None,
+            weight: BlendWeight::Expected,
+            tone_k: crate::eval::blend::DEFAULT_TONE_K,
+        }
+    }
+}
+
+/// The method for a checkpoint (or run folder): the network its state names, weights loaded.
+pub fn from_checkpoint(
+    path: &Path,
+    opts: &NetworkOptions,
+    device: &Device,
+) -> Result<Box<dyn Method>> {
+    let dir = checkpoint::resolve(path)?;
+    let state = checkpoint::read_state(&dir)?;
+    let with = |mut t: Tiling| {
+        if let Some(v) = opts.tile {
+            t.tile = v;
+        }
+        if let Some(v) = opts.overlap {
+            t.overlap = v;
+        }
+        t
+    };
+    match &state.model {
+        ModelConfig::BlendUnet(cfg) => Ok(Box::new(Network1 {
+            model: checkpoint::load_model(cfg.init(device)?, &dir)?.valid(),
+            tiling: with(network1_tiling(cfg)),
+            weight: opts.weight,
+            tone_k: opts.tone_k,
+            device: device.clone(),
+            checkpoint: dir,
+        })),
+        ModelConfig::Wu(cfg) => {
+            let model = checkpoint::load_model(cfg.init(device)?, &dir)?.valid();
+            let tiling = with(infer::network2_tiling(cfg));
+            let device = device.clone();
+            Ok(Box::new(Network2 {
+                description: format!(
+                    "Network-2 (Wu et al.) from {}, tile {} overlap {}",
+                    dir.display(),
+                    tiling.tile,
+                    tiling.overlap
+                ),
+                infer: Box::new(move |frames, times| {
+                    infer::network2_hdr(&model, frames, times, tiling, &device)
+                }),
+            }))
+        }
+    }
+}
+
+/// Indices (short, long) of Network-1's pair: EV−3 and the reference, else the lowest EV and
+/// the reference (the rule of `hdrsynth dataset weights`).
+pub fn network1_pair(set: &SetInfo) -> Result<(usize, usize)> {
+    let r = set.reference;
+    if let Some(i) = set.evs.iter().position(|&e| e == -3.0)
+        && i != r
+    {
+        return Ok((i, r));
+    }
+    match (0..set.evs.len()).min_by(|&a, &b| set.evs[a].total_cmp(&set.evs[b])) {
+        Some(lo) if set.evs[lo] < set.evs[r] => Ok((lo, r)),
+        _ => Err(Error::layout(
+            &set.dir,
+            format!(
+                "set '{}': EVs {:?} hold no frame shorter than the reference; Network-1 needs a \
+                 short and a long exposure",
+                set.name, set.evs
+            ),
+        )),
+    }
+}
+
+/// Network-1 on the static pair, scored against the pair's Mertens fusion.
+pub struct Network1 {
+    pub model: BlendUNet,
+    pub tiling: Tiling,
+    pub weight: BlendWeight,
+    pub tone_k: f32,
+    pub device: Device,
+    pub checkpoint: PathBuf,
+}
+
+impl Method for Network1 {
+    fn describe(&self) -> String {
+        format!(
+            "Network-1 (blend-map U-Net) from {}, tile {} overlap {}, weight {:?}, tone k {}; \
+             reference = Mertens fusion (OpenCV defaults: contrast 1, saturation 1, exposure 0) \
+             of the same static pair, L before the tone curve, T after it",
+            self.checkpoint.display(),
+            self.tiling.tile,
+            self.tiling.overlap,
+            self.weight,
+            self.tone_k
+        )
+    }
+
+    fn run(&self, set: &SetInfo) -> Result<Outcome> {
+        if set.static_frames.len() != set.evs.len() {
+            return Err(Error::layout(
+                &set.dir,
+                format!(
+                    "set '{}' has no static (motion-free) frames: Network-1's reference is the \
+                     Mertens fusion of aligned frames",
+                    set.name
+                ),
+            ));
+        }
+        let (lo, hi) = network1_pair(set)?;
+        let read = |i: usize| -> Result<Image> {
+            let p = &set.static_frames[i];
+            let img = read_image(p)?;
+            layout_size(p, &img, set)?;
+            Ok(img)
+        };
+        let (low, high) = rayon::join(|| read(lo), || read(hi));
+        let (low, high) = (low?, high?);
+        let (_, output, _) = network1_fuse(
+            &self.model,
+            &low,
+            &high,
+            self.tiling,
+            self.weight,
+            self.tone_k,
+            &self.device,
+        )?;
+        let w = MertensWeights::OPENCV_DEFAULT;
+        let reference = ground_truth::mertens(&[low, high], w.contrast, w.saturation, w.exposure)?;
+        Ok(Outcome {
+            output,
+            reference,
+            scoring: Scoring::Network1 {
+                tone_k: self.tone_k,
+            },
+            inputs: [lo, hi]
+                .iter()
+                .map(|&i| {
+                    (
+                        format!("input {}", ev_tag(set.evs[i])),
+                        Frame::File(set.static_frames[i].clone()),
+                    )
+                })
+                .collect(),
+            notes: Vec::new(),
+        })
+    }
+}
+
+/// A network's full-resolution inference on three frames (shortest, reference, longest; LDR
+/// code values in [0, 1]) with exposure times relative to the reference → linear HDR of the
+/// frames' size, in the unit of the set's ground truth.
+pub type HdrInference = Box<dyn Fn([&Image; 3], [f32; 3]) -> Result<Image>>;
+
+/// Network-2 (or any three-frame HDR network) on each set's frames as
+/// [`infer::network2_frames`] picks them (the frames `hdrsynth infer --set` uses), scored
+/// against the set's linear ground truth.
+pub struct Network2 {
+    /// For the report: the network and its checkpoint.
+    pub description: String,
+    pub infer: HdrInference,
+}
+
+impl Method for Network2 {
+    fn describe(&self) -> String {
+        format!(
+            "{}; scored against each set's linear ground truth (T = μ-law, μ = 5000)",
+            self.description
+        )
+    }
+
+    fn run(&self, set: &SetInfo) -> Result<Outcome> {
+        let (frames, times) = infer::network2_frames(set)?;
+        let evs = [0, set.reference, set.evs.len() - 1].map(|i| set.evs[i]);
+        for (f, ev) in frames.iter().zip(evs) {
+            if (f.width, f.height) != (set.width, set.height) {
+                return Err(Error::layout(
+                    &set.dir,
+                    format!(
+                        "set '{}': frame {} is {}×{}, the set is {}×{}",
+                        set.name,
+                        ev_tag(ev),
+                        f.width,
+                        f.height,
+                        set.width,
+                        set.height
+                    ),
+                ));
+            }
+        }
+        let [a, b, c] = &frames;
+        let mut output = (self.infer)([a, b, c], times)?;
+        let reference = linear_ground_truth(set)?;
+        if (output.width, output.height) != (reference.width, reference.height) {
+            return Err(Error::Invalid(format!(
+                "set '{}': the network returned {}×{} for {}×{} frames",
+                set.name, output.width, output.height, reference.width, reference.height
+            )));
+        }
+        // As for predictions: μ-law needs values above −1/5000.
+        output.data.par_iter_mut().for_each(|v| *v = v.max(0.0));
+        Ok(Outcome {
+            output,
+            reference,
+            scoring: Scoring::Hdr,
+            inputs: frames
+                .into_iter()
+                .zip(evs)
+                .map(|(f, ev)| (format!("input {}", ev_tag(ev)), Frame::Loaded(f)))
+                .collect(),
+            notes: Vec::new(),
+        })
+    }
+}
+
+fn layout_size(path: &Path, img: &Image, set: &SetInfo) -> Result<()> {
+    if (img.width, img.height) != (set.width, set.height) {
+        return Err(Error::layout(
+            path,
+            format!(
+                "size {}×{} differs from the set's {}×{}",
+                img.width, img.height, set.width, set.height
+            ),
+        ));
+    }
+    Ok(())
+}
+
+// ---------------------------------------------------------------------------------------------
+// The evaluation loop
+
+#[derive(Clone, Debug)]
+pub struct EvalOptions {
+    pub metrics: MetricOptions,
+    /// Bootstrap resamples and seed of the confidence intervals.
+    pub resamples: usize,
+    pub seed: u64,
+    /// Confidence level, e.g. 0.95.
+    pub level: f64,
+    /// Skip sets without an output (listed in the summary) instead of failing.
+    pub allow_missing: bool,
+    /// Largest side of a grid thumbnail.
+    pub thumb: usize,
+    pub progress: bool,
+}
+
+impl Default for EvalOptions {
+    fn default() -> Self {
+        EvalOptions {
+            metrics: MetricOptions::default(),
+            resamples: 2000,
+            seed: 0,
+            level: 0.95,
+            allow_missing: false,
+            thumb: 512,
+            progress: false,
+        }
+    }
+}
+
+#[derive(Clone, Debug)]
+pub struct EvalSummary {
+    pub out: PathBuf,
+    pub method: String,
+    pub rows: Vec<SetScore>,
+    pub summary: Vec<MetricSummary>,
+    /// (set, what was looked for) of sets skipped with `allow_missing`.
+    pub missing: Vec<(String, String)>,
+    pub notes: Vec<String>,
+    pub seconds: f64,
+}
+
+pub const PER_IMAGE: &str = "per_image.csv";
+pub const SUMMARY_CSV: &str = "summary.csv";
+pub const SUMMARY_MD: &str = "summary.md";
+pub const REPORT: &str = "report.md";
+pub const GRIDS: &str = "grids";
+
+/// Evaluate `method` on every set of `testset` (any known layout), writing into `out`:
+/// `per_image.csv`, `summary.csv`, `summary.md`, `report.md`, per set `<set>.exr` (linear
+/// output), `<set>.png` (its display image) and `grids/<set>.png`.
+pub fn evaluate(
+    testset: &Path,
+    method: &dyn Method,
+    out: &Path,
+    opts: &EvalOptions,
+) -> Result<EvalSummary> {
+    if !(opts.level > 0.0 && opts.level < 1.0) {
+        return Err(Error::Invalid(format!(
+            "confidence level {} must be in (0, 1)",
+            opts.level
+        )));
+    }
+    let began = Instant::now();
+    let info = layout::detect(testset)?;
+    let mut missing = Vec::new();
+    let mut sets = Vec::new();
+    for set in &info.sets {
+        match method.missing(set) {
+            Some(looked) => missing.push((set.name.clone(), looked)),
+            None => sets.push(set),
+        }
+    }
+    if !missing.is_empty() && !opts.allow_missing {
+        let list: Vec<String> = missing
+            .iter()
+            .take(10)
+            .map(|(s, f)| format!("set '{s}' (looked for {f})"))
+            .collect();
+        return Err(Error::layout(
+            testset,
+            format!(
+                "no output for {} of {} set(s): {}{}; pass --allow-missing to score the others",
+                missing.len(),
+                info.sets.len(),
+                list.join(", "),
+                if missing.len() > 10 { ", …" } else { "" }
+            ),
+        ));
+    }
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    let bar = if opts.progress {
+        let b = ProgressBar::new(sets.len() as u64);
+        if let Ok(style) =
+            ProgressStyle::with_template("{bar:40} {pos}/{len} sets {elapsed_precise} {msg}")
+        {
+            b.set_style(style);
+        }
+        b
+    } else {
+        ProgressBar::hidden()
+    };
+    let mut rows = Vec::new();
+    let mut notes = Vec::new();
+    for set in sets {
+        bar.set_message(set.name.clone());
+        let row = evaluate_set(set, method, out, opts, &mut notes)?;
+        rows.push(row);
+        // Rewritten after every set so an interrupted run keeps what it scored.
+        report::write_text(&out.join(PER_IMAGE), &report::per_image_csv(&rows))?;
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    let summary = report::summarise(&rows, opts.resamples, opts.seed, opts.level);
+    let result = EvalSummary {
+        out: out.to_path_buf(),
+        method: method.describe(),
+        rows,
+        summary,
+        missing,
+        notes,
+        seconds: began.elapsed().as_secs_f64(),
+    };
+    report::write_text(&out.join(PER_IMAGE), &report::per_image_csv(&result.rows))?;
+    report::write_text(
+        &out.join(SUMMARY_CSV),
+        &report::summary_csv(&result.summary),
+    )?;
+    report::write_text(&out.join(SUMMARY_MD), &summary_md(&result, testset, opts))?;
+    report::write_text(&out.join(REPORT), &report_md(&result, testset, opts))?;
+    Ok(result)
+}
+
+fn evaluate_set(
+    set: &SetInfo,
+    method: &dyn Method,
+    out: &Path,
+    opts: &EvalOptions,
+    notes: &mut Vec<String>,
+) -> Result<SetScore> {
+    let t0 = Instant::now();
+    let outcome = method.run(set)?;
+    let Outcome {
+        output,
+        reference,
+        scoring,
+        inputs,
+        notes: set_notes,
+    } = outcome;
+    let (tw, th) = report::thumb_size(output.width, output.height, opts.thumb);
+    // Frames already in memory become thumbnails before the full-size work below.
+    let inputs: Vec<(String, Frame)> = inputs
+        .into_iter()
+        .map(|(label, f)| match f {
+            Frame::Loaded(img) => (label, Frame::Loaded(resize(&img, tw, th))),
+            file => (label, file),
+        })
+        .collect();
+    let scores = scoring
+        .score(&reference, &output, &opts.metrics)
+        .map_err(|e| Error::Invalid(format!("set '{}': {e}", set.name)))?;
+    let seconds = t0.elapsed().as_secs_f64();
+    notes.extend(set_notes);
+
+    write_exr(
+        &out.join(format!("{}.exr", set.name)),
+        &output,
+        ExrPrecision::Float,
+    )?;
+    // Display images one at a time: the full-size preview is written, then only its
+    // thumbnail is kept.
+    let out_thumb = {
+        let d = output.map(|v| scoring.display(v));
+        write_ldr(&out.join(format!("{}.png", set.name)), &d, BitDepth::Eight)?;
+        resize(&d, tw, th)
+    };
+    let ref_thumb = resize(&reference.map(|v| scoring.display(v)), tw, th);
+    let err_thumb = {
+        let mut e = Image::new(output.width, output.height);
+        e.data
+            .par_chunks_exact_mut(3)
+            .zip(output.data.par_chunks_exact(3))
+            .zip(reference.data.par_chunks_exact(3))
+            .for_each(|((e, o), r)| {
+                let m = (0..3)
+                    .map(|c| (scoring.display(o[c]) - scoring.display(r[c])).abs())
+                    .sum::<f32>()
+                    / 3.0;
+                e.fill(m);
+            });
+        let t = resize(&e, tw, th);
+        Image::from_vec(
+            tw,
+            th,
+            t.data
+                .chunks_exact(3)
+                .flat_map(|p| report::hot(p[0]))
+                .collect(),
+        )
+    };
+    drop(output);
+    drop(reference);
+    let mut input_cells = Vec::new();
+    for (label, frame) in inputs {
+        let image = match frame {
+            Frame::File(path) => resize(&read_image(&path)?, tw, th),
+            Frame::Loaded(thumb) => thumb,
+        };
+        input_cells.push(Cell { label, image });
+    }
+    let (out_label, ref_label) = match scoring {
+        Scoring::Hdr => ("output (mu-law)", "ground truth (mu-law)"),
+        Scoring::Network1 { .. } => ("output T", "Mertens reference T"),
+    };
+    let grid = report::grid(&[
+        input_cells,
+        vec![
+            Cell {
+                label: out_label.into(),
+                image: out_thumb,
+            },
+            Cell {
+                label: ref_label.into(),
+                image: ref_thumb,
+            },
+            Cell {
+                label: format!("|error| (white >= {})", report::ERROR_FULL_SCALE),
+                image: err_thumb,
+            },
+        ],
+    ])?;
+    write_ldr(
+        &out.join(GRIDS).join(format!("{}.png", set.name)),
+        &grid,
+        BitDepth::Eight,
+    )?;
+    Ok(SetScore {
+        set: set.name.clone(),
+        scores,
+        width: set.width,
+        height: set.height,
+        seconds,
+    })
+}
+
+fn setup_lines(r: &EvalSummary, testset: &Path, opts: &EvalOptions) -> String {
+    let pu21 = match opts.metrics.pu21_scale {
+        Pu21Scale::ReferenceMax => format!(
+            "reference maximum → {} cd/m² (prediction scaled by the same factor)",
+            opts.metrics.peak_luminance
+        ),
+        Pu21Scale::UnitValue => format!("value 1.0 → {} cd/m²", opts.metrics.peak_luminance),
+    };
+    format!(
+        "- test set: {}\n- method: {}\n- sets scored: {}{}\n- PU21 scaling: {pu21}\n\
+         - confidence intervals: percentile bootstrap of the mean, {} resamples, seed {}, \
+         level {}; +inf values (identical images) are left out of mean and CI and counted\n\
+         - total time: {:.1} s\n",
+        testset.display(),
+        r.method,
+        r.rows.len(),
+        if r.missing.is_empty() {
+            String::new()
+        } else {
+            format!(" ({} skipped: no output)", r.missing.len())
+        },
+        opts.resamples,
+        opts.seed,
+        opts.level,
+        r.seconds
+    )
+}
+
+fn missing_and_notes(r: &EvalSummary) -> String {
+    let mut s = String::new();
+    if !r.missing.is_empty() {
+        s.push_str("\n## Sets without output (skipped)\n\n");
+        for (set, looked) in &r.missing {
+            let _ = writeln!(s, "- {set}: looked for {looked}");
+        }
+    }
+    if !r.notes.is_empty() {
+        s.push_str("\n## Notes\n\n");
+        for n in &r.notes {
+            let _ = writeln!(s, "- {n}");
+        }
+    }
+    s
+}
+
+fn summary_md(r: &EvalSummary, testset: &Path, opts: &EvalOptions) -> String {
+    format!(
+        "# Evaluation summary\n\n{}\n{}{}",
+        setup_lines(r, testset, opts),
+        report::summary_table(&r.summary, opts.level),
+        missing_and_notes(r)
+    )
+}
+
+fn report_md(r: &EvalSummary, testset: &Path, opts: &EvalOptions) -> String {
+    let mut s = format!(
+        "# Evaluation report\n\n{}\n## Summary\n\n{}{}\n## Sets\n\n\
+         Grid per set: input frames; output, reference and the error map (mean absolute \
+         difference of the display images over RGB, black 0 … white ≥ {}).\n",
+        setup_lines(r, testset, opts),
+        report::summary_table(&r.summary, opts.level),
+        missing_and_notes(r),
+        report::ERROR_FULL_SCALE
+    );
+    for row in &r.rows {
+        let _ = write!(
+            s,
+            "\n### {}\n\n{}×{}, {:.2} s\n\n{}{}\n\n![{}](<{}/{}.png>)\n",
+            row.set,
+            row.width,
+            row.height,
+            row.seconds,
+            report::scores_header(),
+            report::scores_row(&row.scores),
+            row.set,
+            GRIDS,
+            row.set
+        );
+    }
+    s
+}

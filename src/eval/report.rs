@@ -1,0 +1,270 @@
+//! What `hdrsynth eval` writes besides the images: per-image and summary tables (CSV and
+//! Markdown), the Markdown report, and the per-set image grid (docs/evaluation.md).
+
+use crate::error::{Error, Result};
+use crate::eval::metrics::{Scores, bootstrap_ci};
+use crate::io::Image;
+use crate::io::atomic::write_atomic;
+use crate::plot::Canvas;
+use embedded_graphics::mono_font::MonoTextStyle;
+use embedded_graphics::mono_font::iso_8859_1::FONT_7X13;
+use embedded_graphics::pixelcolor::Rgb888;
+use embedded_graphics::prelude::*;
+use embedded_graphics::text::Text;
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// Metric names in table order, as the CSV columns name them.
+pub const METRICS: [&str; 6] = [
+    "psnr_l",
+    "psnr_t",
+    "ssim_l",
+    "ssim_t",
+    "pu21_psnr",
+    "pu21_ssim",
+];
+
+pub fn metric_values(s: &Scores) -> [f64; 6] {
+    [
+        s.psnr_l,
+        s.psnr_t,
+        s.ssim_l,
+        s.ssim_t,
+        s.pu21_psnr,
+        s.pu21_ssim,
+    ]
+}
+
+/// One evaluated set (a row of `per_image.csv`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SetScore {
+    pub set: String,
+    pub scores: Scores,
+    pub width: usize,
+    pub height: usize,
+    /// Producing the output (reading it, or running the network) and scoring it.
+    pub seconds: f64,
+}
+
+/// Mean and bootstrap interval of one metric over the sets.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MetricSummary {
+    pub metric: &'static str,
+    /// Sets scored.
+    pub n: usize,
+    /// Sets whose value is +inf (identical images: PSNR with MSE 0), left out of mean and CI.
+    pub n_inf: usize,
+    pub mean: f64,
+    pub lo: f64,
+    pub hi: f64,
+}
+
+/// Per metric: mean and percentile-bootstrap CI of the finite values; +inf values are counted
+/// and left out. All +inf gives mean = lo = hi = +inf; no sets gives NaNs.
+pub fn summarise(rows: &[SetScore], resamples: usize, seed: u64, level: f64) -> Vec<MetricSummary> {
+    METRICS
+        .iter()
+        .enumerate()
+        .map(|(k, &metric)| {
+            let all: Vec<f64> = rows.iter().map(|r| metric_values(&r.scores)[k]).collect();
+            let finite: Vec<f64> = all.iter().copied().filter(|v| v.is_finite()).collect();
+            let n_inf = all.iter().filter(|v| **v == f64::INFINITY).count();
+            let (mean, lo, hi) = if finite.is_empty() && n_inf > 0 {
+                (f64::INFINITY, f64::INFINITY, f64::INFINITY)
+            } else {
+                bootstrap_ci(&finite, resamples, seed, level)
+            };
+            MetricSummary {
+                metric,
+                n: all.len(),
+                n_inf,
+                mean,
+                lo,
+                hi,
+            }
+        })
+        .collect()
+}
+
+/// A CSV field, quoted when it holds a comma, quote or line break.
+pub fn csv_field(s: &str) -> String {
+    if s.contains([',', '"', '\n', '\r']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_string()
+    }
+}
+
+/// `per_image.csv`: set, the six metrics (shortest round-trip decimals; `inf` for +inf),
+/// width, height, seconds.
+pub fn per_image_csv(rows: &[SetScore]) -> String {
+    let mut out = format!("set,{},width,height,seconds\n", METRICS.join(","));
+    for r in rows {
+        let v = metric_values(&r.scores);
+        let _ = writeln!(
+            out,
+            "{},{},{},{},{:.3}",
+            csv_field(&r.set),
+            v.map(|x| x.to_string()).join(","),
+            r.width,
+            r.height,
+            r.seconds
+        );
+    }
+    out
+}
+
+/// `summary.csv`: metric, n, n_inf, mean, ci_lo, ci_hi.
+pub fn summary_csv(summary: &[MetricSummary]) -> String {
+    let mut out = String::from("metric,n,n_inf,mean,ci_lo,ci_hi\n");
+    for m in summary {
+        let _ = writeln!(
+            out,
+            "{},{},{},{},{},{}",
+            m.metric, m.n, m.n_inf, m.mean, m.lo, m.hi
+        );
+    }
+    out
+}
+
+fn fmt_value(metric: &str, v: f64) -> String {
+    if v.is_infinite() || v.is_nan() {
+        format!("{v}")
+    } else if metric.contains("ssim") {
+        format!("{v:.4}")
+    } else {
+        format!("{v:.2}")
+    }
+}
+
+/// Markdown table of the summary.
+pub fn summary_table(summary: &[MetricSummary], level: f64) -> String {
+    let mut out = format!(
+        "| metric | mean | {:.0} % CI | n | +inf (excluded) |\n|---|---|---|---|---|\n",
+        level * 100.0
+    );
+    for m in summary {
+        let _ = writeln!(
+            out,
+            "| {} | {} | [{}, {}] | {} | {} |",
+            m.metric,
+            fmt_value(m.metric, m.mean),
+            fmt_value(m.metric, m.lo),
+            fmt_value(m.metric, m.hi),
+            m.n,
+            m.n_inf
+        );
+    }
+    out
+}
+
+/// One row of a per-set Markdown table.
+pub fn scores_row(s: &Scores) -> String {
+    let v = metric_values(s);
+    let cells: Vec<String> = METRICS
+        .iter()
+        .zip(v)
+        .map(|(m, x)| fmt_value(m, x))
+        .collect();
+    format!("| {} |", cells.join(" | "))
+}
+
+pub fn scores_header() -> String {
+    format!(
+        "| {} |\n|{}\n",
+        METRICS.join(" | "),
+        "---|".repeat(METRICS.len())
+    )
+}
+
+pub fn write_text(path: &Path, text: &str) -> Result<()> {
+    write_atomic(path, text.as_bytes())
+}
+
+// ---------------------------------------------------------------------------------------------
+// Image grid
+
+/// Full scale of the error map: mean |display(output) − display(reference)| over RGB at or
+/// above this is white.
+pub const ERROR_FULL_SCALE: f32 = 0.2;
+
+/// "Hot" colour ramp of an error in [0, ERROR_FULL_SCALE]: black → red → yellow → white.
+pub fn hot(e: f32) -> [f32; 3] {
+    let t = (e / ERROR_FULL_SCALE).clamp(0.0, 1.0) * 3.0;
+    [
+        t.min(1.0),
+        (t - 1.0).clamp(0.0, 1.0),
+        (t - 2.0).clamp(0.0, 1.0),
+    ]
+}
+
+/// Thumbnail size of a w×h image that fits in `max`×`max` (never enlarged).
+pub fn thumb_size(w: usize, h: usize, max: usize) -> (usize, usize) {
+    let s = (max as f64 / w as f64).min(max as f64 / h as f64).min(1.0);
+    (
+        ((w as f64 * s).round() as usize).max(1),
+        ((h as f64 * s).round() as usize).max(1),
+    )
+}
+
+/// A labelled picture of the grid.
+pub struct Cell {
+    pub label: String,
+    pub image: Image,
+}
+
+const LABEL_H: usize = 18;
+const GAP: usize = 6;
+
+/// Rows of labelled thumbnails on white, each cell as wide as the widest thumbnail.
+pub fn grid(rows: &[Vec<Cell>]) -> Result<Image> {
+    let cols = rows.iter().map(Vec::len).max().unwrap_or(0);
+    if cols == 0 {
+        return Err(Error::Invalid("grid: no cells".into()));
+    }
+    let cw = rows
+        .iter()
+        .flatten()
+        .map(|c| c.image.width)
+        .max()
+        .unwrap_or(1);
+    let row_h: Vec<usize> = rows
+        .iter()
+        .map(|r| r.iter().map(|c| c.image.height).max().unwrap_or(0) + LABEL_H)
+        .collect();
+    let w = cols * (cw + GAP) + GAP;
+    let h = row_h.iter().map(|r| r + GAP).sum::<usize>() + GAP;
+    let mut canvas = Canvas::new(w, h);
+    let ink = MonoTextStyle::new(&FONT_7X13, Rgb888::new(20, 20, 20));
+    let mut y0 = GAP;
+    for (r, row) in rows.iter().enumerate() {
+        for (c, cell) in row.iter().enumerate() {
+            let x0 = GAP + c * (cw + GAP);
+            // Labels longer than the cell are cut, not wrapped: the report has the full names.
+            let max_chars = cw / 7;
+            let label: String = cell.label.chars().take(max_chars).collect();
+            let _ = Text::new(
+                &label,
+                Point::new(x0 as i32, (y0 + LABEL_H - 6) as i32),
+                ink,
+            )
+            .draw(&mut canvas);
+        }
+        y0 += row_h[r] + GAP;
+    }
+    let mut img = canvas.into_image();
+    let mut y0 = GAP;
+    for (r, row) in rows.iter().enumerate() {
+        for (c, cell) in row.iter().enumerate() {
+            let x0 = GAP + c * (cw + GAP);
+            for y in 0..cell.image.height {
+                for x in 0..cell.image.width {
+                    let v = cell.image.get(x, y).map(|v| v.clamp(0.0, 1.0));
+                    img.set(x0 + x, y0 + LABEL_H + y, v);
+                }
+            }
+        }
+        y0 += row_h[r] + GAP;
+    }
+    Ok(img)
+}

@@ -1,0 +1,554 @@
+//! `hdrsynth eval` (predictions and checkpoints) and `hdrsynth testset` on small images:
+//! hand-checked scores, inf handling, the output files, error messages, and test sets that read
+//! back through the layout detection.
+
+use hdrsynth::cli::eval::Args as EvalArgs;
+use hdrsynth::config::{GenerateConfig, parse_toml};
+use hdrsynth::data::layout::{self, LayoutKind};
+use hdrsynth::data::testset::{self, TestsetOptions};
+use hdrsynth::eval::blend::{DEFAULT_TONE_K, fuse};
+use hdrsynth::eval::metrics;
+use hdrsynth::io::{BitDepth, ExrPrecision, Image, read_image, read_image_info, write_exr};
+use hdrsynth::sensor::profile::SensorProfile;
+use hdrsynth::sensor::realism::NoiseModel;
+use hdrsynth::train::TrainOptions;
+use hdrsynth::train::config::TrainConfig;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::OnceLock;
+
+/// A small generated test set (EV −3/0, linear ground truth), shared by the tests.
+fn dataset() -> &'static Path {
+    static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();
+    DIR.get_or_init(|| {
+        let dir = tempfile::tempdir().expect("tmp");
+        let text = "seed = 5\ncount = 4\nwidth = 64\nheight = 48\nevs = [-3.0, 0.0]\n\
+                    [camera]\ncandidates = 4\n";
+        let mut c: GenerateConfig = parse_toml(text, Path::new("gen.toml")).expect("config");
+        c.source = None;
+        hdrsynth::cli::generate::generate(&c, dir.path(), false).expect("generate");
+        dir
+    })
+    .path()
+}
+
+fn shared_data() -> Option<PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
+    if dir.is_dir() {
+        Some(dir)
+    } else {
+        eprintln!("skipped: {} is absent", dir.display());
+        None
+    }
+}
+
+fn set_names() -> Vec<String> {
+    layout::detect(dataset())
+        .expect("detect")
+        .sets
+        .into_iter()
+        .map(|s| s.name)
+        .collect()
+}
+
+fn gt_path(set: &str) -> PathBuf {
+    dataset().join(set).join("hdr_gt.exr")
+}
+
+/// Predictions = ground truth × `factor`, one EXR per set.
+fn predictions(dir: &Path, factor: f32) {
+    std::fs::create_dir_all(dir).expect("mkdir");
+    for s in set_names() {
+        let gt = read_image(&gt_path(&s)).expect("gt");
+        write_exr(
+            &dir.join(format!("{s}.exr")),
+            &gt.map(|v| v * factor),
+            ExrPrecision::Float,
+        )
+        .expect("write");
+    }
+}
+
+/// per_image.csv as (header, rows of fields).
+fn read_csv(path: &Path) -> (Vec<String>, Vec<Vec<String>>) {
+    let text = std::fs::read_to_string(path).expect("csv");
+    let mut lines = text.lines();
+    let header = lines
+        .next()
+        .expect("header")
+        .split(',')
+        .map(String::from)
+        .collect();
+    let rows = lines
+        .map(|l| l.split(',').map(String::from).collect())
+        .collect();
+    (header, rows)
+}
+
+fn num(s: &str) -> f64 {
+    s.parse().unwrap_or_else(|_| panic!("not a number: {s}"))
+}
+
+fn check_outputs(out: &Path, sets: &[String]) {
+    for f in ["per_image.csv", "summary.csv", "summary.md", "report.md"] {
+        assert!(out.join(f).is_file(), "{f} missing");
+    }
+    let report = std::fs::read_to_string(out.join("report.md")).expect("report");
+    for s in sets {
+        assert!(out.join(format!("{s}.exr")).is_file(), "{s}.exr");
+        assert!(out.join(format!("{s}.png")).is_file(), "{s}.png");
+        let grid = out.join("grids").join(format!("{s}.png"));
+        let (img, info) = read_image_info(&grid).expect("grid");
+        assert_eq!(info.bit_depth, Some(BitDepth::Eight));
+        assert!(img.width > 2 * 64 && img.height > 2 * 48, "grid too small");
+        assert!(
+            report.contains(&format!("grids/{s}.png")),
+            "report lacks {s}"
+        );
+    }
+}
+
+#[test]
+fn predictions_equal_to_the_ground_truth_give_inf_psnr_and_ssim_1() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let (pred, out) = (tmp.path().join("pred"), tmp.path().join("out"));
+    predictions(&pred, 1.0);
+    let r = hdrsynth::cli::eval::evaluate(&EvalArgs::predictions(dataset(), &pred, &out))
+        .expect("eval");
+    let sets = set_names();
+    assert_eq!(r.rows.len(), sets.len());
+    let (header, rows) = read_csv(&out.join("per_image.csv"));
+    assert_eq!(
+        header,
+        [
+            "set",
+            "psnr_l",
+            "psnr_t",
+            "ssim_l",
+            "ssim_t",
+            "pu21_psnr",
+            "pu21_ssim",
+            "width",
+            "height",
+            "seconds"
+        ]
+    );
+    for row in &rows {
+        assert_eq!(row[1], "inf");
+        assert_eq!(row[2], "inf");
+        assert_eq!(num(&row[3]), 1.0);
+        assert_eq!(num(&row[4]), 1.0);
+        assert_eq!(row[5], "inf");
+        assert!((num(&row[6]) - 1.0).abs() < 1e-12);
+        assert_eq!((num(&row[7]), num(&row[8])), (64.0, 48.0));
+    }
+    // Summary: +inf values are counted and left out; all +inf gives an infinite mean.
+    let (h, summary) = read_csv(&out.join("summary.csv"));
+    assert_eq!(h, ["metric", "n", "n_inf", "mean", "ci_lo", "ci_hi"]);
+    let psnr_l = summary.iter().find(|r| r[0] == "psnr_l").expect("psnr_l");
+    assert_eq!(num(&psnr_l[1]) as usize, sets.len());
+    assert_eq!(num(&psnr_l[2]) as usize, sets.len());
+    assert_eq!(psnr_l[3], "inf");
+    let ssim_t = summary.iter().find(|r| r[0] == "ssim_t").expect("ssim_t");
+    assert_eq!(num(&ssim_t[2]), 0.0);
+    assert_eq!(
+        (num(&ssim_t[3]), num(&ssim_t[4]), num(&ssim_t[5])),
+        (1.0, 1.0, 1.0)
+    );
+    let md = std::fs::read_to_string(out.join("summary.md")).expect("md");
+    assert!(md.contains("+inf (excluded)"), "{md}");
+    check_outputs(&out, &sets);
+    // The written output is the prediction, bit for bit.
+    let s = &sets[0];
+    assert_eq!(
+        read_image(&out.join(format!("{s}.exr"))).expect("out"),
+        read_image(&gt_path(s)).expect("gt")
+    );
+}
+
+#[test]
+fn predictions_scaled_by_1_1_give_the_hand_computed_psnr_l() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let (pred, out) = (tmp.path().join("pred"), tmp.path().join("out"));
+    predictions(&pred, 1.1);
+    // Through the binary: the CLI wiring is part of what is tested.
+    let st = Command::new(env!("CARGO_BIN_EXE_hdrsynth"))
+        .args(["eval", "--quiet", "--resamples", "500", "--predictions"])
+        .arg(&pred)
+        .arg("--testset")
+        .arg(dataset())
+        .arg("--out")
+        .arg(&out)
+        .status()
+        .expect("run");
+    assert!(st.success());
+    let (_, rows) = read_csv(&out.join("per_image.csv"));
+    assert_eq!(rows.len(), set_names().len());
+    for row in &rows {
+        let gt = read_image(&gt_path(&row[0])).expect("gt");
+        // PSNR-L = 10 log10(1 / MSE), MSE = mean((1.1 gt − gt)²) = (0.1 · rms(gt))².
+        let rms = (gt.data.iter().map(|&v| (v as f64).powi(2)).sum::<f64>() / gt.data.len() as f64)
+            .sqrt();
+        let hand = 20.0 * (1.0 / (0.1 * rms)).log10();
+        let got = num(&row[1]);
+        // The prediction is 1.1·gt rounded to f32: ≈1e-7 relative per value.
+        assert!(
+            (got - hand).abs() < 1e-4,
+            "{}: PSNR-L {got} vs hand {hand}",
+            row[0]
+        );
+        for v in &row[1..7] {
+            assert!(num(v).is_finite(), "{}: {v}", row[0]);
+        }
+    }
+    let (_, summary) = read_csv(&out.join("summary.csv"));
+    assert_eq!(summary.len(), 6);
+    for r in &summary {
+        let (mean, lo, hi) = (num(&r[3]), num(&r[4]), num(&r[5]));
+        assert!(lo <= mean && mean <= hi, "{}: {lo} {mean} {hi}", r[0]);
+        assert_eq!(num(&r[2]), 0.0);
+    }
+    // The mean is the mean of the per-image values.
+    let mean_l = rows.iter().map(|r| num(&r[1])).sum::<f64>() / rows.len() as f64;
+    assert!((num(&summary[0][3]) - mean_l).abs() < 1e-9);
+    check_outputs(&out, &set_names());
+}
+
+#[test]
+fn a_missing_prediction_is_an_error_naming_the_set_unless_allowed() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let (pred, out) = (tmp.path().join("pred"), tmp.path().join("out"));
+    predictions(&pred, 1.0);
+    let sets = set_names();
+    let gone = &sets[1];
+    std::fs::remove_file(pred.join(format!("{gone}.exr"))).expect("rm");
+    let args = EvalArgs::predictions(dataset(), &pred, &out);
+    let err = hdrsynth::cli::eval::evaluate(&args).expect_err("missing");
+    let msg = format!("{err:#}");
+    assert!(msg.contains(&format!("set '{gone}'")), "{msg}");
+    assert!(
+        msg.contains(&pred.join(format!("{gone}.exr")).display().to_string()),
+        "{msg}"
+    );
+    assert!(!out.join("per_image.csv").exists(), "nothing is written");
+
+    let allowed = EvalArgs {
+        allow_missing: true,
+        ..args
+    };
+    let r = hdrsynth::cli::eval::evaluate(&allowed).expect("allowed");
+    assert_eq!(r.rows.len(), sets.len() - 1);
+    assert_eq!(r.missing.len(), 1);
+    assert_eq!(&r.missing[0].0, gone);
+    let md = std::fs::read_to_string(out.join("summary.md")).expect("md");
+    assert!(md.contains(gone.as_str()), "{md}");
+}
+
+#[test]
+fn a_prediction_of_the_wrong_size_is_an_error_naming_the_file() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let (pred, out) = (tmp.path().join("pred"), tmp.path().join("out"));
+    predictions(&pred, 1.0);
+    let s = &set_names()[0];
+    let bad = pred.join(format!("{s}.exr"));
+    write_exr(&bad, &Image::new(32, 24), ExrPrecision::Float).expect("write");
+    let err = hdrsynth::cli::eval::evaluate(&EvalArgs::predictions(dataset(), &pred, &out))
+        .expect_err("size");
+    let msg = format!("{err:#}");
+    assert!(msg.contains(&bad.display().to_string()), "{msg}");
+    assert!(msg.contains("32×24") && msg.contains("64×48"), "{msg}");
+}
+
+/// The Network-1 reference is the pair's Mertens fusion: a network that predicted the Mertens
+/// weights exactly would score (nearly) perfectly, so the comparison measures the blend map.
+#[test]
+fn network1_reference_is_what_perfect_blend_weights_reproduce() {
+    let set = &layout::detect(dataset()).expect("detect").sets[0];
+    let low = read_image(&set.static_frames[0]).expect("low");
+    let high = read_image(&set.static_frames[1]).expect("high");
+    let w = hdrsynth::data::ground_truth::blend_weights_high(&low, &high).expect("w");
+    let (l, _) = fuse(&low, &high, &w, DEFAULT_TONE_K).expect("fuse");
+    let reference =
+        hdrsynth::data::ground_truth::mertens(&[low, high], 1.0, 1.0, 0.0).expect("mertens");
+    let p = metrics::psnr(&reference, &l, 1.0).expect("psnr");
+    assert!(p > 60.0, "oracle weights give PSNR-L {p}");
+}
+
+fn train_config(run: &Path) -> TrainConfig {
+    let text = format!(
+        "[run]\nout = {run:?}\nseed = 3\nsteps = 2\ncheckpoint_every = 2\nlog_every = 1\n\
+         [model]\nkind = \"blend_unet\"\nbase_width = 4\ndepth = 2\nbatch_norm = true\n\
+         [data]\ndataset = {:?}\npatch = 32\nbatch_size = 2\nworkers = 1\nprofile = \"pure\"\n\
+         [optim]\nlr = 1e-3\n",
+        dataset()
+    );
+    let cfg: TrainConfig = parse_toml(&text, Path::new("train.toml")).expect("train config");
+    cfg.validate().expect("valid");
+    cfg
+}
+
+#[test]
+fn a_tiny_network1_checkpoint_is_evaluated_at_full_resolution() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let run = tmp.path().join("run");
+    hdrsynth::train::run(&train_config(&run), &TrainOptions::default()).expect("train");
+    let out = tmp.path().join("out");
+    // Tiles of 32 (a multiple of 2^depth = 4) on 64×48 frames: several windows per set.
+    let args = EvalArgs {
+        tile: Some(32),
+        ..EvalArgs::checkpoint(dataset(), &run, &out)
+    };
+    let r = hdrsynth::cli::eval::evaluate(&args).expect("eval");
+    assert_eq!(r.rows.len(), set_names().len());
+    assert!(r.method.contains("Mertens"), "{}", r.method);
+    for row in &r.rows {
+        let v = [
+            row.scores.psnr_l,
+            row.scores.psnr_t,
+            row.scores.ssim_l,
+            row.scores.ssim_t,
+            row.scores.pu21_psnr,
+            row.scores.pu21_ssim,
+        ];
+        assert!(v.iter().all(|x| x.is_finite()), "{}: {v:?}", row.set);
+        assert!(row.scores.ssim_t > 0.0 && row.scores.ssim_t <= 1.0);
+    }
+    check_outputs(&out, &set_names());
+    // The preview is T of the written L output.
+    let s = &set_names()[0];
+    let l = read_image(&out.join(format!("{s}.exr"))).expect("L");
+    let t = read_image(&out.join(format!("{s}.png"))).expect("T");
+    let want = hdrsynth::eval::blend::tone_curve(l.data[0], DEFAULT_TONE_K);
+    assert!((t.data[0] - want).abs() <= 0.5 / 255.0 + 1e-6);
+    for summary in &r.summary {
+        assert!(summary.lo <= summary.mean && summary.mean <= summary.hi);
+    }
+}
+
+/// A synthetic linear radiance map with a wide range (a horizontal ramp over 12 stops, tinted).
+fn radiance_map(w: usize, h: usize) -> Image {
+    Image::from_fn(w, h, |x, y| {
+        let v = (x as f32 / (w - 1) as f32 * 12.0 - 8.0).exp2();
+        let t = y as f32 / (h - 1) as f32;
+        [v * (0.6 + 0.4 * t), v, v * (1.0 - 0.3 * t)]
+    })
+}
+
+fn canon() -> SensorProfile {
+    SensorProfile::load(&SensorProfile::shipped_dir().join("canon_eos_550d.toml")).expect("profile")
+}
+
+#[test]
+fn a_testset_from_a_linear_exr_reads_back_with_the_radiance_in_device_space() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let src = tmp.path().join("ramp scene.exr");
+    let radiance = radiance_map(40, 30);
+    write_exr(&src, &radiance, ExrPrecision::Float).expect("write");
+    let out = tmp.path().join("ts");
+    let opts = TestsetOptions {
+        isos: vec![100.0, 1600.0],
+        evs: vec![-2.0, 0.0, 2.0],
+        noise: NoiseModel::None,
+        colour: false,
+        ..TestsetOptions::default()
+    };
+    let summary = testset::build(&src, &canon(), &opts, &out).expect("build");
+    assert_eq!(summary.sets.len(), 2);
+    let info = layout::detect(&out).expect("detect");
+    assert_eq!(info.layout, LayoutKind::Hdrsynth);
+    let names: Vec<&str> = info.sets.iter().map(|s| s.name.as_str()).collect();
+    assert_eq!(names, ["ramp_scene_iso100", "ramp_scene_iso1600"]);
+
+    // Hand key: the 99th percentile (nearest rank) of Rec. 709 luminance lands at 0.9 at EV0.
+    let mut lum: Vec<f32> = radiance.pixels().map(hdrsynth::io::luminance).collect();
+    lum.sort_by(f32::total_cmp);
+    let p99 = lum[(0.99 * (lum.len() - 1) as f64).round() as usize];
+    let k = 0.9 / p99;
+    assert!((summary.sets[0].key - k).abs() <= 1e-6 * k);
+
+    let profile = canon();
+    let l = &profile.levels;
+    for set in &info.sets {
+        assert_eq!(set.evs, [-2.0, 0.0, 2.0]);
+        assert_eq!(set.reference, 1);
+        assert_eq!((set.width, set.height), (40, 30));
+        for f in set.static_frames.iter().chain(&set.dynamic_frames) {
+            let (_, i) = read_image_info(f).expect("frame");
+            assert_eq!(i.bit_depth, Some(BitDepth::Eight), "{}", f.display());
+        }
+        // hdr_gt.exr = radiance · k (colour off: T = identity), 1 = sensor white at EV0.
+        let gt = read_image(&set.ground_truth.as_ref().expect("gt").path).expect("gt");
+        let (x, y) = (17, 11);
+        let (r, g) = (radiance.get(x, y), gt.get(x, y));
+        for c in 0..3 {
+            assert!(
+                (g[c] - r[c] * k).abs() <= 1e-6 * r[c] * k,
+                "{g:?} vs {r:?}·{k}"
+            );
+        }
+        // A frame pixel by hand: DN = round(black + v·k·2^ev·(white − black)) clipped to white,
+        // code = round(255 · sRGB((DN − black)/(white − black))) / 255 (noise off).
+        for (i, &ev) in set.evs.iter().enumerate() {
+            let frame = read_image(&set.static_frames[i]).expect("frame");
+            let range = l.white_level - l.black_level;
+            let px = frame.get(x, y);
+            for (c, (&v, &got)) in r.iter().zip(&px).enumerate() {
+                let dn = (l.black_level + v as f64 * k as f64 * (ev as f64).exp2() * range)
+                    .min(l.white_level.floor())
+                    .round();
+                let signal = ((dn - l.black_level) / range) as f32;
+                let want = (hdrsynth::io::srgb_encode(signal) * 255.0).round() / 255.0;
+                assert!(
+                    (got - want).abs() <= 1.0 / 255.0 + 1e-6,
+                    "ev {ev} channel {c}: {got} vs {want}"
+                );
+            }
+        }
+    }
+    // The same recipe again keeps the sets; another recipe in the same folder is refused.
+    let again = testset::build(&src, &profile, &opts, &out).expect("rebuild");
+    assert!(again.sets.iter().all(|s| !s.written));
+    let other = TestsetOptions {
+        seed: 9,
+        ..opts.clone()
+    };
+    let err = testset::build(&src, &profile, &other, &out).expect_err("other recipe");
+    assert!(err.to_string().contains("different recipe"), "{err}");
+}
+
+#[test]
+fn a_testset_from_real_radiance_has_noise_colour_and_scores_through_eval() {
+    let Some(shared) = shared_data() else { return };
+    let desk = shared.join("real_hdr/Desk.exr");
+    let tmp = tempfile::tempdir().expect("tmp");
+    let out = tmp.path().join("ts");
+    // Through the binary, the Network-1 bracket; resized small for speed.
+    let st = Command::new(env!("CARGO_BIN_EXE_hdrsynth"))
+        .args(["testset", "--radiance"])
+        .arg(&desk)
+        .arg("--profile")
+        .arg(SensorProfile::shipped_dir().join("canon_eos_550d.toml"))
+        .arg("--out")
+        .arg(&out)
+        .args([
+            "--isos",
+            "100,3200",
+            "--evs=-3,0",
+            "--resize",
+            "96x128",
+            "--seed",
+            "4",
+        ])
+        .status()
+        .expect("run");
+    assert!(st.success());
+    let info = layout::detect(&out).expect("detect");
+    let names: Vec<&str> = info.sets.iter().map(|s| s.name.as_str()).collect();
+    assert_eq!(names, ["Desk_iso100", "Desk_iso3200"]);
+    let a = read_image(&info.sets[0].static_frames[1]).expect("a");
+    let b = read_image(&info.sets[1].static_frames[1]).expect("b");
+    assert_eq!((a.width, a.height), (96, 128));
+    // Different ISOs: different noise on the same scene, same ground truth.
+    assert_ne!(a, b);
+    let ga = read_image(&info.sets[0].ground_truth.as_ref().unwrap().path).expect("gt");
+    let gb = read_image(&info.sets[1].ground_truth.as_ref().unwrap().path).expect("gt");
+    assert_eq!(ga, gb);
+    // The static scene's dynamic frames are the static ones.
+    assert_eq!(
+        std::fs::read(&info.sets[0].static_frames[0]).unwrap(),
+        std::fs::read(&info.sets[0].dynamic_frames[0]).unwrap()
+    );
+    // Scoring the ground truth against itself through eval works on this layout.
+    let pred = tmp.path().join("pred");
+    std::fs::create_dir_all(&pred).unwrap();
+    for s in &info.sets {
+        std::fs::copy(
+            &s.ground_truth.as_ref().unwrap().path,
+            pred.join(format!("{}.exr", s.name)),
+        )
+        .unwrap();
+    }
+    let r =
+        hdrsynth::cli::eval::evaluate(&EvalArgs::predictions(&out, &pred, tmp.path().join("eval")))
+            .expect("eval");
+    assert!(r.rows.iter().all(|r| r.scores.psnr_l == f64::INFINITY));
+}
+
+/// The Network-2 path with a stand-in network (the reference frame linearised with γ 2.2):
+/// frames (EV −2, 0, +2) with exposure times 1/4, 1, 4, scored against the linear ground truth.
+#[test]
+fn a_multi_frame_hdr_network_is_scored_against_the_linear_ground_truth() {
+    use hdrsynth::eval::evaluate::{self, EvalOptions, Network2};
+    let tmp = tempfile::tempdir().expect("tmp");
+    let data = dataset3();
+    let method = Network2 {
+        description: "stand-in".into(),
+        infer: Box::new(|frames: [&Image; 3], times: [f32; 3]| {
+            assert_eq!(times, [0.25, 1.0, 4.0]);
+            Ok(frames[1].map(|v| v.powf(2.2) / times[1]))
+        }),
+    };
+    let out = tmp.path().join("out");
+    let r = evaluate::evaluate(data, &method, &out, &EvalOptions::default()).expect("eval");
+    assert_eq!(r.rows.len(), 2);
+    for row in &r.rows {
+        assert!(row.scores.psnr_t.is_finite() && row.scores.ssim_t < 1.0);
+    }
+    let names: Vec<String> = r.rows.iter().map(|r| r.set.clone()).collect();
+    for s in &names {
+        assert!(out.join("grids").join(format!("{s}.png")).is_file());
+    }
+    // The grid shows the three input frames in its first row.
+    let grid = read_image(&out.join("grids").join(format!("{}.png", names[0]))).expect("grid");
+    assert!(grid.width >= 3 * 48);
+}
+
+/// A small generated set with the Network-2 bracket (EV −2/0/+2).
+fn dataset3() -> &'static Path {
+    static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();
+    DIR.get_or_init(|| {
+        let dir = tempfile::tempdir().expect("tmp");
+        let text = "seed = 8\ncount = 2\nwidth = 48\nheight = 40\nevs = [-2.0, 0.0, 2.0]\n\
+                    [camera]\ncandidates = 2\n";
+        let mut c: GenerateConfig = parse_toml(text, Path::new("gen.toml")).expect("config");
+        c.source = None;
+        hdrsynth::cli::generate::generate(&c, dir.path(), false).expect("generate");
+        dir
+    })
+    .path()
+}
+
+#[test]
+fn a_tiny_network2_checkpoint_is_evaluated_through_the_binary() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let run = tmp.path().join("run");
+    let text = format!(
+        "[run]\nout = {run:?}\nseed = 4\nsteps = 2\ncheckpoint_every = 2\nlog_every = 1\n\
+         [model]\nkind = \"wu\"\nbase_width = 4\nres_blocks = 1\n\
+         [data]\ndataset = {:?}\npatch = 32\nbatch_size = 2\nworkers = 1\nprofile = \"pure\"\n\
+         [optim]\nlr = 1e-3\n",
+        dataset3()
+    );
+    let cfg: TrainConfig = parse_toml(&text, Path::new("net2.toml")).expect("config");
+    hdrsynth::train::run(&cfg, &TrainOptions::default()).expect("train");
+    let out = tmp.path().join("out");
+    let st = Command::new(env!("CARGO_BIN_EXE_hdrsynth"))
+        .args(["eval", "--quiet", "--checkpoint"])
+        .arg(&run)
+        .arg("--testset")
+        .arg(dataset3())
+        .arg("--out")
+        .arg(&out)
+        .status()
+        .expect("run");
+    assert!(st.success());
+    let (_, rows) = read_csv(&out.join("per_image.csv"));
+    assert_eq!(rows.len(), 2);
+    for row in &rows {
+        for v in &row[1..7] {
+            assert!(num(v).is_finite(), "{}: {v}", row[0]);
+        }
+    }
+    let md = std::fs::read_to_string(out.join("summary.md")).expect("md");
+    assert!(md.contains("Network-2"), "{md}");
+}
