@@ -12,10 +12,7 @@ use hdrsynth::train::network1_step;
 /// Burn's seed is global to the backend and the tests of this file run on parallel threads:
 /// seeding and initialising under one lock keeps each test's initial weights reproducible.
 fn seeded_init(cfg: &BlendUNetConfig, dev: &Device, seed: u64) -> BlendUNet {
-    static INIT: std::sync::Mutex<()> = std::sync::Mutex::new(());
-    let _guard = INIT.lock().unwrap_or_else(|e| e.into_inner());
-    dev.seed(seed);
-    cfg.init(dev).expect("init")
+    hdrsynth::train::seeded_init(dev, seed, || cfg.init(dev)).expect("init")
 }
 
 fn tiny() -> BlendUNetConfig {
@@ -62,7 +59,7 @@ fn parameter_count_matches_hand_count() {
     assert_eq!(tiny().trainable_parameters(), 33_508);
     // Burn's count also includes BatchNorm's running mean and variance: 2 per BN channel,
     // BN channels 2·(4 + 8 + 16) + 2·(4 + 8) = 80.
-    let model = tiny().init(&Device::flex()).expect("init");
+    let model = seeded_init(&tiny(), &Device::flex(), 0);
     assert_eq!(model.num_params(), 33_508 + 160);
 }
 
@@ -90,7 +87,7 @@ fn default_output_shape_and_probabilities_sum_to_one() {
 #[test]
 fn input_size_is_checked_and_padding_variant_accepts_any_size() {
     let dev = Device::flex();
-    let model = tiny().init(&dev).expect("init");
+    let model = seeded_init(&tiny(), &dev, 0);
     assert!(model.check_input(6, 16, 12).is_ok());
     let e = model.check_input(6, 16, 10).unwrap_err().to_string();
     assert!(e.contains("multiple of 2^depth = 4"), "{e}");
@@ -109,7 +106,7 @@ fn input_size_is_checked_and_padding_variant_accepts_any_size() {
 #[should_panic(expected = "is not a multiple of 2^depth = 4")]
 fn forward_rejects_sizes_not_a_multiple_of_two_to_the_depth() {
     let dev = Device::flex();
-    let model = tiny().init(&dev).expect("init");
+    let model = seeded_init(&tiny(), &dev, 0);
     let _ = model.forward(input(1, 10, 3, &dev));
 }
 

@@ -105,14 +105,13 @@ fn a_short_run_raises_psnr_t_on_held_out_sets_and_infers_whole_sets() {
     // run from the file; its step-0 validation is the trained model's.
     let dir = hdrsynth::train::checkpoint::resolve(&run).expect("checkpoint");
     let dev = Device::flex();
+    let fresh = WuConfig {
+        base_width: 8,
+        res_blocks: 2,
+        ..WuConfig::default()
+    };
     let trained = hdrsynth::train::checkpoint::load_model(
-        WuConfig {
-            base_width: 8,
-            res_blocks: 2,
-            ..WuConfig::default()
-        }
-        .init(&dev)
-        .expect("init"),
+        hdrsynth::train::seeded_init(&dev, 0, || fresh.init(&dev)).expect("init"),
         &dir,
     )
     .expect("load");

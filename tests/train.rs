@@ -66,8 +66,11 @@ fn load_final(run: &Path) -> Vec<Vec<f32>> {
     let ModelConfig::BlendUnet(cfg) = state.model else {
         panic!("a Network-1 checkpoint expected");
     };
-    let model =
-        checkpoint::load_model(cfg.init(&Device::flex()).expect("init"), &dir).expect("load");
+    let model = checkpoint::load_model(
+        seeded_init(&Device::flex(), 0, || cfg.init(&Device::flex())).expect("init"),
+        &dir,
+    )
+    .expect("load");
     params(&model)
 }
 
@@ -211,7 +214,11 @@ fn checkpoint_reload_gives_bit_identical_outputs() {
         base_width: 8,
         ..cfg
     };
-    let err = checkpoint::load_model(wide.init(&dev).expect("init"), &dir).expect_err("shape");
+    let err = checkpoint::load_model(
+        seeded_init(&dev, 0, || wide.init(&dev)).expect("init"),
+        &dir,
+    )
+    .expect_err("shape");
     assert!(err.to_string().contains("model.bpk"), "{err}");
 }
 

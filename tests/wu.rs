@@ -17,10 +17,7 @@ use std::path::Path;
 /// Burn's seed is global to the backend and the tests of this file run on parallel threads:
 /// seeding and initialising under one lock keeps each test's initial weights reproducible.
 fn seeded_init(cfg: &WuConfig, dev: &Device, seed: u64) -> WuNet {
-    static INIT: std::sync::Mutex<()> = std::sync::Mutex::new(());
-    let _guard = INIT.lock().unwrap_or_else(|e| e.into_inner());
-    dev.seed(seed);
-    cfg.init(dev).expect("init")
+    hdrsynth::train::seeded_init(dev, seed, || cfg.init(dev)).expect("init")
 }
 
 /// Deterministic pseudo-random values in [0, 1) (splitmix64), independent of the crate's RNG.
@@ -109,12 +106,12 @@ fn parameter_count_matches_hand_count() {
     assert_eq!(tiny_resnet().trainable_parameters(), 67_819);
     // Burn's count also has BatchNorm's running mean and variance, 2 per BN channel:
     // 3·8 + 16 + 18·16 + 8 + 4 + 4 = 344 channels.
-    let model = tiny_resnet().init(&Device::flex()).expect("init");
+    let model = seeded_init(&tiny_resnet(), &Device::flex(), 0);
     assert_eq!(model.num_params(), 67_819 + 688);
     // Default: 3·128 + 256 + 18·256 + 128 + 64 + 64 = 5 504 BN channels.
-    let model = WuConfig::default().init(&Device::flex()).expect("init");
+    let model = seeded_init(&WuConfig::default(), &Device::flex(), 0);
     assert_eq!(model.num_params(), 16_606_339 + 11_008);
-    let model = WuConfig::unet(4).init(&Device::flex()).expect("init");
+    let model = seeded_init(&WuConfig::unet(4), &Device::flex(), 0);
     assert_eq!(
         model.num_params(),
         WuConfig::unet(4).trainable_parameters() + 2 * (3 * 8 + 16 + 32 + 32 + 32 + 16 + 8 + 4 + 4)
@@ -147,10 +144,10 @@ fn padding_conventions_follow_tensorflow() {
     // Stride-2 5×5 convolution of an 8×8 image: y[i] = Σₖ x[2i + k − 1]·w[k] per axis. A delta
     // at (2, 2) (away from the border) reaches y[0][0] through w[3][3], y[0][1] through w[3][1]
     // and y[1][1] through w[1][1].
-    let mut conv = burn::nn::conv::Conv2dConfig::new([1, 1], [5, 5])
+    let conv = burn::nn::conv::Conv2dConfig::new([1, 1], [5, 5])
         .with_stride([2, 2])
-        .with_bias(false)
-        .init(&dev);
+        .with_bias(false);
+    let mut conv = hdrsynth::train::seeded_init(&dev, 0, || conv.init(&dev));
     let w: Vec<f32> = (0..25).map(|i| (10 * (i / 5) + i % 5) as f32).collect();
     conv.weight = burn::module::Param::from_tensor(Tensor::from_data(
         TensorData::new(w.clone(), [1, 1, 5, 5]),
@@ -170,12 +167,12 @@ fn padding_conventions_follow_tensorflow() {
     // equal to w[1..5][1..5] (TensorFlow) or w[2..5][2..5] then zeros (PyTorch).
     for align in [DeconvAlignment::Tensorflow, DeconvAlignment::Pytorch] {
         let (padding, padding_out) = align.paddings();
-        let mut deconv = burn::nn::conv::ConvTranspose2dConfig::new([1, 1], [5, 5])
+        let deconv = burn::nn::conv::ConvTranspose2dConfig::new([1, 1], [5, 5])
             .with_stride([2, 2])
             .with_padding([padding, padding])
             .with_padding_out([padding_out, padding_out])
-            .with_bias(false)
-            .init(&dev);
+            .with_bias(false);
+        let mut deconv = hdrsynth::train::seeded_init(&dev, 0, || deconv.init(&dev));
         deconv.weight = burn::module::Param::from_tensor(Tensor::from_data(
             TensorData::new(w.clone(), [1, 1, 5, 5]),
             &dev,
@@ -279,7 +276,7 @@ fn unet_shapes_at_several_sizes() {
 #[test]
 fn input_checks_and_config() {
     let dev = Device::flex();
-    let model = tiny_resnet().init(&dev).expect("init");
+    let model = seeded_init(&tiny_resnet(), &dev, 0);
     assert!(model.check_input(18, 16, 24).is_ok());
     let e = model.check_input(18, 16, 12).unwrap_err().to_string();
     assert!(e.contains("multiple of 8"), "{e}");
@@ -342,7 +339,7 @@ fn input_checks_and_config() {
 #[should_panic(expected = "is not a positive multiple of 8")]
 fn forward_rejects_sizes_not_a_multiple_of_eight() {
     let dev = Device::flex();
-    let model = tiny_resnet().init(&dev).expect("init");
+    let model = seeded_init(&tiny_resnet(), &dev, 0);
     let _ = model.forward(input(1, 12, 16, 3, &dev));
 }
 
