@@ -2,6 +2,8 @@
 //! hand-checked scores, inf handling, the output files, error messages, and test sets that read
 //! back through the layout detection.
 
+mod common;
+
 use hdrsynth::cli::eval::Args as EvalArgs;
 use hdrsynth::config::{GenerateConfig, parse_toml};
 use hdrsynth::data::layout::{self, LayoutKind};
@@ -22,11 +24,7 @@ fn dataset() -> &'static Path {
     static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();
     DIR.get_or_init(|| {
         let dir = tempfile::tempdir().expect("tmp");
-        let text = "seed = 5\ncount = 4\nwidth = 64\nheight = 48\nevs = [-3.0, 0.0]\n\
-                    [camera]\ncandidates = 4\n";
-        let mut c: GenerateConfig = parse_toml(text, Path::new("gen.toml")).expect("config");
-        c.source = None;
-        hdrsynth::cli::generate::generate(&c, dir.path(), false).expect("generate");
+        common::generate(dir.path(), 5, 4, (64, 48), "[-3.0, 0.0]");
         dir
     })
     .path()

@@ -2,9 +2,11 @@
 //! run; `hdrsynth infer --set` at full frame size, tiled equal to untiled; the shipped
 //! training configs parse and validate.
 
+mod common;
+
 use burn::module::Module;
 use burn::tensor::Device;
-use hdrsynth::config::{GenerateConfig, parse_toml};
+use hdrsynth::config::parse_toml;
 use hdrsynth::eval::infer::{network2_frames, network2_hdr};
 use hdrsynth::eval::tiling::Tiling;
 use hdrsynth::models::{WuConfig, WuVariant};
@@ -14,30 +16,14 @@ use std::path::Path;
 use std::process::Command;
 
 fn generate(dir: &Path, seed: u64, count: usize) {
-    let text = format!(
-        "seed = {seed}\ncount = {count}\nwidth = 96\nheight = 80\nevs = [-2.0, 0.0, 2.0]\n\
-         [camera]\ncandidates = 4\n"
-    );
-    let mut c: GenerateConfig = parse_toml(&text, Path::new("gen.toml")).expect("config");
-    c.source = None;
-    hdrsynth::cli::generate::generate(&c, dir, false).expect("generate");
+    common::generate(dir, seed, count, (96, 80), "[-2.0, 0.0, 2.0]");
 }
 
 fn validation_at(run: &Path, step: u64) -> (f64, f64) {
-    let log = std::fs::read_to_string(run.join("log.jsonl")).expect("log");
-    let line = log
-        .lines()
-        .find(|l| l.starts_with(&format!("{{\"step\":{step},\"validation\"")))
-        .unwrap_or_else(|| panic!("no validation at step {step}:\n{log}"));
-    let num = |key: &str| -> f64 {
-        let rest = &line[line.find(&format!("\"{key}\":")).expect(key) + key.len() + 3..];
-        rest.split([',', '}'])
-            .next()
-            .unwrap()
-            .parse()
-            .expect("number")
-    };
-    (num("psnr_t"), num("psnr_l"))
+    (
+        common::validation_at(run, step, "psnr_t"),
+        common::validation_at(run, step, "psnr_l"),
+    )
 }
 
 #[test]

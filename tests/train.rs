@@ -1,9 +1,11 @@
 //! The shared trainer: learning on a small generated set, checkpoints (bit-identical reload,
 //! kill -9 and resume equals an uninterrupted run), the NaN stop, config refusals, schedules.
 
+mod common;
+
 use burn::module::{Module, ModuleVisitor, Param};
 use burn::tensor::{Device, Tensor, TensorData};
-use hdrsynth::config::{GenerateConfig, parse_toml};
+use hdrsynth::config::parse_toml;
 use hdrsynth::models::BlendUNetConfig;
 use hdrsynth::train::checkpoint::{self, CheckpointState};
 use hdrsynth::train::config::{ModelConfig, Schedule, ScheduleKind, TrainConfig};
@@ -18,11 +20,7 @@ fn dataset() -> &'static Path {
     static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();
     DIR.get_or_init(|| {
         let dir = tempfile::tempdir().expect("tmp");
-        let text = "seed = 21\ncount = 6\nwidth = 96\nheight = 80\nevs = [-3.0, 0.0]\n\
-                    [camera]\ncandidates = 4\n";
-        let mut c: GenerateConfig = parse_toml(text, Path::new("gen.toml")).expect("config");
-        c.source = None;
-        hdrsynth::cli::generate::generate(&c, dir.path(), false).expect("generate");
+        common::generate(dir.path(), 21, 6, (96, 80), "[-3.0, 0.0]");
         dir
     })
     .path()
@@ -311,22 +309,12 @@ fn schedules_by_hand() {
     );
 }
 
-/// Validation scores logged at `step` (the trainer logs step 0 before training).
+/// Validation (Eq. 4 loss, blend-weight MAE) logged at `step`.
 fn validation_at(run: &Path, step: u64) -> (f64, f64) {
-    let log = std::fs::read_to_string(run.join("log.jsonl")).expect("log");
-    let line = log
-        .lines()
-        .find(|l| l.starts_with(&format!("{{\"step\":{step},\"validation\"")))
-        .unwrap_or_else(|| panic!("no validation at step {step}:\n{log}"));
-    let num = |key: &str| -> f64 {
-        let rest = &line[line.find(&format!("\"{key}\":")).expect(key) + key.len() + 3..];
-        rest.split([',', '}'])
-            .next()
-            .unwrap()
-            .parse()
-            .expect("number")
-    };
-    (num("loss"), num("weight_mae"))
+    (
+        common::validation_at(run, step, "loss"),
+        common::validation_at(run, step, "weight_mae"),
+    )
 }
 
 #[test]

@@ -88,20 +88,22 @@ pub fn alpha_tensor(weights: &ClassWeights, device: &Device) -> Result<Tensor<1>
     Ok(Tensor::from_data(TensorData::new(a, [CLASSES]), device))
 }
 
-/// A Network-1 batch from loader samples: input [B, C, H, W] (the samples' C×H×W data
-/// stacked) and target [B, H, W] (the class maps). All samples must have the same channel count
-/// and size and a [`Target::Classes`] target of size×size entries.
-pub fn network1_batch(samples: &[Sample], device: &Device) -> Result<(Tensor<4>, Tensor<3, Int>)> {
+/// The samples' inputs stacked as [B, C, S, S] data, checking that all share one shape (and
+/// `channels`, when given): (data, C, S).
+fn stacked_inputs(
+    what: &str,
+    samples: &[Sample],
+    channels: Option<usize>,
+) -> Result<(Vec<f32>, usize, usize)> {
     let first = samples
         .first()
-        .ok_or_else(|| Error::Invalid("network1_batch: no samples".into()))?;
-    let (c, s) = (first.channels, first.size);
+        .ok_or_else(|| Error::Invalid(format!("{what}: no samples")))?;
+    let (c, s) = (channels.unwrap_or(first.channels), first.size);
     let mut input = Vec::with_capacity(samples.len() * c * s * s);
-    let mut target = Vec::with_capacity(samples.len() * s * s);
     for sample in samples {
         if sample.channels != c || sample.size != s || sample.input.len() != c * s * s {
             return Err(Error::Invalid(format!(
-                "network1_batch: sample of set '{}' is {}×{}×{} with {} values; the batch is \
+                "{what}: sample of set '{}' is {}×{}×{} with {} values; the batch is \
                  {c}×{s}×{s}",
                 sample.set,
                 sample.channels,
@@ -110,6 +112,18 @@ pub fn network1_batch(samples: &[Sample], device: &Device) -> Result<(Tensor<4>,
                 sample.input.len()
             )));
         }
+        input.extend_from_slice(&sample.input);
+    }
+    Ok((input, c, s))
+}
+
+/// A Network-1 batch from loader samples: input [B, C, H, W] (the samples' C×H×W data
+/// stacked) and target [B, H, W] (the class maps). All samples must have the same channel count
+/// and size and a [`Target::Classes`] target of size×size entries.
+pub fn network1_batch(samples: &[Sample], device: &Device) -> Result<(Tensor<4>, Tensor<3, Int>)> {
+    let (input, c, s) = stacked_inputs("network1_batch", samples, None)?;
+    let mut target = Vec::with_capacity(samples.len() * s * s);
+    for sample in samples {
         match &sample.target {
             Target::Classes(classes) if classes.len() == s * s => {
                 target.extend(classes.iter().map(|&k| k as i32));
@@ -128,7 +142,6 @@ pub fn network1_batch(samples: &[Sample], device: &Device) -> Result<(Tensor<4>,
                 )));
             }
         }
-        input.extend_from_slice(&sample.input);
     }
     let b = samples.len();
     Ok((
@@ -178,24 +191,9 @@ pub fn mu_law_l2(pred: Tensor<4>, target: Tensor<4>) -> Tensor<1> {
 /// channels, the same size and a [`Target::Hdr`] target of 3·size² values.
 pub fn network2_batch(samples: &[Sample], device: &Device) -> Result<(Tensor<4>, Tensor<4>)> {
     use crate::models::wu::{INPUT_CHANNELS, OUTPUT_CHANNELS};
-    let first = samples
-        .first()
-        .ok_or_else(|| Error::Invalid("network2_batch: no samples".into()))?;
-    let (c, s) = (INPUT_CHANNELS, first.size);
-    let mut input = Vec::with_capacity(samples.len() * c * s * s);
+    let (input, c, s) = stacked_inputs("network2_batch", samples, Some(INPUT_CHANNELS))?;
     let mut target = Vec::with_capacity(samples.len() * OUTPUT_CHANNELS * s * s);
     for sample in samples {
-        if sample.channels != c || sample.size != s || sample.input.len() != c * s * s {
-            return Err(Error::Invalid(format!(
-                "network2_batch: sample of set '{}' is {}×{}×{} with {} values; the batch is \
-                 {c}×{s}×{s}",
-                sample.set,
-                sample.channels,
-                sample.size,
-                sample.size,
-                sample.input.len()
-            )));
-        }
         match &sample.target {
             Target::Hdr(hdr) if hdr.len() == OUTPUT_CHANNELS * s * s => {
                 target.extend_from_slice(hdr);
@@ -215,7 +213,6 @@ pub fn network2_batch(samples: &[Sample], device: &Device) -> Result<(Tensor<4>,
                 )));
             }
         }
-        input.extend_from_slice(&sample.input);
     }
     let b = samples.len();
     Ok((
