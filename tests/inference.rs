@@ -2,7 +2,9 @@
 //! untiled reference.
 
 use hdrsynth::error::Result;
-use hdrsynth::eval::blend::{BlendWeight, fuse, tone_curve, weight_from_probabilities};
+use hdrsynth::eval::blend::{
+    BlendWeight, fuse, tone_curve, weight_from_logits, weight_from_probabilities,
+};
 use hdrsynth::eval::tiling::{Planar, Tiling, run_tiled, run_untiled};
 use hdrsynth::io::Image;
 
@@ -232,4 +234,43 @@ fn blend_unet_tiled_equals_untiled_when_the_overlap_covers_the_receptive_field()
         worst > 1e-4,
         "seams expected with overlap 4 < 28 (max diff {worst})"
     );
+}
+
+#[test]
+fn blend_weights_from_logits_equal_the_softmax_route() {
+    // By hand: logits (0, ln 2, ln 3, ln 4) are the probabilities (0.1, 0.2, 0.3, 0.4) → 2/3;
+    // pixel 2: logits (5, 0, 0, 0) → argmax 0. C×P layout, 4 classes, 2 pixels.
+    let l = [0.0, 5.0, 2f32.ln(), 0.0, 3f32.ln(), 0.0, 4f32.ln(), 0.0];
+    let e = weight_from_logits(&l, 4, 2, BlendWeight::Expected).expect("expected");
+    assert!((e[0] - 2.0 / 3.0).abs() < 1e-6, "{e:?}");
+    let a = weight_from_logits(&l, 4, 2, BlendWeight::Argmax).expect("argmax");
+    assert_eq!(a, vec![1.0, 0.0]);
+    // 256 classes, 5000 pixels (more than one parallel chunk), large logits: softmax in f64.
+    let (c, n) = (256, 5000);
+    let logits: Vec<f32> = random_planar(c, n, 1)
+        .data
+        .iter()
+        .map(|v| 40.0 * v - 20.0)
+        .collect();
+    let mut probs = vec![0.0f32; c * n];
+    for p in 0..n {
+        let m = (0..c)
+            .map(|k| logits[k * n + p] as f64)
+            .fold(f64::MIN, f64::max);
+        let z: f64 = (0..c).map(|k| (logits[k * n + p] as f64 - m).exp()).sum();
+        for k in 0..c {
+            probs[k * n + p] = ((logits[k * n + p] as f64 - m).exp() / z) as f32;
+        }
+    }
+    for mode in [BlendWeight::Expected, BlendWeight::Argmax] {
+        let a = weight_from_logits(&logits, c, n, mode).expect("logits");
+        let b = weight_from_probabilities(&probs, c, n, mode).expect("probabilities");
+        let worst = a
+            .iter()
+            .zip(&b)
+            .map(|(x, y)| (x - y).abs())
+            .fold(0.0, f32::max);
+        assert!(worst < 1e-5, "{mode:?}: {worst}");
+    }
+    assert!(weight_from_logits(&l, 4, 3, BlendWeight::Expected).is_err());
 }

@@ -68,6 +68,68 @@ pub fn weight_from_probabilities(
         .collect())
 }
 
+/// Long-exposure weight per pixel straight from class logits laid out C×H×W: the softmax's
+/// expected class (or the argmax) / (C − 1), computed on the host in f32 with the usual max
+/// subtraction. Same result as softmax followed by [`weight_from_probabilities`], without
+/// materialising the C×H×W probabilities: at 256 classes the on-device softmax cost more than
+/// the whole U-Net forward (3.75 s vs 3.5 s per 640² window, BENCHMARKS.md).
+pub fn weight_from_logits(
+    logits: &[f32],
+    classes: usize,
+    pixels: usize,
+    mode: BlendWeight,
+) -> Result<Vec<f32>> {
+    use rayon::prelude::*;
+    if classes < 2 || logits.len() != classes * pixels {
+        return Err(Error::Invalid(format!(
+            "blend map: {} logits for {classes} classes × {pixels} pixels",
+            logits.len()
+        )));
+    }
+    let top = (classes - 1) as f32;
+    let mut out = vec![0.0f32; pixels];
+    // Pixel chunks in parallel; inside a chunk the class loop is outer so the inner loop runs
+    // over contiguous memory.
+    const CHUNK: usize = 4096;
+    out.par_chunks_mut(CHUNK).enumerate().for_each(|(k, w)| {
+        let p0 = k * CHUNK;
+        let n = w.len();
+        let plane = |c: usize| &logits[c * pixels + p0..c * pixels + p0 + n];
+        let mut best = plane(0).to_vec();
+        let mut arg = vec![0u32; n];
+        for c in 1..classes {
+            for ((b, a), &z) in best.iter_mut().zip(&mut arg).zip(plane(c)) {
+                if z > *b {
+                    *b = z;
+                    *a = c as u32;
+                }
+            }
+        }
+        match mode {
+            BlendWeight::Argmax => {
+                for (o, &a) in w.iter_mut().zip(&arg) {
+                    *o = a as f32 / top;
+                }
+            }
+            BlendWeight::Expected => {
+                let (mut s0, mut s1) = (vec![0.0f32; n], vec![0.0f32; n]);
+                for c in 0..classes {
+                    let cf = c as f32;
+                    for (((z, m), a), b) in plane(c).iter().zip(&best).zip(&mut s0).zip(&mut s1) {
+                        let e = (z - m).exp();
+                        *a += e;
+                        *b += e * cf;
+                    }
+                }
+                for ((o, a), b) in w.iter_mut().zip(&s0).zip(&s1) {
+                    *o = b / a / top;
+                }
+            }
+        }
+    });
+    Ok(out)
+}
+
 /// The exponential tone curve (module docs).
 #[inline]
 pub fn tone_curve(x: f32, k: f32) -> f32 {

@@ -1,15 +1,15 @@
 //! Running trained networks on whole images of any size: tensors per window of
 //! [`tiling::run_tiled`](crate::eval::tiling), reduced on the device to what the output needs
-//! (Network-1: one blend weight per pixel, never 256 class maps of a full frame).
+//! (Network-1: one blend weight per pixel from each window's logits, never 256 class maps of a
+//! full frame).
 
 use crate::data::layout::SetInfo;
 use crate::error::{Error, Result};
-use crate::eval::blend::{BlendWeight, fuse};
+use crate::eval::blend::{BlendWeight, fuse, weight_from_logits};
 use crate::eval::tiling::{Planar, Tiling, run_tiled};
 use crate::io::Image;
 use crate::io::read_image;
 use crate::models::{BlendUNet, BlendUNetConfig, WuConfig, WuNet};
-use burn::tensor::activation::softmax;
 use burn::tensor::{Device, Tensor, TensorData};
 
 /// Default core tile side for full-resolution inference (a multiple of 16).
@@ -60,35 +60,22 @@ pub fn network1_weight(
 ) -> Result<Vec<f32>> {
     let input = planar_from_images(&[low, high])?;
     let classes = model.classes();
-    let levels: Vec<f32> = (0..classes)
-        .map(|c| c as f32 / (classes - 1) as f32)
-        .collect();
-    let levels = Tensor::<1>::from_data(TensorData::new(levels, [classes]), device).reshape([
-        1,
-        classes as i32,
-        1,
-        1,
-    ]);
     let out = run_tiled(&input, 1, tiling, |win| {
         model.check_input(win.channels, win.height, win.width)?;
         let x = Tensor::<4>::from_data(
             TensorData::new(win.data.clone(), [1, win.channels, win.height, win.width]),
             device,
         );
-        let logits = model.forward(x);
-        let w = match mode {
-            BlendWeight::Expected => (softmax(logits, 1) * levels.clone()).sum_dim(1),
-            BlendWeight::Argmax => logits.argmax(1).float().div_scalar((classes - 1) as f32),
-        };
-        let data = w
+        let logits = model
+            .forward(x)
             .into_data()
             .try_to_vec::<f32>()
-            .map_err(|e| Error::Invalid(format!("reading the blend weights: {e:?}")))?;
+            .map_err(|e| Error::Invalid(format!("reading the class logits: {e:?}")))?;
         Ok(Planar {
             channels: 1,
             width: win.width,
             height: win.height,
-            data,
+            data: weight_from_logits(&logits, classes, win.width * win.height, mode)?,
         })
     })?;
     Ok(out.data)
