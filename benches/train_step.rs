@@ -7,6 +7,9 @@
 //!
 //! Throughput is reported in samples/s.
 
+#[path = "../tests/common/mod.rs"]
+mod common;
+
 use burn::optim::AdamConfig;
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use hdrsynth::data::ground_truth::{ClassWeights, MertensWeights};
@@ -18,31 +21,17 @@ use std::time::{Duration, Instant};
 
 const BATCH: usize = 4;
 
-/// Deterministic values in [0, 1) (splitmix64).
-fn values(n: usize, seed: u64) -> Vec<f32> {
-    let mut s = seed;
-    (0..n)
-        .map(|_| {
-            s = s.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = s;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32
-        })
-        .collect()
-}
-
 fn samples(channels: usize, size: usize, hdr: bool) -> Vec<Sample> {
     (0..BATCH)
         .map(|i| Sample {
-            input: values(channels * size * size, 10 + i as u64),
+            input: common::values(channels * size * size, 10 + i as u64),
             channels,
             size,
             target: if hdr {
-                Target::Hdr(values(3 * size * size, 20 + i as u64))
+                Target::Hdr(common::values(3 * size * size, 20 + i as u64))
             } else {
                 Target::Classes(
-                    values(size * size, 20 + i as u64)
+                    common::values(size * size, 20 + i as u64)
                         .iter()
                         .map(|v| (v * 256.0) as u8)
                         .collect(),

@@ -1,6 +1,8 @@
 //! Network-1 (the blend-map U-Net) and its loss: shapes, softmax normalisation, the Eq. 4 loss
 //! against hand-computed values, overfitting one sample with Adam, and save/load.
 
+mod common;
+
 use burn::module::Module;
 use burn::optim::AdamConfig;
 use burn::tensor::{Device, Int, Tensor, TensorData};
@@ -24,22 +26,8 @@ fn tiny() -> BlendUNetConfig {
     }
 }
 
-/// Deterministic pseudo-random values in [0, 1) (splitmix64), independent of the crate's RNG.
-fn values(n: usize, seed: u64) -> Vec<f32> {
-    let mut s = seed;
-    (0..n)
-        .map(|_| {
-            s = s.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = s;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32
-        })
-        .collect()
-}
-
 fn input(b: usize, size: usize, seed: u64, dev: &Device) -> Tensor<4> {
-    let v = values(b * 6 * size * size, seed);
+    let v = common::values(b * 6 * size * size, seed);
     Tensor::from_data(TensorData::new(v, [b, 6, size, size]), dev)
 }
 
@@ -182,7 +170,7 @@ fn weighted_l1_hand_values() {
 #[test]
 fn weighted_l1_forms_have_equal_gradients_through_softmax() {
     let dev = Device::flex().autodiff();
-    let logits = values(2 * 5 * 3, 8)
+    let logits = common::values(2 * 5 * 3, 8)
         .iter()
         .map(|v| 4.0 * v - 2.0)
         .collect::<Vec<f32>>();
@@ -265,7 +253,7 @@ fn overfit_target(size: usize) -> Vec<i32> {
 /// brightness (EV0 frame v, EV−3 frame v/8, per-channel tints), plus ±0.05 of noise.
 fn overfit_input(size: usize, seed: u64, dev: &Device) -> Tensor<4> {
     let target = overfit_target(size);
-    let noise = values(6 * size * size, seed);
+    let noise = common::values(6 * size * size, seed);
     let mut v = vec![0.0f32; 6 * size * size];
     for c in 0..6 {
         for (i, &k) in target.iter().enumerate() {

@@ -292,10 +292,8 @@ fn a_tiny_network1_checkpoint_is_evaluated_at_full_resolution() {
     hdrsynth::train::run(&train_config(&run), &TrainOptions::default()).expect("train");
     let out = tmp.path().join("out");
     // Tiles of 32 (a multiple of 2^depth = 4) on 64×48 frames: several windows per set.
-    let args = EvalArgs {
-        tile: Some(32),
-        ..EvalArgs::checkpoint(dataset(), &run, &out)
-    };
+    let mut args = EvalArgs::checkpoint(dataset(), &run, &out);
+    args.network.tile = Some(32);
     let r = hdrsynth::cli::eval::evaluate(&args).expect("eval");
     assert_eq!(r.rows.len(), set_names().len());
     assert!(r.method.contains("Mertens"), "{}", r.method);

@@ -53,11 +53,7 @@ fn a_short_run_raises_psnr_t_on_held_out_sets_and_infers_whole_sets() {
     assert!(s.last_loss < 0.5 * s.first_loss);
 
     // `hdrsynth infer --set` on a whole 96×80 held-out set: untiled and in 32-px tiles.
-    let set = std::fs::read_dir(&val)
-        .expect("val")
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .find(|p| p.join("static").is_dir())
-        .expect("a set");
+    let set = common::first_set(&val);
     let infer = |out: &Path, tile: &str| {
         let st = Command::new(env!("CARGO_BIN_EXE_hdrsynth"))
             .args(["infer", "--checkpoint"])
@@ -76,12 +72,7 @@ fn a_short_run_raises_psnr_t_on_held_out_sets_and_infers_whole_sets() {
     let whole = infer(&tmp.path().join("whole"), "384");
     let tiled = infer(&tmp.path().join("tiled"), "32");
     assert_eq!((whole.width, whole.height), (96, 80));
-    let worst = whole
-        .data
-        .iter()
-        .zip(&tiled.data)
-        .map(|(a, b)| (a - b).abs())
-        .fold(0.0f32, f32::max);
+    let worst = common::max_abs_diff(&whole.data, &tiled.data);
     println!("infer --set: max |tiled − untiled| = {worst:e}");
     assert!(worst <= 1e-4, "tiled vs untiled: {worst}");
     // Output unit: 1 = the reference's white; the network's range reaches 1/0.25 = 4.

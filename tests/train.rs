@@ -341,11 +341,7 @@ fn a_short_run_learns_the_blend_weights() {
 
     // `hdrsynth infer` on a whole generated frame pair (96×80: no multiple of the tile),
     // untiled and in 32-px tiles: the same output.
-    let set = std::fs::read_dir(dataset())
-        .expect("dataset")
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .find(|p| p.join("static").is_dir())
-        .expect("a set");
+    let set = common::first_set(dataset());
     let infer = |out: &Path, tile: &str| {
         let st = bin()
             .args(["infer", "--checkpoint"])
@@ -364,12 +360,7 @@ fn a_short_run_learns_the_blend_weights() {
     let whole = infer(&tmp.path().join("whole"), "384");
     let tiled = infer(&tmp.path().join("tiled"), "32");
     assert_eq!((whole.width, whole.height), (96, 80));
-    let worst = whole
-        .data
-        .iter()
-        .zip(&tiled.data)
-        .map(|(a, b)| (a - b).abs())
-        .fold(0.0f32, f32::max);
+    let worst = common::max_abs_diff(&whole.data, &tiled.data);
     assert!(worst <= 1e-4, "tiled vs untiled fused output: {worst}");
     for name in ["tonemapped.exr", "tonemapped.png", "blend_weight.png"] {
         assert!(tmp.path().join("tiled").join(name).is_file(), "{name}");

@@ -2,6 +2,8 @@
 //! sizes, the TensorFlow padding conventions, μ-law loss hand values, batch assembly, overfitting
 //! one sample with Adam, and weight import/export through the documented naming scheme.
 
+mod common;
+
 use burn::module::Module;
 use burn::optim::{AdamConfig, GradientsParams};
 use burn::store::{BurnToPyTorchAdapter, ModuleSnapshot};
@@ -20,25 +22,11 @@ fn seeded_init(cfg: &WuConfig, dev: &Device, seed: u64) -> WuNet {
     hdrsynth::train::seeded_init(dev, seed, || cfg.init(dev)).expect("init")
 }
 
-/// Deterministic pseudo-random values in [0, 1) (splitmix64), independent of the crate's RNG.
-fn values(n: usize, seed: u64) -> Vec<f32> {
-    let mut s = seed;
-    (0..n)
-        .map(|_| {
-            s = s.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = s;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32
-        })
-        .collect()
-}
-
 const TIMES: [f32; 3] = [0.25, 1.0, 4.0];
 
 /// A smooth linear HDR image 3×h×w in [0.01, 1] (sums of a few random sinusoids).
 fn smooth_hdr(h: usize, w: usize, seed: u64) -> Vec<f32> {
-    let p = values(3 * 8, seed);
+    let p = common::values(3 * 8, seed);
     let mut v = Vec::with_capacity(3 * h * w);
     for c in 0..3 {
         let q = &p[c * 8..c * 8 + 8];
@@ -658,52 +646,4 @@ fn import_follows_the_documented_names_and_checks_the_file() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("absent.safetensors"), "{e}");
-}
-
-/// One optimisation step (forward, loss, backward, Adam) at the paper's training size, for
-/// docs/network2.md. Minutes on a 2-core CPU:
-/// `cargo test --release --test wu -- --ignored --nocapture step_timing`.
-#[test]
-#[ignore]
-fn step_timing() {
-    let dev = Device::flex().autodiff();
-    let (b, s) = (
-        std::env::var("WU_BATCH")
-            .ok()
-            .and_then(|v| v.parse().ok())
-            .unwrap_or(4),
-        std::env::var("WU_SIZE")
-            .ok()
-            .and_then(|v| v.parse().ok())
-            .unwrap_or(256),
-    );
-    for variant in [WuVariant::Resnet, WuVariant::Unet] {
-        let cfg = WuConfig {
-            variant,
-            ..WuConfig::default()
-        };
-        let mut model = seeded_init(&cfg, &dev, 1);
-        let x = input(b, s, s, 1, &dev);
-        let target = Tensor::<4>::from_data(
-            TensorData::new(
-                (0..b)
-                    .flat_map(|i| smooth_hdr(s, s, 100 + i as u64))
-                    .collect::<Vec<_>>(),
-                [b, 3, s, s],
-            ),
-            &dev,
-        );
-        let mut optim = AdamConfig::new().init();
-        for step in 0..3 {
-            let t0 = std::time::Instant::now();
-            let loss = mu_law_l2(model.forward(x.clone()), target.clone());
-            let grads = GradientsParams::from_grads(loss.backward(), &model);
-            model = optim.step(1e-4, model, grads);
-            let l: f32 = loss.into_scalar();
-            eprintln!(
-                "{variant:?} batch {b} {s}×{s}: step {step} {:.2} s (loss {l:.4})",
-                t0.elapsed().as_secs_f64()
-            );
-        }
-    }
 }

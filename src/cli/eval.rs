@@ -4,7 +4,6 @@
 //! summary tables with bootstrap intervals, outputs, previews and a report (docs/evaluation.md).
 
 use crate::device::device_from_name;
-use crate::eval::blend::{BlendWeight, DEFAULT_TONE_K};
 use crate::eval::evaluate::{
     self, EvalOptions, EvalSummary, Method, NetworkOptions, Predictions, from_checkpoint,
 };
@@ -32,18 +31,9 @@ pub struct Args {
     /// Skip sets without a prediction (listed in the summary) instead of failing.
     #[arg(long)]
     pub allow_missing: bool,
-    /// Core tile side for --checkpoint (a multiple of the network's 2^depth).
-    #[arg(long)]
-    pub tile: Option<usize>,
-    /// Context per tile side; default: the network's receptive-field radius (exact tiling).
-    #[arg(long)]
-    pub overlap: Option<usize>,
-    /// Network-1's blend weight from the class probabilities.
-    #[arg(long, value_enum, default_value_t = BlendWeight::Expected)]
-    pub weight: BlendWeight,
-    /// Network-1's tone curve k (output and reference alike).
-    #[arg(long, default_value_t = DEFAULT_TONE_K)]
-    pub tone_k: f32,
+    /// How to run the checkpoint's network (--checkpoint only).
+    #[command(flatten)]
+    pub network: NetworkOptions,
     /// Compute device for --checkpoint: flex (CPU), ndarray, wgpu, cuda.
     #[arg(long, default_value = "flex")]
     pub backend: String,
@@ -91,10 +81,7 @@ impl Args {
             predictions: Some(predictions.into()),
             checkpoint: None,
             allow_missing: false,
-            tile: None,
-            overlap: None,
-            weight: BlendWeight::Expected,
-            tone_k: DEFAULT_TONE_K,
+            network: NetworkOptions::default(),
             backend: "flex".into(),
             resamples: 2000,
             seed: 0,
@@ -145,13 +132,7 @@ pub fn evaluate(args: &Args) -> Result<EvalSummary> {
         }
         (None, Some(ckpt)) => {
             let device = device_from_name(&args.backend)?;
-            let opts = NetworkOptions {
-                tile: args.tile,
-                overlap: args.overlap,
-                weight: args.weight,
-                tone_k: args.tone_k,
-            };
-            from_checkpoint(ckpt, &opts, &device)?
+            from_checkpoint(ckpt, &args.network, &device)?
         }
         _ => bail!("give exactly one of --predictions and --checkpoint"),
     };

@@ -11,12 +11,10 @@
 
 use crate::data::layout::{self, SetInfo};
 use crate::device::device_from_name;
-use crate::eval::blend::{BlendWeight, DEFAULT_TONE_K};
 use crate::eval::infer::{
-    network1_fuse, network1_tiling, network2_frames, network2_hdr, network2_tiling,
+    NetworkOptions, network1_fuse, network1_tiling, network2_frames, network2_hdr, network2_tiling,
 };
 use crate::eval::metrics::mu_law;
-use crate::eval::tiling::Tiling;
 use crate::io::{BitDepth, ExrPrecision, Image, read_image, write_exr, write_ldr};
 use crate::train::checkpoint;
 use crate::train::config::ModelConfig;
@@ -39,18 +37,8 @@ pub struct Args {
     /// Output folder.
     #[arg(long)]
     pub out: PathBuf,
-    /// Core tile side (a multiple of the network's 2^depth).
-    #[arg(long)]
-    pub tile: Option<usize>,
-    /// Context per tile side; default: the network's receptive-field radius (exact tiling).
-    #[arg(long)]
-    pub overlap: Option<usize>,
-    /// Blend weight from the class probabilities.
-    #[arg(long, value_enum, default_value_t = BlendWeight::Expected)]
-    pub weight: BlendWeight,
-    /// k of the tone curve T(x) = (1 − e^(−kx)) / (1 − e^(−k)); 0 = none.
-    #[arg(long, default_value_t = DEFAULT_TONE_K)]
-    pub tone_k: f32,
+    #[command(flatten)]
+    pub network: NetworkOptions,
     /// Compute device: flex (CPU), ndarray, wgpu, cuda (those compiled in).
     #[arg(long, default_value = "flex")]
     pub backend: String,
@@ -79,16 +67,6 @@ pub fn find_set(dir: &Path) -> Result<SetInfo> {
             sets.len()
         ),
     }
-}
-
-fn tiling_of(mut t: Tiling, args: &Args) -> Tiling {
-    if let Some(v) = args.tile {
-        t.tile = v;
-    }
-    if let Some(v) = args.overlap {
-        t.overlap = v;
-    }
-    t
 }
 
 pub fn run(args: &Args) -> Result<String> {
@@ -120,14 +98,14 @@ pub fn run(args: &Args) -> Result<String> {
                 _ => bail!("Network-1 needs --inputs LOW HIGH (the EV−3 and EV0 frames) or --set"),
             };
             let model = checkpoint::load_model(cfg.init(&device)?, &dir)?.valid();
-            let tiling = tiling_of(network1_tiling(cfg), args);
+            let tiling = args.network.tiling(network1_tiling(cfg));
             let (w, linear, toned) = network1_fuse(
                 &model,
                 &low_img,
                 &high_img,
                 tiling,
-                args.weight,
-                args.tone_k,
+                args.network.weight,
+                args.network.tone_k,
                 &device,
             )?;
             write_exr(&args.out.join("linear.exr"), &linear, ExrPrecision::Float)?;
@@ -161,7 +139,7 @@ pub fn run(args: &Args) -> Result<String> {
             };
             let (frames, times) = network2_frames(set)?;
             let model = checkpoint::load_model(cfg.init(&device)?, &dir)?.valid();
-            let tiling = tiling_of(network2_tiling(cfg), args);
+            let tiling = args.network.tiling(network2_tiling(cfg));
             let [a, b, c] = &frames;
             let hdr = network2_hdr(&model, [a, b, c], times, tiling, &device)?;
             write_exr(&args.out.join("hdr.exr"), &hdr, ExrPrecision::Float)?;

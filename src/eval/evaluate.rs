@@ -19,6 +19,7 @@ use crate::data::scene::ev_tag;
 use crate::data::testset::resize;
 use crate::error::{Error, Result};
 use crate::eval::blend::{BlendWeight, tone_curve};
+pub use crate::eval::infer::NetworkOptions;
 use crate::eval::infer::{self, network1_fuse, network1_tiling};
 use crate::eval::metrics::{self, MetricOptions, Pu21Scale, Scores};
 use crate::eval::report::{self, Cell, MetricSummary, SetScore};
@@ -240,30 +241,6 @@ impl Method for Predictions {
 // ---------------------------------------------------------------------------------------------
 // Networks from a checkpoint
 
-/// How to run a checkpoint's network.
-#[derive(Clone, Debug)]
-pub struct NetworkOptions {
-    /// Core tile side; None = the network's default.
-    pub tile: Option<usize>,
-    /// Context per tile side; None = the network's receptive-field radius (exact tiling).
-    pub overlap: Option<usize>,
-    /// Network-1's blend weight from its class probabilities.
-    pub weight: BlendWeight,
-    /// Network-1's tone curve k.
-    pub tone_k: f32,
-}
-
-impl Default for NetworkOptions {
-    fn default() -> Self {
-        NetworkOptions {
-            tile: None,
-            overlap: None,
-            weight: BlendWeight::Expected,
-            tone_k: crate::eval::blend::DEFAULT_TONE_K,
-        }
-    }
-}
-
 /// The method for a checkpoint (or run folder): the network its state names, weights loaded.
 pub fn from_checkpoint(
     path: &Path,
@@ -272,15 +249,7 @@ pub fn from_checkpoint(
 ) -> Result<Box<dyn Method>> {
     let dir = checkpoint::resolve(path)?;
     let state = checkpoint::read_state(&dir)?;
-    let with = |mut t: Tiling| {
-        if let Some(v) = opts.tile {
-            t.tile = v;
-        }
-        if let Some(v) = opts.overlap {
-            t.overlap = v;
-        }
-        t
-    };
+    let with = |t: Tiling| opts.tiling(t);
     match &state.model {
         ModelConfig::BlendUnet(cfg) => Ok(Box::new(Network1 {
             model: checkpoint::load_model(cfg.init(device)?, &dir)?.valid(),

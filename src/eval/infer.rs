@@ -5,7 +5,7 @@
 
 use crate::data::layout::SetInfo;
 use crate::error::{Error, Result};
-use crate::eval::blend::{BlendWeight, fuse, weight_from_logits};
+use crate::eval::blend::{BlendWeight, DEFAULT_TONE_K, fuse, weight_from_logits};
 use crate::eval::tiling::{Planar, Tiling, run_tiled};
 use crate::io::Image;
 use crate::io::read_image;
@@ -14,6 +14,45 @@ use burn::tensor::{Device, Tensor, TensorData};
 
 /// Default core tile side for full-resolution inference (a multiple of 16).
 pub const DEFAULT_TILE: usize = 384;
+
+/// How to run a network on whole images (flags of `hdrsynth infer` and `hdrsynth eval`).
+#[derive(clap::Args, Clone, Debug)]
+pub struct NetworkOptions {
+    /// Core tile side (a multiple of the network's 2^depth); default 384.
+    #[arg(long)]
+    pub tile: Option<usize>,
+    /// Context per tile side; default: the network's receptive-field radius (exact tiling).
+    #[arg(long)]
+    pub overlap: Option<usize>,
+    /// Network-1's blend weight from its class probabilities.
+    #[arg(long, value_enum, default_value_t = BlendWeight::Expected)]
+    pub weight: BlendWeight,
+    /// Network-1's tone curve k: T(x) = (1 − e^(−kx)) / (1 − e^(−k)); 0 = none.
+    #[arg(long, default_value_t = DEFAULT_TONE_K)]
+    pub tone_k: f32,
+}
+
+impl Default for NetworkOptions {
+    fn default() -> Self {
+        NetworkOptions {
+            tile: None,
+            overlap: None,
+            weight: BlendWeight::Expected,
+            tone_k: DEFAULT_TONE_K,
+        }
+    }
+}
+
+impl NetworkOptions {
+    /// `default` (a network's exact tiling) with the tile and overlap given here.
+    pub fn tiling(&self, default: Tiling) -> Tiling {
+        Tiling {
+            tile: self.tile.unwrap_or(default.tile),
+            overlap: self.overlap.unwrap_or(default.overlap),
+            ..default
+        }
+    }
+}
 
 /// Planar C×H×W from interleaved images stacked channel-wise (e.g. (low, high) → 6 channels).
 pub fn planar_from_images(frames: &[&Image]) -> Result<Planar> {

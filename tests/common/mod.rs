@@ -31,3 +31,35 @@ pub fn validation_at(run: &Path, step: u64, key: &str) -> f64 {
         .parse()
         .expect("number")
 }
+
+/// Deterministic pseudo-random values in [0, 1) (splitmix64), independent of the crate's RNG.
+pub fn values(n: usize, seed: u64) -> Vec<f32> {
+    let mut s = seed;
+    (0..n)
+        .map(|_| {
+            s = s.wrapping_add(0x9E37_79B9_7F4A_7C15);
+            let mut z = s;
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32
+        })
+        .collect()
+}
+
+/// The first set folder (one with `static/`) of a generated dataset.
+pub fn first_set(dataset: &Path) -> std::path::PathBuf {
+    std::fs::read_dir(dataset)
+        .expect("dataset")
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .find(|p| p.join("static").is_dir())
+        .expect("a set")
+}
+
+/// Largest absolute difference of two equally long slices.
+pub fn max_abs_diff(a: &[f32], b: &[f32]) -> f32 {
+    assert_eq!(a.len(), b.len(), "max_abs_diff: lengths differ");
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f32::max)
+}
