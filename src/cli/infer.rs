@@ -81,7 +81,7 @@ pub fn run(args: &Args) -> Result<String> {
         ModelConfig::BlendUnet(cfg) => {
             let (low_img, high_img) = match (&set, args.inputs.as_slice()) {
                 (Some(set), _) => {
-                    let (lo, hi) = crate::cli::weights::pick_pair(set)?;
+                    let (lo, hi) = set.network1_pair()?;
                     let frames = if set.static_frames.is_empty() {
                         &set.dynamic_frames
                     } else {

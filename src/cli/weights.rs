@@ -61,30 +61,6 @@ impl Args {
     }
 }
 
-/// Indices (short, long) of the frames a set's class map is made from: EV−3 and the reference
-/// when the set has both, else its lowest EV and the reference.
-pub fn pick_pair(set: &SetInfo) -> Result<(usize, usize)> {
-    let r = set.reference;
-    if let Some(i) = set.evs.iter().position(|&e| e == PAPER_LOW_EV)
-        && i != r
-    {
-        return Ok((i, r));
-    }
-    let lowest = (0..set.evs.len())
-        .min_by(|&a, &b| set.evs[a].total_cmp(&set.evs[b]))
-        .unwrap_or(r);
-    if lowest == r || set.evs.get(lowest).is_none_or(|&e| e >= set.evs[r]) {
-        bail!(
-            "set {} ({}): EVs {:?} hold no frame shorter than the reference (index {r}); a \
-             blend class map needs a short and a long exposure",
-            set.name,
-            set.dir.display(),
-            set.evs
-        );
-    }
-    Ok((lowest, r))
-}
-
 struct SetResult {
     hist: [u64; CLASSES],
     pair: (f32, f32),
@@ -98,7 +74,7 @@ fn process_set(set: &SetInfo, w: MertensWeights) -> Result<SetResult> {
             set.dir.display()
         );
     }
-    let (lo, hi) = pick_pair(set)?;
+    let (lo, hi) = set.network1_pair()?;
     let frame = |i: usize| -> Result<Image> {
         let p = set.static_frames.get(i).with_context(|| {
             format!(

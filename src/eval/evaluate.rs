@@ -278,28 +278,6 @@ pub fn from_checkpoint(
     }
 }
 
-/// Indices (short, long) of Network-1's pair: EV−3 and the reference, else the lowest EV and
-/// the reference (the rule of `hdrsynth dataset weights`).
-pub fn network1_pair(set: &SetInfo) -> Result<(usize, usize)> {
-    let r = set.reference;
-    if let Some(i) = set.evs.iter().position(|&e| e == -3.0)
-        && i != r
-    {
-        return Ok((i, r));
-    }
-    match (0..set.evs.len()).min_by(|&a, &b| set.evs[a].total_cmp(&set.evs[b])) {
-        Some(lo) if set.evs[lo] < set.evs[r] => Ok((lo, r)),
-        _ => Err(Error::layout(
-            &set.dir,
-            format!(
-                "set '{}': EVs {:?} hold no frame shorter than the reference; Network-1 needs a \
-                 short and a long exposure",
-                set.name, set.evs
-            ),
-        )),
-    }
-}
-
 /// Network-1 on the static pair, scored against the pair's Mertens fusion.
 pub struct Network1 {
     pub model: BlendUNet,
@@ -335,7 +313,7 @@ impl Method for Network1 {
                 ),
             ));
         }
-        let (lo, hi) = network1_pair(set)?;
+        let (lo, hi) = set.network1_pair()?;
         let read = |i: usize| -> Result<Image> {
             let p = &set.static_frames[i];
             let img = read_image(p)?;

@@ -72,6 +72,31 @@ pub struct SetInfo {
     pub ground_truth: Option<GroundTruth>,
 }
 
+impl SetInfo {
+    /// Indices (short, long) of Network-1's pair and of the blend-class ground truth: EV−3 and
+    /// the reference when the set has both (the paper's pair), else its lowest EV and the
+    /// reference.
+    pub fn network1_pair(&self) -> Result<(usize, usize)> {
+        let r = self.reference;
+        if let Some(i) = self.evs.iter().position(|&e| e == -3.0)
+            && i != r
+        {
+            return Ok((i, r));
+        }
+        match (0..self.evs.len()).min_by(|&a, &b| self.evs[a].total_cmp(&self.evs[b])) {
+            Some(lo) if self.evs[lo] < self.evs[r] => Ok((lo, r)),
+            _ => Err(Error::layout(
+                &self.dir,
+                format!(
+                    "set '{}': EVs {:?} hold no frame shorter than the reference; Network-1 and \
+                     its blend classes need a short and a long exposure",
+                    self.name, self.evs
+                ),
+            )),
+        }
+    }
+}
+
 /// The loaded pixels of a set. LDR frames are code values in [0,1] as stored.
 #[derive(Clone, Debug)]
 pub struct LoadedSet {
