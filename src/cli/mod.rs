@@ -1,4 +1,5 @@
 //! Subcommands, one file each. The binary (src/main.rs) only parses and dispatches.
+pub mod ablate;
 pub mod calibrate;
 pub mod dataset;
 pub mod eval;
