@@ -7,6 +7,7 @@ pub mod generate;
 pub mod infer;
 pub mod preview;
 pub mod profile;
+pub mod quickstart;
 pub mod realism;
 pub mod testset;
 pub mod train;

@@ -2,7 +2,7 @@
 //! from the same base training config with its own settings laid over it (a sensor profile, a
 //! colour switch, an ISO range, ...), is evaluated on the same test set, and the cells become one
 //! table shaped like the paper's Tables 1–4, with bootstrap confidence intervals and paired
-//! differences against the first cell.
+//! differences against a reference cell (default: the first).
 //!
 //! Resumable at every level: a cell whose `eval/` folder exists is finished and skipped; a cell
 //! killed while training resumes from its latest checkpoint (the trainer's bit-identical resume);
@@ -73,6 +73,9 @@ pub struct EvalSpec {
     pub backend: Option<String>,
     /// Core tile side for full-resolution inference (default: the network's default).
     pub tile: Option<usize>,
+    /// The cell the paired differences are taken against (`row` or `row__column`); default:
+    /// the first cell.
+    pub reference: Option<String>,
 }
 
 impl Default for EvalSpec {
@@ -83,6 +86,7 @@ impl Default for EvalSpec {
             level: 0.95,
             backend: None,
             tile: None,
+            reference: None,
         }
     }
 }
@@ -151,6 +155,14 @@ impl AblateConfig {
         }
         if !(self.eval.level > 0.0 && self.eval.level < 1.0) {
             return Err(format!("eval.level {} must be in (0, 1)", self.eval.level));
+        }
+        if let Some(r) = &self.eval.reference
+            && !self
+                .cells()
+                .iter()
+                .any(|&(row, col)| self.cell_id(row, col) == *r)
+        {
+            return Err(format!("eval.reference '{r}' is not a cell of the grid"));
         }
         if self.testset.radiance.is_some() != self.testset.profile.is_some() {
             return Err(
@@ -546,13 +558,18 @@ pub fn write_table(cfg: &AblateConfig) -> Result<String> {
         }
     }
     let find = |r: usize, c: Option<usize>| done.iter().find(|d| d.r == r && d.c == c);
-    let reference = cfg.cells()[0];
+    let reference = cfg
+        .cells()
+        .into_iter()
+        .find(|&(r, c)| cfg.eval.reference.as_ref() == Some(&cfg.cell_id(r, c)))
+        .unwrap_or(cfg.cells()[0]);
     let ref_scores = find(reference.0, reference.1);
     let ref_label = cell_label(cfg, reference.0, reference.1);
     let pct = cfg.eval.level * 100.0;
 
-    let mut csv =
-        String::from("row,column,metric,n,mean,ci_lo,ci_hi,diff_vs_first,diff_ci_lo,diff_ci_hi\n");
+    let mut csv = String::from(
+        "row,column,metric,n,mean,ci_lo,ci_hi,diff_vs_reference,diff_ci_lo,diff_ci_hi\n",
+    );
     // (metric, r, c) → "mean [lo, hi]" and paired difference.
     let mut cell_text: BTreeMap<(usize, usize, Option<usize>), (String, String)> = BTreeMap::new();
     for d in &done {
@@ -642,7 +659,12 @@ pub fn write_table(cfg: &AblateConfig) -> Result<String> {
             let _ = write!(md, "---|");
         }
         md.push('\n');
-        for (r, row) in cfg.rows.iter().enumerate().skip(1) {
+        for (r, row) in cfg
+            .rows
+            .iter()
+            .enumerate()
+            .filter(|(r, _)| *r != reference.0)
+        {
             let _ = write!(md, "| {} |", row.label());
             for mi in 0..TABLE_METRICS.len() {
                 let t = cell_text.get(&(mi, r, None));
