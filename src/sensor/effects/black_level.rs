@@ -1,0 +1,45 @@
+//! `black_level`: the pedestal differs from the declared black level by `offset_dn` DN (an
+//! undeclared or wrong pedestal); added after the black level (offset stage).
+//!
+//! Statistic (dark bursts): the mean of the temporal mean over non-hot values. Zero-mean fixed
+//! patterns and noise leave it alone; hot values are masked. Fit: offset = measured −
+//! simulated, averaged over dark bursts.
+
+use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, number, only, table};
+use crate::sensor::captures::BurstKind;
+
+pub const ID: &str = "black_level";
+const NAME: &str = "mean dark level";
+
+pub const ENTRY: Entry = Entry {
+    id: ID,
+    about: "pedestal offset from the declared black level (DN)",
+    install,
+    statistics,
+    fit,
+    adjust: None,
+};
+
+fn install(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
+    only(p, &["offset_dn"])?;
+    plan.black_offset += number(p, "offset_dn")? as f32;
+    Ok(())
+}
+
+fn statistics(p: &Protocol, s: &[Summary], out: &mut Vec<Stat>) {
+    for b in s.iter().filter(|b| b.kind == BurstKind::Dark) {
+        out.push(Stat {
+            key: format!("{}: {NAME}", p.bursts[b.burst].name),
+            effect: Some(ID),
+            value: super::masked_mean(&b.mean, |i| b.not_hot(i)),
+            min_effect: 0.5,
+            sd_floor: 0.01,
+            unit: "DN",
+        });
+    }
+}
+
+fn fit(ctx: &FitCtx) -> Result<toml::Table, String> {
+    let d = ctx.mean_excess(ID, NAME)?;
+    Ok(table(&[("offset_dn", float(d))]))
+}
