@@ -41,6 +41,8 @@ enum Command {
     Eval(hdrsynth::cli::eval::Args),
     /// Build a static test set from real HDR radiance through a sensor profile.
     Testset(hdrsynth::cli::testset::Args),
+    /// Sim-to-real gap: name, fit and add the effects a profile misses, from real captures.
+    Diagnose(hdrsynth::cli::diagnose::Args),
     /// Inspect datasets.
     Dataset {
         #[command(subcommand)]
@@ -90,6 +92,7 @@ fn main() -> Result<()> {
         Command::Infer(args) => println!("{}", hdrsynth::cli::infer::run(&args)?),
         Command::Eval(args) => println!("{}", hdrsynth::cli::eval::run(&args)?),
         Command::Testset(args) => println!("{}", hdrsynth::cli::testset::run(&args)?),
+        Command::Diagnose(args) => println!("{}", hdrsynth::cli::diagnose::run(&args)?),
         Command::Dataset { command } => match command {
             DatasetCommand::Info { dir } => {
                 print!("{}", hdrsynth::cli::dataset::info_report(&dir)?)

@@ -1,6 +1,7 @@
 //! Subcommands, one file each. The binary (src/main.rs) only parses and dispatches.
 pub mod calibrate;
 pub mod dataset;
+pub mod diagnose;
 pub mod eval;
 pub mod generate;
 pub mod infer;
