@@ -8,6 +8,7 @@ mod truth;
 use hdrsynth::sensor::captures::CaptureSet;
 use hdrsynth::sensor::diagnose::{DiagnoseOptions, Diagnosis, diagnose};
 use hdrsynth::sensor::effects::number;
+use std::path::Path;
 use truth::Truth;
 
 fn run(t: &Truth, name: &str) -> (Diagnosis, usize) {
@@ -216,18 +217,118 @@ fn two_hidden_effects_column_noise_and_vignetting() {
     pair(&d, "column_noise", "vignetting");
 }
 
+/// Weak versions of every effect on another frame size and frame count: the workflow must not
+/// depend on one magnitude. (id, parameter, planted value, truth setter)
+#[test]
+fn weak_hidden_effects() {
+    type Set = fn(&mut Truth);
+    let cases: [(&str, &str, f64, Set); 10] = [
+        ("black_level", "offset_dn", 1.5, |t| t.black_offset = 1.5),
+        ("row_noise", "sigma_dn", 0.7, |t| t.row_sigma = 0.7),
+        ("column_noise", "sigma_dn", 0.6, |t| t.column_sigma = 0.6),
+        ("dsnu", "sigma_dn", 1.0, |t| t.dsnu_sigma = 1.0),
+        ("prnu", "sigma", 0.004, |t| t.prnu_sigma = 0.004),
+        ("vignetting", "strength", 0.06, |t| t.vignetting = 0.06),
+        ("correlated_noise", "rho", 0.1, |t| t.corr_rho = 0.1),
+        ("nonlinear_response", "exponent", 0.93, |t| t.exponent = 0.93),
+        ("heavy_tailed_read_noise", "dof", 14.0, |t| t.heavy_dof = Some(14.0)),
+        ("hot_pixels", "offset_dn", 120.0, |t| t.hot = Some((0.0015, 120.0))),
+    ];
+    for (k, (id, key, want, set)) in cases.iter().enumerate() {
+        let mut t = Truth::new(128, 96, 16, 100 + k as u64);
+        t.a100 = 0.3;
+        t.b100 = 4.0;
+        set(&mut t);
+        let (d, _) = run(&t, &format!("weak-{id}"));
+        single(&d, id);
+        within(param(&d, id, key), *want, &format!("{id}.{key}"));
+    }
+}
+
+/// `hdrsynth diagnose` writes report.json in the issue's shape, report.md, the plots and a
+/// profile.toml that the realism operator (what the loader builds for training samples)
+/// applies: its fitted vignetting darkens a corner of a uniform frame by 1 − k·r².
+#[test]
+fn cli_report_and_profile_flow_into_the_realism_operator() {
+    use hdrsynth::io::Image;
+    use hdrsynth::sensor::profile::{Response, SensorProfile};
+    use hdrsynth::sensor::realism::{NoiseModel, Realism, RealismOptions};
+    let tmp = std::env::temp_dir().join(format!("hdrsynth-diagnose-cli-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&tmp);
+    let mut t = Truth::new(64, 48, 8, 21);
+    t.vignetting = 0.25;
+    t.row_sigma = 1.5;
+    t.write(&tmp.join("captures"));
+    let out = tmp.join("diag");
+    let args = hdrsynth::cli::diagnose::Args {
+        captures: tmp.join("captures"),
+        profile: None,
+        out: out.clone(),
+        replicates: 12,
+        seed: 3,
+    };
+    let summary = hdrsynth::cli::diagnose::run(&args).expect("diagnose");
+    eprintln!("{summary}");
+    for f in ["profile.toml", "report.md", "report.json", "gap.png", "radial.png", "ptc.png"] {
+        assert!(out.join(f).is_file(), "{f} missing");
+    }
+    let json = std::fs::read_to_string(out.join("report.json")).unwrap();
+    // The issue's shape: these keys, in this order, and a step's keys.
+    let mut at = 0;
+    for key in [
+        "\"format\": \"hdrsynth-diagnosis/1\"",
+        "\"threshold\": ",
+        "\"initial_gap\": ",
+        "\"final_gap\": ",
+        "\"steps\": [",
+        "{\"effect\": ",
+        "\"params\": {",
+        "\"gap_before\": ",
+        "\"gap_after\": ",
+        "\"evidence\": \"",
+        "\"unexplained\": []",
+    ] {
+        let i = json[at..].find(key).unwrap_or_else(|| panic!("{key} not in order in\n{json}"));
+        at += i + key.len();
+    }
+    assert!(json.contains("\"effect\": \"vignetting\"") && json.contains("\"effect\": \"row_noise\""));
+
+    let p = SensorProfile::load(&out.join("profile.toml")).expect("profile loads");
+    let ids: Vec<&str> = p.effects.iter().map(|e| e.id.as_str()).collect();
+    assert!(ids.contains(&"vignetting") && ids.contains(&"row_noise"), "{ids:?}");
+    let k = number(&p.effects.iter().find(|e| e.id == "vignetting").unwrap().params, "strength")
+        .unwrap();
+    let mut lin = p.clone();
+    lin.source_response = Response::Linear;
+    let mut opts = RealismOptions::new(100.0);
+    opts.noise = NoiseModel::None;
+    opts.colour = false;
+    let r = Realism::new(&lin, &opts).expect("realism");
+    let dn = r.to_dn(&Image::from_fn(64, 48, |_, _| [0.5; 3]), 0);
+    let black = p.levels.black_level;
+    let centre = (dn.get(32, 24)[1] as f64 - black) / (0.5 * (p.levels.white_level - black));
+    let corner = (dn.get(0, 0)[1] as f64 - black) / (0.5 * (p.levels.white_level - black));
+    // r² of pixel (0, 0) in a 64×48 frame: ((0.5 − 32)² + (0.5 − 24)²) / 40² = 0.965234…
+    let r2 = (31.5f64.powi(2) + 23.5f64.powi(2)) / 1600.0;
+    assert!((corner - (1.0 - k * r2)).abs() < 2e-3, "corner {corner} vs {}", 1.0 - k * r2);
+    assert!((centre - (1.0 - k * (0.25 + 0.25) / 1600.0)).abs() < 2e-3, "centre {centre}");
+    // And the same through the default options the loader uses (filmic source, colour on).
+    let r = Realism::new(&p, &RealismOptions::new(100.0)).expect("loader-style realism");
+    let _ = r.apply(&Image::from_fn(64, 48, |_, _| [0.5; 3]), 1);
+    let _ = std::fs::remove_dir_all(&tmp);
+}
+
+/// The worked example of docs/diagnose.md: `HDRSYNTH_EXAMPLE_DIR=/tmp/ex cargo test --release
+/// --test diagnose worked_example -- --ignored`, then `hdrsynth diagnose /tmp/ex --out ...`.
 #[test]
 #[ignore]
-fn debug_base() {
-    let t = Truth::new(64, 48, 12, 11);
-    let dir = std::env::temp_dir().join("hdrsynth-dbg");
-    let _ = std::fs::remove_dir_all(&dir);
-    t.write(&dir);
-    let set = CaptureSet::load(&dir).unwrap();
-    let cal = hdrsynth::sensor::noise::calibrate(&set, &Default::default()).unwrap();
-    eprintln!("{}", cal.report(4095.0, 64.0));
-    let opts = DiagnoseOptions { replicates: 4, seed: 7, ..DiagnoseOptions::default() };
-    let d = diagnose(&set, None, &opts).unwrap();
-    eprintln!("{:?}", d.profile.noise);
-    eprintln!("{}", d.report_md());
+fn worked_example() {
+    let dir = std::env::var("HDRSYNTH_EXAMPLE_DIR").expect("HDRSYNTH_EXAMPLE_DIR");
+    let mut t = Truth::new(96, 64, 12, 2026);
+    t.black_offset = 3.0;
+    t.row_sigma = 1.2;
+    t.hot = Some((0.002, 250.0));
+    t.vignetting = 0.15;
+    let hot = t.write(Path::new(&dir));
+    eprintln!("planted {hot} hot values");
 }
