@@ -66,7 +66,11 @@ fn no_hidden_effect_names_nothing() {
     let mut t = Truth::new(64, 48, 12, 11);
     t.isos = vec![100.0, 400.0];
     let (d, _) = run(&t, "none");
-    assert!(d.steps.is_empty(), "named {:?}", d.steps.iter().map(|s| &s.effect).collect::<Vec<_>>());
+    assert!(
+        d.steps.is_empty(),
+        "named {:?}",
+        d.steps.iter().map(|s| &s.effect).collect::<Vec<_>>()
+    );
     assert!(d.final_gap() <= d.threshold);
     assert!(d.unexplained.is_empty());
 }
@@ -123,7 +127,11 @@ fn hidden_hot_pixels() {
     let (d, planted) = run(&t, "hot");
     single(&d, "hot_pixels");
     let n = (80 * 64 * 3) as f64;
-    within(param(&d, "hot_pixels", "fraction"), planted as f64 / n, "fraction");
+    within(
+        param(&d, "hot_pixels", "fraction"),
+        planted as f64 / n,
+        "fraction",
+    );
     within(param(&d, "hot_pixels", "offset_dn"), 300.0, "offset_dn");
 }
 
@@ -147,7 +155,11 @@ fn hidden_channel_noise() {
     let p = &d.profile;
     let range = p.levels.white_level - p.levels.black_level;
     let (a, b) = p.noise_at(100.0).unwrap();
-    let step = d.steps.iter().find(|s| s.effect == "channel_noise").unwrap();
+    let step = d
+        .steps
+        .iter()
+        .find(|s| s.effect == "channel_noise")
+        .unwrap();
     let arr = |k: &str| -> Vec<f64> {
         step.params[k]
             .as_array()
@@ -159,7 +171,11 @@ fn hidden_channel_noise() {
     let (fa, fb) = (arr("a_scale"), arr("b_scale"));
     for c in 0..3 {
         within(a[c] * range * fa[c], t.a100 * sa[c], &format!("a[{c}]"));
-        within(b[c] * range * range * fb[c], t.b100 * sb[c], &format!("b[{c}]"));
+        within(
+            b[c] * range * range * fb[c],
+            t.b100 * sb[c],
+            &format!("b[{c}]"),
+        );
     }
 }
 
@@ -193,8 +209,16 @@ fn hidden_nonlinear_response() {
 
 fn pair(d: &Diagnosis, a: &str, b: &str) {
     let named: Vec<&str> = d.steps.iter().map(|s| s.effect.as_str()).collect();
-    assert!(named.contains(&a) && named.contains(&b), "named {named:?}, want {a} and {b}");
-    assert!(d.final_gap() <= d.threshold, "final gap {} > {}", d.final_gap(), d.threshold);
+    assert!(
+        named.contains(&a) && named.contains(&b),
+        "named {named:?}, want {a} and {b}"
+    );
+    assert!(
+        d.final_gap() <= d.threshold,
+        "final gap {} > {}",
+        d.final_gap(),
+        d.threshold
+    );
 }
 
 #[test]
@@ -230,9 +254,15 @@ fn weak_hidden_effects() {
         ("prnu", "sigma", 0.004, |t| t.prnu_sigma = 0.004),
         ("vignetting", "strength", 0.06, |t| t.vignetting = 0.06),
         ("correlated_noise", "rho", 0.1, |t| t.corr_rho = 0.1),
-        ("nonlinear_response", "exponent", 0.93, |t| t.exponent = 0.93),
-        ("heavy_tailed_read_noise", "dof", 14.0, |t| t.heavy_dof = Some(14.0)),
-        ("hot_pixels", "offset_dn", 120.0, |t| t.hot = Some((0.0015, 120.0))),
+        ("nonlinear_response", "exponent", 0.93, |t| {
+            t.exponent = 0.93
+        }),
+        ("heavy_tailed_read_noise", "dof", 14.0, |t| {
+            t.heavy_dof = Some(14.0)
+        }),
+        ("hot_pixels", "offset_dn", 120.0, |t| {
+            t.hot = Some((0.0015, 120.0))
+        }),
     ];
     for (k, (id, key, want, set)) in cases.iter().enumerate() {
         let mut t = Truth::new(128, 96, 16, 100 + k as u64);
@@ -269,7 +299,14 @@ fn cli_report_and_profile_flow_into_the_realism_operator() {
     };
     let summary = hdrsynth::cli::diagnose::run(&args).expect("diagnose");
     eprintln!("{summary}");
-    for f in ["profile.toml", "report.md", "report.json", "gap.png", "radial.png", "ptc.png"] {
+    for f in [
+        "profile.toml",
+        "report.md",
+        "report.json",
+        "gap.png",
+        "radial.png",
+        "ptc.png",
+    ] {
         assert!(out.join(f).is_file(), "{f} missing");
     }
     let json = std::fs::read_to_string(out.join("report.json")).unwrap();
@@ -288,16 +325,30 @@ fn cli_report_and_profile_flow_into_the_realism_operator() {
         "\"evidence\": \"",
         "\"unexplained\": []",
     ] {
-        let i = json[at..].find(key).unwrap_or_else(|| panic!("{key} not in order in\n{json}"));
+        let i = json[at..]
+            .find(key)
+            .unwrap_or_else(|| panic!("{key} not in order in\n{json}"));
         at += i + key.len();
     }
-    assert!(json.contains("\"effect\": \"vignetting\"") && json.contains("\"effect\": \"row_noise\""));
+    assert!(
+        json.contains("\"effect\": \"vignetting\"") && json.contains("\"effect\": \"row_noise\"")
+    );
 
     let p = SensorProfile::load(&out.join("profile.toml")).expect("profile loads");
     let ids: Vec<&str> = p.effects.iter().map(|e| e.id.as_str()).collect();
-    assert!(ids.contains(&"vignetting") && ids.contains(&"row_noise"), "{ids:?}");
-    let k = number(&p.effects.iter().find(|e| e.id == "vignetting").unwrap().params, "strength")
-        .unwrap();
+    assert!(
+        ids.contains(&"vignetting") && ids.contains(&"row_noise"),
+        "{ids:?}"
+    );
+    let k = number(
+        &p.effects
+            .iter()
+            .find(|e| e.id == "vignetting")
+            .unwrap()
+            .params,
+        "strength",
+    )
+    .unwrap();
     let mut lin = p.clone();
     lin.source_response = Response::Linear;
     let mut opts = RealismOptions::new(100.0);
@@ -310,8 +361,15 @@ fn cli_report_and_profile_flow_into_the_realism_operator() {
     let corner = (dn.get(0, 0)[1] as f64 - black) / (0.5 * (p.levels.white_level - black));
     // r² of pixel (0, 0) in a 64×48 frame: ((0.5 − 32)² + (0.5 − 24)²) / 40² = 0.965234…
     let r2 = (31.5f64.powi(2) + 23.5f64.powi(2)) / 1600.0;
-    assert!((corner - (1.0 - k * r2)).abs() < 2e-3, "corner {corner} vs {}", 1.0 - k * r2);
-    assert!((centre - (1.0 - k * (0.25 + 0.25) / 1600.0)).abs() < 2e-3, "centre {centre}");
+    assert!(
+        (corner - (1.0 - k * r2)).abs() < 2e-3,
+        "corner {corner} vs {}",
+        1.0 - k * r2
+    );
+    assert!(
+        (centre - (1.0 - k * (0.25 + 0.25) / 1600.0)).abs() < 2e-3,
+        "centre {centre}"
+    );
     // And the same through the default options the loader uses (filmic source, colour on).
     let r = Realism::new(&p, &RealismOptions::new(100.0)).expect("loader-style realism");
     let _ = r.apply(&Image::from_fn(64, 48, |_, _| [0.5; 3]), 1);

@@ -55,7 +55,7 @@ pub fn run(args: &Args) -> Result<String> {
     for st in &d.steps {
         let _ = writeln!(
             s,
-            "  + {} {:?}: {:.2} → {:.2} ({})",
+            "  + {} {{{}}}: {:.2} → {:.2} ({})",
             st.effect,
             st.params.to_string().trim().replace('\n', ", "),
             st.gap_before,

@@ -279,7 +279,9 @@ fn targets(proto: &Protocol, measured: &[Summary], plan: &Plan) -> Vec<Option<Im
                     Some(Image::from_fn(w, h, |_, _| level.map(|v| v as f32)))
                 }
                 BurstKind::Scene => {
-                    let g = groups.iter().find(|g| g.iter().any(|b| b.burst == m.burst))?;
+                    let g = groups
+                        .iter()
+                        .find(|g| g.iter().any(|b| b.burst == m.burst))?;
                     let top = 0.9 * (proto.white - proto.black);
                     let data = (0..w * h * 3)
                         .map(|i| {
@@ -366,7 +368,7 @@ pub fn normal_quantile(p: f64) -> f64 {
         -3.969683028665376e1,
         2.209460984245205e2,
         -2.759285104469687e2,
-        1.383577518672690e2,
+        1.38357751867269e2,
         -3.066479806614716e1,
         2.506628277459239,
     ];
@@ -497,7 +499,9 @@ pub fn diagnose(
     opts: &DiagnoseOptions,
 ) -> Result<Diagnosis> {
     if opts.replicates < 2 {
-        return Err(Error::Invalid("at least 2 bootstrap replicates are needed".into()));
+        return Err(Error::Invalid(
+            "at least 2 bootstrap replicates are needed".into(),
+        ));
     }
     // Levels for the per-channel calibration: the profile's when given.
     let cal_opts = CalibrateOptions {
@@ -538,7 +542,9 @@ pub fn diagnose(
             (p, format!("the given profile '{name}'"))
         }
         None => {
-            let cal = calibration.as_ref().map_err(|e| Error::Invalid(e.to_string()))?;
+            let cal = calibration
+                .as_ref()
+                .map_err(|e| Error::Invalid(e.to_string()))?;
             (
                 base_profile(set, cal, &measured)?,
                 "the paper's base model fitted from the captures (T from the chart, one (a, b) \
@@ -593,7 +599,10 @@ pub fn diagnose(
         let params = match (entry.fit)(&fctx) {
             Ok(p) => p,
             Err(m) => {
-                notes.push(format!("{id} named by {} but not fitted: {m}", top.stat.key));
+                notes.push(format!(
+                    "{id} named by {} but not fitted: {m}",
+                    top.stat.key
+                ));
                 continue;
             }
         };
@@ -651,7 +660,12 @@ pub fn diagnose(
     let radial = measured
         .iter()
         .filter(|s| s.kind == BurstKind::Flat)
-        .map(|s| (set.bursts()[s.burst].name.clone(), radial_profile(s, &proto0)))
+        .map(|s| {
+            (
+                set.bursts()[s.burst].name.clone(),
+                radial_profile(s, &proto0),
+            )
+        })
         .collect();
     Ok(Diagnosis {
         threshold: ctx.threshold,
@@ -768,8 +782,16 @@ impl Diagnosis {
         let mut s = String::from("{\n");
         let _ = writeln!(s, "  \"format\": {},", json_str(REPORT_FORMAT));
         let _ = writeln!(s, "  \"threshold\": {},", json_num(round2(self.threshold)));
-        let _ = writeln!(s, "  \"initial_gap\": {},", json_num(round2(self.initial_gap())));
-        let _ = writeln!(s, "  \"final_gap\": {},", json_num(round2(self.final_gap())));
+        let _ = writeln!(
+            s,
+            "  \"initial_gap\": {},",
+            json_num(round2(self.initial_gap()))
+        );
+        let _ = writeln!(
+            s,
+            "  \"final_gap\": {},",
+            json_num(round2(self.final_gap()))
+        );
         let steps: Vec<String> = self
             .steps
             .iter()
@@ -835,7 +857,11 @@ impl Diagnosis {
             self.initial_gap(),
             self.final_gap()
         );
-        let _ = writeln!(s, "## Initial comparison\n\n{}", Self::table_md(&self.initial));
+        let _ = writeln!(
+            s,
+            "## Initial comparison\n\n{}",
+            Self::table_md(&self.initial)
+        );
         for (i, st) in self.steps.iter().enumerate() {
             let _ = writeln!(
                 s,
@@ -925,9 +951,12 @@ mod plots {
 
     fn frame(c: &mut Canvas, title: &str) {
         let black = MonoTextStyle::new(&FONT_6X10, Rgb888::BLACK);
-        let _ = Rectangle::new(Point::new(L, T), Size::new((W - L - R) as u32, (H - T - B) as u32))
-            .into_styled(PrimitiveStyle::with_stroke(Rgb888::BLACK, 1))
-            .draw(c);
+        let _ = Rectangle::new(
+            Point::new(L, T),
+            Size::new((W - L - R) as u32, (H - T - B) as u32),
+        )
+        .into_styled(PrimitiveStyle::with_stroke(Rgb888::BLACK, 1))
+        .draw(c);
         let _ = Text::new(title, Point::new(L, 18), black).draw(c);
     }
 
@@ -972,7 +1001,10 @@ mod plots {
     /// vignetting 1 − k·r² (red line).
     pub fn radial(series: &[(String, Vec<(f64, f64)>)], k: f64) -> Image {
         let mut c = Canvas::new(W as usize, H as usize);
-        frame(&mut c, &format!("flat mean / centre vs r^2; red: model 1 - {k:.3} r^2"));
+        frame(
+            &mut c,
+            &format!("flat mean / centre vs r^2; red: model 1 - {k:.3} r^2"),
+        );
         let text = MonoTextStyle::new(&FONT_6X10, Rgb888::BLACK);
         let lo = series
             .iter()
@@ -983,9 +1015,12 @@ mod plots {
         let hi = 1.05;
         let px = |x: f64| L + (x * (W - L - R) as f64) as i32;
         let py = |y: f64| H - B - ((y - lo) / (hi - lo) * (H - T - B) as f64) as i32;
-        let _ = Line::new(Point::new(px(0.0), py(1.0)), Point::new(px(1.0), py(1.0 - k)))
-            .into_styled(PrimitiveStyle::with_stroke(Rgb888::RED, 1))
-            .draw(&mut c);
+        let _ = Line::new(
+            Point::new(px(0.0), py(1.0)),
+            Point::new(px(1.0), py(1.0 - k)),
+        )
+        .into_styled(PrimitiveStyle::with_stroke(Rgb888::RED, 1))
+        .draw(&mut c);
         let colours = [
             Rgb888::new(40, 40, 40),
             Rgb888::new(40, 120, 40),

@@ -22,12 +22,12 @@ use crate::io::{BitDepth, Image};
 use crate::rng::hash;
 use crate::sensor::effects::Plan;
 use crate::sensor::profile::{Response, SensorProfile};
-use std::sync::{Arc, Mutex};
 use rand::SeedableRng;
 use rand_distr::{Distribution, Poisson, StandardNormal, StudentT};
 use rand_xoshiro::Xoshiro256PlusPlus;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use std::sync::{Arc, Mutex};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]

@@ -76,6 +76,7 @@ impl Truth {
     }
 
     /// Fixed patterns: (gain per value, offset per value), and the number of hot values.
+    #[allow(clippy::needless_range_loop)] // (x, y, c) index arithmetic reads clearer
     fn patterns(&self) -> (Vec<f64>, Vec<f64>, usize) {
         let (w, h) = (self.width, self.height);
         let mut rng = Xoshiro256PlusPlus::seed_from_u64(self.seed ^ 0xf1d0);
@@ -116,7 +117,14 @@ impl Truth {
     }
 
     /// One frame of a target (signal above black per value, before gain), burst `b`, frame `f`.
-    fn frame(&self, target: &[f64], iso: f64, pat: &(Vec<f64>, Vec<f64>, usize), b: u64, f: u64) -> Image {
+    fn frame(
+        &self,
+        target: &[f64],
+        iso: f64,
+        pat: &(Vec<f64>, Vec<f64>, usize),
+        b: u64,
+        f: u64,
+    ) -> Image {
         let (w, h) = (self.width, self.height);
         let r = self.range();
         let mut rng = Xoshiro256PlusPlus::seed_from_u64(
@@ -125,7 +133,9 @@ impl Truth {
         let n3 = w * h * 3;
         // Unit normals, filtered vertically for correlated noise: e' = (e(y) + β e(y+1)) /
         // √(1 + β²) has lag-1 vertical correlation β / (1 + β²) = ρ.
-        let e: Vec<f64> = (0..n3 + w * 3).map(|_| StandardNormal.sample(&mut rng)).collect();
+        let e: Vec<f64> = (0..n3 + w * 3)
+            .map(|_| StandardNormal.sample(&mut rng))
+            .collect();
         let beta = if self.corr_rho > 0.0 {
             (1.0 - (1.0 - 4.0 * self.corr_rho * self.corr_rho).sqrt()) / (2.0 * self.corr_rho)
         } else {
@@ -191,7 +201,14 @@ impl Truth {
             frames.push(imgs);
         };
         for &iso in &self.isos {
-            add(format!("dark_{iso}"), BurstKind::Dark, iso, 0.0, vec![0.0; w * h * 3], self.frames);
+            add(
+                format!("dark_{iso}"),
+                BurstKind::Dark,
+                iso,
+                0.0,
+                vec![0.0; w * h * 3],
+                self.frames,
+            );
             for (k, level) in [0.2, 0.55].iter().enumerate() {
                 add(
                     format!("flat_{iso}_{k}"),
@@ -214,7 +231,14 @@ impl Truth {
                 }
             }
         }
-        add("chart".into(), BurstKind::Chart, self.isos[0], 0.01, chart, 2);
+        add(
+            "chart".into(),
+            BurstKind::Chart,
+            self.isos[0],
+            0.01,
+            chart,
+            2,
+        );
         let iso = self.isos[0];
         let scene: Vec<f64> = (0..w * h * 3)
             .map(|i| {
@@ -225,7 +249,14 @@ impl Truth {
             .collect();
         for (k, e) in [16.0, 4.0, 1.0].iter().enumerate() {
             let t: Vec<f64> = scene.iter().map(|v| v * e / 16.0).collect();
-            add(format!("scene_{k}"), BurstKind::Scene, iso, e / 1000.0, t, 2);
+            add(
+                format!("scene_{k}"),
+                BurstKind::Scene,
+                iso,
+                e / 1000.0,
+                t,
+                2,
+            );
         }
         write_capture_set(dir, &m, &frames).expect("write capture set");
         pat.2

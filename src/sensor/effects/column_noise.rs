@@ -38,6 +38,7 @@ fn install(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
 }
 
 /// Covariance over columns of the top- and bottom-half column means.
+#[allow(clippy::needless_range_loop)] // (x, y, c) index arithmetic reads clearer
 pub fn column_cov(b: &Summary) -> f64 {
     let (w, h) = (b.width, b.height);
     let mut t = vec![(0.0, 0.0); w];
@@ -87,7 +88,9 @@ fn statistics(p: &Protocol, s: &[Summary], out: &mut Vec<Stat>) {
 fn fit(ctx: &FitCtx) -> Result<toml::Table, String> {
     let v = ctx.mean_excess(ID, NAME)?;
     if v <= 0.0 {
-        return Err(format!("excess column covariance {v:.4} DN² is not positive"));
+        return Err(format!(
+            "excess column covariance {v:.4} DN² is not positive"
+        ));
     }
     Ok(table(&[
         ("sigma_dn", float(v.sqrt())),

@@ -56,11 +56,10 @@ fn fit(ctx: &FitCtx) -> Result<toml::Table, String> {
         if st.effect != Some(ID) {
             continue;
         }
-        let Some(b) = ctx
-            .summaries
-            .iter()
-            .find(|b| st.key.starts_with(&format!("{}: ", ctx.protocol.bursts[b.burst].name)))
-        else {
+        let Some(b) = ctx.summaries.iter().find(|b| {
+            st.key
+                .starts_with(&format!("{}: ", ctx.protocol.bursts[b.burst].name))
+        }) else {
             continue;
         };
         let (Some(r), Ok((_, bn))) = (&b.resid, ctx.profile.noise_at(b.iso)) else {

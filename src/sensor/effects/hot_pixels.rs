@@ -64,7 +64,13 @@ fn fit(ctx: &FitCtx) -> Result<toml::Table, String> {
         .summaries
         .iter()
         .filter(|b| b.kind == BurstKind::Dark)
-        .flat_map(|b| b.fixed.iter().zip(&b.hot).filter(|(_, h)| **h).map(|(v, _)| *v))
+        .flat_map(|b| {
+            b.fixed
+                .iter()
+                .zip(&b.hot)
+                .filter(|(_, h)| **h)
+                .map(|(v, _)| *v)
+        })
         .collect();
     if f <= 0.0 || excess.is_empty() {
         return Err(format!("excess hot fraction {f:.2e} is not positive"));

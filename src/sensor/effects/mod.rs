@@ -171,7 +171,9 @@ impl Plan {
             for x in 0..w {
                 let v = vignetting::gain(self.vignetting_k, x, y, w, h);
                 for c in 0..3 {
-                    let p = self.prnu.map_or(1.0, |(s, seed)| prnu::gain(s, seed, x, y, c));
+                    let p = self
+                        .prnu
+                        .map_or(1.0, |(s, seed)| prnu::gain(s, seed, x, y, c));
                     g[(y * w + x) * 3 + c] = v * p;
                 }
             }
@@ -194,10 +196,12 @@ impl Plan {
         for y in 0..h {
             for x in 0..w {
                 for c in 0..3 {
-                    let d = self.dsnu.map_or(0.0, |(s, seed)| dsnu::offset(s, seed, x, y, c));
-                    let hp = self
-                        .hot
-                        .map_or(0.0, |(f, off, seed)| hot_pixels::offset(f, off, seed, x, y, c));
+                    let d = self
+                        .dsnu
+                        .map_or(0.0, |(s, seed)| dsnu::offset(s, seed, x, y, c));
+                    let hp = self.hot.map_or(0.0, |(f, off, seed)| {
+                        hot_pixels::offset(f, off, seed, x, y, c)
+                    });
                     o[(y * w + x) * 3 + c] = cols[x] + d + hp;
                 }
             }

@@ -43,7 +43,10 @@ pub fn fixed_excess(b: &Summary) -> f64 {
 }
 
 fn statistics(p: &Protocol, s: &[Summary], out: &mut Vec<Stat>) {
-    for b in s.iter().filter(|b| b.kind == BurstKind::Flat && !b.var.is_empty()) {
+    for b in s
+        .iter()
+        .filter(|b| b.kind == BurstKind::Flat && !b.var.is_empty())
+    {
         let dark = s
             .iter()
             .find(|d| d.kind == BurstKind::Dark && d.iso == b.iso && !d.var.is_empty())

@@ -184,8 +184,7 @@ impl Accumulator {
                 .par_chunks(w3)
                 .map(|r| {
                     let l = r[..half].iter().map(|&v| v as f64).sum::<f64>() / half as f64;
-                    let rr =
-                        r[half..].iter().map(|&v| v as f64).sum::<f64>() / (w3 - half) as f64;
+                    let rr = r[half..].iter().map(|&v| v as f64).sum::<f64>() / (w3 - half) as f64;
                     [l, rr]
                 })
                 .collect();
@@ -292,6 +291,7 @@ fn sampled_median(v: impl Iterator<Item = f64>, len: usize) -> f64 {
     *s.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1
 }
 
+#[allow(clippy::needless_range_loop)] // (x, y, c) index arithmetic reads clearer
 /// Fill `fixed`, `hot`, `fixed_var`, `fixed_sigma`: surface (flats), then two passes of
 /// row/column removal per channel, the second with hot values left out of the means.
 fn fixed_residual(s: &mut Summary, surface: bool) {
@@ -403,6 +403,7 @@ fn quadratic_fit(m: &[f64], w: usize, h: usize, c: usize) -> [f64; 6] {
 }
 
 /// Gaussian elimination with partial pivoting (6×6 normal equations).
+#[allow(clippy::needless_range_loop)]
 fn solve6(mut a: [[f64; 6]; 6], mut b: [f64; 6]) -> [f64; 6] {
     for i in 0..6 {
         let p = (i..6)
