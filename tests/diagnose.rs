@@ -390,3 +390,93 @@ fn worked_example() {
     let hot = t.write(Path::new(&dir));
     eprintln!("planted {hot} hot values");
 }
+
+/// The realism operator's effect path: with zero-magnitude effects it gives bit-identical output
+/// to the plain path (the two agree on the base model); black offset and vignetting give the
+/// hand-computed DN; channel noise scales each channel's dark variance.
+#[test]
+fn realism_effect_path_against_plain_path_and_hand_values() {
+    use hdrsynth::io::Image;
+    use hdrsynth::sensor::profile::SensorProfile;
+    use hdrsynth::sensor::realism::{NoiseModel, Realism, RealismOptions};
+    let base = |effects: &str| -> SensorProfile {
+        let text = format!(
+            r#"
+format = "hdrsynth-sensor/1"
+name = "t"
+kind = "synthetic-example"
+source_response = {{ kind = "linear" }}
+response = {{ kind = "linear" }}
+[provenance]
+colour = "-"
+noise = "-"
+levels = "-"
+response = "-"
+[levels]
+black_level = 64.0
+white_level = 4095.0
+bit_depth = 12
+[[noise]]
+iso = 100.0
+a = [1.5e-4, 1.5e-4, 1.5e-4]
+b = [5.5e-7, 5.5e-7, 5.5e-7]
+{effects}
+"#
+        );
+        let p: SensorProfile =
+            hdrsynth::config::parse_toml(&text, Path::new("t.toml")).expect("profile");
+        p.validate().expect("valid");
+        p
+    };
+    let mut opts = RealismOptions::new(100.0);
+    opts.colour = false;
+    let input = Image::from_fn(64, 48, |x, y| [(x + y) as f32 / 120.0, 0.3, 0.05]);
+    let plain = Realism::new(&base(""), &opts).unwrap().to_dn(&input, 5);
+    let zero = base(
+        "[[effects]]\nid = \"column_noise\"\nsigma_dn = 0.0\nseed = 1\n\
+         [[effects]]\nid = \"dsnu\"\nsigma_dn = 0.0\nseed = 2\n",
+    );
+    assert_eq!(
+        Realism::new(&zero, &opts).unwrap().to_dn(&input, 5).data,
+        plain.data
+    );
+
+    let p = base(
+        "[[effects]]\nid = \"black_level\"\noffset_dn = 5\n\
+         [[effects]]\nid = \"vignetting\"\nstrength = 0.2\n",
+    );
+    let mut quiet = opts.clone();
+    quiet.noise = NoiseModel::None;
+    let dn = Realism::new(&p, &quiet)
+        .unwrap()
+        .to_dn(&Image::from_fn(64, 48, |_, _| [0.25; 3]), 0);
+    for (x, y) in [(0usize, 0usize), (32, 24), (63, 10)] {
+        let hd2 = (64.0f64 * 64.0 + 48.0 * 48.0) / 4.0;
+        let r2 = ((x as f64 + 0.5 - 32.0).powi(2) + (y as f64 + 0.5 - 24.0).powi(2)) / hd2;
+        let want = (64.0 + 5.0 + 0.25 * 4031.0 * (1.0 - 0.2 * r2)).round();
+        assert_eq!(dn.get(x, y)[0] as f64, want, "({x}, {y})");
+    }
+
+    let p =
+        base("[[effects]]\nid = \"channel_noise\"\na_scale = [1, 1, 1]\nb_scale = [4, 1, 0.25]\n");
+    let dark = Realism::new(&p, &opts)
+        .unwrap()
+        .to_dn(&Image::new(256, 256), 9);
+    let b = 5.5e-7 * 4031.0f64 * 4031.0;
+    for (c, s) in [4.0, 1.0, 0.25].iter().enumerate() {
+        let v: Vec<f64> = dark
+            .data
+            .iter()
+            .skip(c)
+            .step_by(3)
+            .map(|&v| v as f64)
+            .collect();
+        let m = v.iter().sum::<f64>() / v.len() as f64;
+        let var = v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / v.len() as f64;
+        let want = b * s + 1.0 / 12.0;
+        assert!(
+            (var / want - 1.0).abs() < 0.03,
+            "channel {c}: {var} vs {want}"
+        );
+    }
+}
