@@ -480,3 +480,91 @@ b = [5.5e-7, 5.5e-7, 5.5e-7]
         );
     }
 }
+
+/// No hidden effect, over frame sizes, frame counts and seeds: nothing is named.
+#[test]
+fn no_hidden_effect_over_sizes_and_seeds() {
+    for s in 0..6u64 {
+        let (w, h, f) = [(64, 48, 8), (96, 64, 16), (128, 96, 12)][s as usize % 3];
+        let (d, _) = run(&Truth::new(w, h, f, 500 + s), &format!("null{s}"));
+        assert!(
+            d.steps.is_empty(),
+            "seed {s}: named {:?}",
+            d.steps.iter().map(|x| &x.effect).collect::<Vec<_>>()
+        );
+        assert!(
+            d.final_gap() <= d.threshold && d.unexplained.is_empty(),
+            "seed {s}"
+        );
+    }
+}
+
+/// The classic confusions, hidden in pairs: row noise vs correlated noise, DSNU vs
+/// column FPN, PRNU vs vignetting, hot pixels vs column FPN, channel noise vs heavy tails. Both
+/// are named, each parameter within 25 %, and the gap ends under the threshold.
+#[test]
+fn confusable_pairs_are_told_apart() {
+    type Set = fn(&mut Truth);
+    let pairs: [(&str, Set, [(&str, &str, f64); 2]); 5] = [
+        (
+            "row+corr",
+            |t| {
+                t.row_sigma = 1.0;
+                t.corr_rho = 0.2;
+            },
+            [
+                ("row_noise", "sigma_dn", 1.0),
+                ("correlated_noise", "rho", 0.2),
+            ],
+        ),
+        (
+            "dsnu+col",
+            |t| {
+                t.dsnu_sigma = 2.0;
+                t.column_sigma = 1.0;
+            },
+            [("dsnu", "sigma_dn", 2.0), ("column_noise", "sigma_dn", 1.0)],
+        ),
+        (
+            "prnu+vig",
+            |t| {
+                t.prnu_sigma = 0.008;
+                t.vignetting = 0.2;
+            },
+            [("prnu", "sigma", 0.008), ("vignetting", "strength", 0.2)],
+        ),
+        (
+            "hot+col",
+            |t| {
+                t.hot = Some((0.003, 200.0));
+                t.column_sigma = 1.5;
+            },
+            [
+                ("hot_pixels", "offset_dn", 200.0),
+                ("column_noise", "sigma_dn", 1.5),
+            ],
+        ),
+        (
+            "chan+heavy",
+            |t| {
+                t.channel = Some(([1.3, 1.0, 0.8], [1.5, 1.0, 0.7]));
+                t.heavy_dof = Some(10.0);
+            },
+            [
+                ("heavy_tailed_read_noise", "dof", 10.0),
+                ("channel_noise", "", 0.0),
+            ],
+        ),
+    ];
+    for (k, (name, set, want)) in pairs.iter().enumerate() {
+        let mut t = Truth::new(96, 64, 12, 900 + k as u64);
+        set(&mut t);
+        let (d, _) = run(&t, name);
+        pair(&d, want[0].0, want[1].0);
+        for (id, key, v) in want {
+            if !key.is_empty() {
+                within(param(&d, id, key), *v, &format!("{name}: {id}.{key}"));
+            }
+        }
+    }
+}

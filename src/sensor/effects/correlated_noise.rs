@@ -75,7 +75,8 @@ fn fit(ctx: &FitCtx) -> Result<toml::Table, String> {
         let l = b.frames as f64;
         let k = (l - 1.0) / l;
         let uncorrelated = k / 12.0 + k * (plan.row_sigma as f64).powi(2);
-        rhos.push((st.value - sim) * r.m2 / (r.m2 - uncorrelated).max(1e-9));
+        let m2 = r.m2.iter().sum::<f64>() / 3.0;
+        rhos.push((st.value - sim) * m2 / (m2 - uncorrelated).max(1e-9));
     }
     if rhos.is_empty() {
         return Err("no dark burst with ≥ 2 frames".into());

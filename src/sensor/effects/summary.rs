@@ -49,9 +49,11 @@ impl BurstInfo {
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct Residuals {
-    /// Pooled mean of (x_f − M)² and (x_f − M)⁴ over values and frames.
-    pub m2: f64,
-    pub m4: f64,
+    /// Per channel, the pooled mean of (x_f − M)² and (x_f − M)⁴ over values and frames
+    /// (per channel: pooling channels of different variance is a scale mixture, which has
+    /// excess kurtosis of its own).
+    pub m2: [f64; 3],
+    pub m4: [f64; 3],
     /// Σ r(x, y)·r(x, y + 1) / Σ r² (same frame, same channel).
     pub vcorr: f64,
     /// Mean over rows of the covariance over frames of the left- and right-half row means (DN²).
@@ -233,21 +235,22 @@ impl Accumulator {
         }
         if self.kind == BurstKind::Dark && self.n >= 2 {
             let w3 = self.w * 3;
-            let (mut r2, mut r4, mut cv, mut pairs) = (0.0, 0.0, 0.0, 0usize);
+            let (mut r2, mut r4, mut cv, mut pairs) = ([0.0; 3], [0.0; 3], 0.0, 0usize);
             for i in 0..nv {
                 let a = &self.acc[i * 5..i * 5 + 5];
                 let m = a[0] / n;
-                r2 += a[1] - n * m * m;
-                r4 += a[3] - 4.0 * m * a[2] + 6.0 * m * m * a[1] - 3.0 * n * m.powi(4);
+                r2[i % 3] += a[1] - n * m * m;
+                r4[i % 3] += a[3] - 4.0 * m * a[2] + 6.0 * m * m * a[1] - 3.0 * n * m.powi(4);
                 if i + w3 < nv {
                     let mn = self.acc[(i + w3) * 5] / n;
                     cv += a[4] - n * m * mn;
                     pairs += 1;
                 }
             }
-            let m2 = r2 / (nv as f64 * n);
-            let m4 = r4 / (nv as f64 * n);
-            let vcorr = cv / (pairs.max(1) as f64 * n) / m2;
+            let per = nv as f64 / 3.0 * n;
+            let m2 = r2.map(|v| v / per);
+            let m4 = r4.map(|v| v / per);
+            let vcorr = cv / (pairs.max(1) as f64 * n) / (m2.iter().sum::<f64>() / 3.0);
             let h = self.h;
             let mut row_cov = 0.0;
             for y in 0..h {
