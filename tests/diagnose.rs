@@ -505,7 +505,9 @@ fn no_hidden_effect_over_sizes_and_seeds() {
 #[test]
 fn confusable_pairs_are_told_apart() {
     type Set = fn(&mut Truth);
-    let pairs: [(&str, Set, [(&str, &str, f64); 2]); 5] = [
+    /// (effect id, parameter, planted value); an empty parameter is not checked.
+    type Want = [(&'static str, &'static str, f64); 2];
+    let pairs: [(&str, Set, Want); 5] = [
         (
             "row+corr",
             |t| {
