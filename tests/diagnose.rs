@@ -205,6 +205,13 @@ fn hidden_nonlinear_response() {
     let (d, _) = run(&t, "nonlinear");
     single(&d, "nonlinear_response");
     within(param(&d, "nonlinear_response", "exponent"), 0.8, "exponent");
+    // The other direction, like the paper's synthetic frames (EV0/EV−3 ratio above 8): an
+    // exponent of 1.2 turns an 8:1 exposure pair into 8^1.2 ≈ 12.1.
+    let mut t = Truth::new(80, 60, 6, 15);
+    t.exponent = 1.2;
+    let (d, _) = run(&t, "nonlinear-up");
+    single(&d, "nonlinear_response");
+    within(param(&d, "nonlinear_response", "exponent"), 1.2, "exponent");
 }
 
 fn pair(d: &Diagnosis, a: &str, b: &str) {
