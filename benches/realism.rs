@@ -41,6 +41,33 @@ fn bench(c: &mut Criterion) {
             });
         }
     }
+    // The effect path (docs/diagnose.md): the profile with five catalogue effects.
+    let mut with = profile.clone();
+    for (id, params) in [
+        ("vignetting", "strength = 0.2"),
+        ("prnu", "sigma = 0.01\nseed = 1"),
+        ("row_noise", "sigma_dn = 1.0"),
+        ("column_noise", "sigma_dn = 1.0\nseed = 2"),
+        ("dsnu", "sigma_dn = 1.0\nseed = 3"),
+    ] {
+        with.effects.push(hdrsynth::sensor::profile::EffectSpec {
+            id: id.into(),
+            params: params.parse().expect("params"),
+        });
+    }
+    let r = Realism::new(&with, &RealismOptions::new(800.0)).expect("realism");
+    let mut seed = 0u64;
+    let mut out = Image::new(w, h);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .expect("pool");
+    g.bench_function("Gaussian+5effects/4032x3024/1t", |b| {
+        b.iter(|| {
+            seed += 1;
+            pool.install(|| r.apply_into(&input, seed, &mut out))
+        })
+    });
     g.finish();
 }
 

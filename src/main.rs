@@ -46,6 +46,8 @@ enum Command {
     Quickstart(hdrsynth::cli::quickstart::Args),
     /// Run an ablation grid (fine-tune per cell, evaluate, table like the paper's; resumable).
     Ablate(hdrsynth::cli::ablate::Args),
+    /// Sim-to-real gap: name, fit and add the effects a profile misses, from real captures.
+    Diagnose(hdrsynth::cli::diagnose::Args),
     /// Inspect datasets.
     Dataset {
         #[command(subcommand)]
@@ -97,6 +99,7 @@ fn main() -> Result<()> {
         Command::Testset(args) => println!("{}", hdrsynth::cli::testset::run(&args)?),
         Command::Quickstart(args) => println!("{}", hdrsynth::cli::quickstart::run(&args)?),
         Command::Ablate(args) => println!("{}", hdrsynth::cli::ablate::run(&args)?),
+        Command::Diagnose(args) => println!("{}", hdrsynth::cli::diagnose::run(&args)?),
         Command::Dataset { command } => match command {
             DatasetCommand::Info { dir } => {
                 print!("{}", hdrsynth::cli::dataset::info_report(&dir)?)

@@ -2,6 +2,7 @@
 pub mod ablate;
 pub mod calibrate;
 pub mod dataset;
+pub mod diagnose;
 pub mod eval;
 pub mod generate;
 pub mod infer;

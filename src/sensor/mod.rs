@@ -3,6 +3,7 @@
 pub mod captures;
 pub mod colour;
 pub mod darktable;
+pub mod diagnose;
 pub mod dng;
 pub mod effects;
 pub mod noise;

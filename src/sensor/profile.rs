@@ -247,15 +247,8 @@ impl SensorProfile {
         }
         self.response.validate("response")?;
         self.source_response.validate("source_response")?;
-        for e in &self.effects {
-            if !crate::sensor::effects::is_known(&e.id) {
-                return Err(format!(
-                    "effects: '{}' is not in this build's effect catalogue ({})",
-                    e.id,
-                    crate::sensor::effects::known().join(", ")
-                ));
-            }
-        }
+        // Ids and parameters: the same check the realism operator makes.
+        crate::sensor::effects::Plan::from_effects(&self.effects)?;
         Ok(())
     }
 

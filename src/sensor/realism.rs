@@ -8,7 +8,8 @@
 //! 3. scale to DN: signal I = device · exposure · (white − black);
 //! 4. noise: the paper's normal approximation I + N(0, a·I + b), or exact Poisson-Gaussian
 //!    a·Poisson(I / a) + N(0, b) (a, b in DN, from the profile's normalised a, b at this ISO);
-//! 5. add the black level; 6. extra effects of the profile (catalogue, physical order);
+//! 5. add the black level; 6. extra effects of the profile (src/sensor/effects: signal-stage
+//!    effects act before step 4, noise-stage ones change step 4, offsets come here);
 //! 7. clip to [0, white]; 8. quantise to integer DN;
 //! 9. device response of (DN − black)/(white − black) → code value, quantised to 8 or 16 bits.
 //!
@@ -19,12 +20,14 @@
 use crate::error::{Error, Result};
 use crate::io::{BitDepth, Image};
 use crate::rng::hash;
+use crate::sensor::effects::Plan;
 use crate::sensor::profile::{Response, SensorProfile};
 use rand::SeedableRng;
-use rand_distr::{Distribution, Poisson, StandardNormal};
+use rand_distr::{Distribution, Poisson, StandardNormal, StudentT};
 use rand_xoshiro::Xoshiro256PlusPlus;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use std::sync::{Arc, Mutex};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -132,7 +135,26 @@ pub struct Realism {
     white: f32,
     /// Integer DN → final output code value (device response, quantised to the output bits).
     output_lut: Vec<f32>,
+    /// The profile's extra effects (src/sensor/effects); `plain` when none touches the pixel
+    /// loop, which then runs the original fast path.
+    plan: Plan,
+    plain: bool,
+    range: f32,
+    /// Fixed-pattern maps of the last frame size (built once per size, shared by frames).
+    patterns: Mutex<Option<Arc<Patterns>>>,
 }
+
+/// Fixed patterns of one frame size: per-value gain (vignetting × PRNU) and offset (columns,
+/// DSNU, hot pixels).
+struct Patterns {
+    size: (usize, usize),
+    gain: Option<Vec<f32>>,
+    offset: Option<Vec<f32>>,
+}
+
+/// Tags that separate the per-row draws of the effects from the noise draws.
+const ROW_TAG: u64 = 0x524f_5721;
+const HEAVY_TAG: u64 = 0x4845_4156;
 
 /// x limited to [0, hi], with NaN → 0 (f32::clamp would pass NaN through).
 #[inline(always)]
@@ -179,13 +201,8 @@ impl Realism {
                 opts.exposure
             )));
         }
-        if !profile.effects.is_empty() {
-            // The catalogue is empty in this build; profile validation already rejects ids.
-            return Err(Error::Invalid(format!(
-                "profile '{}' lists effects this build cannot simulate",
-                profile.name
-            )));
-        }
+        let plan = Plan::from_effects(&profile.effects)
+            .map_err(|m| Error::Invalid(format!("profile '{}': {m}", profile.name)))?;
         let src = &profile.source_response;
         let sat = src.invert(1.0).max(1e-12);
         let source_lut = match src {
@@ -218,8 +235,8 @@ impl Realism {
             _ => {
                 let (a, b) = profile.noise_at(opts.iso)?;
                 (
-                    a.map(|v| (v * range) as f32),
-                    b.map(|v| (v * range * range) as f32),
+                    std::array::from_fn(|c| (a[c] * range) as f32 * plan.a_scale[c]),
+                    std::array::from_fn(|c| (b[c] * range * range) as f32 * plan.b_scale[c]),
                 )
             }
         };
@@ -243,7 +260,161 @@ impl Realism {
             black: l.black_level as f32,
             white: l.white_level.floor() as f32,
             output_lut,
+            plain: plan.per_pixel_neutral(),
+            plan,
+            range: range as f32,
+            patterns: Mutex::new(None),
         })
+    }
+
+    /// The fixed patterns for a w×h frame (cached for the last size).
+    fn patterns(&self, w: usize, h: usize) -> Arc<Patterns> {
+        let mut slot = self.patterns.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(p) = slot.as_ref().filter(|p| p.size == (w, h)) {
+            return p.clone();
+        }
+        let p = Arc::new(Patterns {
+            size: (w, h),
+            gain: self.plan.gain_map(w, h),
+            offset: self.plan.offset_map(w, h),
+        });
+        *slot = Some(p.clone());
+        p
+    }
+
+    /// The first `n` standard normals of row `row`'s generator (the same draws as the plain
+    /// path), or zeros outside the frame.
+    fn row_normals(seed: u64, row: isize, height: usize, n: usize, z: &mut Vec<f32>) {
+        z.clear();
+        if row < 0 || row as usize >= height {
+            z.resize(n, 0.0);
+            return;
+        }
+        let mut rng = Self::row_rng(seed, row as usize);
+        z.extend((0..n).map(|_| {
+            let v: f64 = StandardNormal.sample(&mut rng);
+            v as f32
+        }));
+    }
+
+    /// `row_dn` with the profile's effects, in physical order (src/sensor/effects/mod.rs).
+    #[allow(clippy::too_many_arguments)]
+    fn row_dn_effects(
+        &self,
+        input: &[f32],
+        out: &mut [f32],
+        seed: u64,
+        row: usize,
+        height: usize,
+        pat: &Patterns,
+        s: &mut Scratch,
+    ) {
+        let n = out.len();
+        let at = row * n;
+        // Signal stage: optics and pixel gain, then the response nonlinearity.
+        for (o, i) in out.chunks_exact_mut(3).zip(input.chunks_exact(3)) {
+            o.copy_from_slice(&self.signal(i));
+        }
+        if let Some(g) = &pat.gain {
+            for (o, g) in out.iter_mut().zip(&g[at..at + n]) {
+                *o *= g;
+            }
+        }
+        if let Some(p) = self.plan.exponent {
+            let r = self.range;
+            for o in out.iter_mut() {
+                *o = r * (o.max(0.0) / r).powf(p);
+            }
+        }
+        // Noise stage.
+        let heavy = self.plan.heavy_dof.map(|d| {
+            let t = StudentT::new(d as f64).expect("dof > 4 checked at install");
+            let mut rng = Xoshiro256PlusPlus::seed_from_u64(hash(seed, &[row as u64, HEAVY_TAG]));
+            let scale = ((d as f64 - 2.0) / d as f64).sqrt();
+            (0..n)
+                .map(|_| (t.sample(&mut rng) * scale) as f32)
+                .collect::<Vec<f32>>()
+        });
+        match self.noise {
+            NoiseModel::None => {}
+            NoiseModel::Gaussian => {
+                s.prepare(n, &self.a_dn, &self.b_dn);
+                Self::row_normals(seed, row as isize, height, n, &mut s.z);
+                let alpha = self.plan.corr_alpha;
+                if alpha > 0.0 {
+                    let (mut up, mut down) = (Vec::new(), Vec::new());
+                    Self::row_normals(seed, row as isize - 1, height, n, &mut up);
+                    Self::row_normals(seed, row as isize + 1, height, n, &mut down);
+                    let z = s.z.clone();
+                    let vertical = (row > 0) as usize + (row + 1 < height) as usize;
+                    for k in 0..n {
+                        let left = k >= 3;
+                        let right = k + 3 < n;
+                        let mut v = z[k] + alpha * (up[k] + down[k]);
+                        if left {
+                            v += alpha * z[k - 3];
+                        }
+                        if right {
+                            v += alpha * z[k + 3];
+                        }
+                        let m = (vertical + left as usize + right as usize) as f32;
+                        s.z[k] = v / (1.0 + m * alpha * alpha).sqrt();
+                    }
+                }
+                match &heavy {
+                    None => {
+                        for (((o, z), a), b) in out.iter_mut().zip(&s.z).zip(&s.a).zip(&s.b) {
+                            *o += (a * *o + b).max(0.0).sqrt() * z;
+                        }
+                    }
+                    Some(t) => {
+                        for ((((o, z), a), b), t) in
+                            out.iter_mut().zip(&s.z).zip(&s.a).zip(&s.b).zip(t)
+                        {
+                            *o += (a * *o).max(0.0).sqrt() * z + b.max(0.0).sqrt() * t;
+                        }
+                    }
+                }
+            }
+            NoiseModel::PoissonGaussian => {
+                let mut rng = Self::row_rng(seed, row);
+                for (k, v) in out.iter_mut().enumerate() {
+                    let c = k % 3;
+                    let i = *v;
+                    let shot = if self.a_dn[c] > 0.0 && i > 0.0 {
+                        let lambda = (i / self.a_dn[c]) as f64;
+                        let k: f64 = Poisson::new(lambda)
+                            .map(|p| p.sample(&mut rng))
+                            .unwrap_or(lambda);
+                        k as f32 * self.a_dn[c]
+                    } else {
+                        i
+                    };
+                    let zv: f64 = StandardNormal.sample(&mut rng);
+                    let read = heavy.as_ref().map_or(zv as f32, |t| t[k]);
+                    *v = shot + self.b_dn[c].max(0.0).sqrt() * read;
+                }
+            }
+        }
+        // Offset stage: pedestal, per-frame row offset, fixed offsets; then clip and quantise.
+        let mut add = self.black + self.plan.black_offset;
+        if self.plan.row_sigma > 0.0 {
+            let mut rng = Xoshiro256PlusPlus::seed_from_u64(hash(seed, &[row as u64, ROW_TAG]));
+            let z: f64 = StandardNormal.sample(&mut rng);
+            add += self.plan.row_sigma * z as f32;
+        }
+        match &pat.offset {
+            None => {
+                for v in out.iter_mut() {
+                    *v = index(bound(*v + add, self.white) + 0.5) as f32;
+                }
+            }
+            Some(off) => {
+                for (v, o) in out.iter_mut().zip(&off[at..at + n]) {
+                    *v = index(bound(*v + add + o, self.white) + 0.5) as f32;
+                }
+            }
+        }
     }
 
     /// Signal above black in DN (noise-free) for one synthetic pixel.
@@ -345,12 +516,17 @@ impl Realism {
         out.height = input.height;
         out.data.resize(input.data.len(), 0.0);
         let w3 = input.width * 3;
+        let pat = (!self.plain).then(|| self.patterns(input.width, input.height));
+        let height = input.height;
         out.data
             .par_chunks_mut(w3)
             .zip(input.data.par_chunks(w3))
             .enumerate()
             .for_each_init(Scratch::default, |sc, (row, (o, i))| {
-                self.row_dn(i, o, seed, row, sc);
+                match &pat {
+                    None => self.row_dn(i, o, seed, row, sc),
+                    Some(p) => self.row_dn_effects(i, o, seed, row, height, p, sc),
+                }
                 if ldr {
                     for v in o.iter_mut() {
                         *v = self.output_lut[index(*v)];

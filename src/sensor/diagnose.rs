@@ -1,0 +1,1051 @@
+//! The sim-to-real gap workflow (docs/diagnose.md): measured captures against the same capture
+//! protocol simulated by the current model, through the realism operator itself.
+//!
+//! 1. Base model: the given profile, or (none given) the paper's model fitted from the
+//!    captures: one (a, b) per ISO shared by the channels (mean of the per-channel photon-
+//!    transfer fits of src/sensor/noise.rs), the declared black and white levels, T from the
+//!    chart burst; no extra effects.
+//! 2. Parametric bootstrap: K replicates of the whole protocol (same bursts, ISOs, exposures,
+//!    frame counts and sizes) simulated with `Realism::to_dn`; targets: dark = nothing, flat =
+//!    the measured level (per channel, linearised by the model), scene = the radiance measured
+//!    from the longest unsaturated exposure of the same scene, scaled to each exposure.
+//!    Fixed-pattern seeds change per replicate (the real sensor's pattern is one realisation),
+//!    and stay fixed over the frames and bursts of a replicate.
+//! 3. Every catalogue statistic on the measured and simulated summaries → z = (measured − mean)
+//!    / (sd·√(1 + 1/K)). The gap is the largest |z| among statistics whose |measured − mean|
+//!    also exceeds their minimum effect size; the threshold is Bonferroni over the m statistics,
+//!    Φ⁻¹(1 − α/(2m)) with α = 0.05, at least 3.
+//! 4. While the gap is over the threshold: the effect of the statistic with the largest
+//!    significant |z| (not yet in the model) is named, fitted and added; the step is kept when
+//!    the gap shrinks, otherwise undone and the effect set aside. When no catalogue effect
+//!    explains what is left, the loop stops and the report lists those statistics.
+
+use crate::error::{Error, Result};
+use crate::io::Image;
+use crate::rng::hash;
+use crate::sensor::captures::{BurstKind, CaptureSet};
+use crate::sensor::effects::summary::{Accumulator, BurstInfo};
+use crate::sensor::effects::{self, FitCtx, Plan, Protocol, Stat, Summary};
+use crate::sensor::noise::{self, CalibrateOptions, NoiseCalibration};
+use crate::sensor::profile::{Colour, EffectSpec, Levels, Response, SensorProfile};
+use crate::sensor::realism::{NoiseModel, Realism, RealismOptions};
+use rayon::prelude::*;
+use std::fmt::Write as _;
+use std::path::Path;
+
+pub const REPORT_FORMAT: &str = "hdrsynth-diagnosis/1";
+
+#[derive(Clone, Debug)]
+pub struct DiagnoseOptions {
+    /// Bootstrap replicates per evaluation.
+    pub replicates: usize,
+    pub seed: u64,
+    /// Family-wise false-alarm rate of the Bonferroni threshold.
+    pub alpha: f64,
+}
+
+impl Default for DiagnoseOptions {
+    fn default() -> Self {
+        DiagnoseOptions {
+            replicates: 30,
+            seed: 1,
+            alpha: 0.05,
+        }
+    }
+}
+
+/// One statistic compared.
+#[derive(Clone, Debug)]
+pub struct Row {
+    pub stat: Stat,
+    pub sim_mean: f64,
+    pub sim_sd: f64,
+    pub z: f64,
+    /// |z| over the threshold and |measured − simulated| over the minimum effect size.
+    pub significant: bool,
+    /// |measured − simulated| over the minimum effect size (counts towards the gap).
+    pub large: bool,
+}
+
+#[derive(Clone, Debug)]
+pub struct Evaluation {
+    pub rows: Vec<Row>,
+    pub gap: f64,
+}
+
+#[derive(Clone, Debug)]
+pub struct Step {
+    pub effect: String,
+    pub params: toml::Table,
+    pub gap_before: f64,
+    pub gap_after: f64,
+    pub evidence: String,
+    /// The comparison that named the effect (before) and the one after adding it.
+    pub before: Evaluation,
+    pub after: Evaluation,
+}
+
+#[derive(Clone, Debug)]
+pub struct Diagnosis {
+    pub threshold: f64,
+    pub replicates: usize,
+    pub base: String,
+    pub initial: Evaluation,
+    pub steps: Vec<Step>,
+    pub last: Evaluation,
+    pub unexplained: Vec<String>,
+    /// Effects named but not kept, and why.
+    pub notes: Vec<String>,
+    pub profile: SensorProfile,
+    pub calibration: Option<NoiseCalibration>,
+    /// Measured flat summaries' radial profiles for the plot: (burst name, [(r², mean)]).
+    pub radial: Vec<(String, Vec<(f64, f64)>)>,
+}
+
+/// The capture protocol of a set.
+pub fn protocol(set: &CaptureSet, profile: &SensorProfile) -> Result<Protocol> {
+    let plan = Plan::from_effects(&profile.effects).map_err(Error::Invalid)?;
+    Ok(Protocol {
+        bursts: set
+            .bursts()
+            .iter()
+            .zip(&set.sizes)
+            .map(|(b, &(w, h))| BurstInfo {
+                name: b.name.clone(),
+                kind: b.kind,
+                iso: b.iso,
+                exposure_s: b.exposure_s,
+                width: w,
+                height: h,
+                frames: b.frames.len(),
+            })
+            .collect(),
+        black: profile.levels.black_level + plan.black_offset as f64,
+        white: profile.levels.white_level,
+        range: profile.levels.white_level - profile.levels.black_level,
+        exponent: plan.exponent.unwrap_or(1.0) as f64,
+    })
+}
+
+/// Summaries of the measured bursts (frames decoded in parallel batches, accumulated in order).
+pub fn measure(set: &CaptureSet, proto: &Protocol) -> Result<Vec<Summary>> {
+    let mut out = Vec::new();
+    for (i, info) in proto.bursts.iter().enumerate() {
+        let mut acc = Accumulator::new(info);
+        let n = info.frames;
+        let batch = rayon::current_num_threads().max(2);
+        for start in (0..n).step_by(batch) {
+            let frames: Vec<Image> = (start..(start + batch).min(n))
+                .into_par_iter()
+                .map(|j| set.read_frame(i, j))
+                .collect::<Result<_>>()?;
+            for f in &frames {
+                acc.add(f);
+            }
+        }
+        out.push(acc.finish(i, info));
+    }
+    Ok(out)
+}
+
+/// The dark and flat bursts of a set (when it has any flat): the photon-transfer targets. Scene
+/// and chart bursts with fine detail break the calibration's neighbour-median binning (a pixel's
+/// neighbours no longer share its signal), which biases a.
+pub fn ptc_bursts(set: &CaptureSet) -> CaptureSet {
+    if !set.bursts().iter().any(|b| b.kind == BurstKind::Flat) {
+        return set.clone();
+    }
+    let mut s = set.clone();
+    let keep: Vec<bool> = set
+        .bursts()
+        .iter()
+        .map(|b| matches!(b.kind, BurstKind::Dark | BurstKind::Flat))
+        .collect();
+    let mut i = 0;
+    s.manifest.bursts.retain(|_| {
+        i += 1;
+        keep[i - 1]
+    });
+    s.sizes = set
+        .sizes
+        .iter()
+        .zip(&keep)
+        .filter(|(_, k)| **k)
+        .map(|(z, _)| *z)
+        .collect();
+    s
+}
+
+/// The paper's base model from the captures (no profile given).
+pub fn base_profile(
+    set: &CaptureSet,
+    cal: &NoiseCalibration,
+    measured: &[Summary],
+) -> Result<SensorProfile> {
+    let (white, black) = (cal.white_level, cal.black_level);
+    let mut noise = cal.to_noise(white, black);
+    for n in &mut noise {
+        let a = n.a.iter().sum::<f64>() / 3.0;
+        let b = n.b.iter().sum::<f64>() / 3.0;
+        n.a = [a; 3];
+        n.b = [b; 3];
+        n.a_stderr = None;
+        n.b_stderr = None;
+    }
+    let name = set
+        .manifest
+        .sensor
+        .name
+        .clone()
+        .unwrap_or_else(|| "diagnosed sensor".into());
+    let mut p = noise::new_measured_profile(
+        &name,
+        Levels {
+            black_level: black,
+            white_level: white,
+            bit_depth: noise::bits_for_white(white),
+        },
+        &format!(
+            "white {} ({}), black {} ({}), from {}",
+            white,
+            cal.white_source.describe(),
+            black,
+            cal.black_source.describe(),
+            set.manifest_path.display()
+        ),
+        noise,
+        &format!(
+            "hdrsynth diagnose base model: one (a, b) per ISO shared by the channels (mean of the \
+             per-channel fits of {})",
+            set.manifest_path.display()
+        ),
+    );
+    if let Some(chart) = measured.iter().find(|s| s.kind == BurstKind::Chart) {
+        let img = Image::from_vec(
+            chart.width,
+            chart.height,
+            chart.mean.iter().map(|&v| (v - black) as f32).collect(),
+        );
+        let raw = crate::sensor::captures::chart_patch_means(&img);
+        let gains = crate::sensor::colour::neutral_gains(&raw)?;
+        let balanced: Vec<[f64; 3]> = raw
+            .iter()
+            .map(|p| std::array::from_fn(|c| p[c] * gains[c]))
+            .collect();
+        let reference = crate::sensor::colour::reference_linear_srgb();
+        let s = crate::sensor::colour::neutral_mean(&reference)
+            / crate::sensor::colour::neutral_mean(&balanced);
+        let real: Vec<[f64; 3]> = balanced.iter().map(|p| p.map(|v| v * s)).collect();
+        let t = crate::sensor::colour::fit_matrix(&reference, &real)?;
+        p.colour = Some(Colour {
+            matrix: t,
+            root_polynomial: None,
+            use_root_polynomial: false,
+        });
+        p.provenance.colour = format!(
+            "T fitted by hdrsynth diagnose on chart burst '{}' of {} (neutral white balance)",
+            set.bursts()[chart.burst].name,
+            set.manifest_path.display()
+        );
+    }
+    Ok(p)
+}
+
+/// Simulation targets (linear input images, normalised so 1 = the range) per burst; None for
+/// bursts that no statistic uses (charts, lone scene bursts).
+fn targets(proto: &Protocol, measured: &[Summary], plan: &Plan) -> Vec<Option<Image>> {
+    let range = proto.range;
+    let p = proto.exponent;
+    let lin = |s: f64| range * (s.max(0.0) / range).powf(1.0 / p);
+    let groups = effects::nonlinear_response::scene_groups(measured);
+    measured
+        .iter()
+        .map(|m| {
+            let (w, h) = (m.width, m.height);
+            match m.kind {
+                BurstKind::Dark => Some(Image::new(w, h)),
+                BurstKind::Flat => {
+                    let mut g = 0.0;
+                    for y in 0..h {
+                        for x in 0..w {
+                            g += effects::vignetting::gain(plan.vignetting_k, x, y, w, h) as f64;
+                        }
+                    }
+                    g /= (w * h) as f64;
+                    let level: [f64; 3] = std::array::from_fn(|c| {
+                        let s = effects::masked_mean(&m.mean, |i| i % 3 == c && m.not_hot(i));
+                        lin((s - proto.black) / g) / range
+                    });
+                    Some(Image::from_fn(w, h, |_, _| level.map(|v| v as f32)))
+                }
+                BurstKind::Scene => {
+                    let g = groups
+                        .iter()
+                        .find(|g| g.iter().any(|b| b.burst == m.burst))?;
+                    let top = 0.9 * (proto.white - proto.black);
+                    let data = (0..w * h * 3)
+                        .map(|i| {
+                            // Radiance from the longest exposure that is not saturated there.
+                            let src = g
+                                .iter()
+                                .find(|b| b.mean[i] - proto.black < top)
+                                .unwrap_or(&g[g.len() - 1]);
+                            let x = lin(src.mean[i] - proto.black) / src.exposure();
+                            (x * m.exposure() / range) as f32
+                        })
+                        .collect();
+                    Some(Image::from_vec(w, h, data))
+                }
+                BurstKind::Chart => None,
+            }
+        })
+        .collect()
+}
+
+/// All catalogue statistics of a set of summaries.
+pub fn statistics(proto: &Protocol, summaries: &[Summary]) -> Vec<Stat> {
+    let mut out = Vec::new();
+    for e in &effects::CATALOGUE {
+        (e.statistics)(proto, summaries, &mut out);
+    }
+    // Base-model checks: the temporal variance itself (no catalogue effect explains it).
+    for b in summaries
+        .iter()
+        .filter(|b| matches!(b.kind, BurstKind::Dark | BurstKind::Flat) && !b.var.is_empty())
+    {
+        out.push(Stat {
+            key: format!("{}: mean temporal variance", proto.bursts[b.burst].name),
+            effect: None,
+            value: b.temporal_mean(),
+            min_effect: 0.05 * b.temporal_mean(),
+            sd_floor: 1e-4,
+            unit: "DN²",
+        });
+    }
+    out
+}
+
+/// One replicate of the protocol under `profile`: summaries of the simulated bursts.
+fn simulate(
+    profile: &SensorProfile,
+    proto: &Protocol,
+    targets: &[Option<Image>],
+    seed: u64,
+    k: usize,
+) -> Result<Vec<Summary>> {
+    let mut p = profile.clone();
+    p.source_response = Response::Linear;
+    for (i, e) in p.effects.iter_mut().enumerate() {
+        if e.params.contains_key("seed") {
+            e.params.insert(
+                "seed".into(),
+                effects::seed_value(hash(seed, &[k as u64, i as u64, 0x5eed])),
+            );
+        }
+    }
+    let lo = p.noise.first().map_or(0.0, |n| n.iso);
+    let hi = p.noise.last().map_or(0.0, |n| n.iso);
+    let mut out = Vec::new();
+    for (i, (info, t)) in proto.bursts.iter().zip(targets).enumerate() {
+        let Some(t) = t else { continue };
+        let mut opts = RealismOptions::new(info.iso.clamp(lo, hi));
+        opts.colour = false;
+        opts.noise = NoiseModel::Gaussian;
+        opts.output_bits = 16;
+        let r = Realism::new(&p, &opts)?;
+        let mut acc = Accumulator::new(info);
+        for j in 0..info.frames {
+            acc.add(&r.to_dn(t, hash(seed, &[k as u64, i as u64, j as u64])));
+        }
+        out.push(acc.finish(i, info));
+    }
+    Ok(out)
+}
+
+/// Inverse of the standard normal CDF (Acklam's rational approximation, |error| < 1.2e-9).
+pub fn normal_quantile(p: f64) -> f64 {
+    const A: [f64; 6] = [
+        -3.969683028665376e1,
+        2.209460984245205e2,
+        -2.759285104469687e2,
+        1.38357751867269e2,
+        -3.066479806614716e1,
+        2.506628277459239,
+    ];
+    const B: [f64; 5] = [
+        -5.447609879822406e1,
+        1.615858368580409e2,
+        -1.556989798598866e2,
+        6.680131188771972e1,
+        -1.328068155288572e1,
+    ];
+    const C: [f64; 6] = [
+        -7.784894002430293e-3,
+        -3.223964580411365e-1,
+        -2.400758277161838,
+        -2.549732539343734,
+        4.374664141464968,
+        2.938163982698783,
+    ];
+    const D: [f64; 4] = [
+        7.784695709041462e-3,
+        3.224671290700398e-1,
+        2.445134137142996,
+        3.754408661907416,
+    ];
+    let tail = |q: f64| {
+        (((((C[0] * q + C[1]) * q + C[2]) * q + C[3]) * q + C[4]) * q + C[5])
+            / ((((D[0] * q + D[1]) * q + D[2]) * q + D[3]) * q + 1.0)
+    };
+    if p < 0.02425 {
+        tail((-2.0 * p.ln()).sqrt())
+    } else if p > 1.0 - 0.02425 {
+        -tail((-2.0 * (1.0 - p).ln()).sqrt())
+    } else {
+        let q = p - 0.5;
+        let r = q * q;
+        (((((A[0] * r + A[1]) * r + A[2]) * r + A[3]) * r + A[4]) * r + A[5]) * q
+            / (((((B[0] * r + B[1]) * r + B[2]) * r + B[3]) * r + B[4]) * r + 1.0)
+    }
+}
+
+/// Bonferroni threshold on |z| for m statistics.
+pub fn threshold(m: usize, alpha: f64) -> f64 {
+    normal_quantile(1.0 - alpha / (2.0 * m.max(1) as f64)).max(3.0)
+}
+
+struct Context<'a> {
+    set: &'a CaptureSet,
+    measured: &'a [Summary],
+    opts: &'a DiagnoseOptions,
+    threshold: f64,
+}
+
+/// Compare the measured statistics with K simulated replicates of `profile`.
+fn evaluate(ctx: &Context, profile: &SensorProfile) -> Result<Evaluation> {
+    let proto = protocol(ctx.set, profile)?;
+    let plan = Plan::from_effects(&profile.effects).map_err(Error::Invalid)?;
+    let measured = statistics(&proto, ctx.measured);
+    let tg = targets(&proto, ctx.measured, &plan);
+    let k = ctx.opts.replicates;
+    let mut sims: Vec<Vec<Stat>> = Vec::with_capacity(k);
+    for r in 0..k {
+        let s = simulate(profile, &proto, &tg, ctx.opts.seed, r)?;
+        sims.push(statistics(&proto, &s));
+    }
+    let mut rows = Vec::new();
+    for st in measured {
+        let vals: Vec<f64> = sims
+            .iter()
+            .filter_map(|s| s.iter().find(|x| x.key == st.key).map(|x| x.value))
+            .filter(|v| v.is_finite())
+            .collect();
+        if vals.len() < 2 || !st.value.is_finite() {
+            continue;
+        }
+        let n = vals.len() as f64;
+        let mean = vals.iter().sum::<f64>() / n;
+        let sd = (vals.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+        let z = (st.value - mean) / (sd.max(st.sd_floor) * (1.0 + 1.0 / n).sqrt());
+        let large = (st.value - mean).abs() > st.min_effect;
+        rows.push(Row {
+            significant: large && z.abs() > ctx.threshold,
+            large,
+            sim_mean: mean,
+            sim_sd: sd,
+            z,
+            stat: st,
+        });
+    }
+    let gap = rows
+        .iter()
+        .filter(|r| r.large)
+        .map(|r| r.z.abs())
+        .fold(0.0, f64::max);
+    Ok(Evaluation { rows, gap })
+}
+
+fn fmt_num(v: f64) -> String {
+    if v == 0.0 {
+        "0".into()
+    } else if v.abs() >= 1e4 || v.abs() < 1e-3 {
+        format!("{v:.3e}")
+    } else {
+        format!("{v:.4}")
+    }
+}
+
+fn evidence(r: &Row) -> String {
+    let unit = if r.stat.unit.is_empty() {
+        String::new()
+    } else {
+        format!(" {}", r.stat.unit)
+    };
+    format!(
+        "{} {}{unit} vs {} ± {} simulated (z = {:.1})",
+        r.stat.key,
+        fmt_num(r.stat.value),
+        fmt_num(r.sim_mean),
+        fmt_num(r.sim_sd),
+        r.z
+    )
+}
+
+/// Run the workflow. `profile`: the starting model (None: fit the base model from the
+/// captures).
+pub fn diagnose(
+    set: &CaptureSet,
+    profile: Option<SensorProfile>,
+    opts: &DiagnoseOptions,
+) -> Result<Diagnosis> {
+    if opts.replicates < 2 {
+        return Err(Error::Invalid(
+            "at least 2 bootstrap replicates are needed".into(),
+        ));
+    }
+    // Levels for the per-channel calibration: the profile's when given.
+    let cal_opts = CalibrateOptions {
+        white_level: profile.as_ref().map(|p| p.levels.white_level),
+        black_level: profile.as_ref().map(|p| p.levels.black_level),
+    };
+    let calibration = noise::calibrate(&ptc_bursts(set), &cal_opts);
+    let levels_proto = {
+        // Levels only matter to the statistics, not to the summaries.
+        let tmp = match &profile {
+            Some(p) => p.clone(),
+            None => {
+                let cal = calibration.as_ref().map_err(|e| {
+                    Error::config(
+                        &set.manifest_path,
+                        format!("the base model needs a noise calibration of the captures: {e}"),
+                    )
+                })?;
+                noise::new_measured_profile(
+                    "tmp",
+                    Levels {
+                        black_level: cal.black_level,
+                        white_level: cal.white_level,
+                        bit_depth: noise::bits_for_white(cal.white_level),
+                    },
+                    "",
+                    Vec::new(),
+                    "",
+                )
+            }
+        };
+        protocol(set, &tmp)?
+    };
+    let measured = measure(set, &levels_proto)?;
+    let (mut model, base) = match profile {
+        Some(p) => {
+            let name = p.name.clone();
+            (p, format!("the given profile '{name}'"))
+        }
+        None => {
+            let cal = calibration
+                .as_ref()
+                .map_err(|e| Error::Invalid(e.to_string()))?;
+            (
+                base_profile(set, cal, &measured)?,
+                "the paper's base model fitted from the captures (T from the chart, one (a, b) \
+                 per ISO shared by the channels, declared levels)"
+                    .to_string(),
+            )
+        }
+    };
+    let proto0 = protocol(set, &model)?;
+    let m = statistics(&proto0, &measured).len();
+    let ctx = Context {
+        set,
+        measured: &measured,
+        opts,
+        threshold: threshold(m, opts.alpha),
+    };
+    let calibration = calibration.ok();
+    let initial = evaluate(&ctx, &model)?;
+    let mut current = initial.clone();
+    let mut steps = Vec::new();
+    let mut notes = Vec::new();
+    let mut tried: Vec<&str> = Vec::new();
+    while current.gap > ctx.threshold {
+        let in_model: Vec<String> = model.effects.iter().map(|e| e.id.clone()).collect();
+        let mut cands: Vec<&Row> = current
+            .rows
+            .iter()
+            .filter(|r| r.significant)
+            .filter(|r| {
+                r.stat
+                    .effect
+                    .is_some_and(|e| !tried.contains(&e) && !in_model.iter().any(|m| m == e))
+            })
+            .collect();
+        cands.sort_by(|a, b| b.z.abs().total_cmp(&a.z.abs()));
+        let Some(top) = cands.first() else { break };
+        let id = top.stat.effect.expect("filtered");
+        tried.push(id);
+        let entry = effects::entry(id).expect("catalogue id");
+        let proto = protocol(set, &model)?;
+        let meas: Vec<Stat> = current.rows.iter().map(|r| r.stat.clone()).collect();
+        let sim_mean: Vec<f64> = current.rows.iter().map(|r| r.sim_mean).collect();
+        let fctx = FitCtx {
+            measured: &meas,
+            simulated_mean: &sim_mean,
+            summaries: &measured,
+            protocol: &proto,
+            profile: &model,
+            calibration: calibration.as_ref(),
+            seed: hash(opts.seed, &[steps.len() as u64, 0xf17]),
+        };
+        let params = match (entry.fit)(&fctx) {
+            Ok(p) => p,
+            Err(m) => {
+                notes.push(format!(
+                    "{id} named by {} but not fitted: {m}",
+                    top.stat.key
+                ));
+                continue;
+            }
+        };
+        let mut next = model.clone();
+        next.effects.push(EffectSpec {
+            id: id.to_string(),
+            params: params.clone(),
+        });
+        if let Some(adjust) = entry.adjust {
+            adjust(&mut next, &params);
+        }
+        if let Err(m) = next.validate() {
+            notes.push(format!("{id}: fitted parameters rejected: {m}"));
+            continue;
+        }
+        let after = evaluate(&ctx, &next)?;
+        let ev = evidence(top);
+        if after.gap < current.gap {
+            steps.push(Step {
+                effect: id.to_string(),
+                params,
+                gap_before: current.gap,
+                gap_after: after.gap,
+                evidence: ev,
+                before: current,
+                after: after.clone(),
+            });
+            model = next;
+            current = after;
+        } else {
+            notes.push(format!(
+                "{id} named by {ev} but adding it did not shrink the gap ({:.2} → {:.2}); not kept",
+                current.gap, after.gap
+            ));
+        }
+    }
+    let unexplained = current
+        .rows
+        .iter()
+        .filter(|r| r.significant)
+        .map(evidence)
+        .collect();
+    if !steps.is_empty() {
+        let ids: Vec<&str> = steps.iter().map(|s| s.effect.as_str()).collect();
+        let note = format!(
+            "effects {} added by hdrsynth diagnose of {}",
+            ids.join(", "),
+            set.manifest_path.display()
+        );
+        model.provenance.notes = Some(match model.provenance.notes.take() {
+            Some(n) if !n.is_empty() => format!("{n}; {note}"),
+            _ => note,
+        });
+    }
+    let radial = measured
+        .iter()
+        .filter(|s| s.kind == BurstKind::Flat)
+        .map(|s| {
+            (
+                set.bursts()[s.burst].name.clone(),
+                radial_profile(s, &proto0),
+            )
+        })
+        .collect();
+    Ok(Diagnosis {
+        threshold: ctx.threshold,
+        replicates: opts.replicates,
+        base,
+        initial,
+        steps,
+        last: current,
+        unexplained,
+        notes,
+        profile: model,
+        calibration,
+        radial,
+    })
+}
+
+/// Mean flat signal (relative to its centre) in 16 bins of r².
+fn radial_profile(s: &Summary, proto: &Protocol) -> Vec<(f64, f64)> {
+    let (w, h) = (s.width, s.height);
+    let mut bins = vec![(0.0, 0.0, 0usize); 16];
+    for y in 0..h {
+        for x in 0..w {
+            let i = (y * w + x) * 3;
+            let (u, v) = effects::summary::normalised_xy(x, y, w, h);
+            let r2 = u * u + v * v;
+            let k = ((r2 * 16.0) as usize).min(15);
+            bins[k].0 += r2;
+            bins[k].1 += (s.mean[i] + s.mean[i + 1] + s.mean[i + 2]) / 3.0 - proto.black;
+            bins[k].2 += 1;
+        }
+    }
+    let pts: Vec<(f64, f64)> = bins
+        .iter()
+        .filter(|b| b.2 > 0)
+        .map(|b| (b.0 / b.2 as f64, b.1 / b.2 as f64))
+        .collect();
+    let c = pts.first().map_or(1.0, |p| p.1);
+    pts.iter().map(|p| (p.0, p.1 / c)).collect()
+}
+
+// ---------------------------------------------------------------------------------------------
+// Report
+
+fn json_str(s: &str) -> String {
+    let mut o = String::from("\"");
+    for ch in s.chars() {
+        match ch {
+            '"' => o.push_str("\\\""),
+            '\\' => o.push_str("\\\\"),
+            '\n' => o.push_str("\\n"),
+            c if (c as u32) < 0x20 => {
+                let _ = write!(o, "\\u{:04x}", c as u32);
+            }
+            c => o.push(c),
+        }
+    }
+    o.push('"');
+    o
+}
+
+fn json_num(v: f64) -> String {
+    if v.is_finite() {
+        let s = format!("{v}");
+        if s.contains(['.', 'e']) {
+            s
+        } else {
+            format!("{s}.0")
+        }
+    } else {
+        "null".into()
+    }
+}
+
+fn json_value(v: &toml::Value) -> String {
+    match v {
+        toml::Value::Float(f) => json_num(*f),
+        toml::Value::Integer(i) => i.to_string(),
+        toml::Value::Boolean(b) => b.to_string(),
+        toml::Value::String(s) => json_str(s),
+        toml::Value::Array(a) => format!(
+            "[{}]",
+            a.iter().map(json_value).collect::<Vec<_>>().join(", ")
+        ),
+        toml::Value::Table(t) => json_table(t),
+        toml::Value::Datetime(d) => json_str(&d.to_string()),
+    }
+}
+
+fn json_table(t: &toml::Table) -> String {
+    format!(
+        "{{{}}}",
+        t.iter()
+            .map(|(k, v)| format!("{}: {}", json_str(k), json_value(v)))
+            .collect::<Vec<_>>()
+            .join(", ")
+    )
+}
+
+fn round2(v: f64) -> f64 {
+    (v * 100.0).round() / 100.0
+}
+
+impl Diagnosis {
+    pub fn initial_gap(&self) -> f64 {
+        self.initial.gap
+    }
+
+    pub fn final_gap(&self) -> f64 {
+        self.last.gap
+    }
+
+    /// report.json (`hdrsynth-diagnosis/1`).
+    pub fn report_json(&self) -> String {
+        let mut s = String::from("{\n");
+        let _ = writeln!(s, "  \"format\": {},", json_str(REPORT_FORMAT));
+        let _ = writeln!(s, "  \"threshold\": {},", json_num(round2(self.threshold)));
+        let _ = writeln!(
+            s,
+            "  \"initial_gap\": {},",
+            json_num(round2(self.initial_gap()))
+        );
+        let _ = writeln!(
+            s,
+            "  \"final_gap\": {},",
+            json_num(round2(self.final_gap()))
+        );
+        let steps: Vec<String> = self
+            .steps
+            .iter()
+            .map(|st| {
+                format!(
+                    "    {{\"effect\": {}, \"params\": {}, \"gap_before\": {}, \"gap_after\": {},\n     \"evidence\": {}}}",
+                    json_str(&st.effect),
+                    json_table(&st.params),
+                    json_num(round2(st.gap_before)),
+                    json_num(round2(st.gap_after)),
+                    json_str(&st.evidence)
+                )
+            })
+            .collect();
+        if steps.is_empty() {
+            s.push_str("  \"steps\": [],\n");
+        } else {
+            let _ = writeln!(s, "  \"steps\": [\n{}\n  ],", steps.join(",\n"));
+        }
+        let un: Vec<String> = self.unexplained.iter().map(|u| json_str(u)).collect();
+        let _ = writeln!(s, "  \"unexplained\": [{}]", un.join(", "));
+        s.push_str("}\n");
+        s
+    }
+
+    fn table_md(e: &Evaluation) -> String {
+        let mut s = String::from(
+            "| statistic | effect | measured | simulated mean ± sd | z | min effect |\n|---|---|---|---|---|---|\n",
+        );
+        for r in &e.rows {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} ± {} | {}{:.2} | {} |",
+                r.stat.key,
+                r.stat.effect.unwrap_or("(base model)"),
+                fmt_num(r.stat.value),
+                fmt_num(r.sim_mean),
+                fmt_num(r.sim_sd),
+                if r.significant { "**" } else { "" },
+                r.z,
+                fmt_num(r.stat.min_effect)
+            );
+        }
+        s
+    }
+
+    /// report.md: a table per step.
+    pub fn report_md(&self) -> String {
+        let mut s = String::from("# Sim-to-real gap diagnosis\n\n");
+        let _ = writeln!(s, "Starting model: {}.\n", self.base);
+        let _ = writeln!(
+            s,
+            "Gap = largest |z| over statistics whose |measured − simulated| exceeds their minimum \
+             effect; threshold {:.2} (Bonferroni over {} statistics, α = 0.05, at least 3); {} \
+             bootstrap replicates per comparison. **Bold** z: significant.\n",
+            self.threshold,
+            self.initial.rows.len(),
+            self.replicates
+        );
+        let _ = writeln!(
+            s,
+            "Initial gap {:.2}, final gap {:.2}.\n",
+            self.initial_gap(),
+            self.final_gap()
+        );
+        let _ = writeln!(
+            s,
+            "## Initial comparison\n\n{}",
+            Self::table_md(&self.initial)
+        );
+        for (i, st) in self.steps.iter().enumerate() {
+            let _ = writeln!(
+                s,
+                "## Step {}: {}\n\nEvidence: {}.\n\nFitted parameters: `{}`.\n\nGap {:.2} → {:.2}.\n\n{}",
+                i + 1,
+                st.effect,
+                st.evidence,
+                json_table(&st.params),
+                st.gap_before,
+                st.gap_after,
+                Self::table_md(&st.after)
+            );
+        }
+        s.push_str("## Result\n\n");
+        if self.steps.is_empty() {
+            s.push_str("No effect named: ");
+        }
+        if self.unexplained.is_empty() {
+            let _ = writeln!(
+                s,
+                "the model matches the captures (gap {:.2} ≤ threshold {:.2}).",
+                self.final_gap(),
+                self.threshold
+            );
+        } else {
+            s.push_str("still over the threshold, and no catalogue effect explains it:\n\n");
+            for u in &self.unexplained {
+                let _ = writeln!(s, "- {u}");
+            }
+        }
+        for n in &self.notes {
+            let _ = writeln!(s, "\nNote: {n}");
+        }
+        s
+    }
+
+    /// Write DIR/profile.toml, report.md, report.json and the plots, each atomically.
+    pub fn write(&self, dir: &Path) -> Result<()> {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        self.profile.save(&dir.join("profile.toml"))?;
+        crate::io::atomic::write_atomic(&dir.join("report.md"), self.report_md().as_bytes())?;
+        crate::io::atomic::write_atomic(&dir.join("report.json"), self.report_json().as_bytes())?;
+        let gaps: Vec<f64> = std::iter::once(self.initial_gap())
+            .chain(self.steps.iter().map(|s| s.gap_after))
+            .collect();
+        let labels: Vec<String> = std::iter::once("base".to_string())
+            .chain(self.steps.iter().map(|s| format!("+{}", s.effect)))
+            .collect();
+        crate::io::write_ldr(
+            &dir.join("gap.png"),
+            &plots::gap(&gaps, &labels, self.threshold),
+            crate::io::BitDepth::Eight,
+        )?;
+        if !self.radial.is_empty() {
+            let k = effects::Plan::from_effects(&self.profile.effects)
+                .map(|p| p.vignetting_k as f64)
+                .unwrap_or(0.0);
+            crate::io::write_ldr(
+                &dir.join("radial.png"),
+                &plots::radial(&self.radial, k),
+                crate::io::BitDepth::Eight,
+            )?;
+        }
+        if let Some(cal) = &self.calibration {
+            cal.write_ptc_plot(&dir.join("ptc.png"))?;
+        }
+        Ok(())
+    }
+}
+
+mod plots {
+    use crate::io::Image;
+    use crate::plot::Canvas;
+    use embedded_graphics::mono_font::MonoTextStyle;
+    use embedded_graphics::mono_font::iso_8859_1::FONT_6X10;
+    use embedded_graphics::pixelcolor::Rgb888;
+    use embedded_graphics::prelude::*;
+    use embedded_graphics::primitives::{Circle, Line, PrimitiveStyle, Rectangle};
+    use embedded_graphics::text::Text;
+
+    const W: i32 = 520;
+    const H: i32 = 340;
+    const L: i32 = 60;
+    const T: i32 = 30;
+    const R: i32 = 20;
+    const B: i32 = 60;
+
+    fn frame(c: &mut Canvas, title: &str) {
+        let black = MonoTextStyle::new(&FONT_6X10, Rgb888::BLACK);
+        let _ = Rectangle::new(
+            Point::new(L, T),
+            Size::new((W - L - R) as u32, (H - T - B) as u32),
+        )
+        .into_styled(PrimitiveStyle::with_stroke(Rgb888::BLACK, 1))
+        .draw(c);
+        let _ = Text::new(title, Point::new(L, 18), black).draw(c);
+    }
+
+    /// Gap after each step (log scale bars) with the threshold line.
+    pub fn gap(gaps: &[f64], labels: &[String], threshold: f64) -> Image {
+        let mut c = Canvas::new(W as usize, H as usize);
+        frame(&mut c, "gap (largest |z|) per step; red: threshold");
+        let text = MonoTextStyle::new(&FONT_6X10, Rgb888::BLACK);
+        let top = gaps.iter().copied().fold(threshold, f64::max).max(1.0) * 1.2;
+        let ly = |v: f64| {
+            let f = (v.max(0.1).log10() + 1.0) / (top.log10() + 1.0);
+            H - B - (f * (H - T - B) as f64) as i32
+        };
+        let n = gaps.len().max(1) as i32;
+        let bw = (W - L - R) / n;
+        for (i, (g, l)) in gaps.iter().zip(labels).enumerate() {
+            let x0 = L + i as i32 * bw + bw / 6;
+            let y = ly(*g);
+            let _ = Rectangle::new(
+                Point::new(x0, y),
+                Size::new((bw * 2 / 3) as u32, (H - B - y).max(1) as u32),
+            )
+            .into_styled(PrimitiveStyle::with_fill(Rgb888::new(70, 110, 200)))
+            .draw(&mut c);
+            let _ = Text::new(&format!("{g:.1}"), Point::new(x0, y - 3), text).draw(&mut c);
+            let short: String = l.chars().take((bw / 6).max(4) as usize).collect();
+            let _ = Text::new(&short, Point::new(x0, H - B + 14), text).draw(&mut c);
+        }
+        let yt = ly(threshold);
+        let _ = Line::new(Point::new(L, yt), Point::new(W - R, yt))
+            .into_styled(PrimitiveStyle::with_stroke(Rgb888::RED, 1))
+            .draw(&mut c);
+        for v in [0.1, 1.0, 10.0, 100.0, 1000.0] {
+            if v <= top {
+                let _ = Text::new(&format!("{v}"), Point::new(8, ly(v) + 3), text).draw(&mut c);
+            }
+        }
+        c.into_image()
+    }
+
+    /// Flat signal relative to the centre against r², per flat burst, with the model's
+    /// vignetting 1 − k·r² (red line).
+    pub fn radial(series: &[(String, Vec<(f64, f64)>)], k: f64) -> Image {
+        let mut c = Canvas::new(W as usize, H as usize);
+        frame(
+            &mut c,
+            &format!("flat mean / centre vs r^2; red: model 1 - {k:.3} r^2"),
+        );
+        let text = MonoTextStyle::new(&FONT_6X10, Rgb888::BLACK);
+        let lo = series
+            .iter()
+            .flat_map(|s| s.1.iter().map(|p| p.1))
+            .fold(1.0 - k, f64::min)
+            .min(0.95)
+            - 0.02;
+        let hi = 1.05;
+        let px = |x: f64| L + (x * (W - L - R) as f64) as i32;
+        let py = |y: f64| H - B - ((y - lo) / (hi - lo) * (H - T - B) as f64) as i32;
+        let _ = Line::new(
+            Point::new(px(0.0), py(1.0)),
+            Point::new(px(1.0), py(1.0 - k)),
+        )
+        .into_styled(PrimitiveStyle::with_stroke(Rgb888::RED, 1))
+        .draw(&mut c);
+        let colours = [
+            Rgb888::new(40, 40, 40),
+            Rgb888::new(40, 120, 40),
+            Rgb888::new(40, 40, 160),
+            Rgb888::new(150, 90, 20),
+        ];
+        for (i, (name, pts)) in series.iter().enumerate() {
+            let col = colours[i % colours.len()];
+            for p in pts {
+                let _ = Circle::with_center(Point::new(px(p.0), py(p.1)), 5)
+                    .into_styled(PrimitiveStyle::with_stroke(col, 1))
+                    .draw(&mut c);
+            }
+            let _ = Text::new(
+                name,
+                Point::new(L + 8, T + 14 + 12 * i as i32),
+                MonoTextStyle::new(&FONT_6X10, col),
+            )
+            .draw(&mut c);
+        }
+        for v in [lo, 1.0] {
+            let _ = Text::new(&format!("{v:.2}"), Point::new(8, py(v) + 3), text).draw(&mut c);
+        }
+        let _ = Text::new("r^2: 0", Point::new(L, H - B + 14), text).draw(&mut c);
+        let _ = Text::new("1", Point::new(W - R - 6, H - B + 14), text).draw(&mut c);
+        c.into_image()
+    }
+}

@@ -1,0 +1,101 @@
+//! `channel_noise`: the noise parameters differ per colour channel: a and b of the profile are
+//! multiplied by `a_scale[c]`, `b_scale[c]` (the base model fitted without a profile shares one
+//! (a, b) per ISO across channels). Changes the noise process itself (noise stage).
+//!
+//! Statistic (dark and flat bursts): each channel's mean temporal variance over the mean of the
+//! three (non-hot values); effects shared by the channels (row offsets, correlated or heavy-
+//! tailed noise of equal variance) leave these ratios alone. Fit: the captures' per-channel
+//! photon-transfer fit (src/sensor/noise.rs) over the model's a, b at each calibrated ISO,
+//! averaged over ISOs (row-offset variance, modelled separately, is taken out of b first).
+
+use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, only, table};
+use crate::sensor::captures::BurstKind;
+
+pub const ID: &str = "channel_noise";
+const NAMES: [&str; 3] = [
+    "temporal variance ratio R",
+    "temporal variance ratio G",
+    "temporal variance ratio B",
+];
+
+pub const ENTRY: Entry = Entry {
+    id: ID,
+    about: "different noise a, b per colour channel (multipliers on the profile's a, b)",
+    install,
+    statistics,
+    fit,
+    adjust: None,
+};
+
+fn triple(p: &toml::Table, key: &str) -> Result<[f64; 3], String> {
+    let a = p
+        .get(key)
+        .and_then(|v| v.as_array())
+        .ok_or_else(|| format!("'{key}' must be an array of 3 numbers"))?;
+    let v: Vec<f64> = a
+        .iter()
+        .filter_map(|x| x.as_float().or_else(|| x.as_integer().map(|i| i as f64)))
+        .collect();
+    if v.len() != 3 || a.len() != 3 || v.iter().any(|x| !(x.is_finite() && *x > 0.0)) {
+        return Err(format!("'{key}' must be 3 numbers > 0"));
+    }
+    Ok([v[0], v[1], v[2]])
+}
+
+fn install(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
+    only(p, &["a_scale", "b_scale"])?;
+    let (a, b) = (triple(p, "a_scale")?, triple(p, "b_scale")?);
+    for c in 0..3 {
+        plan.a_scale[c] *= a[c] as f32;
+        plan.b_scale[c] *= b[c] as f32;
+    }
+    Ok(())
+}
+
+fn statistics(p: &Protocol, s: &[Summary], out: &mut Vec<Stat>) {
+    for b in s
+        .iter()
+        .filter(|b| matches!(b.kind, BurstKind::Dark | BurstKind::Flat) && !b.var.is_empty())
+    {
+        let m = b.temporal_mean();
+        for (c, name) in NAMES.iter().enumerate() {
+            out.push(Stat {
+                key: format!("{}: {name}", p.bursts[b.burst].name),
+                effect: Some(ID),
+                value: b.temporal_var[c] / m,
+                min_effect: 0.05,
+                sd_floor: 1e-4,
+                unit: "",
+            });
+        }
+    }
+}
+
+fn fit(ctx: &FitCtx) -> Result<toml::Table, String> {
+    let cal = ctx
+        .calibration
+        .ok_or("no per-channel noise calibration of the captures")?;
+    let range = ctx.profile.levels.white_level - ctx.profile.levels.black_level;
+    let plan = super::Plan::from_effects(&ctx.profile.effects)?;
+    let row_var = (plan.row_sigma as f64).powi(2);
+    let (mut sa, mut sb, mut n) = ([0.0; 3], [0.0; 3], 0.0);
+    for f in &cal.isos {
+        let Ok((a, b)) = ctx.profile.noise_at(f.iso) else {
+            continue;
+        };
+        for c in 0..3 {
+            let (am, bm) = (a[c] * range, b[c] * range * range);
+            if am <= 0.0 || bm <= 0.0 {
+                return Err(format!("model a or b is 0 at ISO {}", f.iso));
+            }
+            sa[c] += f.channels[c].a / am;
+            sb[c] += (f.channels[c].b - row_var).max(0.0) / bm;
+        }
+        n += 1.0;
+    }
+    if n == 0.0 {
+        return Err("no calibrated ISO inside the model's range".into());
+    }
+    let arr = |s: [f64; 3]| toml::Value::Array(s.iter().map(|v| float(v / n)).collect());
+    Ok(table(&[("a_scale", arr(sa)), ("b_scale", arr(sb))]))
+}

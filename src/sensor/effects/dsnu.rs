@@ -1,0 +1,64 @@
+//! `dsnu`: dark signal non-uniformity, a fixed offset N(0, σ²) DN per value without row or
+//! column structure (offset stage, from the pattern seed).
+//!
+//! Statistic (dark bursts): the variance of the dark temporal mean after removing row and
+//! column means (so column and row patterns do not count), hot values masked, corrected for the
+//! removed degrees of freedom, minus the temporal part v̄/L (EMVA 1288). Fit: σ² = measured −
+//! simulated.
+
+use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, hashed_normal, number, only};
+use super::{prnu::fixed_excess, seed, seed_value, table};
+use crate::sensor::captures::BurstKind;
+
+pub const ID: &str = "dsnu";
+const NAME: &str = "fixed pixel variance (rows, columns removed)";
+
+pub const ENTRY: Entry = Entry {
+    id: ID,
+    about: "fixed per-pixel dark offsets N(0, sigma_dn²) without row/column structure",
+    install,
+    statistics,
+    fit,
+    adjust: None,
+};
+
+pub fn offset(sigma: f32, seed: u64, x: usize, y: usize, c: usize) -> f32 {
+    sigma * hashed_normal(seed, &[x as u64, y as u64, c as u64, 0xd5])
+}
+
+fn install(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
+    only(p, &["sigma_dn", "seed"])?;
+    let s = number(p, "sigma_dn")?;
+    if s < 0.0 {
+        return Err(format!("sigma_dn {s} must be ≥ 0"));
+    }
+    plan.dsnu = Some((s as f32, seed(p)?));
+    Ok(())
+}
+
+fn statistics(p: &Protocol, s: &[Summary], out: &mut Vec<Stat>) {
+    for b in s
+        .iter()
+        .filter(|b| b.kind == BurstKind::Dark && !b.var.is_empty())
+    {
+        out.push(Stat {
+            key: format!("{}: {NAME}", p.bursts[b.burst].name),
+            effect: Some(ID),
+            value: fixed_excess(b),
+            min_effect: (0.02 * b.temporal_mean()).max(0.05),
+            sd_floor: 1e-4,
+            unit: "DN²",
+        });
+    }
+}
+
+fn fit(ctx: &FitCtx) -> Result<toml::Table, String> {
+    let v = ctx.mean_excess(ID, NAME)?;
+    if v <= 0.0 {
+        return Err(format!("excess fixed variance {v:.4} DN² is not positive"));
+    }
+    Ok(table(&[
+        ("sigma_dn", float(v.sqrt())),
+        ("seed", seed_value(ctx.seed)),
+    ]))
+}

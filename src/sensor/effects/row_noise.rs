@@ -1,0 +1,68 @@
+//! `row_noise`: an offset per row, N(0, σ²) DN, drawn anew in every frame and shared by the
+//! three channels of the row (offset stage).
+//!
+//! Statistic (dark bursts): the covariance over frames of the left-half and right-half means of
+//! each row, averaged over rows. A row offset is in both halves; pixel-level noise (white,
+//! heavy-tailed or short-range correlated) is not, and fixed patterns do not vary over frames,
+//! so only per-frame row offsets make it non-zero: E = σ². Fit: σ² = measured − simulated.
+//! The base model's b was fitted to temporal variances that include σ², so adding the effect
+//! lowers b by σ² (in DN²) at every ISO.
+
+use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, number, only, table};
+use crate::sensor::captures::BurstKind;
+use crate::sensor::profile::SensorProfile;
+
+pub const ID: &str = "row_noise";
+const NAME: &str = "row offset covariance (left × right half)";
+
+pub const ENTRY: Entry = Entry {
+    id: ID,
+    about: "row offsets N(0, sigma_dn²) drawn anew in every frame",
+    install,
+    statistics,
+    fit,
+    adjust: Some(adjust),
+};
+
+fn install(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
+    only(p, &["sigma_dn"])?;
+    let s = number(p, "sigma_dn")?;
+    if s < 0.0 {
+        return Err(format!("sigma_dn {s} must be ≥ 0"));
+    }
+    plan.row_sigma = s as f32;
+    Ok(())
+}
+
+fn statistics(p: &Protocol, s: &[Summary], out: &mut Vec<Stat>) {
+    for b in s.iter().filter(|b| b.kind == BurstKind::Dark) {
+        if let Some(r) = &b.resid {
+            out.push(Stat {
+                key: format!("{}: {NAME}", p.bursts[b.burst].name),
+                effect: Some(ID),
+                value: r.row_cov,
+                min_effect: (0.02 * b.temporal_mean()).max(0.05),
+                sd_floor: 1e-4,
+                unit: "DN²",
+            });
+        }
+    }
+}
+
+fn fit(ctx: &FitCtx) -> Result<toml::Table, String> {
+    let v = ctx.mean_excess(ID, NAME)?;
+    if v <= 0.0 {
+        return Err(format!("excess row covariance {v:.4} DN² is not positive"));
+    }
+    Ok(table(&[("sigma_dn", float(v.sqrt()))]))
+}
+
+fn adjust(profile: &mut SensorProfile, params: &toml::Table) {
+    let s = super::number(params, "sigma_dn").unwrap_or(0.0);
+    let range = profile.levels.white_level - profile.levels.black_level;
+    for n in &mut profile.noise {
+        for b in &mut n.b {
+            *b = (*b - s * s / (range * range)).max(0.0);
+        }
+    }
+}

@@ -1,0 +1,438 @@
+//! Burst summaries: everything the catalogue's statistics need from one burst, accumulated
+//! frame by frame (frames are never all held in memory), for measured and simulated bursts
+//! alike.
+//!
+//! Per value (pixel × channel): temporal mean M and unbiased variance v. Dark and flat bursts
+//! add the *fixed residual* (M minus, for flats, a least-squares quadratic surface in x, y that
+//! absorbs vignetting and illumination falloff, then minus row and column means: a two-way
+//! decomposition) and a hot-value mask (fixed residual above 8 robust σ). Dark bursts with ≥ 2
+//! frames also give pooled moments of the temporal residuals x_f − M (second and fourth, for
+//! the kurtosis), their vertical lag-1 correlation, and the covariance over frames of the left-
+//! and right-half means of each row (a row offset shared by both halves; no pixel-level noise
+//! process correlates two half rows).
+
+use crate::io::Image;
+use crate::sensor::captures::BurstKind;
+use rayon::prelude::*;
+
+/// The capture protocol (what was captured, not the pixels) plus the model levels that the
+/// statistics need.
+#[derive(Clone, Debug)]
+pub struct Protocol {
+    pub bursts: Vec<BurstInfo>,
+    /// The model's black level in DN including any black-level offset effect.
+    pub black: f64,
+    pub white: f64,
+    /// white − the profile's black level (the normalisation of signals).
+    pub range: f64,
+    /// The model's response exponent (1 = linear), to linearise scene bursts.
+    pub exponent: f64,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct BurstInfo {
+    pub name: String,
+    pub kind: BurstKind,
+    pub iso: f64,
+    pub exposure_s: f64,
+    pub width: usize,
+    pub height: usize,
+    pub frames: usize,
+}
+
+impl BurstInfo {
+    /// Exposure × ISO: the expected signal above black is proportional to it.
+    pub fn exposure(&self) -> f64 {
+        self.exposure_s * self.iso
+    }
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Residuals {
+    /// Per channel, the pooled mean of (x_f − M)² and (x_f − M)⁴ over values and frames
+    /// (per channel: pooling channels of different variance is a scale mixture, which has
+    /// excess kurtosis of its own).
+    pub m2: [f64; 3],
+    pub m4: [f64; 3],
+    /// Σ r(x, y)·r(x, y + 1) / Σ r² (same frame, same channel).
+    pub vcorr: f64,
+    /// Mean over rows of the covariance over frames of the left- and right-half row means (DN²).
+    pub row_cov: f64,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Summary {
+    pub burst: usize,
+    pub kind: BurstKind,
+    pub iso: f64,
+    pub exposure_s: f64,
+    pub width: usize,
+    pub height: usize,
+    pub frames: usize,
+    /// Temporal mean per value (DN).
+    pub mean: Vec<f64>,
+    /// Temporal unbiased variance per value (DN²); empty with one frame or for scene bursts.
+    pub var: Vec<f64>,
+    /// Dark and flat: fixed residual per value (DN); empty otherwise.
+    pub fixed: Vec<f64>,
+    /// Dark and flat: hot values (fixed residual > 8 robust σ); empty otherwise.
+    pub hot: Vec<bool>,
+    /// Variance of `fixed` over non-hot values, corrected for the fitted degrees of freedom.
+    pub fixed_var: f64,
+    /// Mean temporal variance per channel over non-hot values.
+    pub temporal_var: [f64; 3],
+    /// Robust σ of the fixed residual (the hot threshold is 8 of these).
+    pub fixed_sigma: f64,
+    pub resid: Option<Residuals>,
+}
+
+impl Summary {
+    pub fn info(&self) -> (BurstKind, f64, f64) {
+        (self.kind, self.iso, self.exposure_s)
+    }
+
+    pub fn exposure(&self) -> f64 {
+        self.exposure_s * self.iso
+    }
+
+    pub fn temporal_mean(&self) -> f64 {
+        self.temporal_var.iter().sum::<f64>() / 3.0
+    }
+
+    pub fn not_hot(&self, i: usize) -> bool {
+        self.hot.get(i).is_none_or(|h| !h)
+    }
+}
+
+/// Streaming per-burst accumulator.
+pub struct Accumulator {
+    kind: BurstKind,
+    w: usize,
+    h: usize,
+    n: usize,
+    shift: f64,
+    stride: usize,
+    acc: Vec<f64>,
+    /// Per frame, per row: (left-half mean, right-half mean).
+    halves: Vec<[f64; 2]>,
+}
+
+impl Accumulator {
+    pub fn new(info: &BurstInfo) -> Accumulator {
+        let stride = match info.kind {
+            BurstKind::Dark => 5,
+            BurstKind::Flat => 2,
+            _ => 1,
+        };
+        Accumulator {
+            kind: info.kind,
+            w: info.width,
+            h: info.height,
+            n: 0,
+            shift: 0.0,
+            stride,
+            acc: vec![0.0; info.width * info.height * 3 * stride],
+            halves: Vec::new(),
+        }
+    }
+
+    pub fn add(&mut self, f: &Image) {
+        assert_eq!((f.width, f.height), (self.w, self.h), "frame size");
+        if self.n == 0 {
+            // Shifting by the first frame's mean keeps the power sums well conditioned.
+            self.shift = f.data.iter().map(|&v| v as f64).sum::<f64>() / f.data.len() as f64;
+            self.shift = self.shift.round();
+        }
+        self.n += 1;
+        let (w3, h, k, c) = (self.w * 3, self.h, self.stride, self.shift);
+        let data = &f.data;
+        self.acc
+            .par_chunks_mut(w3 * k)
+            .enumerate()
+            .for_each(|(y, a)| {
+                let row = &data[y * w3..(y + 1) * w3];
+                match k {
+                    1 => {
+                        for (s, &v) in a.iter_mut().zip(row) {
+                            *s += v as f64 - c;
+                        }
+                    }
+                    2 => {
+                        for (s, &v) in a.chunks_exact_mut(2).zip(row) {
+                            let d = v as f64 - c;
+                            s[0] += d;
+                            s[1] += d * d;
+                        }
+                    }
+                    _ => {
+                        let next = (y + 1 < h).then(|| &data[(y + 1) * w3..(y + 2) * w3]);
+                        for (i, (s, &v)) in a.chunks_exact_mut(5).zip(row).enumerate() {
+                            let d = v as f64 - c;
+                            let d2 = d * d;
+                            s[0] += d;
+                            s[1] += d2;
+                            s[2] += d2 * d;
+                            s[3] += d2 * d2;
+                            if let Some(nx) = next {
+                                s[4] += d * (nx[i] as f64 - c);
+                            }
+                        }
+                    }
+                }
+            });
+        if self.kind == BurstKind::Dark {
+            let half = (self.w / 2) * 3;
+            let rows: Vec<[f64; 2]> = data
+                .par_chunks(w3)
+                .map(|r| {
+                    let l = r[..half].iter().map(|&v| v as f64).sum::<f64>() / half as f64;
+                    let rr = r[half..].iter().map(|&v| v as f64).sum::<f64>() / (w3 - half) as f64;
+                    [l, rr]
+                })
+                .collect();
+            self.halves.extend(rows);
+        }
+    }
+
+    pub fn finish(self, burst: usize, info: &BurstInfo) -> Summary {
+        let (n, k, c) = (self.n as f64, self.stride, self.shift);
+        let nv = self.w * self.h * 3;
+        let mean: Vec<f64> = (0..nv).map(|i| c + self.acc[i * k] / n).collect();
+        let var: Vec<f64> = if k >= 2 && self.n >= 2 {
+            (0..nv)
+                .map(|i| {
+                    let (s1, s2) = (self.acc[i * k], self.acc[i * k + 1]);
+                    ((s2 - s1 * s1 / n) / (n - 1.0)).max(0.0)
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
+        let mut s = Summary {
+            burst,
+            kind: info.kind,
+            iso: info.iso,
+            exposure_s: info.exposure_s,
+            width: self.w,
+            height: self.h,
+            frames: self.n,
+            mean,
+            var,
+            fixed: Vec::new(),
+            hot: Vec::new(),
+            fixed_var: f64::NAN,
+            temporal_var: [f64::NAN; 3],
+            fixed_sigma: f64::NAN,
+            resid: None,
+        };
+        if matches!(self.kind, BurstKind::Dark | BurstKind::Flat) {
+            fixed_residual(&mut s, self.kind == BurstKind::Flat);
+            if !s.var.is_empty() {
+                s.temporal_var = std::array::from_fn(|ch| {
+                    super::masked_mean(&s.var, |i| i % 3 == ch && s.not_hot(i))
+                });
+            }
+        }
+        if self.kind == BurstKind::Dark && self.n >= 2 {
+            let w3 = self.w * 3;
+            let (mut r2, mut r4, mut cv, mut pairs) = ([0.0; 3], [0.0; 3], 0.0, 0usize);
+            for i in 0..nv {
+                let a = &self.acc[i * 5..i * 5 + 5];
+                let m = a[0] / n;
+                r2[i % 3] += a[1] - n * m * m;
+                r4[i % 3] += a[3] - 4.0 * m * a[2] + 6.0 * m * m * a[1] - 3.0 * n * m.powi(4);
+                if i + w3 < nv {
+                    let mn = self.acc[(i + w3) * 5] / n;
+                    cv += a[4] - n * m * mn;
+                    pairs += 1;
+                }
+            }
+            let per = nv as f64 / 3.0 * n;
+            let m2 = r2.map(|v| v / per);
+            let m4 = r4.map(|v| v / per);
+            let vcorr = cv / (pairs.max(1) as f64 * n) / (m2.iter().sum::<f64>() / 3.0);
+            let h = self.h;
+            let mut row_cov = 0.0;
+            for y in 0..h {
+                let (mut sl, mut sr, mut slr) = (0.0, 0.0, 0.0);
+                for f in 0..self.n {
+                    let [l, r] = self.halves[f * h + y];
+                    sl += l;
+                    sr += r;
+                    slr += l * r;
+                }
+                row_cov += (slr - sl * sr / n) / (n - 1.0);
+            }
+            s.resid = Some(Residuals {
+                m2,
+                m4,
+                vcorr,
+                row_cov: row_cov / h as f64,
+            });
+        }
+        s
+    }
+}
+
+/// Summarise a burst from frames in memory.
+pub fn summarise(burst: usize, info: &BurstInfo, frames: &[Image]) -> Summary {
+    let mut acc = Accumulator::new(info);
+    for f in frames {
+        acc.add(f);
+    }
+    acc.finish(burst, info)
+}
+
+/// Median of a sample of at most ~200k values (strided), for robust scales.
+fn sampled_median(v: impl Iterator<Item = f64>, len: usize) -> f64 {
+    let step = (len / 200_000).max(1);
+    let mut s: Vec<f64> = v.step_by(step).filter(|x| x.is_finite()).collect();
+    if s.is_empty() {
+        return 0.0;
+    }
+    let mid = s.len() / 2;
+    *s.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1
+}
+
+#[allow(clippy::needless_range_loop)] // (x, y, c) index arithmetic reads clearer
+/// Fill `fixed`, `hot`, `fixed_var`, `fixed_sigma`: surface (flats), then two passes of
+/// row/column removal per channel, the second with hot values left out of the means.
+fn fixed_residual(s: &mut Summary, surface: bool) {
+    let (w, h) = (s.width, s.height);
+    let nv = w * h * 3;
+    let mut base = s.mean.clone();
+    if surface {
+        for c in 0..3 {
+            let coef = quadratic_fit(&base, w, h, c);
+            for y in 0..h {
+                for x in 0..w {
+                    base[(y * w + x) * 3 + c] -= quadratic_eval(&coef, x, y, w, h);
+                }
+            }
+        }
+    }
+    let mut hot = vec![false; nv];
+    let mut fixed = vec![0.0; nv];
+    let mut sigma = 0.0;
+    for _pass in 0..2 {
+        for c in 0..3 {
+            let mut row = vec![(0.0, 0usize); h];
+            let mut col = vec![(0.0, 0usize); w];
+            let mut all = (0.0, 0usize);
+            for y in 0..h {
+                for x in 0..w {
+                    let i = (y * w + x) * 3 + c;
+                    if !hot[i] {
+                        row[y].0 += base[i];
+                        row[y].1 += 1;
+                        col[x].0 += base[i];
+                        col[x].1 += 1;
+                        all.0 += base[i];
+                        all.1 += 1;
+                    }
+                }
+            }
+            let m = |(s, k): (f64, usize)| if k == 0 { 0.0 } else { s / k as f64 };
+            let g = m(all);
+            for y in 0..h {
+                for x in 0..w {
+                    let i = (y * w + x) * 3 + c;
+                    fixed[i] = base[i] - m(row[y]) - m(col[x]) + g;
+                }
+            }
+        }
+        let med = sampled_median(fixed.iter().copied(), nv);
+        let mad = sampled_median(fixed.iter().map(|v| (v - med).abs()), nv);
+        // Floor: with tiny noise the MAD of integer-quantised means can be 0.
+        sigma = (1.4826 * mad).max(0.05);
+        let thr = 8.0 * sigma;
+        for (hv, f) in hot.iter_mut().zip(&fixed) {
+            *hv = f - med > thr.max(2.0);
+        }
+    }
+    let (mut ss, mut k) = (0.0, 0usize);
+    for (f, hv) in fixed.iter().zip(&hot) {
+        if !hv {
+            ss += f * f;
+            k += 1;
+        }
+    }
+    let dof = ((w as f64 - 1.0) * (h as f64 - 1.0) - if surface { 6.0 } else { 0.0 }).max(1.0);
+    s.fixed_var = ss / k.max(1) as f64 * (w * h) as f64 / dof;
+    s.fixed = fixed;
+    s.hot = hot;
+    s.fixed_sigma = sigma;
+}
+
+/// Coordinates normalised to the half-diagonal, centred.
+pub fn normalised_xy(x: usize, y: usize, w: usize, h: usize) -> (f64, f64) {
+    let hd = 0.5 * ((w * w + h * h) as f64).sqrt();
+    (
+        (x as f64 + 0.5 - w as f64 / 2.0) / hd,
+        (y as f64 + 0.5 - h as f64 / 2.0) / hd,
+    )
+}
+
+fn quad_terms(x: usize, y: usize, w: usize, h: usize) -> [f64; 6] {
+    let (u, v) = normalised_xy(x, y, w, h);
+    [1.0, u, v, u * u, u * v, v * v]
+}
+
+fn quadratic_eval(c: &[f64; 6], x: usize, y: usize, w: usize, h: usize) -> f64 {
+    quad_terms(x, y, w, h)
+        .iter()
+        .zip(c)
+        .map(|(a, b)| a * b)
+        .sum()
+}
+
+/// Least-squares quadratic surface of channel `c`.
+fn quadratic_fit(m: &[f64], w: usize, h: usize, c: usize) -> [f64; 6] {
+    let mut a = [[0.0; 6]; 6];
+    let mut b = [0.0; 6];
+    for y in 0..h {
+        for x in 0..w {
+            let t = quad_terms(x, y, w, h);
+            let v = m[(y * w + x) * 3 + c];
+            for i in 0..6 {
+                b[i] += t[i] * v;
+                for j in 0..6 {
+                    a[i][j] += t[i] * t[j];
+                }
+            }
+        }
+    }
+    solve6(a, b)
+}
+
+/// Gaussian elimination with partial pivoting (6×6 normal equations).
+#[allow(clippy::needless_range_loop)]
+fn solve6(mut a: [[f64; 6]; 6], mut b: [f64; 6]) -> [f64; 6] {
+    for i in 0..6 {
+        let p = (i..6)
+            .max_by(|&r, &s| a[r][i].abs().total_cmp(&a[s][i].abs()))
+            .unwrap_or(i);
+        a.swap(i, p);
+        b.swap(i, p);
+        if a[i][i].abs() < 1e-300 {
+            continue;
+        }
+        for r in i + 1..6 {
+            let f = a[r][i] / a[i][i];
+            for k in i..6 {
+                a[r][k] -= f * a[i][k];
+            }
+            b[r] -= f * b[i];
+        }
+    }
+    let mut x = [0.0; 6];
+    for i in (0..6).rev() {
+        let s: f64 = (i + 1..6).map(|k| a[i][k] * x[k]).sum();
+        x[i] = if a[i][i].abs() < 1e-300 {
+            0.0
+        } else {
+            (b[i] - s) / a[i][i]
+        };
+    }
+    x
+}
