@@ -41,6 +41,11 @@ enum Command {
     Eval(hdrsynth::cli::eval::Args),
     /// Build a static test set from real HDR radiance through a sensor profile.
     Testset(hdrsynth::cli::testset::Args),
+    /// Export a trained network (ONNX; cargo feature `onnx`).
+    Export {
+        #[command(subcommand)]
+        command: hdrsynth::cli::export::ExportCommand,
+    },
     /// Inspect datasets.
     Dataset {
         #[command(subcommand)]
@@ -90,6 +95,7 @@ fn main() -> Result<()> {
         Command::Infer(args) => println!("{}", hdrsynth::cli::infer::run(&args)?),
         Command::Eval(args) => println!("{}", hdrsynth::cli::eval::run(&args)?),
         Command::Testset(args) => println!("{}", hdrsynth::cli::testset::run(&args)?),
+        Command::Export { command } => println!("{}", hdrsynth::cli::export::run(&command)?),
         Command::Dataset { command } => match command {
             DatasetCommand::Info { dir } => {
                 print!("{}", hdrsynth::cli::dataset::info_report(&dir)?)

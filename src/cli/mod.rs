@@ -2,6 +2,7 @@
 pub mod calibrate;
 pub mod dataset;
 pub mod eval;
+pub mod export;
 pub mod generate;
 pub mod infer;
 pub mod preview;
