@@ -82,10 +82,18 @@ fn onnx(args: &OnnxArgs) -> Result<String> {
     export::save(&model, &args.out)?;
     let graph = model.graph.as_ref().expect("built with a graph");
     let (kind, frames) = match &loaded {
-        Loaded::Network1(_) => ("Network-1", ["desk_2exp_ev-3.png", "desk_2exp_ev+0.png"].as_slice()),
+        Loaded::Network1(_) => (
+            "Network-1",
+            ["desk_2exp_ev-3.png", "desk_2exp_ev+0.png"].as_slice(),
+        ),
         Loaded::Network2(_) => (
             "Network-2",
-            ["desk_3exp_ev-2.png", "desk_3exp_ev+0.png", "desk_3exp_ev+2.png"].as_slice(),
+            [
+                "desk_3exp_ev-2.png",
+                "desk_3exp_ev+0.png",
+                "desk_3exp_ev+2.png",
+            ]
+            .as_slice(),
         ),
     };
     let mut report = format!(

@@ -64,7 +64,9 @@ impl Default for ExportOptions {
 /// The (batch, height, width) axes of the graph's image inputs and outputs.
 fn axes(size: InputSize) -> [Dim; 3] {
     match size {
-        InputSize::Static { height, width } => [Dim::Fixed(1), Dim::Fixed(height), Dim::Fixed(width)],
+        InputSize::Static { height, width } => {
+            [Dim::Fixed(1), Dim::Fixed(height), Dim::Fixed(width)]
+        }
         InputSize::Dynamic => [Dim::Symbol("N"), Dim::Symbol("H"), Dim::Symbol("W")],
     }
 }
@@ -221,7 +223,10 @@ pub fn network2_min_size(cfg: &wu::WuConfig) -> usize {
         // the bottom; the output convolution pads 2 at s.
         (0..downs).all(|k| (s >> k) > 2) && (cfg.variant != WuVariant::Resnet || (s >> downs) > 1)
     };
-    (1..).map(|k| k * m).find(|&s| ok(s)).expect("some multiple works")
+    (1..)
+        .map(|k| k * m)
+        .find(|&s| ok(s))
+        .expect("some multiple works")
 }
 
 /// Network-2 as ONNX. Inputs `frame_short`, `frame_reference`, `frame_long`: `[N, 3, H, W]`
@@ -258,7 +263,12 @@ pub fn network2(model: &WuNet, opts: &ExportOptions) -> Result<ModelProto> {
     for (i, ldr) in frames.iter().enumerate() {
         let p = format!("encoders.{i}");
         let idx = g.const_i64(&format!("{p}.t_index"), &[], vec![i as i64]);
-        let t = g.node("Gather", &format!("{p}.t"), &[&times, &idx], vec![int("axis", 1)]);
+        let t = g.node(
+            "Gather",
+            &format!("{p}.t"),
+            &[&times, &idx],
+            vec![int("axis", 1)],
+        );
         let shape = g.const_i64(&format!("{p}.t_shape"), &[4], vec![-1, 1, 1, 1]);
         let t = g.node("Reshape", &format!("{p}.t4"), &[&t, &shape], vec![]);
         let lin = g.with_scalar("Pow", &format!("{p}.linear"), ldr, 2.2);
@@ -277,8 +287,16 @@ pub fn network2(model: &WuNet, opts: &ExportOptions) -> Result<ModelProto> {
     let refs = |v: &[String]| v.iter().map(String::clone).collect::<Vec<_>>();
     let e1_refs = refs(&e1);
     let e2_refs = refs(&e2);
-    let e1 = g.concat("E1", &e1_refs.iter().map(String::as_str).collect::<Vec<_>>(), 1);
-    let e2 = g.concat("E2", &e2_refs.iter().map(String::as_str).collect::<Vec<_>>(), 1);
+    let e1 = g.concat(
+        "E1",
+        &e1_refs.iter().map(String::as_str).collect::<Vec<_>>(),
+        1,
+    );
+    let e2 = g.concat(
+        "E2",
+        &e2_refs.iter().map(String::as_str).collect::<Vec<_>>(),
+        1,
+    );
     let mut levels = Vec::new();
     let mut cur = e2.clone();
     for k in 0..cfg.merger_widths().len() {

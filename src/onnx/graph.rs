@@ -202,7 +202,9 @@ impl GraphBuilder {
         let w = self
             .weights
             .get(name)
-            .ok_or_else(|| Error::Invalid(format!("ONNX export: the model has no weight '{name}'")))?
+            .ok_or_else(|| {
+                Error::Invalid(format!("ONNX export: the model has no weight '{name}'"))
+            })?
             .clone();
         if self.used.insert(name.to_string()) {
             self.names.insert(name.to_string());
@@ -250,7 +252,13 @@ impl GraphBuilder {
 
     /// `Conv` with the module's `{prefix}.weight` (and `{prefix}.bias` if it has one); `pads`
     /// are ONNX's [top, left, bottom, right].
-    pub fn conv(&mut self, prefix: &str, x: &str, stride: usize, pads: [usize; 4]) -> Result<String> {
+    pub fn conv(
+        &mut self,
+        prefix: &str,
+        x: &str,
+        stride: usize,
+        pads: [usize; 4],
+    ) -> Result<String> {
         let w = self.weight(&format!("{prefix}.weight"))?;
         let shape = self.weights[&w].shape.clone();
         let mut inputs = vec![x.to_string(), w];
@@ -323,7 +331,13 @@ impl GraphBuilder {
 
     /// `Pad(mode = reflect)` of the last two axes by ([top, bottom], [left, right]) (TensorFlow's
     /// `REFLECT`: the edge sample is not repeated). ONNX Runtime needs each pad < the axis.
-    pub fn pad_reflect(&mut self, name: &str, x: &str, (t, b): (usize, usize), (l, r): (usize, usize)) -> String {
+    pub fn pad_reflect(
+        &mut self,
+        name: &str,
+        x: &str,
+        (t, b): (usize, usize),
+        (l, r): (usize, usize),
+    ) -> String {
         if t + b + l + r == 0 {
             return x.to_string();
         }

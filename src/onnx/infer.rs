@@ -63,7 +63,13 @@ fn extend(win: &Planar, height: usize, width: usize) -> Result<Planar> {
 }
 
 /// The top-left `height`×`width` of a C×H×W result.
-fn crop(data: &[f32], channels: usize, (sh, sw): (usize, usize), height: usize, width: usize) -> Planar {
+fn crop(
+    data: &[f32],
+    channels: usize,
+    (sh, sw): (usize, usize),
+    height: usize,
+    width: usize,
+) -> Planar {
     let mut out = Planar::new(channels, width, height);
     for c in 0..channels {
         for y in 0..height {

@@ -2,8 +2,8 @@
 //! `ORT_DYLIB_PATH`; `tools/setup_ort.sh` fetches it from PyPI's `onnxruntime` wheel).
 
 use super::export::{
-    META_HDR_SCALE, META_MIN_SIZE, META_NETWORK, META_RADIUS, META_SIZE_MULTIPLE, N1_INPUTS, N1_PROBABILITIES,
-    N1_WEIGHT, N2_FRAMES, N2_OUTPUT, N2_TIMES,
+    META_HDR_SCALE, META_MIN_SIZE, META_NETWORK, META_RADIUS, META_SIZE_MULTIPLE, N1_INPUTS,
+    N1_PROBABILITIES, N1_WEIGHT, N2_FRAMES, N2_OUTPUT, N2_TIMES,
 };
 use crate::error::{Error, Result};
 use ort::environment::Environment;
@@ -48,7 +48,12 @@ pub fn environment() -> Result<Environment> {
             .with_name("hdrsynth")
             .with_telemetry(false)
             .build()
-            .map_err(|e| format!("{}: creating the ONNX Runtime environment: {e}", path.display()))
+            .map_err(|e| {
+                format!(
+                    "{}: creating the ONNX Runtime environment: {e}",
+                    path.display()
+                )
+            })
     })
     .clone()
     .map_err(Error::Invalid)
@@ -231,7 +236,10 @@ impl OnnxModel {
         let probs = take(N1_PROBABILITIES);
         let weight = has_weight.then(|| take(N1_WEIGHT)).transpose();
         drop(outputs);
-        Ok((probs.map_err(|e| self.run_err(e))?, weight.map_err(|e| self.run_err(e))?))
+        Ok((
+            probs.map_err(|e| self.run_err(e))?,
+            weight.map_err(|e| self.run_err(e))?,
+        ))
     }
 
     /// Network-2 on `n` triples of `[3, h, w]` planar frames (EV −2, 0, +2), each frame
@@ -247,7 +255,8 @@ impl OnnxModel {
         self.check_size(h, w)?;
         let mut values = Vec::new();
         for f in frames {
-            values.push(Tensor::from_array(([n, 3, h, w], f.to_vec())).map_err(|e| self.run_err(e))?);
+            values
+                .push(Tensor::from_array(([n, 3, h, w], f.to_vec())).map_err(|e| self.run_err(e))?);
         }
         let t = Tensor::from_array(([n, 3], times.to_vec())).map_err(|e| self.run_err(e))?;
         let [a, b, c]: [Tensor<f32>; 3] = values.try_into().map_err(|_| self.run_err("inputs"))?;

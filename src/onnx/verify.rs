@@ -153,7 +153,8 @@ pub fn compare(
             let mut worst = max_abs_diff(&p_onnx, &probs)?;
             let weight_diff = match w_onnx {
                 Some(wo) => {
-                    let wb = weight_from_logits(&logits, m.classes(), h * w, BlendWeight::Expected)?;
+                    let wb =
+                        weight_from_logits(&logits, m.classes(), h * w, BlendWeight::Expected)?;
                     let d = max_abs_diff(&wo, &wb)?;
                     worst = worst.max(d);
                     Some(d)
@@ -258,7 +259,14 @@ pub fn verify(
     let mut checks = Vec::new();
     for (k, (h, w)) in check_sizes(loaded, size).into_iter().enumerate() {
         let frames = random_frames(frames_needed, h, w, 0x0_1d5e + k as u64);
-        checks.push(compare(loaded, onnx, &frames, CHECK_TIMES, device, "random")?);
+        checks.push(compare(
+            loaded,
+            onnx,
+            &frames,
+            CHECK_TIMES,
+            device,
+            "random",
+        )?);
     }
     if let Some((images, label)) = images {
         if images.len() != frames_needed {
