@@ -263,6 +263,49 @@ fn network2_exports_match_burn_in_onnx_runtime() {
         }
     }
 
+    // A batch of two with different exposure times per item, against Burn on the same batch.
+    {
+        let mut cfg = WuConfig::resnet(2);
+        cfg.res_blocks = 1;
+        let model = network2(&cfg, 25, tmp.path());
+        let unit = 1.0 / cfg.hdr_input_scale as f32;
+        let (h, w) = (40, 24);
+        let times = [[0.25f32, 1.0, 4.0], [0.5, 1.0, 2.0]];
+        let items: Vec<Vec<hdrsynth::eval::tiling::Planar>> = (0..2)
+            .map(|b| verify::random_frames(3, h, w, 70 + b))
+            .collect();
+        let mut x = Vec::new();
+        for (b, frames) in items.iter().enumerate() {
+            let mut ldr = hdrsynth::eval::tiling::Planar::new(9, w, h);
+            for (k, f) in frames.iter().enumerate() {
+                ldr.data[k * 3 * w * h..(k + 1) * 3 * w * h].copy_from_slice(&f.data);
+            }
+            x.extend(hdrsynth::eval::infer::network2_input(&ldr, times[b]).data);
+        }
+        let x = burn::tensor::Tensor::<4>::from_data(
+            burn::tensor::TensorData::new(x, [2, 18, h, w]),
+            &dev,
+        );
+        let expected: Vec<f32> = model
+            .forward(x)
+            .mul_scalar(unit)
+            .into_data()
+            .try_into_vec::<f32>()
+            .expect("burn output");
+        let path = tmp.path().join("n2-batch.onnx");
+        let mut onnx = export_and_load(&Loaded::Network2(model), &ExportOptions::default(), &path);
+        let frame =
+            |k: usize| -> Vec<f32> { items.iter().flat_map(|f| f[k].data.clone()).collect() };
+        let (f0, f1, f2) = (frame(0), frame(1), frame(2));
+        let flat_times: Vec<f32> = times.iter().flatten().copied().collect();
+        let got = onnx
+            .network2([&f0, &f1, &f2], &flat_times, (2, h, w))
+            .expect("batch of two");
+        let d = common::max_abs_diff(&got, &expected);
+        eprintln!("Network-2 batch of 2 (40×24): max |ONNX Runtime − Burn| = {d:.3e}");
+        assert!(d <= TOLERANCE, "batch of two: {d}");
+    }
+
     // Static export of the ResNet at 32×48, and the minimum size enforced (16 for the ResNet:
     // reflection pads must be shorter than their axis).
     let mut cfg = WuConfig::resnet(2);
