@@ -163,7 +163,7 @@ fn onnx(args: &OnnxArgs) -> Result<String> {
         .ok();
     }
     let worst = checks.iter().map(|c| c.max_abs_diff).fold(0.0f32, f32::max);
-    if !(worst <= args.tolerance) {
+    if worst.is_nan() || worst > args.tolerance {
         bail!(
             "{report}ONNX Runtime differs from Burn by {worst:.3e} > tolerance {:.0e}",
             args.tolerance
