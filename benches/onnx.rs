@@ -3,6 +3,7 @@
 //! `cargo bench --features onnx --bench onnx`. Untrained (seeded) weights: the cost does not
 //! depend on them. Sizes: 512×512 in one window (tile 512) and 1024×768 in the default 384-px
 //! tiles. One warm-up, then the best of `HDRSYNTH_BENCH_REPS` (default 2) runs.
+//! `HDRSYNTH_BENCH_ONLY=<network>:<W>x<H>` (e.g. `1:512x512`) runs one row.
 
 #[path = "../tests/common/mod.rs"]
 mod common;
@@ -41,6 +42,11 @@ fn main() {
     let dev = hdrsynth::device::device_from_name("flex").expect("flex");
     let tmp = tempfile::tempdir().expect("tmp");
     let sizes = [(512usize, 512usize, Some(512usize)), (1024, 768, None)];
+    let only = std::env::var("HDRSYNTH_BENCH_ONLY").ok();
+    let wanted = |net: usize, w: usize, h: usize| {
+        only.as_deref()
+            .is_none_or(|o| o == format!("{net}:{w}x{h}"))
+    };
 
     let cfg1 = BlendUNetConfig::default();
     let m1 = seeded_init(&dev, 1, || cfg1.init(&dev)).expect("init");
@@ -70,24 +76,29 @@ fn main() {
             tile: tile.unwrap_or(t1.tile),
             ..t1
         };
-        let burn = best(reps, || {
-            network1_weight(&m1, &f[0], &f[1], t1, BlendWeight::Expected, &dev).unwrap();
-        });
-        let ort = best(reps, || {
-            oi::network1_weight(&mut o1, &f[0], &f[1], t1, BlendWeight::Expected).unwrap();
-        });
-        println!(
-            "| Network-1 (default) | {w}×{h} | tile {}, overlap {} | {burn:.2} s | {ort:.2} s | {:.2}× |",
-            t1.tile,
-            t1.overlap,
-            burn / ort
-        );
+        if wanted(1, w, h) {
+            let burn = best(reps, || {
+                network1_weight(&m1, &f[0], &f[1], t1, BlendWeight::Expected, &dev).unwrap();
+            });
+            let ort = best(reps, || {
+                oi::network1_weight(&mut o1, &f[0], &f[1], t1, BlendWeight::Expected).unwrap();
+            });
+            println!(
+                "| Network-1 (default) | {w}×{h} | tile {}, overlap {} | {burn:.2} s | {ort:.2} s | {:.2}× |",
+                t1.tile,
+                t1.overlap,
+                burn / ort
+            );
+        }
         let t2 = network2_tiling(&cfg2);
         let t2 = Tiling {
             tile: tile.unwrap_or(t2.tile),
             ..t2
         };
         let times = [0.25, 1.0, 4.0];
+        if !wanted(2, w, h) {
+            continue;
+        }
         let burn = best(reps, || {
             network2_hdr(&m2, [&f[0], &f[1], &f[2]], times, t2, &dev).unwrap();
         });

@@ -125,14 +125,13 @@ pub fn network1_weight(
     let out = run_tiled(&input, 1, tiling, |win| {
         run_window(model, win, 1, |m, x, (h, w)| {
             let plane = 3 * h * w;
-            let (probs, weight) = m.network1(&x.data[..plane], &x.data[plane..], (1, h, w))?;
-            match (weight, mode) {
-                (Some(wgt), BlendWeight::Expected) => Ok(wgt),
-                _ => {
-                    let classes = probs.len() / (h * w);
-                    weight_from_probabilities(&probs, classes, h * w, mode)
-                }
+            let (low, high) = (&x.data[..plane], &x.data[plane..]);
+            if m.has_weight && mode == BlendWeight::Expected {
+                return m.network1_blend_weight(low, high, (1, h, w));
             }
+            let (probs, _) = m.network1(low, high, (1, h, w))?;
+            let classes = probs.len() / (h * w);
+            weight_from_probabilities(&probs, classes, h * w, mode)
         })
     })?;
     Ok(out.data)

@@ -7,7 +7,7 @@ use super::export::{
 };
 use crate::error::{Error, Result};
 use ort::environment::Environment;
-use ort::session::Session;
+use ort::session::{OutputSelector, RunOptions, Session};
 use ort::value::Tensor;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
@@ -240,6 +240,42 @@ impl OnnxModel {
             probs.map_err(|e| self.run_err(e))?,
             weight.map_err(|e| self.run_err(e))?,
         ))
+    }
+
+    /// Network-1's `blend_weight` output alone (`[n, 1, h, w]`): ONNX Runtime is asked for no
+    /// other output, so the C×H×W probabilities are never copied out (at 256 classes they are
+    /// 256× the weight).
+    pub fn network1_blend_weight(
+        &mut self,
+        low: &[f32],
+        high: &[f32],
+        (n, h, w): (usize, usize, usize),
+    ) -> Result<Vec<f32>> {
+        self.expect(Network::Network1)?;
+        self.check_size(h, w)?;
+        if !self.has_weight {
+            return Err(Error::Invalid(format!(
+                "{}: exported without the '{N1_WEIGHT}' output",
+                self.path.display()
+            )));
+        }
+        let shape = [n, 3, h, w];
+        let a = Tensor::from_array((shape, low.to_vec())).map_err(|e| self.run_err(e))?;
+        let b = Tensor::from_array((shape, high.to_vec())).map_err(|e| self.run_err(e))?;
+        let options = RunOptions::new()
+            .map_err(|e| self.run_err(e))?
+            .with_outputs(OutputSelector::no_default().with(N1_WEIGHT));
+        let path = self.path.clone();
+        let outputs = self
+            .session
+            .run_with_options(ort::inputs![N1_INPUTS[0] => a, N1_INPUTS[1] => b], &options)
+            .map_err(|e| Error::Invalid(format!("{}: ONNX Runtime: {e}", path.display())))?;
+        let out = outputs[N1_WEIGHT]
+            .try_extract_tensor::<f32>()
+            .map(|(_, d)| d.to_vec())
+            .map_err(|e| e.to_string());
+        drop(outputs);
+        out.map_err(|e| self.run_err(e))
     }
 
     /// Network-2 on `n` triples of `[3, h, w]` planar frames (EV −2, 0, +2), each frame
