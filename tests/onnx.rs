@@ -181,6 +181,18 @@ fn network1_exports_match_burn_in_onnx_runtime() {
     assert!(!onnx.has_weight);
     let checks = verify::verify(&loaded, &mut onnx, size, real_ref, &dev).expect("verify");
     assert_close(&checks, "Network-1 static 32×48");
+    // A static size larger than the real frames (232 wide): they continue by reflection.
+    let big = InputSize::Static {
+        height: 336,
+        width: 384,
+    };
+    let big_opts = ExportOptions {
+        size: big,
+        blend_weight: true,
+    };
+    let mut big_onnx = export_and_load(&loaded, &big_opts, &tmp.path().join("n1-big.onnx"));
+    let checks = verify::verify(&loaded, &mut big_onnx, big, real_ref, &dev).expect("verify");
+    assert_close(&checks, "Network-1 static 336×384");
     let e = onnx
         .network1(&[0.0; 3 * 48 * 32], &[0.0; 3 * 48 * 32], (1, 48, 32))
         .unwrap_err()

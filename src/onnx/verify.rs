@@ -3,6 +3,7 @@
 use super::export::{self, ExportOptions, InputSize};
 use super::proto::ModelProto;
 use super::runtime::OnnxModel;
+use crate::data::pyramid::reflect101;
 use crate::error::{Error, Result};
 use crate::eval::blend::{BlendWeight, weight_from_logits};
 use crate::eval::infer::{network2_input, planar_from_images};
@@ -204,22 +205,26 @@ pub fn random_frames(count: usize, height: usize, width: usize, seed: u64) -> Ve
         .collect()
 }
 
-/// The centred `height`×`width` crop of each image, planar; all images must be equally large.
+/// The centred `height`×`width` window of each image, planar; where the window is larger than
+/// the image it continues by reflection (OpenCV's reflect-101, as the tiling does).
 pub fn crop_frames(images: &[Image], height: usize, width: usize) -> Result<Vec<Planar>> {
     let mut out = Vec::new();
     for img in images {
-        if img.width < width || img.height < height {
-            return Err(Error::Invalid(format!(
-                "image {}×{} is smaller than {height}×{width}",
-                img.height, img.width
-            )));
+        if img.width == 0 || img.height == 0 {
+            return Err(Error::Invalid("crop: empty image".into()));
         }
-        let (x0, y0) = ((img.width - width) / 2, (img.height - height) / 2);
+        let x0 = (img.width as isize - width as isize) / 2;
+        let y0 = (img.height as isize - height as isize) / 2;
+        let xs: Vec<usize> = (0..width)
+            .map(|x| reflect101(x0 + x as isize, img.width))
+            .collect();
         let mut c = Image::new(width, height);
         for y in 0..height {
-            let src = ((y0 + y) * img.width + x0) * 3;
-            c.data[y * width * 3..(y + 1) * width * 3]
-                .copy_from_slice(&img.data[src..src + width * 3]);
+            let sy = reflect101(y0 + y as isize, img.height);
+            for (x, &sx) in xs.iter().enumerate() {
+                let (d, s) = ((y * width + x) * 3, (sy * img.width + sx) * 3);
+                c.data[d..d + 3].copy_from_slice(&img.data[s..s + 3]);
+            }
         }
         out.push(planar_from_images(&[&c])?);
     }
@@ -244,7 +249,8 @@ pub fn check_sizes(loaded: &Loaded, size: InputSize) -> Vec<(usize, usize)> {
 
 /// Runs every check of `hdrsynth export onnx --verify`: random inputs at [`check_sizes`], and
 /// the real `images` (two or three frames, centre-cropped to the static size or, dynamic, to
-/// the largest accepted size up to 256 per side).
+/// the largest accepted size up to 256 per side; a static size larger than the images
+/// continues them by reflection).
 pub fn verify(
     loaded: &Loaded,
     onnx: &mut OnnxModel,
