@@ -12,8 +12,11 @@ if [[ -z "$LIB" ]]; then
   mkdir -p target/ort
   TMP="$(mktemp -d target/ort/.download.XXXXXX)"
   trap 'rm -rf "$TMP"' EXIT
-  python3 -m pip download --quiet --disable-pip-version-check --no-deps --only-binary=:all: \
-    "onnxruntime==$VERSION" -d "$TMP" >&2
+  get() { python3 -m pip download --quiet --disable-pip-version-check --no-deps \
+    --only-binary=:all: "onnxruntime==$VERSION" -d "$TMP" "$@" >&2; }
+  # The library inside does not depend on the Python version: if the local interpreter has no
+  # wheel of this version, take the CPython 3.12 one for this machine.
+  get || get --python-version 3.12 --implementation cp --platform "manylinux_2_28_$(uname -m)"
   WHEEL="$(ls "$TMP"/onnxruntime-*.whl)"
   # A wheel is a zip archive; Python's zipfile unpacks it without other tools.
   python3 - "$WHEEL" "$TMP/unpacked" <<'PY'
