@@ -41,6 +41,11 @@ enum Command {
     Eval(hdrsynth::cli::eval::Args),
     /// Build a static test set from real HDR radiance through a sensor profile.
     Testset(hdrsynth::cli::testset::Args),
+    /// The whole method once on embedded defaults (~10 min on 2 CPU cores): generate,
+    /// pretrain, fine-tune pure vs sensor-realistic, test set from real radiance, Experiment-1 table.
+    Quickstart(hdrsynth::cli::quickstart::Args),
+    /// Run an ablation grid (fine-tune per cell, evaluate, table like the paper's; resumable).
+    Ablate(hdrsynth::cli::ablate::Args),
     /// Export a trained network (ONNX; cargo feature `onnx`).
     Export {
         #[command(subcommand)]
@@ -95,6 +100,8 @@ fn main() -> Result<()> {
         Command::Infer(args) => println!("{}", hdrsynth::cli::infer::run(&args)?),
         Command::Eval(args) => println!("{}", hdrsynth::cli::eval::run(&args)?),
         Command::Testset(args) => println!("{}", hdrsynth::cli::testset::run(&args)?),
+        Command::Quickstart(args) => println!("{}", hdrsynth::cli::quickstart::run(&args)?),
+        Command::Ablate(args) => println!("{}", hdrsynth::cli::ablate::run(&args)?),
         Command::Export { command } => println!("{}", hdrsynth::cli::export::run(&command)?),
         Command::Dataset { command } => match command {
             DatasetCommand::Info { dir } => {

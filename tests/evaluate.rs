@@ -321,6 +321,31 @@ fn a_tiny_network1_checkpoint_is_evaluated_at_full_resolution() {
     }
 }
 
+#[test]
+fn eval_with_a_training_config_scores_that_runs_latest_checkpoint() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let run = tmp.path().join("run");
+    let cfg = train_config(&run);
+    hdrsynth::train::run(&cfg, &TrainOptions::default()).expect("train");
+    let path = tmp.path().join("train.toml");
+    std::fs::write(&path, toml::to_string(&cfg).expect("toml")).expect("write");
+    let score = |args: &mut EvalArgs| {
+        args.network.tile = Some(32);
+        let r = hdrsynth::cli::eval::evaluate(args).expect("eval");
+        r.rows.iter().map(|r| r.scores.psnr_t).collect::<Vec<_>>()
+    };
+    let mut by_config = EvalArgs::checkpoint(dataset(), &run, tmp.path().join("a"));
+    by_config.checkpoint = None;
+    by_config.config = Some(path);
+    let by_run = score(&mut EvalArgs::checkpoint(
+        dataset(),
+        &run,
+        tmp.path().join("b"),
+    ));
+    assert_eq!(score(&mut by_config), by_run);
+    assert_eq!(by_run.len(), set_names().len());
+}
+
 /// A synthetic linear radiance map with a wide range (a horizontal ramp over 12 stops, tinted).
 fn radiance_map(w: usize, h: usize) -> Image {
     Image::from_fn(w, h, |x, y| {

@@ -9,12 +9,13 @@ use crate::eval::evaluate::{
 };
 use crate::eval::metrics::{MetricOptions, Pu21Scale};
 use crate::eval::report;
+use crate::train::config::TrainConfig;
 use anyhow::{Result, bail};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug, Clone)]
-#[command(group(clap::ArgGroup::new("source").required(true).args(["predictions", "checkpoint"])))]
+#[command(group(clap::ArgGroup::new("source").required(true).args(["predictions", "checkpoint", "config"])))]
 pub struct Args {
     /// Test set folder in any known layout (hdrsynth, Kalantari, Wu, paper Dataset-1).
     #[arg(long)]
@@ -28,15 +29,20 @@ pub struct Args {
     /// A checkpoint folder, or a run folder (its latest checkpoint): run its network here.
     #[arg(long)]
     pub checkpoint: Option<PathBuf>,
+    /// A training config: evaluate its run's latest checkpoint (`run.out`) on its `run.backend`
+    /// (unless --checkpoint or --backend say otherwise).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
     /// Skip sets without a prediction (listed in the summary) instead of failing.
     #[arg(long)]
     pub allow_missing: bool,
     /// How to run the checkpoint's network (--checkpoint only).
     #[command(flatten)]
     pub network: NetworkOptions,
-    /// Compute device for --checkpoint: flex (CPU), ndarray, wgpu, cuda.
-    #[arg(long, default_value = "flex")]
-    pub backend: String,
+    /// Compute device for --checkpoint: flex (CPU), ndarray, wgpu, cuda (default: the
+    /// config's run.backend, else flex).
+    #[arg(long)]
+    pub backend: Option<String>,
     /// Bootstrap resamples for the confidence intervals.
     #[arg(long, default_value_t = 2000)]
     pub resamples: usize,
@@ -80,9 +86,10 @@ impl Args {
             out: out.into(),
             predictions: Some(predictions.into()),
             checkpoint: None,
+            config: None,
             allow_missing: false,
             network: NetworkOptions::default(),
-            backend: "flex".into(),
+            backend: None,
             resamples: 2000,
             seed: 0,
             level: 0.95,
@@ -123,7 +130,15 @@ impl Args {
 }
 
 pub fn evaluate(args: &Args) -> Result<EvalSummary> {
-    let method: Box<dyn Method> = match (&args.predictions, &args.checkpoint) {
+    let train = match &args.config {
+        Some(path) => Some(TrainConfig::load(path)?),
+        None => None,
+    };
+    let checkpoint = args
+        .checkpoint
+        .clone()
+        .or_else(|| train.as_ref().map(|t| t.run.out.clone()));
+    let method: Box<dyn Method> = match (&args.predictions, checkpoint) {
         (Some(dir), None) => {
             if !dir.is_dir() {
                 bail!("--predictions {}: not a folder", dir.display());
@@ -131,10 +146,15 @@ pub fn evaluate(args: &Args) -> Result<EvalSummary> {
             Box::new(Predictions { dir: dir.clone() })
         }
         (None, Some(ckpt)) => {
-            let device = device_from_name(&args.backend)?;
-            from_checkpoint(ckpt, &args.network, &device)?
+            let backend = args
+                .backend
+                .clone()
+                .or_else(|| train.as_ref().map(|t| t.run.backend.clone()))
+                .unwrap_or_else(|| "flex".into());
+            let device = device_from_name(&backend)?;
+            from_checkpoint(&ckpt, &args.network, &device)?
         }
-        _ => bail!("give exactly one of --predictions and --checkpoint"),
+        _ => bail!("give --predictions, or a network (--checkpoint and/or --config), not both"),
     };
     Ok(evaluate::evaluate(
         &args.testset,

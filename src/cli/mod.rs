@@ -1,4 +1,5 @@
 //! Subcommands, one file each. The binary (src/main.rs) only parses and dispatches.
+pub mod ablate;
 pub mod calibrate;
 pub mod dataset;
 pub mod eval;
@@ -7,6 +8,7 @@ pub mod generate;
 pub mod infer;
 pub mod preview;
 pub mod profile;
+pub mod quickstart;
 pub mod realism;
 pub mod testset;
 pub mod train;

@@ -29,13 +29,19 @@ fn ensure_dataset(dataset: &Path, generate: Option<&Path>, progress: bool) -> Re
     Ok(())
 }
 
-pub fn run(args: &Args) -> Result<TrainSummary> {
-    let cfg = TrainConfig::load(&args.config)?;
-    let progress = !args.quiet;
+/// Generate (or complete) the datasets a config names with a `generate` config.
+pub fn ensure_data(cfg: &TrainConfig, progress: bool) -> Result<()> {
     ensure_dataset(&cfg.data.dataset, cfg.data.generate.as_deref(), progress)?;
     if let Some(v) = &cfg.validation {
         ensure_dataset(&v.dataset, v.generate.as_deref(), progress)?;
     }
+    Ok(())
+}
+
+pub fn run(args: &Args) -> Result<TrainSummary> {
+    let cfg = TrainConfig::load(&args.config)?;
+    let progress = !args.quiet;
+    ensure_data(&cfg, progress)?;
     let opts = TrainOptions {
         resume: args.resume,
         progress,

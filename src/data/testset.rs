@@ -33,8 +33,9 @@ use std::path::{Path, PathBuf};
 pub const RECIPE: &str = "testset.toml";
 pub const RECIPE_FORMAT: &str = "hdrsynth-testset/1";
 
+/// Every key is optional in TOML (missing keys take the defaults below).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, default)]
 pub struct TestsetOptions {
     /// One set per ISO (within the profile's calibrated range).
     pub isos: Vec<f64>,

@@ -1,0 +1,728 @@
+//! The ablation grid (`hdrsynth ablate --config F`, docs/experiments.md): every cell fine-tunes
+//! from the same base training config with its own settings laid over it (a sensor profile, a
+//! colour switch, an ISO range, ...), is evaluated on the same test set, and the cells become one
+//! table shaped like the paper's Tables 1–4, with bootstrap confidence intervals and paired
+//! differences against a reference cell (default: the first).
+//!
+//! Resumable at every level: a cell whose `eval/` folder exists is finished and skipped; a cell
+//! killed while training resumes from its latest checkpoint (the trainer's bit-identical resume);
+//! a cell killed while evaluating evaluates again (into `eval.partial/`, renamed when complete).
+//! A cell that ran under a different config is refused, not silently reused.
+
+use crate::config::{load_toml, merge_tables};
+use crate::data::testset::{self, TestsetOptions};
+use crate::device::device_from_name;
+use crate::error::{Error, Result};
+use crate::eval::evaluate::{self, EvalOptions, NetworkOptions, from_checkpoint};
+use crate::eval::metrics::bootstrap_ci;
+use crate::eval::report::{self, METRICS};
+use crate::io::atomic::write_atomic;
+use crate::sensor::profile::SensorProfile;
+use crate::train::config::TrainConfig;
+use crate::train::{self, TrainOptions, checkpoint};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// The `ablate` config (TOML). Paths are relative to the working directory.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AblateConfig {
+    /// Title of the table.
+    pub title: String,
+    /// Output folder: `cells/<cell>/{cell.toml, run/, eval/}`, `table.md`, `table.csv`.
+    pub out: PathBuf,
+    /// The training config every cell starts from (typically a fine-tune config whose `[init]`
+    /// names the pretrained checkpoint).
+    pub base: PathBuf,
+    pub testset: TestsetSpec,
+    #[serde(default)]
+    pub eval: EvalSpec,
+    /// First axis of the grid (table rows).
+    pub rows: Vec<Axis>,
+    /// Optional second axis (table columns); without it the grid is one column.
+    #[serde(default)]
+    pub columns: Vec<Axis>,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TestsetSpec {
+    /// The test set folder (any known layout).
+    pub dir: PathBuf,
+    /// Build `dir` from real radiance through `profile` first (`hdrsynth testset`); sets
+    /// already built are kept.
+    #[serde(default)]
+    pub radiance: Option<PathBuf>,
+    #[serde(default)]
+    pub profile: Option<PathBuf>,
+    #[serde(default)]
+    pub options: TestsetOptions,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct EvalSpec {
+    /// Bootstrap resamples, seed and confidence level of the intervals.
+    pub resamples: usize,
+    pub seed: u64,
+    pub level: f64,
+    /// Device for evaluation; default: the base config's `run.backend`.
+    pub backend: Option<String>,
+    /// Core tile side for full-resolution inference (default: the network's default).
+    pub tile: Option<usize>,
+    /// The cell the paired differences are taken against (`row` or `row__column`); default:
+    /// the first cell.
+    pub reference: Option<String>,
+}
+
+impl Default for EvalSpec {
+    fn default() -> Self {
+        EvalSpec {
+            resamples: 2000,
+            seed: 0,
+            level: 0.95,
+            backend: None,
+            tile: None,
+            reference: None,
+        }
+    }
+}
+
+/// One value of an axis.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Axis {
+    /// Folder-safe id (letters, digits, `-`, `_`).
+    pub name: String,
+    /// Shown in the table; default: `name`.
+    #[serde(default)]
+    pub label: Option<String>,
+    /// Laid over the base training config (tables merge key by key), e.g.
+    /// `set = { data = { profile = "pure" } }`.
+    #[serde(default)]
+    pub set: toml::Table,
+    /// `false`: no fine-tuning; evaluate the checkpoint the config starts from (`[init]`), i.e.
+    /// the pretrained network (the paper's Net_O).
+    #[serde(default = "yes")]
+    pub train: bool,
+    /// Evaluate this checkpoint instead of training (implies `train = false`).
+    #[serde(default)]
+    pub checkpoint: Option<PathBuf>,
+}
+
+fn yes() -> bool {
+    true
+}
+
+impl Axis {
+    fn label(&self) -> &str {
+        self.label.as_deref().unwrap_or(&self.name)
+    }
+}
+
+impl AblateConfig {
+    pub fn load(path: &Path) -> Result<AblateConfig> {
+        let cfg: AblateConfig = load_toml(path)?;
+        cfg.validate().map_err(|m| Error::config(path, m))?;
+        Ok(cfg)
+    }
+
+    fn validate(&self) -> std::result::Result<(), String> {
+        if self.rows.is_empty() {
+            return Err("[[rows]]: at least one row is needed".into());
+        }
+        for (axis, list) in [("rows", &self.rows), ("columns", &self.columns)] {
+            let mut seen = std::collections::BTreeSet::new();
+            for a in list {
+                if a.name.is_empty()
+                    || !a
+                        .name
+                        .chars()
+                        .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
+                {
+                    return Err(format!(
+                        "[[{axis}]] name '{}': use letters, digits, '-' and '_' only",
+                        a.name
+                    ));
+                }
+                if !seen.insert(&a.name) {
+                    return Err(format!("[[{axis}]] name '{}' appears twice", a.name));
+                }
+            }
+        }
+        if !(self.eval.level > 0.0 && self.eval.level < 1.0) {
+            return Err(format!("eval.level {} must be in (0, 1)", self.eval.level));
+        }
+        if let Some(r) = &self.eval.reference
+            && !self
+                .cells()
+                .iter()
+                .any(|&(row, col)| self.cell_id(row, col) == *r)
+        {
+            return Err(format!("eval.reference '{r}' is not a cell of the grid"));
+        }
+        if self.testset.radiance.is_some() != self.testset.profile.is_some() {
+            return Err(
+                "testset: give both `radiance` and `profile` (to build it) or neither".into(),
+            );
+        }
+        Ok(())
+    }
+
+    /// The cells, row-major.
+    pub fn cells(&self) -> Vec<(usize, Option<usize>)> {
+        let cols: Vec<Option<usize>> = if self.columns.is_empty() {
+            vec![None]
+        } else {
+            (0..self.columns.len()).map(Some).collect()
+        };
+        (0..self.rows.len())
+            .flat_map(|r| cols.iter().map(move |&c| (r, c)))
+            .collect()
+    }
+
+    fn cell_id(&self, r: usize, c: Option<usize>) -> String {
+        match c {
+            None => self.rows[r].name.clone(),
+            Some(c) => format!("{}__{}", self.rows[r].name, self.columns[c].name),
+        }
+    }
+
+    pub fn cell_dir(&self, r: usize, c: Option<usize>) -> PathBuf {
+        self.out.join("cells").join(self.cell_id(r, c))
+    }
+}
+
+/// What a cell does, resolved: written as `cell.toml` (a changed cell is refused on rerun).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CellPlan {
+    testset: PathBuf,
+    /// The checkpoint evaluated (the cell's own run folder when it trains).
+    checkpoint: PathBuf,
+    /// The training config, when the cell fine-tunes.
+    #[serde(default)]
+    train: Option<TrainConfig>,
+    /// The base config's device (not part of the cell's identity).
+    #[serde(skip)]
+    backend: String,
+}
+
+/// What happened to a cell in this invocation.
+#[derive(Clone, Debug, PartialEq)]
+pub enum CellStatus {
+    /// Finished before; skipped.
+    Kept,
+    /// Trained (from scratch or resumed at `resumed_at`) and/or evaluated now.
+    Ran { resumed_at: Option<u64> },
+}
+
+#[derive(Clone, Debug)]
+pub struct CellResult {
+    pub id: String,
+    pub status: CellStatus,
+    pub seconds: f64,
+}
+
+#[derive(Clone, Debug)]
+pub struct AblateSummary {
+    pub cells: Vec<CellResult>,
+    /// The Markdown table (also in `OUT/table.md`).
+    pub table: String,
+    pub seconds: f64,
+}
+
+pub const TABLE_MD: &str = "table.md";
+pub const TABLE_CSV: &str = "table.csv";
+const CELL_PLAN: &str = "cell.toml";
+const EVAL_DIR: &str = "eval";
+const EVAL_PARTIAL: &str = "eval.partial";
+
+/// Run every unfinished cell of `cfg`, then write the table. `config_path` names the config in
+/// errors.
+pub fn run(cfg: &AblateConfig, config_path: &Path, progress: bool) -> Result<AblateSummary> {
+    let began = Instant::now();
+    let base = load_base(cfg)?;
+    if let (Some(radiance), Some(profile)) = (&cfg.testset.radiance, &cfg.testset.profile) {
+        let p = SensorProfile::load(profile)?;
+        if progress {
+            eprintln!(
+                "test set: {} from {} through {}",
+                cfg.testset.dir.display(),
+                radiance.display(),
+                profile.display()
+            );
+        }
+        testset::build(radiance, &p, &cfg.testset.options, &cfg.testset.dir)?;
+    }
+    if !cfg.testset.dir.is_dir() {
+        return Err(Error::config(
+            config_path,
+            format!(
+                "testset.dir {} does not exist (give testset.radiance and testset.profile to \
+                 build it)",
+                cfg.testset.dir.display()
+            ),
+        ));
+    }
+    std::fs::create_dir_all(&cfg.out).map_err(|e| Error::io(&cfg.out, e))?;
+    let cells = cfg.cells();
+    let mut results = Vec::new();
+    for (k, &(r, c)) in cells.iter().enumerate() {
+        let id = cfg.cell_id(r, c);
+        let t0 = Instant::now();
+        let plan = plan_cell(cfg, config_path, &base, r, c)?;
+        if progress {
+            eprintln!("cell {}/{} {id}", k + 1, cells.len());
+        }
+        let status = run_cell(cfg, &cfg.cell_dir(r, c), &id, &plan, progress)?;
+        results.push(CellResult {
+            id,
+            status,
+            seconds: t0.elapsed().as_secs_f64(),
+        });
+        // The table so far, after every cell: an interrupted grid shows what it has.
+        write_table(cfg)?;
+    }
+    let table = write_table(cfg)?;
+    Ok(AblateSummary {
+        cells: results,
+        table,
+        seconds: began.elapsed().as_secs_f64(),
+    })
+}
+
+/// The training configs of the cells that fine-tune (for the caller to prepare their data).
+pub fn train_configs(cfg: &AblateConfig, config_path: &Path) -> Result<Vec<TrainConfig>> {
+    let base = load_base(cfg)?;
+    let mut out = Vec::new();
+    for (r, c) in cfg.cells() {
+        out.extend(plan_cell(cfg, config_path, &base, r, c)?.train);
+    }
+    Ok(out)
+}
+
+fn load_base(cfg: &AblateConfig) -> Result<toml::Table> {
+    let text = std::fs::read_to_string(&cfg.base).map_err(|e| Error::io(&cfg.base, e))?;
+    crate::config::parse_toml(&text, &cfg.base)
+}
+
+fn plan_cell(
+    cfg: &AblateConfig,
+    config_path: &Path,
+    base: &toml::Table,
+    r: usize,
+    c: Option<usize>,
+) -> Result<CellPlan> {
+    let axes: Vec<&Axis> = std::iter::once(&cfg.rows[r])
+        .chain(c.map(|c| &cfg.columns[c]))
+        .collect();
+    let id = cfg.cell_id(r, c);
+    let cell_err = |m: String| Error::config(config_path, format!("cell '{id}': {m}"));
+    let mut merged = base.clone();
+    for a in &axes {
+        merge_tables(&mut merged, &a.set);
+    }
+    let run_dir = cfg.cell_dir(r, c).join("run");
+    let run = merged
+        .entry("run")
+        .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+    if let toml::Value::Table(t) = run {
+        t.insert(
+            "out".into(),
+            toml::Value::String(run_dir.to_string_lossy().into_owned()),
+        );
+    }
+    let train_cfg: TrainConfig = toml::Value::Table(merged).try_into().map_err(|e| {
+        cell_err(format!(
+            "base {} with the cell's settings: {e}",
+            cfg.base.display()
+        ))
+    })?;
+    train_cfg.validate().map_err(|e| cell_err(e.to_string()))?;
+    let explicit: Vec<&PathBuf> = axes.iter().filter_map(|a| a.checkpoint.as_ref()).collect();
+    if explicit.len() > 1 {
+        return Err(cell_err(
+            "both its row and its column name a checkpoint".into(),
+        ));
+    }
+    let trains = explicit.is_empty() && axes.iter().all(|a| a.train);
+    let checkpoint = match (explicit.first(), trains) {
+        (Some(p), _) => (*p).clone(),
+        (None, true) => run_dir,
+        (None, false) => train_cfg
+            .init
+            .as_ref()
+            .and_then(|i| i.checkpoint.clone())
+            .ok_or_else(|| {
+                cell_err(
+                    "train = false evaluates the config's [init] checkpoint, and it has none; \
+                     give `checkpoint = ...`"
+                        .into(),
+                )
+            })?,
+    };
+    Ok(CellPlan {
+        testset: cfg.testset.dir.clone(),
+        checkpoint,
+        backend: train_cfg.run.backend.clone(),
+        train: trains.then_some(train_cfg),
+    })
+}
+
+fn run_cell(
+    cfg: &AblateConfig,
+    dir: &Path,
+    id: &str,
+    plan: &CellPlan,
+    progress: bool,
+) -> Result<CellStatus> {
+    let plan_path = dir.join(CELL_PLAN);
+    let plan_text = toml::to_string(plan).map_err(|e| Error::encode(&plan_path, e))?;
+    match std::fs::read_to_string(&plan_path) {
+        Ok(saved) if saved != plan_text => {
+            return Err(Error::config(
+                &plan_path,
+                format!(
+                    "cell '{id}' was run with different settings (or test set); delete {} to \
+                     run it again",
+                    dir.display()
+                ),
+            ));
+        }
+        Ok(_) => {}
+        Err(_) => {
+            std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+            write_atomic(&plan_path, plan_text.as_bytes())?;
+        }
+    }
+    if dir.join(EVAL_DIR).join(evaluate::SUMMARY_CSV).is_file() {
+        if progress {
+            eprintln!("  finished before: kept");
+        }
+        return Ok(CellStatus::Kept);
+    }
+    let mut resumed_at = None;
+    if let Some(tc) = &plan.train {
+        let latest = checkpoint::latest(&tc.run.out)?;
+        let done_step = match &latest {
+            Some(d) => Some(checkpoint::read_state(d)?.step),
+            None => None,
+        };
+        if done_step.is_none_or(|s| s < tc.run.steps) {
+            if progress {
+                match done_step {
+                    Some(s) => eprintln!("  fine-tuning: resuming at step {s} of {}", tc.run.steps),
+                    None => eprintln!("  fine-tuning: {} steps", tc.run.steps),
+                }
+            }
+            resumed_at = done_step;
+            train::run(
+                tc,
+                &TrainOptions {
+                    resume: done_step.is_some(),
+                    progress,
+                },
+            )?;
+        }
+    }
+    if progress {
+        eprintln!("  evaluating {}", plan.checkpoint.display());
+    }
+    let backend = cfg.eval.backend.as_ref().unwrap_or(&plan.backend);
+    let device = device_from_name(backend)?;
+    let net = NetworkOptions {
+        tile: cfg.eval.tile,
+        ..NetworkOptions::default()
+    };
+    let method = from_checkpoint(&plan.checkpoint, &net, &device)?;
+    let partial = dir.join(EVAL_PARTIAL);
+    if partial.exists() {
+        std::fs::remove_dir_all(&partial).map_err(|e| Error::io(&partial, e))?;
+    }
+    let opts = EvalOptions {
+        resamples: cfg.eval.resamples,
+        seed: cfg.eval.seed,
+        level: cfg.eval.level,
+        progress,
+        ..EvalOptions::default()
+    };
+    evaluate::evaluate(&plan.testset, method.as_ref(), &partial, &opts)?;
+    let done = dir.join(EVAL_DIR);
+    std::fs::rename(&partial, &done).map_err(|e| Error::io(&done, e))?;
+    Ok(CellStatus::Ran { resumed_at })
+}
+
+// ---------------------------------------------------------------------------------------------
+// The table
+
+/// Per-set metric values of a finished cell (`eval/per_image.csv`), by set name.
+fn read_per_image(path: &Path) -> Result<BTreeMap<String, [f64; 6]>> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let mut lines = text.lines();
+    let header = split_csv(lines.next().unwrap_or_default());
+    let want: Vec<&str> = std::iter::once("set").chain(METRICS).collect();
+    if header.len() < want.len() || header[..want.len()] != want[..] {
+        return Err(Error::layout(
+            path,
+            format!("header must start with {}", want.join(",")),
+        ));
+    }
+    let mut out = BTreeMap::new();
+    for (i, line) in lines.enumerate().filter(|(_, l)| !l.trim().is_empty()) {
+        let f = split_csv(line);
+        let bad = |m: &str| Error::layout(path, format!("line {}: {m}", i + 2));
+        if f.len() < want.len() {
+            return Err(bad("too few fields"));
+        }
+        let mut v = [0.0; 6];
+        for (k, x) in v.iter_mut().enumerate() {
+            *x = f[k + 1]
+                .parse()
+                .map_err(|_| bad(&format!("{} '{}' is not a number", METRICS[k], f[k + 1])))?;
+        }
+        out.insert(f[0].clone(), v);
+    }
+    Ok(out)
+}
+
+/// One CSV line into fields (RFC 4180 quoting, as `report::csv_field` writes it).
+fn split_csv(line: &str) -> Vec<String> {
+    let mut fields = vec![String::new()];
+    let mut quoted = false;
+    let mut chars = line.chars().peekable();
+    while let Some(ch) = chars.next() {
+        let cur = fields.last_mut().expect("one field");
+        match (ch, quoted) {
+            ('"', true) if chars.peek() == Some(&'"') => {
+                cur.push('"');
+                chars.next();
+            }
+            ('"', _) => quoted = !quoted,
+            (',', false) => fields.push(String::new()),
+            _ => cur.push(ch),
+        }
+    }
+    fields
+}
+
+/// The metrics of the paper's tables, in their order.
+const TABLE_METRICS: [(&str, &str); 4] = [
+    ("psnr_t", "PSNR-T"),
+    ("psnr_l", "PSNR-L"),
+    ("ssim_t", "SSIM-T"),
+    ("ssim_l", "SSIM-L"),
+];
+
+fn metric_index(m: &str) -> usize {
+    METRICS.iter().position(|x| *x == m).expect("known metric")
+}
+
+fn fmt(metric: &str, v: f64) -> String {
+    if !v.is_finite() {
+        format!("{v}")
+    } else if metric.starts_with("ssim") {
+        format!("{v:.4}")
+    } else {
+        format!("{v:.2}")
+    }
+}
+
+struct CellScores {
+    r: usize,
+    c: Option<usize>,
+    sets: BTreeMap<String, [f64; 6]>,
+}
+
+/// Mean and CI of the finite values of one metric.
+fn stat(cfg: &AblateConfig, values: &[f64]) -> (usize, f64, f64, f64) {
+    let finite: Vec<f64> = values.iter().copied().filter(|v| v.is_finite()).collect();
+    let (m, lo, hi) = bootstrap_ci(&finite, cfg.eval.resamples, cfg.eval.seed, cfg.eval.level);
+    (finite.len(), m, lo, hi)
+}
+
+/// Write `table.md` and `table.csv` from the finished cells; returns the Markdown.
+pub fn write_table(cfg: &AblateConfig) -> Result<String> {
+    let mut done = Vec::new();
+    for (r, c) in cfg.cells() {
+        let path = cfg.cell_dir(r, c).join(EVAL_DIR).join(evaluate::PER_IMAGE);
+        if path.is_file() {
+            done.push(CellScores {
+                r,
+                c,
+                sets: read_per_image(&path)?,
+            });
+        }
+    }
+    let find = |r: usize, c: Option<usize>| done.iter().find(|d| d.r == r && d.c == c);
+    let reference = cfg
+        .cells()
+        .into_iter()
+        .find(|&(r, c)| cfg.eval.reference.as_ref() == Some(&cfg.cell_id(r, c)))
+        .unwrap_or(cfg.cells()[0]);
+    let ref_scores = find(reference.0, reference.1);
+    let ref_label = cell_label(cfg, reference.0, reference.1);
+    let pct = cfg.eval.level * 100.0;
+
+    let mut csv = String::from(
+        "row,column,metric,n,mean,ci_lo,ci_hi,diff_vs_reference,diff_ci_lo,diff_ci_hi\n",
+    );
+    // (metric, r, c) → "mean [lo, hi]" and paired difference.
+    let mut cell_text: BTreeMap<(usize, usize, Option<usize>), (String, String)> = BTreeMap::new();
+    for d in &done {
+        for (mi, (metric, _)) in TABLE_METRICS.iter().enumerate() {
+            let k = metric_index(metric);
+            let values: Vec<f64> = d.sets.values().map(|v| v[k]).collect();
+            let (n, m, lo, hi) = stat(cfg, &values);
+            // Paired over the sets both cells scored: the same scenes, so scene difficulty
+            // cancels and the interval is much tighter than the two means' intervals.
+            let diff = ref_scores
+                .filter(|rs| !(rs.r == d.r && rs.c == d.c))
+                .map(|rs| {
+                    let diffs: Vec<f64> = d
+                        .sets
+                        .iter()
+                        .filter_map(|(s, v)| rs.sets.get(s).map(|w| v[k] - w[k]))
+                        .collect();
+                    stat(cfg, &diffs)
+                });
+            let _ = writeln!(
+                csv,
+                "{},{},{},{n},{m},{lo},{hi},{},{},{}",
+                report::csv_field(&cfg.rows[d.r].name),
+                report::csv_field(d.c.map(|c| cfg.columns[c].name.as_str()).unwrap_or("")),
+                metric,
+                diff.map(|x| x.1.to_string()).unwrap_or_default(),
+                diff.map(|x| x.2.to_string()).unwrap_or_default(),
+                diff.map(|x| x.3.to_string()).unwrap_or_default(),
+            );
+            let mean_text = format!(
+                "{} [{}, {}]",
+                fmt(metric, m),
+                fmt(metric, lo),
+                fmt(metric, hi)
+            );
+            let diff_text = match diff {
+                Some((_, dm, dlo, dhi)) => format!(
+                    "{:+} [{:+}, {:+}]{}",
+                    Signed(metric, dm),
+                    Signed(metric, dlo),
+                    Signed(metric, dhi),
+                    if dlo > 0.0 || dhi < 0.0 { " *" } else { "" }
+                ),
+                None => "(reference)".into(),
+            };
+            cell_text.insert((mi, d.r, d.c), (mean_text, diff_text));
+        }
+    }
+
+    let n_sets = done.first().map(|d| d.sets.len()).unwrap_or(0);
+    let mut md = format!(
+        "# {}\n\nTest set: `{}` ({n_sets} sets). Each value: mean over the sets [{pct:.0} % \
+         bootstrap CI, {} resamples]. Δ: paired difference to **{ref_label}** over the same \
+         sets [{pct:.0} % CI]; * = the interval excludes 0. {} of {} cells finished.\n\n",
+        cfg.title,
+        cfg.testset.dir.display(),
+        cfg.eval.resamples,
+        done.len(),
+        cfg.cells().len()
+    );
+    let missing = "(not run yet)".to_string();
+    if cfg.columns.is_empty() {
+        // Paper Tables 1–2: one row per method, the four metrics across.
+        let _ = write!(md, "| method |");
+        for (_, name) in TABLE_METRICS {
+            let _ = write!(md, " {name} |");
+        }
+        let _ = write!(md, "\n|---|");
+        for _ in TABLE_METRICS {
+            let _ = write!(md, "---|");
+        }
+        md.push('\n');
+        for (r, row) in cfg.rows.iter().enumerate() {
+            let _ = write!(md, "| {} |", row.label());
+            for mi in 0..TABLE_METRICS.len() {
+                let t = cell_text.get(&(mi, r, None));
+                let _ = write!(md, " {} |", t.map(|t| &t.0).unwrap_or(&missing));
+            }
+            md.push('\n');
+        }
+        let _ = write!(md, "\n| Δ to {ref_label} |");
+        for (_, name) in TABLE_METRICS {
+            let _ = write!(md, " Δ {name} |");
+        }
+        let _ = write!(md, "\n|---|");
+        for _ in TABLE_METRICS {
+            let _ = write!(md, "---|");
+        }
+        md.push('\n');
+        for (r, row) in cfg
+            .rows
+            .iter()
+            .enumerate()
+            .filter(|(r, _)| *r != reference.0)
+        {
+            let _ = write!(md, "| {} |", row.label());
+            for mi in 0..TABLE_METRICS.len() {
+                let t = cell_text.get(&(mi, r, None));
+                let _ = write!(md, " {} |", t.map(|t| &t.1).unwrap_or(&missing));
+            }
+            md.push('\n');
+        }
+    } else {
+        // Paper Tables 3–4: one table per metric, rows × columns.
+        for (mi, (_, name)) in TABLE_METRICS.iter().enumerate() {
+            let _ = write!(md, "## {name}\n\n| |");
+            for col in &cfg.columns {
+                let _ = write!(md, " {} |", col.label());
+            }
+            let _ = write!(md, "\n|---|");
+            for _ in &cfg.columns {
+                let _ = write!(md, "---|");
+            }
+            md.push('\n');
+            for (r, row) in cfg.rows.iter().enumerate() {
+                let _ = write!(md, "| {} |", row.label());
+                for c in 0..cfg.columns.len() {
+                    let t = cell_text.get(&(mi, r, Some(c)));
+                    let _ = write!(
+                        md,
+                        " {} |",
+                        t.map(|t| format!("{}<br>Δ {}", t.0, t.1))
+                            .unwrap_or_else(|| missing.clone())
+                    );
+                }
+                md.push('\n');
+            }
+            md.push('\n');
+        }
+    }
+    write_atomic(&cfg.out.join(TABLE_MD), md.as_bytes())?;
+    write_atomic(&cfg.out.join(TABLE_CSV), csv.as_bytes())?;
+    Ok(md)
+}
+
+fn cell_label(cfg: &AblateConfig, r: usize, c: Option<usize>) -> String {
+    match c {
+        None => cfg.rows[r].label().to_string(),
+        Some(c) => format!("{} / {}", cfg.rows[r].label(), cfg.columns[c].label()),
+    }
+}
+
+/// A signed value with the metric's precision.
+struct Signed<'a>(&'a str, f64);
+
+impl std::fmt::Display for Signed<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let s = fmt(self.0, self.1.abs());
+        let sign = if self.1 < 0.0 { "−" } else { "+" };
+        if f.sign_plus() || self.1 < 0.0 {
+            write!(f, "{sign}{s}")
+        } else {
+            write!(f, "{s}")
+        }
+    }
+}
