@@ -5,7 +5,6 @@ use super::graph::{Dim, GraphBuilder, int, ints, module_weights};
 use super::proto::{ModelProto, OperatorSetIdProto, StringStringEntryProto};
 use crate::error::{Error, Result};
 use crate::io::atomic::write_atomic;
-use crate::models::blend_unet::INPUT_CHANNELS as N1_CHANNELS;
 use crate::models::wu::{self, DeconvAlignment, WuVariant};
 use crate::models::{BlendUNet, WuNet};
 use burn::nn::BatchNormConfig;
@@ -131,7 +130,6 @@ pub fn network1(model: &BlendUNet, opts: &ExportOptions) -> Result<ModelProto> {
     let eps = BatchNormConfig::new(1).epsilon; // blend_unet.rs uses Burn's default
     let low = g.input(N1_INPUTS[0], &image_dims(opts.size, 3));
     let high = g.input(N1_INPUTS[1], &image_dims(opts.size, 3));
-    debug_assert_eq!(N1_CHANNELS, 6);
     let x = g.concat("input", &[&low, &high], 1);
 
     let block = |g: &mut GraphBuilder, p: &str, x: &str| -> Result<String> {
@@ -249,14 +247,15 @@ pub fn network2(model: &WuNet, opts: &ExportOptions) -> Result<ModelProto> {
     let times = g.input(N2_TIMES, &[n.clone(), Dim::Fixed(wu::FRAMES)]);
     let s = cfg.hdr_input_scale;
     let hdr_scale = if s == 1.0 { 2.0 } else { (2.0 * s) as f32 };
-    // Stride-2 5×5 'SAME' reflection: (1, 2) on the even sizes the size multiple guarantees.
-    let same2 = wu::same_padding(2 * m, 5, 2);
+    // TensorFlow-'SAME' reflection pads depend on the size only through its parity under a
+    // stride 2, and every stride-2 convolution sees an even size (H and W are multiples of
+    // 2^(stride-2 steps) = m): so they are fixed, stride-2 5×5 (1, 2), 3×3 (1, 1), 5×5 (2, 2),
+    // and the same graph serves every H×W.
     let conv_same = |g: &mut GraphBuilder, p: &str, x: &str, k: usize, stride: usize| {
         let pad = wu::same_padding(2 * m, k, stride);
         let x = g.pad_reflect(&format!("{p}.pad"), x, pad, pad);
         g.conv(p, &x, stride, [0; 4])
     };
-    debug_assert_eq!(same2, (1, 2));
 
     let mut e1 = Vec::new();
     let mut e2 = Vec::new();
@@ -284,19 +283,10 @@ pub fn network2(model: &WuNet, opts: &ExportOptions) -> Result<ModelProto> {
         e2.push(g.batch_norm(&format!("{p}.bn2"), &c, eps)?);
         e1.push(a);
     }
-    let refs = |v: &[String]| v.iter().map(String::clone).collect::<Vec<_>>();
-    let e1_refs = refs(&e1);
-    let e2_refs = refs(&e2);
-    let e1 = g.concat(
-        "E1",
-        &e1_refs.iter().map(String::as_str).collect::<Vec<_>>(),
-        1,
-    );
-    let e2 = g.concat(
-        "E2",
-        &e2_refs.iter().map(String::as_str).collect::<Vec<_>>(),
-        1,
-    );
+    let e1: Vec<&str> = e1.iter().map(String::as_str).collect();
+    let e2: Vec<&str> = e2.iter().map(String::as_str).collect();
+    let e1 = g.concat("E1", &e1, 1);
+    let e2 = g.concat("E2", &e2, 1);
     let mut levels = Vec::new();
     let mut cur = e2.clone();
     for k in 0..cfg.merger_widths().len() {
