@@ -359,6 +359,11 @@ pub fn to_bytes(model: &ModelProto) -> Vec<u8> {
     model.encode_to_vec()
 }
 
+/// A model back from its protobuf bytes (to inspect an exported file).
+pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<ModelProto> {
+    ModelProto::decode(bytes).map_err(|e| Error::decode(path, e))
+}
+
 /// Writes the model atomically.
 pub fn save(model: &ModelProto, path: &Path) -> Result<()> {
     write_atomic(path, &to_bytes(model))
