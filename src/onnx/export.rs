@@ -168,9 +168,9 @@ pub fn network1(model: &BlendUNet, opts: &ExportOptions) -> Result<ModelProto> {
     }
     let logits = g.conv("head", &cur, 1, [2; 4])?;
     // Softmax over the class axis spelled out (max, exp, sum, divide): ONNX Runtime's Softmax
-    // on a non-last axis transposes the 256 planes twice and took 44 % of a 768² window's time
-    // (profiled); these ops stream over NCHW as they are. The blend weight reuses the sum, so
-    // asking for it alone never forms the probabilities.
+    // over a non-last axis took 44 % of a 768² window's time in its profiler; these ops stream
+    // over NCHW as they are (BENCHMARKS.md). The blend weight reuses the exponentials and their
+    // sum.
     let max = g.node(
         "ReduceMax",
         "softmax.max",
