@@ -9,6 +9,8 @@ pub mod error;
 pub mod eval;
 pub mod io;
 pub mod models;
+#[cfg(feature = "onnx")]
+pub mod onnx;
 pub mod plot;
 pub mod rng;
 pub mod sensor;

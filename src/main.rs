@@ -48,6 +48,11 @@ enum Command {
     Ablate(hdrsynth::cli::ablate::Args),
     /// Sim-to-real gap: name, fit and add the effects a profile misses, from real captures.
     Diagnose(hdrsynth::cli::diagnose::Args),
+    /// Export a trained network (ONNX; cargo feature `onnx`).
+    Export {
+        #[command(subcommand)]
+        command: hdrsynth::cli::export::ExportCommand,
+    },
     /// Inspect datasets.
     Dataset {
         #[command(subcommand)]
@@ -100,6 +105,7 @@ fn main() -> Result<()> {
         Command::Quickstart(args) => println!("{}", hdrsynth::cli::quickstart::run(&args)?),
         Command::Ablate(args) => println!("{}", hdrsynth::cli::ablate::run(&args)?),
         Command::Diagnose(args) => println!("{}", hdrsynth::cli::diagnose::run(&args)?),
+        Command::Export { command } => println!("{}", hdrsynth::cli::export::run(&command)?),
         Command::Dataset { command } => match command {
             DatasetCommand::Info { dir } => {
                 print!("{}", hdrsynth::cli::dataset::info_report(&dir)?)

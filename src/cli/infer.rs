@@ -26,8 +26,12 @@ use std::time::Instant;
 #[derive(clap::Args, Debug, Clone)]
 pub struct Args {
     /// A checkpoint folder, or a run folder (its latest checkpoint).
+    #[arg(long, required_unless_present = "onnx", conflicts_with = "onnx")]
+    pub checkpoint: Option<PathBuf>,
+    /// An exported model (`hdrsynth export onnx`) run in ONNX Runtime instead of a checkpoint
+    /// (cargo feature `onnx`, ORT_DYLIB_PATH); same tiling, same outputs.
     #[arg(long)]
-    pub checkpoint: PathBuf,
+    pub onnx: Option<PathBuf>,
     /// Network-1: the EV−3 and EV0 frames (PNG/TIFF/EXR, values in [0, 1]).
     #[arg(long, num_args = 2, value_names = ["LOW", "HIGH"], conflicts_with = "set")]
     pub inputs: Vec<PathBuf>,
@@ -69,8 +73,58 @@ pub fn find_set(dir: &Path) -> Result<SetInfo> {
     }
 }
 
+/// Network-1's (EV−3, EV0) frames from `--set` or `--inputs`.
+fn network1_frames(args: &Args, set: Option<&SetInfo>) -> Result<(Image, Image)> {
+    Ok(match (set, args.inputs.as_slice()) {
+        (Some(set), _) => {
+            let (lo, hi) = set.network1_pair()?;
+            let frames = if set.static_frames.is_empty() {
+                &set.dynamic_frames
+            } else {
+                &set.static_frames
+            };
+            (read_image(&frames[lo])?, read_image(&frames[hi])?)
+        }
+        (None, [low, high]) => {
+            let read = |p: &PathBuf| -> Result<Image> {
+                read_image(p).with_context(|| format!("reading input {}", p.display()))
+            };
+            (read(low)?, read(high)?)
+        }
+        _ => bail!("Network-1 needs --inputs LOW HIGH (the EV−3 and EV0 frames) or --set"),
+    })
+}
+
+/// Network-1's outputs: linear.exr, tonemapped.exr/.png, blend_weight.png.
+fn write_network1(out: &Path, w: &[f32], linear: &Image, toned: &Image) -> Result<()> {
+    write_exr(&out.join("linear.exr"), linear, ExrPrecision::Float)?;
+    write_exr(&out.join("tonemapped.exr"), toned, ExrPrecision::Float)?;
+    write_ldr(&out.join("tonemapped.png"), toned, BitDepth::Eight)?;
+    let grey = Image::from_vec(
+        linear.width,
+        linear.height,
+        w.iter().flat_map(|&v| [v, v, v]).collect(),
+    );
+    write_ldr(&out.join("blend_weight.png"), &grey, BitDepth::Eight)?;
+    Ok(())
+}
+
+/// Network-2's outputs: hdr.exr and its μ-law preview in the network's [0, 1] range.
+fn write_network2(out: &Path, hdr: &Image, hdr_input_scale: f32) -> Result<()> {
+    write_exr(&out.join("hdr.exr"), hdr, ExrPrecision::Float)?;
+    let preview = hdr.map(|v| mu_law((v * hdr_input_scale).clamp(0.0, 1.0) as f64) as f32);
+    write_ldr(&out.join("hdr_mulaw.png"), &preview, BitDepth::Eight)?;
+    Ok(())
+}
+
 pub fn run(args: &Args) -> Result<String> {
-    let dir = checkpoint::resolve(&args.checkpoint)?;
+    if let Some(onnx) = &args.onnx {
+        return run_onnx(args, onnx);
+    }
+    let Some(checkpoint) = &args.checkpoint else {
+        bail!("--checkpoint or --onnx is required");
+    };
+    let dir = checkpoint::resolve(checkpoint)?;
     let state = checkpoint::read_state(&dir)?;
     let device = device_from_name(&args.backend)?;
     let began = Instant::now();
@@ -79,24 +133,7 @@ pub fn run(args: &Args) -> Result<String> {
         .with_context(|| format!("creating {}", args.out.display()))?;
     match &state.model {
         ModelConfig::BlendUnet(cfg) => {
-            let (low_img, high_img) = match (&set, args.inputs.as_slice()) {
-                (Some(set), _) => {
-                    let (lo, hi) = set.network1_pair()?;
-                    let frames = if set.static_frames.is_empty() {
-                        &set.dynamic_frames
-                    } else {
-                        &set.static_frames
-                    };
-                    (read_image(&frames[lo])?, read_image(&frames[hi])?)
-                }
-                (None, [low, high]) => {
-                    let read = |p: &PathBuf| -> Result<Image> {
-                        read_image(p).with_context(|| format!("reading input {}", p.display()))
-                    };
-                    (read(low)?, read(high)?)
-                }
-                _ => bail!("Network-1 needs --inputs LOW HIGH (the EV−3 and EV0 frames) or --set"),
-            };
+            let (low_img, high_img) = network1_frames(args, set.as_ref())?;
             let model = checkpoint::load_model(cfg.init(&device)?, &dir)?.valid();
             let tiling = args.network.tiling(network1_tiling(cfg));
             let (w, linear, toned) = network1_fuse(
@@ -108,19 +145,7 @@ pub fn run(args: &Args) -> Result<String> {
                 args.network.tone_k,
                 &device,
             )?;
-            write_exr(&args.out.join("linear.exr"), &linear, ExrPrecision::Float)?;
-            write_exr(
-                &args.out.join("tonemapped.exr"),
-                &toned,
-                ExrPrecision::Float,
-            )?;
-            write_ldr(&args.out.join("tonemapped.png"), &toned, BitDepth::Eight)?;
-            let grey = Image::from_vec(
-                linear.width,
-                linear.height,
-                w.iter().flat_map(|&v| [v, v, v]).collect(),
-            );
-            write_ldr(&args.out.join("blend_weight.png"), &grey, BitDepth::Eight)?;
+            write_network1(&args.out, &w, &linear, &toned)?;
             Ok(format!(
                 "Network-1 ({}) on {}×{} in {:.1} s (tile {}, overlap {}): wrote linear.exr, \
                  tonemapped.exr, tonemapped.png, blend_weight.png to {}",
@@ -142,10 +167,7 @@ pub fn run(args: &Args) -> Result<String> {
             let tiling = args.network.tiling(network2_tiling(cfg));
             let [a, b, c] = &frames;
             let hdr = network2_hdr(&model, [a, b, c], times, tiling, &device)?;
-            write_exr(&args.out.join("hdr.exr"), &hdr, ExrPrecision::Float)?;
-            let s = cfg.hdr_input_scale as f32;
-            let preview = hdr.map(|v| mu_law((v * s).clamp(0.0, 1.0) as f64) as f32);
-            write_ldr(&args.out.join("hdr_mulaw.png"), &preview, BitDepth::Eight)?;
+            write_network2(&args.out, &hdr, cfg.hdr_input_scale as f32)?;
             Ok(format!(
                 "Network-2 ({}) on set {} ({}×{}, t = {:?}) in {:.1} s (tile {}, overlap {}): \
                  wrote hdr.exr, hdr_mulaw.png to {}",
@@ -161,4 +183,65 @@ pub fn run(args: &Args) -> Result<String> {
             ))
         }
     }
+}
+
+#[cfg(not(feature = "onnx"))]
+fn run_onnx(_: &Args, _: &Path) -> Result<String> {
+    bail!(
+        "--onnx: this hdrsynth was built without ONNX support: rebuild with \
+         `cargo build --release --features onnx` (docs/onnx.md)"
+    )
+}
+
+/// `--onnx`: the exported model in ONNX Runtime, same tiling and outputs as a checkpoint.
+#[cfg(feature = "onnx")]
+fn run_onnx(args: &Args, path: &Path) -> Result<String> {
+    use crate::onnx::infer as oi;
+    use crate::onnx::runtime::{Network, OnnxModel};
+    let began = Instant::now();
+    let mut model = OnnxModel::load(path, None)?;
+    let set = args.set.as_deref().map(find_set).transpose()?;
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
+    let tiling = args.network.tiling(oi::default_tiling(&model)?);
+    let what = match model.network {
+        Network::Network1 => {
+            let (low, high) = network1_frames(args, set.as_ref())?;
+            let (w, linear, toned) = oi::network1_fuse(
+                &mut model,
+                &low,
+                &high,
+                tiling,
+                args.network.weight,
+                args.network.tone_k,
+            )?;
+            write_network1(&args.out, &w, &linear, &toned)?;
+            format!(
+                "Network-1 on {}×{}: wrote linear.exr, tonemapped.exr, tonemapped.png, \
+                 blend_weight.png",
+                linear.width, linear.height
+            )
+        }
+        Network::Network2 => {
+            let Some(set) = &set else {
+                bail!("Network-2 needs --set DIR (three exposures and their EVs)");
+            };
+            let (frames, times) = network2_frames(set)?;
+            let [a, b, c] = &frames;
+            let hdr = oi::network2_hdr(&mut model, [a, b, c], times, tiling)?;
+            write_network2(&args.out, &hdr, model.hdr_input_scale.unwrap_or(1.0))?;
+            format!(
+                "Network-2 on set {} ({}×{}, t = {times:?}): wrote hdr.exr, hdr_mulaw.png",
+                set.name, hdr.width, hdr.height
+            )
+        }
+    };
+    Ok(format!(
+        "{what} to {} in {:.1} s with ONNX Runtime ({}; tile {}, overlap {})",
+        args.out.display(),
+        began.elapsed().as_secs_f64(),
+        path.display(),
+        tiling.tile,
+        tiling.overlap
+    ))
 }

@@ -4,6 +4,7 @@ pub mod calibrate;
 pub mod dataset;
 pub mod diagnose;
 pub mod eval;
+pub mod export;
 pub mod generate;
 pub mod infer;
 pub mod preview;

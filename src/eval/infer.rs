@@ -182,20 +182,11 @@ pub fn network2_frames(set: &SetInfo) -> Result<([Image; 3], [f32; 3])> {
     Ok(([pick(lo)?, pick(r)?, pick(hi)?], times))
 }
 
-/// Network-2 on a whole set of three frames (values in [0, 1]) with exposure times relative to
-/// the reference: linear HDR relative to the reference exposure's white (the unit of the
-/// loader's targets; the network's [0, 1] output divided by its `hdr_input_scale`). `model`
-/// must be an inference model (`valid()`) on `device`.
-pub fn network2_hdr(
-    model: &WuNet,
-    frames: [&Image; 3],
-    times: [f32; 3],
-    tiling: Tiling,
-    device: &Device,
-) -> Result<Image> {
-    let (w, h) = (frames[0].width, frames[0].height);
-    let ldr = planar_from_images(&frames)?;
-    // Per frame: 3 LDR channels, then LDR^2.2 / t (the loader's layout).
+/// Network-2's 18-channel input from three frames stacked planar (9 channels: RGB of each
+/// frame, shortest first) and their exposure times relative to the reference: per frame 3 LDR
+/// channels, then LDR^2.2 / t (the loader's layout).
+pub fn network2_input(ldr: &Planar, times: [f32; 3]) -> Planar {
+    let (w, h) = (ldr.width, ldr.height);
     let mut input = Planar::new(18, w, h);
     let plane = w * h;
     for (k, &t) in times.iter().enumerate() {
@@ -208,6 +199,23 @@ pub fn network2_hdr(
             }
         }
     }
+    input
+}
+
+/// Network-2 on a whole set of three frames (values in [0, 1]) with exposure times relative to
+/// the reference: linear HDR relative to the reference exposure's white (the unit of the
+/// loader's targets; the network's [0, 1] output divided by its `hdr_input_scale`). `model`
+/// must be an inference model (`valid()`) on `device`.
+pub fn network2_hdr(
+    model: &WuNet,
+    frames: [&Image; 3],
+    times: [f32; 3],
+    tiling: Tiling,
+    device: &Device,
+) -> Result<Image> {
+    let (w, h) = (frames[0].width, frames[0].height);
+    let input = network2_input(&planar_from_images(&frames)?, times);
+    let plane = w * h;
     let unit = 1.0 / model.config().hdr_input_scale as f32;
     let out = run_tiled(&input, 3, tiling, |win| {
         model.check_input(win.channels, win.height, win.width)?;
