@@ -163,6 +163,20 @@ fn bound(x: f32, hi: f32) -> f32 {
     x.max(0.0).min(hi)
 }
 
+/// Exact shot noise of a signal `i` DN with gain `a` DN per electron: a·Poisson(i/a).
+#[inline(always)]
+fn shot_noise(i: f32, a: f32, rng: &mut Xoshiro256PlusPlus) -> f32 {
+    if a > 0.0 && i > 0.0 {
+        let lambda = (i / a) as f64;
+        let k: f64 = Poisson::new(lambda)
+            .map(|p| p.sample(rng))
+            .unwrap_or(lambda);
+        k as f32 * a
+    } else {
+        i
+    }
+}
+
 /// Truncating float → index for values already clamped to [0, 2^24): a plain conversion
 /// instruction, without the saturation checks of `as` (a third of the per-pixel work here).
 #[inline(always)]
@@ -381,15 +395,7 @@ impl Realism {
                 for (k, v) in out.iter_mut().enumerate() {
                     let c = k % 3;
                     let i = *v;
-                    let shot = if self.a_dn[c] > 0.0 && i > 0.0 {
-                        let lambda = (i / self.a_dn[c]) as f64;
-                        let k: f64 = Poisson::new(lambda)
-                            .map(|p| p.sample(&mut rng))
-                            .unwrap_or(lambda);
-                        k as f32 * self.a_dn[c]
-                    } else {
-                        i
-                    };
+                    let shot = shot_noise(i, self.a_dn[c], &mut rng);
                     let zv: f64 = StandardNormal.sample(&mut rng);
                     let read = heavy.as_ref().map_or(zv as f32, |t| t[k]);
                     *v = shot + self.b_dn[c].max(0.0).sqrt() * read;
@@ -460,15 +466,7 @@ impl Realism {
                 for px in out.chunks_exact_mut(3) {
                     for (c, v) in px.iter_mut().enumerate() {
                         let i = *v;
-                        let shot = if self.a_dn[c] > 0.0 && i > 0.0 {
-                            let lambda = (i / self.a_dn[c]) as f64;
-                            let k: f64 = Poisson::new(lambda)
-                                .map(|p| p.sample(&mut rng))
-                                .unwrap_or(lambda);
-                            k as f32 * self.a_dn[c]
-                        } else {
-                            i
-                        };
+                        let shot = shot_noise(i, self.a_dn[c], &mut rng);
                         let zv: f64 = StandardNormal.sample(&mut rng);
                         *v = shot + self.b_dn[c].max(0.0).sqrt() * zv as f32;
                     }
