@@ -314,7 +314,11 @@ pub fn run(args: &Args) -> Result<String> {
         .with_context(|| format!("pretraining ({})", pre_path.display()))?;
     }
 
-    stage(progress, began, "3/4 test set from real radiance");
+    stage(
+        progress,
+        began,
+        "3/4 test set (real radiance; generated scenes without it)",
+    );
     let (radiance, test_note) = radiance_source(args, &s, progress)?;
     let base_path = configs.join("finetune.toml");
     write(
