@@ -61,16 +61,7 @@ fn statistics(p: &Protocol, s: &[Summary], out: &mut Vec<Stat>) {
 fn fit(ctx: &FitCtx) -> Result<toml::Table, String> {
     let plan = super::Plan::from_effects(&ctx.profile.effects)?;
     let mut rhos = Vec::new();
-    for (st, sim) in ctx.measured.iter().zip(ctx.simulated_mean) {
-        if st.effect != Some(ID) {
-            continue;
-        }
-        let Some(b) = ctx.summaries.iter().find(|b| {
-            st.key
-                .starts_with(&format!("{}: ", ctx.protocol.bursts[b.burst].name))
-        }) else {
-            continue;
-        };
+    for (st, sim, b) in ctx.per_burst(ID) {
         let Some(r) = &b.resid else { continue };
         let l = b.frames as f64;
         let k = (l - 1.0) / l;

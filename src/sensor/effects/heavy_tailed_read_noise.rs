@@ -57,16 +57,7 @@ fn fit(ctx: &FitCtx) -> Result<toml::Table, String> {
     let range = ctx.profile.levels.white_level - ctx.profile.levels.black_level;
     let plan = super::Plan::from_effects(&ctx.profile.effects)?;
     let mut kappas = Vec::new();
-    for (st, sim) in ctx.measured.iter().zip(ctx.simulated_mean) {
-        if st.effect != Some(ID) {
-            continue;
-        }
-        let Some(b) = ctx.summaries.iter().find(|b| {
-            st.key
-                .starts_with(&format!("{}: ", ctx.protocol.bursts[b.burst].name))
-        }) else {
-            continue;
-        };
+    for (st, sim, b) in ctx.per_burst(ID) {
         let (Some(r), Ok((_, bn))) = (&b.resid, ctx.profile.noise_at(b.iso)) else {
             continue;
         };

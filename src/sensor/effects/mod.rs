@@ -322,6 +322,26 @@ impl FitCtx<'_> {
             .collect()
     }
 
+    /// This effect's statistics with their simulated mean and the burst each was measured on
+    /// (keys are "<burst>: <name>").
+    pub fn per_burst(&self, effect: &str) -> Vec<(&Stat, f64, &Summary)> {
+        self.measured
+            .iter()
+            .zip(self.simulated_mean)
+            .filter(|(st, _)| st.effect == Some(effect))
+            .filter_map(|(st, &sim)| {
+                // Burst names are free text (may hold ": "): match the whole "<burst>: " prefix.
+                let b = self.summaries.iter().find(|b| {
+                    let name = &self.protocol.bursts[b.burst].name;
+                    st.key
+                        .strip_prefix(name.as_str())
+                        .is_some_and(|r| r.starts_with(": "))
+                })?;
+                Some((st, sim, b))
+            })
+            .collect()
+    }
+
     /// Mean of measured − simulated over this effect's statistics named `name`.
     pub fn mean_excess(&self, effect: &str, name: &str) -> Result<f64, String> {
         let p = self.pairs(effect, name);
