@@ -135,7 +135,7 @@ fn padding_conventions_follow_tensorflow() {
     let conv = burn::nn::conv::Conv2dConfig::new([1, 1], [5, 5])
         .with_stride([2, 2])
         .with_bias(false);
-    let mut conv = hdrsynth::train::seeded_init(&dev, 0, || conv.init(&dev));
+    let mut conv = hdrsynth::train::seeded_init(&dev, 0, || Ok(conv.init(&dev))).expect("init");
     let w: Vec<f32> = (0..25).map(|i| (10 * (i / 5) + i % 5) as f32).collect();
     conv.weight = burn::module::Param::from_tensor(Tensor::from_data(
         TensorData::new(w.clone(), [1, 1, 5, 5]),
@@ -160,7 +160,8 @@ fn padding_conventions_follow_tensorflow() {
             .with_padding([padding, padding])
             .with_padding_out([padding_out, padding_out])
             .with_bias(false);
-        let mut deconv = hdrsynth::train::seeded_init(&dev, 0, || deconv.init(&dev));
+        let mut deconv =
+            hdrsynth::train::seeded_init(&dev, 0, || Ok(deconv.init(&dev))).expect("init");
         deconv.weight = burn::module::Param::from_tensor(Tensor::from_data(
             TensorData::new(w.clone(), [1, 1, 5, 5]),
             &dev,

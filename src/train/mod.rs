@@ -19,10 +19,10 @@ use crate::device::device_from_name;
 use crate::error::{Error, Result};
 use crate::io::atomic::write_atomic;
 use crate::models::BlendUNet;
-use burn::module::Module;
+use burn::module::{Module, ModuleVisitor, Param};
 use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
 use burn::tensor::activation::softmax;
-use burn::tensor::{Device, Int, Tensor};
+use burn::tensor::{Bool, Device, Int, Tensor};
 use checkpoint::CheckpointState;
 use config::{ModelConfig, TrainConfig};
 use std::io::Write;
@@ -71,12 +71,35 @@ pub fn train_step<T: Task>(
 }
 
 /// Burn's seed is global to a backend: seeding and initialising under one lock keeps
-/// concurrent initialisations (tests, library users) reproducible.
-pub fn seeded_init<T>(device: &Device, seed: u64, init: impl FnOnce() -> T) -> T {
+/// concurrent initialisations (tests, library users) reproducible. Burn also initialises
+/// parameters lazily, at first access, so every parameter is touched here under the lock;
+/// otherwise the draws happen at the first forward, interleaved with other threads' draws.
+pub fn seeded_init<M: Module>(
+    device: &Device,
+    seed: u64,
+    init: impl FnOnce() -> Result<M>,
+) -> Result<M> {
     static INIT: Mutex<()> = Mutex::new(());
     let _guard = INIT.lock().unwrap_or_else(|e| e.into_inner());
     device.seed(seed);
-    init()
+    let module = init()?;
+    module.visit(&mut Materialise);
+    Ok(module)
+}
+
+/// Reads every parameter once, which makes Burn run its deferred initialisation.
+struct Materialise;
+
+impl ModuleVisitor for Materialise {
+    fn visit_float<const D: usize>(&mut self, param: &Param<Tensor<D>>) {
+        let _ = param.val();
+    }
+    fn visit_int<const D: usize>(&mut self, param: &Param<Tensor<D, Int>>) {
+        let _ = param.val();
+    }
+    fn visit_bool<const D: usize>(&mut self, param: &Param<Tensor<D, Bool>>) {
+        let _ = param.val();
+    }
 }
 
 #[derive(Clone, Debug, Default)]
