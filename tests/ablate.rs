@@ -1,11 +1,14 @@
 //! `hdrsynth ablate`: a 2×2 grid of tiny Network-1 cells produces the table (means that are the
 //! cells' own evaluation means, paired differences that are the difference of means over the same
 //! sets), skips finished cells, resumes a cell killed mid-training bit-identically, and refuses a
-//! cell whose settings changed.
+//! cell whose settings changed. The statistics resample scenes, not sets, and seeds (hand-made
+//! per-set scores); a 2-seed grid trains every trained cell per seed; a control cell trains the
+//! pretrained network on its own pretraining data.
 
 mod common;
 
 use hdrsynth::eval::ablate::{self, AblateConfig, CellStatus};
+use hdrsynth::eval::metrics::{bootstrap_ci, bootstrap_crossed};
 use hdrsynth::io::{ExrPrecision, Image, write_exr};
 use hdrsynth::sensor::profile::SensorProfile;
 use hdrsynth::train::TrainOptions;
@@ -71,7 +74,10 @@ fn table(path: &Path) -> BTreeMap<(String, String, String), (f64, Option<f64>)> 
     let mut lines = text.lines();
     assert_eq!(
         lines.next(),
-        Some("row,column,metric,n,mean,ci_lo,ci_hi,diff_vs_reference,diff_ci_lo,diff_ci_hi")
+        Some(
+            "row,column,metric,n,mean,ci_lo,ci_hi,diff_vs_reference,diff_ci_lo,diff_ci_hi,\
+             n_seeds,n_scenes,seeds_positive,diff_n_seeds"
+        )
     );
     lines
         .map(|l| {
@@ -239,4 +245,305 @@ fn the_shipped_experiment_configs_parse_and_resolve_their_cells() {
             );
         }
     }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Statistics on hand-made scores (no training)
+
+/// table.csv (or table_seeds.csv) as one map per line, by column name.
+fn csv_rows(path: &Path) -> Vec<BTreeMap<String, String>> {
+    let text = std::fs::read_to_string(path).expect("csv");
+    let mut lines = text.lines();
+    let header: Vec<String> = lines
+        .next()
+        .expect("header")
+        .split(',')
+        .map(String::from)
+        .collect();
+    lines
+        .map(|l| header.iter().cloned().zip(l.split(',').map(String::from)).collect())
+        .collect()
+}
+
+fn find_row<'a>(
+    rows: &'a [BTreeMap<String, String>],
+    want: &[(&str, &str)],
+) -> &'a BTreeMap<String, String> {
+    rows.iter()
+        .find(|r| want.iter().all(|(k, v)| r[*k] == *v))
+        .unwrap_or_else(|| panic!("no row {want:?}"))
+}
+
+fn num(row: &BTreeMap<String, String>, key: &str) -> f64 {
+    row[key].parse().unwrap_or_else(|_| panic!("{key} = '{}'", row[key]))
+}
+
+/// A cell evaluation's per-set scores as `hdrsynth eval` writes them; `psnr_t` is `v`, every
+/// other metric `v / 100`.
+fn write_scores(eval: &Path, sets: &[(&str, f64)]) {
+    std::fs::create_dir_all(eval).expect("mkdir");
+    let mut csv = String::from(
+        "set,psnr_l,psnr_t,ssim_l,ssim_t,pu21_psnr,pu21_ssim,width,height,seconds\n",
+    );
+    for (set, v) in sets {
+        let o = v / 100.0;
+        csv.push_str(&format!("{set},{o},{v},{o},{o},{o},{o},8,8,0\n"));
+    }
+    std::fs::write(eval.join("per_image.csv"), csv).expect("per_image");
+    std::fs::write(eval.join("summary.csv"), "metric\n").expect("summary");
+}
+
+fn grid_config(root: &Path, seeds: &str, rows: &str) -> AblateConfig {
+    let path = root.join("grid.toml");
+    std::fs::write(
+        &path,
+        format!(
+            "title = \"t\"\nout = {:?}\nbase = \"unused.toml\"\n{seeds}\n\
+             [testset]\ndir = {:?}\n[eval]\nresamples = 400\nseed = 7\n{rows}",
+            root.join("grid"),
+            root.join("testset"),
+        ),
+    )
+    .expect("grid.toml");
+    AblateConfig::load(&path).expect("config")
+}
+
+#[test]
+fn the_interval_resamples_scenes_so_a_scene_seen_twice_counts_once() {
+    let rows = "[[rows]]\nname = \"a\"\ntrain = false\n[[rows]]\nname = \"b\"\ntrain = false\n";
+    let tables: Vec<_> = [true, false]
+        .into_iter()
+        .map(|twice| {
+            let tmp = tempfile::tempdir().expect("tmp");
+            let cfg = grid_config(tmp.path(), "", rows);
+            // Scene x at two ISOs with identical scores, or at one ISO; y and z at one ISO.
+            let mut a = vec![("x_iso100", 30.0), ("y_iso100", 24.0), ("z_iso100", 35.0)];
+            let mut b = vec![("x_iso100", 31.0), ("y_iso100", 24.5), ("z_iso100", 38.0)];
+            if twice {
+                a.push(("x_iso800", 30.0));
+                b.push(("x_iso800", 31.0));
+            }
+            write_scores(&cfg.cell_dir(0, None).join("eval"), &a);
+            write_scores(&cfg.cell_dir(1, None).join("eval"), &b);
+            ablate::write_table(&cfg).expect("table");
+            csv_rows(&tmp.path().join("grid/table.csv"))
+        })
+        .collect();
+    for key in ["mean", "ci_lo", "ci_hi", "diff_vs_reference", "diff_ci_lo", "diff_ci_hi"] {
+        let twice = num(find_row(&tables[0], &[("row", "b"), ("metric", "psnr_t")]), key);
+        let once = num(find_row(&tables[1], &[("row", "b"), ("metric", "psnr_t")]), key);
+        assert_eq!(twice, once, "{key}: a scene's second identical set changed it");
+    }
+    let b = find_row(&tables[0], &[("row", "b"), ("metric", "psnr_t")]);
+    assert_eq!((b["n"].as_str(), b["n_scenes"].as_str()), ("4", "3"));
+    // The interval is the ordinary bootstrap of the three scene means (metrics' own function,
+    // the same resample seeds), and the mean is the hand-computed mean of the scene means.
+    let (m, lo, hi) = bootstrap_ci(&[31.0, 24.5, 38.0], 400, 7, 0.95);
+    assert_eq!((num(b, "mean"), num(b, "ci_lo"), num(b, "ci_hi")), (m, lo, hi));
+    assert!((m - 93.5 / 3.0).abs() < 1e-12);
+    assert!(
+        (num(b, "diff_vs_reference") - 4.5 / 3.0).abs() < 1e-12,
+        "(1 + 0.5 + 3) / 3"
+    );
+}
+
+#[test]
+fn scenes_come_from_the_recipe_then_the_set_names_then_the_sets_themselves() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    // A recipe whose scene name itself ends like an ISO tag: only the recipe can tell.
+    std::fs::write(
+        tmp.path().join("testset.toml"),
+        "format = \"hdrsynth-testset/1\"\n[options]\nisos = [100.0, 800.0]\n\
+         [[scenes]]\nname = \"desk\"\nfile = \"desk.exr\"\n\
+         [[scenes]]\nname = \"lab\"\nfile = \"lab_iso100.exr\"\n",
+    )
+    .expect("recipe");
+    let sets = ["desk_iso100", "desk_iso800", "lab_iso100", "kitchen_iso3200", "001", "x_iso"];
+    let scenes = hdrsynth::data::testset::scenes_of_sets(tmp.path(), sets).expect("scenes");
+    let got: Vec<&str> = sets.iter().map(|s| scenes[*s].as_str()).collect();
+    assert_eq!(got, ["desk", "desk", "lab", "kitchen", "001", "x_iso"]);
+    std::fs::write(tmp.path().join("testset.toml"), "scenes = 3\n").expect("bad recipe");
+    let msg = hdrsynth::data::testset::scenes_of_sets(tmp.path(), sets)
+        .expect_err("bad recipe")
+        .to_string();
+    assert!(msg.contains("testset.toml"), "{msg}");
+}
+
+#[test]
+fn the_two_level_bootstrap_matches_hand_computed_intervals() {
+    // Two seeds × two scenes, one level constant: resampling the other gives means 0, ½, 1 with
+    // probabilities ¼, ½, ¼, so the 2.5 % and 97.5 % percentiles are 0 and 1.
+    let seed_only = vec![vec![0.0, 0.0], vec![1.0, 1.0]];
+    let scene_only = vec![vec![0.0, 1.0], vec![0.0, 1.0]];
+    for v in [&seed_only, &scene_only] {
+        let (m, lo, hi) = bootstrap_crossed(v, 2000, 1, 0.95);
+        assert_eq!((m, lo, hi), (0.5, 0.0, 1.0), "{v:?}");
+    }
+    // One seed: exactly the one-level bootstrap of the scenes.
+    let row = vec![3.0, 1.0, 4.0, 1.5, 9.0];
+    assert_eq!(
+        bootstrap_crossed(&[row.clone()], 500, 3, 0.9),
+        bootstrap_ci(&row, 500, 3, 0.9)
+    );
+    // Identical seeds: the mean of one seed, 18.5 / 5.
+    let (m, lo, hi) = bootstrap_crossed(&[row.clone(), row.clone(), row], 500, 3, 0.9);
+    assert!((m - 3.7).abs() < 1e-12 && lo < m && m < hi, "{m} [{lo}, {hi}]");
+}
+
+#[test]
+fn seeds_are_paired_counted_and_written_per_seed() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let cfg = grid_config(
+        tmp.path(),
+        "seeds = [1, 2, 3]",
+        "[[rows]]\nname = \"net_o\"\ntrain = false\n[[rows]]\nname = \"net_s\"\n",
+    );
+    // Net_O: evaluated once. Net_S: per seed, every set scores Net_O + δ(seed).
+    let base = [("x_iso100", 30.0), ("x_iso800", 28.0), ("y_iso100", 20.0), ("y_iso800", 22.0)];
+    write_scores(&cfg.cell_dir(0, None).join("eval"), &base);
+    for (seed, delta) in [(1, 1.0), (2, 2.0), (3, -0.5)] {
+        let sets: Vec<(&str, f64)> = base.iter().map(|(s, v)| (*s, v + delta)).collect();
+        write_scores(&cfg.unit_dir(1, None, Some(seed)).join("eval"), &sets);
+    }
+    let md = ablate::write_table(&cfg).expect("table");
+    let t = csv_rows(&tmp.path().join("grid/table.csv"));
+    let s = find_row(&t, &[("row", "net_s"), ("metric", "psnr_t")]);
+    // Scene means 29 and 21 for Net_O (25 overall); Net_S per seed 25 + δ.
+    let per_seed = [26.0, 27.0, 24.5];
+    assert!((num(s, "mean") - per_seed.iter().sum::<f64>() / 3.0).abs() < 1e-12);
+    assert!((num(s, "diff_vs_reference") - 2.5 / 3.0).abs() < 1e-12);
+    assert_eq!(s["seeds_positive"], "2");
+    assert_eq!(
+        (s["n_seeds"].as_str(), s["n_scenes"].as_str(), s["diff_n_seeds"].as_str()),
+        ("3", "2", "3")
+    );
+    let o = find_row(&t, &[("row", "net_o"), ("metric", "psnr_t")]);
+    assert_eq!((o["n_seeds"].as_str(), o["seeds_positive"].as_str()), ("1", ""));
+    assert!(md.contains("(2/3)"), "the sign holds in 2 of 3 seeds:\n{md}");
+    // The difference is the same for every scene within a seed: only the seed level varies,
+    // so the interval lies within the seeds' differences −0.5 … 2.
+    assert!(num(s, "diff_ci_lo") >= -0.5 && num(s, "diff_ci_hi") <= 2.0);
+    assert!(num(s, "diff_ci_lo") < 0.0, "one seed of three goes the other way");
+
+    let ps = csv_rows(&tmp.path().join("grid/table_seeds.csv"));
+    for (seed, mean, diff) in [("1", 26.0, 1.0), ("2", 27.0, 2.0), ("3", 24.5, -0.5)] {
+        let r = find_row(&ps, &[("row", "net_s"), ("seed", seed), ("metric", "psnr_t")]);
+        assert_eq!((num(r, "mean"), num(r, "diff_vs_reference")), (mean, diff));
+        let r = find_row(&ps, &[("row", "net_o"), ("seed", seed), ("metric", "psnr_t")]);
+        assert_eq!(num(r, "mean"), 25.0, "Net_O serves every seed");
+    }
+}
+
+#[test]
+fn a_grid_with_seeds_refuses_an_axis_that_sets_the_seed() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let path = tmp.path().join("g.toml");
+    std::fs::write(
+        &path,
+        "title = \"t\"\nout = \"o\"\nbase = \"b.toml\"\nseeds = [1, 2]\n[testset]\ndir = \"ts\"\n\
+         [[rows]]\nname = \"a\"\nset = { run = { seed = 5 } }\n",
+    )
+    .expect("write");
+    let msg = AblateConfig::load(&path).expect_err("seed twice").to_string();
+    assert!(msg.contains("g.toml") && msg.contains("run.seed"), "{msg}");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Seeds and the control cell, trained
+
+#[test]
+fn a_two_seed_grid_trains_every_trained_cell_per_seed_and_a_control_on_the_pretraining_data() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let root = tmp.path();
+    let data = root.join("train");
+    common::generate(&data, 11, 3, (64, 48), "[-3.0, 0.0]");
+    radiance(&root.join("radiance"));
+    let pre = root.join("pretrain");
+    let pre_text = train_toml(&pre, &data, 2, None);
+    let pre_cfg: TrainConfig =
+        hdrsynth::config::parse_toml(&pre_text, Path::new("pre.toml")).expect("pretrain config");
+    hdrsynth::train::run(&pre_cfg, &TrainOptions::default()).expect("pretrain");
+
+    // The base fine-tunes on Canon-realistic data with its own learning rate and schedule; the
+    // pretraining was pure data at lr 1e-3, constant.
+    let canon = SensorProfile::shipped_dir().join("canon_eos_550d.toml");
+    let base = root.join("base.toml");
+    let base_text = train_toml(Path::new("unused"), &data, STEPS, Some(&pre)).replace(
+        "profile = \"pure\"\n[optim]\nlr = 1e-3\n",
+        &format!(
+            "profile = {canon:?}\nisos = [100]\n[optim]\nlr = 4e-3\n\
+             [schedule]\nkind = \"cosine\"\n"
+        ),
+    );
+    std::fs::write(&base, &base_text).expect("base");
+    let cfg_path = root.join("grid.toml");
+    std::fs::write(
+        &cfg_path,
+        format!(
+            "title = \"seeds\"\nout = {:?}\nbase = {base:?}\nseeds = [1, 2]\n\
+             [testset]\ndir = {:?}\nradiance = {:?}\nprofile = {canon:?}\n\
+             [testset.options]\nisos = [100, 1600]\n\
+             [eval]\nresamples = 200\ntile = 32\n\
+             [[rows]]\nname = \"net_o\"\ntrain = false\n\
+             [[rows]]\nname = \"net_s\"\n\
+             [[rows]]\nname = \"control\"\nkind = \"control\"\n",
+            root.join("grid"),
+            root.join("testset"),
+            root.join("radiance"),
+        ),
+    )
+    .expect("grid");
+    let cfg = AblateConfig::load(&cfg_path).expect("config");
+    let summary = ablate::run(&cfg, &cfg_path, false).expect("grid");
+    let ids: Vec<&str> = summary.cells.iter().map(|c| c.id.as_str()).collect();
+    assert_eq!(
+        ids,
+        ["net_o", "net_s/seed1", "net_s/seed2", "control/seed1", "control/seed2"]
+    );
+    let grid = root.join("grid");
+    let unit = |cell: &str, seed: u64| grid.join("cells").join(cell).join(format!("seed{seed}"));
+
+    // Each seed trained its own network: different per-set scores.
+    let scores = |dir: &Path| std::fs::read_to_string(dir.join("eval/per_image.csv")).expect("csv");
+    assert_ne!(scores(&unit("net_s", 1)), scores(&unit("net_s", 2)));
+    // The grid's mean is the mean of the per-seed evaluations' own means, and seeds_positive
+    // counts the seeds whose mean beats Net_O's (evaluated once).
+    let t = csv_rows(&grid.join("table.csv"));
+    for m in ["psnr_t", "psnr_l", "ssim_t", "ssim_l"] {
+        let seeds = [summary_mean(&unit("net_s", 1), m), summary_mean(&unit("net_s", 2), m)];
+        let net_o = summary_mean(&grid.join("cells/net_o"), m);
+        let r = find_row(&t, &[("row", "net_s"), ("metric", m)]);
+        assert!((num(r, "mean") - (seeds[0] + seeds[1]) / 2.0).abs() < 1e-9, "{m}");
+        let positive = seeds.iter().filter(|&&s| s > net_o).count();
+        assert_eq!(r["seeds_positive"], positive.to_string(), "{m}");
+        assert_eq!((r["n_seeds"].as_str(), r["n_scenes"].as_str()), ("2", "2"));
+    }
+
+    // The control: the pretraining run's config with the base's run/optim/schedule/init.
+    let control_run = unit("control", 1).join("run");
+    // (config.toml blanks run.steps, so it is read without validation.)
+    let got: TrainConfig =
+        hdrsynth::config::load_toml(&control_run.join("config.toml")).expect("control config");
+    assert_eq!(got.data, pre_cfg.data, "the pretraining data");
+    assert_eq!(got.model, pre_cfg.model);
+    assert_eq!(got.optim.lr, 4e-3, "the base's learning rate");
+    assert_eq!(got.run.seed, 1);
+    assert_eq!(
+        got.init.and_then(|i| i.checkpoint).as_deref(),
+        Some(pre.as_path()),
+        "from the pretrained checkpoint"
+    );
+    // And it is exactly that training: a hand-written config of that recipe, run by hand, gives
+    // the same weights.
+    let by_hand = root.join("by_hand");
+    let hand_text = train_toml(&by_hand, &data, STEPS, Some(&pre))
+        .replace("seed = 3\n", "seed = 1\n")
+        .replace("lr = 1e-3\n", "lr = 4e-3\n[schedule]\nkind = \"cosine\"\n");
+    let hand: TrainConfig =
+        hdrsynth::config::parse_toml(&hand_text, Path::new("hand.toml")).expect("hand config");
+    hdrsynth::train::run(&hand, &TrainOptions::default()).expect("by hand");
+    let weights = |run: &Path| {
+        std::fs::read(run.join(format!("checkpoints/step-{STEPS:08}/model.bpk"))).expect("bpk")
+    };
+    assert!(weights(&control_run) == weights(&by_hand), "control ≠ the hand-made recipe");
 }

@@ -44,11 +44,17 @@ pub fn report(cfg: &AblateConfig, s: &AblateSummary) -> String {
     }
     let _ = write!(
         out,
-        "{:.1} s; wrote {}/{{{}, {}}} and cells/<cell>/{{run, eval}}",
+        "{:.1} s; wrote {}/{{{}, {}{}}} and cells/<cell>/{}{{run, eval}}",
         s.seconds,
         cfg.out.display(),
         ablate::TABLE_MD,
-        ablate::TABLE_CSV
+        ablate::TABLE_CSV,
+        if cfg.seeds.is_empty() {
+            String::new()
+        } else {
+            format!(", {}", ablate::TABLE_SEEDS_CSV)
+        },
+        if cfg.seeds.is_empty() { "" } else { "[seed<k>/]" },
     );
     out
 }

@@ -27,6 +27,7 @@ use crate::sensor::realism::{NoiseModel, Realism, RealismOptions};
 use crate::sensor::response::ToneCurve;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 /// The recipe, written to `OUT/testset.toml` (read by nothing else; provenance and resume).
@@ -173,6 +174,58 @@ pub fn scene_name(path: &Path) -> String {
 /// `<scene>_iso<N>` (N as the shortest decimal, e.g. `iso100`, `iso12.5`).
 pub fn set_name(scene: &str, iso: f64) -> String {
     format!("{scene}_iso{iso}")
+}
+
+/// The scene of a set named by `set_name`: `<scene>_iso<N>` with N a positive number, else
+/// `None`.
+pub fn scene_of_set_name(set: &str) -> Option<&str> {
+    let (scene, iso) = set.rsplit_once("_iso")?;
+    let iso: f64 = iso.parse().ok()?;
+    (!scene.is_empty() && iso.is_finite() && iso > 0.0).then_some(scene)
+}
+
+/// Which scene each set of the test set in `dir` shows, for statistics that resample scenes
+/// (the sets of one scene at several ISOs are not independent). In order of trust: the recipe
+/// `dir/testset.toml` (a set is `set_name(scene, iso)` of a listed scene and ISO), else the
+/// `<scene>_iso<N>` naming convention, else the set is its own scene (e.g. Kalantari's folders).
+/// A recipe that cannot be read is an error naming it.
+pub fn scenes_of_sets<'a>(
+    dir: &Path,
+    sets: impl IntoIterator<Item = &'a str>,
+) -> Result<BTreeMap<String, String>> {
+    // Only the scene names and ISOs: the rest of the recipe (the profile) is not needed here.
+    #[derive(Deserialize)]
+    struct Scenes {
+        #[serde(default)]
+        options: Isos,
+        scenes: Vec<SceneEntry>,
+    }
+    #[derive(Deserialize, Default)]
+    struct Isos {
+        #[serde(default)]
+        isos: Vec<f64>,
+    }
+    let path = dir.join(RECIPE);
+    let mut known = BTreeMap::new();
+    if path.is_file() {
+        let recipe: Scenes = crate::config::load_toml(&path)?;
+        for scene in &recipe.scenes {
+            for &iso in &recipe.options.isos {
+                known.insert(set_name(&scene.name, iso), scene.name.clone());
+            }
+        }
+    }
+    Ok(sets
+        .into_iter()
+        .map(|set| {
+            let scene = known
+                .get(set)
+                .cloned()
+                .or_else(|| scene_of_set_name(set).map(str::to_string))
+                .unwrap_or_else(|| set.to_string());
+            (set.to_string(), scene)
+        })
+        .collect())
 }
 
 fn validate(opts: &TestsetOptions, profile: &SensorProfile) -> Result<()> {

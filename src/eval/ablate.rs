@@ -4,6 +4,12 @@
 //! table shaped like the paper's Tables 1–4, with bootstrap confidence intervals and paired
 //! differences against a reference cell (default: the first).
 //!
+//! Statistics (docs/experiments.md): the unit of test-set variation is the scene (the sets of one
+//! scene at several ISOs are one cluster, `testset::scenes_of_sets`), and with `seeds = [...]`
+//! every trained cell is trained once per seed; intervals come from a two-level bootstrap
+//! (seeds, then scenes; `metrics::bootstrap_crossed`), differences are paired within seed, scene
+//! and set.
+//!
 //! Resumable at every level: a cell whose `eval/` folder exists is finished and skipped; a cell
 //! killed while training resumes from its latest checkpoint (the trainer's bit-identical resume);
 //! a cell killed while evaluating evaluates again (into `eval.partial/`, renamed when complete).
@@ -14,7 +20,7 @@ use crate::data::testset::{self, TestsetOptions};
 use crate::device::device_from_name;
 use crate::error::{Error, Result};
 use crate::eval::evaluate::{self, EvalOptions, NetworkOptions, from_checkpoint};
-use crate::eval::metrics::bootstrap_ci;
+use crate::eval::metrics::bootstrap_crossed;
 use crate::eval::report::{self, METRICS};
 use crate::io::atomic::write_atomic;
 use crate::sensor::profile::SensorProfile;
@@ -32,11 +38,17 @@ use std::time::Instant;
 pub struct AblateConfig {
     /// Title of the table.
     pub title: String,
-    /// Output folder: `cells/<cell>/{cell.toml, run/, eval/}`, `table.md`, `table.csv`.
+    /// Output folder: `cells/<cell>/{cell.toml, run/, eval/}` (with `seeds`, a trained cell has
+    /// one such folder per seed: `cells/<cell>/seed<k>/`), `table.md`, `table.csv`.
     pub out: PathBuf,
     /// The training config every cell starts from (typically a fine-tune config whose `[init]`
     /// names the pretrained checkpoint).
     pub base: PathBuf,
+    /// Training seeds: every trained cell is trained once per seed (the seed becomes the cell's
+    /// `run.seed`, which seeds the initialisation and the whole data stream). Empty: once, with
+    /// the base config's seed.
+    #[serde(default)]
+    pub seeds: Vec<u64>,
     pub testset: TestsetSpec,
     #[serde(default)]
     pub eval: EvalSpec,
@@ -111,6 +123,20 @@ pub struct Axis {
     /// Evaluate this checkpoint instead of training (implies `train = false`).
     #[serde(default)]
     pub checkpoint: Option<PathBuf>,
+    /// `"finetune"` (default): the base config with `set` laid over it. `"control"`: the
+    /// pretrained network trained on for the same number of steps on its OWN pretraining data
+    /// (see `control_config`), separating "more steps and a learning-rate restart" from "a new
+    /// training domain".
+    #[serde(default)]
+    pub kind: AxisKind,
+}
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum AxisKind {
+    #[default]
+    Finetune,
+    Control,
 }
 
 fn yes() -> bool {
@@ -151,7 +177,32 @@ impl AblateConfig {
                 if !seen.insert(&a.name) {
                     return Err(format!("[[{axis}]] name '{}' appears twice", a.name));
                 }
+                if a.kind == AxisKind::Control && (!a.train || a.checkpoint.is_some()) {
+                    return Err(format!(
+                        "[[{axis}]] '{}': kind = \"control\" trains; it cannot also have \
+                         train = false or a checkpoint",
+                        a.name
+                    ));
+                }
+                let sets_seed = a
+                    .set
+                    .get("run")
+                    .and_then(|r| r.as_table())
+                    .is_some_and(|r| r.contains_key("seed"));
+                if sets_seed && !self.seeds.is_empty() {
+                    return Err(format!(
+                        "[[{axis}]] '{}' sets run.seed, but the grid's `seeds` set every \
+                         trained cell's seed",
+                        a.name
+                    ));
+                }
             }
+        }
+        let mut seeds = self.seeds.clone();
+        seeds.sort_unstable();
+        seeds.dedup();
+        if seeds.len() != self.seeds.len() {
+            return Err(format!("seeds {:?}: a seed appears twice", self.seeds));
         }
         if !(self.eval.level > 0.0 && self.eval.level < 1.0) {
             return Err(format!("eval.level {} must be in (0, 1)", self.eval.level));
@@ -193,6 +244,32 @@ impl AblateConfig {
 
     pub fn cell_dir(&self, r: usize, c: Option<usize>) -> PathBuf {
         self.out.join("cells").join(self.cell_id(r, c))
+    }
+
+    /// Whether a cell trains (else it evaluates a checkpoint as it is): a function of the
+    /// config alone, so the table can find a cell's folders without planning it.
+    pub fn cell_trains(&self, r: usize, c: Option<usize>) -> bool {
+        std::iter::once(&self.rows[r])
+            .chain(c.map(|c| &self.columns[c]))
+            .all(|a| a.train && a.checkpoint.is_none())
+    }
+
+    /// The seeds a cell runs at: `None` = once (no `seeds`, or a cell that does not train and
+    /// therefore does not depend on the seed: it is evaluated once and serves every seed).
+    pub fn cell_seeds(&self, r: usize, c: Option<usize>) -> Vec<Option<u64>> {
+        if self.seeds.is_empty() || !self.cell_trains(r, c) {
+            vec![None]
+        } else {
+            self.seeds.iter().map(|&s| Some(s)).collect()
+        }
+    }
+
+    /// The folder of one run of a cell: `cells/<cell>/` or, per seed, `cells/<cell>/seed<k>/`.
+    pub fn unit_dir(&self, r: usize, c: Option<usize>, seed: Option<u64>) -> PathBuf {
+        match seed {
+            None => self.cell_dir(r, c),
+            Some(k) => self.cell_dir(r, c).join(format!("seed{k}")),
+        }
     }
 }
 
@@ -237,6 +314,8 @@ pub struct AblateSummary {
 
 pub const TABLE_MD: &str = "table.md";
 pub const TABLE_CSV: &str = "table.csv";
+/// Per-seed values (written when the grid has `seeds`).
+pub const TABLE_SEEDS_CSV: &str = "table_seeds.csv";
 const CELL_PLAN: &str = "cell.toml";
 const EVAL_DIR: &str = "eval";
 const EVAL_PARTIAL: &str = "eval.partial";
@@ -272,20 +351,25 @@ pub fn run(cfg: &AblateConfig, config_path: &Path, progress: bool) -> Result<Abl
     let cells = cfg.cells();
     let mut results = Vec::new();
     for (k, &(r, c)) in cells.iter().enumerate() {
-        let id = cfg.cell_id(r, c);
-        let t0 = Instant::now();
-        let plan = plan_cell(cfg, config_path, &base, r, c)?;
-        if progress {
-            eprintln!("cell {}/{} {id}", k + 1, cells.len());
+        for seed in cfg.cell_seeds(r, c) {
+            let id = match seed {
+                None => cfg.cell_id(r, c),
+                Some(s) => format!("{}/seed{s}", cfg.cell_id(r, c)),
+            };
+            let t0 = Instant::now();
+            let plan = plan_cell(cfg, config_path, &base, r, c, seed)?;
+            if progress {
+                eprintln!("cell {}/{} {id}", k + 1, cells.len());
+            }
+            let status = run_cell(cfg, &cfg.unit_dir(r, c, seed), &id, &plan, progress)?;
+            results.push(CellResult {
+                id,
+                status,
+                seconds: t0.elapsed().as_secs_f64(),
+            });
+            // The table so far, after every run: an interrupted grid shows what it has.
+            write_table(cfg)?;
         }
-        let status = run_cell(cfg, &cfg.cell_dir(r, c), &id, &plan, progress)?;
-        results.push(CellResult {
-            id,
-            status,
-            seconds: t0.elapsed().as_secs_f64(),
-        });
-        // The table so far, after every cell: an interrupted grid shows what it has.
-        write_table(cfg)?;
     }
     let table = write_table(cfg)?;
     Ok(AblateSummary {
@@ -300,7 +384,9 @@ pub fn train_configs(cfg: &AblateConfig, config_path: &Path) -> Result<Vec<Train
     let base = load_base(cfg)?;
     let mut out = Vec::new();
     for (r, c) in cfg.cells() {
-        out.extend(plan_cell(cfg, config_path, &base, r, c)?.train);
+        for seed in cfg.cell_seeds(r, c) {
+            out.extend(plan_cell(cfg, config_path, &base, r, c, seed)?.train);
+        }
     }
     Ok(out)
 }
@@ -316,17 +402,22 @@ fn plan_cell(
     base: &toml::Table,
     r: usize,
     c: Option<usize>,
+    seed: Option<u64>,
 ) -> Result<CellPlan> {
     let axes: Vec<&Axis> = std::iter::once(&cfg.rows[r])
         .chain(c.map(|c| &cfg.columns[c]))
         .collect();
     let id = cfg.cell_id(r, c);
     let cell_err = |m: String| Error::config(config_path, format!("cell '{id}': {m}"));
-    let mut merged = base.clone();
+    let mut merged = if axes.iter().any(|a| a.kind == AxisKind::Control) {
+        control_config(&cfg.base, base).map_err(|e| cell_err(format!("control: {e}")))?
+    } else {
+        base.clone()
+    };
     for a in &axes {
         merge_tables(&mut merged, &a.set);
     }
-    let run_dir = cfg.cell_dir(r, c).join("run");
+    let run_dir = cfg.unit_dir(r, c, seed).join("run");
     let run = merged
         .entry("run")
         .or_insert_with(|| toml::Value::Table(toml::Table::new()));
@@ -335,6 +426,12 @@ fn plan_cell(
             "out".into(),
             toml::Value::String(run_dir.to_string_lossy().into_owned()),
         );
+        if let Some(s) = seed {
+            // toml integers are i64: a seed above i64::MAX cannot be written into a config.
+            let s = i64::try_from(s)
+                .map_err(|_| cell_err(format!("seed {s} is larger than TOML's integers")))?;
+            t.insert("seed".into(), toml::Value::Integer(s));
+        }
     }
     let train_cfg: TrainConfig = toml::Value::Table(merged).try_into().map_err(|e| {
         cell_err(format!(
@@ -349,7 +446,7 @@ fn plan_cell(
             "both its row and its column name a checkpoint".into(),
         ));
     }
-    let trains = explicit.is_empty() && axes.iter().all(|a| a.train);
+    let trains = cfg.cell_trains(r, c);
     let checkpoint = match (explicit.first(), trains) {
         (Some(p), _) => (*p).clone(),
         (None, true) => run_dir,
@@ -371,6 +468,45 @@ fn plan_cell(
         backend: train_cfg.run.backend.clone(),
         train: trains.then_some(train_cfg),
     })
+}
+
+/// The training config of a control cell (`kind = "control"`): the config the pretrained
+/// network was trained with (`config.toml` of the run that the base's `[init] checkpoint`
+/// names), with the base's `[run]` (steps, seed, backend, checkpointing), `[optim]` (learning
+/// rate, Adam), `[schedule]` and `[init]` (start from the pretrained weights, fresh Adam). Model,
+/// data, loss and validation stay the pretraining run's: the same network trained on for as
+/// many steps, with the same learning-rate restart as a fine-tune, on its own data.
+fn control_config(base_path: &Path, base: &toml::Table) -> Result<toml::Table> {
+    let init = base
+        .get("init")
+        .and_then(|i| i.get("checkpoint"))
+        .and_then(|c| c.as_str())
+        .ok_or_else(|| {
+            Error::config(
+                base_path,
+                "a control cell needs the base config's [init] checkpoint (the pretrained run)",
+            )
+        })?;
+    let init = PathBuf::from(init);
+    // `[init] checkpoint` names a run folder or one of its checkpoints (RUN/checkpoints/step-N).
+    let run = if init.join(checkpoint::STATE_FILE).is_file() {
+        init.parent()
+            .and_then(Path::parent)
+            .map(Path::to_path_buf)
+            .unwrap_or_default()
+    } else {
+        init.clone()
+    };
+    let path = run.join(train::RUN_CONFIG);
+    let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+    let mut merged: toml::Table = crate::config::parse_toml(&text, &path)?;
+    for key in ["run", "optim", "schedule", "init"] {
+        match base.get(key) {
+            Some(v) => merged.insert(key.into(), v.clone()),
+            None => merged.remove(key),
+        };
+    }
+    Ok(merged)
 }
 
 fn run_cell(
@@ -531,32 +667,159 @@ fn fmt(metric: &str, v: f64) -> String {
     }
 }
 
+/// A finished cell's scores: one per-set table per finished run, in the grid's seed order.
+/// Seed `None`: a run that serves every seed (no `seeds`, or a cell that does not train).
 struct CellScores {
     r: usize,
     c: Option<usize>,
-    sets: BTreeMap<String, [f64; 6]>,
+    runs: Vec<(Option<u64>, BTreeMap<String, [f64; 6]>)>,
 }
 
-/// Mean and CI of the finite values of one metric.
-fn stat(cfg: &AblateConfig, values: &[f64]) -> (usize, f64, f64, f64) {
-    let finite: Vec<f64> = values.iter().copied().filter(|v| v.is_finite()).collect();
-    let (m, lo, hi) = bootstrap_ci(&finite, cfg.eval.resamples, cfg.eval.seed, cfg.eval.level);
-    (finite.len(), m, lo, hi)
+/// One quantity (a cell's metric, or its difference to the reference) over seeds and scenes.
+struct Stat {
+    /// Sets behind one seed's value (finite values in the scenes used).
+    n_sets: usize,
+    n_seeds: usize,
+    n_scenes: usize,
+    mean: f64,
+    lo: f64,
+    hi: f64,
+    /// Each seed's value: the mean over the scenes.
+    per_seed: Vec<(Option<u64>, f64)>,
 }
 
-/// Write `table.md` and `table.csv` from the finished cells; returns the Markdown.
+impl Stat {
+    fn seeds_positive(&self) -> usize {
+        self.per_seed.iter().filter(|(_, v)| *v > 0.0).count()
+    }
+
+    /// Seeds whose value has the sign of the mean (0 counts as its own sign).
+    fn sign_holds(&self) -> usize {
+        let sign = |v: f64| (v > 0.0) as i8 - (v < 0.0) as i8;
+        self.per_seed
+            .iter()
+            .filter(|(_, v)| sign(*v) == sign(self.mean))
+            .count()
+    }
+}
+
+/// The statistic of per-set values, one table per seed: a set's value counts toward its scene's
+/// mean (non-finite values are left out), a seed's value is the mean over the scenes, and the
+/// interval is the two-level bootstrap (seeds, then scenes) of the mean over seeds. Only scenes
+/// with a value in every seed are used, so every seed is scored on the same scenes.
+fn crossed_stat(
+    cfg: &AblateConfig,
+    rows: &[(Option<u64>, BTreeMap<&str, f64>)],
+    scenes: &BTreeMap<String, String>,
+) -> Stat {
+    let per_row: Vec<BTreeMap<&str, (f64, usize)>> = rows
+        .iter()
+        .map(|(_, sets)| {
+            let mut by_scene: BTreeMap<&str, (f64, usize)> = BTreeMap::new();
+            for (&set, &v) in sets.iter().filter(|(_, v)| v.is_finite()) {
+                let scene = scenes.get(set).map_or(set, String::as_str);
+                let e = by_scene.entry(scene).or_default();
+                e.0 += v;
+                e.1 += 1;
+            }
+            by_scene
+        })
+        .collect();
+    let common: Vec<&str> = per_row.first().map_or_else(Vec::new, |first| {
+        first
+            .keys()
+            .copied()
+            .filter(|k| per_row.iter().all(|r| r.contains_key(k)))
+            .collect()
+    });
+    let matrix: Vec<Vec<f64>> = per_row
+        .iter()
+        .map(|r| {
+            common
+                .iter()
+                .map(|k| r[k].0 / r[k].1 as f64)
+                .collect()
+        })
+        .collect();
+    let n_sets = per_row
+        .first()
+        .map_or(0, |r| common.iter().map(|k| r[k].1).sum());
+    let (mean, lo, hi) =
+        bootstrap_crossed(&matrix, cfg.eval.resamples, cfg.eval.seed, cfg.eval.level);
+    Stat {
+        n_sets,
+        n_seeds: matrix.len(),
+        n_scenes: common.len(),
+        mean,
+        lo,
+        hi,
+        per_seed: rows
+            .iter()
+            .zip(&matrix)
+            .map(|((s, _), m)| (*s, m.iter().sum::<f64>() / m.len() as f64))
+            .collect(),
+    }
+}
+
+type SetScores = BTreeMap<String, [f64; 6]>;
+
+/// The runs of a cell paired with the reference's: by seed, and a run that serves every seed
+/// (a cell that does not train) pairs with each of the other's seeds.
+fn pair_runs<'a>(
+    d: &'a CellScores,
+    rs: &'a CellScores,
+) -> Vec<(Option<u64>, &'a SetScores, &'a SetScores)> {
+    let single = |x: &CellScores| x.runs.len() == 1 && x.runs[0].0.is_none();
+    match (single(d), single(rs)) {
+        (true, true) => vec![(None, &d.runs[0].1, &rs.runs[0].1)],
+        (true, false) => rs
+            .runs
+            .iter()
+            .map(|(s, w)| (*s, &d.runs[0].1, w))
+            .collect(),
+        (false, true) => d.runs.iter().map(|(s, v)| (*s, v, &rs.runs[0].1)).collect(),
+        (false, false) => d
+            .runs
+            .iter()
+            .filter_map(|(s, v)| {
+                rs.runs
+                    .iter()
+                    .find(|(t, _)| t == s)
+                    .map(|(_, w)| (*s, v, w))
+            })
+            .collect(),
+    }
+}
+
+/// Write `table.md` and `table.csv` (and, with `seeds`, `table_seeds.csv`) from the finished
+/// runs; returns the Markdown.
 pub fn write_table(cfg: &AblateConfig) -> Result<String> {
     let mut done = Vec::new();
+    let (mut runs_done, mut runs_total) = (0, 0);
     for (r, c) in cfg.cells() {
-        let path = cfg.cell_dir(r, c).join(EVAL_DIR).join(evaluate::PER_IMAGE);
-        if path.is_file() {
-            done.push(CellScores {
-                r,
-                c,
-                sets: read_per_image(&path)?,
-            });
+        let mut runs = Vec::new();
+        for seed in cfg.cell_seeds(r, c) {
+            runs_total += 1;
+            let path = cfg
+                .unit_dir(r, c, seed)
+                .join(EVAL_DIR)
+                .join(evaluate::PER_IMAGE);
+            if path.is_file() {
+                runs.push((seed, read_per_image(&path)?));
+            }
+        }
+        runs_done += runs.len();
+        if !runs.is_empty() {
+            done.push(CellScores { r, c, runs });
         }
     }
+    let set_names: std::collections::BTreeSet<&str> = done
+        .iter()
+        .flat_map(|d| d.runs.iter().flat_map(|(_, sets)| sets.keys()))
+        .map(String::as_str)
+        .collect();
+    let scenes = testset::scenes_of_sets(&cfg.testset.dir, set_names.iter().copied())?;
+    let n_scenes = scenes.values().collect::<std::collections::BTreeSet<_>>().len();
     let find = |r: usize, c: Option<usize>| done.iter().find(|d| d.r == r && d.c == c);
     let reference = cfg
         .cells()
@@ -566,52 +829,97 @@ pub fn write_table(cfg: &AblateConfig) -> Result<String> {
     let ref_scores = find(reference.0, reference.1);
     let ref_label = cell_label(cfg, reference.0, reference.1);
     let pct = cfg.eval.level * 100.0;
+    let seeded = !cfg.seeds.is_empty();
 
     let mut csv = String::from(
-        "row,column,metric,n,mean,ci_lo,ci_hi,diff_vs_reference,diff_ci_lo,diff_ci_hi\n",
+        "row,column,metric,n,mean,ci_lo,ci_hi,diff_vs_reference,diff_ci_lo,diff_ci_hi,\
+         n_seeds,n_scenes,seeds_positive,diff_n_seeds\n",
     );
+    let mut seeds_csv = String::from("row,column,seed,metric,n_scenes,mean,diff_vs_reference\n");
     // (metric, r, c) → "mean [lo, hi]" and paired difference.
     let mut cell_text: BTreeMap<(usize, usize, Option<usize>), (String, String)> = BTreeMap::new();
     for d in &done {
+        let row_name = report::csv_field(&cfg.rows[d.r].name);
+        let col_name = report::csv_field(d.c.map(|c| cfg.columns[c].name.as_str()).unwrap_or(""));
         for (mi, (metric, _)) in TABLE_METRICS.iter().enumerate() {
             let k = metric_index(metric);
-            let values: Vec<f64> = d.sets.values().map(|v| v[k]).collect();
-            let (n, m, lo, hi) = stat(cfg, &values);
-            // Paired over the sets both cells scored: the same scenes, so scene difficulty
-            // cancels and the interval is much tighter than the two means' intervals.
+            let rows: Vec<(Option<u64>, BTreeMap<&str, f64>)> = d
+                .runs
+                .iter()
+                .map(|(s, sets)| (*s, sets.iter().map(|(n, v)| (n.as_str(), v[k])).collect()))
+                .collect();
+            let st = crossed_stat(cfg, &rows, &scenes);
+            // Paired within seed, scene and set: the same scenes and the same seed's data
+            // stream, so scene difficulty and seed luck cancel and the interval is much tighter
+            // than the two means' intervals.
             let diff = ref_scores
                 .filter(|rs| !(rs.r == d.r && rs.c == d.c))
                 .map(|rs| {
-                    let diffs: Vec<f64> = d
-                        .sets
-                        .iter()
-                        .filter_map(|(s, v)| rs.sets.get(s).map(|w| v[k] - w[k]))
+                    let rows: Vec<(Option<u64>, BTreeMap<&str, f64>)> = pair_runs(d, rs)
+                        .into_iter()
+                        .map(|(s, v, w)| {
+                            let diffs = v
+                                .iter()
+                                .filter_map(|(n, a)| w.get(n).map(|b| (n.as_str(), a[k] - b[k])))
+                                .collect();
+                            (s, diffs)
+                        })
                         .collect();
-                    stat(cfg, &diffs)
+                    crossed_stat(cfg, &rows, &scenes)
                 });
+            let opt = |f: &dyn Fn(&Stat) -> String| diff.as_ref().map(f).unwrap_or_default();
             let _ = writeln!(
                 csv,
-                "{},{},{},{n},{m},{lo},{hi},{},{},{}",
-                report::csv_field(&cfg.rows[d.r].name),
-                report::csv_field(d.c.map(|c| cfg.columns[c].name.as_str()).unwrap_or("")),
-                metric,
-                diff.map(|x| x.1.to_string()).unwrap_or_default(),
-                diff.map(|x| x.2.to_string()).unwrap_or_default(),
-                diff.map(|x| x.3.to_string()).unwrap_or_default(),
+                "{row_name},{col_name},{metric},{},{},{},{},{},{},{},{},{},{},{}",
+                st.n_sets,
+                st.mean,
+                st.lo,
+                st.hi,
+                opt(&|x| x.mean.to_string()),
+                opt(&|x| x.lo.to_string()),
+                opt(&|x| x.hi.to_string()),
+                st.n_seeds,
+                st.n_scenes,
+                opt(&|x| x.seeds_positive().to_string()),
+                opt(&|x| x.n_seeds.to_string()),
             );
+            if seeded {
+                // Every seed's number; a run that serves every seed is repeated for each.
+                for &seed in &cfg.seeds {
+                    let at = |x: &Stat| {
+                        x.per_seed
+                            .iter()
+                            .find(|(s, _)| s.is_none() || *s == Some(seed))
+                            .map(|(_, v)| *v)
+                    };
+                    let Some(v) = at(&st) else { continue };
+                    let dv = diff.as_ref().and_then(at);
+                    let _ = writeln!(
+                        seeds_csv,
+                        "{row_name},{col_name},{seed},{metric},{},{v},{}",
+                        st.n_scenes,
+                        dv.map(|x| x.to_string()).unwrap_or_default()
+                    );
+                }
+            }
             let mean_text = format!(
                 "{} [{}, {}]",
-                fmt(metric, m),
-                fmt(metric, lo),
-                fmt(metric, hi)
+                fmt(metric, st.mean),
+                fmt(metric, st.lo),
+                fmt(metric, st.hi)
             );
-            let diff_text = match diff {
-                Some((_, dm, dlo, dhi)) => format!(
-                    "{:+} [{:+}, {:+}]{}",
-                    Signed(metric, dm),
-                    Signed(metric, dlo),
-                    Signed(metric, dhi),
-                    if dlo > 0.0 || dhi < 0.0 { " *" } else { "" }
+            let diff_text = match &diff {
+                Some(x) => format!(
+                    "{:+} [{:+}, {:+}]{}{}",
+                    Signed(metric, x.mean),
+                    Signed(metric, x.lo),
+                    Signed(metric, x.hi),
+                    if x.lo > 0.0 || x.hi < 0.0 { " *" } else { "" },
+                    if seeded {
+                        format!(" ({}/{})", x.sign_holds(), x.n_seeds)
+                    } else {
+                        String::new()
+                    }
                 ),
                 None => "(reference)".into(),
             };
@@ -619,17 +927,36 @@ pub fn write_table(cfg: &AblateConfig) -> Result<String> {
         }
     }
 
-    let n_sets = done.first().map(|d| d.sets.len()).unwrap_or(0);
     let mut md = format!(
-        "# {}\n\nTest set: `{}` ({n_sets} sets). Each value: mean over the sets [{pct:.0} % \
-         bootstrap CI, {} resamples]. Δ: paired difference to **{ref_label}** over the same \
-         sets [{pct:.0} % CI]; * = the interval excludes 0. {} of {} cells finished.\n\n",
+        "# {}\n\nTest set: `{}` ({} sets of {n_scenes} scenes; the sets of one scene are one \
+         cluster).",
         cfg.title,
         cfg.testset.dir.display(),
-        cfg.eval.resamples,
-        done.len(),
-        cfg.cells().len()
+        set_names.len(),
     );
+    if seeded {
+        let list: Vec<String> = cfg.seeds.iter().map(u64::to_string).collect();
+        let _ = write!(
+            md,
+            " Training seeds: {} (every trained cell once per seed; a cell that does not train \
+             is evaluated once and serves every seed). Each value: mean over the seeds of the \
+             mean over the scenes [{pct:.0} % CI of a two-level bootstrap: seeds, then scenes; \
+             {} resamples]. Δ: difference to **{ref_label}** paired within seed, scene and set \
+             [{pct:.0} % CI, the same bootstrap]; * = the interval excludes 0; (k/n) = the \
+             seeds in which Δ has the sign of its mean. {runs_done} of {runs_total} runs \
+             finished.\n\n",
+            list.join(", "),
+            cfg.eval.resamples,
+        );
+    } else {
+        let _ = write!(
+            md,
+            " Each value: mean over the scenes [{pct:.0} % bootstrap CI resampling scenes, {} \
+             resamples]. Δ: paired difference to **{ref_label}** over the same sets [{pct:.0} % \
+             CI]; * = the interval excludes 0. {runs_done} of {runs_total} cells finished.\n\n",
+            cfg.eval.resamples,
+        );
+    }
     let missing = "(not run yet)".to_string();
     if cfg.columns.is_empty() {
         // Paper Tables 1–2: one row per method, the four metrics across.
@@ -702,6 +1029,9 @@ pub fn write_table(cfg: &AblateConfig) -> Result<String> {
     }
     write_atomic(&cfg.out.join(TABLE_MD), md.as_bytes())?;
     write_atomic(&cfg.out.join(TABLE_CSV), csv.as_bytes())?;
+    if seeded {
+        write_atomic(&cfg.out.join(TABLE_SEEDS_CSV), seeds_csv.as_bytes())?;
+    }
     Ok(md)
 }
 

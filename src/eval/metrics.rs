@@ -306,6 +306,70 @@ pub fn bootstrap_ci(values: &[f64], resamples: usize, seed: u64, level: f64) -> 
     )
 }
 
+/// Two-level percentile bootstrap of a grand mean over a crossed design: `values[s][c]` is the
+/// value of training seed `s` on test scene `c` (every row the same length). The estimate is the
+/// mean over seeds of the mean over scenes; resample `b` draws seeds with replacement, then scenes
+/// with replacement (one draw of scenes shared by all drawn seeds, because every seed was scored on
+/// the same scenes), both from `Rng::from_parts(seed, [b])`. A level with one member is not
+/// resampled, so one row gives exactly `bootstrap_ci` of that row. Resampling both levels counts
+/// the seed × scene interaction twice: the interval errs on the wide side. Returns
+/// `(mean, lo, hi)`; an empty table gives NaNs. Panics unless `0 < level < 1` and rows are equal.
+pub fn bootstrap_crossed(
+    values: &[Vec<f64>],
+    resamples: usize,
+    seed: u64,
+    level: f64,
+) -> (f64, f64, f64) {
+    assert!(
+        level > 0.0 && level < 1.0,
+        "bootstrap_crossed: level must be in (0, 1), got {level}"
+    );
+    let (ns, nc) = (values.len(), values.first().map_or(0, Vec::len));
+    assert!(
+        values.iter().all(|r| r.len() == nc),
+        "bootstrap_crossed: rows of unequal length"
+    );
+    if ns == 0 || nc == 0 {
+        return (f64::NAN, f64::NAN, f64::NAN);
+    }
+    let stat = |seeds: &[usize], scenes: &[usize]| {
+        seeds
+            .iter()
+            .map(|&s| scenes.iter().map(|&c| values[s][c]).sum::<f64>() / scenes.len() as f64)
+            .sum::<f64>()
+            / seeds.len() as f64
+    };
+    let all_seeds: Vec<usize> = (0..ns).collect();
+    let all_scenes: Vec<usize> = (0..nc).collect();
+    let mean = stat(&all_seeds, &all_scenes);
+    if ns * nc == 1 || resamples == 0 {
+        return (mean, mean, mean);
+    }
+    let draw = |rng: &mut Rng, n: usize| -> Vec<usize> {
+        if n == 1 {
+            vec![0]
+        } else {
+            (0..n).map(|_| rng.int(0, n - 1)).collect()
+        }
+    };
+    let mut means: Vec<f64> = (0..resamples as u64)
+        .into_par_iter()
+        .map(|b| {
+            let mut rng = Rng::from_parts(seed, &[b]);
+            let seeds = draw(&mut rng, ns);
+            let scenes = draw(&mut rng, nc);
+            stat(&seeds, &scenes)
+        })
+        .collect();
+    means.sort_by(f64::total_cmp);
+    let alpha = (1.0 - level) / 2.0;
+    (
+        mean,
+        percentile_sorted(&means, alpha),
+        percentile_sorted(&means, 1.0 - alpha),
+    )
+}
+
 /// numpy's default ('linear') percentile of sorted data, `q` in [0, 1].
 fn percentile_sorted(sorted: &[f64], q: f64) -> f64 {
     let pos = q * (sorted.len() - 1) as f64;
