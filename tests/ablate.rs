@@ -7,12 +7,16 @@
 
 mod common;
 
+use burn::module::{Module, ModuleVisitor, Param};
+use burn::tensor::{Device, Tensor};
 use hdrsynth::eval::ablate::{self, AblateConfig, CellStatus};
 use hdrsynth::eval::metrics::{bootstrap_ci, bootstrap_crossed};
 use hdrsynth::io::{ExrPrecision, Image, write_exr};
 use hdrsynth::sensor::profile::SensorProfile;
-use hdrsynth::train::TrainOptions;
+use hdrsynth::train::checkpoint;
+use hdrsynth::train::config::ModelConfig;
 use hdrsynth::train::config::TrainConfig;
+use hdrsynth::train::{TrainOptions, seeded_init};
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -261,7 +265,13 @@ fn csv_rows(path: &Path) -> Vec<BTreeMap<String, String>> {
         .map(String::from)
         .collect();
     lines
-        .map(|l| header.iter().cloned().zip(l.split(',').map(String::from)).collect())
+        .map(|l| {
+            header
+                .iter()
+                .cloned()
+                .zip(l.split(',').map(String::from))
+                .collect()
+        })
         .collect()
 }
 
@@ -275,16 +285,17 @@ fn find_row<'a>(
 }
 
 fn num(row: &BTreeMap<String, String>, key: &str) -> f64 {
-    row[key].parse().unwrap_or_else(|_| panic!("{key} = '{}'", row[key]))
+    row[key]
+        .parse()
+        .unwrap_or_else(|_| panic!("{key} = '{}'", row[key]))
 }
 
 /// A cell evaluation's per-set scores as `hdrsynth eval` writes them; `psnr_t` is `v`, every
 /// other metric `v / 100`.
 fn write_scores(eval: &Path, sets: &[(&str, f64)]) {
     std::fs::create_dir_all(eval).expect("mkdir");
-    let mut csv = String::from(
-        "set,psnr_l,psnr_t,ssim_l,ssim_t,pu21_psnr,pu21_ssim,width,height,seconds\n",
-    );
+    let mut csv =
+        String::from("set,psnr_l,psnr_t,ssim_l,ssim_t,pu21_psnr,pu21_ssim,width,height,seconds\n");
     for (set, v) in sets {
         let o = v / 100.0;
         csv.push_str(&format!("{set},{o},{v},{o},{o},{o},{o},8,8,0\n"));
@@ -329,17 +340,36 @@ fn the_interval_resamples_scenes_so_a_scene_seen_twice_counts_once() {
             csv_rows(&tmp.path().join("grid/table.csv"))
         })
         .collect();
-    for key in ["mean", "ci_lo", "ci_hi", "diff_vs_reference", "diff_ci_lo", "diff_ci_hi"] {
-        let twice = num(find_row(&tables[0], &[("row", "b"), ("metric", "psnr_t")]), key);
-        let once = num(find_row(&tables[1], &[("row", "b"), ("metric", "psnr_t")]), key);
-        assert_eq!(twice, once, "{key}: a scene's second identical set changed it");
+    for key in [
+        "mean",
+        "ci_lo",
+        "ci_hi",
+        "diff_vs_reference",
+        "diff_ci_lo",
+        "diff_ci_hi",
+    ] {
+        let twice = num(
+            find_row(&tables[0], &[("row", "b"), ("metric", "psnr_t")]),
+            key,
+        );
+        let once = num(
+            find_row(&tables[1], &[("row", "b"), ("metric", "psnr_t")]),
+            key,
+        );
+        assert_eq!(
+            twice, once,
+            "{key}: a scene's second identical set changed it"
+        );
     }
     let b = find_row(&tables[0], &[("row", "b"), ("metric", "psnr_t")]);
     assert_eq!((b["n"].as_str(), b["n_scenes"].as_str()), ("4", "3"));
     // The interval is the ordinary bootstrap of the three scene means (metrics' own function,
     // the same resample seeds), and the mean is the hand-computed mean of the scene means.
     let (m, lo, hi) = bootstrap_ci(&[31.0, 24.5, 38.0], 400, 7, 0.95);
-    assert_eq!((num(b, "mean"), num(b, "ci_lo"), num(b, "ci_hi")), (m, lo, hi));
+    assert_eq!(
+        (num(b, "mean"), num(b, "ci_lo"), num(b, "ci_hi")),
+        (m, lo, hi)
+    );
     assert!((m - 93.5 / 3.0).abs() < 1e-12);
     assert!(
         (num(b, "diff_vs_reference") - 4.5 / 3.0).abs() < 1e-12,
@@ -358,7 +388,14 @@ fn scenes_come_from_the_recipe_then_the_set_names_then_the_sets_themselves() {
          [[scenes]]\nname = \"lab\"\nfile = \"lab_iso100.exr\"\n",
     )
     .expect("recipe");
-    let sets = ["desk_iso100", "desk_iso800", "lab_iso100", "kitchen_iso3200", "001", "x_iso"];
+    let sets = [
+        "desk_iso100",
+        "desk_iso800",
+        "lab_iso100",
+        "kitchen_iso3200",
+        "001",
+        "x_iso",
+    ];
     let scenes = hdrsynth::data::testset::scenes_of_sets(tmp.path(), sets).expect("scenes");
     let got: Vec<&str> = sets.iter().map(|s| scenes[*s].as_str()).collect();
     assert_eq!(got, ["desk", "desk", "lab", "kitchen", "001", "x_iso"]);
@@ -387,7 +424,10 @@ fn the_two_level_bootstrap_matches_hand_computed_intervals() {
     );
     // Identical seeds: the mean of one seed, 18.5 / 5.
     let (m, lo, hi) = bootstrap_crossed(&[row.clone(), row.clone(), row], 500, 3, 0.9);
-    assert!((m - 3.7).abs() < 1e-12 && lo < m && m < hi, "{m} [{lo}, {hi}]");
+    assert!(
+        (m - 3.7).abs() < 1e-12 && lo < m && m < hi,
+        "{m} [{lo}, {hi}]"
+    );
 }
 
 #[test]
@@ -399,7 +439,12 @@ fn seeds_are_paired_counted_and_written_per_seed() {
         "[[rows]]\nname = \"net_o\"\ntrain = false\n[[rows]]\nname = \"net_s\"\n",
     );
     // Net_O: evaluated once. Net_S: per seed, every set scores Net_O + δ(seed).
-    let base = [("x_iso100", 30.0), ("x_iso800", 28.0), ("y_iso100", 20.0), ("y_iso800", 22.0)];
+    let base = [
+        ("x_iso100", 30.0),
+        ("x_iso800", 28.0),
+        ("y_iso100", 20.0),
+        ("y_iso800", 22.0),
+    ];
     write_scores(&cfg.cell_dir(0, None).join("eval"), &base);
     for (seed, delta) in [(1, 1.0), (2, 2.0), (3, -0.5)] {
         let sets: Vec<(&str, f64)> = base.iter().map(|(s, v)| (*s, v + delta)).collect();
@@ -414,22 +459,41 @@ fn seeds_are_paired_counted_and_written_per_seed() {
     assert!((num(s, "diff_vs_reference") - 2.5 / 3.0).abs() < 1e-12);
     assert_eq!(s["seeds_positive"], "2");
     assert_eq!(
-        (s["n_seeds"].as_str(), s["n_scenes"].as_str(), s["diff_n_seeds"].as_str()),
+        (
+            s["n_seeds"].as_str(),
+            s["n_scenes"].as_str(),
+            s["diff_n_seeds"].as_str()
+        ),
         ("3", "2", "3")
     );
     let o = find_row(&t, &[("row", "net_o"), ("metric", "psnr_t")]);
-    assert_eq!((o["n_seeds"].as_str(), o["seeds_positive"].as_str()), ("1", ""));
-    assert!(md.contains("(2/3)"), "the sign holds in 2 of 3 seeds:\n{md}");
+    assert_eq!(
+        (o["n_seeds"].as_str(), o["seeds_positive"].as_str()),
+        ("1", "")
+    );
+    assert!(
+        md.contains("(2/3)"),
+        "the sign holds in 2 of 3 seeds:\n{md}"
+    );
     // The difference is the same for every scene within a seed: only the seed level varies,
     // so the interval lies within the seeds' differences −0.5 … 2.
     assert!(num(s, "diff_ci_lo") >= -0.5 && num(s, "diff_ci_hi") <= 2.0);
-    assert!(num(s, "diff_ci_lo") < 0.0, "one seed of three goes the other way");
+    assert!(
+        num(s, "diff_ci_lo") < 0.0,
+        "one seed of three goes the other way"
+    );
 
     let ps = csv_rows(&tmp.path().join("grid/table_seeds.csv"));
     for (seed, mean, diff) in [("1", 26.0, 1.0), ("2", 27.0, 2.0), ("3", 24.5, -0.5)] {
-        let r = find_row(&ps, &[("row", "net_s"), ("seed", seed), ("metric", "psnr_t")]);
+        let r = find_row(
+            &ps,
+            &[("row", "net_s"), ("seed", seed), ("metric", "psnr_t")],
+        );
         assert_eq!((num(r, "mean"), num(r, "diff_vs_reference")), (mean, diff));
-        let r = find_row(&ps, &[("row", "net_o"), ("seed", seed), ("metric", "psnr_t")]);
+        let r = find_row(
+            &ps,
+            &[("row", "net_o"), ("seed", seed), ("metric", "psnr_t")],
+        );
         assert_eq!(num(r, "mean"), 25.0, "Net_O serves every seed");
     }
 }
@@ -444,7 +508,9 @@ fn a_grid_with_seeds_refuses_an_axis_that_sets_the_seed() {
          [[rows]]\nname = \"a\"\nset = { run = { seed = 5 } }\n",
     )
     .expect("write");
-    let msg = AblateConfig::load(&path).expect_err("seed twice").to_string();
+    let msg = AblateConfig::load(&path)
+        .expect_err("seed twice")
+        .to_string();
     assert!(msg.contains("g.toml") && msg.contains("run.seed"), "{msg}");
 }
 
@@ -498,7 +564,13 @@ fn a_two_seed_grid_trains_every_trained_cell_per_seed_and_a_control_on_the_pretr
     let ids: Vec<&str> = summary.cells.iter().map(|c| c.id.as_str()).collect();
     assert_eq!(
         ids,
-        ["net_o", "net_s/seed1", "net_s/seed2", "control/seed1", "control/seed2"]
+        [
+            "net_o",
+            "net_s/seed1",
+            "net_s/seed2",
+            "control/seed1",
+            "control/seed2"
+        ]
     );
     let grid = root.join("grid");
     let unit = |cell: &str, seed: u64| grid.join("cells").join(cell).join(format!("seed{seed}"));
@@ -510,10 +582,16 @@ fn a_two_seed_grid_trains_every_trained_cell_per_seed_and_a_control_on_the_pretr
     // counts the seeds whose mean beats Net_O's (evaluated once).
     let t = csv_rows(&grid.join("table.csv"));
     for m in ["psnr_t", "psnr_l", "ssim_t", "ssim_l"] {
-        let seeds = [summary_mean(&unit("net_s", 1), m), summary_mean(&unit("net_s", 2), m)];
+        let seeds = [
+            summary_mean(&unit("net_s", 1), m),
+            summary_mean(&unit("net_s", 2), m),
+        ];
         let net_o = summary_mean(&grid.join("cells/net_o"), m);
         let r = find_row(&t, &[("row", "net_s"), ("metric", m)]);
-        assert!((num(r, "mean") - (seeds[0] + seeds[1]) / 2.0).abs() < 1e-9, "{m}");
+        assert!(
+            (num(r, "mean") - (seeds[0] + seeds[1]) / 2.0).abs() < 1e-9,
+            "{m}"
+        );
         let positive = seeds.iter().filter(|&&s| s > net_o).count();
         assert_eq!(r["seeds_positive"], positive.to_string(), "{m}");
         assert_eq!((r["n_seeds"].as_str(), r["n_scenes"].as_str()), ("2", "2"));
@@ -542,8 +620,35 @@ fn a_two_seed_grid_trains_every_trained_cell_per_seed_and_a_control_on_the_pretr
     let hand: TrainConfig =
         hdrsynth::config::parse_toml(&hand_text, Path::new("hand.toml")).expect("hand config");
     hdrsynth::train::run(&hand, &TrainOptions::default()).expect("by hand");
-    let weights = |run: &Path| {
-        std::fs::read(run.join(format!("checkpoints/step-{STEPS:08}/model.bpk"))).expect("bpk")
+    let (a, b) = (final_weights(&control_run), final_weights(&by_hand));
+    assert_eq!(a.len(), b.len());
+    for (i, (x, y)) in a.iter().zip(&b).enumerate() {
+        assert!(
+            x.iter().zip(y).all(|(p, q)| p.to_bits() == q.to_bits()),
+            "parameter {i}: the control differs from the hand-made run of its recipe"
+        );
+    }
+}
+
+/// Every float parameter of a run's final Network-1 checkpoint (checkpoint files hold parameter
+/// ids that differ between runs, so the weights are compared, not the bytes).
+fn final_weights(run: &Path) -> Vec<Vec<f32>> {
+    let dir = checkpoint::resolve(run).expect("checkpoint");
+    let ModelConfig::BlendUnet(cfg) = checkpoint::read_state(&dir).expect("state").model else {
+        panic!("a Network-1 checkpoint expected");
     };
-    assert!(weights(&control_run) == weights(&by_hand), "control ≠ the hand-made recipe");
+    let dev = Device::flex();
+    let model =
+        checkpoint::load_model(seeded_init(&dev, 0, || cfg.init(&dev)).expect("init"), &dir)
+            .expect("load");
+    struct V(Vec<Vec<f32>>);
+    impl ModuleVisitor for V {
+        fn visit_float<const D: usize>(&mut self, p: &Param<Tensor<D>>) {
+            self.0
+                .push(p.val().into_data().try_to_vec::<f32>().expect("f32"));
+        }
+    }
+    let mut v = V(Vec::new());
+    model.visit(&mut v);
+    v.0
 }

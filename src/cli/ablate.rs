@@ -54,7 +54,11 @@ pub fn report(cfg: &AblateConfig, s: &AblateSummary) -> String {
         } else {
             format!(", {}", ablate::TABLE_SEEDS_CSV)
         },
-        if cfg.seeds.is_empty() { "" } else { "[seed<k>/]" },
+        if cfg.seeds.is_empty() {
+            ""
+        } else {
+            "[seed<k>/]"
+        },
     );
     out
 }

@@ -734,12 +734,7 @@ fn crossed_stat(
     });
     let matrix: Vec<Vec<f64>> = per_row
         .iter()
-        .map(|r| {
-            common
-                .iter()
-                .map(|k| r[k].0 / r[k].1 as f64)
-                .collect()
-        })
+        .map(|r| common.iter().map(|k| r[k].0 / r[k].1 as f64).collect())
         .collect();
     let n_sets = per_row
         .first()
@@ -772,11 +767,7 @@ fn pair_runs<'a>(
     let single = |x: &CellScores| x.runs.len() == 1 && x.runs[0].0.is_none();
     match (single(d), single(rs)) {
         (true, true) => vec![(None, &d.runs[0].1, &rs.runs[0].1)],
-        (true, false) => rs
-            .runs
-            .iter()
-            .map(|(s, w)| (*s, &d.runs[0].1, w))
-            .collect(),
+        (true, false) => rs.runs.iter().map(|(s, w)| (*s, &d.runs[0].1, w)).collect(),
         (false, true) => d.runs.iter().map(|(s, v)| (*s, v, &rs.runs[0].1)).collect(),
         (false, false) => d
             .runs
@@ -819,7 +810,10 @@ pub fn write_table(cfg: &AblateConfig) -> Result<String> {
         .map(String::as_str)
         .collect();
     let scenes = testset::scenes_of_sets(&cfg.testset.dir, set_names.iter().copied())?;
-    let n_scenes = scenes.values().collect::<std::collections::BTreeSet<_>>().len();
+    let n_scenes = scenes
+        .values()
+        .collect::<std::collections::BTreeSet<_>>()
+        .len();
     let find = |r: usize, c: Option<usize>| done.iter().find(|d| d.r == r && d.c == c);
     let reference = cfg
         .cells()
