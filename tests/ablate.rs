@@ -419,7 +419,7 @@ fn the_two_level_bootstrap_matches_hand_computed_intervals() {
     // One seed: exactly the one-level bootstrap of the scenes.
     let row = vec![3.0, 1.0, 4.0, 1.5, 9.0];
     assert_eq!(
-        bootstrap_crossed(&[row.clone()], 500, 3, 0.9),
+        bootstrap_crossed(std::slice::from_ref(&row), 500, 3, 0.9),
         bootstrap_ci(&row, 500, 3, 0.9)
     );
     // Identical seeds: the mean of one seed, 18.5 / 5.

@@ -667,12 +667,15 @@ fn fmt(metric: &str, v: f64) -> String {
     }
 }
 
+/// Per-set values of the six metrics (`report::METRICS` order), by set name.
+type SetScores = BTreeMap<String, [f64; 6]>;
+
 /// A finished cell's scores: one per-set table per finished run, in the grid's seed order.
 /// Seed `None`: a run that serves every seed (no `seeds`, or a cell that does not train).
 struct CellScores {
     r: usize,
     c: Option<usize>,
-    runs: Vec<(Option<u64>, BTreeMap<String, [f64; 6]>)>,
+    runs: Vec<(Option<u64>, SetScores)>,
 }
 
 /// One quantity (a cell's metric, or its difference to the reference) over seeds and scenes.
@@ -755,8 +758,6 @@ fn crossed_stat(
             .collect(),
     }
 }
-
-type SetScores = BTreeMap<String, [f64; 6]>;
 
 /// The runs of a cell paired with the reference's: by seed, and a run that serves every seed
 /// (a cell that does not train) pairs with each of the other's seeds.
