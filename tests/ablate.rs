@@ -232,8 +232,8 @@ fn a_grid_config_with_a_bad_axis_name_is_an_error_naming_the_file() {
 fn the_shipped_experiment_configs_parse_and_resolve_their_cells() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     for (file, cells, training) in [
-        ("exp1_network1.toml", 3, 2),
-        ("exp2_network2.toml", 2, 1),
+        ("exp1_network1.toml", 3, 2 * 3),
+        ("exp2_network2.toml", 2, 3),
         ("exp3_network2_colour_iso.toml", 6, 6),
     ] {
         let path = root.join("configs/experiments").join(file);
