@@ -652,3 +652,41 @@ fn final_weights(run: &Path) -> Vec<Vec<f32>> {
     model.visit(&mut v);
     v.0
 }
+
+#[test]
+fn a_control_cell_without_a_pretrained_run_is_an_error_naming_the_file() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let root = tmp.path();
+    let grid = |base: &Path| {
+        let path = root.join("grid.toml");
+        std::fs::write(
+            &path,
+            format!(
+                "title = \"t\"\nout = \"o\"\nbase = {base:?}\n[testset]\ndir = \"ts\"\n\
+                 [[rows]]\nname = \"control\"\nkind = \"control\"\n"
+            ),
+        )
+        .expect("grid");
+        let cfg = AblateConfig::load(&path).expect("config");
+        ablate::train_configs(&cfg, &path)
+            .expect_err("no pretrained run")
+            .to_string()
+    };
+    // No [init] checkpoint in the base: the control has nothing to continue.
+    let base = root.join("base.toml");
+    std::fs::write(&base, train_toml(Path::new("r"), Path::new("d"), 4, None)).expect("base");
+    let msg = grid(&base);
+    assert!(msg.contains("base.toml") && msg.contains("[init]"), "{msg}");
+    // An [init] checkpoint whose run has no config.toml: named.
+    let missing = root.join("not_a_run");
+    std::fs::write(
+        &base,
+        train_toml(Path::new("r"), Path::new("d"), 4, Some(&missing)),
+    )
+    .expect("base");
+    let msg = grid(&base);
+    assert!(
+        msg.contains("control") && msg.contains("not_a_run/config.toml"),
+        "{msg}"
+    );
+}
