@@ -14,8 +14,8 @@ use hdrsynth::sensor::captures::{
     Burst, BurstKind, CaptureManifest, CaptureSet, MANIFEST_NAME, SensorInfo, chart_patch_rects,
     write_capture_set,
 };
-use hdrsynth::sensor::noise::{CalibrateOptions, NoiseCalibration, calibrate, ptc_plot_size};
 use hdrsynth::sensor::darktable::NegativeRule;
+use hdrsynth::sensor::noise::{CalibrateOptions, NoiseCalibration, calibrate, ptc_plot_size};
 use hdrsynth::sensor::profile::{ProfileKind, SensorProfile};
 use std::path::{Path, PathBuf};
 
@@ -751,7 +751,11 @@ fn darktable_import_reproduces_the_csv() {
     assert_eq!(replaced, 15);
     assert!(p.noise[7].a[2] < 0.0);
     assert_eq!(p.provenance.noise.matches("(b_R at ISO 100)").count(), 5);
-    assert!(p.provenance.noise.contains("a_B = -2.77604100359821e-5 (line 767) kept"));
+    assert!(
+        p.provenance
+            .noise
+            .contains("a_B = -2.77604100359821e-5 (line 767) kept")
+    );
 
     // Nikon D40: two sets, no negative values: every number copied exactly (set 2 here).
     let out = tmp.path().join("d40.toml");

@@ -53,7 +53,10 @@ fn shadow_variance(p: &SensorProfile) -> (f64, f64) {
     let v: Vec<f64> = dn.data.iter().step_by(3).map(|&x| x as f64).collect();
     let n = v.len() as f64;
     let m = v.iter().sum::<f64>() / n;
-    (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0), n)
+    (
+        v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0),
+        n,
+    )
 }
 
 #[test]
@@ -88,7 +91,12 @@ fn quantisation_floor_without_a_lower_positive_b() {
     let tmp = tempfile::tempdir().unwrap();
     // Only the ISO 200 row: nothing lower, so b = 1/(12·12944²) = 4.9737e-10.
     let csv = tmp.path().join("dt.csv");
-    let one: String = CSV.lines().enumerate().filter(|(i, _)| *i != 1).map(|(_, l)| format!("{l}\n")).collect();
+    let one: String = CSV
+        .lines()
+        .enumerate()
+        .filter(|(i, _)| *i != 1)
+        .map(|(_, l)| format!("{l}\n"))
+        .collect();
     std::fs::write(&csv, one).unwrap();
     let out = tmp.path().join("p.toml");
     let p = darktable::import(&ImportRequest {
@@ -137,16 +145,32 @@ fn noise_table_matches_hand_computed_values() {
     for (iso, s1, s10) in want {
         let row = t.iter().find(|r| r.iso == iso).unwrap();
         for c in 0..3 {
-            assert!((row.sigma[0][c] - s1).abs() < 1e-9, "ISO {iso} 1 %: {:?}", row.sigma);
-            assert!((row.sigma[1][c] - s10).abs() < 1e-9, "ISO {iso} 10 %: {:?}", row.sigma);
+            assert!(
+                (row.sigma[0][c] - s1).abs() < 1e-9,
+                "ISO {iso} 1 %: {:?}",
+                row.sigma
+            );
+            assert!(
+                (row.sigma[1][c] - s10).abs() < 1e-9,
+                "ISO {iso} 10 %: {:?}",
+                row.sigma
+            );
         }
     }
     // Every shipped ISO has noise at 1 % of white after the floor rule.
     for r in &t {
-        assert!(r.sigma[0].iter().all(|s| *s > 0.1), "ISO {}: {:?}", r.iso, r.sigma);
+        assert!(
+            r.sigma[0].iter().all(|s| *s > 0.1),
+            "ISO {}: {:?}",
+            r.iso,
+            r.sigma
+        );
     }
     let md = p.noise_table_markdown(&[0.01, 0.1]).unwrap();
-    assert!(md.contains("| 100 | 0.74, 0.74, 0.74 | 0.31, 0.31, 0.31 |"), "{md}");
+    assert!(
+        md.contains("| 100 | 0.74, 0.74, 0.74 | 0.31, 0.31, 0.31 |"),
+        "{md}"
+    );
     assert!(md.contains("(measured)"));
     assert!(p.noise_table(&[0.0], 255.0).is_err());
 }

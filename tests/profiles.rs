@@ -142,11 +142,19 @@ fn composite_phone_profile_is_what_it_says() {
     assert_eq!(n.iso, 100.0);
     assert_eq!(
         n.a,
-        [1.68690377957501e-05, 6.39109629566731e-06, 1.35016334361645e-05]
+        [
+            1.68690377957501e-05,
+            6.39109629566731e-06,
+            1.35016334361645e-05
+        ]
     );
     assert_eq!(
         n.b,
-        [3.29939136747073e-08, 1.76344998034154e-08, 3.56168148499628e-08]
+        [
+            3.29939136747073e-08,
+            1.76344998034154e-08,
+            3.56168148499628e-08
+        ]
     );
     assert_eq!(
         p.noise.iter().map(|n| n.iso).collect::<Vec<_>>(),
@@ -176,12 +184,20 @@ fn composite_phone_profile_is_what_it_says() {
     assert!(p.provenance.colour.contains("Galaxy S9"));
     assert!(p.provenance.colour.contains("13292,-6142,-1268"));
     assert_eq!(
-        (p.levels.black_level, p.levels.white_level, p.levels.bit_depth),
+        (
+            p.levels.black_level,
+            p.levels.white_level,
+            p.levels.bit_depth
+        ),
         (64.0, 1023.0, 10)
     );
     assert!(p.provenance.response.contains("assumption"));
     // Relative to full scale, the phone is noisier than the DSLR at the same ISO (darktable,
     // ISO 100: OnePlus 6 a_G 6.4e-6 vs Canon 550D 3.4e-6).
-    let canon = &all.iter().find(|(f, _)| f == "canon_eos_550d.toml").unwrap().1;
+    let canon = &all
+        .iter()
+        .find(|(f, _)| f == "canon_eos_550d.toml")
+        .unwrap()
+        .1;
     assert!(n.a[1] > canon.noise[0].a[1]);
 }

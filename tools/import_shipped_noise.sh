@@ -27,3 +27,5 @@ imp --maker OnePlus --model "ONEPLUS A6003" --black 64 --white 1023 --bits 10 --
 "$BIN" profile colour-from-matrix --matrix 13292,-6142,-1268,-4095,12890,1283,-557,1930,5163 \
   --source 'Adobe DNG Converter ColorMatrix for Samsung Galaxy S9 / S9+ (XYZ D65 → camera) as tabulated in LibRaw src/tables/colordata.cpp (LibRaw/LibRaw @ 158e635e, adobe_coeff entry "Galaxy S9"; the same matrix is listed for "Galaxy Note 9 Rear Camera")' \
   --out "$PHONE"
+# provenance.response ("assumption, not measured: ... sRGB ...") and provenance.notes of the
+# composite profile were written by hand after its creation; re-imports keep them.

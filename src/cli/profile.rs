@@ -97,11 +97,8 @@ pub fn run(cmd: &ProfileCommand) -> anyhow::Result<String> {
         ProfileCommand::ImportDarktable(args) => import_darktable(args),
         ProfileCommand::ColourFromMatrix(args) => colour_from_matrix(args),
         ProfileCommand::NoiseTable(args) => {
-            let fractions = crate::sensor::colour::parse_floats(
-                &args.at,
-                args.at.split(',').count(),
-                "--at",
-            )?;
+            let fractions =
+                crate::sensor::colour::parse_floats(&args.at, args.at.split(',').count(), "--at")?;
             let p = SensorProfile::load(&args.profile)?;
             Ok(p.noise_table_markdown(&fractions)?)
         }

@@ -352,7 +352,12 @@ pub fn quantisation_floor(levels: &Levels) -> f64 {
 /// g²·σ²_pre + σ²_post with the analogue gain g rising with ISO, so it cannot fall as ISO rises
 /// and a b measured at a lower ISO is a lower bound; no digitised signal has less than the
 /// ADC's rounding noise. Returns the value and, where it came from a lower ISO, that ISO.
-pub fn read_noise_floor(rows: &[DarktableRow], i: usize, c: usize, levels: &Levels) -> (f64, Option<f64>) {
+pub fn read_noise_floor(
+    rows: &[DarktableRow],
+    i: usize,
+    c: usize,
+    levels: &Levels,
+) -> (f64, Option<f64>) {
     let q = quantisation_floor(levels);
     let lower = rows[..i]
         .iter()
@@ -369,14 +374,20 @@ const CH: [&str; 3] = ["R", "G", "B"];
 /// The selection as profile noise entries under `rule`, with one note per negative value
 /// (what it was, its CSV line, and what was written instead). `levels` give the quantisation
 /// floor of the raw ADC.
-pub fn to_noise(sel: &Selection, rule: NegativeRule, levels: &Levels) -> (Vec<NoiseAtIso>, Vec<String>) {
+pub fn to_noise(
+    sel: &Selection,
+    rule: NegativeRule,
+    levels: &Levels,
+) -> (Vec<NoiseAtIso>, Vec<String>) {
     let mut notes = Vec::new();
     let mut noise = Vec::new();
     for (i, r) in sel.rows.iter().enumerate() {
         let mut a = r.a;
         let mut b = r.b;
         for c in 0..3 {
-            let at = |name: &str, v: f64| format!("ISO {} {name}_{} = {v:e} (line {})", r.iso, CH[c], r.line);
+            let at = |name: &str, v: f64| {
+                format!("ISO {} {name}_{} = {v:e} (line {})", r.iso, CH[c], r.line)
+            };
             if r.a[c] < 0.0 {
                 match rule {
                     NegativeRule::Zero => {
