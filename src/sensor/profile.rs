@@ -282,7 +282,8 @@ impl SensorProfile {
         }
         for n in &self.noise {
             // Negative a or b occur in real published fits (darktable has 1,155 such rows);
-            // they are kept verbatim and the realism operator clamps the variance at 0.
+            // a profile may hold them (the import's read-noise floor replaces negative b by
+            // default) and the realism operator clamps the variance at 0.
             if n.iso.is_nan() || n.iso <= 0.0 || n.a.iter().chain(&n.b).any(|v| !v.is_finite()) {
                 return Err(format!(
                     "noise at ISO {}: iso > 0 and finite a, b required",
