@@ -14,8 +14,9 @@ use hdrsynth::sensor::captures::{
     Burst, BurstKind, CaptureManifest, CaptureSet, MANIFEST_NAME, SensorInfo, chart_patch_rects,
     write_capture_set,
 };
+use hdrsynth::sensor::darktable::NegativeRule;
 use hdrsynth::sensor::noise::{CalibrateOptions, NoiseCalibration, calibrate, ptc_plot_size};
-use hdrsynth::sensor::profile::SensorProfile;
+use hdrsynth::sensor::profile::{ProfileKind, SensorProfile};
 use std::path::{Path, PathBuf};
 
 const W: f64 = 4095.0;
@@ -615,7 +616,8 @@ fn import_args(csv: &Path, maker: &str, model: &str, out: &Path) -> ImportArgs {
         levels_source: "test levels".into(),
         out: out.to_path_buf(),
         name: None,
-        clamp_negative: false,
+        kind: ProfileKind::Measured,
+        negative: NegativeRule::Floor,
     }
 }
 
@@ -645,8 +647,10 @@ fn darktable_import_reproduces_the_csv() {
             .contains("--set 3 does not exist")
     );
     assert!(!out.exists());
-    // Set 1 has negative b (ISO 200–3200): copied verbatim by default.
+    // Set 1 has negative b (ISO 200–3200) and a negative a_B at 12800: copied verbatim on
+    // request.
     args.set = Some(1);
+    args.negative = NegativeRule::Verbatim;
     import(&args).expect("verbatim import");
     let rows = csv_rows(&csv, "Canon", "EOS 550D");
     let verbatim = SensorProfile::load(&out).unwrap();
@@ -659,8 +663,8 @@ fn darktable_import_reproduces_the_csv() {
     assert!(negatives > 0);
     assert!(verbatim.provenance.noise.contains("kept verbatim"));
     std::fs::remove_file(&out).unwrap();
-    // With --clamp-negative they become 0.
-    args.clamp_negative = true;
+    // With --negative zero they become 0.
+    args.negative = NegativeRule::Zero;
     let report = import(&args).unwrap();
     println!("{report}");
     let mut first: Vec<_> = Vec::new();
@@ -691,7 +695,7 @@ fn darktable_import_reproduces_the_csv() {
         }
     }
     assert!(clamped > 0);
-    assert_eq!(p.provenance.noise.matches("clamped").count(), 1);
+    assert_eq!(p.provenance.noise.matches("written as 0").count(), 1);
     assert_eq!(
         p.provenance.noise.matches(" = -").count(),
         clamped,
@@ -719,6 +723,39 @@ fn darktable_import_reproduces_the_csv() {
     );
     assert_eq!(p.name, "Canon EOS 550D");
     assert!(p.colour.is_none());
+
+    // Default (--negative floor): each negative b becomes the largest positive b of the same
+    // channel at a lower ISO (here ISO 100's b for ISO 200–3200: read noise referred to the raw
+    // output cannot fall as the gain rises); the negative a_B at ISO 12800 stays; the rest is
+    // copied exactly.
+    std::fs::remove_file(&out).unwrap();
+    args.negative = NegativeRule::Floor;
+    import(&args).unwrap();
+    let p = SensorProfile::load(&out).unwrap();
+    let b100 = first[0].2;
+    assert_eq!(first[0].0, 100.0);
+    assert!(b100.iter().all(|v| *v > 0.0));
+    let mut replaced = 0;
+    for (n, r) in p.noise.iter().zip(&first) {
+        assert_eq!(n.a, r.1, "ISO {}: a copied exactly (negative a kept)", r.0);
+        for ((got, csv_b), floor) in n.b.iter().zip(r.2).zip(b100) {
+            if csv_b < 0.0 {
+                assert!((200.0..=3200.0).contains(&r.0));
+                assert_eq!(*got, floor, "ISO {} b", r.0);
+                replaced += 1;
+            } else {
+                assert_eq!(*got, csv_b);
+            }
+        }
+    }
+    assert_eq!(replaced, 15);
+    assert!(p.noise[7].a[2] < 0.0);
+    assert_eq!(p.provenance.noise.matches("(b_R at ISO 100)").count(), 5);
+    assert!(
+        p.provenance
+            .noise
+            .contains("a_B = -2.77604100359821e-5 (line 767) kept")
+    );
 
     // Nikon D40: two sets, no negative values: every number copied exactly (set 2 here).
     let out = tmp.path().join("d40.toml");

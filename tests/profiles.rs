@@ -56,7 +56,11 @@ fn shipped_profiles_are_valid_and_sourced() {
         "need ≥ 3 real devices, have {}",
         measured.len()
     );
-    for (file, p) in &measured {
+    let composite: Vec<_> = all
+        .iter()
+        .filter(|(_, p)| p.kind == ProfileKind::Composite)
+        .collect();
+    for (file, p) in measured.iter().chain(&composite) {
         assert!(p.colour.is_some(), "{file}: no colour calibration");
         assert!(!p.noise.is_empty(), "{file}: no noise calibration");
         for s in [
@@ -117,4 +121,83 @@ fn colour_ablation_profiles_differ_and_canon_fit_agrees_with_adobe() {
         "chart-fitted Canon T is {fit_vs_adobe:.2} ΔE00 from Adobe's"
     );
     assert!(pair > 2.5, "ablation pair differs by only {pair:.2} ΔE00");
+}
+
+/// The composite phone profile (issue 14 item 10): darktable's OnePlus 6 noise, the Galaxy S9's
+/// Adobe colour matrix, a 10-bit phone raw's levels; labelled composite, never measured.
+#[test]
+fn composite_phone_profile_is_what_it_says() {
+    let all = shipped();
+    let p = all
+        .iter()
+        .find(|(f, _)| f == "composite_phone.toml")
+        .map(|(_, p)| p)
+        .expect("configs/sensors/composite_phone.toml");
+    assert_eq!(p.kind, ProfileKind::Composite);
+    assert_eq!(p.kind.to_string(), "composite");
+    assert!(p.name.contains("Composite"), "{}", p.name);
+    // darktable noiseprofiles.json, "ONEPLUS A6003 iso 100" (a CSV line with b > 0: the
+    // read-noise floor changes nothing).
+    let n = &p.noise[0];
+    assert_eq!(n.iso, 100.0);
+    assert_eq!(
+        n.a,
+        [
+            1.68690377957501e-05,
+            6.39109629566731e-06,
+            1.35016334361645e-05
+        ]
+    );
+    assert_eq!(
+        n.b,
+        [
+            3.29939136747073e-08,
+            1.76344998034154e-08,
+            3.56168148499628e-08
+        ]
+    );
+    assert_eq!(
+        p.noise.iter().map(|n| n.iso).collect::<Vec<_>>(),
+        [100.0, 200.0, 400.0, 800.0, 1600.0, 3200.0, 6400.0]
+    );
+    assert!(p.provenance.noise.contains("ONEPLUS A6003"));
+    assert!(p.provenance.noise.contains("no negative values"));
+    // Galaxy S9 ColorMatrix (LibRaw colordata.cpp) ×1/10000 times sRGB→XYZ (IEC 61966-2-1,
+    // 4 decimals), rows scaled to sum 1, computed by hand (Python, 2026-11-24):
+    // row sums before scaling 0.5111194, 1.03948895, 0.70230785.
+    let want = [
+        [0.812209, 0.040952, 0.146838],
+        [0.103551, 0.760709, 0.135740],
+        [0.039905, 0.255811, 0.704284],
+    ];
+    let t = mat(p);
+    for r in 0..3 {
+        for c in 0..3 {
+            assert!(
+                (t[r][c] - want[r][c]).abs() < 1e-6,
+                "T[{r}][{c}] = {} vs {}",
+                t[r][c],
+                want[r][c]
+            );
+        }
+    }
+    assert!(p.provenance.colour.contains("Galaxy S9"));
+    assert!(p.provenance.colour.contains("13292,-6142,-1268"));
+    assert_eq!(
+        (
+            p.levels.black_level,
+            p.levels.white_level,
+            p.levels.bit_depth
+        ),
+        (64.0, 1023.0, 10)
+    );
+    assert!(p.provenance.response.contains("assumption"));
+    // Relative to full scale, the phone is noisier than the DSLR at the same ISO (darktable,
+    // ISO 100: OnePlus 6 a_G 6.4e-6 vs Canon 550D 3.4e-6).
+    let canon = &all
+        .iter()
+        .find(|(f, _)| f == "canon_eos_550d.toml")
+        .unwrap()
+        .1;
+    assert!(n.a[1] > canon.noise[0].a[1]);
 }

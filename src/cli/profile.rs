@@ -1,11 +1,10 @@
 //! `hdrsynth profile ...`: manage sensor profiles. `import-darktable` copies a camera's
 //! measured noise from darktable's noise profiles (flattened CSV) into a profile;
-//! `colour-from-matrix` sets T from a published XYZ→camera matrix (DNG ColorMatrix).
+//! `colour-from-matrix` sets T from a published XYZ→camera matrix (DNG ColorMatrix);
+//! `noise-table` prints the noise σ in output codes per ISO.
 
-use crate::sensor::darktable::{self, Query};
-use crate::sensor::noise::new_measured_profile;
-use crate::sensor::profile::{Levels, SensorProfile};
-use anyhow::Context as _;
+use crate::sensor::darktable::{self, ImportRequest, NegativeRule, Query};
+use crate::sensor::profile::{Levels, ProfileKind, SensorProfile};
 use std::path::PathBuf;
 
 #[derive(clap::Subcommand, Clone, Debug)]
@@ -16,6 +15,18 @@ pub enum ProfileCommand {
     /// Set an existing profile's colour transform T from a published XYZ→camera colour matrix
     /// (Adobe DNG ColorMatrix / dcraw adobe_coeff, D65), rows normalised to keep neutrals.
     ColourFromMatrix(MatrixArgs),
+    /// Print, per ISO, the noise σ in 8-bit output codes at given fractions of white (through
+    /// the profile's device response, first-order: σ_code = response'(x)·σ_x·255).
+    NoiseTable(NoiseTableArgs),
+}
+
+#[derive(clap::Args, Clone, Debug)]
+pub struct NoiseTableArgs {
+    /// Sensor profile (TOML).
+    pub profile: PathBuf,
+    /// Signal levels as fractions of white (above black), comma-separated.
+    #[arg(long, default_value = "0.01,0.1")]
+    pub at: String,
 }
 
 #[derive(clap::Args, Clone, Debug)]
@@ -70,15 +81,27 @@ pub struct ImportArgs {
     /// Name of a new profile (default "MAKER MODEL").
     #[arg(long)]
     pub name: Option<String>,
-    /// Write negative darktable values as 0 instead of verbatim (both are listed in provenance).
-    #[arg(long)]
-    pub clamp_negative: bool,
+    /// Kind of a new profile: `composite` when other parts (colour) will come from another
+    /// device.
+    #[arg(long, value_enum, default_value_t = ProfileKind::Measured)]
+    pub kind: ProfileKind,
+    /// Negative darktable values: `floor` replaces b < 0 by the read-noise floor (the largest
+    /// positive b of the channel at a lower ISO, at least the ADC quantisation noise) and keeps
+    /// a < 0; `verbatim` keeps all; `zero` writes them as 0. All are listed in provenance.
+    #[arg(long, value_enum, default_value_t = NegativeRule::Floor)]
+    pub negative: NegativeRule,
 }
 
 pub fn run(cmd: &ProfileCommand) -> anyhow::Result<String> {
     match cmd {
         ProfileCommand::ImportDarktable(args) => import_darktable(args),
         ProfileCommand::ColourFromMatrix(args) => colour_from_matrix(args),
+        ProfileCommand::NoiseTable(args) => {
+            let fractions =
+                crate::sensor::colour::parse_floats(&args.at, args.at.split(',').count(), "--at")?;
+            let p = SensorProfile::load(&args.profile)?;
+            Ok(p.noise_table_markdown(&fractions)?)
+        }
     }
 }
 
@@ -118,50 +141,32 @@ fn colour_from_matrix(args: &MatrixArgs) -> anyhow::Result<String> {
 }
 
 fn import_darktable(args: &ImportArgs) -> anyhow::Result<String> {
-    if args.levels_source.trim().is_empty() {
-        anyhow::bail!("--levels-source must say where the black/white levels come from");
-    }
-    let rows = darktable::read_csv(&args.csv)?;
-    let q = Query {
-        maker: args.maker.clone(),
-        model: args.model.clone(),
-        profile_name: args.profile_name.clone(),
-        set: args.set,
+    let req = ImportRequest {
+        csv: args.csv.clone(),
+        query: Query {
+            maker: args.maker.clone(),
+            model: args.model.clone(),
+            profile_name: args.profile_name.clone(),
+            set: args.set,
+        },
+        levels: Levels {
+            black_level: args.black,
+            white_level: args.white,
+            bit_depth: args.bits,
+        },
+        levels_source: args.levels_source.clone(),
+        rule: args.negative,
+        out: args.out.clone(),
+        name: args.name.clone(),
+        kind: args.kind,
     };
-    let sel = darktable::select(&rows, &q, &args.csv)?;
-    let (noise, negative) = darktable::to_noise(&sel, args.clamp_negative);
-    let noise_source = darktable::provenance(&q, &sel, &args.csv, &negative, args.clamp_negative);
-    let levels = Levels {
-        black_level: args.black,
-        white_level: args.white,
-        bit_depth: args.bits,
-    };
-    let existed = args.out.exists();
-    let profile = if existed {
-        let mut p = SensorProfile::load(&args.out).with_context(|| {
-            format!(
-                "{} exists but is not a valid sensor profile; not overwriting it",
-                args.out.display()
-            )
-        })?;
-        p.noise = noise;
-        p.provenance.noise = noise_source;
-        p.levels = levels;
-        p.provenance.levels = args.levels_source.clone();
-        p
-    } else {
-        let name = args
-            .name
-            .clone()
-            .unwrap_or_else(|| format!("{} {}", sel.rows[0].maker, sel.rows[0].model));
-        new_measured_profile(&name, levels, &args.levels_source, noise, &noise_source)
-    };
-    profile.save(&args.out)?;
-
+    let done = darktable::import(&req)?;
+    let (profile, sel) = (&done.profile, &done.selection);
     let mut report = format!(
-        "{} {} from {}: {} ISO(s) {}–{}{}\n",
-        if existed { "updated" } else { "created" },
+        "{} {} ({}) from {}: {} ISO(s) {}–{}{}\n",
+        if done.created { "created" } else { "updated" },
         args.out.display(),
+        profile.kind,
         args.csv.display(),
         profile.noise.len(),
         profile.noise.first().map_or(0.0, |n| n.iso),
@@ -182,13 +187,9 @@ fn import_darktable(args: &ImportArgs) -> anyhow::Result<String> {
             n.iso, n.a[0], n.a[1], n.a[2], n.b[0], n.b[1], n.b[2]
         ));
     }
-    let how = if args.clamp_negative {
-        "clamped to 0"
-    } else {
-        "negative, kept verbatim"
-    };
-    for c in &negative {
-        report.push_str(&format!("{how}: {c}\n"));
+    let rule = format!("{:?}", args.negative).to_lowercase();
+    for c in &done.notes {
+        report.push_str(&format!("negative ({rule}): {c}\n"));
     }
     Ok(report)
 }

@@ -159,10 +159,11 @@ pub fn run(args: &Args) -> Result<String> {
     bar.finish_and_clear();
     let secs = start.elapsed().as_secs_f64();
     Ok(format!(
-        "{} frames → {} (profile '{}', ISO {}, noise {:?}, colour {}), {:.1} s, {:.1} Mpix/s incl. I/O",
+        "{} frames → {} (profile '{}' ({}), ISO {}, noise {:?}, colour {}), {:.1} s, {:.1} Mpix/s incl. I/O",
         files.len(),
         args.out.display(),
         profile.name,
+        profile.kind,
         args.iso,
         args.noise,
         if args.no_colour { "off" } else { "on" },

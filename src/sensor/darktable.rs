@@ -6,13 +6,19 @@
 //! the same ISO (the JSON lists the model twice, or several shots per ISO), often under the
 //! same `profile_name`. Rows are then told apart by `--profile-name` (the name with its
 //! trailing " iso N" removed, or the full name) and by `--set K`: the K-th row at each ISO in
-//! CSV order. darktable fits can give negative a or b (1,155 of 7,045 rows). They are copied
-//! verbatim by default (the realism operator clamps the variance a·x + b at 0) and listed in
-//! the provenance; `--clamp-negative` writes them as 0 instead.
+//! CSV order.
+//!
+//! darktable fits can give negative a or b (1,142 of 7,045 rows have a negative b, 24 a
+//! negative a). A negative b would leave the shadows with no noise at all (the realism operator
+//! clamps a·x + b at 0), yet every sensor has read noise. By default ([`NegativeRule::Floor`])
+//! a negative b is replaced by the read-noise floor of [`read_noise_floor`]; negative a are kept
+//! verbatim. `Verbatim` and `Zero` keep or zero every negative value. Every changed or kept
+//! negative value is listed in the provenance.
 
 use crate::error::{Error, Result};
-use crate::sensor::profile::NoiseAtIso;
-use std::path::Path;
+use crate::sensor::noise::new_measured_profile;
+use crate::sensor::profile::{Levels, NoiseAtIso, ProfileKind, SensorProfile};
+use std::path::{Path, PathBuf};
 
 pub const COLUMNS: [&str; 10] = [
     "maker",
@@ -318,28 +324,98 @@ fn quote_list(v: &[String]) -> String {
         .join(", ")
 }
 
-/// The selection as profile noise entries, a and b verbatim; negative values are returned as
-/// notes, and with `clamp_negative` written as 0.
-pub fn to_noise(sel: &Selection, clamp_negative: bool) -> (Vec<NoiseAtIso>, Vec<String>) {
-    const CH: [&str; 3] = ["R", "G", "B"];
-    let mut negative = Vec::new();
+/// What the import writes for darktable's negative values.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum NegativeRule {
+    /// b < 0 replaced by [`read_noise_floor`]; a < 0 kept verbatim (the variance a·x + b stays
+    /// positive near black, where the replaced b dominates).
+    #[default]
+    Floor,
+    /// Every value as darktable has it (the realism operator clamps a·x + b at 0, so a negative
+    /// b means no noise at all below x = −b/a).
+    Verbatim,
+    /// Every negative a or b written as 0.
+    Zero,
+}
+
+/// Quantisation noise of the raw ADC in the normalised convention: a uniform rounding error of
+/// one DN has variance 1/12 DN², i.e. 1/(12·(W − B)²) for x = DN / (W − B).
+pub fn quantisation_floor(levels: &Levels) -> f64 {
+    let range = levels.white_level - levels.black_level;
+    1.0 / (12.0 * range * range)
+}
+
+/// The b written for a negative b of channel `c` at row `i` (rows in ascending ISO): the
+/// largest positive b of the same channel at a lower ISO, and at least the quantisation floor.
+///
+/// Why: b is the variance at zero signal, the read noise referred to the raw output. That is
+/// g²·σ²_pre + σ²_post with the analogue gain g rising with ISO, so it cannot fall as ISO rises
+/// and a b measured at a lower ISO is a lower bound; no digitised signal has less than the
+/// ADC's rounding noise. Returns the value and, where it came from a lower ISO, that ISO.
+pub fn read_noise_floor(
+    rows: &[DarktableRow],
+    i: usize,
+    c: usize,
+    levels: &Levels,
+) -> (f64, Option<f64>) {
+    let q = quantisation_floor(levels);
+    let lower = rows[..i]
+        .iter()
+        .filter(|r| r.iso < rows[i].iso && r.b[c] > 0.0)
+        .max_by(|x, y| x.b[c].total_cmp(&y.b[c]));
+    match lower {
+        Some(r) if r.b[c] > q => (r.b[c], Some(r.iso)),
+        _ => (q, None),
+    }
+}
+
+const CH: [&str; 3] = ["R", "G", "B"];
+
+/// The selection as profile noise entries under `rule`, with one note per negative value
+/// (what it was, its CSV line, and what was written instead). `levels` give the quantisation
+/// floor of the raw ADC.
+pub fn to_noise(
+    sel: &Selection,
+    rule: NegativeRule,
+    levels: &Levels,
+) -> (Vec<NoiseAtIso>, Vec<String>) {
+    let mut notes = Vec::new();
     let mut noise = Vec::new();
-    for r in &sel.rows {
-        let mut fix = |name: &str, v: [f64; 3]| -> [f64; 3] {
-            std::array::from_fn(|c| {
-                if v[c] < 0.0 {
-                    negative.push(format!(
-                        "ISO {} {name}_{} = {:e} (line {})",
-                        r.iso, CH[c], v[c], r.line
-                    ));
-                    if clamp_negative { 0.0 } else { v[c] }
-                } else {
-                    v[c]
+    for (i, r) in sel.rows.iter().enumerate() {
+        let mut a = r.a;
+        let mut b = r.b;
+        for c in 0..3 {
+            let at = |name: &str, v: f64| {
+                format!("ISO {} {name}_{} = {v:e} (line {})", r.iso, CH[c], r.line)
+            };
+            if r.a[c] < 0.0 {
+                match rule {
+                    NegativeRule::Zero => {
+                        a[c] = 0.0;
+                        notes.push(format!("{} → 0", at("a", r.a[c])));
+                    }
+                    _ => notes.push(format!("{} kept", at("a", r.a[c]))),
                 }
-            })
-        };
-        let a = fix("a", r.a);
-        let b = fix("b", r.b);
+            }
+            if r.b[c] < 0.0 {
+                match rule {
+                    NegativeRule::Floor => {
+                        let (v, from) = read_noise_floor(&sel.rows, i, c, levels);
+                        b[c] = v;
+                        let why = match from {
+                            Some(iso) => format!("b_{} at ISO {iso}", CH[c]),
+                            None => "quantisation floor".to_string(),
+                        };
+                        notes.push(format!("{} → {v:e} ({why})", at("b", r.b[c])));
+                    }
+                    NegativeRule::Zero => {
+                        b[c] = 0.0;
+                        notes.push(format!("{} → 0", at("b", r.b[c])));
+                    }
+                    NegativeRule::Verbatim => notes.push(format!("{} kept", at("b", r.b[c]))),
+                }
+            }
+        }
         noise.push(NoiseAtIso {
             iso: r.iso,
             a,
@@ -348,7 +424,7 @@ pub fn to_noise(sel: &Selection, clamp_negative: bool) -> (Vec<NoiseAtIso>, Vec<
             b_stderr: None,
         });
     }
-    (noise, negative)
+    (noise, notes)
 }
 
 /// Text for `provenance.noise`.
@@ -356,8 +432,9 @@ pub fn provenance(
     q: &Query,
     sel: &Selection,
     csv: &Path,
-    negative: &[String],
-    clamped: bool,
+    notes: &[String],
+    rule: NegativeRule,
+    levels: &Levels,
 ) -> String {
     let first = sel.rows.first();
     let last = sel.rows.last();
@@ -365,7 +442,7 @@ pub fn provenance(
     let mut s = format!(
         "darktable's noiseprofiles.json (darktable project, GPL-3+ data), flattened CSV {}: \
          maker '{}', model '{}', profile {}{}; {} ISO(s) {}–{}, CSV lines {}; a and b copied \
-         verbatim (darktable's normalised convention σ² = a·x + b, x in [0, 1])",
+         from the CSV (darktable's normalised convention σ² = a·x + b, x in [0, 1])",
         csv.display(),
         first.map_or(q.maker.as_str(), |r| r.maker.as_str()),
         first.map_or(q.model.as_str(), |r| r.model.as_str()),
@@ -387,13 +464,98 @@ pub fn provenance(
             .collect::<Vec<_>>()
             .join(","),
     );
-    if !negative.is_empty() {
-        let how = if clamped {
-            "clamped to 0"
-        } else {
-            "kept verbatim (the realism operator clamps a·x + b at 0)"
-        };
-        s.push_str(&format!("; negative values {how}: {}", negative.join("; ")));
+    if notes.is_empty() {
+        s.push_str(", no negative values");
+        return s;
     }
+    let how = match rule {
+        NegativeRule::Floor => format!(
+            "negative b replaced by the read-noise floor (the largest positive b of the same \
+             channel at a lower ISO, at least the ADC quantisation floor 1/(12·(W−B)²) = {:e}; \
+             docs/noise.md), negative a kept verbatim (the realism operator clamps a·x + b at 0)",
+            quantisation_floor(levels)
+        ),
+        NegativeRule::Verbatim => {
+            "negative values kept verbatim (`--negative verbatim`; the realism operator clamps \
+             a·x + b at 0)"
+                .to_string()
+        }
+        NegativeRule::Zero => "negative values written as 0 (`--negative zero`)".to_string(),
+    };
+    s.push_str(&format!("; {how}: {}", notes.join("; ")));
     s
+}
+
+/// Everything `hdrsynth profile import-darktable` needs.
+#[derive(Clone, Debug)]
+pub struct ImportRequest {
+    pub csv: PathBuf,
+    pub query: Query,
+    pub levels: Levels,
+    /// Where the levels come from (provenance.levels).
+    pub levels_source: String,
+    pub rule: NegativeRule,
+    /// The profile to write: an existing one gets noise, levels and their provenance replaced.
+    pub out: PathBuf,
+    /// Name and kind of a new profile (default "MAKER MODEL", measured).
+    pub name: Option<String>,
+    pub kind: ProfileKind,
+}
+
+/// What [`import`] did.
+#[derive(Clone, Debug)]
+pub struct ImportOutcome {
+    pub profile: SensorProfile,
+    pub created: bool,
+    pub selection: Selection,
+    /// One note per negative value in the CSV rows (kept, replaced or zeroed).
+    pub notes: Vec<String>,
+}
+
+/// Import a camera's noise from the CSV into `req.out` (created or updated, atomically).
+pub fn import(req: &ImportRequest) -> Result<ImportOutcome> {
+    if req.levels_source.trim().is_empty() {
+        return Err(Error::Invalid(
+            "the levels need a source (--levels-source)".into(),
+        ));
+    }
+    let rows = read_csv(&req.csv)?;
+    let sel = select(&rows, &req.query, &req.csv)?;
+    let (noise, notes) = to_noise(&sel, req.rule, &req.levels);
+    let noise_source = provenance(&req.query, &sel, &req.csv, &notes, req.rule, &req.levels);
+    let created = !req.out.exists();
+    let profile = if created {
+        let name = req
+            .name
+            .clone()
+            .unwrap_or_else(|| format!("{} {}", sel.rows[0].maker, sel.rows[0].model));
+        let mut p = new_measured_profile(
+            &name,
+            req.levels.clone(),
+            &req.levels_source,
+            noise,
+            &noise_source,
+        );
+        p.kind = req.kind;
+        p
+    } else {
+        let mut p = SensorProfile::load(&req.out).map_err(|e| {
+            Error::config(
+                &req.out,
+                format!("exists but is not a valid sensor profile ({e}); not overwriting it"),
+            )
+        })?;
+        p.noise = noise;
+        p.provenance.noise = noise_source;
+        p.levels = req.levels.clone();
+        p.provenance.levels = req.levels_source.clone();
+        p
+    };
+    profile.save(&req.out)?;
+    Ok(ImportOutcome {
+        profile,
+        created,
+        selection: sel,
+        notes,
+    })
 }

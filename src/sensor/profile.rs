@@ -36,13 +36,34 @@ pub struct Provenance {
     pub notes: Option<String>,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "kebab-case")]
 pub enum ProfileKind {
     /// Every number measured on, or published for, the named real device.
     Measured,
+    /// Real published numbers of *different* devices put together (e.g. one phone's noise,
+    /// another's colour): realistic for a device class, but no single device; the provenance
+    /// says which part comes from where.
+    Composite,
     /// Invented numbers for examples and tests; never a real device.
     SyntheticExample,
+}
+
+impl ProfileKind {
+    /// The label used in files, listings and reports (the TOML spelling).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ProfileKind::Measured => "measured",
+            ProfileKind::Composite => "composite",
+            ProfileKind::SyntheticExample => "synthetic-example",
+        }
+    }
+}
+
+impl std::fmt::Display for ProfileKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -127,6 +148,13 @@ pub struct SensorProfile {
     pub effects: Vec<EffectSpec>,
 }
 
+/// One ISO of [`SensorProfile::noise_table`]: σ per channel (R, G, B) at each signal fraction.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NoiseTableRow {
+    pub iso: f64,
+    pub sigma: Vec<[f64; 3]>,
+}
+
 pub const PROFILE_FORMAT: &str = "hdrsynth-sensor/1";
 
 impl Response {
@@ -146,6 +174,17 @@ impl Response {
         }
     }
 
+    /// The TOML spelling of the kind ("srgb", "gamma 2.2", "lut (n samples)").
+    pub fn label(&self) -> String {
+        match self {
+            Response::Linear => "linear".into(),
+            Response::Srgb => "srgb".into(),
+            Response::Gamma { gamma } => format!("gamma {gamma}"),
+            Response::Filmic => "filmic".into(),
+            Response::Lut { lut } => format!("lut ({} samples)", lut.len()),
+        }
+    }
+
     /// Code value → linear value (inverse of `apply` below clipping).
     pub fn invert(&self, v: f64) -> f64 {
         let v = v.clamp(0.0, 1.0);
@@ -160,6 +199,22 @@ impl Response {
                 let (c0, c1) = (lut[i], lut[i + 1]);
                 let f = if c1 > c0 { (v - c0) / (c1 - c0) } else { 0.0 };
                 ((i as f64 + f.clamp(0.0, 1.0)) / (lut.len() - 1) as f64).clamp(0.0, 1.0)
+            }
+        }
+    }
+
+    /// d(code)/d(linear) at x in (0, 1): exact for linear, sRGB and gamma; a central
+    /// difference for filmic and LUT curves (their `apply` is only piecewise smooth).
+    pub fn slope(&self, x: f64) -> f64 {
+        match self {
+            Response::Linear => 1.0,
+            // IEC 61966-2-1: 12.92·x up to 0.0031308, then 1.055·x^(1/2.4) − 0.055.
+            Response::Srgb if x <= 0.003_130_8 => 12.92,
+            Response::Srgb => 1.055 / 2.4 * x.powf(1.0 / 2.4 - 1.0),
+            Response::Gamma { gamma } => x.powf(1.0 / gamma - 1.0) / gamma,
+            Response::Filmic | Response::Lut { .. } => {
+                let h = 1e-3 * x.min(1.0 - x).max(1e-6);
+                (self.apply(x + h) - self.apply(x - h)) / (2.0 * h)
             }
         }
     }
@@ -227,7 +282,8 @@ impl SensorProfile {
         }
         for n in &self.noise {
             // Negative a or b occur in real published fits (darktable has 1,155 such rows);
-            // they are kept verbatim and the realism operator clamps the variance at 0.
+            // a profile may hold them (the import's read-noise floor replaces negative b by
+            // default) and the realism operator clamps the variance at 0.
             if n.iso.is_nan() || n.iso <= 0.0 || n.a.iter().chain(&n.b).any(|v| !v.is_finite()) {
                 return Err(format!(
                     "noise at ISO {}: iso > 0 and finite a, b required",
@@ -282,6 +338,57 @@ impl SensorProfile {
         let w = (iso.ln() - n0.iso.ln()) / (n1.iso.ln() - n0.iso.ln());
         let lerp = |x: [f64; 3], y: [f64; 3]| std::array::from_fn(|c| x[c] + (y[c] - x[c]) * w);
         Ok((lerp(n0.a, n1.a), lerp(n0.b, n1.b)))
+    }
+
+    /// Noise in output code values (8-bit: `max_code` 255) at signal fraction x of white, per
+    /// ISO and channel, by first-order propagation through the device response:
+    /// σ_code = response'(x) · √max(a·x + b, 0) · max_code. Linearised: exact for small σ,
+    /// and it leaves out the raw and output quantisation (≈ 0.29 DN and 0.29 code).
+    pub fn noise_table(&self, fractions: &[f64], max_code: f64) -> Result<Vec<NoiseTableRow>> {
+        if let Some(x) = fractions.iter().find(|x| !(**x > 0.0 && **x < 1.0)) {
+            return Err(Error::Invalid(format!(
+                "signal fraction {x} must be in (0, 1)"
+            )));
+        }
+        Ok(self
+            .noise
+            .iter()
+            .map(|n| NoiseTableRow {
+                iso: n.iso,
+                sigma: fractions
+                    .iter()
+                    .map(|&x| {
+                        let k = self.response.slope(x) * max_code;
+                        std::array::from_fn(|c| (n.a[c] * x + n.b[c]).max(0.0).sqrt() * k)
+                    })
+                    .collect(),
+            })
+            .collect())
+    }
+
+    /// [`Self::noise_table`] at 8 bits as a Markdown table, one column per fraction.
+    pub fn noise_table_markdown(&self, fractions: &[f64]) -> Result<String> {
+        let rows = self.noise_table(fractions, 255.0)?;
+        let mut s = format!(
+            "{} ({}), response {}: σ in 8-bit codes (R, G, B)\n\n| ISO |",
+            self.name,
+            self.kind,
+            self.response.label()
+        );
+        for x in fractions {
+            s.push_str(&format!(" {} % of white |", x * 100.0));
+        }
+        s.push_str("\n|---|");
+        s.push_str(&"---|".repeat(fractions.len()));
+        s.push('\n');
+        for r in &rows {
+            s.push_str(&format!("| {} |", r.iso));
+            for v in &r.sigma {
+                s.push_str(&format!(" {:.2}, {:.2}, {:.2} |", v[0], v[1], v[2]));
+            }
+            s.push('\n');
+        }
+        Ok(s)
     }
 
     /// The profile files shipped under configs/sensors/.
