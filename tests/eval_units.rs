@@ -428,3 +428,31 @@ fn measure_network1_references_on_a_testset() {
         );
     }
 }
+
+#[test]
+fn network2_training_targets_from_kalantari_sets_are_in_reference_units() {
+    use hdrsynth::data::loader::{Loader, LoaderConfig, Target};
+    // The same scene with exposure.txt "-2 0 2" (GT) and "0 2 4" (GT / 4): the loader's
+    // inputs use times relative to the reference, so its targets must be the same (reference
+    // units) for both; before, the second got targets 4× too small.
+    let tmp = tempfile::tempdir().unwrap();
+    let g = scene();
+    kalantari(&tmp.path().join("a/s"), "-2 0 2", &g);
+    kalantari(&tmp.path().join("b/s"), "0 2 4", &g.map(|v| v / 4.0));
+    let sample = |root: &str| {
+        let text = format!(
+            "dataset = {:?}\nkind = \"network2\"\npatch = 32\nbatch_size = 1\nworkers = 1\nseed = 3\n",
+            tmp.path().join(root)
+        );
+        let cfg: LoaderConfig =
+            hdrsynth::config::parse_toml(&text, Path::new("loader.toml")).unwrap();
+        Loader::new(&cfg).unwrap().sample(0, 0).unwrap()
+    };
+    let (a, b) = (sample("a"), sample("b"));
+    assert_eq!(a.input, b.input);
+    let (Target::Hdr(ta), Target::Hdr(tb)) = (&a.target, &b.target) else {
+        panic!("network2 targets are HDR");
+    };
+    assert_eq!(ta, tb);
+    assert!(ta.iter().any(|&v| v > 0.5), "reference-unit highlights");
+}
