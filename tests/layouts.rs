@@ -189,7 +189,13 @@ fn kalantari_nested_training_test_folders() {
     for (i, f) in loaded.dynamic_frames.iter().enumerate() {
         assert_close(f, &ldr(i), TOL16, &format!("frame {i}"));
     }
-    assert_close_rgbe(loaded.ground_truth.as_ref().unwrap(), &hdr(0), "GT");
+    // In hdrsynth's unit: HDRImg.hdr is in the unit of stop 0 as written ("0 2 4": the shortest
+    // frame), the reference is 2 stops above it, so × 2^2 (docs/layout.md).
+    assert_close_rgbe(
+        loaded.ground_truth.as_ref().unwrap(),
+        &hdr(0).map(|v| 4.0 * v),
+        "GT",
+    );
 }
 
 #[test]
@@ -355,7 +361,13 @@ fn wu_sets_with_refs_and_gt_choice() {
         assert_close(&la.dynamic_frames[i], &ldr(i + 1), TOL16, "wu input");
         assert_close(&la.static_frames[i], &ldr(11 + i), TOL16, "wu ref");
     }
-    assert_close_rgbe(la.ground_truth.as_ref().unwrap(), &hdr(1), "wu GT");
+    // Wu's code subtracts the smallest stop: "-2 0 2" puts the GT in the shortest frame's unit,
+    // 2 stops below the reference, so × 2^2 in hdrsynth's unit.
+    assert_close_rgbe(
+        la.ground_truth.as_ref().unwrap(),
+        &hdr(1).map(|v| 4.0 * v),
+        "wu GT",
+    );
     let lb = layout::load_set(b).unwrap();
     for i in 0..3 {
         assert_close(&lb.dynamic_frames[i], &ldr(3 - i), TOL16, "wu input sorted");

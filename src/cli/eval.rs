@@ -5,7 +5,8 @@
 
 use crate::device::device_from_name;
 use crate::eval::evaluate::{
-    self, EvalOptions, EvalSummary, Method, NetworkOptions, Predictions, from_checkpoint,
+    self, EvalOptions, EvalSummary, Method, Network1Reference, NetworkOptions, Predictions,
+    ScoreUnit, from_checkpoint,
 };
 use crate::eval::metrics::{MetricOptions, Pu21Scale};
 use crate::eval::report;
@@ -52,6 +53,14 @@ pub struct Args {
     /// Confidence level.
     #[arg(long, default_value_t = 0.95)]
     pub level: f64,
+    /// Unit of HDR scoring: reference (1 = the reference exposure's white, for every layout)
+    /// or file (each set's ground-truth file as written, as the field's code scores).
+    #[arg(long, value_enum, default_value_t = ScoreUnit::Reference)]
+    pub unit: ScoreUnit,
+    /// Network-1's reference: clean-weights (blend of the noisy pair with Mertens weights of
+    /// the noise-free frames) or noisy-mertens (Mertens fusion of the noisy pair).
+    #[arg(long, value_enum, default_value_t = Network1Reference::CleanWeights)]
+    pub net1_reference: Network1Reference,
     /// PU21 absolute scale: reference-max (ground truth max → peak) or unit-value (1.0 → peak).
     #[arg(long, default_value = "reference-max", value_parser = parse_pu21_scale)]
     pub pu21_scale: Pu21Scale,
@@ -93,6 +102,8 @@ impl Args {
             resamples: 2000,
             seed: 0,
             level: 0.95,
+            unit: ScoreUnit::Reference,
+            net1_reference: Network1Reference::CleanWeights,
             pu21_scale: Pu21Scale::ReferenceMax,
             peak_luminance: 4000.0,
             thumb: 512,
@@ -119,6 +130,8 @@ impl Args {
                 peak_luminance: self.peak_luminance,
                 pu21_scale: self.pu21_scale,
             },
+            unit: self.unit,
+            network1_reference: self.net1_reference,
             resamples: self.resamples,
             seed: self.seed,
             level: self.level,

@@ -12,7 +12,8 @@
 //! - Network-2: frames (EV−2, 0, +2), the reference (EV0) from the static set and the others
 //!   from the dynamic set (paper §4.2); inputs as Wu et al.: per frame LDR in [0, 1] and
 //!   LDR^2.2 / t (t = 2^EV) → 18×H×W; target the set's linear HDR ground truth (hdrsynth's
-//!   `hdr_gt.exr`, Kalantari's `HDRImg.hdr`, Wu's `ref_hdr_aligned*.hdr`), else the triangle
+//!   `hdr_gt.exr`, Kalantari's `HDRImg.hdr`, Wu's `ref_hdr_aligned*.hdr`, brought into
+//!   hdrsynth's unit, 1 = the reference's white: `layout::to_reference_unit`), else the triangle
 //!   merge of the static frames; with realism, mapped into the device's linear space
 //!   (T · HDR / source saturation · exposure: 1 = the sensor's white level).
 
@@ -315,8 +316,10 @@ impl Loader {
                     frames.push(realistic(&read_image(pick(i))?, i as u64));
                 }
                 let hdr = match &set.ground_truth {
+                    // In hdrsynth's unit (1 = the reference's white), as the input times are
+                    // relative to the reference: Kalantari/Wu files are in their own unit.
                     Some(gt) if gt.kind == GroundTruthKind::Linear => {
-                        crop(&read_image(&gt.path)?, x0, y0, p)
+                        layout::to_reference_unit(set, gt, crop(&read_image(&gt.path)?, x0, y0, p))
                     }
                     _ if stat => {
                         let s: Vec<Image> = idx

@@ -9,6 +9,8 @@
 //! - each bracket frame is the realism operator (colour T, noise at that ISO, levels, device
 //!   response, 8-bit) applied to radiance · k · 2^EV with the profile's source response set to
 //!   linear, seeded by (seed, scene, ISO, EV);
+//! - `static/clean_<ev>.png` is the same frame with `NoiseModel::None` (Network-1's
+//!   reference weights come from it);
 //! - `hdr_gt.exr` is the radiance in the device's linear space at EV0, `T · radiance · k`
 //!   ([`Realism::device_linear`], 1 = sensor white), the Network-2 loader's target convention.
 //!
@@ -464,6 +466,25 @@ fn write_set(
             &dir.join("dynamic").join(format!("mask_{tag}.png")),
             &Image::new(w, h),
             BitDepth::Eight,
+        )?;
+        // The same frame without noise (same exposure, colour, levels, response and
+        // quantisation): Network-1's reference takes its blend weights from these, so it does
+        // not reward imitating noise-driven weights (docs/evaluation.md).
+        let clean = Realism::new(
+            device,
+            &RealismOptions {
+                iso,
+                exposure: key as f64 * (ev as f64).exp2(),
+                noise: NoiseModel::None,
+                colour: opts.colour,
+                output_bits: opts.output_bits,
+            },
+        )?
+        .apply(radiance, frame_seed(opts.seed, &scene.name, iso, ev));
+        write_ldr(
+            &dir.join("static").join(own::clean_frame_name(ev)),
+            &clean,
+            depth,
         )?;
     }
     let gt = realism(0.0)?.device_linear(radiance);

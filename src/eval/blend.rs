@@ -139,10 +139,16 @@ pub fn tone_curve(x: f32, k: f32) -> f32 {
     (1.0 - (-k * x.max(0.0)).exp()) / (1.0 - (-k).exp())
 }
 
+/// Laplacian-pyramid blend of the (low, high) frames with per-pixel long-exposure weights
+/// (the low frame gets 1 − w): the output stage's L.
+pub fn blend_pair(low: &Image, high: &Image, w_high: &[f32]) -> Result<Image> {
+    let w_low: Vec<f32> = w_high.iter().map(|w| 1.0 - w).collect();
+    laplacian_blend(&[low.clone(), high.clone()], &[w_low, w_high.to_vec()])
+}
+
 /// Fuse the (low, high) frames with per-pixel long-exposure weights: (L, T) outputs.
 pub fn fuse(low: &Image, high: &Image, w_high: &[f32], k: f32) -> Result<(Image, Image)> {
-    let w_low: Vec<f32> = w_high.iter().map(|w| 1.0 - w).collect();
-    let linear = laplacian_blend(&[low.clone(), high.clone()], &[w_low, w_high.to_vec()])?;
+    let linear = blend_pair(low, high, w_high)?;
     let toned = linear.map(|v| tone_curve(v, k));
     Ok((linear, toned))
 }

@@ -4,28 +4,30 @@
 //!
 //! Scoring:
 //! - HDR outputs (`--predictions`, Network-2) against the set's linear ground truth with
-//!   [`metrics::score`] (T = μ-law inside).
+//!   [`metrics::score`] (T = μ-law inside), in one unit for every layout ([`ScoreUnit`]):
+//!   μ-law and PSNR with data range 1 are not scale invariant, so the same scene written with
+//!   other exposure stops must be scored in the same unit.
 //! - Network-1 outputs a display-referred fusion of the static (EV−3, EV0) pair, not radiance.
-//!   Its reference is what it was trained to reproduce: the Mertens fusion (OpenCV defaults,
-//!   [`ground_truth::mertens`]) of the same pair; L = the fusion before the tone curve, T =
-//!   after it (the same curve for both), scored with [`metrics::score_pair`].
+//!   Its reference ([`Network1Reference`]) is the same Laplacian blend of the same noisy pair
+//!   with Mertens weights (OpenCV defaults) computed on the noise-free frames, or (option, and
+//!   for sets without them) the Mertens fusion of the noisy pair itself; L = before the tone
+//!   curve, T = after it (the same curve for both), scored with [`metrics::score_pair`].
 //!
 //! Memory: one set at a time; per set at most about four full-size images live at once (output,
 //! reference and, for Network-1, their tone-mapped copies), plus the tiled inference's own.
 
 use crate::data::ground_truth::{self, MertensWeights};
-use crate::data::layout::{self, GroundTruthKind, SetInfo};
+use crate::data::layout::{self, SetInfo};
 use crate::data::scene::ev_tag;
 use crate::data::testset::resize;
 use crate::error::{Error, Result};
-use crate::eval::blend::{BlendWeight, tone_curve};
+use crate::eval::blend::{blend_pair, tone_curve};
 pub use crate::eval::infer::NetworkOptions;
-use crate::eval::infer::{self, network1_fuse, network1_tiling};
+use crate::eval::infer::{self, network1_tiling, network1_weight};
 use crate::eval::metrics::{self, MetricOptions, Pu21Scale, Scores};
 use crate::eval::report::{self, Cell, MetricSummary, SetScore};
 use crate::eval::tiling::Tiling;
 use crate::io::{BitDepth, ExrPrecision, Image, read_image, write_exr, write_ldr};
-use crate::models::BlendUNet;
 use crate::train::checkpoint;
 use crate::train::config::ModelConfig;
 use burn::module::Module;
@@ -70,9 +72,10 @@ impl Scoring {
 
 /// A set's output and what it is scored against.
 pub struct Outcome {
-    /// Linear output (written as `<set>.exr`).
+    /// Linear output (written as `<set>.exr`); HDR outputs in hdrsynth's unit (1 = the
+    /// reference exposure's white), whatever the set's files use.
     pub output: Image,
-    /// Reference, same size and space as `output`.
+    /// Reference, same size and space (and unit) as `output`.
     pub reference: Image,
     pub scoring: Scoring,
     /// The input frames to show in the grid.
@@ -91,13 +94,13 @@ pub enum Frame {
 /// Where a set's output comes from.
 pub trait Method {
     /// One line for the report.
-    fn describe(&self) -> String;
+    fn describe(&self, opts: &EvalOptions) -> String;
     /// `Some(what was looked for)` when the set's output does not exist (checked for every set
     /// before any work starts).
     fn missing(&self, _set: &SetInfo) -> Option<String> {
         None
     }
-    fn run(&self, set: &SetInfo) -> Result<Outcome>;
+    fn run(&self, set: &SetInfo, opts: &EvalOptions) -> Result<Outcome>;
 }
 
 /// Display frames of a set for the grid: the dynamic frames (what a network sees), else the
@@ -115,41 +118,13 @@ fn set_inputs(set: &SetInfo) -> Vec<(String, Frame)> {
         .collect()
 }
 
-fn linear_ground_truth(set: &SetInfo) -> Result<Image> {
-    match &set.ground_truth {
-        Some(gt) if gt.kind == GroundTruthKind::Linear => {
-            let img = read_image(&gt.path)?;
-            if (img.width, img.height) != (set.width, set.height) {
-                return Err(Error::layout(
-                    &gt.path,
-                    format!(
-                        "size {}×{} differs from the set's {}×{}",
-                        img.width, img.height, set.width, set.height
-                    ),
-                ));
-            }
-            Ok(img)
-        }
-        Some(gt) => Err(Error::layout(
-            &gt.path,
-            format!(
-                "set '{}': the ground truth is display-referred (8-bit), so linear HDR outputs \
-                 cannot be scored against it",
-                set.name
-            ),
-        )),
-        None => Err(Error::layout(
-            &set.dir,
-            format!("set '{}' has no ground truth", set.name),
-        )),
-    }
-}
-
 // ---------------------------------------------------------------------------------------------
 // Predictions made elsewhere
 
 /// Linear HDR predictions `DIR/<set name>.exr` (or `.hdr`), scored against each set's linear
-/// ground truth. Negative values are clamped to 0 (μ-law is undefined below −1/5000).
+/// ground truth. Predictions are taken in the unit of the set's files (the ground truth's, as
+/// the field's tools write them). Negative values are clamped to 0 (μ-law is undefined below
+/// −1/5000).
 pub struct Predictions {
     pub dir: PathBuf,
 }
@@ -169,10 +144,10 @@ impl Predictions {
 }
 
 impl Method for Predictions {
-    fn describe(&self) -> String {
+    fn describe(&self, _opts: &EvalOptions) -> String {
         format!(
-            "predictions from {} (linear HDR, scored against each set's linear ground truth; \
-             T = μ-law, μ = 5000)",
+            "predictions from {} (linear HDR in the unit of each set's ground truth file, scored \
+             against it; T = μ-law, μ = 5000)",
             self.dir.display()
         )
     }
@@ -185,7 +160,7 @@ impl Method for Predictions {
         Some(format!("{} or {}", a.display(), b.display()))
     }
 
-    fn run(&self, set: &SetInfo) -> Result<Outcome> {
+    fn run(&self, set: &SetInfo, _opts: &EvalOptions) -> Result<Outcome> {
         let path = self.find(set).ok_or_else(|| {
             let [a, b] = self.candidates(set);
             Error::layout(
@@ -201,7 +176,7 @@ impl Method for Predictions {
         // One after the other: a file's bytes and decoded planes are transient copies of the
         // image, so parallel reads would double the peak memory for little gain (each decode
         // is parallel already).
-        let reference = linear_ground_truth(set)?;
+        let reference = layout::read_linear_ground_truth(set)?;
         let mut output = read_image(&path)?;
         if (output.width, output.height) != (reference.width, reference.height) {
             return Err(Error::layout(
@@ -212,12 +187,14 @@ impl Method for Predictions {
                 ),
             ));
         }
+        // The file's unit → hdrsynth's, as the ground truth was.
+        let k = set.file_to_reference();
         let negative = output
             .data
             .par_iter_mut()
             .map(|v| {
                 let neg = *v < 0.0;
-                *v = v.max(0.0);
+                *v = v.max(0.0) * k;
                 neg as usize
             })
             .sum::<usize>();
@@ -251,14 +228,24 @@ pub fn from_checkpoint(
     let state = checkpoint::read_state(&dir)?;
     let with = |t: Tiling| opts.tiling(t);
     match &state.model {
-        ModelConfig::BlendUnet(cfg) => Ok(Box::new(Network1 {
-            model: checkpoint::load_model(cfg.init(device)?, &dir)?.valid(),
-            tiling: with(network1_tiling(cfg)),
-            weight: opts.weight,
-            tone_k: opts.tone_k,
-            device: device.clone(),
-            checkpoint: dir,
-        })),
+        ModelConfig::BlendUnet(cfg) => {
+            let model = checkpoint::load_model(cfg.init(device)?, &dir)?.valid();
+            let tiling = with(network1_tiling(cfg));
+            let (mode, device) = (opts.weight, device.clone());
+            Ok(Box::new(Network1 {
+                description: format!(
+                    "Network-1 (blend-map U-Net) from {}, tile {} overlap {}, weight {:?}",
+                    dir.display(),
+                    tiling.tile,
+                    tiling.overlap,
+                    mode
+                ),
+                weights: Box::new(move |low, high| {
+                    network1_weight(&model, low, high, tiling, mode, &device)
+                }),
+                tone_k: opts.tone_k,
+            }))
+        }
         ModelConfig::Wu(cfg) => {
             let model = checkpoint::load_model(cfg.init(device)?, &dir)?.valid();
             let tiling = with(infer::network2_tiling(cfg));
@@ -278,37 +265,107 @@ pub fn from_checkpoint(
     }
 }
 
-/// Network-1 on the static pair, scored against the pair's Mertens fusion.
+/// A network's long-exposure blend weight per pixel for a static (low, high) pair (code values
+/// in [0, 1]), at the frames' size.
+pub type BlendInference = Box<dyn Fn(&Image, &Image) -> Result<Vec<f32>>>;
+
+/// What Network-1's output is scored against (docs/evaluation.md).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum Network1Reference {
+    /// The Laplacian blend (Network-1's own output stage) of the noisy pair with Mertens
+    /// weights computed on the noise-free pair: what a network that sees through the noise
+    /// would produce. Sets without noise-free frames fall back to `noisy-mertens` (noted).
+    #[default]
+    CleanWeights,
+    /// The Mertens fusion of the noisy pair: rewards imitating noise-driven weights (Mertens'
+    /// contrast term is |Laplacian|, which noise inflates).
+    NoisyMertens,
+}
+
+impl Network1Reference {
+    fn describe(self) -> &'static str {
+        match self {
+            Network1Reference::CleanWeights => {
+                "reference = Laplacian blend of the noisy static pair with Mertens weights \
+                 (OpenCV defaults: contrast 1, saturation 1, exposure 0) of its noise-free \
+                 frames (sets without them: the Mertens fusion of the noisy pair, noted)"
+            }
+            Network1Reference::NoisyMertens => {
+                "reference = Mertens fusion (OpenCV defaults: contrast 1, saturation 1, \
+                 exposure 0) of the same noisy static pair"
+            }
+        }
+    }
+}
+
+/// Network-1's reference L for the static frames (`low`, `high`) at indices `pair` of `set`
+/// (docs/evaluation.md), and a note when `kind` could not be followed (no noise-free frames).
+pub fn network1_reference(
+    set: &SetInfo,
+    pair: (usize, usize),
+    low: &Image,
+    high: &Image,
+    kind: Network1Reference,
+) -> Result<(Image, Option<String>)> {
+    let noisy_mertens = || {
+        let w = MertensWeights::OPENCV_DEFAULT;
+        ground_truth::mertens(
+            &[low.clone(), high.clone()],
+            w.contrast,
+            w.saturation,
+            w.exposure,
+        )
+    };
+    match kind {
+        Network1Reference::NoisyMertens => Ok((noisy_mertens()?, None)),
+        Network1Reference::CleanWeights if set.clean_frames.len() != set.evs.len() => Ok((
+            noisy_mertens()?,
+            Some(format!(
+                "set '{}' has no noise-free frames: Network-1 scored against the Mertens fusion \
+                 of the noisy pair",
+                set.name
+            )),
+        )),
+        Network1Reference::CleanWeights => {
+            let read = |i: usize| -> Result<Image> {
+                let p = &set.clean_frames[i];
+                let img = read_image(p)?;
+                layout_size(p, &img, set)?;
+                Ok(img)
+            };
+            let (cl, ch) = rayon::join(|| read(pair.0), || read(pair.1));
+            let w = ground_truth::blend_weights_high(&cl?, &ch?)?;
+            Ok((blend_pair(low, high, &w)?, None))
+        }
+    }
+}
+
+/// Network-1 on the static pair, scored against [`network1_reference`].
 pub struct Network1 {
-    pub model: BlendUNet,
-    pub tiling: Tiling,
-    pub weight: BlendWeight,
+    /// For the report: the network and its checkpoint.
+    pub description: String,
+    pub weights: BlendInference,
+    /// Tone curve k of the T images (output and reference alike).
     pub tone_k: f32,
-    pub device: Device,
-    pub checkpoint: PathBuf,
 }
 
 impl Method for Network1 {
-    fn describe(&self) -> String {
+    fn describe(&self, opts: &EvalOptions) -> String {
         format!(
-            "Network-1 (blend-map U-Net) from {}, tile {} overlap {}, weight {:?}, tone k {}; \
-             reference = Mertens fusion (OpenCV defaults: contrast 1, saturation 1, exposure 0) \
-             of the same static pair, L before the tone curve, T after it",
-            self.checkpoint.display(),
-            self.tiling.tile,
-            self.tiling.overlap,
-            self.weight,
-            self.tone_k
+            "{}, tone k {}; {}; L before the tone curve, T after it",
+            self.description,
+            self.tone_k,
+            opts.network1_reference.describe()
         )
     }
 
-    fn run(&self, set: &SetInfo) -> Result<Outcome> {
+    fn run(&self, set: &SetInfo, opts: &EvalOptions) -> Result<Outcome> {
         if set.static_frames.len() != set.evs.len() {
             return Err(Error::layout(
                 &set.dir,
                 format!(
-                    "set '{}' has no static (motion-free) frames: Network-1's reference is the \
-                     Mertens fusion of aligned frames",
+                    "set '{}' has no static (motion-free) frames: Network-1's reference is a \
+                     fusion of aligned frames",
                     set.name
                 ),
             ));
@@ -322,17 +379,19 @@ impl Method for Network1 {
         };
         let (low, high) = rayon::join(|| read(lo), || read(hi));
         let (low, high) = (low?, high?);
-        let (_, output, _) = network1_fuse(
-            &self.model,
-            &low,
-            &high,
-            self.tiling,
-            self.weight,
-            self.tone_k,
-            &self.device,
-        )?;
-        let w = MertensWeights::OPENCV_DEFAULT;
-        let reference = ground_truth::mertens(&[low, high], w.contrast, w.saturation, w.exposure)?;
+        let w = (self.weights)(&low, &high)?;
+        if w.len() != low.pixel_count() {
+            return Err(Error::Invalid(format!(
+                "set '{}': the network returned {} blend weights for {}×{} frames",
+                set.name,
+                w.len(),
+                low.width,
+                low.height
+            )));
+        }
+        let output = blend_pair(&low, &high, &w)?;
+        let (reference, note) =
+            network1_reference(set, (lo, hi), &low, &high, opts.network1_reference)?;
         Ok(Outcome {
             output,
             reference,
@@ -348,14 +407,15 @@ impl Method for Network1 {
                     )
                 })
                 .collect(),
-            notes: Vec::new(),
+            notes: note.into_iter().collect(),
         })
     }
 }
 
 /// A network's full-resolution inference on three frames (shortest, reference, longest; LDR
-/// code values in [0, 1]) with exposure times relative to the reference → linear HDR of the
-/// frames' size, in the unit of the set's ground truth.
+/// code values in [0, 1]) with exposure times relative to the reference (how the networks are
+/// trained) → linear HDR of the frames' size in hdrsynth's unit, 1 = the reference exposure's
+/// white.
 pub type HdrInference = Box<dyn Fn([&Image; 3], [f32; 3]) -> Result<Image>>;
 
 /// Network-2 (or any three-frame HDR network) on each set's frames as
@@ -368,14 +428,14 @@ pub struct Network2 {
 }
 
 impl Method for Network2 {
-    fn describe(&self) -> String {
+    fn describe(&self, _opts: &EvalOptions) -> String {
         format!(
             "{}; scored against each set's linear ground truth (T = μ-law, μ = 5000)",
             self.description
         )
     }
 
-    fn run(&self, set: &SetInfo) -> Result<Outcome> {
+    fn run(&self, set: &SetInfo, _opts: &EvalOptions) -> Result<Outcome> {
         let (frames, times) = infer::network2_frames(set)?;
         let evs = [0, set.reference, set.evs.len() - 1].map(|i| set.evs[i]);
         for (f, ev) in frames.iter().zip(evs) {
@@ -396,7 +456,7 @@ impl Method for Network2 {
         }
         let [a, b, c] = &frames;
         let mut output = (self.infer)([a, b, c], times)?;
-        let reference = linear_ground_truth(set)?;
+        let reference = layout::read_linear_ground_truth(set)?;
         if (output.width, output.height) != (reference.width, reference.height) {
             return Err(Error::Invalid(format!(
                 "set '{}': the network returned {}×{} for {}×{} frames",
@@ -435,9 +495,28 @@ fn layout_size(path: &Path, img: &Image, set: &SetInfo) -> Result<()> {
 // ---------------------------------------------------------------------------------------------
 // The evaluation loop
 
+/// The unit HDR outputs and ground truth are scored in. μ-law (μ = 5000) and PSNR with data
+/// range 1 are not scale invariant, so the choice changes the scores; it never changes which
+/// of two methods scored on the same sets is better by more or less than that.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum ScoreUnit {
+    /// hdrsynth's unit, 1 = the reference exposure's white, for every layout: the same scene
+    /// scores the same whatever stops its exposure file writes.
+    #[default]
+    Reference,
+    /// The unit of each set's ground-truth file (Kalantari: a frame at stop 0 as written, i.e.
+    /// the shortest frame for the dataset's "0 2 4"; Wu: the shortest frame), as the field's
+    /// code scores: for comparison with published numbers.
+    File,
+}
+
 #[derive(Clone, Debug)]
 pub struct EvalOptions {
     pub metrics: MetricOptions,
+    /// Unit of HDR scoring (`--predictions`, Network-2).
+    pub unit: ScoreUnit,
+    /// Network-1's reference.
+    pub network1_reference: Network1Reference,
     /// Bootstrap resamples and seed of the confidence intervals.
     pub resamples: usize,
     pub seed: u64,
@@ -454,6 +533,8 @@ impl Default for EvalOptions {
     fn default() -> Self {
         EvalOptions {
             metrics: MetricOptions::default(),
+            unit: ScoreUnit::default(),
+            network1_reference: Network1Reference::default(),
             resamples: 2000,
             seed: 0,
             level: 0.95,
@@ -550,7 +631,7 @@ pub fn evaluate(
     let summary = report::summarise(&rows, opts.resamples, opts.seed, opts.level);
     let result = EvalSummary {
         out: out.to_path_buf(),
-        method: method.describe(),
+        method: method.describe(opts),
         rows,
         summary,
         missing,
@@ -575,14 +656,21 @@ fn evaluate_set(
     notes: &mut Vec<String>,
 ) -> Result<SetScore> {
     let t0 = Instant::now();
-    let outcome = method.run(set)?;
+    let outcome = method.run(set, opts)?;
     let Outcome {
-        output,
-        reference,
+        mut output,
+        mut reference,
         scoring,
         inputs,
         notes: set_notes,
     } = outcome;
+    // Outcomes are in hdrsynth's unit; the file's unit is 1 / file_to_reference of it.
+    let k = set.file_to_reference();
+    if scoring == Scoring::Hdr && opts.unit == ScoreUnit::File && k != 1.0 {
+        let to_file = |img: &mut Image| img.data.par_iter_mut().for_each(|v| *v /= k);
+        to_file(&mut output);
+        to_file(&mut reference);
+    }
     let (tw, th) = report::thumb_size(output.width, output.height, opts.thumb);
     // Frames already in memory become thumbnails before the full-size work below.
     let inputs: Vec<(String, Frame)> = inputs
@@ -646,7 +734,7 @@ fn evaluate_set(
     }
     let (out_label, ref_label) = match scoring {
         Scoring::Hdr => ("output (mu-law)", "ground truth (mu-law)"),
-        Scoring::Network1 { .. } => ("output T", "Mertens reference T"),
+        Scoring::Network1 { .. } => ("output T", "reference T"),
     };
     let grid = report::grid(&[
         input_cells,
@@ -687,8 +775,18 @@ fn setup_lines(r: &EvalSummary, testset: &Path, opts: &EvalOptions) -> String {
         ),
         Pu21Scale::UnitValue => format!("value 1.0 → {} cd/m²", opts.metrics.peak_luminance),
     };
+    let unit = match opts.unit {
+        ScoreUnit::Reference => {
+            "reference (1 = the reference exposure's white; Kalantari/Wu ground truth and \
+             predictions × 2^(s_ref − s_unit) of their exposure file)"
+        }
+        ScoreUnit::File => {
+            "file (each set's ground-truth file as written; network outputs × 2^(s_unit − s_ref))"
+        }
+    };
     format!(
-        "- test set: {}\n- method: {}\n- sets scored: {}{}\n- PU21 scaling: {pu21}\n\
+        "- test set: {}\n- method: {}\n- sets scored: {}{}\n- HDR unit: {unit}\n\
+         - PU21 scaling: {pu21}\n\
          - confidence intervals: percentile bootstrap of the mean, {} resamples, seed {}, \
          level {}; +inf values (identical images) are left out of mean and CI and counted\n\
          - total time: {:.1} s\n",

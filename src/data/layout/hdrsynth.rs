@@ -16,6 +16,12 @@ pub const FORMAT: &str = "hdrsynth-dataset/1";
 pub const MANIFEST: &str = "dataset.toml";
 pub const SET_META: &str = "meta.toml";
 
+/// `static/clean_<ev tag>.png`: the noise-free rendering of a static frame (optional; written
+/// by `hdrsynth testset`), e.g. `static/clean_ev-3.png`.
+pub fn clean_frame_name(ev: f32) -> String {
+    format!("clean_{}.png", ev_tag(ev))
+}
+
 /// `dataset.toml` at the dataset root.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -205,6 +211,23 @@ pub fn read(root: &Path) -> Result<DatasetInfo> {
             .iter()
             .map(|&ev| dir.join("dynamic").join(format!("mask_{}.png", ev_tag(ev))))
             .collect();
+        // Clean frames are optional, but all or none: a partial set is a broken write.
+        let clean: Vec<PathBuf> = meta
+            .evs
+            .iter()
+            .map(|&ev| dir.join("static").join(clean_frame_name(ev)))
+            .collect();
+        let clean_frames = match clean.iter().filter(|p| p.is_file()).count() {
+            0 => Vec::new(),
+            n if n == clean.len() => clean,
+            _ => {
+                let missing = clean.iter().find(|p| !p.is_file()).expect("one is missing");
+                return Err(Error::layout(
+                    missing,
+                    "missing: the set has noise-free frames for other EVs (all or none)",
+                ));
+            }
+        };
         let gt = dir.join("hdr_gt.exr");
         sets.push(SetInfo {
             name: meta.name.clone(),
@@ -215,10 +238,13 @@ pub fn read(root: &Path) -> Result<DatasetInfo> {
             static_frames: frames("static", "png")?,
             dynamic_frames: frames("dynamic", "png")?,
             masks,
+            clean_frames,
             ground_truth: gt.is_file().then_some(GroundTruth {
                 path: gt,
                 kind: GroundTruthKind::Linear,
             }),
+            // hdr_gt.exr is already the reference exposure's linear value.
+            exposure: None,
             dir,
         });
     }

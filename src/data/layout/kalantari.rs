@@ -2,8 +2,12 @@
 //! (any names; file-name order = ascending exposure), `exposure.txt` (three log2 exposure
 //! stops, one per TIFF in the same order) and `HDRImg.hdr` (linear ground truth aligned to the
 //! middle frame). All three frames have motion: they are the set's dynamic frames.
+//!
+//! Units: the field's code (HDR-Transformer's `read_expo_times`) reads the stops as written,
+//! t_i = 2^s_i, and `HDRImg.hdr` is in that unit (LDR_i^γ / t_i); [`SetInfo::file_to_reference`]
+//! converts it to hdrsynth's (1 = the middle frame's white).
 
-use super::{Entry, GroundTruth, GroundTruthKind, SetInfo, SetRead};
+use super::{Entry, ExposureFile, GroundTruth, GroundTruthKind, SetInfo, SetRead};
 use crate::error::{Error, Result};
 use std::path::Path;
 
@@ -89,9 +93,18 @@ pub(super) fn read_set(dir: &Path, name: &str, files: &[Entry]) -> Result<SetRea
         static_frames: Vec::new(),
         dynamic_frames: tiffs.iter().map(|f| f.path.clone()).collect(),
         masks: Vec::new(),
+        clean_frames: Vec::new(),
         ground_truth: gt.map(|path| GroundTruth {
             path,
             kind: GroundTruthKind::Linear,
+        }),
+        // HDR-Transformer's `read_expo_times` = 2^loadtxt: the stops as written, so the
+        // ground truth is in the unit of a frame at stop 0 (for the dataset's "0 2 4" files:
+        // the shortest frame).
+        exposure: Some(ExposureFile {
+            path: exposure,
+            stops,
+            origin: 0.0,
         }),
     };
     Ok((set, Vec::new()))

@@ -2,7 +2,9 @@
 //! ([`DatasetInfo`] of [`SetInfo`]s) so later stages never care where a set came from.
 //!
 //! Conventions for every layout: frames are ordered by ascending EV; `evs[i]` is frame i's
-//! exposure in stops relative to the reference frame (`evs[reference] == 0`).
+//! exposure in stops relative to the reference frame (`evs[reference] == 0`). Linear ground
+//! truth is used in hdrsynth's unit, 1 = the reference exposure's white
+//! ([`read_linear_ground_truth`]); the file's own unit follows from [`ExposureFile`].
 
 pub mod hdrsynth;
 pub mod kalantari;
@@ -69,10 +71,44 @@ pub struct SetInfo {
     pub dynamic_frames: Vec<PathBuf>,
     /// Motion masks per dynamic frame, where the layout has them.
     pub masks: Vec<PathBuf>,
+    /// Noise-free renderings of the static frames (same exposure and quantisation), one per EV,
+    /// where the set has them (`hdrsynth testset` writes them); empty otherwise.
+    pub clean_frames: Vec<PathBuf>,
     pub ground_truth: Option<GroundTruth>,
+    /// The exposure file's stops and the unit of the set's linear ground truth, for layouts
+    /// that have one (Kalantari, Wu); None where the ground truth is already in hdrsynth's
+    /// unit (1 = the reference exposure's white: hdrsynth's own layout).
+    pub exposure: Option<ExposureFile>,
+}
+
+/// Absolute exposure stops as a layout's exposure file writes them, and the stop of the unit
+/// exposure time in the field's reading of that file: its code linearises frame i as
+/// LDR^γ / 2^(s_i − origin), and the set's ground truth is in that unit.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ExposureFile {
+    pub path: PathBuf,
+    /// Log2 stops as written, in the set's frame order (ascending EV).
+    pub stops: Vec<f32>,
+    /// The stop whose exposure time is 1 in the field's code: 0 for Kalantari's `exposure.txt`
+    /// (HDR-Transformer: t = 2^s as written), the smallest stop for Wu's `input_exp.txt`
+    /// (Wu et al.'s code subtracts the minimum first).
+    pub origin: f32,
 }
 
 impl SetInfo {
+    /// Factor from the unit of the set's files (linear ground truth, predictions made by the
+    /// field's tools) to hdrsynth's unit, 1 = the reference exposure's white.
+    ///
+    /// The field's code writes HDR = LDR_i^γ / 2^(s_i − origin) for every well-exposed frame
+    /// i, hdrsynth's unit is LDR_i^γ / 2^(s_i − s_ref); their ratio is 2^(s_ref − origin).
+    /// E.g. Kalantari's "0 2 4": 2^2 = 4 (the file's unit is the shortest frame's white).
+    pub fn file_to_reference(&self) -> f32 {
+        match &self.exposure {
+            Some(e) => (e.stops[self.reference] - e.origin).exp2(),
+            None => 1.0,
+        }
+    }
+
     /// Indices (short, long) of Network-1's pair and of the blend-class ground truth: EV−3 and
     /// the reference when the set has both (the paper's pair), else its lowest EV and the
     /// reference.
@@ -152,7 +188,7 @@ pub fn detect(root: &Path) -> Result<DatasetInfo> {
             return Ok(DatasetInfo {
                 root: root.to_path_buf(),
                 layout,
-                sets: vec![set],
+                sets: vec![*set],
                 skipped: notes,
             });
         }
@@ -165,7 +201,7 @@ pub fn detect(root: &Path) -> Result<DatasetInfo> {
     for sub in &listing.dirs {
         match classify(&sub.path, &sub.name)? {
             Probe::Set { layout, set, notes } => {
-                found.push((layout, set));
+                found.push((layout, *set));
                 skipped.extend(notes);
             }
             Probe::NotASet(not) => {
@@ -176,7 +212,7 @@ pub fn detect(root: &Path) -> Result<DatasetInfo> {
                     let name = format!("{}/{}", sub.name, d.name);
                     match classify(&d.path, &name)? {
                         Probe::Set { layout, set, notes } => {
-                            found.push((layout, set));
+                            found.push((layout, *set));
                             skipped.extend(notes);
                             inner_found += 1;
                         }
@@ -261,7 +297,43 @@ pub fn detect(root: &Path) -> Result<DatasetInfo> {
     })
 }
 
-/// Load a set's frames and ground truth. Every image must have the set's size.
+/// A linear ground truth in hdrsynth's unit (1 = the reference exposure's white): the file's
+/// values × [`SetInfo::file_to_reference`]. Display-referred ground truth is returned as is.
+pub fn to_reference_unit(set: &SetInfo, gt: &GroundTruth, mut img: Image) -> Image {
+    let k = set.file_to_reference();
+    if gt.kind == GroundTruthKind::Linear && k != 1.0 {
+        img.data.par_iter_mut().for_each(|v| *v *= k);
+    }
+    img
+}
+
+/// A set's linear ground truth in hdrsynth's unit (1 = the reference exposure's white), checked
+/// against the set's size. Errors name the file (or the set when it has none, or when its
+/// ground truth is display-referred).
+pub fn read_linear_ground_truth(set: &SetInfo) -> Result<Image> {
+    match &set.ground_truth {
+        Some(gt) if gt.kind == GroundTruthKind::Linear => {
+            let img = crate::io::read_image(&gt.path)?;
+            check_size(&gt.path, img.width, img.height, set.width, set.height)?;
+            Ok(to_reference_unit(set, gt, img))
+        }
+        Some(gt) => Err(Error::layout(
+            &gt.path,
+            format!(
+                "set '{}': the ground truth is display-referred (8-bit), so linear HDR outputs \
+                 cannot be scored against it",
+                set.name
+            ),
+        )),
+        None => Err(Error::layout(
+            &set.dir,
+            format!("set '{}' has no ground truth", set.name),
+        )),
+    }
+}
+
+/// Load a set's frames and ground truth (linear ground truth in hdrsynth's unit, see
+/// [`to_reference_unit`]). Every image must have the set's size.
 pub fn load_set(set: &SetInfo) -> Result<LoadedSet> {
     let read = |path: &PathBuf| -> Result<Image> {
         let img = crate::io::read_image(path)?;
@@ -281,7 +353,7 @@ pub fn load_set(set: &SetInfo) -> Result<LoadedSet> {
     let ground_truth = set
         .ground_truth
         .as_ref()
-        .map(|gt| read(&gt.path))
+        .map(|gt| read(&gt.path).map(|img| to_reference_unit(set, gt, img)))
         .transpose()?;
     Ok(LoadedSet {
         static_frames,
@@ -297,7 +369,8 @@ pub fn load_set(set: &SetInfo) -> Result<LoadedSet> {
 enum Probe {
     Set {
         layout: LayoutKind,
-        set: SetInfo,
+        // Boxed: a SetInfo is ten times the size of the other variant (clippy).
+        set: Box<SetInfo>,
         /// Things looked at and not taken inside the set (e.g. a second GT candidate).
         notes: Vec<(PathBuf, String)>,
     },
@@ -364,7 +437,11 @@ fn classify(dir: &Path, name: &str) -> Result<Probe> {
         LayoutKind::PaperDataset1 => paper1::read_set(dir, name, files)?,
         LayoutKind::Hdrsynth => unreachable!("hdrsynth datasets are read by hdrsynth::read"),
     };
-    Ok(Probe::Set { layout, set, notes })
+    Ok(Probe::Set {
+        layout,
+        set: Box::new(set),
+        notes,
+    })
 }
 
 /// A directory entry; names starting with '.' (including macOS `._*` forks) are ignored.

@@ -77,10 +77,12 @@ pub(super) fn read_set(dir: &Path, name: &str, files: &[Entry]) -> Result<SetRea
         static_frames,
         dynamic_frames,
         masks: Vec::new(),
+        clean_frames: Vec::new(),
         ground_truth: gt.map(|path| GroundTruth {
             path,
             kind: GroundTruthKind::Display,
         }),
+        exposure: None,
     };
     Ok((set, Vec::new()))
 }

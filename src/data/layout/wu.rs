@@ -3,8 +3,12 @@
 //! `ref_{1,2,3}_aligned.{tif,png}` (the same exposures with motion stopped), `input_exp.txt`
 //! (log2 stops of the inputs; frame 2 is the reference), optionally `ref_exp.txt` (stops of the
 //! ref frames) and `ref_hdr_aligned*.hdr` (linear ground truth aligned to frame 2).
+//!
+//! Units: Wu et al.'s code subtracts the smallest stop and uses t_i = 2^(s_i − s_min), so the
+//! ground truth is in the shortest frame's unit; [`SetInfo::file_to_reference`] converts it
+//! to hdrsynth's (1 = frame 2's white).
 
-use super::{Entry, GroundTruth, GroundTruthKind, SetInfo, SetRead};
+use super::{Entry, ExposureFile, GroundTruth, GroundTruthKind, SetInfo, SetRead};
 use crate::error::{Error, Result};
 use std::path::{Path, PathBuf};
 
@@ -175,6 +179,7 @@ pub(super) fn read_set(dir: &Path, name: &str, files: &[Entry]) -> Result<SetRea
         .position(|&i| i == REFERENCE_FRAME - 1)
         .expect("frame 2 is among the three");
     let evs: Vec<f32> = order.iter().map(|&i| ev_by_frame[i]).collect();
+    let sorted_stops: Vec<f32> = order.iter().map(|&i| stops[i]).collect();
     let dynamic_frames: Vec<PathBuf> = order.iter().map(|&i| inputs[i].clone()).collect();
     let static_frames: Vec<PathBuf> = if refs.is_empty() {
         Vec::new()
@@ -196,9 +201,17 @@ pub(super) fn read_set(dir: &Path, name: &str, files: &[Entry]) -> Result<SetRea
         static_frames,
         dynamic_frames,
         masks: Vec::new(),
+        clean_frames: Vec::new(),
         ground_truth: gt.map(|path| GroundTruth {
             path,
             kind: GroundTruthKind::Linear,
+        }),
+        // Wu et al.'s code (`in_exps -= in_exps.min()`, then t = 2^s) puts the shortest
+        // frame at t = 1, whatever the file's offset: the ground truth is in its unit.
+        exposure: Some(ExposureFile {
+            path: input_exp,
+            origin: sorted_stops[0],
+            stops: sorted_stops,
         }),
     };
     Ok((set, notes))
