@@ -75,6 +75,9 @@ pub fn run(args: &Args) -> Result<String> {
         isos: vec![args.iso],
         noise: NoiseModel::Gaussian,
         exposure: 1.0,
+        metering: Default::default(),
+        ev_jitter: 0.0,
+        source: Default::default(),
         colour: true,
     });
     let pure = Loader::new(&base)?;

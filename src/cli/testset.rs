@@ -2,6 +2,7 @@
 //! radiance rendered through a sensor profile (`data::testset`, docs/evaluation.md).
 
 use crate::data::testset::{self, TestsetOptions, TestsetSummary};
+use crate::sensor::metering::Metering;
 use crate::sensor::profile::SensorProfile;
 use crate::sensor::realism::NoiseModel;
 use anyhow::{Context, Result};
@@ -30,12 +31,12 @@ pub struct Args {
     /// Factor on the automatic exposure key.
     #[arg(long, default_value_t = 1.0)]
     pub exposure: f64,
-    /// Luminance percentile placed at --key-level of sensor white at EV0.
-    #[arg(long, default_value_t = 99.0)]
-    pub key_percentile: f64,
-    /// Fraction of sensor white for that percentile at EV0.
-    #[arg(long, default_value_t = 0.9)]
-    pub key_level: f64,
+    /// Auto-exposure: fraction of sensor white the scene's log-average luminance lands at.
+    #[arg(long, default_value_t = Metering::default().mid_grey)]
+    pub mid_grey: f64,
+    /// Auto-exposure: largest fraction of pixels allowed to clip at EV0.
+    #[arg(long, default_value_t = Metering::default().max_clipped)]
+    pub max_clipped: f64,
     /// gaussian (the paper's N(0, aI+b)), poisson-gaussian (exact), none.
     #[arg(long, default_value = "gaussian", value_parser = parse_noise)]
     pub noise: NoiseModel,
@@ -76,8 +77,10 @@ impl Args {
             evs: self.evs.clone(),
             seed: self.seed,
             exposure: self.exposure,
-            key_percentile: self.key_percentile,
-            key_level: self.key_level,
+            metering: Metering {
+                mid_grey: self.mid_grey,
+                max_clipped: self.max_clipped,
+            },
             noise: self.noise,
             colour: !self.no_colour,
             output_bits: self.bits,

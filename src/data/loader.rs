@@ -23,20 +23,45 @@ use crate::data::layout::{self, GroundTruthKind, SetInfo};
 use crate::error::{Error, Result};
 use crate::io::{Image, read_image};
 use crate::rng::{Rng, hash};
-use crate::sensor::profile::SensorProfile;
+use crate::sensor::metering::Metering;
+use crate::sensor::profile::{Response, SensorProfile};
 use crate::sensor::realism::{NoiseModel, Realism, RealismOptions};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, sync_channel};
+use std::sync::{Arc, OnceLock};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum SampleKind {
     Network1,
     Network2,
+}
+
+/// Which pixels the realism operator starts from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Source {
+    /// The linear EXR of every frame when the dataset has them (hdrsynth's layout with
+    /// `write_linear`), else the display frames.
+    #[default]
+    Auto,
+    /// The frames' linear EXRs (float radiance: highlights keep their full precision).
+    Linear,
+    /// The display frames (8/16-bit, linearised with the profile's source response).
+    Display,
+}
+
+impl std::fmt::Display for Source {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Source::Auto => "auto",
+            Source::Linear => "linear EXR frames",
+            Source::Display => "display frames linearised by the profile's source response",
+        })
+    }
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -47,8 +72,19 @@ pub struct RealismConfig {
     pub isos: Vec<f64>,
     #[serde(default)]
     pub noise: NoiseModel,
+    /// Extra factor on the metered exposure (1 = the auto-exposure rule's choice).
     #[serde(default = "one")]
     pub exposure: f64,
+    /// The auto-exposure rule (src/sensor/metering.rs; the same rule `testset` uses).
+    #[serde(default)]
+    pub metering: Metering,
+    /// Per-sample exposure jitter, uniform in ±`ev_jitter` stops around the metered exposure
+    /// (a phone's meter is not exact either).
+    #[serde(default = "half")]
+    pub ev_jitter: f64,
+    /// Linear EXR frames or display frames (`auto`: EXRs when every frame has one).
+    #[serde(default)]
+    pub source: Source,
     /// Apply the profile's colour transform (false for the colour ablation).
     #[serde(default = "yes")]
     pub colour: bool,
@@ -56,6 +92,9 @@ pub struct RealismConfig {
 
 fn one() -> f64 {
     1.0
+}
+fn half() -> f64 {
+    0.5
 }
 fn yes() -> bool {
     true
@@ -121,8 +160,17 @@ pub struct Sample {
 pub struct Loader {
     cfg: LoaderConfig,
     sets: Vec<SetInfo>,
-    /// One prepared operator per configured ISO.
+    /// One prepared operator per configured ISO. Its source is linear: the loader hands it
+    /// linear frames already scaled by the sample's exposure.
     realism: Vec<(f64, Realism)>,
+    /// What realism starts from (Linear or Display once resolved; unused in pure mode).
+    source: Source,
+    /// Display code (16-bit index) → linear, 1 = the source response's clipping point.
+    linearise: Option<Vec<f32>>,
+    /// Per set: the ground truth's value of the reference frame's white (the target unit).
+    white: Vec<f32>,
+    /// Per set: the metered EV0 key, computed once on first use.
+    keys: Vec<OnceLock<std::result::Result<f32, String>>>,
 }
 
 /// Indices of the frames with the wanted EVs (error naming the set when one is missing).
@@ -143,6 +191,25 @@ fn frames_at(set: &SetInfo, evs: &[f32]) -> Result<Vec<usize>> {
                 })
         })
         .collect()
+}
+
+/// The linear EXR written beside a display frame (hdrsynth's layout, `write_linear`).
+fn linear_sibling(frame: &Path) -> PathBuf {
+    frame.with_extension("exr")
+}
+
+/// The ground-truth value of the reference frame's white in each set: the dataset's tone
+/// curve's clipping point for hdrsynth's layout (filmic: 7.24, the engine's display white at
+/// EV0), 1 elsewhere (linear ground truth in units of the reference exposure).
+fn reference_whites(info: &layout::DatasetInfo) -> Result<Vec<f32>> {
+    let white = match info.layout {
+        layout::LayoutKind::Hdrsynth => {
+            let m = layout::hdrsynth::read_manifest(&info.root)?;
+            m.tone_curve.invert(1.0)
+        }
+        _ => 1.0,
+    };
+    Ok(vec![white; info.sets.len()])
 }
 
 /// Crop `size`×`size` at (x0, y0).
@@ -193,10 +260,7 @@ impl Loader {
         if info.sets.is_empty() {
             return Err(Error::layout(&cfg.dataset, "no sets"));
         }
-        let need: &[f32] = match cfg.kind {
-            SampleKind::Network1 => &[-3.0, 0.0],
-            SampleKind::Network2 => &[-2.0, 0.0, 2.0],
-        };
+        let need = Self::evs(cfg.kind);
         for s in &info.sets {
             frames_at(s, need)?;
             if s.width < cfg.patch || s.height < cfg.patch {
@@ -209,16 +273,58 @@ impl Loader {
                 ));
             }
         }
+        let white = reference_whites(&info)?;
         let mut realism = Vec::new();
+        let mut source = Source::Display;
+        let mut linearise = None;
         if let Some(r) = &cfg.realism {
             if r.isos.is_empty() {
                 return Err(Error::Invalid("loader: realism.isos is empty".into()));
             }
-            let profile = SensorProfile::load(&r.profile)?;
+            if !(r.ev_jitter >= 0.0 && r.ev_jitter <= 4.0) {
+                return Err(Error::Invalid(format!(
+                    "loader: realism.ev_jitter {} must be in [0, 4] stops",
+                    r.ev_jitter
+                )));
+            }
+            r.metering
+                .validate()
+                .map_err(|m| Error::Invalid(format!("loader: {m}")))?;
+            let mut profile = SensorProfile::load(&r.profile)?;
+            let missing = info.sets.iter().find_map(|s| {
+                let idx = frames_at(s, need).ok()?;
+                [&s.static_frames, &s.dynamic_frames]
+                    .into_iter()
+                    .flat_map(|fs| idx.iter().filter_map(|&i| fs.get(i)))
+                    .map(|f| linear_sibling(f))
+                    .find(|f| !f.is_file())
+            });
+            source = match (r.source, missing) {
+                (Source::Display, _) | (Source::Auto, Some(_)) => Source::Display,
+                (Source::Linear | Source::Auto, None) => Source::Linear,
+                (Source::Linear, Some(f)) => {
+                    return Err(Error::layout(
+                        &f,
+                        "missing: `source = \"linear\"` needs every frame's linear EXR \
+                         (generate with write_linear = true, or use source = \"display\")",
+                    ));
+                }
+            };
+            if source == Source::Display {
+                let src = &profile.source_response;
+                let sat = src.invert(1.0).max(1e-12);
+                linearise = Some(
+                    (0..=65535u32)
+                        .map(|k| (src.invert(k as f64 / 65535.0) / sat) as f32)
+                        .collect(),
+                );
+            }
+            // The operator always receives linear, exposed frames.
+            profile.source_response = Response::Linear;
             for &iso in &r.isos {
                 let opts = RealismOptions {
                     iso,
-                    exposure: r.exposure,
+                    exposure: 1.0,
                     noise: r.noise,
                     colour: r.colour,
                     output_bits: 8,
@@ -228,9 +334,21 @@ impl Loader {
         }
         Ok(Loader {
             cfg: cfg.clone(),
+            keys: info.sets.iter().map(|_| OnceLock::new()).collect(),
             sets: info.sets,
             realism,
+            source,
+            linearise,
+            white,
         })
+    }
+
+    /// The EVs a sample kind reads.
+    fn evs(kind: SampleKind) -> &'static [f32] {
+        match kind {
+            SampleKind::Network1 => &[-3.0, 0.0],
+            SampleKind::Network2 => &[-2.0, 0.0, 2.0],
+        }
     }
 
     /// Samples per epoch (one per set).
@@ -246,6 +364,25 @@ impl Loader {
         &self.cfg
     }
 
+    /// What the training frames are made from, for logs and reports.
+    pub fn describe_source(&self) -> String {
+        match &self.cfg.realism {
+            None => "pure synthetic display frames (no sensor realism), targets in units of \
+                     the reference frame's white"
+                .into(),
+            Some(r) => format!(
+                "sensor realism ({}) from {}; exposure metered per set (mid grey {}, at most \
+                 {:.0} % clipped) × {} ± {} EV",
+                r.profile.display(),
+                self.source,
+                r.metering.mid_grey,
+                r.metering.max_clipped * 100.0,
+                r.exposure,
+                r.ev_jitter
+            ),
+        }
+    }
+
     /// Set index of sample `index` in `epoch`: a seeded Fisher–Yates permutation per epoch.
     fn set_of(&self, epoch: u64, index: usize) -> usize {
         let mut order: Vec<usize> = (0..self.sets.len()).collect();
@@ -256,9 +393,49 @@ impl Loader {
         order[index % order.len()]
     }
 
+    /// A frame as linear values in realism's starting unit: the EXR sibling (Linear source),
+    /// or the display frame through the source response (Display source, 1 = its white).
+    fn linear_frame(&self, frame: &Path) -> Result<Image> {
+        match &self.linearise {
+            None => read_image(&linear_sibling(frame)),
+            Some(lut) => {
+                Ok(read_image(frame)?.map(|v| lut[(v.clamp(0.0, 1.0) * 65535.0).round() as usize]))
+            }
+        }
+    }
+
+    /// The metered EV0 key of set `k` in realism's starting unit (cached).
+    fn key(&self, k: usize) -> Result<f32> {
+        let set = &self.sets[k];
+        let r = self.cfg.realism.as_ref().ok_or_else(|| {
+            Error::Invalid("loader: exposure metering needs a realism config".into())
+        })?;
+        self.keys[k]
+            .get_or_init(|| {
+                let radiance = match (&set.ground_truth, self.source) {
+                    (Some(gt), Source::Linear) if gt.kind == GroundTruthKind::Linear => {
+                        read_image(&gt.path)
+                    }
+                    _ => {
+                        let frames = if set.static_frames.is_empty() {
+                            &set.dynamic_frames
+                        } else {
+                            &set.static_frames
+                        };
+                        self.linear_frame(&frames[set.reference])
+                    }
+                }
+                .map_err(|e| e.to_string())?;
+                r.metering.key(&radiance).map(|e| e.key)
+            })
+            .clone()
+            .map_err(|m| Error::layout(&set.dir, format!("set '{}': {m}", set.name)))
+    }
+
     /// Sample `index` of `epoch`: a pure function of (config, epoch, index).
     pub fn sample(&self, epoch: u64, index: usize) -> Result<Sample> {
-        let set = &self.sets[self.set_of(epoch, index)];
+        let k = self.set_of(epoch, index);
+        let set = &self.sets[k];
         let mut rng = Rng::from_parts(self.cfg.seed, &[epoch, index as u64]);
         let p = self.cfg.patch;
         let x0 = rng.int(0, set.width - p);
@@ -270,15 +447,26 @@ impl Loader {
         };
         let op =
             (!self.realism.is_empty()).then(|| &self.realism[rng.int(0, self.realism.len() - 1)]);
+        // The sample's EV0 exposure: the metered key, the user's factor, a random jitter.
+        let exposure = match &self.cfg.realism {
+            Some(r) => {
+                let jitter = r.ev_jitter * rng.range(-1.0, 1.0) as f64;
+                self.key(k)? * (r.exposure * jitter.exp2()) as f32
+            }
+            None => 1.0,
+        };
         let noise_seed = hash(self.cfg.seed, &[0x0153, epoch, index as u64]);
         // One realism seed per frame, so frames of a sample get independent noise.
-        let realistic = |img: &Image, k: u64| -> Image {
-            let c = crop(img, x0, y0, p);
-            match op {
-                Some((_, r)) => r.apply(&c, hash(noise_seed, &[k])),
+        let realistic = |frame: &Path, k: u64| -> Result<Image> {
+            Ok(match op {
+                Some((_, r)) => {
+                    let lin = crop(&self.linear_frame(frame)?, x0, y0, p).map(|v| v * exposure);
+                    r.apply(&lin, hash(noise_seed, &[k]))
+                }
                 // Pure mode still quantises to 8 bits, as the networks see 8-bit frames.
-                None => c.map(|v| (v.clamp(0.0, 1.0) * 255.0).round() / 255.0),
-            }
+                None => crop(&read_image(frame)?, x0, y0, p)
+                    .map(|v| (v.clamp(0.0, 1.0) * 255.0).round() / 255.0),
+            })
         };
         let (channels, input_hwc, target, times) = match self.cfg.kind {
             SampleKind::Network1 => {
@@ -288,8 +476,8 @@ impl Loader {
                 } else {
                     &set.static_frames
                 };
-                let low = realistic(&read_image(&frames[idx[0]])?, 0);
-                let high = realistic(&read_image(&frames[idx[1]])?, 1);
+                let low = realistic(&frames[idx[0]], 0)?;
+                let high = realistic(&frames[idx[1]], 1)?;
                 let classes = blend_classes(&low, &high)?;
                 let mut hwc = Vec::with_capacity(p * p * 6);
                 for (l, h) in low.data.chunks_exact(3).zip(high.data.chunks_exact(3)) {
@@ -313,14 +501,16 @@ impl Loader {
                 let times = [0.25f32, 1.0, 4.0];
                 let mut frames = Vec::with_capacity(3);
                 for i in 0..3 {
-                    frames.push(realistic(&read_image(pick(i))?, i as u64));
+                    frames.push(realistic(pick(i), i as u64)?);
                 }
-                let hdr = match &set.ground_truth {
-                    // In hdrsynth's unit (1 = the reference's white), as the input times are
-                    // relative to the reference: Kalantari/Wu files are in their own unit.
-                    Some(gt) if gt.kind == GroundTruthKind::Linear => {
-                        layout::to_reference_unit(set, gt, crop(&read_image(&gt.path)?, x0, y0, p))
-                    }
+                // The target in units of the reference frame's white (`white`), whatever the
+                // mode: 1 = EV0's clipping point, as the test ground truth. Kalantari/Wu files
+                // are first brought from their own unit into the reference's.
+                let (hdr, white) = match &set.ground_truth {
+                    Some(gt) if gt.kind == GroundTruthKind::Linear => (
+                        layout::to_reference_unit(set, gt, crop(&read_image(&gt.path)?, x0, y0, p)),
+                        self.white[k],
+                    ),
                     _ if stat => {
                         let s: Vec<Image> = idx
                             .iter()
@@ -328,7 +518,13 @@ impl Loader {
                                 read_image(&set.static_frames[i]).map(|f| crop(&f, x0, y0, p))
                             })
                             .collect::<Result<_>>()?;
-                        triangle_merge(&[s[0].clone(), s[1].clone(), s[2].clone()], times, 2.2)?
+                        // LDR^2.2 / t: the reference frame's white is 1.
+                        let m = triangle_merge(
+                            &[s[0].clone(), s[1].clone(), s[2].clone()],
+                            times,
+                            2.2,
+                        )?;
+                        (m, 1.0)
                     }
                     _ => {
                         return Err(Error::layout(
@@ -341,8 +537,16 @@ impl Loader {
                     }
                 };
                 let hdr = match op {
-                    Some((_, r)) => r.device_linear(&hdr),
-                    None => hdr,
+                    // Linear source: frames and ground truth share the engine's unit; display
+                    // source: the frames are in units of the source's white, so is the target.
+                    Some((_, r)) => {
+                        let unit = match self.source {
+                            Source::Linear => exposure,
+                            _ => exposure / white,
+                        };
+                        r.device_linear(&hdr.map(|v| v * unit))
+                    }
+                    None => hdr.map(|v| v / white),
                 };
                 let mut hwc = Vec::with_capacity(p * p * 18);
                 for px in 0..p * p {

@@ -4,8 +4,9 @@
 //! Per radiance map (scene) and ISO one set named `<scene>_iso<N>` in hdrsynth's own layout
 //! (docs/layout.md), so `layout::detect`, the loader and `hdrsynth eval` read it back:
 //! - the radiance, converted to linear Rec. 709 primaries where the EXR says otherwise, is
-//!   scaled by a key k that puts its `key_percentile`-th luminance percentile at `key_level` of
-//!   sensor white in the EV0 frame (times the user's `exposure` factor);
+//!   scaled by the key k of the auto-exposure rule (src/sensor/metering.rs: average metering
+//!   with highlight protection, the rule training realism uses too), times the user's
+//!   `exposure` factor;
 //! - each bracket frame is the realism operator (colour T, noise at that ISO, levels, device
 //!   response, 8-bit) applied to radiance · k · 2^EV with the profile's source response set to
 //!   linear, seeded by (seed, scene, ISO, EV);
@@ -22,8 +23,9 @@ use crate::data::layout::hdrsynth::{self as own, Manifest, SET_META, SetMeta};
 use crate::data::scene::{Camera, SampleStats, ev_tag};
 use crate::error::{Error, Result};
 use crate::io::atomic::write_atomic;
-use crate::io::{BitDepth, ExrPrecision, Image, luminance, read_image, write_exr, write_ldr};
+use crate::io::{BitDepth, ExrPrecision, Image, read_image, write_exr, write_ldr};
 use crate::rng::hash;
+use crate::sensor::metering::Metering;
 use crate::sensor::profile::{Response, SensorProfile};
 use crate::sensor::realism::{NoiseModel, Realism, RealismOptions};
 use crate::sensor::response::ToneCurve;
@@ -45,12 +47,10 @@ pub struct TestsetOptions {
     /// Bracket EVs relative to the reference; must hold 0.
     pub evs: Vec<f32>,
     pub seed: u64,
-    /// Extra factor on the automatic exposure key (1 = the placement below).
+    /// Extra factor on the automatic exposure key (1 = the metering rule's choice).
     pub exposure: f64,
-    /// Luminance percentile (0–100) placed at `key_level` of sensor white at EV0.
-    pub key_percentile: f64,
-    /// Fraction of sensor white that percentile lands at.
-    pub key_level: f64,
+    /// The auto-exposure rule (src/sensor/metering.rs), the same one training realism uses.
+    pub metering: Metering,
     pub noise: NoiseModel,
     /// Apply the profile's colour transform T (frames and ground truth alike).
     pub colour: bool,
@@ -67,8 +67,7 @@ impl Default for TestsetOptions {
             evs: vec![-3.0, 0.0],
             seed: 0,
             exposure: 1.0,
-            key_percentile: 99.0,
-            key_level: 0.9,
+            metering: Metering::default(),
             noise: NoiseModel::Gaussian,
             colour: true,
             output_bits: 8,
@@ -248,16 +247,13 @@ fn validate(opts: &TestsetOptions, profile: &SensorProfile) -> Result<()> {
             opts.evs
         )));
     }
-    if !(opts.key_percentile > 0.0 && opts.key_percentile <= 100.0) {
+    opts.metering
+        .validate()
+        .map_err(|m| Error::Invalid(format!("testset: {m}")))?;
+    if !(opts.exposure > 0.0 && opts.exposure.is_finite()) {
         return Err(Error::Invalid(format!(
-            "testset: key percentile {} must be in (0, 100]",
-            opts.key_percentile
-        )));
-    }
-    if !(opts.key_level > 0.0 && opts.key_level.is_finite()) {
-        return Err(Error::Invalid(format!(
-            "testset: key level {} must be > 0",
-            opts.key_level
+            "testset: exposure factor {} must be > 0",
+            opts.exposure
         )));
     }
     if let Some((w, h)) = opts.resize
@@ -549,29 +545,10 @@ fn clip_fractions(frame: &Image) -> (f32, f32) {
     (o as f32 / n, u as f32 / n)
 }
 
-/// k (radiance → EV0 linear signal, 1 = sensor white) such that the `key_percentile` luminance
-/// percentile (nearest rank) of `radiance` lands at `key_level` (× `exposure`) at EV0:
-/// k = level · exposure / percentile.
+/// k (radiance → EV0 linear signal, 1 = sensor white): the metering rule's key
+/// (src/sensor/metering.rs) times the user's `exposure` factor.
 pub fn exposure_key(radiance: &Image, opts: &TestsetOptions) -> std::result::Result<f32, String> {
-    let mut lum: Vec<f32> = radiance
-        .data
-        .par_chunks_exact(3)
-        .map(|p| luminance([p[0], p[1], p[2]]))
-        .collect();
-    if lum.is_empty() {
-        return Err("empty radiance map".into());
-    }
-    let idx = ((opts.key_percentile / 100.0) * (lum.len() - 1) as f64).round() as usize;
-    let idx = idx.min(lum.len() - 1);
-    let (_, p, _) = lum.select_nth_unstable_by(idx, f32::total_cmp);
-    let p = *p as f64;
-    if p <= 0.0 {
-        return Err(format!(
-            "the {}th luminance percentile is {p}: the map is black there; no exposure places it",
-            opts.key_percentile
-        ));
-    }
-    Ok((opts.key_level * opts.exposure / p) as f32)
+    Ok(opts.metering.key(radiance)?.key * opts.exposure as f32)
 }
 
 /// Read a radiance map as linear Rec. 709 RGB (negatives clamped to 0), resized if asked.

@@ -6,6 +6,7 @@ pub mod darktable;
 pub mod diagnose;
 pub mod dng;
 pub mod effects;
+pub mod metering;
 pub mod noise;
 pub mod profile;
 pub mod realism;

@@ -2,9 +2,10 @@
 //! relative to the working directory. See docs/training.md for every key.
 
 use crate::config::load_toml;
-use crate::data::loader::{LoaderConfig, RealismConfig, SampleKind};
+use crate::data::loader::{LoaderConfig, RealismConfig, SampleKind, Source};
 use crate::error::{Error, Result};
 use crate::models::{BlendUNetConfig, WuConfig};
+use crate::sensor::metering::Metering;
 use crate::sensor::realism::NoiseModel;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -119,8 +120,18 @@ pub struct DataConfig {
     pub isos: Vec<f64>,
     #[serde(default)]
     pub noise: NoiseModel,
+    /// Extra factor on the metered exposure (1 = the auto-exposure rule's choice).
     #[serde(default = "one")]
     pub exposure: f64,
+    /// The auto-exposure rule (src/sensor/metering.rs, shared with `testset`).
+    #[serde(default)]
+    pub metering: Metering,
+    /// Per-sample exposure jitter in ± stops around the metered exposure.
+    #[serde(default = "half")]
+    pub ev_jitter: f64,
+    /// Realism's starting frames: auto | linear | display.
+    #[serde(default)]
+    pub source: Source,
     /// Apply the profile's colour transform.
     #[serde(default = "yes")]
     pub colour: bool,
@@ -134,6 +145,9 @@ fn yes() -> bool {
 }
 fn one() -> f64 {
     1.0
+}
+fn half() -> f64 {
+    0.5
 }
 
 impl DataConfig {
@@ -153,6 +167,9 @@ impl DataConfig {
                 isos: self.isos.clone(),
                 noise: self.noise,
                 exposure: self.exposure,
+                metering: self.metering,
+                ev_jitter: self.ev_jitter,
+                source: self.source,
                 colour: self.colour,
             })
         };

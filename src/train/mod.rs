@@ -129,6 +129,8 @@ pub struct TrainSummary {
 pub const RUN_CONFIG: &str = "config.toml";
 /// The metrics log, one JSON object per line.
 pub const LOG_FILE: &str = "log.jsonl";
+/// One line: what the training frames were made from (`Loader::describe_source`).
+pub const DATA_SOURCE_FILE: &str = "data_source.txt";
 
 /// Train as configured. Errors name what is wrong; a non-finite loss stops the run with the
 /// last good checkpoint in place.
@@ -258,6 +260,15 @@ pub fn train<T: Task>(
 ) -> Result<TrainSummary> {
     let run = &cfg.run.out;
     std::fs::create_dir_all(run).map_err(|e| Error::io(run, e))?;
+    // Which frames the run trains on (pure, linear EXRs, display frames) for whoever reads it.
+    let source = loader.describe_source();
+    write_atomic(
+        &run.join(DATA_SOURCE_FILE),
+        format!("{source}\n").as_bytes(),
+    )?;
+    if opts.progress {
+        eprintln!("training data: {source}");
+    }
     let device = device_from_name(&cfg.run.backend)?;
     let ad = device.clone().autodiff();
     let identity = identity_of(cfg)?;
