@@ -1,16 +1,22 @@
-//! `hdrsynth quickstart`: the whole method once, on embedded defaults, in about ten minutes on
-//! two CPU cores (docs/quickstart.md). Generate synthetic pairs; pretrain Network-1 on them seen
-//! through one real camera (Samsung NX1000); fine-tune for another (Canon EOS 550D) on pure
-//! synthetic data (Net_P) and on sensor-realistic data (Net_S); build a test set from real scene
-//! radiance (../shared/data/real_hdr, else generated scenes) through the Canon model; evaluate
-//! all three on it and print the Experiment-1 table.
+//! `hdrsynth quickstart`: the paper's central claim once, on embedded defaults, in about ten
+//! minutes on two CPU cores (README, docs/experiments.md). Generate synthetic EV −2/0/+2 sets;
+//! pretrain a small Network-2 (Net_O) through a DSLR-class camera model (the Canon EOS 550D's
+//! colour, noise and levels with a gamma-2.2 response at ISO 100–200: the setting of
+//! Kalantari's Canon 5D data, from which the paper's Net_O came); fine-tune it for a
+//! phone-class target (the composite phone profile) on pure synthetic data (Net_P), on
+//! sensor-realistic data (Net_S) and, as a control, on its own pretraining data; once per seed;
+//! build a test set from real scene radiance (../shared/data/real_hdr, else generated scenes)
+//! through the phone model; evaluate every network and print the seed-aware Experiment-2 table.
 //!
+//! Training scenes are generated (seed 2026); test scenes are real radiance (or, without it,
+//! generated with another seed, 77): nothing is tuned on the test scenes.
 //! Every stage resumes: rerunning the command after an interruption keeps what is finished.
 //! The configs it runs are written to OUT/configs/ so each stage can be rerun or changed by hand.
 
 use crate::cli::ablate as ablate_cli;
 use crate::config::parse_toml;
 use crate::eval::ablate::{self, AblateConfig};
+use crate::sensor::profile::{Response, SensorProfile};
 use crate::train::config::TrainConfig;
 use crate::train::{TrainOptions, checkpoint};
 use anyhow::{Context, Result, bail};
@@ -20,9 +26,9 @@ use std::time::Instant;
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Preset {
-    /// About 10 minutes on 2 CPU cores: a narrow U-Net, short runs, small crops.
+    /// About 10 minutes on 2 CPU cores: a narrow Network-2, short runs, small crops.
     Cpu,
-    /// The paper's U-Net width and longer runs, for a GPU (pass --backend cuda or wgpu).
+    /// Wu et al.'s released width and longer runs, for a GPU (pass --backend cuda or wgpu).
     Gpu,
 }
 
@@ -51,7 +57,7 @@ struct Sizes {
     train_sets: usize,
     train_size: (usize, usize),
     base_width: usize,
-    depth: usize,
+    res_blocks: usize,
     patch: usize,
     batch: usize,
     pretrain_steps: u64,
@@ -59,51 +65,69 @@ struct Sizes {
     pretrain_lr: f64,
     finetune_lr: f64,
     checkpoint_every: u64,
+    seeds: &'static [u64],
     backend: &'static str,
 }
 
 fn sizes(p: Preset) -> Sizes {
     match p {
         Preset::Cpu => Sizes {
-            train_sets: 32,
-            train_size: (256, 192),
+            train_sets: 40,
+            train_size: (160, 128),
             base_width: 8,
-            depth: 3,
+            res_blocks: 2,
             patch: 64,
-            batch: 4,
-            pretrain_steps: 600,
+            batch: 8,
+            pretrain_steps: 800,
             finetune_steps: 300,
-            pretrain_lr: 2e-3,
+            pretrain_lr: 1e-3,
             finetune_lr: 5e-4,
             checkpoint_every: 100,
+            seeds: &[1, 2, 3],
             backend: "flex",
         },
         Preset::Gpu => Sizes {
             train_sets: 256,
             train_size: (512, 384),
-            base_width: 32,
-            depth: 4,
+            base_width: 64,
+            res_blocks: 9,
             patch: 256,
             batch: 8,
-            pretrain_steps: 4000,
-            finetune_steps: 1500,
+            pretrain_steps: 20000,
+            finetune_steps: 4000,
             pretrain_lr: 1e-4,
             finetune_lr: 5e-5,
-            checkpoint_every: 500,
+            checkpoint_every: 1000,
+            seeds: &[1, 2, 3],
             backend: "cuda",
         },
     }
 }
 
 /// Sensor profiles shipped with the binary, so the quickstart needs no files but its own.
+/// Net_O's camera: the Canon EOS 550D's measured colour, noise and levels; its response is
+/// replaced by gamma 2.2 below (Kalantari's data assume that curve).
 const PRETRAIN_PROFILE: (&str, &str) = (
-    "samsung_nx1000.toml",
-    include_str!("../../configs/sensors/samsung_nx1000.toml"),
-);
-const TARGET_PROFILE: (&str, &str) = (
-    "canon_eos_550d.toml",
+    "dslr_canon_550d_gamma22.toml",
     include_str!("../../configs/sensors/canon_eos_550d.toml"),
 );
+/// The target device: phone-class noise (OnePlus 6) and colour (Galaxy S9), kind `composite`.
+const TARGET_PROFILE: (&str, &str) = (
+    "composite_phone.toml",
+    include_str!("../../configs/sensors/composite_phone.toml"),
+);
+
+/// The DSLR profile of Net_O: the 550D with a gamma-2.2 response.
+fn dslr_profile() -> Result<String> {
+    let mut p: SensorProfile =
+        parse_toml(PRETRAIN_PROFILE.1, Path::new(PRETRAIN_PROFILE.0)).context("550D profile")?;
+    p.name = format!("{} (gamma-2.2 response)", p.name);
+    p.response = Response::Gamma { gamma: 2.2 };
+    p.provenance.response = "quickstart: gamma 2.2 (the response Kalantari's Canon 5D data \
+                             assume), replacing the shipped profile's default"
+        .into();
+    toml::to_string(&p).context("writing the DSLR profile")
+}
 
 /// A path as a TOML string literal.
 fn lit(p: &Path) -> String {
@@ -112,9 +136,9 @@ fn lit(p: &Path) -> String {
 
 fn generate_toml(s: &Sizes, seed: u64, count: usize, (w, h): (usize, usize)) -> String {
     format!(
-        "# Pure synthetic EV −3/0 pairs from the scene engine (hdrsynth generate).\n\
-         seed = {seed}\ncount = {count}\nwidth = {w}\nheight = {h}\nevs = [-3.0, 0.0]\n\
-         [camera]\ncandidates = {}\n",
+        "# Pure synthetic EV −2/0/+2 sets with linear EXRs (hdrsynth generate).\n\
+         seed = {seed}\ncount = {count}\nwidth = {w}\nheight = {h}\nevs = [-2.0, 0.0, 2.0]\n\
+         write_linear = true\n[camera]\ncandidates = {}\n",
         if s.train_sets > 64 { 24 } else { 8 }
     )
 }
@@ -124,6 +148,7 @@ struct Stage<'a> {
     run: &'a Path,
     /// A TOML string literal: a profile path or "pure".
     profile: String,
+    isos: &'a str,
     steps: u64,
     lr: f64,
     init: Option<&'a Path>,
@@ -133,6 +158,7 @@ fn train_toml(s: &Sizes, backend: &str, data: &Path, st: &Stage) -> String {
     let Stage {
         run,
         profile,
+        isos,
         steps,
         lr,
         init,
@@ -140,16 +166,16 @@ fn train_toml(s: &Sizes, backend: &str, data: &Path, st: &Stage) -> String {
     let mut t = format!(
         "[run]\nout = {}\nseed = 2026\nsteps = {steps}\nbackend = {backend:?}\n\
          checkpoint_every = {}\nkeep_checkpoints = 2\nlog_every = 10\n\n\
-         [model]\nkind = \"blend_unet\"\nbase_width = {}\ndepth = {}\nbatch_norm = true\n\
-         classes = 256\n\n\
+         [model]\nkind = \"wu\"\nvariant = \"resnet\"\nbase_width = {}\nres_blocks = {}\n\
+         hdr_input_scale = 0.25\n\n\
          [data]\ndataset = {}\npatch = {}\nbatch_size = {}\nworkers = 2\naugment = true\n\
-         profile = {profile}\nisos = [100, 400, 1600, 3200]\nnoise = \"gaussian\"\n\n\
+         profile = {profile}\nisos = {isos}\nnoise = \"gaussian\"\n\n\
          [optim]\nlr = {lr:e}\n\n[schedule]\nkind = \"cosine\"\nwarmup_steps = {}\n\
-         min_lr = {:e}\n\n[loss]\nalpha = \"stream\"\nalpha_samples = 32\n",
+         min_lr = {:e}\n",
         lit(run),
         s.checkpoint_every,
         s.base_width,
-        s.depth,
+        s.res_blocks,
         lit(data),
         s.patch,
         s.batch,
@@ -162,28 +188,37 @@ fn train_toml(s: &Sizes, backend: &str, data: &Path, st: &Stage) -> String {
     t
 }
 
+/// ISOs of the phone target (fine-tuning and test set) and of the DSLR (pretraining).
+const TARGET_ISOS: &str = "[100, 800, 3200]";
+const DSLR_ISOS: &str = "[100, 200]";
+
 fn experiment_toml(
+    s: &Sizes,
     out: &Path,
     base: &Path,
     testset: &Path,
     radiance: &Path,
     target: &Path,
 ) -> String {
+    let seeds: Vec<String> = s.seeds.iter().map(|k| k.to_string()).collect();
     format!(
-        "title = \"Quickstart — Experiment 1 shape: Network-1 Net_O vs Net_P vs Net_S \
-         (pretrained through the Samsung NX1000 model, target Canon EOS 550D)\"\n\
-         out = {}\nbase = {}\n\n\
+        "title = \"Quickstart — Experiment 2 shape: Network-2 Net_O (pretrained through a DSLR) vs \
+         control vs Net_P vs Net_S for a phone-class target\"\n\
+         out = {}\nbase = {}\nseeds = [{}]\n\n\
          [testset]\ndir = {}\nradiance = {}\nprofile = {}\n\
-         [testset.options]\nisos = [100, 800, 3200]\nevs = [-3.0, 0.0]\n\n\
+         [testset.options]\nisos = {TARGET_ISOS}\nevs = [-2.0, 0.0, 2.0]\n\n\
          [eval]\nresamples = 2000\nreference = \"net_p\"\n\n\
-         [[rows]]\nname = \"net_o\"\nlabel = \"Net_O (pretrained, no fine-tuning)\"\n\
+         [[rows]]\nname = \"net_o\"\nlabel = \"Net_O (pretrained through the DSLR, no fine-tuning)\"\n\
          train = false\n\n\
+         [[rows]]\nname = \"control\"\nlabel = \"Net_O trained on (its own DSLR data, same steps)\"\n\
+         kind = \"control\"\n\n\
          [[rows]]\nname = \"net_p\"\nlabel = \"Net_P (fine-tuned, pure synthetic)\"\n\
          set = {{ data = {{ profile = \"pure\" }} }}\n\n\
-         [[rows]]\nname = \"net_s\"\nlabel = \"Net_S (fine-tuned, sensor-realistic Canon)\"\n\
-         set = {{ data = {{ profile = {} }} }}\n",
+         [[rows]]\nname = \"net_s\"\nlabel = \"Net_S (fine-tuned, sensor-realistic phone)\"\n\
+         set = {{ data = {{ profile = {}, isos = {TARGET_ISOS} }} }}\n",
         lit(&out.join("experiment")),
         lit(base),
+        seeds.join(", "),
         lit(testset),
         lit(radiance),
         lit(target),
@@ -216,7 +251,8 @@ fn radiance_source(args: &Args, s: &Sizes, progress: bool) -> Result<(PathBuf, S
         return Ok((
             shared.to_path_buf(),
             format!(
-                "real scene radiance ({}) through the Canon EOS 550D model",
+                "real scene radiance ({}: Carrots, Desk, MtTamNorth) through the composite \
+                 phone model; training scenes are generated",
                 shared.display()
             ),
         ));
@@ -247,8 +283,8 @@ fn radiance_source(args: &Args, s: &Sizes, progress: bool) -> Result<(PathBuf, S
     }
     Ok((
         dir,
-        "generated scenes' radiance (../shared/data/real_hdr is absent) through the Canon EOS \
-         550D model"
+        "generated scenes' radiance (../shared/data/real_hdr is absent; scene seed 77, training \
+         seed 2026) through the composite phone model"
             .into(),
     ))
 }
@@ -264,10 +300,10 @@ pub fn run(args: &Args) -> Result<String> {
     std::fs::create_dir_all(&sensors).with_context(|| format!("creating {}", sensors.display()))?;
     let pre_profile = sensors.join(PRETRAIN_PROFILE.0);
     let target = sensors.join(TARGET_PROFILE.0);
-    write(&pre_profile, PRETRAIN_PROFILE.1)?;
+    write(&pre_profile, &dslr_profile()?)?;
     write(&target, TARGET_PROFILE.1)?;
 
-    stage(progress, began, "1/4 synthetic training pairs");
+    stage(progress, began, "1/4 synthetic training sets (EV −2/0/+2)");
     let data = out.join("data/train");
     let gen_path = configs.join("train_data.toml");
     write(
@@ -279,7 +315,7 @@ pub fn run(args: &Args) -> Result<String> {
     stage(
         progress,
         began,
-        "2/4 pretraining Network-1 (Net_O) through the Samsung NX1000 model",
+        "2/4 pretraining Network-2 (Net_O) through a DSLR model (550D, gamma 2.2, ISO 100–200)",
     );
     let pre_run = out.join("pretrain");
     let pre_path = configs.join("pretrain.toml");
@@ -292,6 +328,7 @@ pub fn run(args: &Args) -> Result<String> {
             &Stage {
                 run: &pre_run,
                 profile: lit(&pre_profile),
+                isos: DSLR_ISOS,
                 steps: s.pretrain_steps,
                 lr: s.pretrain_lr,
                 init: None,
@@ -330,6 +367,7 @@ pub fn run(args: &Args) -> Result<String> {
             &Stage {
                 run: &out.join("unused"),
                 profile: "\"pure\"".into(),
+                isos: TARGET_ISOS,
                 steps: s.finetune_steps,
                 lr: s.finetune_lr,
                 init: Some(&pre_run),
@@ -340,6 +378,7 @@ pub fn run(args: &Args) -> Result<String> {
     write(
         &exp_path,
         &experiment_toml(
+            &s,
             out,
             &base_path,
             &out.join("data/testset"),
@@ -351,10 +390,10 @@ pub fn run(args: &Args) -> Result<String> {
     stage(
         progress,
         began,
-        "4/4 fine-tuning Net_P and Net_S, evaluating all three (hdrsynth ablate)",
+        "4/4 per seed: control, Net_P and Net_S fine-tuned; all four evaluated (hdrsynth ablate)",
     );
     let exp = AblateConfig::load(&exp_path)?;
-    let summary = ablate::run(&exp, &exp_path, progress).context("the Experiment-1 grid")?;
+    let summary = ablate::run(&exp, &exp_path, progress).context("the Experiment-2 grid")?;
     let mut report = ablate_cli::report(&exp, &summary);
     let _ = write!(
         report,
@@ -381,6 +420,9 @@ mod tests {
     fn every_config_the_quickstart_writes_parses_and_validates() {
         let tmp = tempfile::tempdir().expect("tmp");
         let root = tmp.path();
+        let dslr: SensorProfile = parse_toml(&dslr_profile().expect("dslr"), Path::new("d.toml"))
+            .expect("dslr profile parses");
+        assert_eq!(dslr.response, Response::Gamma { gamma: 2.2 });
         for preset in [Preset::Cpu, Preset::Gpu] {
             let s = sizes(preset);
             let gen_cfg: crate::config::GenerateConfig = parse_toml(
@@ -395,6 +437,7 @@ mod tests {
                 Stage {
                     run: &root.join("pre"),
                     profile: lit(&profile),
+                    isos: DSLR_ISOS,
                     steps: s.pretrain_steps,
                     lr: s.pretrain_lr,
                     init: None,
@@ -402,6 +445,7 @@ mod tests {
                 Stage {
                     run: &root.join("ft"),
                     profile: "\"pure\"".into(),
+                    isos: TARGET_ISOS,
                     steps: s.finetune_steps,
                     lr: s.finetune_lr,
                     init: Some(&root.join("pre")),
@@ -414,10 +458,10 @@ mod tests {
             }
             let base = root.join("finetune.toml");
             let exp = root.join("experiment.toml");
-            write(&exp, &experiment_toml(root, &base, root, root, &profile)).expect("write");
+            write(&exp, &experiment_toml(&s, root, &base, root, root, &profile)).expect("write");
             let cfg = AblateConfig::load(&exp).expect("experiment config");
-            assert_eq!(cfg.cells().len(), 3);
             assert_eq!(cfg.eval.reference.as_deref(), Some("net_p"));
+            assert_eq!(cfg.rows.len(), 4);
         }
     }
 }
