@@ -380,12 +380,25 @@ fn a_testset_from_a_linear_exr_reads_back_with_the_radiance_in_device_space() {
     let names: Vec<&str> = info.sets.iter().map(|s| s.name.as_str()).collect();
     assert_eq!(names, ["ramp_scene_iso100", "ramp_scene_iso1600"]);
 
-    // Hand key: the 99th percentile (nearest rank) of Rec. 709 luminance lands at 0.9 at EV0.
-    let mut lum: Vec<f32> = radiance.pixels().map(hdrsynth::io::luminance).collect();
-    lum.sort_by(f32::total_cmp);
-    let p99 = lum[(0.99 * (lum.len() - 1) as f64).round() as usize];
-    let k = 0.9 / p99;
-    assert!((summary.sets[0].key - k).abs() <= 1e-6 * k);
+    // Hand key (the metering rule): log-average Rec. 709 luminance at 0.128 of white, unless
+    // more than 2 % of the pixels would clip: then the 98th percentile (nearest rank, 1200
+    // pixels → the 1176th) of the per-pixel maximum channel sits at white.
+    let lum: Vec<f64> = radiance
+        .pixels()
+        .map(|p| 0.2126 * p[0] as f64 + 0.7152 * p[1] as f64 + 0.0722 * p[2] as f64)
+        .collect();
+    let log_avg = (lum.iter().map(|l| l.ln()).sum::<f64>() / lum.len() as f64).exp();
+    let mut peak: Vec<f32> = radiance
+        .pixels()
+        .map(|p| p[0].max(p[1]).max(p[2]))
+        .collect();
+    peak.sort_by(f32::total_cmp);
+    let k = (0.128 / log_avg).min(1.0 / peak[1175] as f64) as f32;
+    assert!(
+        (summary.sets[0].key - k).abs() <= 1e-5 * k,
+        "{} vs {k}",
+        summary.sets[0].key
+    );
 
     let profile = canon();
     let l = &profile.levels;

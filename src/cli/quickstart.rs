@@ -458,7 +458,11 @@ mod tests {
             }
             let base = root.join("finetune.toml");
             let exp = root.join("experiment.toml");
-            write(&exp, &experiment_toml(&s, root, &base, root, root, &profile)).expect("write");
+            write(
+                &exp,
+                &experiment_toml(&s, root, &base, root, root, &profile),
+            )
+            .expect("write");
             let cfg = AblateConfig::load(&exp).expect("experiment config");
             assert_eq!(cfg.eval.reference.as_deref(), Some("net_p"));
             assert_eq!(cfg.rows.len(), 4);
