@@ -247,6 +247,7 @@ fn config_keys_defaults_and_refusals() {
     };
     let d = parse("").expect("defaults");
     assert_eq!(d.loss.reading, Network1Reading::Soft);
+    assert_eq!(d.loss.alpha, "uniform");
     assert_eq!(
         d.data.target_sigma,
         hdrsynth::train::config::DEFAULT_TARGET_SIGMA
