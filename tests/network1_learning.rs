@@ -146,8 +146,8 @@ fn new_readings_have_a_gradient_where_eq4_has_none() {
 }
 
 /// The Gaussian of σ = 1 has taps e^(−k²/2), |k| ≤ 3, summing to S = 2.505950. A unit impulse
-/// in the centre of a 7×7 map (no border reached) becomes g_i·g_j: centre 1/S² = 0.159241,
-/// (±1, 0) e^−½/S² = 0.096585, (±1, ±1) e^−1/S² = 0.058582, (±3, 0) e^−9/2/S² = 0.001769.
+/// in the centre of a 7×7 map becomes g_i·g_j: centre 1/S² = 0.159241, (±1, 0) e^−½/S² =
+/// 0.096585, (±1, ±1) e^−1/S² = 0.058582, e^−9/2/S² = 0.001769 per tap at (±3, 0).
 /// At a border, reflect-101: a 2×1 map (1, 0) with σ = 1/3 (taps k = −1..1, t₀ = 1/(1 + 2e^−9/2),
 /// t₁ = e^−9/2·t₀) gives (t₀·1 + 2t₁·0, t₀·0 + 2t₁·1) = (t₀, 2t₁).
 #[test]
@@ -159,8 +159,18 @@ fn gaussian_smoothing_hand_values() {
     close(out[3 * 7 + 4], 0.096_584_6, 1e-6, "(+1, 0)");
     close(out[2 * 7 + 3], 0.096_584_6, 1e-6, "(0, −1)");
     close(out[4 * 7 + 4], 0.058_581_5, 1e-6, "(+1, +1)");
-    close(out[3 * 7 + 6], 0.001_769_0, 1e-6, "(+3, 0)");
-    close(out.iter().sum::<f32>(), 1.0, 1e-5, "mass");
+    // (+3, 0) is the last column: its taps k = −3 and k = +3 (reflect-101: column 9 → 3) both
+    // read the impulse, 2·e^−9/2/S².
+    close(
+        out[3 * 7 + 6],
+        2.0 * 0.001_769_0,
+        1e-6,
+        "(+3, 0), at the border",
+    );
+    // Reflect-101 counts the distance-3 tap twice at both borders of each axis: total mass
+    // (1 + 2·e^−9/2/S)² = 1.017811.
+    let per_axis = 1.0 + 2.0 * (-4.5f64).exp() / 2.505_949_9;
+    close(out.iter().sum::<f32>(), per_axis * per_axis, 1e-5, "mass");
 
     let t0 = 1.0 / (1.0 + 2.0 * (-4.5f64).exp());
     let t1 = (-4.5f64).exp() * t0;
@@ -271,11 +281,11 @@ fn config_keys_defaults_and_refusals() {
     );
 }
 
-/// A short run with the defaults (soft labels, targets smoothed with σ = DEFAULT_TARGET_SIGMA)
-/// must beat the best constant predictor on held-out pairs (other scenes, another generator
-/// seed), scored against the paper's per-pixel targets. With the paper's literal Eq. 4 and
-/// per-pixel targets the same run stays above the constant (docs/network1.md: measured 0.XXX vs
-/// 0.XXX), which is what issue 14 reported at quickstart scale.
+/// A short run with the defaults (soft labels, uniform α, targets smoothed with σ = 4 px) must
+/// beat the best constant predictor on held-out pairs (other scenes, another generator seed),
+/// scored against the paper's per-pixel targets, by 20 %. Measured (docs/network1.md): defaults
+/// 0.209 vs constant 0.308 (0.68×); the old defaults (literal Eq. 4, stream α, per-pixel
+/// targets) 0.264 (0.86×), so this test fails on the old code.
 #[test]
 fn a_short_run_beats_the_best_constant_on_held_out_pairs() {
     let tmp = tempfile::tempdir().expect("tmp");
@@ -301,8 +311,8 @@ fn a_short_run_beats_the_best_constant_on_held_out_pairs() {
     );
     println!("held-out blend-weight MAE {mae0:.4} → {mae1:.4}; best constant {constant:.4}");
     assert!(
-        mae1 < constant,
-        "held-out MAE {mae1} is not below the best constant's {constant}"
+        mae1 < 0.8 * constant,
+        "held-out MAE {mae1} is not 20 % below the best constant's {constant}"
     );
 }
 
