@@ -15,6 +15,7 @@ use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use hdrsynth::data::ground_truth::{ClassWeights, MertensWeights};
 use hdrsynth::data::loader::{Sample, Target};
 use hdrsynth::models::{BlendUNetConfig, WuConfig};
+use hdrsynth::train::loss::Network1Reading;
 use hdrsynth::train::task::{Network1, Network2, Task};
 use hdrsynth::train::train_step;
 use std::time::{Duration, Instant};
@@ -91,9 +92,12 @@ fn bench(c: &mut Criterion) {
         MertensWeights::OPENCV_DEFAULT,
         1,
     );
+    // The paper's Eq. 4, the reading the recorded timings were taken with.
     let net1 = Network1 {
         config: BlendUNetConfig::default(),
         alpha,
+        reading: Network1Reading::Literal,
+        label_sigma: hdrsynth::train::config::DEFAULT_LABEL_SIGMA,
     };
     bench_task(c, "network1/b4/128px", &net1, &samples(6, 128, false));
     let net2 = Network2 {

@@ -68,6 +68,7 @@ pub fn run(args: &Args) -> Result<String> {
         seed: args.seed,
         augment: false,
         realism: None,
+        target_sigma: 0.0,
     };
     let mut real_cfg = base.clone();
     real_cfg.realism = Some(RealismConfig {

@@ -254,6 +254,86 @@ pub fn blend_classes(low: &Image, high: &Image) -> Result<Vec<u8>> {
     Ok(classes_from_weights(&blend_weights_high(low, high)?))
 }
 
+/// Separable Gaussian blur of a `width`×`height` map (row-major): taps exp(−k²/(2σ²)) for
+/// |k| ≤ ⌈3σ⌉, normalised to sum 1, borders reflect-101 (OpenCV's default). σ ≤ 0 returns the
+/// map unchanged. Used to smooth blend-map targets (see [`blend_weights_high_smoothed`]).
+pub fn gaussian_blur(map: &[f32], width: usize, height: usize, sigma: f32) -> Vec<f32> {
+    assert_eq!(
+        map.len(),
+        width * height,
+        "gaussian_blur: {} values for {width}×{height}",
+        map.len()
+    );
+    if !(sigma > 0.0) || map.is_empty() {
+        return map.to_vec();
+    }
+    let r = (3.0 * sigma).ceil() as isize;
+    let taps: Vec<f64> = (-r..=r)
+        .map(|k| (-((k * k) as f64) / (2.0 * (sigma as f64).powi(2))).exp())
+        .collect();
+    let sum: f64 = taps.iter().sum();
+    let taps: Vec<f32> = taps.iter().map(|t| (t / sum) as f32).collect();
+    let mut rows = vec![0f32; map.len()];
+    rows.par_chunks_mut(width).enumerate().for_each(|(y, row)| {
+        let src = &map[y * width..][..width];
+        for (x, o) in row.iter_mut().enumerate() {
+            *o = (-r..=r)
+                .zip(&taps)
+                .map(|(k, t)| t * src[reflect101(x as isize + k, width)])
+                .sum();
+        }
+    });
+    let mut out = vec![0f32; map.len()];
+    out.par_chunks_mut(width).enumerate().for_each(|(y, row)| {
+        for (x, o) in row.iter_mut().enumerate() {
+            *o = (-r..=r)
+                .zip(&taps)
+                .map(|(k, t)| t * rows[reflect101(y as isize + k, height) * width + x])
+                .sum();
+        }
+    });
+    out
+}
+
+/// [`blend_weights_high`] with each frame's raw Mertens weight Gaussian-blurred (σ pixels,
+/// [`gaussian_blur`]) before normalising: w = G_σ∗W_high / (G_σ∗W_low + G_σ∗W_high). Blurring
+/// the raw weights rather than the ratio lets a neighbourhood's well-exposed, textured pixels
+/// decide, so near-grey or flat pixels (both weights ≈ 1e-12, where the per-pixel ratio flips
+/// between 0 and 1 on a rounding) take their neighbours' weight. σ = 0: the per-pixel weights.
+pub fn blend_weights_high_smoothed(low: &Image, high: &Image, sigma: f32) -> Result<Vec<f32>> {
+    check_frames("blend weights", &[low, high])?;
+    let w = MertensWeights::OPENCV_DEFAULT;
+    let (wl, wh) = rayon::join(|| raw_weights(low, w), || raw_weights(high, w));
+    Ok(smoothed_ratio(&wl, &wh, low.width, low.height, sigma))
+}
+
+/// G_σ∗`high` / (G_σ∗`low` + G_σ∗`high`) per pixel, for two raw weight maps (> 0).
+pub fn smoothed_ratio(
+    low: &[f32],
+    high: &[f32],
+    width: usize,
+    height: usize,
+    sigma: f32,
+) -> Vec<f32> {
+    let (l, h) = rayon::join(
+        || gaussian_blur(low, width, height, sigma),
+        || gaussian_blur(high, width, height, sigma),
+    );
+    l.par_iter().zip(&h).map(|(&l, &h)| h / (l + h)).collect()
+}
+
+/// Blend classes of the pair with targets smoothed by σ pixels
+/// ([`blend_weights_high_smoothed`]); σ = 0 is exactly [`blend_classes`] (the paper's).
+pub fn blend_classes_smoothed(low: &Image, high: &Image, sigma: f32) -> Result<Vec<u8>> {
+    if sigma > 0.0 {
+        Ok(classes_from_weights(&blend_weights_high_smoothed(
+            low, high, sigma,
+        )?))
+    } else {
+        blend_classes(low, high)
+    }
+}
+
 /// Write a class map as an 8-bit PNG, grey replicated to RGB (code value = class), atomically.
 pub fn write_class_map(path: &Path, classes: &[u8], width: usize, height: usize) -> Result<()> {
     if classes.len() != width * height {

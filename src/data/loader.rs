@@ -18,7 +18,7 @@
 //!   (T · HDR / source saturation · exposure: 1 = the sensor's white level).
 
 use crate::config::load_toml;
-use crate::data::ground_truth::{blend_classes, triangle_merge};
+use crate::data::ground_truth::{blend_classes_smoothed, triangle_merge};
 use crate::data::layout::{self, GroundTruthKind, SetInfo};
 use crate::error::{Error, Result};
 use crate::io::{Image, read_image};
@@ -121,6 +121,11 @@ pub struct LoaderConfig {
     /// Absent: "pure" mode, no sensor realism (the Net_P baseline).
     #[serde(default)]
     pub realism: Option<RealismConfig>,
+    /// Network-1 only: σ in pixels of the Gaussian that smooths each frame's Mertens weight
+    /// before the blend classes are taken (`ground_truth::blend_classes_smoothed`); 0 (the
+    /// default) gives the paper's per-pixel class maps.
+    #[serde(default)]
+    pub target_sigma: f32,
 }
 
 fn default_workers() -> usize {
@@ -255,6 +260,12 @@ impl Loader {
             return Err(Error::Invalid(
                 "loader: patch ≥ 8, batch_size ≥ 1, workers ≥ 1".into(),
             ));
+        }
+        if !(cfg.target_sigma.is_finite() && cfg.target_sigma >= 0.0) {
+            return Err(Error::Invalid(format!(
+                "loader: target_sigma {} must be finite and ≥ 0",
+                cfg.target_sigma
+            )));
         }
         let info = layout::detect(&cfg.dataset)?;
         if info.sets.is_empty() {
@@ -478,7 +489,7 @@ impl Loader {
                 };
                 let low = realistic(&frames[idx[0]], 0)?;
                 let high = realistic(&frames[idx[1]], 1)?;
-                let classes = blend_classes(&low, &high)?;
+                let classes = blend_classes_smoothed(&low, &high, self.cfg.target_sigma)?;
                 let mut hwc = Vec::with_capacity(p * p * 6);
                 for (l, h) in low.data.chunks_exact(3).zip(high.data.chunks_exact(3)) {
                     hwc.extend_from_slice(l);

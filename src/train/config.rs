@@ -7,6 +7,7 @@ use crate::error::{Error, Result};
 use crate::models::{BlendUNetConfig, WuConfig};
 use crate::sensor::metering::Metering;
 use crate::sensor::realism::NoiseModel;
+use crate::train::loss::Network1Reading;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -135,6 +136,17 @@ pub struct DataConfig {
     /// Apply the profile's colour transform.
     #[serde(default = "yes")]
     pub colour: bool,
+    /// Network-1: σ (pixels) of the Gaussian smoothing of the Mertens weights behind the class
+    /// targets (`LoaderConfig::target_sigma`); 0 = the paper's per-pixel targets.
+    #[serde(default = "default_target_sigma")]
+    pub target_sigma: f32,
+}
+
+/// Network-1's default target smoothing, chosen by measurement (docs/network1.md).
+pub const DEFAULT_TARGET_SIGMA: f32 = 4.0;
+
+fn default_target_sigma() -> f32 {
+    DEFAULT_TARGET_SIGMA
 }
 
 fn default_workers() -> usize {
@@ -183,6 +195,7 @@ impl DataConfig {
             seed,
             augment: self.augment,
             realism,
+            target_sigma: self.target_sigma,
         })
     }
 }
@@ -314,10 +327,26 @@ pub struct LossConfig {
     /// Samples of the stream counted for `alpha = "stream"`.
     #[serde(default = "default_alpha_samples")]
     pub alpha_samples: u64,
+    /// Network-1: how the loss reads the 256 classes — "literal" (paper Eq. 4 as written),
+    /// "ordinal", "cross_entropy" or "soft" (docs/network1.md; default chosen by measurement).
+    #[serde(default)]
+    pub reading: Network1Reading,
+    /// Network-1, `reading = "soft"`: σ of the soft labels, in classes.
+    #[serde(default = "default_label_sigma")]
+    pub label_sigma: f32,
 }
 
+/// Default σ of the soft labels, in classes (docs/network1.md).
+pub const DEFAULT_LABEL_SIGMA: f32 = 8.0;
+
+fn default_label_sigma() -> f32 {
+    DEFAULT_LABEL_SIGMA
+}
+
+/// "uniform" by measurement (docs/network1.md): at CPU scale the inverse-frequency α of the
+/// stream (the paper's) kept the held-out blend-weight MAE above the best constant's.
 fn default_alpha() -> String {
-    "stream".into()
+    "uniform".into()
 }
 fn default_alpha_samples() -> u64 {
     64
@@ -328,6 +357,8 @@ impl Default for LossConfig {
         LossConfig {
             alpha: default_alpha(),
             alpha_samples: default_alpha_samples(),
+            reading: Network1Reading::default(),
+            label_sigma: default_label_sigma(),
         }
     }
 }
@@ -347,6 +378,10 @@ pub struct ValidationConfig {
     /// Crop side; default: the training patch.
     #[serde(default)]
     pub patch: Option<usize>,
+    /// Network-1: target smoothing σ of the validation class maps (pixels). Default 0: every
+    /// run is scored against the paper's per-pixel targets, whatever it trained on.
+    #[serde(default)]
+    pub target_sigma: f32,
 }
 
 fn default_val_samples() -> usize {
@@ -400,6 +435,26 @@ impl TrainConfig {
             && v.every == 0
         {
             return Err(Error::Invalid("validation: every must be ≥ 1".into()));
+        }
+        let sigmas = [
+            ("data.target_sigma", self.data.target_sigma),
+            (
+                "validation.target_sigma",
+                self.validation.as_ref().map_or(0.0, |v| v.target_sigma),
+            ),
+        ];
+        for (key, s) in sigmas {
+            if !(s.is_finite() && s >= 0.0) {
+                return Err(Error::Invalid(format!(
+                    "{key} = {s} must be finite and ≥ 0"
+                )));
+            }
+        }
+        if !(self.loss.label_sigma.is_finite() && self.loss.label_sigma > 0.0) {
+            return Err(Error::Invalid(format!(
+                "loss.label_sigma = {} must be finite and > 0",
+                self.loss.label_sigma
+            )));
         }
         Ok(())
     }

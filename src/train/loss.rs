@@ -17,7 +17,9 @@
 use crate::data::ground_truth::{CLASSES, ClassWeights};
 use crate::data::loader::{Sample, Target};
 use crate::error::{Error, Result};
+use burn::tensor::activation::{log_softmax, softmax};
 use burn::tensor::{Device, Int, Tensor, TensorData};
+use serde::{Deserialize, Serialize};
 
 fn check_shapes(probs: &Tensor<4>, target: &Tensor<3, Int>, alpha: &Tensor<1>) -> [usize; 4] {
     let [b, c, h, w] = probs.dims();
@@ -25,11 +27,11 @@ fn check_shapes(probs: &Tensor<4>, target: &Tensor<3, Int>, alpha: &Tensor<1>) -
     let [ac] = alpha.dims();
     assert!(
         tb == b && th == h && tw == w,
-        "weighted_l1: target is {tb}×{th}×{tw}, probabilities are {b}×{c}×{h}×{w}"
+        "Network-1 loss: target is {tb}×{th}×{tw}, probabilities are {b}×{c}×{h}×{w}"
     );
     assert!(
         ac == c,
-        "weighted_l1: alpha has {ac} entries for {c} classes"
+        "Network-1 loss: alpha has {ac} entries for {c} classes"
     );
     [b, c, h, w]
 }
@@ -74,6 +76,103 @@ pub fn weighted_l1_explicit(
     let l1 = (probs - onehot).abs().sum_dim(1);
     let a_t = alpha_of_target(target, alpha, dims);
     (l1 * a_t).mean()
+}
+
+/// How the Network-1 loss reads its 256 classes (`[loss] reading`, docs/network1.md).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Network1Reading {
+    /// Paper Eq. 4 as written: α_t · Σ_c |p_c − 1[c = t]| = 2α_t(1 − p_t) ([`weighted_l1`]).
+    Literal,
+    /// α_t · |Σ_c p_c·c/(C−1) − t/(C−1)|: L1 of the expected blend weight ([`ordinal_l1`]).
+    Ordinal,
+    /// α_t · (−log p_t) ([`weighted_cross_entropy`]).
+    CrossEntropy,
+    /// α_t · (−Σ_c q_c log p_c) with q a Gaussian over class indices around t
+    /// ([`soft_cross_entropy`]).
+    #[default]
+    Soft,
+}
+
+/// The class index of every class as a weight c/(C−1), shaped [1, C, 1, 1].
+fn class_levels(c: usize, device: &Device) -> Tensor<4> {
+    let levels: Vec<f32> = (0..c).map(|k| k as f32 / (c - 1).max(1) as f32).collect();
+    Tensor::<1>::from_data(TensorData::new(levels, [c]), device).reshape([1, c as i32, 1, 1])
+}
+
+/// Expected blend weight Σ_c p_c·c/(C−1) of `probs` [B, C, H, W]: [B, H, W].
+pub fn expected_weight(probs: Tensor<4>) -> Tensor<3> {
+    let [_, c, _, _] = probs.dims();
+    let levels = class_levels(c, &probs.device());
+    (probs * levels).sum_dim(1).squeeze_dim::<3>(1)
+}
+
+/// Ordinal reading: α_t · |Σ_c p_c·c/(C−1) − t/(C−1)| averaged over batch and pixels. Same
+/// arguments as [`weighted_l1`]. The gradient with respect to p_c is ±α_t·c/(C−1): every
+/// class gets one, not only the target (whose p_t may be ≈ 1/256).
+pub fn ordinal_l1(probs: Tensor<4>, target: Tensor<3, Int>, alpha: Tensor<1>) -> Tensor<1> {
+    let dims = check_shapes(&probs, &target, &alpha);
+    let scale = (dims[1] - 1).max(1) as f64;
+    let t = target.clone().float().div_scalar(scale);
+    let a_t = alpha_of_target(target, alpha, dims).squeeze_dim::<3>(1);
+    ((expected_weight(probs) - t).abs() * a_t).mean()
+}
+
+/// Class-weighted cross-entropy α_t · (−log p_t) of `logits` [B, C, H, W] (log-softmax over
+/// dim 1, so no probability underflows), averaged over batch and pixels.
+pub fn weighted_cross_entropy(
+    logits: Tensor<4>,
+    target: Tensor<3, Int>,
+    alpha: Tensor<1>,
+) -> Tensor<1> {
+    let dims = check_shapes(&logits, &target, &alpha);
+    let logp_t = log_softmax(logits, 1).gather(1, target.clone().unsqueeze_dim::<4>(1));
+    (logp_t.neg() * alpha_of_target(target, alpha, dims)).mean()
+}
+
+/// Cross-entropy against soft labels: q_c ∝ exp(−(c − t)²/(2σ²)) over the class indices
+/// (normalised over the C classes), loss α_t · (−Σ_c q_c log p_c) averaged over batch and
+/// pixels. `sigma` in classes; σ → 0 gives [`weighted_cross_entropy`]. A prediction a few
+/// classes off then costs little, one far off costs much: the classes are ordered.
+pub fn soft_cross_entropy(
+    logits: Tensor<4>,
+    target: Tensor<3, Int>,
+    alpha: Tensor<1>,
+    sigma: f32,
+) -> Tensor<1> {
+    let dims = check_shapes(&logits, &target, &alpha);
+    let [_, c, _, _] = dims;
+    let device = logits.device();
+    let idx: Vec<f32> = (0..c).map(|k| k as f32).collect();
+    let idx =
+        Tensor::<1>::from_data(TensorData::new(idx, [c]), &device).reshape([1, c as i32, 1, 1]);
+    let t = target.clone().float().unsqueeze_dim::<4>(1);
+    let d = idx - t;
+    let q = d
+        .clone()
+        .mul(d)
+        .div_scalar(-2.0 * (sigma.max(1e-3) as f64).powi(2))
+        .exp();
+    let q = q.clone() / q.sum_dim(1);
+    let ce = (q * log_softmax(logits, 1)).sum_dim(1).neg();
+    (ce * alpha_of_target(target, alpha, dims)).mean()
+}
+
+/// The Network-1 training loss of `logits` [B, C, H, W] in the chosen reading (`label_sigma`
+/// is used by [`Network1Reading::Soft`] only).
+pub fn network1_loss(
+    reading: Network1Reading,
+    logits: Tensor<4>,
+    target: Tensor<3, Int>,
+    alpha: Tensor<1>,
+    label_sigma: f32,
+) -> Tensor<1> {
+    match reading {
+        Network1Reading::Literal => weighted_l1(softmax(logits, 1), target, alpha),
+        Network1Reading::Ordinal => ordinal_l1(softmax(logits, 1), target, alpha),
+        Network1Reading::CrossEntropy => weighted_cross_entropy(logits, target, alpha),
+        Network1Reading::Soft => soft_cross_entropy(logits, target, alpha, label_sigma),
+    }
 }
 
 /// The class weights α as a [CLASSES] tensor on `device`.

@@ -144,6 +144,8 @@ pub fn run(cfg: &TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
             let task = Network1 {
                 config: m.clone(),
                 alpha,
+                reading: cfg.loss.reading,
+                label_sigma: cfg.loss.label_sigma,
             };
             train(&task, cfg, opts, loader)
         }
@@ -360,10 +362,18 @@ pub fn train<T: Task>(
             lc.dataset = v.dataset.clone();
             lc.augment = false;
             lc.patch = v.patch.unwrap_or(cfg.data.patch);
+            // Validation targets are the configured ones (default: the paper's per-pixel
+            // maps), not the training smoothing, so runs with different targets compare.
+            lc.target_sigma = v.target_sigma;
             let l = Arc::new(Loader::new(&lc)?);
             let n = v.samples.min(l.len()) as u64;
             let samples: Vec<Sample> = (0..n).map(|g| l.stream_sample(g)).collect::<Result<_>>()?;
-            Some((v.every, samples))
+            let baseline: Vec<(String, f64)> = task
+                .validation_baseline(&samples)?
+                .into_iter()
+                .map(|(k, v)| (k.to_string(), v))
+                .collect();
+            Some((v.every, samples, baseline))
         }
         None => None,
     };
@@ -390,10 +400,11 @@ pub fn train<T: Task>(
 
     let validate_and_log =
         |log: &mut Log, model: &T::Model, done: u64| -> Result<Vec<(String, f64)>> {
-            let Some((_, samples)) = &validation else {
+            let Some((_, samples, baseline)) = &validation else {
                 return Ok(Vec::new());
             };
-            let scores = validate(task, model, samples, bs as usize, &device)?;
+            let mut scores = validate(task, model, samples, bs as usize, &device)?;
+            scores.extend(baseline.iter().cloned());
             let fields: Vec<String> = scores
                 .iter()
                 .map(|(k, v)| format!("\"{k}\":{}", json_f64(*v)))
@@ -456,7 +467,7 @@ pub fn train<T: Task>(
             (interval_loss, interval_steps) = (0.0, 0);
             interval_start = Instant::now();
         }
-        if let Some((every, _)) = &validation
+        if let Some((every, _, _)) = &validation
             && (done % every == 0 || done == total)
         {
             last_validation = validate_and_log(&mut log, &model, done)?;

@@ -3,16 +3,17 @@
 //! Network-2 each implement [`Task`]; the loop in `train::run` is shared.
 
 use crate::data::ground_truth::{CLASSES, ClassWeights};
-use crate::data::loader::Sample;
+use crate::data::loader::{Sample, Target};
 use crate::error::Result;
 use crate::models::{BlendUNet, BlendUNetConfig, WuConfig, WuNet};
 use crate::train::config::ModelConfig;
 use crate::train::loss::{
-    MU, alpha_tensor, mu_law, mu_law_l2, network1_batch, network2_batch, weighted_l1,
+    MU, Network1Reading, alpha_tensor, expected_weight, mu_law, mu_law_l2, network1_batch,
+    network1_loss, network2_batch, weighted_l1,
 };
 use burn::module::Module;
 use burn::tensor::activation::softmax;
-use burn::tensor::{Device, Tensor, TensorData};
+use burn::tensor::{Device, Tensor};
 use std::path::Path;
 
 /// File of Network-1's class weights inside a checkpoint.
@@ -39,16 +40,57 @@ pub trait Task {
         device: &Device,
     ) -> Result<Vec<(&'static str, f64)>>;
 
+    /// Scores of the best input-independent prediction on the whole validation set (logged
+    /// with every validation line, so a learning curve can be read against it).
+    fn validation_baseline(&self, _samples: &[Sample]) -> Result<Vec<(&'static str, f64)>> {
+        Ok(Vec::new())
+    }
+
     /// Task state a checkpoint must carry besides weights (Network-1: α).
     fn save_extra(&self, _dir: &Path) -> Result<()> {
         Ok(())
     }
 }
 
-/// Network-1: the blend-map U-Net with paper Eq. 4.
+/// Network-1: the blend-map U-Net, trained with the loss reading of `[loss] reading`.
 pub struct Network1 {
     pub config: BlendUNetConfig,
     pub alpha: ClassWeights,
+    pub reading: Network1Reading,
+    /// σ of the soft labels in classes (`Network1Reading::Soft`).
+    pub label_sigma: f32,
+}
+
+/// The blend-weight MAE of the best constant predictor on `samples`' targets: the median of
+/// all target weights t/255 (the constant that minimises the mean absolute error), and that
+/// error. `None` when there are no class targets.
+pub fn best_constant_weight_mae(samples: &[Sample]) -> Option<(f64, f64)> {
+    let mut hist = [0u64; CLASSES];
+    for s in samples {
+        if let Target::Classes(c) = &s.target {
+            for &k in c {
+                hist[k as usize] += 1;
+            }
+        }
+    }
+    let n: u64 = hist.iter().sum();
+    if n == 0 {
+        return None;
+    }
+    // The lower median class: half of the pixels or more lie at or below it.
+    let mut acc = 0;
+    let median = (0..CLASSES)
+        .find(|&k| {
+            acc += hist[k];
+            2 * acc >= n
+        })
+        .unwrap_or(0);
+    let m = median as f64 / 255.0;
+    let mae = (0..CLASSES)
+        .map(|k| hist[k] as f64 * (k as f64 / 255.0 - m).abs())
+        .sum::<f64>()
+        / n as f64;
+    Some((m, mae))
 }
 
 impl Task for Network1 {
@@ -64,16 +106,18 @@ impl Task for Network1 {
 
     fn loss(&self, model: &BlendUNet, batch: &[Sample], device: &Device) -> Result<Tensor<1>> {
         let (input, target) = network1_batch(batch, device)?;
-        let probs = softmax(model.forward(input), 1);
-        Ok(weighted_l1(
-            probs,
+        Ok(network1_loss(
+            self.reading,
+            model.forward(input),
             target,
             alpha_tensor(&self.alpha, device)?,
+            self.label_sigma,
         ))
     }
 
-    /// `loss` (Eq. 4, summed per sample) and `weight_mae`: mean |w − w_target| of the expected
-    /// blend weight Σ p_c·c/255 against the target class/255.
+    /// `loss` (the configured reading), `eq4` (paper Eq. 4 as written, whatever the reading)
+    /// and `weight_mae`: mean |w − w_target| of the expected blend weight Σ p_c·c/255 against
+    /// the target class/255; each summed over the batch's samples.
     fn validate(
         &self,
         model: &BlendUNet,
@@ -82,25 +126,33 @@ impl Task for Network1 {
     ) -> Result<Vec<(&'static str, f64)>> {
         let (input, target) = network1_batch(batch, device)?;
         let b = batch.len() as f64;
-        let probs = softmax(model.forward(input), 1);
-        let loss = weighted_l1(
-            probs.clone(),
+        let alpha = alpha_tensor(&self.alpha, device)?;
+        let logits = model.forward(input);
+        let loss = network1_loss(
+            self.reading,
+            logits.clone(),
             target.clone(),
-            alpha_tensor(&self.alpha, device)?,
+            alpha.clone(),
+            self.label_sigma,
         );
-        let levels: Vec<f32> = (0..CLASSES).map(|c| c as f32 / 255.0).collect();
-        let levels = Tensor::<1>::from_data(TensorData::new(levels, [CLASSES]), device).reshape([
-            1,
-            CLASSES as i32,
-            1,
-            1,
-        ]);
-        let w = (probs * levels).sum_dim(1).squeeze_dim::<3>(1);
+        let probs = softmax(logits, 1);
+        let eq4 = weighted_l1(probs.clone(), target.clone(), alpha);
+        let w = expected_weight(probs);
         let mae = (w - target.float().div_scalar(255.0)).abs().mean();
         Ok(vec![
             ("loss", loss.into_scalar::<f32>() as f64 * b),
+            ("eq4", eq4.into_scalar::<f32>() as f64 * b),
             ("weight_mae", mae.into_scalar::<f32>() as f64 * b),
         ])
+    }
+
+    /// `weight_mae_const`: the blend-weight MAE of the best constant prediction (the median
+    /// target weight of the validation set) — the score a network must beat to have learnt
+    /// anything from its input.
+    fn validation_baseline(&self, samples: &[Sample]) -> Result<Vec<(&'static str, f64)>> {
+        Ok(best_constant_weight_mae(samples)
+            .map(|(_, mae)| vec![("weight_mae_const", mae)])
+            .unwrap_or_default())
     }
 
     fn save_extra(&self, dir: &Path) -> Result<()> {
