@@ -321,7 +321,15 @@ fn validation_at(run: &Path, step: u64) -> (f64, f64) {
 fn a_short_run_learns_the_blend_weights() {
     let tmp = tempfile::tempdir().expect("tmp");
     let run = tmp.path().join("learn");
-    let text = config_text(&run, 300, "", 3e-3, true).replace("batch_size = 2", "batch_size = 4")
+    // The paper's recipe (literal Eq. 4, stream α, per-pixel targets), pinned: the defaults
+    // changed in issue 14 and are tested in tests/network1_learning.rs.
+    let text = config_text(&run, 300, "", 3e-3, true)
+        .replace("batch_size = 2", "batch_size = 4")
+        .replace(
+            "profile = \"pure\"\n",
+            "profile = \"pure\"\ntarget_sigma = 0.0\n",
+        )
+        + "[loss]\nreading = \"literal\"\nalpha = \"stream\"\n"
         + &format!(
             "[validation]\ndataset = {:?}\nevery = 300\nsamples = 6\npatch = 64\n",
             dataset()

@@ -264,7 +264,7 @@ pub fn gaussian_blur(map: &[f32], width: usize, height: usize, sigma: f32) -> Ve
         "gaussian_blur: {} values for {width}×{height}",
         map.len()
     );
-    if !(sigma > 0.0) || map.is_empty() {
+    if sigma.is_nan() || sigma <= 0.0 || map.is_empty() {
         return map.to_vec();
     }
     let r = (3.0 * sigma).ceil() as isize;
