@@ -14,8 +14,10 @@
 //!   LDR^2.2 / t (t = 2^EV) → 18×H×W; target the set's linear HDR ground truth (hdrsynth's
 //!   `hdr_gt.exr`, Kalantari's `HDRImg.hdr`, Wu's `ref_hdr_aligned*.hdr`, brought into
 //!   hdrsynth's unit, 1 = the reference's white: `layout::to_reference_unit`), else the triangle
-//!   merge of the static frames; with realism, mapped into the device's linear space
-//!   (T · HDR / source saturation · exposure: 1 = the sensor's white level).
+//!   merge of the static frames; always in units of the reference frame's white (pure mode
+//!   divides by the dataset's tone-curve white, 7.24 for filmic); with realism, the device's
+//!   linear space T · HDR · exposure (1 = the sensor's white level). Realism starts from the
+//!   frames' linear EXRs when present and meters each set with `sensor::metering`.
 
 use crate::config::load_toml;
 use crate::data::ground_truth::{blend_classes_smoothed, triangle_merge};
@@ -172,8 +174,9 @@ pub struct Loader {
     source: Source,
     /// Display code (16-bit index) → linear, 1 = the source response's clipping point.
     linearise: Option<Vec<f32>>,
-    /// Per set: the ground truth's value of the reference frame's white (the target unit).
-    white: Vec<f32>,
+    /// The linear ground truth's value of the reference frame's white (the target unit); one
+    /// value per dataset, as every set of a layout shares its tone curve.
+    white: f32,
     /// Per set: the metered EV0 key, computed once on first use.
     keys: Vec<OnceLock<std::result::Result<f32, String>>>,
 }
@@ -203,18 +206,17 @@ fn linear_sibling(frame: &Path) -> PathBuf {
     frame.with_extension("exr")
 }
 
-/// The ground-truth value of the reference frame's white in each set: the dataset's tone
+/// The linear ground truth's value of the reference frame's white: the dataset's tone
 /// curve's clipping point for hdrsynth's layout (filmic: 7.24, the engine's display white at
 /// EV0), 1 elsewhere (linear ground truth in units of the reference exposure).
-fn reference_whites(info: &layout::DatasetInfo) -> Result<Vec<f32>> {
-    let white = match info.layout {
+fn reference_white(info: &layout::DatasetInfo) -> Result<f32> {
+    Ok(match info.layout {
         layout::LayoutKind::Hdrsynth => {
             let m = layout::hdrsynth::read_manifest(&info.root)?;
             m.tone_curve.invert(1.0)
         }
         _ => 1.0,
-    };
-    Ok(vec![white; info.sets.len()])
+    })
 }
 
 /// Crop `size`×`size` at (x0, y0).
@@ -284,7 +286,7 @@ impl Loader {
                 ));
             }
         }
-        let white = reference_whites(&info)?;
+        let white = reference_white(&info)?;
         let mut realism = Vec::new();
         let mut source = Source::Display;
         let mut linearise = None;
@@ -520,7 +522,7 @@ impl Loader {
                 let (hdr, white) = match &set.ground_truth {
                     Some(gt) if gt.kind == GroundTruthKind::Linear => (
                         layout::to_reference_unit(set, gt, crop(&read_image(&gt.path)?, x0, y0, p)),
-                        self.white[k],
+                        self.white,
                     ),
                     _ if stat => {
                         let s: Vec<Image> = idx
