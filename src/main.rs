@@ -41,8 +41,8 @@ enum Command {
     Eval(hdrsynth::cli::eval::Args),
     /// Build a static test set from real HDR radiance through a sensor profile.
     Testset(hdrsynth::cli::testset::Args),
-    /// The whole method once on embedded defaults (~10 min on 2 CPU cores): generate,
-    /// pretrain, fine-tune pure vs sensor-realistic, test set from real radiance, Experiment-1 table.
+    /// The paper's claim once on embedded defaults (~7 min on 2 CPU cores): generate, pretrain
+    /// Network-2 through a DSLR, fine-tune pure vs sensor-realistic for a phone, 3 seeds, table.
     Quickstart(hdrsynth::cli::quickstart::Args),
     /// Run an ablation grid (fine-tune per cell, evaluate, table like the paper's; resumable).
     Ablate(hdrsynth::cli::ablate::Args),

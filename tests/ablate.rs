@@ -251,6 +251,47 @@ fn the_shipped_experiment_configs_parse_and_resolve_their_cells() {
     }
 }
 
+/// The CPU-scale experiments (configs/experiments/cpu, tools/cpu_experiments.sh): every training
+/// and generation config validates, every ablation has the cells and seeds docs/experiments.md
+/// reports, and each trained cell starts from the pretraining its config names.
+#[test]
+fn the_cpu_scale_experiment_configs_parse_and_resolve_their_cells() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let dir = root.join("configs/experiments/cpu");
+    for file in ["data_net1.toml", "data_net1_val.toml", "data_net2.toml"] {
+        let g = hdrsynth::config::GenerateConfig::load(&dir.join(file)).expect(file);
+        g.validate().expect(file);
+    }
+    for (file, init) in [
+        ("net1_pretrain.toml", None),
+        ("net1_pretrain_literal.toml", None),
+        ("net2_pretrain.toml", None),
+        ("net1_finetune.toml", Some("runs/cpu/net1_pretrain")),
+        ("net2_finetune.toml", Some("runs/cpu/net2_pretrain")),
+    ] {
+        let t = TrainConfig::load(&dir.join(file)).expect(file);
+        let got = t.init.as_ref().and_then(|i| i.checkpoint.as_ref());
+        assert_eq!(got.map(|p| p.as_path()), init.map(Path::new), "{file}");
+    }
+    // (file, cells, trained cells × seeds)
+    for (file, cells, trained) in [
+        ("exp1_network1.toml", 4, 3 * 3),
+        ("exp2_network2.toml", 4, 3 * 3),
+        ("exp3_network2_colour_iso.toml", 6, 6 * 3),
+        ("exp2_phone_b.toml", 5, 4 * 3),
+    ] {
+        let path = dir.join(file);
+        let cfg = AblateConfig::load(&path).expect(file);
+        assert_eq!(cfg.cells().len(), cells, "{file}");
+        let runs: usize = cfg
+            .cells()
+            .into_iter()
+            .map(|(r, c)| cfg.cell_seeds(r, c).into_iter().flatten().count())
+            .sum();
+        assert_eq!(runs, trained, "{file}");
+    }
+}
+
 // ---------------------------------------------------------------------------------------------
 // Statistics on hand-made scores (no training)
 

@@ -105,7 +105,10 @@ fn colour_ablation_profiles_differ_and_canon_fit_agrees_with_adobe() {
     let pair = chart_delta_e(&canon, &mat(get("samsung_nx1000.toml")));
     for (a, pa) in &all {
         for (b, pb) in &all {
-            if a < b {
+            // A variant of one camera (dslr_canon_550d_gamma22: the 550D with another
+            // response) shares its colour model and says so in its provenance.
+            let variant = pa.provenance.colour == pb.provenance.colour;
+            if a < b && !variant {
                 let d = chart_delta_e(&mat(pa), &mat(pb));
                 eprintln!("{a} vs {b}: mean ΔE00 {d:.2}");
                 assert!(

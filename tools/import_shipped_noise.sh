@@ -29,3 +29,14 @@ imp --maker OnePlus --model "ONEPLUS A6003" --black 64 --white 1023 --bits 10 --
   --out "$PHONE"
 # provenance.response ("assumption, not measured: ... sRGB ...") and provenance.notes of the
 # composite profile were written by hand after its creation; re-imports keep them.
+
+# A second, independent phone-class target (held-out checks, docs/experiments.md).
+PHONE_B=configs/sensors/composite_phone_b.toml
+imp --maker LGE --model "Nexus 5X" --black 66 --white 1023 --bits 10 --kind composite \
+  --name "Composite phone B (Nexus 5X noise, IMX219 colour)" \
+  --levels-source 'LibRaw src/tables/colordata.cpp (LibRaw/LibRaw @ 158e635e), adobe_coeff entry Broadcom "RPi IMX219": t_black 66, t_maximum 0x3ff (10-bit raw); not read from a Nexus 5X raw file' \
+  --out "$PHONE_B"
+"$BIN" profile colour-from-matrix --matrix 5302,1083,-728,-5320,14112,1699,-863,2371,5136 \
+  --source 'LibRaw colour matrix (XYZ D65 → camera) for the Sony IMX219 phone-class sensor, LibRaw src/tables/colordata.cpp (LibRaw/LibRaw @ 158e635e), adobe_coeff entry Broadcom "RPi IMX219" (marked /* LibRaw */: measured by LibRaw, not Adobe)' \
+  --out "$PHONE_B"
+# provenance.notes of composite_phone_b.toml was written by hand after its creation.

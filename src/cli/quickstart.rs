@@ -16,7 +16,7 @@
 use crate::cli::ablate as ablate_cli;
 use crate::config::parse_toml;
 use crate::eval::ablate::{self, AblateConfig};
-use crate::sensor::profile::{Response, SensorProfile};
+use crate::sensor::profile::SensorProfile;
 use crate::train::config::TrainConfig;
 use crate::train::{TrainOptions, checkpoint};
 use anyhow::{Context, Result, bail};
@@ -47,6 +47,11 @@ pub struct Args {
     /// ../shared/data/real_hdr when it exists, else scenes generated here.
     #[arg(long)]
     pub radiance: Option<PathBuf>,
+    /// The target device's sensor profile (TOML) for Net_S and the test set; default the
+    /// shipped composite phone (configs/sensors/composite_phone.toml). E.g. your own phone's
+    /// calibrated profile.
+    #[arg(long)]
+    pub target: Option<PathBuf>,
     /// No progress output.
     #[arg(long)]
     pub quiet: bool,
@@ -105,28 +110,45 @@ fn sizes(p: Preset) -> Sizes {
 }
 
 /// Sensor profiles shipped with the binary, so the quickstart needs no files but its own.
-/// Net_O's camera: the Canon EOS 550D's measured colour, noise and levels; its response is
-/// replaced by gamma 2.2 below (Kalantari's data assume that curve).
+/// Net_O's camera: the Canon EOS 550D's measured colour, noise and levels with a gamma-2.2
+/// response (Kalantari's Canon 5D data assume that curve).
 const PRETRAIN_PROFILE: (&str, &str) = (
     "dslr_canon_550d_gamma22.toml",
-    include_str!("../../configs/sensors/canon_eos_550d.toml"),
+    include_str!("../../configs/sensors/dslr_canon_550d_gamma22.toml"),
 );
-/// The target device: phone-class noise (OnePlus 6) and colour (Galaxy S9), kind `composite`.
+/// The default target device: phone-class noise (OnePlus 6) and colour (Galaxy S9), kind
+/// `composite`.
 const TARGET_PROFILE: (&str, &str) = (
     "composite_phone.toml",
     include_str!("../../configs/sensors/composite_phone.toml"),
 );
 
-/// The DSLR profile of Net_O: the 550D with a gamma-2.2 response.
-fn dslr_profile() -> Result<String> {
-    let mut p: SensorProfile =
-        parse_toml(PRETRAIN_PROFILE.1, Path::new(PRETRAIN_PROFILE.0)).context("550D profile")?;
-    p.name = format!("{} (gamma-2.2 response)", p.name);
-    p.response = Response::Gamma { gamma: 2.2 };
-    p.provenance.response = "quickstart: gamma 2.2 (the response Kalantari's Canon 5D data \
-                             assume), replacing the shipped profile's default"
-        .into();
-    toml::to_string(&p).context("writing the DSLR profile")
+/// The target profile's file name and text: `--target`, else the shipped composite phone.
+fn target_profile(args: &Args) -> Result<(String, String, String)> {
+    let (file, text) = match &args.target {
+        Some(p) => {
+            let text = std::fs::read_to_string(p)
+                .with_context(|| format!("--target {}: cannot read", p.display()))?;
+            let file = p
+                .file_name()
+                .map(|f| f.to_string_lossy().into_owned())
+                .unwrap_or_else(|| "target.toml".into());
+            (file, text)
+        }
+        None => (TARGET_PROFILE.0.to_string(), TARGET_PROFILE.1.to_string()),
+    };
+    let at = args
+        .target
+        .as_deref()
+        .unwrap_or(Path::new(TARGET_PROFILE.0));
+    let profile: SensorProfile = parse_toml(&text, at)?;
+    let name = profile.name.clone();
+    let file = if file == PRETRAIN_PROFILE.0 {
+        format!("target_{file}")
+    } else {
+        file
+    };
+    Ok((file, text, name))
 }
 
 /// A path as a TOML string literal.
@@ -203,7 +225,7 @@ fn experiment_toml(
     let seeds: Vec<String> = s.seeds.iter().map(|k| k.to_string()).collect();
     format!(
         "title = \"Quickstart — Experiment 2 shape: Network-2 Net_O (pretrained through a DSLR) vs \
-         control vs Net_P vs Net_S for a phone-class target\"\n\
+         control vs Net_P vs Net_S for the target device\"\n\
          out = {}\nbase = {}\nseeds = [{}]\n\n\
          [testset]\ndir = {}\nradiance = {}\nprofile = {}\n\
          [testset.options]\nisos = {TARGET_ISOS}\nevs = [-2.0, 0.0, 2.0]\n\n\
@@ -214,7 +236,7 @@ fn experiment_toml(
          kind = \"control\"\n\n\
          [[rows]]\nname = \"net_p\"\nlabel = \"Net_P (fine-tuned, pure synthetic)\"\n\
          set = {{ data = {{ profile = \"pure\" }} }}\n\n\
-         [[rows]]\nname = \"net_s\"\nlabel = \"Net_S (fine-tuned, sensor-realistic phone)\"\n\
+         [[rows]]\nname = \"net_s\"\nlabel = \"Net_S (fine-tuned, sensor-realistic target)\"\n\
          set = {{ data = {{ profile = {}, isos = {TARGET_ISOS} }} }}\n",
         lit(&out.join("experiment")),
         lit(base),
@@ -239,7 +261,12 @@ fn stage(progress: bool, began: Instant, what: &str) {
 
 /// Real radiance for the test set: the flag, ../shared/data/real_hdr, or generated scenes'
 /// linear ground truth (copied into one folder, as `testset` reads a folder of maps).
-fn radiance_source(args: &Args, s: &Sizes, progress: bool) -> Result<(PathBuf, String)> {
+fn radiance_source(
+    args: &Args,
+    s: &Sizes,
+    target: &str,
+    progress: bool,
+) -> Result<(PathBuf, String)> {
     if let Some(r) = &args.radiance {
         if !r.exists() {
             bail!("--radiance {}: no such file or folder", r.display());
@@ -251,8 +278,8 @@ fn radiance_source(args: &Args, s: &Sizes, progress: bool) -> Result<(PathBuf, S
         return Ok((
             shared.to_path_buf(),
             format!(
-                "real scene radiance ({}: Carrots, Desk, MtTamNorth) through the composite \
-                 phone model; training scenes are generated",
+                "real scene radiance ({}: Carrots, Desk, MtTamNorth) through the target's \
+                 model ({target}); training scenes are generated",
                 shared.display()
             ),
         ));
@@ -283,9 +310,10 @@ fn radiance_source(args: &Args, s: &Sizes, progress: bool) -> Result<(PathBuf, S
     }
     Ok((
         dir,
-        "generated scenes' radiance (../shared/data/real_hdr is absent; scene seed 77, training \
-         seed 2026) through the composite phone model"
-            .into(),
+        format!(
+            "generated scenes' radiance (../shared/data/real_hdr is absent; scene seed 77, \
+             training seed 2026) through the target's model ({target})"
+        ),
     ))
 }
 
@@ -299,9 +327,10 @@ pub fn run(args: &Args) -> Result<String> {
     let sensors = configs.join("sensors");
     std::fs::create_dir_all(&sensors).with_context(|| format!("creating {}", sensors.display()))?;
     let pre_profile = sensors.join(PRETRAIN_PROFILE.0);
-    let target = sensors.join(TARGET_PROFILE.0);
-    write(&pre_profile, &dslr_profile()?)?;
-    write(&target, TARGET_PROFILE.1)?;
+    let (target_file, target_text, target_name) = target_profile(args)?;
+    let target = sensors.join(target_file);
+    write(&pre_profile, PRETRAIN_PROFILE.1)?;
+    write(&target, &target_text)?;
 
     stage(progress, began, "1/4 synthetic training sets (EV −2/0/+2)");
     let data = out.join("data/train");
@@ -356,7 +385,7 @@ pub fn run(args: &Args) -> Result<String> {
         began,
         "3/4 test set (real radiance; generated scenes without it)",
     );
-    let (radiance, test_note) = radiance_source(args, &s, progress)?;
+    let (radiance, test_note) = radiance_source(args, &s, &target_name, progress)?;
     let base_path = configs.join("finetune.toml");
     write(
         &base_path,
@@ -413,6 +442,7 @@ pub fn run(args: &Args) -> Result<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sensor::profile::Response;
 
     /// The configs the quickstart writes are valid for both presets (the full run is too long
     /// for the test suite; its table and time are in the README).
@@ -420,9 +450,19 @@ mod tests {
     fn every_config_the_quickstart_writes_parses_and_validates() {
         let tmp = tempfile::tempdir().expect("tmp");
         let root = tmp.path();
-        let dslr: SensorProfile = parse_toml(&dslr_profile().expect("dslr"), Path::new("d.toml"))
-            .expect("dslr profile parses");
+        // The shipped DSLR profile is the 550D's with only its response replaced.
+        let dslr: SensorProfile =
+            parse_toml(PRETRAIN_PROFILE.1, Path::new("d.toml")).expect("dslr profile parses");
         assert_eq!(dslr.response, Response::Gamma { gamma: 2.2 });
+        let canon: SensorProfile = parse_toml(
+            include_str!("../../configs/sensors/canon_eos_550d.toml"),
+            Path::new("c.toml"),
+        )
+        .expect("550D profile parses");
+        assert_eq!(dslr.colour, canon.colour);
+        assert_eq!(dslr.noise, canon.noise);
+        assert_eq!(dslr.levels, canon.levels);
+        assert_eq!(dslr.provenance.noise, canon.provenance.noise);
         for preset in [Preset::Cpu, Preset::Gpu] {
             let s = sizes(preset);
             let gen_cfg: crate::config::GenerateConfig = parse_toml(
