@@ -142,7 +142,10 @@ fn predictions_equal_to_the_ground_truth_give_inf_psnr_and_ssim_1() {
     }
     // Summary: +inf values are counted and left out; all +inf gives an infinite mean.
     let (h, summary) = read_csv(&out.join("summary.csv"));
-    assert_eq!(h, ["metric", "n", "n_inf", "mean", "ci_lo", "ci_hi"]);
+    assert_eq!(
+        h,
+        ["metric", "n", "n_inf", "mean", "ci_lo", "ci_hi", "n_scenes"]
+    );
     let psnr_l = summary.iter().find(|r| r[0] == "psnr_l").expect("psnr_l");
     assert_eq!(num(&psnr_l[1]) as usize, sets.len());
     assert_eq!(num(&psnr_l[2]) as usize, sets.len());

@@ -628,7 +628,9 @@ pub fn evaluate(
         bar.inc(1);
     }
     bar.finish_and_clear();
-    let summary = report::summarise(&rows, opts.resamples, opts.seed, opts.level);
+    let scenes =
+        crate::data::testset::scenes_of_sets(testset, rows.iter().map(|r| r.set.as_str()))?;
+    let summary = report::summarise(&rows, &scenes, opts.resamples, opts.seed, opts.level);
     let result = EvalSummary {
         out: out.to_path_buf(),
         method: method.describe(opts),
@@ -787,8 +789,10 @@ fn setup_lines(r: &EvalSummary, testset: &Path, opts: &EvalOptions) -> String {
     format!(
         "- test set: {}\n- method: {}\n- sets scored: {}{}\n- HDR unit: {unit}\n\
          - PU21 scaling: {pu21}\n\
-         - confidence intervals: percentile bootstrap of the mean, {} resamples, seed {}, \
-         level {}; +inf values (identical images) are left out of mean and CI and counted\n\
+         - mean and confidence intervals over scenes (a scene's sets at several ISOs are one \
+         cluster: its mean counts once): percentile bootstrap resampling scenes, {} resamples, \
+         seed {}, level {}; +inf values (identical images) are left out of mean and CI and \
+         counted\n\
          - total time: {:.1} s\n",
         testset.display(),
         r.method,

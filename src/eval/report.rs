@@ -11,6 +11,7 @@ use embedded_graphics::mono_font::iso_8859_1::FONT_7X13;
 use embedded_graphics::pixelcolor::Rgb888;
 use embedded_graphics::prelude::*;
 use embedded_graphics::text::Text;
+use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -46,7 +47,7 @@ pub struct SetScore {
     pub seconds: f64,
 }
 
-/// Mean and bootstrap interval of one metric over the sets.
+/// Mean and bootstrap interval of one metric over the test set's scenes.
 #[derive(Clone, Debug, PartialEq)]
 pub struct MetricSummary {
     pub metric: &'static str,
@@ -54,30 +55,51 @@ pub struct MetricSummary {
     pub n: usize,
     /// Sets whose value is +inf (identical images: PSNR with MSE 0), left out of mean and CI.
     pub n_inf: usize,
+    /// Scenes behind the mean and CI (the bootstrap's unit).
+    pub n_scenes: usize,
     pub mean: f64,
     pub lo: f64,
     pub hi: f64,
 }
 
-/// Per metric: mean and percentile-bootstrap CI of the finite values; +inf values are counted
-/// and left out. All +inf gives mean = lo = hi = +inf; no sets gives NaNs.
-pub fn summarise(rows: &[SetScore], resamples: usize, seed: u64, level: f64) -> Vec<MetricSummary> {
+/// Per metric: the mean over scenes of each scene's mean over its sets' finite values, and the
+/// percentile bootstrap CI resampling scenes (a scene's sets at several ISOs share content and
+/// difficulty: one cluster, as in `hdrsynth ablate`). `scenes` maps a set to its scene
+/// (`testset::scenes_of_sets`); a set not in it is its own scene. +inf values are counted and
+/// left out. All +inf gives mean = lo = hi = +inf; no sets gives NaNs.
+pub fn summarise(
+    rows: &[SetScore],
+    scenes: &BTreeMap<String, String>,
+    resamples: usize,
+    seed: u64,
+    level: f64,
+) -> Vec<MetricSummary> {
     METRICS
         .iter()
         .enumerate()
         .map(|(k, &metric)| {
             let all: Vec<f64> = rows.iter().map(|r| metric_values(&r.scores)[k]).collect();
-            let finite: Vec<f64> = all.iter().copied().filter(|v| v.is_finite()).collect();
             let n_inf = all.iter().filter(|v| **v == f64::INFINITY).count();
-            let (mean, lo, hi) = if finite.is_empty() && n_inf > 0 {
+            let mut by_scene: BTreeMap<&str, (f64, usize)> = BTreeMap::new();
+            for (r, &v) in rows.iter().zip(&all) {
+                if v.is_finite() {
+                    let scene = scenes.get(&r.set).map_or(r.set.as_str(), String::as_str);
+                    let e = by_scene.entry(scene).or_insert((0.0, 0));
+                    e.0 += v;
+                    e.1 += 1;
+                }
+            }
+            let scene_means: Vec<f64> = by_scene.values().map(|(s, n)| s / *n as f64).collect();
+            let (mean, lo, hi) = if scene_means.is_empty() && n_inf > 0 {
                 (f64::INFINITY, f64::INFINITY, f64::INFINITY)
             } else {
-                bootstrap_ci(&finite, resamples, seed, level)
+                bootstrap_ci(&scene_means, resamples, seed, level)
             };
             MetricSummary {
                 metric,
                 n: all.len(),
                 n_inf,
+                n_scenes: scene_means.len(),
                 mean,
                 lo,
                 hi,
@@ -114,9 +136,9 @@ pub fn per_image_csv(rows: &[SetScore]) -> String {
     out
 }
 
-/// `summary.csv`: metric, n, n_inf, mean, ci_lo, ci_hi.
+/// `summary.csv`: metric, n, n_inf, mean, ci_lo, ci_hi, n_scenes.
 pub fn summary_csv(summary: &[MetricSummary]) -> String {
-    let mut out = String::from("metric,n,n_inf,mean,ci_lo,ci_hi\n");
+    let mut out = String::from("metric,n,n_inf,mean,ci_lo,ci_hi,n_scenes\n");
     for m in summary {
         let _ = writeln!(
             out,
@@ -140,18 +162,19 @@ fn fmt_value(metric: &str, v: f64) -> String {
 /// Markdown table of the summary.
 pub fn summary_table(summary: &[MetricSummary], level: f64) -> String {
     let mut out = format!(
-        "| metric | mean | {:.0} % CI | n | +inf (excluded) |\n|---|---|---|---|---|\n",
+        "| metric | mean | {:.0} % CI | n | scenes | +inf (excluded) |\n|---|---|---|---|---|---|\n",
         level * 100.0
     );
     for m in summary {
         let _ = writeln!(
             out,
-            "| {} | {} | [{}, {}] | {} | {} |",
+            "| {} | {} | [{}, {}] | {} | {} | {} |",
             m.metric,
             fmt_value(m.metric, m.mean),
             fmt_value(m.metric, m.lo),
             fmt_value(m.metric, m.hi),
             m.n,
+            m.n_scenes,
             m.n_inf
         );
     }
@@ -267,4 +290,51 @@ pub fn grid(rows: &[Vec<Cell>]) -> Result<Image> {
         y0 += row_h[r] + GAP;
     }
     Ok(img)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(set: &str, v: f64) -> SetScore {
+        SetScore {
+            set: set.into(),
+            scores: Scores {
+                psnr_l: v,
+                psnr_t: v,
+                ssim_l: v,
+                ssim_t: v,
+                pu21_psnr: v,
+                pu21_ssim: v,
+            },
+            width: 1,
+            height: 1,
+            seconds: 0.0,
+        }
+    }
+
+    /// Two sets of scene A (10, 20) and one of scene B (40): the mean is over scenes,
+    /// (15 + 40) / 2 = 27.5, not over sets (23.33), and every resample is a mean of {15, 40}.
+    #[test]
+    fn the_summary_averages_and_resamples_scenes_not_sets() {
+        let rows = [
+            row("A_iso100", 10.0),
+            row("A_iso800", 20.0),
+            row("B_iso100", 40.0),
+        ];
+        let scenes: BTreeMap<String, String> =
+            [("A_iso100", "A"), ("A_iso800", "A"), ("B_iso100", "B")]
+                .into_iter()
+                .map(|(a, b)| (a.to_string(), b.to_string()))
+                .collect();
+        for m in summarise(&rows, &scenes, 500, 0, 0.95) {
+            assert_eq!((m.n, m.n_scenes, m.n_inf), (3, 2, 0), "{}", m.metric);
+            assert!((m.mean - 27.5).abs() < 1e-12, "{}: {}", m.metric, m.mean);
+            assert!(m.lo >= 15.0 && m.hi <= 40.0 && m.lo < m.hi, "{m:?}");
+        }
+        // Without a scene map every set is its own scene: the plain mean over sets.
+        let m = &summarise(&rows, &BTreeMap::new(), 500, 0, 0.95)[0];
+        assert_eq!(m.n_scenes, 3);
+        assert!((m.mean - 70.0 / 3.0).abs() < 1e-12);
+    }
 }
