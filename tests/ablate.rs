@@ -278,7 +278,8 @@ fn the_cpu_scale_experiment_configs_parse_and_resolve_their_cells() {
         ("exp1_network1.toml", 4, 3 * 3),
         ("exp2_network2.toml", 4, 3 * 3),
         ("exp3_network2_colour_iso.toml", 6, 6 * 3),
-        ("exp2_phone_b.toml", 5, 4 * 3),
+        ("exp2_phone_b.toml", 4, 3 * 3),
+        ("exp3b_what_the_gain_is.toml", 4, 4 * 3),
     ] {
         let path = dir.join(file);
         let cfg = AblateConfig::load(&path).expect(file);
