@@ -1,0 +1,258 @@
+//! `hdrsynth testset --brackets DIR --out OUT`: a user's own bracket folders
+//! ([`crate::data::brackets`]) as a Kalantari-layout test set whose ground truth is made the way
+//! the paper made testset-2's: the linear triangular merge of the static frames
+//! (docs/your_device.md).
+//!
+//! Per set, three frames are used: the shortest, the one nearest the middle and the longest
+//! exposure (others are reported as dropped). Each frame is linearised (1 = its clipping white)
+//! with the response chosen by [`ResponseChoice`] (DNG: linear after black/white levels, white
+//! balanced by AsShotNeutral), optionally aligned to the middle frame, and written as the
+//! field expects a Kalantari frame: a 16-bit TIFF holding linear^(1/γ), γ = 2.2, so that the
+//! field's own linearisation LDR^γ recovers the linear frame. Then:
+//! - `exposure.txt`: log2 stops s_i relative to the shortest frame ("0 2 4" for EV −2/0/+2),
+//!   the field's reading t_i = 2^s_i (HDR-Transformer's `read_expo_times`);
+//! - `HDRImg.hdr`: the triangle merge ([`ground_truth::triangle_merge`], Kalantari's weights
+//!   from the middle frame's TIFF value) of the written (quantised) frames, Σ w·L_i^γ / t_i /
+//!   Σ w — in the field's unit, a frame at stop 0 (the shortest) has white 1; `hdrsynth eval`
+//!   converts it to its own unit (1 = the middle frame's white);
+//! - `brackets.toml`: where every frame came from, its exposure, the response used and the
+//!   alignment shifts.
+
+use crate::data::brackets::{self, BracketFrame, BracketScan, FrameKind, ScanOptions};
+use crate::data::ground_truth;
+use crate::error::{Error, Result};
+use crate::io::{BitDepth, Image, read_image, write_hdr, write_ldr};
+use crate::sensor::profile::Response;
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+/// γ of the written frames (the field's linearisation LDR^γ, Kalantari/Wu: 2.2).
+pub const FIELD_GAMMA: f32 = 2.2;
+pub const FRAME_NAMES: [&str; 3] = ["frame_1.tif", "frame_2.tif", "frame_3.tif"];
+pub const RECORD: &str = "brackets.toml";
+
+/// How code values of LDR frames become linear.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ResponseChoice {
+    /// The device response of a sensor profile (named for the report).
+    Profile { name: String, response: Response },
+    /// A response the user declared (`--response srgb|linear|gamma:G`).
+    Declared(Response),
+}
+
+impl ResponseChoice {
+    pub fn describe(&self) -> String {
+        match self {
+            ResponseChoice::Profile { name, response } => {
+                format!(
+                    "the device response of profile {name} ({})",
+                    response.label()
+                )
+            }
+            ResponseChoice::Declared(r) => format!("declared response {}", r.label()),
+        }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct BracketOptions {
+    pub scan: ScanOptions,
+    pub response: ResponseChoice,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct RecordFrame {
+    pub source: PathBuf,
+    pub written: String,
+    /// log2 stop as written to exposure.txt (relative to the shortest frame).
+    pub stop: f64,
+    pub exposure_time_s: Option<f64>,
+    pub iso: Option<f64>,
+}
+
+/// One written set (also `OUT/<set>/brackets.toml`).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct BuiltBracketSet {
+    pub name: String,
+    pub width: usize,
+    pub height: usize,
+    pub grouping: String,
+    pub exposure_source: String,
+    pub response: String,
+    pub frames: Vec<RecordFrame>,
+    /// Frames of the bracket not used (the set had more than three).
+    pub dropped: Vec<PathBuf>,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct BracketSummary {
+    pub sets: Vec<BuiltBracketSet>,
+    pub notes: Vec<String>,
+}
+
+/// Indices of the shortest, middle and longest frame of an ascending bracket.
+fn pick_three(n: usize) -> [usize; 3] {
+    [0, n / 2, n - 1]
+}
+
+/// One frame, linear in [0, 1] with 1 = its clipping white.
+pub fn linear_frame(frame: &BracketFrame, response: &ResponseChoice) -> Result<Image> {
+    match frame.kind {
+        FrameKind::Dng => {
+            let dng = crate::sensor::dng::read_dng(&frame.path)?;
+            // White balance by AsShotNeutral, scaled so that no channel exceeds 1 at raw white.
+            let n = dng.info.as_shot_neutral.unwrap_or([1.0; 3]);
+            if n.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
+                return Err(Error::decode(
+                    &frame.path,
+                    format!("AsShotNeutral {n:?} must be positive"),
+                ));
+            }
+            let lo = n.iter().copied().fold(f64::INFINITY, f64::min);
+            let gain = n.map(|v| (lo / v) as f32);
+            let mut img = dng.image;
+            for p in img.data.chunks_exact_mut(3) {
+                for c in 0..3 {
+                    p[c] = (p[c] * gain[c]).clamp(0.0, 1.0);
+                }
+            }
+            Ok(img)
+        }
+        FrameKind::Ldr => {
+            let img = read_image(&frame.path)?;
+            let r = match response {
+                ResponseChoice::Profile { response, .. } | ResponseChoice::Declared(response) => {
+                    response
+                }
+            };
+            // 16-bit codes make a per-pixel inverse costly for LUT curves: tabulate it.
+            let table: Vec<f32> = (0..=65535)
+                .map(|k| r.invert(f64::from(k) / 65535.0) as f32)
+                .collect();
+            Ok(img.map(|v| table[(v.clamp(0.0, 1.0) * 65535.0).round() as usize]))
+        }
+    }
+}
+
+/// Scan `dir` and write every set to `out` in Kalantari's layout.
+pub fn build(dir: &Path, opts: &BracketOptions, out: &Path) -> Result<BracketSummary> {
+    let BracketScan { sets, mut notes } = brackets::scan(dir, &opts.scan)?;
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    let mut built = Vec::with_capacity(sets.len());
+    for set in &sets {
+        let idx = pick_three(set.frames.len());
+        if set.frames.len() < 3 {
+            return Err(Error::layout(
+                &set.frames[0].path,
+                format!(
+                    "set '{}' has {} frames ({}); a Kalantari-layout test set needs three \
+                     exposures",
+                    set.name,
+                    set.frames.len(),
+                    set.frames
+                        .iter()
+                        .map(|f| f.path.display().to_string())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            ));
+        }
+        let chosen: Vec<&BracketFrame> = idx.iter().map(|&i| &set.frames[i]).collect();
+        let dropped: Vec<PathBuf> = (0..set.frames.len())
+            .filter(|i| !idx.contains(i))
+            .map(|i| set.frames[i].path.clone())
+            .collect();
+        if !dropped.is_empty() {
+            notes.push(format!(
+                "set '{}': {} frames; used the shortest, middle and longest, dropped {}",
+                set.name,
+                set.frames.len(),
+                dropped.len()
+            ));
+        }
+        let linear = chosen
+            .iter()
+            .map(|f| linear_frame(f, &opts.response))
+            .collect::<Result<Vec<Image>>>()?;
+        let (w, h) = (linear[1].width, linear[1].height);
+        for (f, img) in chosen.iter().zip(&linear) {
+            if (img.width, img.height) != (w, h) {
+                return Err(Error::layout(
+                    &f.path,
+                    format!(
+                        "{}×{}, but the set's middle frame {} is {w}×{h}",
+                        img.width,
+                        img.height,
+                        chosen[1].path.display()
+                    ),
+                ));
+            }
+        }
+        // Stops relative to the shortest frame, rounded as written so the merge uses exactly
+        // what the field's code will read back.
+        let stops: Vec<f64> = chosen
+            .iter()
+            .map(|f| {
+                format!("{:.6}", f.stop - chosen[0].stop)
+                    .parse()
+                    .unwrap_or(0.0)
+            })
+            .collect();
+        let inv_g = 1.0 / FIELD_GAMMA;
+        let codes: Vec<Image> = linear
+            .iter()
+            .map(|img| img.map(|v| (v.clamp(0.0, 1.0).powf(inv_g) * 65535.0).round() / 65535.0))
+            .collect();
+        let times = [0, 1, 2].map(|i| stops[i].exp2() as f32);
+        let hdr = ground_truth::triangle_merge(
+            &[codes[0].clone(), codes[1].clone(), codes[2].clone()],
+            times,
+            FIELD_GAMMA,
+        )?;
+
+        let set_dir = out.join(&set.name);
+        std::fs::create_dir_all(&set_dir).map_err(|e| Error::io(&set_dir, e))?;
+        for (img, name) in codes.iter().zip(FRAME_NAMES) {
+            write_ldr(&set_dir.join(name), img, BitDepth::Sixteen)?;
+        }
+        let expo = set_dir.join(crate::data::layout::kalantari::EXPOSURE_FILE);
+        let text = stops
+            .iter()
+            .map(|s| format!("{s}"))
+            .collect::<Vec<_>>()
+            .join("\n")
+            + "\n";
+        crate::io::atomic::write_atomic(&expo, text.as_bytes())?;
+        write_hdr(&set_dir.join(crate::data::layout::kalantari::GT_FILE), &hdr)?;
+        let record = BuiltBracketSet {
+            name: set.name.clone(),
+            width: w,
+            height: h,
+            grouping: set.grouping.clone(),
+            exposure_source: set.exposure_source.clone(),
+            response: if chosen.iter().all(|f| f.kind == FrameKind::Dng) {
+                "linear raw (DNG black/white levels)".to_string()
+            } else {
+                opts.response.describe()
+            },
+            frames: chosen
+                .iter()
+                .zip(FRAME_NAMES)
+                .zip(&stops)
+                .map(|((f, name), &stop)| RecordFrame {
+                    source: f.path.clone(),
+                    written: name.to_string(),
+                    stop,
+                    exposure_time_s: f.exif.exposure_time,
+                    iso: f.exif.iso,
+                })
+                .collect(),
+            dropped,
+        };
+        let toml =
+            toml::to_string_pretty(&record).map_err(|e| Error::encode(set_dir.join(RECORD), e))?;
+        crate::io::atomic::write_atomic(&set_dir.join(RECORD), toml.as_bytes())?;
+        built.push(record);
+    }
+    Ok(BracketSummary { sets: built, notes })
+}

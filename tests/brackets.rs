@@ -1,0 +1,595 @@
+//! Bracket folders off a device (issue 19): EXIF exposures, sidecars, grouping, refusals, and the
+//! Kalantari-layout test set whose ground truth is the triangle merge.
+//!
+//! The JPEGs are written here with EXIF by a minimal APP1 writer (below, written from the EXIF
+//! 2.32 / TIFF 6.0 specifications, independent of the crate's reader); the oracle values are
+//! the hand-known exposure times written into them.
+
+use hdrsynth::data::bracket_testset::{self, BracketOptions, ResponseChoice};
+use hdrsynth::data::brackets::{self, ScanOptions};
+use hdrsynth::sensor::profile::Response;
+use image::ExtendedColorType;
+use image::codecs::jpeg::JpegEncoder;
+use std::path::{Path, PathBuf};
+
+// ---------------------------------------------------------------------------------------------
+// A minimal EXIF writer (little-endian TIFF in an APP1 segment).
+
+/// EXIF tag values the helper can write.
+#[derive(Clone, Default)]
+struct Tags {
+    exposure_time: Option<(u32, u32)>,
+    iso: Option<u16>,
+    f_number: Option<(u32, u32)>,
+    bias: Option<(i32, i32)>,
+    /// "YYYY:MM:DD HH:MM:SS"
+    date: Option<String>,
+    subsec: Option<String>,
+}
+
+/// One IFD entry: tag, TIFF type, count, value bytes (little-endian).
+type Entry = (u16, u16, u32, Vec<u8>);
+
+fn rational(n: u32, d: u32) -> Vec<u8> {
+    [n.to_le_bytes(), d.to_le_bytes()].concat()
+}
+
+/// Serialise an IFD at `at` (offset in the TIFF); values over 4 bytes follow the IFD.
+fn ifd(at: u32, mut entries: Vec<Entry>) -> Vec<u8> {
+    entries.sort_by_key(|e| e.0);
+    let n = entries.len() as u32;
+    let mut data_at = at + 2 + 12 * n + 4;
+    let (mut head, mut data) = (Vec::new(), Vec::new());
+    head.extend((n as u16).to_le_bytes());
+    for (tag, ty, count, bytes) in entries {
+        head.extend(tag.to_le_bytes());
+        head.extend(ty.to_le_bytes());
+        head.extend(count.to_le_bytes());
+        if bytes.len() <= 4 {
+            let mut v = bytes.clone();
+            v.resize(4, 0);
+            head.extend(v);
+        } else {
+            head.extend(data_at.to_le_bytes());
+            data_at += bytes.len() as u32;
+            data.extend(bytes);
+        }
+    }
+    head.extend(0u32.to_le_bytes()); // no next IFD
+    head.extend(data);
+    head
+}
+
+fn exif_app1(t: &Tags) -> Vec<u8> {
+    let mut exif: Vec<Entry> = Vec::new();
+    if let Some((n, d)) = t.exposure_time {
+        exif.push((0x829A, 5, 1, rational(n, d)));
+    }
+    if let Some((n, d)) = t.f_number {
+        exif.push((0x829D, 5, 1, rational(n, d)));
+    }
+    if let Some(iso) = t.iso {
+        exif.push((0x8827, 3, 1, iso.to_le_bytes().to_vec()));
+    }
+    if let Some(s) = &t.date {
+        let mut b = s.as_bytes().to_vec();
+        b.push(0);
+        exif.push((0x9003, 2, b.len() as u32, b));
+    }
+    if let Some((n, d)) = t.bias {
+        exif.push((0x9204, 10, 1, [n.to_le_bytes(), d.to_le_bytes()].concat()));
+    }
+    if let Some(s) = &t.subsec {
+        let mut b = s.as_bytes().to_vec();
+        b.push(0);
+        exif.push((0x9291, 2, b.len() as u32, b));
+    }
+    // Header (8) + IFD0 with one entry, the Exif IFD pointer (2 + 12 + 4 = 18).
+    let exif_at = 8 + 18;
+    let mut tiff = b"II*\0".to_vec();
+    tiff.extend(8u32.to_le_bytes());
+    tiff.extend(ifd(
+        8,
+        vec![(0x8769, 4, 1, (exif_at as u32).to_le_bytes().to_vec())],
+    ));
+    assert_eq!(tiff.len(), exif_at);
+    tiff.extend(ifd(exif_at as u32, exif));
+    let mut seg = vec![0xFF, 0xE1];
+    seg.extend(((tiff.len() + 8) as u16).to_be_bytes());
+    seg.extend(b"Exif\0\0");
+    seg.extend(tiff);
+    seg
+}
+
+/// Write an 8-bit RGB JPEG (quality 95) with the given EXIF right after SOI.
+fn write_jpeg(path: &Path, w: u32, h: u32, rgb: &[u8], tags: Option<&Tags>) {
+    let mut jpg = Vec::new();
+    JpegEncoder::new_with_quality(&mut jpg, 95)
+        .encode(rgb, w, h, ExtendedColorType::Rgb8)
+        .expect("encode");
+    assert_eq!(&jpg[..2], &[0xFF, 0xD8]);
+    let mut out = jpg[..2].to_vec();
+    if let Some(t) = tags {
+        out.extend(exif_app1(t));
+    }
+    out.extend(&jpg[2..]);
+    std::fs::write(path, out).expect("write jpeg");
+}
+
+// ---------------------------------------------------------------------------------------------
+// A synthetic scene and its brackets.
+
+const W: usize = 40;
+const H: usize = 32;
+
+/// Linear radiance with ~10 stops of range (a horizontal ramp in log, colour varying by row).
+fn radiance(x: usize, y: usize) -> [f64; 3] {
+    let l = (-7.0 + 10.0 * x as f64 / (W - 1) as f64).exp2();
+    let c = y as f64 / (H - 1) as f64;
+    [l * (0.6 + 0.4 * c), l, l * (1.0 - 0.5 * c)]
+}
+
+/// IEC 61966-2-1 encoding by hand.
+fn srgb(x: f64) -> f64 {
+    let x = x.clamp(0.0, 1.0);
+    if x <= 0.003_130_8 {
+        12.92 * x
+    } else {
+        1.055 * x.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// An sRGB JPEG of the scene exposed for `t` seconds (exposure scale t · 16).
+fn bracket_jpeg(path: &Path, t: f64, tags: Option<&Tags>) {
+    let mut rgb = Vec::with_capacity(W * H * 3);
+    for y in 0..H {
+        for x in 0..W {
+            for v in radiance(x, y) {
+                rgb.push((srgb(v * t * 16.0) * 255.0).round() as u8);
+            }
+        }
+    }
+    write_jpeg(path, W as u32, H as u32, &rgb, tags);
+}
+
+fn tags(t: (u32, u32), iso: u16, date: &str, subsec: &str) -> Tags {
+    Tags {
+        exposure_time: Some(t),
+        iso: Some(iso),
+        date: Some(date.to_string()),
+        subsec: Some(subsec.to_string()),
+        ..Tags::default()
+    }
+}
+
+fn scan(dir: &Path) -> brackets::BracketScan {
+    brackets::scan(dir, &ScanOptions::default()).expect("scan")
+}
+
+fn stops_rel(set: &brackets::BracketSet) -> Vec<f64> {
+    set.frames
+        .iter()
+        .map(|f| f.stop - set.frames[0].stop)
+        .collect()
+}
+
+fn assert_close(a: &[f64], b: &[f64], tol: f64) {
+    assert_eq!(a.len(), b.len(), "{a:?} vs {b:?}");
+    for (x, y) in a.iter().zip(b) {
+        assert!((x - y).abs() <= tol, "{a:?} vs {b:?}");
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Item 1: reading bracket folders.
+
+#[test]
+fn exif_exposure_time_iso_and_fnumber_are_read_from_a_jpeg() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let p = tmp.path().join("a.jpg");
+    let mut t = tags((1, 400), 200, "2026:11:24 23:59:59", "25");
+    t.f_number = Some((28, 10));
+    t.bias = Some((-2, 1));
+    bracket_jpeg(&p, 1.0 / 400.0, Some(&t));
+    let e = brackets::read_exif(&p).expect("exif");
+    assert_eq!(e.exposure_time, Some(0.0025));
+    assert_eq!(e.iso, Some(200.0));
+    assert_eq!(e.f_number, Some(2.8));
+    assert_eq!(e.bias_ev, Some(-2.0));
+    // 2026-11-24 is day 20 781 since 1970-01-01 (hand count: 56 years incl. 14 leap days =
+    // 20 454 days to 2026-01-01, plus 327 days to Nov 24); 86 399 s into the day; .25 s.
+    assert_eq!(e.captured_s, Some(20_781.0 * 86_400.0 + 86_399.0 + 0.25));
+}
+
+#[test]
+fn a_sub_folder_per_set_gets_stops_from_exposure_time_and_iso() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    // Set A: times 1/400, 1/100, 1/25 at ISO 100 → stops 0, 2, 4.
+    // Set B: 1/100 s at ISO 100, 400 and 1600 → stops 0, 2, 4 from the gain alone.
+    let a = tmp.path().join("A");
+    let b = tmp.path().join("B");
+    std::fs::create_dir_all(&a).expect("mkdir");
+    std::fs::create_dir_all(&b).expect("mkdir");
+    for (i, d) in [400, 100, 25].iter().enumerate() {
+        let t = tags((1, *d), 100, "2026:11:24 10:00:00", &format!("{i}"));
+        bracket_jpeg(&a.join(format!("IMG_{i}.jpg")), 1.0 / *d as f64, Some(&t));
+    }
+    for (i, iso) in [1600u16, 100, 400].iter().enumerate() {
+        let t = tags((1, 100), *iso, "2026:11:24 11:00:00", &format!("{i}"));
+        bracket_jpeg(
+            &b.join(format!("IMG_{i}.jpg")),
+            0.01 * *iso as f64 / 100.0,
+            Some(&t),
+        );
+    }
+    let s = scan(tmp.path());
+    assert_eq!(s.sets.len(), 2);
+    assert_eq!(s.sets[0].name, "A");
+    assert_close(&stops_rel(&s.sets[0]), &[0.0, 2.0, 4.0], 1e-9);
+    assert!(
+        s.sets[0].exposure_source.contains("ISO"),
+        "{}",
+        s.sets[0].exposure_source
+    );
+    assert_eq!(s.sets[0].grouping, "sub-folder A");
+    assert_close(&stops_rel(&s.sets[1]), &[0.0, 2.0, 4.0], 1e-9);
+    // Ascending exposure: ISO 100, 400, 1600 = files IMG_1, IMG_2, IMG_0.
+    let names: Vec<String> = s.sets[1]
+        .frames
+        .iter()
+        .map(|f| f.path.file_name().unwrap().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(names, ["IMG_1.jpg", "IMG_2.jpg", "IMG_0.jpg"]);
+    assert!(s.notes.is_empty(), "{:?}", s.notes);
+}
+
+#[test]
+fn one_folder_is_grouped_by_capture_time_and_repeating_exposures() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    // A phone's AEB order 0, −2, +2; the second burst 1 s later lost its +2 frame; a third
+    // burst 60 s later starts with +2, which the short second set does not hold (only the time
+    // gap splits there). File names are not in capture order (the camera's counter wrapped):
+    // capture time decides.
+    let plan = [
+        ("P9997.jpg", 100, "10:00:00", "10"),
+        ("P9998.jpg", 400, "10:00:00", "40"),
+        ("P9999.jpg", 25, "10:00:00", "70"),
+        ("P0000.jpg", 100, "10:00:01", "20"),
+        ("P0001.jpg", 400, "10:00:01", "50"),
+        ("P0003.jpg", 25, "10:01:01", "00"),
+        ("P0004.jpg", 100, "10:01:01", "30"),
+        ("P0005.jpg", 400, "10:01:01", "60"),
+    ];
+    for (name, d, time, sub) in plan {
+        let t = tags((1, d), 100, &format!("2026:11:24 {time}"), sub);
+        bracket_jpeg(&tmp.path().join(name), 1.0 / d as f64, Some(&t));
+    }
+    let s = scan(tmp.path());
+    let groups: Vec<Vec<String>> = s
+        .sets
+        .iter()
+        .map(|set| {
+            set.frames
+                .iter()
+                .map(|f| f.path.file_name().unwrap().to_string_lossy().into_owned())
+                .collect()
+        })
+        .collect();
+    assert_eq!(
+        groups,
+        [
+            vec!["P9998.jpg", "P9997.jpg", "P9999.jpg"],
+            vec!["P0001.jpg", "P0000.jpg"],
+            vec!["P0005.jpg", "P0004.jpg", "P0003.jpg"],
+        ]
+    );
+    for set in [&s.sets[0], &s.sets[2]] {
+        assert_close(&stops_rel(set), &[0.0, 2.0, 4.0], 1e-9);
+    }
+    assert_close(&stops_rel(&s.sets[1]), &[0.0, 2.0], 1e-9);
+    for set in &s.sets {
+        assert!(set.grouping.contains("capture time"), "{}", set.grouping);
+    }
+    assert_eq!(s.sets[0].name, "set_001");
+    // The third set's boundary came from the time gap alone, and the sizes differ: reported.
+    assert!(s.notes.iter().any(|n| n.contains("gap")), "{:?}", s.notes);
+    assert!(
+        s.notes.iter().any(|n| n.contains("differing")),
+        "{:?}",
+        s.notes
+    );
+}
+
+#[test]
+fn opencv_list_txt_holds_inverse_exposure_times() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    for (i, d) in [32u32, 8, 2].iter().enumerate() {
+        bracket_jpeg(&tmp.path().join(format!("m{i}.jpg")), 1.0 / *d as f64, None);
+    }
+    // OpenCV's loadExposureSeq: times = 1 / value.
+    std::fs::write(
+        tmp.path().join("list.txt"),
+        "m0.jpg 32\nm1.jpg 8\nm2.jpg 2\n",
+    )
+    .expect("w");
+    let s = scan(tmp.path());
+    assert_eq!(s.sets.len(), 1);
+    // log2(1/32) = −5, log2(1/8) = −3, log2(1/2) = −1.
+    let abs: Vec<f64> = s.sets[0].frames.iter().map(|f| f.stop).collect();
+    assert_close(&abs, &[-5.0, -3.0, -1.0], 1e-12);
+    assert!(s.sets[0].exposure_source.contains("list.txt"));
+}
+
+#[test]
+fn frames_without_exposure_are_refused_by_name_unless_evs_are_declared() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let t = tags((1, 100), 100, "2026:11:24 10:00:00", "0");
+    bracket_jpeg(&tmp.path().join("a.jpg"), 0.01, Some(&t));
+    bracket_jpeg(&tmp.path().join("b.jpg"), 0.04, None);
+    bracket_jpeg(&tmp.path().join("c.jpg"), 0.0025, None);
+    let err = brackets::scan(tmp.path(), &ScanOptions::default())
+        .expect_err("undeterminable")
+        .to_string();
+    assert!(err.contains("b.jpg") && err.contains("c.jpg"), "{err}");
+    assert!(!err.contains("a.jpg"), "{err}");
+    assert!(err.contains("--evs"), "{err}");
+    // Declared EV steps in capture (here: file-name) order.
+    let opts = ScanOptions {
+        evs: Some(vec![0.0, 2.0, -2.0]),
+        ..ScanOptions::default()
+    };
+    let s = brackets::scan(tmp.path(), &opts).expect("declared");
+    let names: Vec<String> = s.sets[0]
+        .frames
+        .iter()
+        .map(|f| f.path.file_name().unwrap().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(names, ["c.jpg", "a.jpg", "b.jpg"]);
+    assert_close(&stops_rel(&s.sets[0]), &[0.0, 2.0, 4.0], 0.0);
+}
+
+#[test]
+fn a_lone_frame_and_equal_exposures_are_refused_naming_the_file() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let d = tmp.path().join("solo");
+    std::fs::create_dir_all(&d).expect("mkdir");
+    let t = tags((1, 100), 100, "2026:11:24 10:00:00", "0");
+    bracket_jpeg(&d.join("only.jpg"), 0.01, Some(&t));
+    let err = brackets::scan(tmp.path(), &ScanOptions::default())
+        .expect_err("lone frame")
+        .to_string();
+    assert!(
+        err.contains("only.jpg") && err.contains("at least two"),
+        "{err}"
+    );
+}
+
+#[test]
+fn a_corrupt_jpeg_is_an_error_naming_it_not_a_panic() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let d = tmp.path().join("s");
+    std::fs::create_dir_all(&d).expect("mkdir");
+    for (i, den) in [400u32, 100, 25].iter().enumerate() {
+        let t = tags((1, *den), 100, "2026:11:24 10:00:00", &format!("{i}"));
+        bracket_jpeg(&d.join(format!("f{i}.jpg")), 1.0 / *den as f64, Some(&t));
+    }
+    // Truncate the middle frame's entropy-coded data.
+    let p = d.join("f1.jpg");
+    let bytes = std::fs::read(&p).expect("read");
+    std::fs::write(&p, &bytes[..bytes.len() / 2]).expect("write");
+    let opts = BracketOptions {
+        scan: ScanOptions::default(),
+        response: ResponseChoice::Declared(Response::Srgb),
+    };
+    let err = bracket_testset::build(tmp.path(), &opts, &tmp.path().join("out"))
+        .expect_err("corrupt")
+        .to_string();
+    assert!(err.contains("f1.jpg"), "{err}");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Item 4: the Kalantari-layout test set and its ground truth.
+
+/// An EV −2/0/+2 bracket (1/400, 1/100, 1/25 s) in one sub-folder.
+fn bracket_folder(root: &Path) -> PathBuf {
+    let d = root.join("scene1");
+    std::fs::create_dir_all(&d).expect("mkdir");
+    for (i, den) in [100u32, 400, 25].iter().enumerate() {
+        let t = tags((1, *den), 100, "2026:11:24 10:00:00", &format!("{i}"));
+        bracket_jpeg(&d.join(format!("IMG_{i}.jpg")), 1.0 / *den as f64, Some(&t));
+    }
+    d
+}
+
+fn read_u16_tiff(path: &Path) -> (usize, usize, Vec<f64>) {
+    let img = image::open(path).expect("tiff");
+    let rgb = img.to_rgb16();
+    let (w, h) = rgb.dimensions();
+    (
+        w as usize,
+        h as usize,
+        rgb.into_raw().iter().map(|&v| v as f64 / 65535.0).collect(),
+    )
+}
+
+fn read_rgbe(path: &Path) -> Vec<f64> {
+    let img = image::open(path).expect("hdr").to_rgb32f();
+    img.into_raw().iter().map(|&v| v as f64).collect()
+}
+
+#[test]
+fn the_ground_truth_is_the_triangle_merge_of_the_written_frames() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    bracket_folder(tmp.path());
+    let out = tmp.path().join("out");
+    let opts = BracketOptions {
+        scan: ScanOptions::default(),
+        response: ResponseChoice::Declared(Response::Srgb),
+    };
+    let summary = bracket_testset::build(tmp.path(), &opts, &out).expect("build");
+    assert_eq!(summary.sets.len(), 1);
+    let set = out.join("scene1");
+
+    // exposure.txt: stops relative to the shortest frame, as Kalantari writes "0 2 4".
+    let stops: Vec<f64> = std::fs::read_to_string(set.join("exposure.txt"))
+        .expect("exposure.txt")
+        .split_whitespace()
+        .map(|s| s.parse().expect("number"))
+        .collect();
+    assert_close(&stops, &[0.0, 2.0, 4.0], 1e-9);
+
+    // Frames: the JPEG's sRGB code linearised by hand, re-encoded as linear^(1/2.2), 16 bits.
+    let jpeg = |name: &str| -> Vec<f64> {
+        let img = image::open(
+            set.parent()
+                .unwrap()
+                .parent()
+                .unwrap()
+                .join("scene1")
+                .join(name),
+        )
+        .expect("jpeg")
+        .to_rgb8();
+        img.into_raw().iter().map(|&v| v as f64 / 255.0).collect()
+    };
+    let srgb_decode = |v: f64| {
+        if v <= 0.04045 {
+            v / 12.92
+        } else {
+            ((v + 0.055) / 1.055).powf(2.4)
+        }
+    };
+    let frames: Vec<Vec<f64>> = ["frame_1.tif", "frame_2.tif", "frame_3.tif"]
+        .iter()
+        .map(|n| {
+            let (w, h, v) = read_u16_tiff(&set.join(n));
+            assert_eq!((w, h), (W, H));
+            v
+        })
+        .collect();
+    // frame_1 = the 1/400 s frame = IMG_1.jpg.
+    for (frame, src) in frames.iter().zip(["IMG_1.jpg", "IMG_0.jpg", "IMG_2.jpg"]) {
+        for (l, c) in frame.iter().zip(jpeg(src)) {
+            let want = srgb_decode(c).powf(1.0 / 2.2);
+            // f32 arithmetic in the library may round to the neighbouring code.
+            assert!((l - want).abs() <= 1.0 / 65535.0 + 1e-9, "{l} vs {want}");
+        }
+    }
+
+    // HDRImg.hdr against Kalantari's triangle weights computed here from the written frames:
+    // w from the middle frame's value I: short (I−½)⁺/½, middle I/½ or (1−I)/½, long (½−I)⁺/½;
+    // H = Σ w L^2.2 / 2^s / Σ w.
+    let gt = read_rgbe(&set.join("HDRImg.hdr"));
+    assert_eq!(gt.len(), W * H * 3);
+    let mut want = vec![0.0; gt.len()];
+    for (k, v) in want.iter_mut().enumerate() {
+        let i = frames[1][k];
+        let w = [
+            (i - 0.5).max(0.0) / 0.5,
+            if i < 0.5 { i / 0.5 } else { (1.0 - i) / 0.5 },
+            (0.5 - i).max(0.0) / 0.5,
+        ];
+        let hsum: f64 = (0..3)
+            .map(|j| w[j] * frames[j][k].powf(2.2) / stops[j].exp2())
+            .sum();
+        *v = hsum / (w[0] + w[1] + w[2]);
+    }
+    // RGBE shares one exponent per pixel with 8 mantissa bits: the error of each channel is
+    // below 2^-8 of the pixel's largest channel (truncation; 2^-7 allows rounding either way).
+    let mut worst: f64 = 0.0;
+    for (p, q) in gt.chunks_exact(3).zip(want.chunks_exact(3)) {
+        let m = q.iter().copied().fold(0.0, f64::max).max(1e-6);
+        for c in 0..3 {
+            worst = worst.max((p[c] - q[c]).abs() / m);
+        }
+    }
+    assert!(worst < 1.0 / 128.0, "worst relative error {worst}");
+
+    // And the merge recovers the scene: radiance · 16 (the stop-0 frame is 1/400 s, so the
+    // field's unit is the white of radiance · 16/400) where no frame is clipped or near black.
+    let scale = 16.0 / 400.0;
+    let (mut n, mut sum_err) = (0, 0.0);
+    for y in 0..H {
+        for x in 0..W {
+            for (c, r) in radiance(x, y).iter().enumerate() {
+                let k = (y * W + x) * 3 + c;
+                let mid = frames[1][k];
+                if (0.2..0.8).contains(&mid) {
+                    sum_err += ((gt[k] - r * scale) / (r * scale)).abs();
+                    n += 1;
+                }
+            }
+        }
+    }
+    assert!(n > 100, "{n} well-exposed samples");
+    assert!(
+        sum_err / (n as f64) < 0.03,
+        "mean relative error {}",
+        sum_err / n as f64
+    );
+}
+
+#[test]
+fn the_bracket_test_set_reads_as_kalantari_and_eval_scores_it() {
+    use hdrsynth::data::layout::{self, LayoutKind};
+    use hdrsynth::eval::evaluate::{self, EvalOptions, Network2};
+    use hdrsynth::io::Image;
+    let tmp = tempfile::tempdir().expect("tmp");
+    bracket_folder(tmp.path());
+    let out = tmp.path().join("out");
+    let opts = BracketOptions {
+        scan: ScanOptions::default(),
+        response: ResponseChoice::Declared(Response::Srgb),
+    };
+    bracket_testset::build(tmp.path(), &opts, &out).expect("build");
+    let info = layout::detect(&out).expect("detect");
+    assert_eq!(info.layout, LayoutKind::Kalantari);
+    assert_eq!(info.sets.len(), 1);
+    assert_eq!(info.sets[0].evs, vec![-2.0, 0.0, 2.0]);
+    // A stand-in network that merges by hand in hdrsynth's unit (1 = the reference's white):
+    // the field's unit is the stop-0 frame's, 4× the reference's, and eval must convert.
+    let method = Network2 {
+        description: "hand triangle merge".into(),
+        infer: Box::new(|f: [&Image; 3], times: [f32; 3]| {
+            assert_eq!(times, [0.25, 1.0, 4.0]);
+            let data = (0..f[1].data.len())
+                .map(|k| {
+                    let i = f[1].data[k] as f64;
+                    let w = [
+                        (i - 0.5).max(0.0) / 0.5,
+                        if i < 0.5 { i / 0.5 } else { (1.0 - i) / 0.5 },
+                        (0.5 - i).max(0.0) / 0.5,
+                    ];
+                    let h: f64 = (0..3)
+                        .map(|j| w[j] * (f[j].data[k] as f64).powf(2.2) / times[j] as f64)
+                        .sum();
+                    (h / (w[0] + w[1] + w[2])) as f32
+                })
+                .collect();
+            Ok(Image::from_vec(f[1].width, f[1].height, data))
+        }),
+    };
+    let r = evaluate::evaluate(
+        &out,
+        &method,
+        &tmp.path().join("eval"),
+        &EvalOptions::default(),
+    )
+    .expect("eval");
+    assert_eq!(r.rows.len(), 1);
+    // Only RGBE rounding separates the two: PSNR-L far above any network's.
+    assert!(r.rows[0].scores.psnr_l > 50.0, "{:?}", r.rows[0].scores);
+    // The same stand-in off by the field's unit factor 4 scores far lower: the unit matters.
+    let wrong = Network2 {
+        description: "field unit".into(),
+        infer: Box::new(|f: [&Image; 3], _| Ok(f[1].map(|v| v.powf(2.2) / 4.0))),
+    };
+    let r2 = evaluate::evaluate(
+        &out,
+        &wrong,
+        &tmp.path().join("eval2"),
+        &EvalOptions::default(),
+    )
+    .expect("eval");
+    assert!(r2.rows[0].scores.psnr_l < r.rows[0].scores.psnr_l - 20.0);
+}
