@@ -6,6 +6,7 @@
 use crate::data::bracket_testset::{self, BracketOptions, ResponseChoice};
 use crate::data::brackets::ScanOptions;
 use crate::data::testset::{self, TestsetOptions, TestsetSummary};
+use crate::sensor::crf::DebevecOptions;
 use crate::sensor::metering::Metering;
 use crate::sensor::profile::{Response, SensorProfile};
 use crate::sensor::realism::NoiseModel;
@@ -30,9 +31,10 @@ pub struct Args {
     /// device response linearises the frames.
     #[arg(long, required_unless_present = "brackets")]
     pub profile: Option<PathBuf>,
-    /// --brackets: the frames' response when no profile is given: srgb, linear or gamma:G.
+    /// --brackets: the frames' response when no profile is given: srgb, linear, gamma:G, or
+    /// debevec (estimated from the brackets, Debevec–Malik as OpenCV's CalibrateDebevec).
     #[arg(long, value_parser = parse_response, conflicts_with = "profile")]
-    pub response: Option<Response>,
+    pub response: Option<ResponseArg>,
     /// --brackets: declared EV steps in capture order, for frames without EXIF or sidecar.
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     pub declared_evs: Option<Vec<f64>>,
@@ -84,7 +86,20 @@ fn parse_noise(s: &str) -> Result<NoiseModel, String> {
     }
 }
 
-fn parse_response(s: &str) -> Result<Response, String> {
+#[derive(Clone, Debug)]
+pub enum ResponseArg {
+    Curve(Response),
+    Debevec,
+}
+
+fn parse_response(s: &str) -> Result<ResponseArg, String> {
+    if s == "debevec" {
+        return Ok(ResponseArg::Debevec);
+    }
+    parse_curve(s).map(ResponseArg::Curve)
+}
+
+fn parse_curve(s: &str) -> Result<Response, String> {
     match s {
         "srgb" => Ok(Response::Srgb),
         "linear" => Ok(Response::Linear),
@@ -148,11 +163,10 @@ pub fn bracket_options(args: &Args) -> Result<BracketOptions> {
             name: p.display().to_string(),
             response: load_profile(p)?.response,
         },
-        (None, Some(r)) => ResponseChoice::Declared(r.clone()),
-        (None, None) => anyhow::bail!(
-            "--brackets needs the frames' response: --profile P (its device response) or \
-             --response srgb|linear|gamma:G (DNG frames are linear regardless)"
-        ),
+        (None, Some(ResponseArg::Curve(r))) => ResponseChoice::Declared(r.clone()),
+        (None, Some(ResponseArg::Debevec)) | (None, None) => {
+            ResponseChoice::Debevec(DebevecOptions::default())
+        }
     };
     Ok(BracketOptions {
         scan: ScanOptions {

@@ -22,6 +22,7 @@ use crate::data::brackets::{self, BracketFrame, BracketScan, FrameKind, ScanOpti
 use crate::data::ground_truth;
 use crate::error::{Error, Result};
 use crate::io::{BitDepth, Image, read_image, write_hdr, write_ldr};
+use crate::sensor::crf::{self, DebevecOptions};
 use crate::sensor::profile::Response;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -30,6 +31,8 @@ use std::path::{Path, PathBuf};
 pub const FIELD_GAMMA: f32 = 2.2;
 pub const FRAME_NAMES: [&str; 3] = ["frame_1.tif", "frame_2.tif", "frame_3.tif"];
 pub const RECORD: &str = "brackets.toml";
+/// `--response debevec`: the estimated response exp(g(z)), OpenCV's convention.
+pub const CRF_FILE: &str = "crf_debevec.csv";
 
 /// How code values of LDR frames become linear.
 #[derive(Clone, Debug, PartialEq)]
@@ -38,6 +41,17 @@ pub enum ResponseChoice {
     Profile { name: String, response: Response },
     /// A response the user declared (`--response srgb|linear|gamma:G`).
     Declared(Response),
+    /// Debevec–Malik from the brackets (`--response debevec`): estimated on the first set with
+    /// LDR frames, all its frames, and used for every set (one device).
+    Debevec(DebevecOptions),
+}
+
+/// A resolved linearisation of LDR code values.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Linearise {
+    Curve(Response),
+    /// Linear per 8-bit code and channel (interpolated for 16-bit codes).
+    Table([Vec<f64>; 3]),
 }
 
 impl ResponseChoice {
@@ -50,6 +64,11 @@ impl ResponseChoice {
                 )
             }
             ResponseChoice::Declared(r) => format!("declared response {}", r.label()),
+            ResponseChoice::Debevec(o) => format!(
+                "Debevec–Malik response estimated from the brackets (OpenCV's CalibrateDebevec \
+                 recipe: {} samples, λ {})",
+                o.samples, o.lambda
+            ),
         }
     }
 }
@@ -96,7 +115,7 @@ fn pick_three(n: usize) -> [usize; 3] {
 }
 
 /// One frame, linear in [0, 1] with 1 = its clipping white.
-pub fn linear_frame(frame: &BracketFrame, response: &ResponseChoice) -> Result<Image> {
+pub fn linear_frame(frame: &BracketFrame, lin: &Linearise) -> Result<Image> {
     match frame.kind {
         FrameKind::Dng => {
             let dng = crate::sensor::dng::read_dng(&frame.path)?;
@@ -120,16 +139,27 @@ pub fn linear_frame(frame: &BracketFrame, response: &ResponseChoice) -> Result<I
         }
         FrameKind::Ldr => {
             let img = read_image(&frame.path)?;
-            let r = match response {
-                ResponseChoice::Profile { response, .. } | ResponseChoice::Declared(response) => {
-                    response
+            match lin {
+                Linearise::Curve(r) => {
+                    // 16-bit codes make a per-pixel inverse costly for LUT curves: tabulate it.
+                    let table: Vec<f32> = (0..=65535)
+                        .map(|k| r.invert(f64::from(k) / 65535.0) as f32)
+                        .collect();
+                    Ok(img.map(|v| table[(v.clamp(0.0, 1.0) * 65535.0).round() as usize]))
                 }
-            };
-            // 16-bit codes make a per-pixel inverse costly for LUT curves: tabulate it.
-            let table: Vec<f32> = (0..=65535)
-                .map(|k| r.invert(f64::from(k) / 65535.0) as f32)
-                .collect();
-            Ok(img.map(|v| table[(v.clamp(0.0, 1.0) * 65535.0).round() as usize]))
+                Linearise::Table(t) => {
+                    let mut img = img;
+                    for p in img.data.chunks_exact_mut(3) {
+                        for (c, v) in p.iter_mut().enumerate() {
+                            let z = v.clamp(0.0, 1.0) as f64 * 255.0;
+                            let i = (z.floor() as usize).min(254);
+                            let f = z - i as f64;
+                            *v = (t[c][i] + (t[c][i + 1] - t[c][i]) * f) as f32;
+                        }
+                    }
+                    Ok(img)
+                }
+            }
         }
     }
 }
@@ -138,8 +168,59 @@ pub fn linear_frame(frame: &BracketFrame, response: &ResponseChoice) -> Result<I
 pub fn build(dir: &Path, opts: &BracketOptions, out: &Path) -> Result<BracketSummary> {
     let BracketScan { sets, mut notes } = brackets::scan(dir, &opts.scan)?;
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    let lin = match &opts.response {
+        ResponseChoice::Profile { response, .. } | ResponseChoice::Declared(response) => {
+            Linearise::Curve(response.clone())
+        }
+        ResponseChoice::Debevec(o) => {
+            let ldr = sets
+                .iter()
+                .find(|s| s.frames.iter().all(|f| f.kind == FrameKind::Ldr));
+            // DNG frames are linear: with no LDR set there is nothing to estimate.
+            let Some(set) = ldr else {
+                return build_sets(&sets, &Linearise::Curve(Response::Linear), opts, out, notes);
+            };
+            let frames = set
+                .frames
+                .iter()
+                .map(|f| read_image(&f.path))
+                .collect::<Result<Vec<Image>>>()?;
+            // Only ratios matter: times relative to the shortest frame.
+            let times: Vec<f64> = set
+                .frames
+                .iter()
+                .map(|f| (f.stop - set.frames[0].stop).exp2())
+                .collect();
+            let response = crf::calibrate_debevec(&frames, &times, *o)?;
+            let mut csv = String::from("code,r,g,b\n");
+            for z in 0..crf::LDR_SIZE {
+                csv.push_str(&format!(
+                    "{z},{},{},{}\n",
+                    response[0][z], response[1][z], response[2][z]
+                ));
+            }
+            crate::io::atomic::write_atomic(&out.join(CRF_FILE), csv.as_bytes())?;
+            notes.push(format!(
+                "response: Debevec–Malik estimated from set '{}' ({} frames), written to {}",
+                set.name,
+                set.frames.len(),
+                out.join(CRF_FILE).display()
+            ));
+            Linearise::Table(crf::linearisation_table(&response))
+        }
+    };
+    build_sets(&sets, &lin, opts, out, notes)
+}
+
+fn build_sets(
+    sets: &[brackets::BracketSet],
+    lin: &Linearise,
+    opts: &BracketOptions,
+    out: &Path,
+    mut notes: Vec<String>,
+) -> Result<BracketSummary> {
     let mut built = Vec::with_capacity(sets.len());
-    for set in &sets {
+    for set in sets {
         let idx = pick_three(set.frames.len());
         if set.frames.len() < 3 {
             return Err(Error::layout(
@@ -172,7 +253,7 @@ pub fn build(dir: &Path, opts: &BracketOptions, out: &Path) -> Result<BracketSum
         }
         let linear = chosen
             .iter()
-            .map(|f| linear_frame(f, &opts.response))
+            .map(|f| linear_frame(f, lin))
             .collect::<Result<Vec<Image>>>()?;
         let (w, h) = (linear[1].width, linear[1].height);
         for (f, img) in chosen.iter().zip(&linear) {
