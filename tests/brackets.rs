@@ -380,6 +380,7 @@ fn a_corrupt_jpeg_is_an_error_naming_it_not_a_panic() {
     let opts = BracketOptions {
         scan: ScanOptions::default(),
         response: ResponseChoice::Declared(Response::Srgb),
+        align: None,
     };
     let err = bracket_testset::build(tmp.path(), &opts, &tmp.path().join("out"))
         .expect_err("corrupt")
@@ -425,6 +426,7 @@ fn the_ground_truth_is_the_triangle_merge_of_the_written_frames() {
     let opts = BracketOptions {
         scan: ScanOptions::default(),
         response: ResponseChoice::Declared(Response::Srgb),
+        align: None,
     };
     let summary = bracket_testset::build(tmp.path(), &opts, &out).expect("build");
     assert_eq!(summary.sets.len(), 1);
@@ -540,6 +542,7 @@ fn the_bracket_test_set_reads_as_kalantari_and_eval_scores_it() {
     let opts = BracketOptions {
         scan: ScanOptions::default(),
         response: ResponseChoice::Declared(Response::Srgb),
+        align: None,
     };
     bracket_testset::build(tmp.path(), &opts, &out).expect("build");
     let info = layout::detect(&out).expect("detect");
@@ -663,4 +666,41 @@ fn debevec_response_matches_opencv_calibrate_debevec() {
         b.2 < 0.035 && c.2 < 0.035,
         "ours vs truth {b:?}, OpenCV vs truth {c:?}"
     );
+}
+
+// ---------------------------------------------------------------------------------------------
+// Item 3: MTB alignment, against OpenCV AlignMTB (tools/crf_oracle.py).
+
+#[test]
+fn mtb_recovers_known_shifts_as_opencv_align_mtb_does() {
+    use hdrsynth::data::align::{self, MtbOptions};
+    let dir = oracle_dir();
+    let lines: Vec<Vec<String>> = std::fs::read_to_string(dir.join("mtb_shifts.txt"))
+        .expect("shifts")
+        .lines()
+        .map(|l| l.split_whitespace().map(str::to_string).collect())
+        .collect();
+    let frames: Vec<hdrsynth::io::Image> = (0..3)
+        .map(|i| hdrsynth::io::read_image(&dir.join(format!("mtb_{i}.png"))).expect("png"))
+        .collect();
+    // The oracle ran AlignMTB(max_bits 4, exclude 4): 160×128 frames are too small for 6 bits.
+    let opts = MtbOptions {
+        max_bits: 4,
+        exclude: 4,
+    };
+    for (i, l) in lines.iter().enumerate() {
+        let n = |k: usize| l[k].parse::<i32>().expect("int");
+        let (applied, opencv) = ((n(2), n(3)), (n(5), n(6)));
+        let ours = align::mtb_shift(&frames[0], &frames[i], opts);
+        assert_eq!(ours, opencv, "frame {i}: ours {ours:?}, OpenCV {opencv:?}");
+        // The shift that undoes the applied motion.
+        assert_eq!(ours, (-applied.0, -applied.1), "frame {i}");
+    }
+    // Applying the shifts crops to the region all three cover: x from 5 (frame 2 moved 5 px
+    // right) to 157 (frame 1 moved 3 px left), y from 2 to 124 (hand-computed).
+    let shifts: Vec<(i32, i32)> = (0..3)
+        .map(|i| align::mtb_shift(&frames[0], &frames[i], opts))
+        .collect();
+    let cropped = align::apply_shifts(&frames, &shifts);
+    assert_eq!((cropped[0].width, cropped[0].height), (160 - 8, 128 - 6));
 }

@@ -3,6 +3,7 @@
 //! `hdrsynth testset --brackets DIR --out OUT`: a Kalantari-layout test set from the user's own
 //! bracket folders (`data::bracket_testset`, docs/your_device.md).
 
+use crate::data::align::MtbOptions;
 use crate::data::bracket_testset::{self, BracketOptions, ResponseChoice};
 use crate::data::brackets::ScanOptions;
 use crate::data::testset::{self, TestsetOptions, TestsetSummary};
@@ -38,6 +39,9 @@ pub struct Args {
     /// --brackets: declared EV steps in capture order, for frames without EXIF or sidecar.
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     pub declared_evs: Option<Vec<f64>>,
+    /// --brackets: align hand-held sets to the middle frame (MTB, Ward 2003) and crop.
+    #[arg(long)]
+    pub align: bool,
     /// --brackets: largest gap between capture times within one set, seconds.
     #[arg(long, default_value_t = ScanOptions::default().max_gap_s)]
     pub max_gap: f64,
@@ -174,6 +178,7 @@ pub fn bracket_options(args: &Args) -> Result<BracketOptions> {
             max_gap_s: args.max_gap,
         },
         response,
+        align: args.align.then(MtbOptions::default),
     })
 }
 
@@ -187,13 +192,18 @@ fn run_brackets(dir: &std::path::Path, args: &Args) -> Result<String> {
         let stops: Vec<String> = b.frames.iter().map(|f| format!("{:.2}", f.stop)).collect();
         let _ = writeln!(
             out,
-            "{:<24} {}×{}  stops [{}]  exposure: {}  grouped: {}",
+            "{:<24} {}×{}  stops [{}]  exposure: {}  grouped: {}{}",
             b.name,
             b.width,
             b.height,
             stops.join(", "),
             b.exposure_source,
-            b.grouping
+            b.grouping,
+            if b.shifts.is_empty() {
+                String::new()
+            } else {
+                format!("  MTB shifts {:?}", b.shifts)
+            }
         );
     }
     let response = s

@@ -18,6 +18,7 @@
 //! - `brackets.toml`: where every frame came from, its exposure, the response used and the
 //!   alignment shifts.
 
+use crate::data::align::{self, MtbOptions};
 use crate::data::brackets::{self, BracketFrame, BracketScan, FrameKind, ScanOptions};
 use crate::data::ground_truth;
 use crate::error::{Error, Result};
@@ -77,6 +78,9 @@ impl ResponseChoice {
 pub struct BracketOptions {
     pub scan: ScanOptions,
     pub response: ResponseChoice,
+    /// Hand-held sets: align every frame to the middle one by MTB ([`crate::data::align`]) and
+    /// crop to the region all frames cover. None: tripod sets, used as captured.
+    pub align: Option<MtbOptions>,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -101,6 +105,9 @@ pub struct BuiltBracketSet {
     pub frames: Vec<RecordFrame>,
     /// Frames of the bracket not used (the set had more than three).
     pub dropped: Vec<PathBuf>,
+    /// MTB shifts (dx, dy) applied to the three frames (the middle one's is 0); empty when not
+    /// aligned.
+    pub shifts: Vec<[i32; 2]>,
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -280,10 +287,27 @@ fn build_sets(
             })
             .collect();
         let inv_g = 1.0 / FIELD_GAMMA;
-        let codes: Vec<Image> = linear
+        let mut codes: Vec<Image> = linear
             .iter()
             .map(|img| img.map(|v| (v.clamp(0.0, 1.0).powf(inv_g) * 65535.0).round() / 65535.0))
             .collect();
+        let mut shifts = Vec::new();
+        if let Some(mtb) = opts.align {
+            // MTB on the γ-encoded frames: its median thresholds need no response.
+            let s: Vec<(i32, i32)> = codes
+                .iter()
+                .map(|c| align::mtb_shift(&codes[1], c, mtb))
+                .collect();
+            codes = align::apply_shifts(&codes, &s);
+            if codes[1].width == 0 || codes[1].height == 0 {
+                return Err(Error::layout(
+                    &chosen[1].path,
+                    format!("set '{}': MTB shifts {s:?} leave no common area", set.name),
+                ));
+            }
+            shifts = s.iter().map(|&(x, y)| [x, y]).collect();
+        }
+        let (w, h) = (codes[1].width, codes[1].height);
         let times = [0, 1, 2].map(|i| stops[i].exp2() as f32);
         let hdr = ground_truth::triangle_merge(
             &[codes[0].clone(), codes[1].clone(), codes[2].clone()],
@@ -329,6 +353,7 @@ fn build_sets(
                 })
                 .collect(),
             dropped,
+            shifts,
         };
         let toml =
             toml::to_string_pretty(&record).map_err(|e| Error::encode(set_dir.join(RECORD), e))?;
