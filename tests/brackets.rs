@@ -704,3 +704,113 @@ fn mtb_recovers_known_shifts_as_opencv_align_mtb_does() {
     let cropped = align::apply_shifts(&frames, &shifts);
     assert_eq!((cropped[0].width, cropped[0].height), (160 - 8, 128 - 6));
 }
+
+// ---------------------------------------------------------------------------------------------
+// The binary: testset --brackets (default response: Debevec from the brackets), then eval of
+// a tiny Network-2 checkpoint and of a tiny Network-1 checkpoint on the written set.
+
+fn train_tiny(run: &Path, model: &str, evs: &str) {
+    use hdrsynth::config::{GenerateConfig, parse_toml};
+    use hdrsynth::train::TrainOptions;
+    use hdrsynth::train::config::TrainConfig;
+    let data = run.with_extension("data");
+    let text = format!(
+        "seed = 8\ncount = 2\nwidth = 48\nheight = 40\nevs = {evs}\n[camera]\ncandidates = 2\n"
+    );
+    let mut c: GenerateConfig = parse_toml(&text, Path::new("gen.toml")).expect("config");
+    c.source = None;
+    hdrsynth::cli::generate::generate(&c, &data, false).expect("generate");
+    let text = format!(
+        "[run]\nout = {run:?}\nseed = 4\nsteps = 2\ncheckpoint_every = 2\nlog_every = 1\n\
+         [model]\n{model}\n\
+         [data]\ndataset = {data:?}\npatch = 32\nbatch_size = 2\nworkers = 1\nprofile = \"pure\"\n\
+         [optim]\nlr = 1e-3\n"
+    );
+    let cfg: TrainConfig = parse_toml(&text, Path::new("train.toml")).expect("config");
+    hdrsynth::train::run(&cfg, &TrainOptions::default()).expect("train");
+}
+
+fn per_image_rows(path: &Path) -> Vec<Vec<String>> {
+    std::fs::read_to_string(path)
+        .expect("csv")
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(str::to_string).collect())
+        .collect()
+}
+
+#[test]
+fn testset_brackets_through_the_binary_then_eval_scores_checkpoints() {
+    use std::process::Command;
+    let tmp = tempfile::tempdir().expect("tmp");
+    let src = tmp.path().join("phone");
+    bracket_folder(&src);
+    let out = tmp.path().join("testset");
+    let o = Command::new(env!("CARGO_BIN_EXE_hdrsynth"))
+        .args(["testset", "--brackets"])
+        .arg(&src)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .expect("run");
+    let text = String::from_utf8_lossy(&o.stdout).to_string() + &String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{text}");
+    assert!(text.contains("Debevec"), "{text}");
+    assert!(out.join("crf_debevec.csv").is_file());
+    let record = std::fs::read_to_string(out.join("scene1/brackets.toml")).expect("record");
+    assert!(record.contains("Debevec"), "{record}");
+
+    // Network-2 (EV −2/0/+2) against HDRImg.hdr.
+    let run2 = tmp.path().join("net2");
+    train_tiny(
+        &run2,
+        "kind = \"wu\"\nbase_width = 4\nres_blocks = 1",
+        "[-2.0, 0.0, 2.0]",
+    );
+    let e2 = tmp.path().join("eval2");
+    let st = Command::new(env!("CARGO_BIN_EXE_hdrsynth"))
+        .args(["eval", "--quiet", "--checkpoint"])
+        .arg(&run2)
+        .arg("--testset")
+        .arg(&out)
+        .arg("--out")
+        .arg(&e2)
+        .status()
+        .expect("run");
+    assert!(st.success());
+    let rows = per_image_rows(&e2.join("per_image.csv"));
+    assert_eq!(rows.len(), 1);
+    assert!(
+        rows[0][1..7]
+            .iter()
+            .all(|v| v.parse::<f64>().is_ok_and(f64::is_finite)),
+        "{rows:?}"
+    );
+
+    // Network-1: the frames are static (brackets.toml marks them), Mertens reference from them.
+    let run1 = tmp.path().join("net1");
+    train_tiny(
+        &run1,
+        "kind = \"blend_unet\"\nbase_width = 4\ndepth = 2\nbatch_norm = true",
+        "[-3.0, 0.0]",
+    );
+    let e1 = tmp.path().join("eval1");
+    let o = Command::new(env!("CARGO_BIN_EXE_hdrsynth"))
+        .args(["eval", "--quiet", "--checkpoint"])
+        .arg(&run1)
+        .arg("--testset")
+        .arg(&out)
+        .arg("--out")
+        .arg(&e1)
+        .output()
+        .expect("run");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let rows = per_image_rows(&e1.join("per_image.csv"));
+    assert_eq!(rows.len(), 1);
+    assert!(
+        rows[0][1..7]
+            .iter()
+            .all(|v| v.parse::<f64>().is_ok_and(f64::is_finite)),
+        "{rows:?}"
+    );
+}

@@ -31,7 +31,7 @@ use std::path::{Path, PathBuf};
 /// γ of the written frames (the field's linearisation LDR^γ, Kalantari/Wu: 2.2).
 pub const FIELD_GAMMA: f32 = 2.2;
 pub const FRAME_NAMES: [&str; 3] = ["frame_1.tif", "frame_2.tif", "frame_3.tif"];
-pub const RECORD: &str = "brackets.toml";
+pub const RECORD: &str = crate::data::layout::kalantari::STATIC_MARKER;
 /// `--response debevec`: the estimated response exp(g(z)), OpenCV's convention.
 pub const CRF_FILE: &str = "crf_debevec.csv";
 
