@@ -814,3 +814,172 @@ fn testset_brackets_through_the_binary_then_eval_scores_checkpoints() {
         "{rows:?}"
     );
 }
+
+// ---------------------------------------------------------------------------------------------
+// DNG brackets: linear after black/white levels, exposure from the Exif IFD.
+
+/// A little-endian uncompressed 16-bit RGGB DNG of a uniform colour (`dn` per CFA colour), with
+/// an Exif IFD holding ExposureTime 1/`den` s and ISO 100 (TIFF 6.0 / DNG 1.4 / EXIF 2.32 tags).
+fn write_uniform_dng(path: &Path, w: usize, h: usize, dn: [u16; 3], den: u32) {
+    let short = |v: u16| v.to_le_bytes().to_vec();
+    let long = |v: u32| v.to_le_bytes().to_vec();
+    let mut pixels = Vec::with_capacity(w * h * 2);
+    for y in 0..h {
+        for x in 0..w {
+            let c = match (y % 2, x % 2) {
+                (0, 0) => 0,
+                (1, 1) => 2,
+                _ => 1,
+            };
+            pixels.extend(dn[c].to_le_bytes());
+        }
+    }
+    let mut entries: Vec<(u16, u16, u32, Vec<u8>)> = vec![
+        (254, 4, 1, long(0)),
+        (256, 4, 1, long(w as u32)),
+        (257, 4, 1, long(h as u32)),
+        (258, 3, 1, short(16)),
+        (259, 3, 1, short(1)),
+        (262, 3, 1, short(32803)),
+        (273, 4, 1, vec![]), // strip offset, filled below
+        (277, 3, 1, short(1)),
+        (278, 4, 1, long(h as u32)),
+        (279, 4, 1, long(pixels.len() as u32)),
+        (33421, 3, 2, [short(2), short(2)].concat()),
+        (33422, 1, 4, vec![0, 1, 1, 2]),
+        (34665, 4, 1, vec![]), // Exif IFD offset, filled below
+        (50714, 3, 1, short(64)),
+        (50717, 3, 1, short(4159)),
+    ];
+    let ifd0 = 8usize;
+    let exif_at = ifd0 + 2 + 12 * entries.len() + 4;
+    // Exif IFD: ExposureTime (RATIONAL, out of line) and ISO; then its rational, then pixels.
+    let exif_len = 2 + 12 * 2 + 4;
+    let rational_at = exif_at + exif_len;
+    let pixels_at = rational_at + 8;
+    entries[6].3 = long(pixels_at as u32);
+    entries[12].3 = long(exif_at as u32);
+    let mut out = b"II".to_vec();
+    out.extend(42u16.to_le_bytes());
+    out.extend((ifd0 as u32).to_le_bytes());
+    out.extend((entries.len() as u16).to_le_bytes());
+    for (tag, typ, count, mut val) in entries {
+        out.extend(tag.to_le_bytes());
+        out.extend(typ.to_le_bytes());
+        out.extend(count.to_le_bytes());
+        val.resize(4, 0);
+        out.extend(val);
+    }
+    out.extend(0u32.to_le_bytes());
+    assert_eq!(out.len(), exif_at);
+    out.extend(2u16.to_le_bytes());
+    for (tag, typ, val) in [
+        (33434u16, 5u16, long(rational_at as u32)),
+        (34855, 3, [short(100), short(0)].concat()),
+    ] {
+        out.extend(tag.to_le_bytes());
+        out.extend(typ.to_le_bytes());
+        out.extend(1u32.to_le_bytes());
+        out.extend(val);
+    }
+    out.extend(0u32.to_le_bytes());
+    out.extend(long(1));
+    out.extend(long(den));
+    out.extend(pixels);
+    std::fs::write(path, out).expect("write dng");
+}
+
+#[test]
+fn dng_brackets_are_linear_raw_with_exif_exposures() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let d = tmp.path().join("raw");
+    std::fs::create_dir_all(&d).expect("mkdir");
+    // Radiance (R, G, B) = (0.2, 0.5, 0.9) · 1/10 per second of exposure, in units of raw white.
+    let lin = |t: f64| [0.2, 0.5, 0.9].map(|l: f64| (l * t * 10.0).min(1.0));
+    for (name, den) in [("a.dng", 400u32), ("b.dng", 100), ("c.dng", 25)] {
+        let l = lin(1.0 / den as f64);
+        let dn = l.map(|v| (64.0 + v * 4095.0).round() as u16);
+        write_uniform_dng(&d.join(name), 8, 6, dn, den);
+    }
+    let s = scan(tmp.path());
+    assert_close(&stops_rel(&s.sets[0]), &[0.0, 2.0, 4.0], 1e-9);
+    let opts = BracketOptions {
+        scan: ScanOptions::default(),
+        // Ignored for DNG frames: they are linear.
+        response: ResponseChoice::Declared(Response::Srgb),
+        align: None,
+    };
+    let built = bracket_testset::build(tmp.path(), &opts, &tmp.path().join("out")).expect("build");
+    assert!(
+        built.sets[0].response.contains("linear raw"),
+        "{}",
+        built.sets[0].response
+    );
+    let set = tmp.path().join("out/raw");
+    for (n, den) in [
+        ("frame_1.tif", 400u32),
+        ("frame_2.tif", 100),
+        ("frame_3.tif", 25),
+    ] {
+        let (_, _, v) = read_u16_tiff(&set.join(n));
+        let l = lin(1.0 / den as f64);
+        for c in 0..3 {
+            // DN quantisation (1/4095) then 16-bit codes of L^(1/2.2).
+            let want = ((64.0 + l[c] * 4095.0).round() - 64.0) / 4095.0;
+            let got = v[c].powf(2.2);
+            assert!(
+                (got - want).abs() < 2e-4 * want.max(0.01),
+                "{n} c{c}: {got} vs {want}"
+            );
+        }
+    }
+}
+
+#[test]
+fn hand_held_sets_are_aligned_by_mtb_and_cropped() {
+    use hdrsynth::data::align::MtbOptions;
+    let tmp = tempfile::tempdir().expect("tmp");
+    let d = tmp.path().join("handheld");
+    std::fs::create_dir_all(&d).expect("mkdir");
+    let (w, h) = (160usize, 128usize);
+    // Blocks of 8 px with pseudo-random log radiance over 6 stops (a fixed integer hash).
+    let scene = |x: i64, y: i64| -> f64 {
+        let (bx, by) = (x.div_euclid(8), y.div_euclid(8));
+        let k = (bx * 73_856_093) ^ (by * 19_349_663);
+        let u = (k.rem_euclid(1000)) as f64 / 1000.0;
+        (-6.0 + 6.0 * u).exp2()
+    };
+    // (file, time, motion of the camera: frame pixel (x, y) shows scene (x − dx, y − dy)).
+    for (name, t, (dx, dy)) in [
+        ("s.jpg", 0.25, (-1i64, 2i64)),
+        ("m.jpg", 1.0, (0, 0)),
+        ("l.jpg", 4.0, (2, -1)),
+    ] {
+        let mut rgb = Vec::with_capacity(w * h * 3);
+        for y in 0..h as i64 {
+            for x in 0..w as i64 {
+                let v = (srgb(scene(x - dx, y - dy) * t * 4.0) * 255.0).round() as u8;
+                rgb.extend([v, v, v]);
+            }
+        }
+        write_jpeg(&d.join(name), w as u32, h as u32, &rgb, None);
+    }
+    std::fs::write(d.join("list.txt"), "s.jpg 4\nm.jpg 1\nl.jpg 0.25\n").expect("list");
+    let opts = BracketOptions {
+        scan: ScanOptions::default(),
+        response: ResponseChoice::Declared(Response::Srgb),
+        // 160×128 frames: 4 bits (shifts up to ±15 px) keep the coarsest level 20×16.
+        align: Some(MtbOptions {
+            max_bits: 4,
+            exclude: 4,
+        }),
+    };
+    let built = bracket_testset::build(tmp.path(), &opts, &tmp.path().join("out")).expect("build");
+    let b = &built.sets[0];
+    // The shifts undo the motion: short (1, −2), middle 0, long (−2, 1).
+    assert_eq!(b.shifts, vec![[1, -2], [0, 0], [-2, 1]]);
+    // Common region: x from 1 to 158, y from 1 to 126 (hand-computed from the shifts).
+    assert_eq!((b.width, b.height), (157, 125));
+    let (tw, th, _) = read_u16_tiff(&tmp.path().join("out/handheld/frame_1.tif"));
+    assert_eq!((tw, th), (157, 125));
+}

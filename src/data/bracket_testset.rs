@@ -200,11 +200,13 @@ pub fn build(dir: &Path, opts: &BracketOptions, out: &Path) -> Result<BracketSum
                 .collect();
             let response = crf::calibrate_debevec(&frames, &times, *o)?;
             let mut csv = String::from("code,r,g,b\n");
-            for z in 0..crf::LDR_SIZE {
-                csv.push_str(&format!(
-                    "{z},{},{},{}\n",
-                    response[0][z], response[1][z], response[2][z]
-                ));
+            for (z, ((r, g), b)) in response[0]
+                .iter()
+                .zip(&response[1])
+                .zip(&response[2])
+                .enumerate()
+            {
+                csv.push_str(&format!("{z},{r},{g},{b}\n"));
             }
             crate::io::atomic::write_atomic(&out.join(CRF_FILE), csv.as_bytes())?;
             notes.push(format!(

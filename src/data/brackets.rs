@@ -326,7 +326,7 @@ pub fn scan(root: &Path, opts: &ScanOptions) -> Result<BracketScan> {
             std::io::Error::new(std::io::ErrorKind::NotFound, "bracket folder not found"),
         ));
     }
-    if !(opts.max_gap_s > 0.0) {
+    if opts.max_gap_s.is_nan() || opts.max_gap_s <= 0.0 {
         return Err(Error::Invalid(format!(
             "max gap {} s must be positive",
             opts.max_gap_s
