@@ -983,3 +983,14 @@ fn hand_held_sets_are_aligned_by_mtb_and_cropped() {
     let (tw, th, _) = read_u16_tiff(&tmp.path().join("out/handheld/frame_1.tif"));
     assert_eq!((tw, th), (157, 125));
 }
+
+#[test]
+fn mtb_keeps_a_textureless_frame_in_place_against_itself() {
+    use hdrsynth::data::align::{self, MtbOptions};
+    // A flat frame: every pixel sits within the exclusion range of the median, so every
+    // candidate shift ties at 0 differing bits. OpenCV's rule (first candidate in scan order)
+    // drifts by (−1, −1) per level, (−63, −63) over 6 levels; smooth real frames drift too
+    // (OpenCV measured (−3, −4) for a smooth 4032×3024 frame against itself).
+    let img = hdrsynth::io::Image::from_fn(256, 192, |_, _| [0.5; 3]);
+    assert_eq!(align::mtb_shift(&img, &img, MtbOptions::default()), (0, 0));
+}

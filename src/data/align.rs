@@ -4,7 +4,9 @@
 //! (0.299 R + 0.587 G + 0.114 B), a pyramid of halvings, per level the threshold bitmap
 //! (grey > median) and the exclusion bitmap (|grey − median| > `exclude`), and the best of the
 //! 3×3 shifts around twice the coarser level's shift by the count of differing, non-excluded
-//! bits. Translation only, whole pixels.
+//! bits. Translation only, whole pixels. One deliberate difference: on ties the current shift is
+//! kept (OpenCV takes the first candidate in its scan order, so a textureless frame drifts even
+//! against itself).
 
 use crate::io::Image;
 
@@ -140,16 +142,25 @@ pub fn mtb_shift(reference: &Image, img: &Image, opts: MtbOptions) -> (i32, i32)
         let (a, b) = (&p0[l], &p1[l]);
         let (tb1, eb1) = bitmaps(a, opts.exclude);
         let (tb2, eb2) = bitmaps(b, opts.exclude);
-        let mut best = (a.v.len(), sx, sy);
+        let err_at = |tx: i32, ty: i32| {
+            let t2 = shifted(&tb2, b.w, b.h, tx, ty);
+            let e2 = shifted(&eb2, b.w, b.h, tx, ty);
+            (0..tb1.len())
+                .filter(|&k| (tb1[k] != t2[k]) && eb1[k] && e2[k])
+                .count()
+        };
+        // The current shift first, then OpenCV's scan order (x offset outer, y inner), strictly
+        // smaller wins. OpenCV starts from "no candidate", so on ties (textureless frames,
+        // where the exclusion bitmap hides every edge) it drifts to (−1, −1) per level — even
+        // for a frame against itself; here a tie keeps the current shift.
+        let mut best = (err_at(sx, sy), sx, sy);
         for i in -1..=1 {
             for j in -1..=1 {
+                if (i, j) == (0, 0) {
+                    continue;
+                }
                 let (tx, ty) = (sx + i, sy + j);
-                let t2 = shifted(&tb2, b.w, b.h, tx, ty);
-                let e2 = shifted(&eb2, b.w, b.h, tx, ty);
-                let err = (0..tb1.len())
-                    .filter(|&k| (tb1[k] != t2[k]) && eb1[k] && e2[k])
-                    .count();
-                // Strictly smaller wins: OpenCV's scan order (x offset outer, y inner) on ties.
+                let err = err_at(tx, ty);
                 if err < best.0 {
                     best = (err, tx, ty);
                 }
