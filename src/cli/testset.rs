@@ -1,9 +1,15 @@
 //! `hdrsynth testset --radiance DIR --profile P --out OUT`: a static test set from real HDR
 //! radiance rendered through a sensor profile (`data::testset`, docs/evaluation.md).
+//! `hdrsynth testset --brackets DIR --out OUT`: a Kalantari-layout test set from the user's own
+//! bracket folders (`data::bracket_testset`, docs/your_device.md).
 
+use crate::data::align::MtbOptions;
+use crate::data::bracket_testset::{self, BracketOptions, ResponseChoice};
+use crate::data::brackets::ScanOptions;
 use crate::data::testset::{self, TestsetOptions, TestsetSummary};
+use crate::sensor::crf::DebevecOptions;
 use crate::sensor::metering::Metering;
-use crate::sensor::profile::SensorProfile;
+use crate::sensor::profile::{Response, SensorProfile};
 use crate::sensor::realism::NoiseModel;
 use anyhow::{Context, Result};
 use std::fmt::Write as _;
@@ -12,11 +18,33 @@ use std::path::PathBuf;
 #[derive(clap::Args, Debug, Clone)]
 pub struct Args {
     /// A linear HDR radiance map (.exr/.hdr) or a folder of them (one scene each).
+    #[arg(
+        long,
+        required_unless_present = "brackets",
+        conflicts_with = "brackets"
+    )]
+    pub radiance: Option<PathBuf>,
+    /// A folder of bracketed captures (JPEG/PNG/TIFF/DNG; sets by sub-folder or capture time)
+    /// → a Kalantari-layout test set with the triangle-merge ground truth.
     #[arg(long)]
-    pub radiance: PathBuf,
-    /// Sensor profile (TOML), e.g. configs/sensors/canon_eos_550d.toml.
+    pub brackets: Option<PathBuf>,
+    /// Sensor profile (TOML), e.g. configs/sensors/canon_eos_550d.toml. With --brackets its
+    /// device response linearises the frames.
+    #[arg(long, required_unless_present = "brackets")]
+    pub profile: Option<PathBuf>,
+    /// --brackets: the frames' response when no profile is given: srgb, linear, gamma:G, or
+    /// debevec (estimated from the brackets, Debevec–Malik as OpenCV's CalibrateDebevec).
+    #[arg(long, value_parser = parse_response, conflicts_with = "profile")]
+    pub response: Option<ResponseArg>,
+    /// --brackets: declared EV steps in capture order, for frames without EXIF or sidecar.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub declared_evs: Option<Vec<f64>>,
+    /// --brackets: align hand-held sets to the middle frame (MTB, Ward 2003) and crop.
     #[arg(long)]
-    pub profile: PathBuf,
+    pub align: bool,
+    /// --brackets: largest gap between capture times within one set, seconds.
+    #[arg(long, default_value_t = ScanOptions::default().max_gap_s)]
+    pub max_gap: f64,
     /// Output folder (hdrsynth layout; an interrupted run resumes).
     #[arg(long)]
     pub out: PathBuf,
@@ -62,6 +90,32 @@ fn parse_noise(s: &str) -> Result<NoiseModel, String> {
     }
 }
 
+#[derive(Clone, Debug)]
+pub enum ResponseArg {
+    Curve(Response),
+    Debevec,
+}
+
+fn parse_response(s: &str) -> Result<ResponseArg, String> {
+    if s == "debevec" {
+        return Ok(ResponseArg::Debevec);
+    }
+    parse_curve(s).map(ResponseArg::Curve)
+}
+
+fn parse_curve(s: &str) -> Result<Response, String> {
+    match s {
+        "srgb" => Ok(Response::Srgb),
+        "linear" => Ok(Response::Linear),
+        _ => match s.strip_prefix("gamma:").map(str::parse::<f64>) {
+            Some(Ok(gamma)) if gamma > 0.0 && gamma.is_finite() => Ok(Response::Gamma { gamma }),
+            _ => Err(format!(
+                "'{s}': expected srgb, linear or gamma:G (e.g. gamma:2.2)"
+            )),
+        },
+    }
+}
+
 fn parse_size(s: &str) -> Result<(usize, usize), String> {
     let err = || format!("'{s}': expected WIDTHxHEIGHT, e.g. 4032x3024");
     let (w, h) = s.split_once(['x', 'X']).ok_or_else(err)?;
@@ -89,18 +143,88 @@ impl Args {
     }
 }
 
+fn load_profile(path: &std::path::Path) -> Result<SensorProfile> {
+    SensorProfile::load(path).with_context(|| format!("loading profile {}", path.display()))
+}
+
 pub fn build(args: &Args) -> Result<TestsetSummary> {
-    let profile = SensorProfile::load(&args.profile)
-        .with_context(|| format!("loading profile {}", args.profile.display()))?;
+    let (Some(radiance), Some(profile)) = (&args.radiance, &args.profile) else {
+        anyhow::bail!("--radiance and --profile are both needed (or --brackets)");
+    };
+    let profile = load_profile(profile)?;
     Ok(testset::build(
-        &args.radiance,
+        radiance,
         &profile,
         &args.options(),
         &args.out,
     )?)
 }
 
+/// `--brackets`: the options of the bracket test set.
+pub fn bracket_options(args: &Args) -> Result<BracketOptions> {
+    let response = match (&args.profile, &args.response) {
+        (Some(p), _) => ResponseChoice::Profile {
+            name: p.display().to_string(),
+            response: load_profile(p)?.response,
+        },
+        (None, Some(ResponseArg::Curve(r))) => ResponseChoice::Declared(r.clone()),
+        (None, Some(ResponseArg::Debevec)) | (None, None) => {
+            ResponseChoice::Debevec(DebevecOptions::default())
+        }
+    };
+    Ok(BracketOptions {
+        scan: ScanOptions {
+            evs: args.declared_evs.clone(),
+            max_gap_s: args.max_gap,
+        },
+        response,
+        align: args.align.then(MtbOptions::default),
+    })
+}
+
+fn run_brackets(dir: &std::path::Path, args: &Args) -> Result<String> {
+    let s = bracket_testset::build(dir, &bracket_options(args)?, &args.out)?;
+    let mut out = String::new();
+    for n in &s.notes {
+        let _ = writeln!(out, "note: {n}");
+    }
+    for b in &s.sets {
+        let stops: Vec<String> = b.frames.iter().map(|f| format!("{:.2}", f.stop)).collect();
+        let _ = writeln!(
+            out,
+            "{:<24} {}×{}  stops [{}]  exposure: {}  grouped: {}{}",
+            b.name,
+            b.width,
+            b.height,
+            stops.join(", "),
+            b.exposure_source,
+            b.grouping,
+            if b.shifts.is_empty() {
+                String::new()
+            } else {
+                format!("  MTB shifts {:?}", b.shifts)
+            }
+        );
+    }
+    let response = s
+        .sets
+        .first()
+        .map(|b| b.response.clone())
+        .unwrap_or_default();
+    let _ = write!(
+        out,
+        "{} set(s) in {} (Kalantari layout: 16-bit TIFFs = linear^(1/2.2), exposure.txt, \
+         HDRImg.hdr = triangle merge in the unit of the stop-0 frame); linearised with {response}",
+        s.sets.len(),
+        args.out.display()
+    );
+    Ok(out)
+}
+
 pub fn run(args: &Args) -> Result<String> {
+    if let Some(dir) = &args.brackets {
+        return run_brackets(dir, args);
+    }
     let s = build(args)?;
     let mut out = String::new();
     for n in &s.notes {
@@ -125,7 +249,10 @@ pub fn run(args: &Args) -> Result<String> {
          real bracketed capture)",
         s.sets.len(),
         args.out.display(),
-        args.profile.display()
+        args.profile
+            .as_deref()
+            .unwrap_or(std::path::Path::new(""))
+            .display()
     );
     Ok(out)
 }

@@ -1,4 +1,7 @@
 //! Synthetic sources and datasets: the procedural scene engine and dataset layouts.
+pub mod align;
+pub mod bracket_testset;
+pub mod brackets;
 pub mod ground_truth;
 pub mod layout;
 pub mod loader;

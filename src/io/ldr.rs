@@ -1,4 +1,4 @@
-//! PNG and TIFF at 8 and 16 bits through the `image` crate. Read values are code values
+//! PNG and TIFF at 8 and 16 bits (and 8-bit JPEG, read only) through the `image` crate. Read values are code values
 //! v / 255 or v / 65535 in [0, 1]; nothing is linearised.
 //!
 //! Both directions work on one flat byte buffer and one f32 buffer, converted in parallel,
@@ -6,6 +6,7 @@
 
 use super::{BitDepth, Format, Image};
 use crate::error::{Error, Result};
+use image::codecs::jpeg::JpegDecoder;
 use image::codecs::png::{PngDecoder, PngEncoder};
 use image::codecs::tiff::{TiffDecoder, TiffEncoder};
 use image::{ColorType, ExtendedColorType, ImageDecoder, ImageEncoder, ImageError};
@@ -34,6 +35,11 @@ pub(super) fn read(path: &Path) -> Result<(Image, BitDepth)> {
             let decoder = TiffDecoder::new(Cursor::new(&bytes[..]))
                 .map_err(|e| image_err(path, "TIFF", e))?;
             decode(path, "TIFF", decoder)
+        }
+        Format::Jpeg => {
+            let decoder = JpegDecoder::new(Cursor::new(&bytes[..]))
+                .map_err(|e| image_err(path, "JPEG", e))?;
+            decode(path, "JPEG", decoder)
         }
         other => Err(Error::unsupported(
             path,

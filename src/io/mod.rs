@@ -1,7 +1,8 @@
-//! Image I/O: one image type and readers/writers for OpenEXR, Radiance .hdr, PNG and TIFF.
+//! Image I/O: one image type and readers/writers for OpenEXR, Radiance .hdr, PNG and TIFF, and a
+//! reader for 8-bit JPEG (bracket folders off a phone or camera, src/data/brackets.rs).
 //!
-//! Conventions: EXR and .hdr hold linear values and are returned as stored. PNG and TIFF are
-//! returned as code values in [0, 1] (v / 255 or v / 65535), with no transfer function undone:
+//! Conventions: EXR and .hdr hold linear values and are returned as stored. PNG, TIFF and JPEG
+//! are returned as code values in [0, 1] (v / 255 or v / 65535), with no transfer function undone:
 //! the caller knows whether the file is sRGB, a device response or raw DN.
 
 pub mod atomic;
@@ -23,6 +24,8 @@ pub enum Format {
     Hdr,
     Png,
     Tiff,
+    /// Read only (8-bit baseline/progressive, grey or YCbCr → RGB); never written.
+    Jpeg,
 }
 
 impl Format {
@@ -36,9 +39,12 @@ impl Format {
             "hdr" | "pic" => Ok(Format::Hdr),
             "png" => Ok(Format::Png),
             "tif" | "tiff" => Ok(Format::Tiff),
+            "jpg" | "jpeg" => Ok(Format::Jpeg),
             _ => Err(Error::unsupported(
                 path,
-                format!("unknown image extension '.{ext}' (expected exr, hdr, png, tif, tiff)"),
+                format!(
+                    "unknown image extension '.{ext}' (expected exr, hdr, png, tif, tiff, jpg, jpeg)"
+                ),
             )),
         }
     }
@@ -103,7 +109,7 @@ pub fn read_image_info(path: &Path) -> Result<(Image, ReadInfo)> {
     let (img, bit_depth) = match format {
         Format::Exr => (exr::read(path)?, None),
         Format::Hdr => (hdr::read(path)?, None),
-        Format::Png | Format::Tiff => {
+        Format::Png | Format::Tiff | Format::Jpeg => {
             let (img, d) = ldr::read(path)?;
             (img, Some(d))
         }
@@ -141,5 +147,9 @@ pub fn write_image(path: &Path, img: &Image) -> Result<()> {
         Format::Exr => write_exr(path, img, ExrPrecision::Float),
         Format::Hdr => write_hdr(path, img),
         Format::Png | Format::Tiff => write_ldr(path, img, BitDepth::Sixteen),
+        Format::Jpeg => Err(Error::encode(
+            path,
+            "JPEG is read only (lossy); write PNG or TIFF",
+        )),
     }
 }

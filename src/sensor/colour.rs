@@ -470,21 +470,27 @@ pub fn apply_root_polynomial(m: &[[f64; 6]; 3], rgb: [f64; 3]) -> [f64; 3] {
     std::array::from_fn(|i| (0..6).map(|k| m[i][k] * e[k]).sum())
 }
 
-/// Least squares: the k×3 X minimising ‖A·X − B‖ (A n×k, rows `a`), by Householder QR. This is
-/// the solution colour-science's Moore–Penrose mapping gives when A has full column rank; a
-/// rank-deficient A (patches that do not span the terms) is an error, not a minimum-norm guess.
-fn least_squares(a: &[Vec<f64>], b: &[[f64; 3]]) -> Result<Vec<[f64; 3]>> {
+/// Least squares: the k×M X minimising ‖A·X − B‖ (A n×k, rows `a`), by Householder QR. This is
+/// the solution colour-science's Moore–Penrose mapping (and OpenCV's `solve(DECOMP_SVD)`) gives
+/// when A has full column rank; a rank-deficient A (rows that do not span the unknowns) is an
+/// error, not a minimum-norm guess. `what` names the fit in errors. Also the solver of the
+/// Debevec–Malik response (src/sensor/crf.rs).
+pub(crate) fn least_squares<const M: usize>(
+    what: &str,
+    a: &[Vec<f64>],
+    b: &[[f64; M]],
+) -> Result<Vec<[f64; M]>> {
     let n = a.len();
     let k = a.first().map_or(0, |r| r.len());
     if n != b.len() {
         return Err(Error::Invalid(format!(
-            "colour fit: {n} synthetic colours but {} real colours",
+            "{what}: {n} rows of A but {} of B",
             b.len()
         )));
     }
     if k == 0 || n < k {
         return Err(Error::Invalid(format!(
-            "colour fit: {n} patches cannot determine {k} terms per channel"
+            "{what}: {n} equations cannot determine {k} unknowns"
         )));
     }
     if a.iter()
@@ -492,19 +498,18 @@ fn least_squares(a: &[Vec<f64>], b: &[[f64; 3]]) -> Result<Vec<[f64; 3]>> {
         .chain(b.iter().flatten())
         .any(|v| !v.is_finite())
     {
-        return Err(Error::Invalid("colour fit: non-finite patch values".into()));
+        return Err(Error::Invalid(format!("{what}: non-finite values")));
     }
     // Column-major copy of A and a copy of B we transform in place.
     let mut q: Vec<Vec<f64>> = (0..k).map(|j| a.iter().map(|r| r[j]).collect()).collect();
-    let mut rhs: Vec<[f64; 3]> = b.to_vec();
+    let mut rhs: Vec<[f64; M]> = b.to_vec();
     let scale = q.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
     let mut diag = vec![0.0; k];
     for j in 0..k {
         let norm = q[j][j..].iter().map(|v| v * v).sum::<f64>().sqrt();
         if norm <= 1e-12 * scale * (n as f64).sqrt() || norm == 0.0 {
             return Err(Error::Invalid(format!(
-                "colour fit: the patches do not determine term {} (rank-deficient design; are \
-                 the synthetic colours degenerate?)",
+                "{what}: the data do not determine unknown {} (rank-deficient design)",
                 j + 1
             )));
         }
@@ -521,7 +526,7 @@ fn least_squares(a: &[Vec<f64>], b: &[[f64; 3]]) -> Result<Vec<[f64; 3]>> {
                 q[c][j + i] -= f * vi;
             }
         }
-        for ch in 0..3 {
+        for ch in 0..M {
             let dot: f64 = v
                 .iter()
                 .enumerate()
@@ -534,9 +539,9 @@ fn least_squares(a: &[Vec<f64>], b: &[[f64; 3]]) -> Result<Vec<[f64; 3]>> {
         }
     }
     // Back substitution with R (upper triangle in q above the diagonal, diagonal in diag).
-    let mut x = vec![[0.0; 3]; k];
+    let mut x = vec![[0.0; M]; k];
     for j in (0..k).rev() {
-        for ch in 0..3 {
+        for ch in 0..M {
             let mut s = rhs[j][ch];
             for c in j + 1..k {
                 s -= q[c][j] * x[c][ch];
@@ -550,7 +555,7 @@ fn least_squares(a: &[Vec<f64>], b: &[[f64; 3]]) -> Result<Vec<[f64; 3]>> {
 /// Fit `model` so that real ≈ correction(synthetic), least squares over the patches.
 pub fn fit(model: Model, synthetic: &[[f64; 3]], real: &[[f64; 3]]) -> Result<Fitted> {
     let a: Vec<Vec<f64>> = synthetic.iter().map(|&s| model.expand(s)).collect();
-    let x = least_squares(&a, real)?;
+    let x = least_squares("colour fit (patches → terms)", &a, real)?;
     Ok(match model {
         Model::Matrix => Fitted::Matrix(std::array::from_fn(|i| std::array::from_fn(|k| x[k][i]))),
         Model::RootPolynomial => {

@@ -2,6 +2,7 @@
 //! realism operator that turns pure synthetic frames into sensor-realistic ones.
 pub mod captures;
 pub mod colour;
+pub mod crf;
 pub mod darktable;
 pub mod diagnose;
 pub mod dng;

@@ -253,7 +253,7 @@ fn load_input(path: &Path, response: Option<&str>, clip_level: Option<f64>) -> R
                 what: "linear float image".into(),
             })
         }
-        Format::Png | Format::Tiff => {
+        Format::Png | Format::Tiff | Format::Jpeg => {
             let bits = match info.bit_depth {
                 Some(crate::io::BitDepth::Eight) => 8,
                 _ => 16,

@@ -12,6 +12,10 @@ use crate::error::{Error, Result};
 use std::path::Path;
 
 pub const EXPOSURE_FILE: &str = "exposure.txt";
+/// Written by `hdrsynth testset --brackets` (src/data/bracket_testset.rs) into sets made from
+/// static brackets: its presence marks the three frames as static too (motion-free), so
+/// Network-1's Mertens reference can be fused from them. Other tools ignore it.
+pub const STATIC_MARKER: &str = "brackets.toml";
 pub const GT_FILE: &str = "HDRImg.hdr";
 /// Index of the reference (middle) frame.
 pub const REFERENCE: usize = 1;
@@ -83,6 +87,7 @@ pub(super) fn read_set(dir: &Path, name: &str, files: &[Entry]) -> Result<SetRea
         }
     }
 
+    let dynamic: Vec<std::path::PathBuf> = tiffs.iter().map(|f| f.path.clone()).collect();
     let set = SetInfo {
         name: name.to_string(),
         dir: dir.to_path_buf(),
@@ -90,8 +95,12 @@ pub(super) fn read_set(dir: &Path, name: &str, files: &[Entry]) -> Result<SetRea
         height,
         evs,
         reference: REFERENCE,
-        static_frames: Vec::new(),
-        dynamic_frames: tiffs.iter().map(|f| f.path.clone()).collect(),
+        static_frames: if super::find_file(files, STATIC_MARKER).is_some() {
+            dynamic.clone()
+        } else {
+            Vec::new()
+        },
+        dynamic_frames: dynamic,
         masks: Vec::new(),
         clean_frames: Vec::new(),
         ground_truth: gt.map(|path| GroundTruth {

@@ -1,0 +1,366 @@
+//! `hdrsynth testset --brackets DIR --out OUT`: a user's own bracket folders
+//! ([`crate::data::brackets`]) as a Kalantari-layout test set whose ground truth is made the way
+//! the paper made testset-2's: the linear triangular merge of the static frames
+//! (docs/your_device.md).
+//!
+//! Per set, three frames are used: the shortest, the one nearest the middle and the longest
+//! exposure (others are reported as dropped). Each frame is linearised (1 = its clipping white)
+//! with the response chosen by [`ResponseChoice`] (DNG: linear after black/white levels, white
+//! balanced by AsShotNeutral), optionally aligned to the middle frame, and written as the
+//! field expects a Kalantari frame: a 16-bit TIFF holding linear^(1/γ), γ = 2.2, so that the
+//! field's own linearisation LDR^γ recovers the linear frame. Then:
+//! - `exposure.txt`: log2 stops s_i relative to the shortest frame ("0 2 4" for EV −2/0/+2),
+//!   the field's reading t_i = 2^s_i (HDR-Transformer's `read_expo_times`);
+//! - `HDRImg.hdr`: the triangle merge ([`ground_truth::triangle_merge`], Kalantari's weights
+//!   from the middle frame's TIFF value) of the written (quantised) frames, Σ w·L_i^γ / t_i /
+//!   Σ w — in the field's unit, a frame at stop 0 (the shortest) has white 1; `hdrsynth eval`
+//!   converts it to its own unit (1 = the middle frame's white);
+//! - `brackets.toml`: where every frame came from, its exposure, the response used and the
+//!   alignment shifts.
+
+use crate::data::align::{self, MtbOptions};
+use crate::data::brackets::{self, BracketFrame, BracketScan, FrameKind, ScanOptions};
+use crate::data::ground_truth;
+use crate::error::{Error, Result};
+use crate::io::{BitDepth, Image, read_image, write_hdr, write_ldr};
+use crate::sensor::crf::{self, DebevecOptions};
+use crate::sensor::profile::Response;
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+/// γ of the written frames (the field's linearisation LDR^γ, Kalantari/Wu: 2.2).
+pub const FIELD_GAMMA: f32 = 2.2;
+pub const FRAME_NAMES: [&str; 3] = ["frame_1.tif", "frame_2.tif", "frame_3.tif"];
+pub const RECORD: &str = crate::data::layout::kalantari::STATIC_MARKER;
+/// `--response debevec`: the estimated response exp(g(z)), OpenCV's convention.
+pub const CRF_FILE: &str = "crf_debevec.csv";
+
+/// How code values of LDR frames become linear.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ResponseChoice {
+    /// The device response of a sensor profile (named for the report).
+    Profile { name: String, response: Response },
+    /// A response the user declared (`--response srgb|linear|gamma:G`).
+    Declared(Response),
+    /// Debevec–Malik from the brackets (`--response debevec`): estimated on the first set with
+    /// LDR frames, all its frames, and used for every set (one device).
+    Debevec(DebevecOptions),
+}
+
+/// A resolved linearisation of LDR code values.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Linearise {
+    Curve(Response),
+    /// Linear per 8-bit code and channel (interpolated for 16-bit codes).
+    Table([Vec<f64>; 3]),
+}
+
+impl ResponseChoice {
+    pub fn describe(&self) -> String {
+        match self {
+            ResponseChoice::Profile { name, response } => {
+                format!(
+                    "the device response of profile {name} ({})",
+                    response.label()
+                )
+            }
+            ResponseChoice::Declared(r) => format!("declared response {}", r.label()),
+            ResponseChoice::Debevec(o) => format!(
+                "Debevec–Malik response estimated from the brackets (OpenCV's CalibrateDebevec \
+                 recipe: {} samples, λ {})",
+                o.samples, o.lambda
+            ),
+        }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct BracketOptions {
+    pub scan: ScanOptions,
+    pub response: ResponseChoice,
+    /// Hand-held sets: align every frame to the middle one by MTB ([`crate::data::align`]) and
+    /// crop to the region all frames cover. None: tripod sets, used as captured.
+    pub align: Option<MtbOptions>,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct RecordFrame {
+    pub source: PathBuf,
+    pub written: String,
+    /// log2 stop as written to exposure.txt (relative to the shortest frame).
+    pub stop: f64,
+    pub exposure_time_s: Option<f64>,
+    pub iso: Option<f64>,
+}
+
+/// One written set (also `OUT/<set>/brackets.toml`).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct BuiltBracketSet {
+    pub name: String,
+    pub width: usize,
+    pub height: usize,
+    pub grouping: String,
+    pub exposure_source: String,
+    pub response: String,
+    pub frames: Vec<RecordFrame>,
+    /// Frames of the bracket not used (the set had more than three).
+    pub dropped: Vec<PathBuf>,
+    /// MTB shifts (dx, dy) applied to the three frames (the middle one's is 0); empty when not
+    /// aligned.
+    pub shifts: Vec<[i32; 2]>,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct BracketSummary {
+    pub sets: Vec<BuiltBracketSet>,
+    pub notes: Vec<String>,
+}
+
+/// Indices of the shortest, middle and longest frame of an ascending bracket.
+fn pick_three(n: usize) -> [usize; 3] {
+    [0, n / 2, n - 1]
+}
+
+/// One frame, linear in [0, 1] with 1 = its clipping white.
+pub fn linear_frame(frame: &BracketFrame, lin: &Linearise) -> Result<Image> {
+    match frame.kind {
+        FrameKind::Dng => {
+            let dng = crate::sensor::dng::read_dng(&frame.path)?;
+            // White balance by AsShotNeutral, scaled so that no channel exceeds 1 at raw white.
+            let n = dng.info.as_shot_neutral.unwrap_or([1.0; 3]);
+            if n.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
+                return Err(Error::decode(
+                    &frame.path,
+                    format!("AsShotNeutral {n:?} must be positive"),
+                ));
+            }
+            let lo = n.iter().copied().fold(f64::INFINITY, f64::min);
+            let gain = n.map(|v| (lo / v) as f32);
+            let mut img = dng.image;
+            for p in img.data.chunks_exact_mut(3) {
+                for c in 0..3 {
+                    p[c] = (p[c] * gain[c]).clamp(0.0, 1.0);
+                }
+            }
+            Ok(img)
+        }
+        FrameKind::Ldr => {
+            let img = read_image(&frame.path)?;
+            match lin {
+                Linearise::Curve(r) => {
+                    // 16-bit codes make a per-pixel inverse costly for LUT curves: tabulate it.
+                    let table: Vec<f32> = (0..=65535)
+                        .map(|k| r.invert(f64::from(k) / 65535.0) as f32)
+                        .collect();
+                    Ok(img.map(|v| table[(v.clamp(0.0, 1.0) * 65535.0).round() as usize]))
+                }
+                Linearise::Table(t) => {
+                    let mut img = img;
+                    for p in img.data.chunks_exact_mut(3) {
+                        for (c, v) in p.iter_mut().enumerate() {
+                            let z = v.clamp(0.0, 1.0) as f64 * 255.0;
+                            let i = (z.floor() as usize).min(254);
+                            let f = z - i as f64;
+                            *v = (t[c][i] + (t[c][i + 1] - t[c][i]) * f) as f32;
+                        }
+                    }
+                    Ok(img)
+                }
+            }
+        }
+    }
+}
+
+/// Scan `dir` and write every set to `out` in Kalantari's layout.
+pub fn build(dir: &Path, opts: &BracketOptions, out: &Path) -> Result<BracketSummary> {
+    let BracketScan { sets, mut notes } = brackets::scan(dir, &opts.scan)?;
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    let lin = match &opts.response {
+        ResponseChoice::Profile { response, .. } | ResponseChoice::Declared(response) => {
+            Linearise::Curve(response.clone())
+        }
+        ResponseChoice::Debevec(o) => {
+            let ldr = sets
+                .iter()
+                .find(|s| s.frames.iter().all(|f| f.kind == FrameKind::Ldr));
+            // DNG frames are linear: with no LDR set there is nothing to estimate.
+            let Some(set) = ldr else {
+                return build_sets(&sets, &Linearise::Curve(Response::Linear), opts, out, notes);
+            };
+            let frames = set
+                .frames
+                .iter()
+                .map(|f| read_image(&f.path))
+                .collect::<Result<Vec<Image>>>()?;
+            // Only ratios matter: times relative to the shortest frame.
+            let times: Vec<f64> = set
+                .frames
+                .iter()
+                .map(|f| (f.stop - set.frames[0].stop).exp2())
+                .collect();
+            let response = crf::calibrate_debevec(&frames, &times, *o)?;
+            let mut csv = String::from("code,r,g,b\n");
+            for (z, ((r, g), b)) in response[0]
+                .iter()
+                .zip(&response[1])
+                .zip(&response[2])
+                .enumerate()
+            {
+                csv.push_str(&format!("{z},{r},{g},{b}\n"));
+            }
+            crate::io::atomic::write_atomic(&out.join(CRF_FILE), csv.as_bytes())?;
+            notes.push(format!(
+                "response: Debevec–Malik estimated from set '{}' ({} frames), written to {}",
+                set.name,
+                set.frames.len(),
+                out.join(CRF_FILE).display()
+            ));
+            Linearise::Table(crf::linearisation_table(&response))
+        }
+    };
+    build_sets(&sets, &lin, opts, out, notes)
+}
+
+fn build_sets(
+    sets: &[brackets::BracketSet],
+    lin: &Linearise,
+    opts: &BracketOptions,
+    out: &Path,
+    mut notes: Vec<String>,
+) -> Result<BracketSummary> {
+    let mut built = Vec::with_capacity(sets.len());
+    for set in sets {
+        let idx = pick_three(set.frames.len());
+        if set.frames.len() < 3 {
+            return Err(Error::layout(
+                &set.frames[0].path,
+                format!(
+                    "set '{}' has {} frames ({}); a Kalantari-layout test set needs three \
+                     exposures",
+                    set.name,
+                    set.frames.len(),
+                    set.frames
+                        .iter()
+                        .map(|f| f.path.display().to_string())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            ));
+        }
+        let chosen: Vec<&BracketFrame> = idx.iter().map(|&i| &set.frames[i]).collect();
+        let dropped: Vec<PathBuf> = (0..set.frames.len())
+            .filter(|i| !idx.contains(i))
+            .map(|i| set.frames[i].path.clone())
+            .collect();
+        if !dropped.is_empty() {
+            notes.push(format!(
+                "set '{}': {} frames; used the shortest, middle and longest, dropped {}",
+                set.name,
+                set.frames.len(),
+                dropped.len()
+            ));
+        }
+        let linear = chosen
+            .iter()
+            .map(|f| linear_frame(f, lin))
+            .collect::<Result<Vec<Image>>>()?;
+        let (w, h) = (linear[1].width, linear[1].height);
+        for (f, img) in chosen.iter().zip(&linear) {
+            if (img.width, img.height) != (w, h) {
+                return Err(Error::layout(
+                    &f.path,
+                    format!(
+                        "{}×{}, but the set's middle frame {} is {w}×{h}",
+                        img.width,
+                        img.height,
+                        chosen[1].path.display()
+                    ),
+                ));
+            }
+        }
+        // Stops relative to the shortest frame, rounded as written so the merge uses exactly
+        // what the field's code will read back.
+        let stops: Vec<f64> = chosen
+            .iter()
+            .map(|f| {
+                format!("{:.6}", f.stop - chosen[0].stop)
+                    .parse()
+                    .unwrap_or(0.0)
+            })
+            .collect();
+        let inv_g = 1.0 / FIELD_GAMMA;
+        let mut codes: Vec<Image> = linear
+            .iter()
+            .map(|img| img.map(|v| (v.clamp(0.0, 1.0).powf(inv_g) * 65535.0).round() / 65535.0))
+            .collect();
+        let mut shifts = Vec::new();
+        if let Some(mtb) = opts.align {
+            // MTB on the γ-encoded frames: its median thresholds need no response.
+            let s: Vec<(i32, i32)> = codes
+                .iter()
+                .map(|c| align::mtb_shift(&codes[1], c, mtb))
+                .collect();
+            codes = align::apply_shifts(&codes, &s);
+            if codes[1].width == 0 || codes[1].height == 0 {
+                return Err(Error::layout(
+                    &chosen[1].path,
+                    format!("set '{}': MTB shifts {s:?} leave no common area", set.name),
+                ));
+            }
+            shifts = s.iter().map(|&(x, y)| [x, y]).collect();
+        }
+        let (w, h) = (codes[1].width, codes[1].height);
+        let times = [0, 1, 2].map(|i| stops[i].exp2() as f32);
+        let hdr = ground_truth::triangle_merge(
+            &[codes[0].clone(), codes[1].clone(), codes[2].clone()],
+            times,
+            FIELD_GAMMA,
+        )?;
+
+        let set_dir = out.join(&set.name);
+        std::fs::create_dir_all(&set_dir).map_err(|e| Error::io(&set_dir, e))?;
+        for (img, name) in codes.iter().zip(FRAME_NAMES) {
+            write_ldr(&set_dir.join(name), img, BitDepth::Sixteen)?;
+        }
+        let expo = set_dir.join(crate::data::layout::kalantari::EXPOSURE_FILE);
+        let text = stops
+            .iter()
+            .map(|s| format!("{s}"))
+            .collect::<Vec<_>>()
+            .join("\n")
+            + "\n";
+        crate::io::atomic::write_atomic(&expo, text.as_bytes())?;
+        write_hdr(&set_dir.join(crate::data::layout::kalantari::GT_FILE), &hdr)?;
+        let record = BuiltBracketSet {
+            name: set.name.clone(),
+            width: w,
+            height: h,
+            grouping: set.grouping.clone(),
+            exposure_source: set.exposure_source.clone(),
+            response: if chosen.iter().all(|f| f.kind == FrameKind::Dng) {
+                "linear raw (DNG black/white levels)".to_string()
+            } else {
+                opts.response.describe()
+            },
+            frames: chosen
+                .iter()
+                .zip(FRAME_NAMES)
+                .zip(&stops)
+                .map(|((f, name), &stop)| RecordFrame {
+                    source: f.path.clone(),
+                    written: name.to_string(),
+                    stop,
+                    exposure_time_s: f.exif.exposure_time,
+                    iso: f.exif.iso,
+                })
+                .collect(),
+            dropped,
+            shifts,
+        };
+        let toml =
+            toml::to_string_pretty(&record).map_err(|e| Error::encode(set_dir.join(RECORD), e))?;
+        crate::io::atomic::write_atomic(&set_dir.join(RECORD), toml.as_bytes())?;
+        built.push(record);
+    }
+    Ok(BracketSummary { sets: built, notes })
+}

@@ -1,0 +1,584 @@
+//! Bracket folders as they come off a phone or camera (docs/your_device.md): find the frames,
+//! their exposures and which frames form one bracketed set.
+//!
+//! Frames: JPEG, PNG, 8/16-bit TIFF (code values, linearised later with a response) and
+//! uncompressed Bayer DNG (linear after black/white levels, src/sensor/dng.rs).
+//!
+//! Exposure of each frame, first source that applies:
+//! 1. `--evs` declared by the user: EV steps in capture order, the same for every set;
+//! 2. a sidecar in the frame's folder: OpenCV's `list.txt` ("name value" lines, value = 1 / the
+//!    exposure time in seconds, as OpenCV's `loadExposureSeq` reads it) or `exposure.txt` (log2
+//!    stops, one per image file in file-name order, Kalantari's convention);
+//! 3. EXIF (kamadak-exif): ExposureTime × ISO / FNumber² — ISO and FNumber only where every
+//!    frame of the folder has them, so one missing tag never mixes units — else
+//!    ExposureBiasValue where every frame has it. DNG BaselineExposure is reported, not applied:
+//!    it is a rendering hint and does not change the raw values.
+//!
+//! Grouping: each folder (the root and each direct sub-folder) is split into sets in capture
+//! order (EXIF DateTimeOriginal + SubSecTimeOriginal when every frame has it, else file-name
+//! order); a new set starts where an exposure repeats within the current set or where the
+//! capture times are more than `max_gap_s` apart. How each set was grouped, and anything
+//! ambiguous (sets of differing sizes, times missing on some frames), is reported.
+//! Frames whose exposure cannot be determined are refused, named.
+
+use crate::error::{Error, Result};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// OpenCV's sidecar (`samples/cpp/tutorial_code/photo/hdr_imaging`): "name 1/t" per line.
+pub const LIST_TXT: &str = "list.txt";
+/// Kalantari's sidecar: log2 stops, one per frame in file-name order.
+pub const EXPOSURE_TXT: &str = "exposure.txt";
+/// Two exposures closer than this (in stops) are the same exposure.
+const SAME_STOP: f64 = 0.05;
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct ScanOptions {
+    /// Declared EV steps in capture order (each set has exactly these many frames).
+    pub evs: Option<Vec<f64>>,
+    /// Largest gap between capture times within one set, seconds.
+    pub max_gap_s: f64,
+}
+
+impl Default for ScanOptions {
+    fn default() -> Self {
+        ScanOptions {
+            evs: None,
+            max_gap_s: 5.0,
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FrameKind {
+    /// Code values through a camera response (JPEG, PNG, TIFF).
+    Ldr,
+    /// Linear raw (DNG).
+    Dng,
+}
+
+/// What EXIF says about a frame (every field where present).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ExifExposure {
+    pub exposure_time: Option<f64>,
+    pub iso: Option<f64>,
+    pub f_number: Option<f64>,
+    pub bias_ev: Option<f64>,
+    pub baseline_exposure: Option<f64>,
+    /// Seconds since 0000-01-01 (only differences are used), with sub-seconds.
+    pub captured_s: Option<f64>,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct BracketFrame {
+    pub path: PathBuf,
+    pub kind: FrameKind,
+    pub exif: ExifExposure,
+    /// log2 of the exposure (time · gain) in the set's own unit; only differences matter.
+    pub stop: f64,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct BracketSet {
+    pub name: String,
+    /// Ascending exposure.
+    pub frames: Vec<BracketFrame>,
+    /// Where the exposures came from ("EXIF ExposureTime × ISO", "list.txt", ...).
+    pub exposure_source: String,
+    /// How the set was grouped.
+    pub grouping: String,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct BracketScan {
+    pub sets: Vec<BracketSet>,
+    /// Ambiguities and things the user should know (printed by the CLI).
+    pub notes: Vec<String>,
+}
+
+fn is_frame(path: &Path) -> Option<FrameKind> {
+    let ext = path.extension()?.to_string_lossy().to_ascii_lowercase();
+    match ext.as_str() {
+        "jpg" | "jpeg" | "png" | "tif" | "tiff" => Some(FrameKind::Ldr),
+        "dng" => Some(FrameKind::Dng),
+        _ => None,
+    }
+}
+
+fn list_dir(dir: &Path) -> Result<(Vec<PathBuf>, Vec<PathBuf>)> {
+    let rd = std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?;
+    let (mut files, mut dirs) = (Vec::new(), Vec::new());
+    for e in rd {
+        let p = e.map_err(|e| Error::io(dir, e))?.path();
+        if p.is_dir() {
+            dirs.push(p);
+        } else if is_frame(&p).is_some() {
+            files.push(p);
+        }
+    }
+    files.sort();
+    dirs.sort();
+    Ok((files, dirs))
+}
+
+/// Read the exposure tags of one file; a file without EXIF gives all `None`.
+pub fn read_exif(path: &Path) -> Result<ExifExposure> {
+    use exif::{In, Tag, Value};
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let exif = match exif::Reader::new().read_from_container(&mut std::io::BufReader::new(file)) {
+        Ok(x) => x,
+        Err(exif::Error::NotFound(_)) | Err(exif::Error::BlankValue(_)) => {
+            return Ok(ExifExposure::default());
+        }
+        Err(exif::Error::Io(e)) => return Err(Error::io(path, e)),
+        Err(e) => return Err(Error::decode(path, format!("EXIF: {e}"))),
+    };
+    let field = |tag: Tag| exif.get_field(tag, In::PRIMARY).map(|f| &f.value);
+    let real = |tag: Tag| -> Option<f64> {
+        let v = match field(tag)? {
+            Value::Rational(v) => v.first().map(|r| r.to_f64()),
+            Value::SRational(v) => v.first().map(|r| r.to_f64()),
+            Value::Short(v) => v.first().map(|&x| f64::from(x)),
+            Value::Long(v) => v.first().map(|&x| f64::from(x)),
+            _ => None,
+        }?;
+        v.is_finite().then_some(v)
+    };
+    let ascii = |tag: Tag| -> Option<Vec<u8>> {
+        match field(tag)? {
+            Value::Ascii(v) => v.first().cloned(),
+            _ => None,
+        }
+    };
+    let captured_s = ascii(Tag::DateTimeOriginal)
+        .or_else(|| ascii(Tag::DateTime))
+        .and_then(|a| exif::DateTime::from_ascii(&a).ok())
+        .map(|d| {
+            // Days from a proleptic calendar: only differences within a shoot matter, but they
+            // must be right across midnight and month ends.
+            let days = days_from_civil(i64::from(d.year), u32::from(d.month), u32::from(d.day));
+            let sub = ascii(Tag::SubSecTimeOriginal)
+                .and_then(|s| {
+                    let s = String::from_utf8_lossy(&s).trim().to_string();
+                    (!s.is_empty() && s.bytes().all(|b| b.is_ascii_digit()))
+                        .then(|| format!("0.{s}").parse::<f64>().ok())
+                        .flatten()
+                })
+                .unwrap_or(0.0);
+            days as f64 * 86400.0
+                + f64::from(d.hour) * 3600.0
+                + f64::from(d.minute) * 60.0
+                + f64::from(d.second)
+                + sub
+        });
+    Ok(ExifExposure {
+        exposure_time: real(Tag::ExposureTime).filter(|&t| t > 0.0),
+        iso: real(Tag::PhotographicSensitivity).filter(|&s| s > 0.0),
+        f_number: real(Tag::FNumber).filter(|&n| n > 0.0),
+        bias_ev: real(Tag::ExposureBiasValue),
+        // DNG BaselineExposure (tag 50730, SRATIONAL, in IFD 0).
+        baseline_exposure: real(Tag(exif::Context::Tiff, 50730)),
+        captured_s,
+    })
+}
+
+/// Days since 1970-01-01 of a Gregorian date (Howard Hinnant's algorithm).
+fn days_from_civil(y: i64, m: u32, d: u32) -> i64 {
+    let y = if m <= 2 { y - 1 } else { y };
+    let era = y.div_euclid(400);
+    let yoe = y - era * 400;
+    let mp = (i64::from(m) + 9) % 12;
+    let doy = (153 * mp + 2) / 5 + i64::from(d) - 1;
+    let doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
+    era * 146_097 + doe - 719_468
+}
+
+/// Stops of the files of one folder from a sidecar, if the folder has one.
+fn sidecar_stops(dir: &Path, files: &[PathBuf]) -> Result<Option<(Vec<f64>, String)>> {
+    let list = dir.join(LIST_TXT);
+    if list.is_file() {
+        let text = std::fs::read_to_string(&list).map_err(|e| Error::io(&list, e))?;
+        let mut by_name = BTreeMap::new();
+        for (n, line) in text.lines().enumerate() {
+            let mut tok = line.split_whitespace();
+            let (Some(name), Some(val)) = (tok.next(), tok.next()) else {
+                if line.trim().is_empty() {
+                    continue;
+                }
+                return Err(Error::layout(
+                    &list,
+                    format!(
+                        "line {}: expected \"name value\" (value = 1 / exposure time)",
+                        n + 1
+                    ),
+                ));
+            };
+            let v: f64 = val
+                .parse()
+                .ok()
+                .filter(|v: &f64| v.is_finite() && *v > 0.0)
+                .ok_or_else(|| {
+                    Error::layout(
+                        &list,
+                        format!(
+                            "line {}: '{val}' is not a positive number (1 / exposure time)",
+                            n + 1
+                        ),
+                    )
+                })?;
+            by_name.insert(name.to_string(), (1.0 / v).log2());
+        }
+        let mut stops = Vec::new();
+        let mut missing = Vec::new();
+        for f in files {
+            let name = file_name(f);
+            match by_name.get(&name) {
+                Some(&s) => stops.push(s),
+                None => missing.push(name),
+            }
+        }
+        if !missing.is_empty() {
+            return Err(Error::layout(
+                &list,
+                format!(
+                    "has no exposure for {}; OpenCV's list.txt needs one \"name 1/t\" line per image",
+                    missing.join(", ")
+                ),
+            ));
+        }
+        return Ok(Some((
+            stops,
+            format!("{LIST_TXT} (OpenCV: value = 1 / exposure time)"),
+        )));
+    }
+    let expo = dir.join(EXPOSURE_TXT);
+    if expo.is_file() {
+        let stops = crate::data::layout::read_stops(
+            &expo,
+            files.len(),
+            "log2 exposure stops, one per image in file-name order",
+        )?;
+        return Ok(Some((
+            stops.into_iter().map(f64::from).collect(),
+            format!("{EXPOSURE_TXT} (log2 stops in file-name order)"),
+        )));
+    }
+    Ok(None)
+}
+
+fn file_name(p: &Path) -> String {
+    p.file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default()
+}
+
+/// Stops of a folder's frames from EXIF (see the module doc), or the files that lack them.
+fn exif_stops(
+    frames: &[(PathBuf, ExifExposure)],
+) -> std::result::Result<(Vec<f64>, String), Vec<String>> {
+    let all = |f: fn(&ExifExposure) -> bool| frames.iter().all(|(_, e)| f(e));
+    if all(|e| e.exposure_time.is_some()) {
+        let iso = all(|e| e.iso.is_some());
+        let fnum = all(|e| e.f_number.is_some());
+        let stops = frames
+            .iter()
+            .map(|(_, e)| {
+                let mut h = e.exposure_time.unwrap_or(1.0);
+                if iso {
+                    h *= e.iso.unwrap_or(100.0) / 100.0;
+                }
+                if fnum {
+                    h /= e.f_number.unwrap_or(1.0).powi(2);
+                }
+                h.log2()
+            })
+            .collect();
+        let mut what = "EXIF ExposureTime".to_string();
+        if iso {
+            what.push_str(" × ISO/100");
+        }
+        if fnum {
+            what.push_str(" / FNumber²");
+        }
+        return Ok((stops, what));
+    }
+    if all(|e| e.bias_ev.is_some()) {
+        return Ok((
+            frames
+                .iter()
+                .map(|(_, e)| e.bias_ev.unwrap_or(0.0))
+                .collect(),
+            "EXIF ExposureBiasValue (no ExposureTime)".to_string(),
+        ));
+    }
+    Err(frames
+        .iter()
+        .filter(|(_, e)| e.exposure_time.is_none())
+        .map(|(p, _)| p.display().to_string())
+        .collect())
+}
+
+/// Find the bracketed sets under `root` (the root's own frames and each direct sub-folder's).
+pub fn scan(root: &Path, opts: &ScanOptions) -> Result<BracketScan> {
+    if !root.is_dir() {
+        return Err(Error::io(
+            root,
+            std::io::Error::new(std::io::ErrorKind::NotFound, "bracket folder not found"),
+        ));
+    }
+    if opts.max_gap_s.is_nan() || opts.max_gap_s <= 0.0 {
+        return Err(Error::Invalid(format!(
+            "max gap {} s must be positive",
+            opts.max_gap_s
+        )));
+    }
+    if let Some(evs) = &opts.evs
+        && (evs.len() < 2 || evs.iter().any(|e| !e.is_finite()))
+    {
+        return Err(Error::Invalid(format!(
+            "declared EVs {evs:?}: need at least two finite values"
+        )));
+    }
+    let (files, dirs) = list_dir(root)?;
+    let mut folders = vec![(root.to_path_buf(), files, String::new())];
+    for d in dirs {
+        let (f, _) = list_dir(&d)?;
+        folders.push((d.clone(), f, file_name(&d)));
+    }
+    let mut scan = BracketScan {
+        sets: Vec::new(),
+        notes: Vec::new(),
+    };
+    let mut undetermined = Vec::new();
+    for (dir, files, prefix) in folders {
+        if files.is_empty() {
+            continue;
+        }
+        match scan_folder(&dir, &files, &prefix, opts, &mut scan)? {
+            Ok(()) => {}
+            Err(mut names) => undetermined.append(&mut names),
+        }
+    }
+    if !undetermined.is_empty() {
+        return Err(Error::layout(
+            root,
+            format!(
+                "the exposure of {} frame(s) cannot be determined (no EXIF ExposureTime or \
+                 ExposureBiasValue, no list.txt/exposure.txt sidecar; declare EV steps with \
+                 --evs): {}",
+                undetermined.len(),
+                undetermined.join(", ")
+            ),
+        ));
+    }
+    if scan.sets.is_empty() {
+        return Err(Error::layout(
+            root,
+            "no bracket frames (.jpg, .jpeg, .png, .tif, .tiff, .dng) here or in its sub-folders",
+        ));
+    }
+    let sizes: Vec<usize> = scan.sets.iter().map(|s| s.frames.len()).collect();
+    if sizes.iter().any(|&n| n != sizes[0]) {
+        scan.notes.push(format!(
+            "ambiguous: sets have differing numbers of frames ({}); check the grouping",
+            scan.sets
+                .iter()
+                .map(|s| format!("{} {}", s.name, s.frames.len()))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ));
+    }
+    Ok(scan)
+}
+
+/// One folder's frames into sets; `Err(files)` lists frames without a determinable exposure.
+fn scan_folder(
+    dir: &Path,
+    files: &[PathBuf],
+    prefix: &str,
+    opts: &ScanOptions,
+    out: &mut BracketScan,
+) -> Result<std::result::Result<(), Vec<String>>> {
+    let mut frames = Vec::with_capacity(files.len());
+    for f in files {
+        let kind = is_frame(f).unwrap_or(FrameKind::Ldr);
+        frames.push((f.clone(), read_exif(f)?, kind));
+    }
+    // Capture order: EXIF time where every frame has one, else file names.
+    let timed = frames.iter().all(|(_, e, _)| e.captured_s.is_some());
+    let some_timed = frames.iter().any(|(_, e, _)| e.captured_s.is_some());
+    let where_ = if prefix.is_empty() {
+        dir.display().to_string()
+    } else {
+        prefix.to_string()
+    };
+    if some_timed && !timed {
+        out.notes.push(format!(
+            "ambiguous: {where_}: only some frames have an EXIF capture time; grouped in \
+             file-name order"
+        ));
+    }
+    let order: Vec<usize> = {
+        let mut idx: Vec<usize> = (0..frames.len()).collect();
+        if timed {
+            idx.sort_by(|&a, &b| {
+                frames[a]
+                    .1
+                    .captured_s
+                    .unwrap_or(0.0)
+                    .total_cmp(&frames[b].1.captured_s.unwrap_or(0.0))
+                    .then_with(|| frames[a].0.cmp(&frames[b].0))
+            });
+        }
+        idx
+    };
+
+    // Stops in file-name order (sidecars are by name), or the declared EVs by position.
+    let (stops, source): (Vec<f64>, String) = if let Some(evs) = &opts.evs {
+        if frames.len() % evs.len() != 0 {
+            return Err(Error::layout(
+                dir,
+                format!(
+                    "{} frame(s) do not divide into sets of the {} declared EVs {evs:?}",
+                    frames.len(),
+                    evs.len()
+                ),
+            ));
+        }
+        let mut s = vec![0.0; frames.len()];
+        for (pos, &i) in order.iter().enumerate() {
+            s[i] = evs[pos % evs.len()];
+        }
+        (s, format!("declared EVs {evs:?} in capture order"))
+    } else if let Some(s) = sidecar_stops(dir, files)? {
+        s
+    } else {
+        let exif: Vec<(PathBuf, ExifExposure)> = frames
+            .iter()
+            .map(|(p, e, _)| (p.clone(), e.clone()))
+            .collect();
+        match exif_stops(&exif) {
+            Ok(s) => s,
+            Err(missing) => return Ok(Err(missing)),
+        }
+    };
+
+    let mut baselines: Vec<f64> = frames
+        .iter()
+        .filter_map(|(_, e, _)| e.baseline_exposure)
+        .collect();
+    baselines.dedup_by(|a, b| (*a - *b).abs() < 1e-6);
+    if baselines.len() > 1 {
+        out.notes.push(format!(
+            "{where_}: DNG BaselineExposure differs between frames ({baselines:?}); it is a \
+             rendering hint and is not applied to the exposures"
+        ));
+    }
+
+    // Split into sets in capture order.
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    let mut gaps = 0;
+    for &i in &order {
+        let start_new = match groups.last() {
+            None => true,
+            Some(g) => {
+                let repeat = opts.evs.as_ref().map_or_else(
+                    || g.iter().any(|&j| (stops[j] - stops[i]).abs() < SAME_STOP),
+                    |evs| g.len() == evs.len(),
+                );
+                let gap = timed && {
+                    let prev = frames[*g.last().unwrap_or(&i)].1.captured_s.unwrap_or(0.0);
+                    frames[i].1.captured_s.unwrap_or(0.0) - prev > opts.max_gap_s
+                };
+                if gap && !repeat {
+                    gaps += 1;
+                }
+                repeat || gap
+            }
+        };
+        if start_new {
+            groups.push(vec![i]);
+        } else if let Some(g) = groups.last_mut() {
+            g.push(i);
+        }
+    }
+    let order_what = if timed {
+        "EXIF capture time"
+    } else {
+        "file name"
+    };
+    let how = if groups.len() == 1 {
+        if prefix.is_empty() {
+            format!("all frames of the folder ({order_what} order)")
+        } else {
+            format!("sub-folder {prefix}")
+        }
+    } else {
+        format!(
+            "{}: in {order_what} order, a new set where an exposure repeats{}",
+            if prefix.is_empty() {
+                "the folder".to_string()
+            } else {
+                format!("sub-folder {prefix}")
+            },
+            if timed {
+                format!(" or capture times are > {} s apart", opts.max_gap_s)
+            } else {
+                String::new()
+            }
+        )
+    };
+    if gaps > 0 {
+        out.notes.push(format!(
+            "{where_}: {gaps} set boundar{} from capture-time gaps alone (no repeated exposure)",
+            if gaps == 1 { "y" } else { "ies" }
+        ));
+    }
+    for (k, g) in groups.iter().enumerate() {
+        let name = match (prefix.is_empty(), groups.len()) {
+            (false, 1) => prefix.to_string(),
+            (false, _) => format!("{prefix}_{:03}", k + 1),
+            (true, _) => format!("set_{:03}", k + 1),
+        };
+        if g.len() < 2 {
+            return Err(Error::layout(
+                &frames[g[0]].0,
+                format!(
+                    "set '{name}' ({how}) holds only this frame; a bracket needs at least two \
+                     exposures"
+                ),
+            ));
+        }
+        let mut set_frames: Vec<BracketFrame> = g
+            .iter()
+            .map(|&i| BracketFrame {
+                path: frames[i].0.clone(),
+                kind: frames[i].2,
+                exif: frames[i].1.clone(),
+                stop: stops[i],
+            })
+            .collect();
+        set_frames.sort_by(|a, b| a.stop.total_cmp(&b.stop));
+        if let Some(w) = set_frames
+            .windows(2)
+            .find(|w| (w[1].stop - w[0].stop).abs() < SAME_STOP)
+        {
+            return Err(Error::layout(
+                &w[1].path,
+                format!(
+                    "set '{name}': same exposure as {} (stop {:.3}); a bracket needs distinct \
+                     exposures",
+                    w[0].path.display(),
+                    w[0].stop
+                ),
+            ));
+        }
+        out.sets.push(BracketSet {
+            name,
+            frames: set_frames,
+            exposure_source: source.clone(),
+            grouping: how.clone(),
+        });
+    }
+    Ok(Ok(()))
+}
