@@ -220,6 +220,7 @@ pub fn base_profile(
             set.manifest_path.display()
         ),
     );
+    refit_noise(&mut p, measured)?;
     if let Some(chart) = measured.iter().find(|s| s.kind == BurstKind::Chart) {
         let img = Image::from_vec(
             chart.width,
@@ -249,6 +250,33 @@ pub fn base_profile(
         );
     }
     Ok(p)
+}
+
+/// Refit the model's shared (a, b) per ISO from the measured summaries' temporal photon
+/// transfer (`summary::temporal_ptc`) under the model's effects: signals above the dark mean
+/// (a pedestal cannot bias a or b), the row-offset variance the model draws separately taken
+/// out of b, channel-noise scales divided out (so shared × scale is each channel's fit). ISOs
+/// without a flat keep their a; ISOs without dark or flat keep both. Used for the base model
+/// and after every step (never on a given profile, whose noise is the user's).
+pub fn refit_noise(profile: &mut SensorProfile, measured: &[Summary]) -> Result<()> {
+    let plan = Plan::from_effects(&profile.effects).map_err(Error::Invalid)?;
+    let range = profile.levels.white_level - profile.levels.black_level;
+    let black = profile.levels.black_level + plan.black_offset as f64;
+    let ptc = effects::summary::temporal_ptc(measured, black, (plan.row_sigma as f64).powi(2));
+    for n in &mut profile.noise {
+        let Some(f) = ptc.iter().find(|f| (f.iso - n.iso).abs() <= 1e-9 * n.iso.abs()) else {
+            continue;
+        };
+        let b = (0..3).map(|c| f.b[c] / plan.b_scale[c] as f64).sum::<f64>() / 3.0;
+        n.b = [b / (range * range); 3];
+        if let Some(a) = f.a {
+            let a = (0..3).map(|c| a[c] / plan.a_scale[c] as f64).sum::<f64>() / 3.0;
+            n.a = [a / range; 3];
+        }
+        n.a_stderr = None;
+        n.b_stderr = None;
+    }
+    Ok(())
 }
 
 /// Simulation targets (linear input images, normalised so 1 = the range) per burst; None for
@@ -536,6 +564,7 @@ pub fn diagnose(
         protocol(set, &tmp)?
     };
     let measured = measure(set, &levels_proto)?;
+    let fitted_base = profile.is_none();
     let (mut model, base) = match profile {
         Some(p) => {
             let name = p.name.clone();
@@ -593,7 +622,6 @@ pub fn diagnose(
             summaries: &measured,
             protocol: &proto,
             profile: &model,
-            calibration: calibration.as_ref(),
             seed: hash(opts.seed, &[steps.len() as u64, 0xf17]),
         };
         let params = match (entry.fit)(&fctx) {
@@ -611,7 +639,11 @@ pub fn diagnose(
             id: id.to_string(),
             params: params.clone(),
         });
-        if let Some(adjust) = entry.adjust {
+        if fitted_base {
+            // The base noise was fitted from the captures: refit it under the new model
+            // (corrected black, row variance drawn separately, channel scales).
+            refit_noise(&mut next, &measured)?;
+        } else if let Some(adjust) = entry.adjust {
             adjust(&mut next, &params);
         }
         if let Err(m) = next.validate() {

@@ -19,7 +19,6 @@
 
 use crate::rng::{hash, unit_f32};
 use crate::sensor::captures::BurstKind;
-use crate::sensor::noise::NoiseCalibration;
 use crate::sensor::profile::{EffectSpec, SensorProfile};
 
 pub mod black_level;
@@ -47,10 +46,11 @@ pub struct Entry {
     /// The effect's diagnostic statistics of one capture set (measured or simulated).
     pub statistics: fn(&Protocol, &[Summary], &mut Vec<Stat>),
     /// Fit the parameters from the captures (measured statistics against the current model's
-    /// simulated ones, the measured summaries, the noise calibration).
+    /// simulated ones, the measured summaries).
     pub fit: fn(&FitCtx) -> Result<toml::Table, String>,
-    /// Change the rest of the profile when the effect is added (e.g. row noise is already in
-    /// the base model's b, which must then shrink by its variance).
+    /// Change the rest of a *given* profile when the effect is added (e.g. row noise is already
+    /// in its b, which must then shrink by its variance). A base model fitted from the captures
+    /// is refitted instead (`diagnose::refit_noise`).
     pub adjust: Option<fn(&mut SensorProfile, &toml::Table)>,
 }
 
@@ -305,8 +305,6 @@ pub struct FitCtx<'a> {
     pub summaries: &'a [Summary],
     pub protocol: &'a Protocol,
     pub profile: &'a SensorProfile,
-    /// Per-channel noise calibration of the captures (None if it could not be made).
-    pub calibration: Option<&'a NoiseCalibration>,
     /// Seed for the fitted effect's fixed pattern.
     pub seed: u64,
 }

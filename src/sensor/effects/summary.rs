@@ -436,3 +436,99 @@ fn solve6(mut a: [[f64; 6]; 6], mut b: [f64; 6]) -> [f64; 6] {
     }
     x
 }
+
+/// Photon transfer of one ISO from burst summaries (DN, DN², per channel); `a` is None when
+/// the ISO has no flat burst (darks alone fix b only).
+#[derive(Clone, Debug, PartialEq)]
+pub struct TemporalPtc {
+    pub iso: f64,
+    pub a: Option<[f64; 3]>,
+    pub b: [f64; 3],
+}
+
+/// Photon transfer from the dark and flat summaries (EMVA 1288's method): per ISO and channel,
+/// each burst's mean temporal variance over non-hot values (less the 1/12 DN² of integer
+/// quantisation, which the simulation adds back, and `extra_var`, variance the model draws
+/// separately, e.g. row offsets) against its mean signal above the same ISO's dark mean (above
+/// `black` when the ISO has no dark burst), then a weighted straight line (`noise::wls`).
+/// Temporal variances do not see fixed patterns (constant over frames), and measuring the
+/// signal from the dark mean removes any pedestal, so neither a wrong black level nor column,
+/// pixel or gain patterns move a or b; the mean variance over values is linear in the mean
+/// signal, so vignetting and PRNU (signal spread within a burst) do not either.
+pub fn temporal_ptc(s: &[Summary], black: f64, extra_var: f64) -> Vec<TemporalPtc> {
+    use crate::sensor::noise::{Bin, wls};
+    let usable = |b: &&Summary| {
+        matches!(b.kind, BurstKind::Dark | BurstKind::Flat) && !b.var.is_empty()
+    };
+    let mut isos: Vec<f64> = s.iter().filter(usable).map(|b| b.iso).collect();
+    isos.sort_by(f64::total_cmp);
+    isos.dedup();
+    let mut out = Vec::new();
+    for iso in isos {
+        let bursts: Vec<&Summary> = s.iter().filter(usable).filter(|b| b.iso == iso).collect();
+        let chan_mean = |b: &Summary, c: usize, v: &[f64]| {
+            super::masked_mean(v, |i| i % 3 == c && b.not_hot(i))
+        };
+        let darks: Vec<&&Summary> = bursts.iter().filter(|b| b.kind == BurstKind::Dark).collect();
+        let zero: [f64; 3] = std::array::from_fn(|c| {
+            if darks.is_empty() {
+                black
+            } else {
+                darks.iter().map(|b| chan_mean(b, c, &b.mean)).sum::<f64>() / darks.len() as f64
+            }
+        });
+        let mut a = [0.0; 3];
+        let mut b = [0.0; 3];
+        let mut has_a = true;
+        for c in 0..3 {
+            let bins: Vec<Bin> = bursts
+                .iter()
+                .map(|s| {
+                    let keep = |i: usize| i % 3 == c && s.not_hot(i);
+                    let n = s.var.iter().enumerate().filter(|(i, _)| keep(*i)).count();
+                    let m = s.temporal_var[c];
+                    let ss: f64 = s
+                        .var
+                        .iter()
+                        .enumerate()
+                        .filter(|(i, _)| keep(*i))
+                        .map(|(_, v)| (v - m) * (v - m))
+                        .sum();
+                    let sd = (ss / (n.max(2) - 1) as f64).sqrt();
+                    Bin {
+                        burst: s.burst,
+                        signal: chan_mean(s, c, &s.mean) - zero[c],
+                        variance: m - 1.0 / 12.0 - extra_var,
+                        stderr: sd / (n.max(1) as f64).sqrt(),
+                        pixels: n,
+                    }
+                })
+                .collect();
+            match wls(&bins) {
+                Ok(f) => {
+                    a[c] = f.a.max(0.0);
+                    b[c] = f.b.max(0.0);
+                }
+                // One signal level only (darks alone): b is their mean variance.
+                Err(_) => {
+                    has_a = false;
+                    let dark: Vec<&Bin> = bins.iter().filter(|x| x.signal.abs() < 1.0).collect();
+                    if dark.is_empty() {
+                        b[c] = f64::NAN;
+                    } else {
+                        b[c] = (dark.iter().map(|x| x.variance).sum::<f64>() / dark.len() as f64)
+                            .max(0.0);
+                    }
+                }
+            }
+        }
+        if b.iter().all(|v| v.is_finite()) {
+            out.push(TemporalPtc {
+                iso,
+                a: has_a.then_some(a),
+                b,
+            });
+        }
+    }
+    out
+}
