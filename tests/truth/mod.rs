@@ -41,6 +41,9 @@ pub struct Truth {
     pub channel: Option<([f64; 3], [f64; 3])>,
     pub vignetting: f64,
     pub corr_rho: f64,
+    /// Noise filtered by a 2-D Gaussian kernel of this σ (pixels; 0 = off), applied directly
+    /// (not separated) to draws padded beyond the frame, normalised to Σk² = 1 (variance kept).
+    pub corr_gauss: f64,
     pub exponent: f64,
     pub seed: u64,
 }
@@ -66,6 +69,7 @@ impl Truth {
             channel: None,
             vignetting: 0.0,
             corr_rho: 0.0,
+            corr_gauss: 0.0,
             exponent: 1.0,
             seed,
         }
@@ -142,6 +146,7 @@ impl Truth {
             0.0
         };
         let norm = (1.0 + beta * beta).sqrt();
+        let gauss = (self.corr_gauss > 0.0).then(|| self.gauss_field(&mut rng));
         let t = self.heavy_dof.map(|d| StudentT::new(d).unwrap());
         let (a0, b0) = (self.a100 * iso / 100.0, self.b100 * iso / 100.0);
         let mut out = vec![0.0f32; n3];
@@ -157,7 +162,10 @@ impl Truth {
                     };
                     let mut s = (target[i] * pat.0[i]).max(0.0);
                     s = r * (s / r).powf(self.exponent);
-                    let z = (e[i] + beta * e[i + w * 3]) / norm;
+                    let z = match &gauss {
+                        Some(g) => g[i],
+                        None => (e[i] + beta * e[i + w * 3]) / norm,
+                    };
                     let noise = match &t {
                         None => (ac * s + bc).sqrt() * z,
                         Some(t) => {
@@ -172,6 +180,56 @@ impl Truth {
             }
         }
         Image::from_vec(w, h, out)
+    }
+
+    /// Unit-variance noise field (w × h × 3) filtered by the 2-D Gaussian kernel of σ
+    /// `corr_gauss`, radius ⌈4σ⌉, over draws padded by the radius on every side.
+    fn gauss_field(&self, rng: &mut Xoshiro256PlusPlus) -> Vec<f64> {
+        let (w, h, s) = (self.width, self.height, self.corr_gauss);
+        let r = (4.0 * s).ceil() as usize;
+        let (pw, ph) = (w + 2 * r, h + 2 * r);
+        let e: Vec<f64> = (0..pw * ph * 3).map(|_| StandardNormal.sample(rng)).collect();
+        let n = 2 * r + 1;
+        let mut k = vec![0.0; n * n];
+        for j in 0..n {
+            for i in 0..n {
+                let (dx, dy) = (i as f64 - r as f64, j as f64 - r as f64);
+                k[j * n + i] = (-(dx * dx + dy * dy) / (2.0 * s * s)).exp();
+            }
+        }
+        let norm = k.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let mut out = vec![0.0; w * h * 3];
+        for y in 0..h {
+            for x in 0..w {
+                for c in 0..3 {
+                    let mut acc = 0.0;
+                    for j in 0..n {
+                        for i in 0..n {
+                            acc += k[j * n + i] * e[((y + j) * pw + x + i) * 3 + c];
+                        }
+                    }
+                    out[(y * w + x) * 3 + c] = acc / norm;
+                }
+            }
+        }
+        out
+    }
+
+    /// Lag-1 correlation of `corr_gauss` noise along an axis, by hand from the kernel:
+    /// Σ k(i, j)·k(i + 1, j) / Σ k² (the 2-D Gaussian factorises, so the sums over j cancel).
+    pub fn gauss_lag1(&self) -> f64 {
+        let s = self.corr_gauss;
+        let r = (4.0 * s).ceil() as i64;
+        let g = |i: i64| {
+            if i.abs() > r {
+                0.0
+            } else {
+                (-((i * i) as f64) / (2.0 * s * s)).exp()
+            }
+        };
+        let num: f64 = (-r..=r).map(|i| g(i) * g(i + 1)).sum();
+        let den: f64 = (-r..=r).map(|i| g(i) * g(i)).sum();
+        num / den
     }
 
     /// Write the capture set: per ISO a dark burst and flats at 20 % and 55 % of the range;

@@ -9,7 +9,8 @@
 //! Physical order inside the realism operator (docs/diagnose.md):
 //! signal stage (before noise): vignetting gain → PRNU gain → nonlinear response;
 //! noise stage: channel noise scales a, b per channel; heavy tails replace the Gaussian read
-//! noise by a Student-t of the same variance; correlated noise filters the normal draws;
+//! noise by a Student-t of the same variance; correlated noise filters the normal draws with a
+//! separable Gaussian kernel;
 //! offset stage (after the black level): black-level offset, row offsets (new every frame),
 //! column offsets, DSNU, hot pixels (fixed patterns); then clip and quantise.
 //!
@@ -97,8 +98,9 @@ pub struct Plan {
     pub b_scale: [f32; 3],
     /// Heavy-tailed read noise: Student-t degrees of freedom.
     pub heavy_dof: Option<f32>,
-    /// Correlated noise: weight α of the 4 neighbours in the filter of the normal draws.
-    pub corr_alpha: f32,
+    /// Correlated noise: half kernels (k(0)..k(R)) filtering the normal draws horizontally
+    /// and vertically (separable, Σk² = 1 over each full kernel).
+    pub corr_kernels: Option<(Vec<f32>, Vec<f32>)>,
     /// Black-level offset in DN.
     pub black_offset: f32,
     /// Row offsets: σ in DN, drawn anew in every frame.
@@ -120,7 +122,7 @@ impl Default for Plan {
             a_scale: [1.0; 3],
             b_scale: [1.0; 3],
             heavy_dof: None,
-            corr_alpha: 0.0,
+            corr_kernels: None,
             black_offset: 0.0,
             row_sigma: 0.0,
             column: None,

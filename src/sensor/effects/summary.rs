@@ -7,7 +7,7 @@
 //! absorbs vignetting and illumination falloff, then minus row and column means: a two-way
 //! decomposition) and a hot-value mask (fixed residual above 8 robust σ). Dark bursts with ≥ 2
 //! frames also give pooled moments of the temporal residuals x_f − M (second and fourth, for
-//! the kurtosis), their vertical lag-1 correlation, and the covariance over frames of the left-
+//! the kurtosis), their covariance at lags 1 and 2 vertically and horizontally, and the covariance over frames of the left-
 //! and right-half means of each row (a row offset shared by both halves; no pixel-level noise
 //! process correlates two half rows).
 
@@ -54,8 +54,11 @@ pub struct Residuals {
     /// excess kurtosis of its own).
     pub m2: [f64; 3],
     pub m4: [f64; 3],
-    /// Σ r(x, y)·r(x, y + 1) / Σ r² (same frame, same channel).
-    pub vcorr: f64,
+    /// Mean residual covariance r(x, y)·r(x, y + d) over pairs and frames, d = 1, 2 (same
+    /// channel, channels pooled).
+    pub cov_v: [f64; 2],
+    /// The same horizontally, r(x, y)·r(x + d, y), d = 1, 2.
+    pub cov_h: [f64; 2],
     /// Mean over rows of the covariance over frames of the left- and right-half row means (DN²).
     pub row_cov: f64,
 }
@@ -120,7 +123,7 @@ pub struct Accumulator {
 impl Accumulator {
     pub fn new(info: &BurstInfo) -> Accumulator {
         let stride = match info.kind {
-            BurstKind::Dark => 5,
+            BurstKind::Dark => 8,
             BurstKind::Flat => 2,
             _ => 1,
         };
@@ -166,7 +169,8 @@ impl Accumulator {
                     }
                     _ => {
                         let next = (y + 1 < h).then(|| &data[(y + 1) * w3..(y + 2) * w3]);
-                        for (i, (s, &v)) in a.chunks_exact_mut(5).zip(row).enumerate() {
+                        let next2 = (y + 2 < h).then(|| &data[(y + 2) * w3..(y + 3) * w3]);
+                        for (i, (s, &v)) in a.chunks_exact_mut(8).zip(row).enumerate() {
                             let d = v as f64 - c;
                             let d2 = d * d;
                             s[0] += d;
@@ -175,6 +179,16 @@ impl Accumulator {
                             s[3] += d2 * d2;
                             if let Some(nx) = next {
                                 s[4] += d * (nx[i] as f64 - c);
+                            }
+                            if let Some(nx) = next2 {
+                                s[5] += d * (nx[i] as f64 - c);
+                            }
+                            // Same channel, one and two pixels to the right.
+                            if let Some(&r1) = row.get(i + 3) {
+                                s[6] += d * (r1 as f64 - c);
+                            }
+                            if let Some(&r2) = row.get(i + 6) {
+                                s[7] += d * (r2 as f64 - c);
                             }
                         }
                     }
@@ -235,22 +249,33 @@ impl Accumulator {
         }
         if self.kind == BurstKind::Dark && self.n >= 2 {
             let w3 = self.w * 3;
-            let (mut r2, mut r4, mut cv, mut pairs) = ([0.0; 3], [0.0; 3], 0.0, 0usize);
+            let (mut r2, mut r4) = ([0.0; 3], [0.0; 3]);
+            // (sum, pairs) of residual products: vertical lags 1, 2, horizontal lags 1, 2.
+            let mut cv = [(0.0, 0usize); 4];
+            let mean = |j: usize| self.acc[j * 8] / n;
             for i in 0..nv {
-                let a = &self.acc[i * 5..i * 5 + 5];
+                let a = &self.acc[i * 8..i * 8 + 8];
                 let m = a[0] / n;
                 r2[i % 3] += a[1] - n * m * m;
                 r4[i % 3] += a[3] - 4.0 * m * a[2] + 6.0 * m * m * a[1] - 3.0 * n * m.powi(4);
-                if i + w3 < nv {
-                    let mn = self.acc[(i + w3) * 5] / n;
-                    cv += a[4] - n * m * mn;
-                    pairs += 1;
+                let x = (i % w3) / 3;
+                let partner = [
+                    (i + w3 < nv).then_some(i + w3),
+                    (i + 2 * w3 < nv).then_some(i + 2 * w3),
+                    (x + 1 < self.w).then_some(i + 3),
+                    (x + 2 < self.w).then_some(i + 6),
+                ];
+                for (l, j) in partner.iter().enumerate() {
+                    if let Some(j) = *j {
+                        cv[l].0 += a[4 + l] - n * m * mean(j);
+                        cv[l].1 += 1;
+                    }
                 }
             }
             let per = nv as f64 / 3.0 * n;
             let m2 = r2.map(|v| v / per);
             let m4 = r4.map(|v| v / per);
-            let vcorr = cv / (pairs.max(1) as f64 * n) / (m2.iter().sum::<f64>() / 3.0);
+            let cov = |l: usize| cv[l].0 / (cv[l].1.max(1) as f64 * n);
             let h = self.h;
             let mut row_cov = 0.0;
             for y in 0..h {
@@ -266,7 +291,8 @@ impl Accumulator {
             s.resid = Some(Residuals {
                 m2,
                 m4,
-                vcorr,
+                cov_v: [cov(0), cov(1)],
+                cov_h: [cov(2), cov(3)],
                 row_cov: row_cov / h as f64,
             });
         }
