@@ -708,3 +708,19 @@ fn correlated_noise_up_to_high_correlation() {
     }
     assert!(bad.is_empty(), "{}", bad.join("\n"));
 }
+
+/// Issue 15, item 1: a response exponent with no scene bursts is found from the flat series
+/// (EMVA 1288: flats at two exposure times, one illumination) at several strengths and both
+/// directions, and recovered within 5 %.
+#[test]
+fn linearity_from_flat_series() {
+    for (k, p) in [0.85, 0.93, 1.12].into_iter().enumerate() {
+        let mut t = Truth::new(64, 48, 8, 1800 + k as u64);
+        t.scenes = false;
+        t.exponent = p;
+        let (d, _) = run(&t, &format!("flat-linearity-{k}"));
+        single(&d, "nonlinear_response");
+        let got = param(&d, "nonlinear_response", "exponent");
+        assert!((got - p).abs() <= 0.05 * p, "exponent {got}, planted {p}");
+    }
+}

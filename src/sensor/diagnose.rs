@@ -286,6 +286,20 @@ fn targets(proto: &Protocol, measured: &[Summary], plan: &Plan) -> Vec<Option<Im
     let p = proto.exponent;
     let lin = |s: f64| range * (s.max(0.0) / range).powf(1.0 / p);
     let groups = effects::nonlinear_response::scene_groups(measured);
+    let flat_series: Vec<(Vec<&Summary>, Option<&Summary>)> =
+        effects::nonlinear_response::flat_series(measured)
+            .into_iter()
+            .map(|g| {
+                let zero = effects::summary::dark_mean(measured, g[0].iso)
+                    .unwrap_or([proto.black; 3]);
+                let r = effects::nonlinear_response::flat_reference(
+                    &g,
+                    zero,
+                    proto.white - proto.black,
+                );
+                (g, r)
+            })
+            .collect();
     measured
         .iter()
         .map(|m| {
@@ -300,9 +314,17 @@ fn targets(proto: &Protocol, measured: &[Summary], plan: &Plan) -> Vec<Option<Im
                         }
                     }
                     g /= (w * h) as f64;
+                    // In a flat series (one illumination, several exposure times) the level
+                    // is the reference's scaled by exposure, so the model's response is
+                    // tested (EMVA 1288); otherwise the flat's own measured level.
+                    let (src, scale) = flat_series
+                        .iter()
+                        .find(|(g, _)| g.iter().any(|b| b.burst == m.burst))
+                        .and_then(|(_, r)| *r)
+                        .map_or((m, 1.0), |r| (r, m.exposure_s / r.exposure_s));
                     let level: [f64; 3] = std::array::from_fn(|c| {
-                        let s = effects::masked_mean(&m.mean, |i| i % 3 == c && m.not_hot(i));
-                        lin((s - proto.black) / g) / range
+                        let s = effects::masked_mean(&src.mean, |i| i % 3 == c && src.not_hot(i));
+                        lin((s - proto.black) / g) * scale / range
                     });
                     Some(Image::from_fn(w, h, |_, _| level.map(|v| v as f32)))
                 }

@@ -45,6 +45,8 @@ pub struct Truth {
     /// (not separated) to draws padded beyond the frame, normalised to Σk² = 1 (variance kept).
     pub corr_gauss: f64,
     pub exponent: f64,
+    /// Write the three-exposure scene (false: darks, flats and the chart only).
+    pub scenes: bool,
     pub seed: u64,
 }
 
@@ -71,6 +73,7 @@ impl Truth {
             corr_rho: 0.0,
             corr_gauss: 0.0,
             exponent: 1.0,
+            scenes: true,
             seed,
         }
     }
@@ -305,7 +308,8 @@ impl Truth {
                 (0.05 + 0.85 * u) * r
             })
             .collect();
-        for (k, e) in [16.0, 4.0, 1.0].iter().enumerate() {
+        let exposures: &[f64] = if self.scenes { &[16.0, 4.0, 1.0] } else { &[] };
+        for (k, e) in exposures.iter().enumerate() {
             let t: Vec<f64> = scene.iter().map(|v| v * e / 16.0).collect();
             add(
                 format!("scene_{k}"),

@@ -463,6 +463,25 @@ fn solve6(mut a: [[f64; 6]; 6], mut b: [f64; 6]) -> [f64; 6] {
     x
 }
 
+/// Per-channel mean of the dark bursts of one ISO (non-hot values): the zero of signals
+/// (EMVA 1288 measures every signal above the dark mean). None without a dark burst.
+pub fn dark_mean(s: &[Summary], iso: f64) -> Option<[f64; 3]> {
+    let darks: Vec<&Summary> = s
+        .iter()
+        .filter(|b| b.kind == BurstKind::Dark && b.iso == iso)
+        .collect();
+    if darks.is_empty() {
+        return None;
+    }
+    Some(std::array::from_fn(|c| {
+        darks
+            .iter()
+            .map(|b| super::masked_mean(&b.mean, |i| i % 3 == c && b.not_hot(i)))
+            .sum::<f64>()
+            / darks.len() as f64
+    }))
+}
+
 /// Photon transfer of one ISO from burst summaries (DN, DN², per channel); `a` is None when
 /// the ISO has no flat burst (darks alone fix b only).
 #[derive(Clone, Debug, PartialEq)]
@@ -495,14 +514,7 @@ pub fn temporal_ptc(s: &[Summary], black: f64, extra_var: f64) -> Vec<TemporalPt
         let chan_mean = |b: &Summary, c: usize, v: &[f64]| {
             super::masked_mean(v, |i| i % 3 == c && b.not_hot(i))
         };
-        let darks: Vec<&&Summary> = bursts.iter().filter(|b| b.kind == BurstKind::Dark).collect();
-        let zero: [f64; 3] = std::array::from_fn(|c| {
-            if darks.is_empty() {
-                black
-            } else {
-                darks.iter().map(|b| chan_mean(b, c, &b.mean)).sum::<f64>() / darks.len() as f64
-            }
-        });
+        let zero = dark_mean(s, iso).unwrap_or([black; 3]);
         let mut a = [0.0; 3];
         let mut b = [0.0; 3];
         let mut has_a = true;
