@@ -155,6 +155,7 @@ fn simulate(dir: &Path, defects: &Defects, seed: u64) -> CaptureManifest {
                     0.01
                 },
                 frames: paths,
+                scene: None,
             });
             frames.push(imgs);
         }
@@ -390,6 +391,7 @@ fn small_set(dir: &Path) -> CaptureManifest {
             iso: 200.0,
             exposure_s: 0.01,
             frames: paths,
+            scene: None,
         });
         frames.push(imgs);
     }

@@ -258,6 +258,7 @@ impl Truth {
                 iso,
                 exposure_s,
                 frames: (0..n).map(|f| format!("{name}/{f:03}.png")).collect(),
+                scene: None,
             });
             frames.push(imgs);
         };
@@ -323,4 +324,49 @@ impl Truth {
         write_capture_set(dir, &m, &frames).expect("write capture set");
         pat.2
     }
+}
+
+/// A scene-only capture set like the paper's public samples: per scene an EV0 and an EV−3
+/// burst of one frame each (8 and 1 ms), 8-bit range (white 255, black 0), all scenes of one
+/// frame size. Scene k has its own radiance pattern and response exponent `exponents[k]`
+/// (I → R·(I/R)^p before noise of variance a·I + b). `keys`: declare `scene = "scene<k>"`.
+pub fn write_scene_pairs(dir: &Path, w: usize, h: usize, exponents: &[f64], keys: bool, seed: u64) {
+    let (white, a, b) = (255.0f64, 0.05, 0.3);
+    let mut m = CaptureManifest::new();
+    m.sensor.name = Some("scene pairs".into());
+    m.sensor.white_level = Some(white);
+    m.sensor.black_level = Some(0.0);
+    let mut frames = Vec::new();
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed ^ 0x5ce4e);
+    for (k, &p) in exponents.iter().enumerate() {
+        // Scene k: a pattern of its own (different period and phase per scene).
+        let radiance: Vec<f64> = (0..w * h * 3)
+            .map(|i| {
+                let (x, y, c) = ((i / 3) % w, i / 3 / w, i % 3);
+                let u = ((x * (5 + 2 * k) + y * (3 + k) + c * 7 + 13 * k) % 89) as f64 / 88.0;
+                (0.05 + 0.9 * u) * white
+            })
+            .collect();
+        for (name, e) in [("ev0", 1.0), ("ev-3", 0.125)] {
+            let data: Vec<f32> = radiance
+                .iter()
+                .map(|&r| {
+                    let s = white * (r * e / white).powf(p);
+                    let z: f64 = StandardNormal.sample(&mut rng);
+                    (s + (a * s + b).sqrt() * z).clamp(0.0, white).round() as f32
+                })
+                .collect();
+            let bname = format!("scene{k}_{name}");
+            m.bursts.push(Burst {
+                name: bname.clone(),
+                kind: BurstKind::Scene,
+                iso: 100.0,
+                exposure_s: 0.008 * e,
+                frames: vec![format!("{bname}/000.png")],
+                scene: keys.then(|| format!("scene{k}")),
+            });
+            frames.push(vec![Image::from_vec(w, h, data)]);
+        }
+    }
+    write_capture_set(dir, &m, &frames).expect("write capture set");
 }

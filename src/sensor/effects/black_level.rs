@@ -17,6 +17,7 @@ const NAME: &str = "mean dark level";
 pub const ENTRY: Entry = Entry {
     id: ID,
     about: "pedestal offset from the declared black level (DN)",
+    needs: "a dark burst",
     install,
     statistics,
     fit,

@@ -21,6 +21,7 @@ const NAMES: [&str; 3] = [
 pub const ENTRY: Entry = Entry {
     id: ID,
     about: "different noise a, b per colour channel (multipliers on the profile's a, b)",
+    needs: "a dark or flat burst with ≥ 2 frames",
     install,
     statistics,
     fit,

@@ -30,6 +30,7 @@ pub const RHO_MAX: f64 = 0.95;
 pub const ENTRY: Entry = Entry {
     id: ID,
     about: "spatially correlated noise: separable Gaussian kernel, lag-1 correlation rho_h, rho_v",
+    needs: "a dark burst with ≥ 2 frames",
     install,
     statistics,
     fit,

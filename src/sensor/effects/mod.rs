@@ -42,6 +42,8 @@ pub struct Entry {
     pub id: &'static str,
     /// One line: what the effect is.
     pub about: &'static str,
+    /// The bursts its statistics need (reported when a capture set has none).
+    pub needs: &'static str,
     /// Check the parameters and add the effect to the plan.
     pub install: fn(&toml::Table, &mut Plan) -> Result<(), String>,
     /// The effect's diagnostic statistics of one capture set (measured or simulated).

@@ -21,6 +21,7 @@ const NAME: &str = "response exponent";
 pub const ENTRY: Entry = Entry {
     id: ID,
     about: "signal not proportional to exposure × ISO: I → R·(I/R)^exponent",
+    needs: "scene bursts of one scene at two exposures, or flats of one ISO at two exposure times",
     install,
     statistics,
     fit,
@@ -37,14 +38,17 @@ fn install(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
     Ok(())
 }
 
-/// Scene bursts grouped by frame size; within a group the reference (largest exposure) first.
+/// Scene bursts grouped by their declared `scene` (captures.toml); bursts without one by
+/// frame size (the fallback: one size = one scene, which the report names); within a group
+/// the reference (largest exposure) first.
 pub fn scene_groups(s: &[Summary]) -> Vec<Vec<&Summary>> {
     let mut groups: Vec<Vec<&Summary>> = Vec::new();
     for b in s.iter().filter(|b| b.kind == BurstKind::Scene) {
-        match groups
-            .iter_mut()
-            .find(|g| (g[0].width, g[0].height) == (b.width, b.height))
-        {
+        match groups.iter_mut().find(|g| match (&g[0].scene, &b.scene) {
+            (Some(x), Some(y)) => x == y && (g[0].width, g[0].height) == (b.width, b.height),
+            (None, None) => (g[0].width, g[0].height) == (b.width, b.height),
+            _ => false,
+        }) {
             Some(g) => g.push(b),
             None => groups.push(vec![b]),
         }

@@ -38,6 +38,8 @@ pub struct BurstInfo {
     pub width: usize,
     pub height: usize,
     pub frames: usize,
+    /// The `scene` key of a scene burst (captures.toml), if declared.
+    pub scene: Option<String>,
 }
 
 impl BurstInfo {
@@ -72,6 +74,8 @@ pub struct Summary {
     pub width: usize,
     pub height: usize,
     pub frames: usize,
+    /// The declared scene of a scene burst.
+    pub scene: Option<String>,
     /// Temporal mean per value (DN).
     pub mean: Vec<f64>,
     /// Temporal unbiased variance per value (DN²); empty with one frame or for scene bursts.
@@ -230,6 +234,7 @@ impl Accumulator {
             width: self.w,
             height: self.h,
             frames: self.n,
+            scene: info.scene.clone(),
             mean,
             var,
             fixed: Vec::new(),
