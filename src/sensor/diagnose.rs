@@ -199,7 +199,10 @@ pub fn base_profile(
         ),
         None => {
             let (w, b) = declared_levels(set).ok_or_else(|| {
-                Error::config(&set.manifest_path, "no declared [sensor] white_level, black_level")
+                Error::config(
+                    &set.manifest_path,
+                    "no declared [sensor] white_level, black_level",
+                )
             })?;
             (w, b, format!("white {w}, black {b} (declared)"))
         }
@@ -303,7 +306,10 @@ pub fn refit_noise(profile: &mut SensorProfile, measured: &[Summary]) -> Result<
     let black = profile.levels.black_level + plan.black_offset as f64;
     let ptc = effects::summary::temporal_ptc(measured, black, (plan.row_sigma as f64).powi(2));
     for n in &mut profile.noise {
-        let Some(f) = ptc.iter().find(|f| (f.iso - n.iso).abs() <= 1e-9 * n.iso.abs()) else {
+        let Some(f) = ptc
+            .iter()
+            .find(|f| (f.iso - n.iso).abs() <= 1e-9 * n.iso.abs())
+        else {
             continue;
         };
         let b = (0..3).map(|c| f.b[c] / plan.b_scale[c] as f64).sum::<f64>() / 3.0;
@@ -335,8 +341,8 @@ fn targets(proto: &Protocol, measured: &[Summary], plan: &Plan) -> Vec<Option<Im
         effects::nonlinear_response::flat_series(measured)
             .into_iter()
             .map(|g| {
-                let zero = effects::summary::dark_mean(measured, g[0].iso)
-                    .unwrap_or([proto.black; 3]);
+                let zero =
+                    effects::summary::dark_mean(measured, g[0].iso).unwrap_or([proto.black; 3]);
                 let r = effects::nonlinear_response::flat_reference(
                     &g,
                     zero,
@@ -790,9 +796,11 @@ pub fn diagnose(
         .map(evidence)
         .collect();
     // Exposure pairs that do not scale with exposure, left unexplained: say what it means.
-    for r in current.rows.iter().filter(|r| {
-        r.significant && r.stat.effect == Some(effects::nonlinear_response::ID)
-    }) {
+    for r in current
+        .rows
+        .iter()
+        .filter(|r| r.significant && r.stat.effect == Some(effects::nonlinear_response::ID))
+    {
         notes.push(format!(
             "{}: the signal scales as exposure^{:.3} instead of exposure^{:.3}: the frames hide \
              a tone curve (not linear sensor data); a curve that differs between scenes or has \

@@ -191,7 +191,9 @@ impl Truth {
         let (w, h, s) = (self.width, self.height, self.corr_gauss);
         let r = (4.0 * s).ceil() as usize;
         let (pw, ph) = (w + 2 * r, h + 2 * r);
-        let e: Vec<f64> = (0..pw * ph * 3).map(|_| StandardNormal.sample(rng)).collect();
+        let e: Vec<f64> = (0..pw * ph * 3)
+            .map(|_| StandardNormal.sample(rng))
+            .collect();
         let n = 2 * r + 1;
         let mut k = vec![0.0; n * n];
         for j in 0..n {

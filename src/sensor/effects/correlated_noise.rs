@@ -56,7 +56,13 @@ pub fn kernel(s: f64) -> Vec<f64> {
 /// Lag-`d` correlation of white noise filtered by the full kernel of half kernel `k`.
 pub fn lag_correlation(k: &[f64], d: usize) -> f64 {
     let r = k.len() as isize - 1;
-    let at = |i: isize| if i.abs() <= r { k[i.unsigned_abs()] } else { 0.0 };
+    let at = |i: isize| {
+        if i.abs() <= r {
+            k[i.unsigned_abs()]
+        } else {
+            0.0
+        }
+    };
     (-r..=r).map(|i| at(i) * at(i + d as isize)).sum()
 }
 

@@ -66,9 +66,10 @@ pub fn scene_groups(s: &[Summary]) -> Vec<Vec<&Summary>> {
 pub fn flat_series(s: &[Summary]) -> Vec<Vec<&Summary>> {
     let mut groups: Vec<Vec<&Summary>> = Vec::new();
     for b in s.iter().filter(|b| b.kind == BurstKind::Flat) {
-        match groups.iter_mut().find(|g| {
-            (g[0].iso, g[0].width, g[0].height) == (b.iso, b.width, b.height)
-        }) {
+        match groups
+            .iter_mut()
+            .find(|g| (g[0].iso, g[0].width, g[0].height) == (b.iso, b.width, b.height))
+        {
             Some(g) => g.push(b),
             None => groups.push(vec![b]),
         }

@@ -507,9 +507,8 @@ pub struct TemporalPtc {
 /// signal, so vignetting and PRNU (signal spread within a burst) do not either.
 pub fn temporal_ptc(s: &[Summary], black: f64, extra_var: f64) -> Vec<TemporalPtc> {
     use crate::sensor::noise::{Bin, wls};
-    let usable = |b: &&Summary| {
-        matches!(b.kind, BurstKind::Dark | BurstKind::Flat) && !b.var.is_empty()
-    };
+    let usable =
+        |b: &&Summary| matches!(b.kind, BurstKind::Dark | BurstKind::Flat) && !b.var.is_empty();
     let mut isos: Vec<f64> = s.iter().filter(usable).map(|b| b.iso).collect();
     isos.sort_by(f64::total_cmp);
     isos.dedup();
