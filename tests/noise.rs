@@ -416,6 +416,11 @@ fn manifest_errors_name_the_burst_and_file_and_write_nothing() {
             vec!["flat_a", "unknown key 'gain'"],
         ),
         (
+            "scene key on a flat",
+            Box::new(|d: &Path| edit(d, "name = \"flat_a\"", "name = \"flat_a\"\nscene = \"x\"")),
+            vec!["flat_a", "'scene' names the scene of a scene burst"],
+        ),
+        (
             "unknown kind",
             Box::new(|d: &Path| edit(d, "kind = \"flat\"", "kind = \"bright\"")),
             vec!["flat_a", "unknown kind 'bright'"],
