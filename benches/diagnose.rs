@@ -80,6 +80,7 @@ fn write_set(dir: &Path, size: usize, frames: usize) {
                 iso,
                 exposure_s: level / 10.0 / iso * 100.0,
                 frames: rel,
+                scene: None,
             });
         }
     }

@@ -194,7 +194,8 @@ fn hidden_correlated_noise() {
     t.corr_rho = 0.25;
     let (d, _) = run(&t, "correlated");
     single(&d, "correlated_noise");
-    within(param(&d, "correlated_noise", "rho"), 0.25, "rho");
+    // The truth's filter is vertical only: rho_v carries it.
+    within(param(&d, "correlated_noise", "rho_v"), 0.25, "rho_v");
 }
 
 #[test]
@@ -260,7 +261,7 @@ fn weak_hidden_effects() {
         ("dsnu", "sigma_dn", 1.0, |t| t.dsnu_sigma = 1.0),
         ("prnu", "sigma", 0.004, |t| t.prnu_sigma = 0.004),
         ("vignetting", "strength", 0.06, |t| t.vignetting = 0.06),
-        ("correlated_noise", "rho", 0.1, |t| t.corr_rho = 0.1),
+        ("correlated_noise", "rho_v", 0.1, |t| t.corr_rho = 0.1),
         ("nonlinear_response", "exponent", 0.93, |t| {
             t.exponent = 0.93
         }),
@@ -536,7 +537,7 @@ fn confusable_pairs_are_told_apart() {
             },
             [
                 ("row_noise", "sigma_dn", 1.0),
-                ("correlated_noise", "rho", 0.2),
+                ("correlated_noise", "rho_v", 0.2),
             ],
         ),
         (
@@ -589,4 +590,213 @@ fn confusable_pairs_are_told_apart() {
             }
         }
     }
+}
+
+/// The final model's temporal noise against the truth: per ISO, the shared a and b (DN, DN²)
+/// within `tol` of the planted ones, and every dark and flat burst's simulated mean temporal
+/// variance within 3 % of the measured one (the base-model check of the issue's failures).
+/// Returns the disagreements, so a test lists every failing case at once.
+fn temporal_noise_mismatches(d: &Diagnosis, t: &Truth, tol: f64, what: &str) -> Vec<String> {
+    let mut bad = Vec::new();
+    let p = &d.profile;
+    let range = p.levels.white_level - p.levels.black_level;
+    for &iso in &t.isos {
+        let (a, b) = p.noise_at(iso).unwrap();
+        let (ta, tb) = (t.a100 * iso / 100.0, t.b100 * iso / 100.0);
+        let (a, b) = (a[0] * range, b[0] * range * range);
+        if (a - ta).abs() > tol * ta || (b - tb).abs() > tol * tb {
+            bad.push(format!(
+                "{what}, ISO {iso}: model a {a:.4} b {b:.3}, planted a {ta} b {tb}"
+            ));
+        }
+    }
+    let rows: Vec<_> = d
+        .last
+        .rows
+        .iter()
+        .filter(|r| r.stat.key.ends_with("mean temporal variance"))
+        .collect();
+    assert!(!rows.is_empty());
+    for r in rows {
+        let rel = (r.sim_mean - r.stat.value) / r.stat.value;
+        if rel.abs() >= 0.03 {
+            bad.push(format!(
+                "{what}: {} measured {:.3}, model {:.3} ({:+.1} %)",
+                r.stat.key,
+                r.stat.value,
+                r.sim_mean,
+                100.0 * rel
+            ));
+        }
+    }
+    bad
+}
+
+/// Issue 15, items 2 and 3: black offsets from 2 to 200 DN and every fixed pattern of the
+/// catalogue (column FPN, DSNU, PRNU, hot pixels, vignetting) at two ISOs leave the model's
+/// temporal noise (a, b) at the planted values: temporal statistics see no fixed pattern, and the
+/// pedestal is named without breaking b.
+#[test]
+fn fixed_patterns_and_black_offsets_leave_temporal_noise_alone() {
+    type Set = fn(&mut Truth);
+    let cases: [(&str, &str, Set); 9] = [
+        ("black 2", "black_level", |t| t.black_offset = 2.0),
+        ("black 40", "black_level", |t| t.black_offset = 40.0),
+        ("black 200", "black_level", |t| t.black_offset = 200.0),
+        ("column 2.5", "column_noise", |t| t.column_sigma = 2.5),
+        ("column 6", "column_noise", |t| t.column_sigma = 6.0),
+        ("dsnu 4", "dsnu", |t| t.dsnu_sigma = 4.0),
+        ("prnu 2 %", "prnu", |t| t.prnu_sigma = 0.02),
+        ("hot 0.5 %", "hot_pixels", |t| t.hot = Some((0.005, 400.0))),
+        ("vignetting 0.25", "vignetting", |t| t.vignetting = 0.25),
+    ];
+    let mut bad = Vec::new();
+    for (k, (name, id, set)) in cases.iter().enumerate() {
+        let mut t = Truth::new(64, 48, 8, 1500 + k as u64);
+        t.isos = vec![100.0, 400.0];
+        t.a100 = 0.35;
+        t.b100 = 4.0;
+        set(&mut t);
+        let (d, _) = run(&t, &format!("fixed-{k}"));
+        if !d.steps.iter().any(|s| s.effect == *id) {
+            bad.push(format!("{name}: {id} not named"));
+        }
+        if d.final_gap() > d.threshold {
+            bad.push(format!("{name}: unexplained {:?}", d.unexplained));
+        }
+        bad.extend(temporal_noise_mismatches(&d, &t, 0.05, name));
+    }
+    assert!(bad.is_empty(), "{}", bad.join("\n"));
+}
+
+/// Issue 15, item 5: Student-t read noise at two strengths is named and the model keeps the
+/// measured temporal variance (b within 5 %, every burst's mean variance within 3 %).
+#[test]
+fn heavy_tails_keep_the_temporal_variance() {
+    let mut bad = Vec::new();
+    for (k, dof) in [5.0, 7.0].into_iter().enumerate() {
+        let mut t = Truth::new(96, 64, 16, 1600 + k as u64);
+        t.heavy_dof = Some(dof);
+        let (d, _) = run(&t, &format!("heavy-{k}"));
+        single(&d, "heavy_tailed_read_noise");
+        within(param(&d, "heavy_tailed_read_noise", "dof"), dof, "dof");
+        bad.extend(temporal_noise_mismatches(
+            &d,
+            &t,
+            0.05,
+            &format!("dof {dof}"),
+        ));
+    }
+    assert!(bad.is_empty(), "{}", bad.join("\n"));
+}
+
+/// Issue 15, item 4: noise filtered by a 2-D Gaussian kernel (the truth's own direct 2-D
+/// filter) at lag-1 correlations from ≈ 0.45 to ≈ 0.91, beyond the old family's 0.5: named
+/// first, both axes' lag-1 correlation within 10 % of the value computed by hand from the
+/// truth's kernel, the gap closed, and the temporal variance kept.
+#[test]
+fn correlated_noise_up_to_high_correlation() {
+    let mut bad = Vec::new();
+    for (k, s) in [0.6, 0.95, 1.6].into_iter().enumerate() {
+        let mut t = Truth::new(80, 60, 12, 1700 + k as u64);
+        t.corr_gauss = s;
+        let want = t.gauss_lag1();
+        let (d, _) = run(&t, &format!("gauss-{k}"));
+        single(&d, "correlated_noise");
+        for key in ["rho_h", "rho_v"] {
+            let got = param(&d, "correlated_noise", key);
+            if (got - want).abs() > 0.1 * want {
+                bad.push(format!("σ {s}: {key} {got}, by hand {want:.4}"));
+            }
+        }
+        bad.extend(temporal_noise_mismatches(&d, &t, 0.05, &format!("σ {s}")));
+    }
+    assert!(bad.is_empty(), "{}", bad.join("\n"));
+}
+
+/// Issue 15, item 1: a response exponent with no scene bursts is found from the flat series
+/// (EMVA 1288: flats at two exposure times, one illumination) at several strengths and both
+/// directions, and recovered within 5 %.
+#[test]
+fn linearity_from_flat_series() {
+    for (k, p) in [0.85, 0.93, 1.12].into_iter().enumerate() {
+        let mut t = Truth::new(64, 48, 8, 1800 + k as u64);
+        t.scenes = false;
+        t.exponent = p;
+        let (d, _) = run(&t, &format!("flat-linearity-{k}"));
+        single(&d, "nonlinear_response");
+        let got = param(&d, "nonlinear_response", "exponent");
+        assert!((got - p).abs() <= 0.05 * p, "exponent {got}, planted {p}");
+    }
+}
+
+/// Issue 15, item 6: a scene-only set (three scenes of one size, an EV0/EV−3 pair each, one
+/// frame per burst, no darks or flats) runs without a profile; with `scene` keys each pair is
+/// compared within its scene and the shared tone curve is named and recovered (exponents 0.8
+/// and 1.15); the statistics the set cannot support are listed as not tested. Without the keys
+/// the size fallback is used and the report says so.
+#[test]
+fn scene_only_sets_group_by_scene_key() {
+    let opts = DiagnoseOptions {
+        replicates: 12,
+        seed: 3,
+        ..DiagnoseOptions::default()
+    };
+    for (k, p) in [0.8, 1.15].into_iter().enumerate() {
+        let dir = std::env::temp_dir().join(format!("hdrsynth-scenes-{k}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        truth::write_scene_pairs(&dir, 48, 32, &[p, p, p], true, 40 + k as u64);
+        let set = CaptureSet::load(&dir).expect("load");
+        let d = diagnose(&set, None, &opts).expect("a scene-only set runs without a profile");
+        eprintln!("{}\n{:?}\n{:?}", d.report_json(), d.notes, d.skipped);
+        single(&d, "nonlinear_response");
+        let got = param(&d, "nonlinear_response", "exponent");
+        assert!((got - p).abs() <= 0.05 * p, "exponent {got}, planted {p}");
+        // Three scenes, one pair each: three statistics, one per scene.
+        let n = d
+            .initial
+            .rows
+            .iter()
+            .filter(|r| r.stat.effect == Some("nonlinear_response"))
+            .count();
+        assert_eq!(n, 3);
+        for id in ["row_noise", "dsnu", "prnu", "vignetting", "black_level"] {
+            assert!(
+                d.skipped
+                    .iter()
+                    .any(|s| s.starts_with(&format!("{id}: not tested"))),
+                "{id} not listed as skipped: {:?}",
+                d.skipped
+            );
+        }
+        assert!(!d.notes.iter().any(|n| n.contains("grouped by frame size")));
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+    // A tone curve that differs between scenes (like the paper's frames, whose EV0/EV−3 ratio
+    // varies 9–29): no single power law explains it, and the report says the frames hide a
+    // tone curve.
+    let dir = std::env::temp_dir().join(format!("hdrsynth-scenes-mixed-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    truth::write_scene_pairs(&dir, 48, 32, &[0.9, 1.2, 1.5], true, 60);
+    let set = CaptureSet::load(&dir).expect("load");
+    let d = diagnose(&set, None, &opts).expect("diagnose");
+    assert!(!d.unexplained.is_empty(), "{}", d.report_json());
+    assert!(
+        d.notes.iter().any(|n| n.contains("hide a tone curve")),
+        "{:?}",
+        d.notes
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+    // No keys: the fallback groups the six bursts as one scene, and the report says so.
+    let dir = std::env::temp_dir().join(format!("hdrsynth-scenes-nokey-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    truth::write_scene_pairs(&dir, 48, 32, &[1.0, 1.0, 1.0], false, 50);
+    let set = CaptureSet::load(&dir).expect("load");
+    let d = diagnose(&set, None, &opts).expect("diagnose");
+    assert!(
+        d.notes.iter().any(|n| n.contains("grouped by frame size")),
+        "{:?}",
+        d.notes
+    );
+    let _ = std::fs::remove_dir_all(&dir);
 }

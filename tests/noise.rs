@@ -155,6 +155,7 @@ fn simulate(dir: &Path, defects: &Defects, seed: u64) -> CaptureManifest {
                     0.01
                 },
                 frames: paths,
+                scene: None,
             });
             frames.push(imgs);
         }
@@ -390,6 +391,7 @@ fn small_set(dir: &Path) -> CaptureManifest {
             iso: 200.0,
             exposure_s: 0.01,
             frames: paths,
+            scene: None,
         });
         frames.push(imgs);
     }
@@ -412,6 +414,11 @@ fn manifest_errors_name_the_burst_and_file_and_write_nothing() {
             "unknown key",
             Box::new(|d: &Path| edit(d, "name = \"flat_a\"", "name = \"flat_a\"\ngain = 2")),
             vec!["flat_a", "unknown key 'gain'"],
+        ),
+        (
+            "scene key on a flat",
+            Box::new(|d: &Path| edit(d, "name = \"flat_a\"", "name = \"flat_a\"\nscene = \"x\"")),
+            vec!["flat_a", "'scene' names the scene of a scene burst"],
         ),
         (
             "unknown kind",

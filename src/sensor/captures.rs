@@ -18,6 +18,7 @@
 //! iso = 100
 //! exposure_s = 0.0068
 //! frames = ["flat_iso100_0/000.png", "flat_iso100_0/001.png"]
+//! # scene = "street"  # scene bursts only, optional: bursts with one `scene` show one scene
 //! ```
 //!
 //! Frames are 8- or 16-bit PNG (TIFF is read too), RGB (grey is replicated), and their code
@@ -98,6 +99,12 @@ pub struct Burst {
     pub exposure_s: f64,
     /// Frame paths relative to the capture-set directory ('/' separated).
     pub frames: Vec<String>,
+    /// Scene bursts only, optional: the scene shown. Scene bursts with the same `scene` are one
+    /// static scene at different exposures (the gap workflow compares their responses);
+    /// without the key, scene bursts of one frame size are taken as one scene (a fallback the
+    /// diagnosis report names).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scene: Option<String>,
 }
 
 /// The whole `captures.toml`.
@@ -114,6 +121,8 @@ pub struct CaptureManifest {
 const TOP_KEYS: [&str; 3] = ["format", "sensor", "burst"];
 const SENSOR_KEYS: [&str; 3] = ["name", "white_level", "black_level"];
 const BURST_KEYS: [&str; 5] = ["name", "kind", "iso", "exposure_s", "frames"];
+/// Optional `[[burst]]` keys.
+const BURST_OPTIONAL: [&str; 1] = ["scene"];
 
 impl CaptureManifest {
     pub fn new() -> CaptureManifest {
@@ -182,6 +191,18 @@ impl CaptureManifest {
             }
             if b.frames.is_empty() {
                 return Err(format!("{at}: frames is empty"));
+            }
+            match &b.scene {
+                Some(_) if b.kind != BurstKind::Scene => {
+                    return Err(format!(
+                        "{at}: 'scene' names the scene of a scene burst; this burst is '{}'",
+                        b.kind.as_str()
+                    ));
+                }
+                Some(sc) if sc.trim().is_empty() => {
+                    return Err(format!("{at}: scene must not be empty"));
+                }
+                _ => {}
             }
             for f in &b.frames {
                 let p = Path::new(f);
@@ -276,10 +297,11 @@ fn check_keys(table: &toml::Table, path: &Path) -> Result<()> {
         };
         let at = burst_label(i, b.get("name").and_then(|n| n.as_str()));
         for k in b.keys() {
-            if !BURST_KEYS.contains(&k.as_str()) {
+            if !BURST_KEYS.contains(&k.as_str()) && !BURST_OPTIONAL.contains(&k.as_str()) {
                 return bad(format!(
-                    "{at}: unknown key '{k}' (expected {})",
-                    BURST_KEYS.join(", ")
+                    "{at}: unknown key '{k}' (expected {}, optionally {})",
+                    BURST_KEYS.join(", "),
+                    BURST_OPTIONAL.join(", ")
                 ));
             }
         }

@@ -94,8 +94,10 @@ pub struct Diagnosis {
     pub steps: Vec<Step>,
     pub last: Evaluation,
     pub unexplained: Vec<String>,
-    /// Effects named but not kept, and why.
+    /// Effects named but not kept, and why; how scenes were grouped; what is not modelled.
     pub notes: Vec<String>,
+    /// Statistics the captures do not support, and the bursts they need.
+    pub skipped: Vec<String>,
     pub profile: SensorProfile,
     pub calibration: Option<NoiseCalibration>,
     /// Measured flat summaries' radial profiles for the plot: (burst name, [(r², mean)]).
@@ -118,6 +120,7 @@ pub fn protocol(set: &CaptureSet, profile: &SensorProfile) -> Result<Protocol> {
                 width: w,
                 height: h,
                 frames: b.frames.len(),
+                scene: b.scene.clone(),
             })
             .collect(),
         black: profile.levels.black_level + plan.black_offset as f64,
@@ -179,11 +182,50 @@ pub fn ptc_bursts(set: &CaptureSet) -> CaptureSet {
 /// The paper's base model from the captures (no profile given).
 pub fn base_profile(
     set: &CaptureSet,
-    cal: &NoiseCalibration,
+    cal: Option<&NoiseCalibration>,
     measured: &[Summary],
 ) -> Result<SensorProfile> {
-    let (white, black) = (cal.white_level, cal.black_level);
-    let mut noise = cal.to_noise(white, black);
+    let (white, black, levels_src) = match cal {
+        Some(cal) => (
+            cal.white_level,
+            cal.black_level,
+            format!(
+                "white {} ({}), black {} ({})",
+                cal.white_level,
+                cal.white_source.describe(),
+                cal.black_level,
+                cal.black_source.describe()
+            ),
+        ),
+        None => {
+            let (w, b) = declared_levels(set).ok_or_else(|| {
+                Error::config(
+                    &set.manifest_path,
+                    "no declared [sensor] white_level, black_level",
+                )
+            })?;
+            (w, b, format!("white {w}, black {b} (declared)"))
+        }
+    };
+    // Without a calibration (no dark or flat bursts with ≥ 2 frames) the model is noise-free
+    // at every ISO of the set: only statistics of means (response, exposure ratios) compare.
+    let mut noise = match cal {
+        Some(cal) => cal.to_noise(white, black),
+        None => {
+            let mut isos: Vec<f64> = set.bursts().iter().map(|b| b.iso).collect();
+            isos.sort_by(f64::total_cmp);
+            isos.dedup();
+            isos.into_iter()
+                .map(|iso| crate::sensor::profile::NoiseAtIso {
+                    iso,
+                    a: [0.0; 3],
+                    b: [0.0; 3],
+                    a_stderr: None,
+                    b_stderr: None,
+                })
+                .collect()
+        }
+    };
     for n in &mut noise {
         let a = n.a.iter().sum::<f64>() / 3.0;
         let b = n.b.iter().sum::<f64>() / 3.0;
@@ -205,21 +247,22 @@ pub fn base_profile(
             white_level: white,
             bit_depth: noise::bits_for_white(white),
         },
-        &format!(
-            "white {} ({}), black {} ({}), from {}",
-            white,
-            cal.white_source.describe(),
-            black,
-            cal.black_source.describe(),
-            set.manifest_path.display()
-        ),
+        &format!("{levels_src}, from {}", set.manifest_path.display()),
         noise,
-        &format!(
-            "hdrsynth diagnose base model: one (a, b) per ISO shared by the channels (mean of the \
-             per-channel fits of {})",
-            set.manifest_path.display()
-        ),
+        &if cal.is_some() {
+            format!(
+                "hdrsynth diagnose base model: one (a, b) per ISO shared by the channels \
+                 (temporal photon transfer of the dark and flat bursts of {})",
+                set.manifest_path.display()
+            )
+        } else {
+            format!(
+                "none: {} has no dark or flat bursts with ≥ 2 frames (noise-free model)",
+                set.manifest_path.display()
+            )
+        },
     );
+    refit_noise(&mut p, measured)?;
     if let Some(chart) = measured.iter().find(|s| s.kind == BurstKind::Chart) {
         let img = Image::from_vec(
             chart.width,
@@ -251,6 +294,42 @@ pub fn base_profile(
     Ok(p)
 }
 
+/// Refit the model's shared (a, b) per ISO from the measured summaries' temporal photon
+/// transfer (`summary::temporal_ptc`) under the model's effects: signals above the dark mean
+/// (a pedestal cannot bias a or b), the row-offset variance the model draws separately taken
+/// out of b, channel-noise scales divided out (so shared × scale is each channel's fit). ISOs
+/// without a flat keep their a; ISOs without dark or flat keep both. Used for the base model
+/// and after every step (never on a given profile, whose noise is the user's).
+pub fn refit_noise(profile: &mut SensorProfile, measured: &[Summary]) -> Result<()> {
+    let plan = Plan::from_effects(&profile.effects).map_err(Error::Invalid)?;
+    let range = profile.levels.white_level - profile.levels.black_level;
+    let black = profile.levels.black_level + plan.black_offset as f64;
+    let ptc = effects::summary::temporal_ptc(measured, black, (plan.row_sigma as f64).powi(2));
+    for n in &mut profile.noise {
+        let Some(f) = ptc
+            .iter()
+            .find(|f| (f.iso - n.iso).abs() <= 1e-9 * n.iso.abs())
+        else {
+            continue;
+        };
+        let b = (0..3).map(|c| f.b[c] / plan.b_scale[c] as f64).sum::<f64>() / 3.0;
+        n.b = [b / (range * range); 3];
+        if let Some(a) = f.a {
+            let a = (0..3).map(|c| a[c] / plan.a_scale[c] as f64).sum::<f64>() / 3.0;
+            n.a = [a / range; 3];
+        }
+        n.a_stderr = None;
+        n.b_stderr = None;
+    }
+    Ok(())
+}
+
+/// The capture set's declared (white, black) levels, when both are declared.
+fn declared_levels(set: &CaptureSet) -> Option<(f64, f64)> {
+    let s = &set.manifest.sensor;
+    Some((s.white_level?, s.black_level?))
+}
+
 /// Simulation targets (linear input images, normalised so 1 = the range) per burst; None for
 /// bursts that no statistic uses (charts, lone scene bursts).
 fn targets(proto: &Protocol, measured: &[Summary], plan: &Plan) -> Vec<Option<Image>> {
@@ -258,6 +337,20 @@ fn targets(proto: &Protocol, measured: &[Summary], plan: &Plan) -> Vec<Option<Im
     let p = proto.exponent;
     let lin = |s: f64| range * (s.max(0.0) / range).powf(1.0 / p);
     let groups = effects::nonlinear_response::scene_groups(measured);
+    let flat_series: Vec<(Vec<&Summary>, Option<&Summary>)> =
+        effects::nonlinear_response::flat_series(measured)
+            .into_iter()
+            .map(|g| {
+                let zero =
+                    effects::summary::dark_mean(measured, g[0].iso).unwrap_or([proto.black; 3]);
+                let r = effects::nonlinear_response::flat_reference(
+                    &g,
+                    zero,
+                    proto.white - proto.black,
+                );
+                (g, r)
+            })
+            .collect();
     measured
         .iter()
         .map(|m| {
@@ -272,9 +365,17 @@ fn targets(proto: &Protocol, measured: &[Summary], plan: &Plan) -> Vec<Option<Im
                         }
                     }
                     g /= (w * h) as f64;
+                    // In a flat series (one illumination, several exposure times) the level
+                    // is the reference's scaled by exposure, so the model's response is
+                    // tested (EMVA 1288); otherwise the flat's own measured level.
+                    let (src, scale) = flat_series
+                        .iter()
+                        .find(|(g, _)| g.iter().any(|b| b.burst == m.burst))
+                        .and_then(|(_, r)| *r)
+                        .map_or((m, 1.0), |r| (r, m.exposure_s / r.exposure_s));
                     let level: [f64; 3] = std::array::from_fn(|c| {
-                        let s = effects::masked_mean(&m.mean, |i| i % 3 == c && m.not_hot(i));
-                        lin((s - proto.black) / g) / range
+                        let s = effects::masked_mean(&src.mean, |i| i % 3 == c && src.not_hot(i));
+                        lin((s - proto.black) / g) * scale / range
                     });
                     Some(Image::from_fn(w, h, |_, _| level.map(|v| v as f32)))
                 }
@@ -509,49 +610,65 @@ pub fn diagnose(
         black_level: profile.as_ref().map(|p| p.levels.black_level),
     };
     let calibration = noise::calibrate(&ptc_bursts(set), &cal_opts);
-    let levels_proto = {
-        // Levels only matter to the statistics, not to the summaries.
-        let tmp = match &profile {
-            Some(p) => p.clone(),
-            None => {
-                let cal = calibration.as_ref().map_err(|e| {
-                    Error::config(
-                        &set.manifest_path,
-                        format!("the base model needs a noise calibration of the captures: {e}"),
-                    )
-                })?;
-                noise::new_measured_profile(
-                    "tmp",
-                    Levels {
-                        black_level: cal.black_level,
-                        white_level: cal.white_level,
-                        bit_depth: noise::bits_for_white(cal.white_level),
-                    },
-                    "",
-                    Vec::new(),
-                    "",
-                )
-            }
-        };
-        protocol(set, &tmp)?
+    // Levels for the summaries: the profile's, the calibration's, or (a set without darks
+    // and flats, e.g. scene pairs) the declared ones.
+    let (white, black) = match (&profile, &calibration) {
+        (Some(p), _) => (p.levels.white_level, p.levels.black_level),
+        (None, Ok(cal)) => (cal.white_level, cal.black_level),
+        (None, Err(e)) => declared_levels(set).ok_or_else(|| {
+            Error::config(
+                &set.manifest_path,
+                format!(
+                    "the base model needs a noise calibration of the captures ({e}), or, for a \
+                     set without dark and flat bursts, declared [sensor] white_level and \
+                     black_level (or --profile)"
+                ),
+            )
+        })?,
     };
+    let levels_proto = protocol(
+        set,
+        &noise::new_measured_profile(
+            "levels",
+            Levels {
+                black_level: black,
+                white_level: white,
+                bit_depth: noise::bits_for_white(white),
+            },
+            "",
+            Vec::new(),
+            "",
+        ),
+    )?;
     let measured = measure(set, &levels_proto)?;
+    let fitted_base = profile.is_none();
+    let mut notes = Vec::new();
     let (mut model, base) = match profile {
         Some(p) => {
             let name = p.name.clone();
             (p, format!("the given profile '{name}'"))
         }
-        None => {
-            let cal = calibration
-                .as_ref()
-                .map_err(|e| Error::Invalid(e.to_string()))?;
-            (
-                base_profile(set, cal, &measured)?,
+        None => match &calibration {
+            Ok(cal) => (
+                base_profile(set, Some(cal), &measured)?,
                 "the paper's base model fitted from the captures (T from the chart, one (a, b) \
-                 per ISO shared by the channels, declared levels)"
+                 per ISO shared by the channels from the temporal photon transfer, declared \
+                 levels)"
                     .to_string(),
-            )
-        }
+            ),
+            Err(e) => {
+                notes.push(format!(
+                    "no noise calibration ({e}): the base model is noise-free, so only \
+                     statistics of means (response, exposure ratios) are compared"
+                ));
+                (
+                    base_profile(set, None, &measured)?,
+                    "the paper's base model without noise (declared levels, T from the chart if \
+                     any)"
+                        .to_string(),
+                )
+            }
+        },
     };
     let proto0 = protocol(set, &model)?;
     let m = statistics(&proto0, &measured).len();
@@ -563,9 +680,39 @@ pub fn diagnose(
     };
     let calibration = calibration.ok();
     let initial = evaluate(&ctx, &model)?;
+    let measured_stats = statistics(&proto0, &measured);
+    let mut skipped: Vec<String> = effects::CATALOGUE
+        .iter()
+        .filter(|e| !measured_stats.iter().any(|s| s.effect == Some(e.id)))
+        .map(|e| format!("{}: not tested, needs {}", e.id, e.needs))
+        .collect();
+    if !measured_stats.iter().any(|s| s.effect.is_none()) {
+        skipped.push(
+            "mean temporal variance (base-model check): not tested, needs a dark or flat burst \
+             with ≥ 2 frames"
+                .into(),
+        );
+    }
+    let by_size: Vec<String> = effects::nonlinear_response::scene_groups(&measured)
+        .iter()
+        .filter(|g| g[0].scene.is_none())
+        .map(|g| {
+            g.iter()
+                .map(|b| set.bursts()[b.burst].name.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        })
+        .collect();
+    if !by_size.is_empty() {
+        notes.push(format!(
+            "scene bursts without a `scene` key were grouped by frame size, one size taken as \
+             one scene ({}); declare `scene = \"…\"` on each scene burst in captures.toml to \
+             group them explicitly",
+            by_size.join("; ")
+        ));
+    }
     let mut current = initial.clone();
     let mut steps = Vec::new();
-    let mut notes = Vec::new();
     let mut tried: Vec<&str> = Vec::new();
     while current.gap > ctx.threshold {
         let in_model: Vec<String> = model.effects.iter().map(|e| e.id.clone()).collect();
@@ -593,7 +740,6 @@ pub fn diagnose(
             summaries: &measured,
             protocol: &proto,
             profile: &model,
-            calibration: calibration.as_ref(),
             seed: hash(opts.seed, &[steps.len() as u64, 0xf17]),
         };
         let params = match (entry.fit)(&fctx) {
@@ -611,7 +757,11 @@ pub fn diagnose(
             id: id.to_string(),
             params: params.clone(),
         });
-        if let Some(adjust) = entry.adjust {
+        if fitted_base {
+            // The base noise was fitted from the captures: refit it under the new model
+            // (corrected black, row variance drawn separately, channel scales).
+            refit_noise(&mut next, &measured)?;
+        } else if let Some(adjust) = entry.adjust {
             adjust(&mut next, &params);
         }
         if let Err(m) = next.validate() {
@@ -645,6 +795,19 @@ pub fn diagnose(
         .filter(|r| r.significant)
         .map(evidence)
         .collect();
+    // Exposure pairs that do not scale with exposure, left unexplained: say what it means.
+    for r in current
+        .rows
+        .iter()
+        .filter(|r| r.significant && r.stat.effect == Some(effects::nonlinear_response::ID))
+    {
+        notes.push(format!(
+            "{}: the signal scales as exposure^{:.3} instead of exposure^{:.3}: the frames hide \
+             a tone curve (not linear sensor data); a curve that differs between scenes or has \
+             a toe/shoulder is outside the catalogue's power law",
+            r.stat.key, r.stat.value, r.sim_mean
+        ));
+    }
     if !steps.is_empty() {
         let ids: Vec<&str> = steps.iter().map(|s| s.effect.as_str()).collect();
         let note = format!(
@@ -676,6 +839,7 @@ pub fn diagnose(
         last: current,
         unexplained,
         notes,
+        skipped,
         profile: model,
         calibration,
         radial,
@@ -812,7 +976,9 @@ impl Diagnosis {
             let _ = writeln!(s, "  \"steps\": [\n{}\n  ],", steps.join(",\n"));
         }
         let un: Vec<String> = self.unexplained.iter().map(|u| json_str(u)).collect();
-        let _ = writeln!(s, "  \"unexplained\": [{}]", un.join(", "));
+        let _ = writeln!(s, "  \"unexplained\": [{}],", un.join(", "));
+        let sk: Vec<String> = self.skipped.iter().map(|u| json_str(u)).collect();
+        let _ = writeln!(s, "  \"skipped\": [{}]", sk.join(", "));
         s.push_str("}\n");
         s
     }
@@ -894,6 +1060,12 @@ impl Diagnosis {
         }
         for n in &self.notes {
             let _ = writeln!(s, "\nNote: {n}");
+        }
+        if !self.skipped.is_empty() {
+            s.push_str("\n## Not tested by these captures\n\n");
+            for k in &self.skipped {
+                let _ = writeln!(s, "- {k}");
+            }
         }
         s
     }

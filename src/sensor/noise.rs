@@ -625,12 +625,12 @@ where
 // ---------------------------------------------------------------------------------------------
 // Weighted least squares
 
-struct Wls {
-    a: f64,
-    b: f64,
-    a_se: f64,
-    b_se: f64,
-    chi2_reduced: f64,
+pub(crate) struct Wls {
+    pub a: f64,
+    pub b: f64,
+    pub a_se: f64,
+    pub b_se: f64,
+    pub chi2_reduced: f64,
 }
 
 /// Straight-line WLS y = a·x + b with w_k = 1/SE_k²:
@@ -639,7 +639,7 @@ struct Wls {
 /// First pass with the empirical SEs, then three passes with SE_k = c·ŷ_k/√n_k (c the median
 /// of s_k/ȳ_k, ŷ_k the previous fit, floored at ȳ_k/2), which keeps the weights independent
 /// of each bin's own noise. Standard errors are scaled by √max(1, χ²/(K − 2)).
-fn wls(bins: &[Bin]) -> std::result::Result<Wls, String> {
+pub(crate) fn wls(bins: &[Bin]) -> std::result::Result<Wls, String> {
     if bins.len() < 2 {
         return Err(format!(
             "{} usable bin(s); the fit needs ≥ 2 at different signal levels (a dark burst and \

@@ -311,6 +311,42 @@ impl Realism {
         }));
     }
 
+    /// Normal draws of row `row` filtered by the separable kernel (half kernels `kh`, `kv`,
+    /// effects/correlated_noise.rs). Every row, inside the frame or not, has its own draws
+    /// (the row's n in-frame draws first, so an unfiltered row is unchanged, then 3·R per side
+    /// beyond the frame's left and right edges), so the filtered field is stationary up to
+    /// the frame's border and keeps unit variance everywhere.
+    fn filtered_normals(seed: u64, row: usize, n: usize, kh: &[f32], kv: &[f32], z: &mut Vec<f32>) {
+        let (rx, ry) = (kh.len() - 1, kv.len() - 1);
+        let pad = 3 * rx;
+        let mut line = vec![0.0f32; n + 2 * pad];
+        z.clear();
+        z.resize(n, 0.0);
+        for dy in -(ry as isize)..=ry as isize {
+            let y = row as isize + dy;
+            let mut rng = Xoshiro256PlusPlus::seed_from_u64(hash(seed, &[y as u64]));
+            let mut draw = || -> f32 {
+                let v: f64 = StandardNormal.sample(&mut rng);
+                v as f32
+            };
+            for v in &mut line[pad..pad + n] {
+                *v = draw();
+            }
+            for i in (0..pad).chain(pad + n..n + 2 * pad) {
+                line[i] = draw();
+            }
+            let wv = kv[dy.unsigned_abs()];
+            for (k, o) in z.iter_mut().enumerate() {
+                let c = pad + k;
+                let mut h = kh[0] * line[c];
+                for (d, w) in kh.iter().enumerate().skip(1) {
+                    h += w * (line[c - 3 * d] + line[c + 3 * d]);
+                }
+                *o += wv * h;
+            }
+        }
+    }
+
     /// `row_dn` with the profile's effects, in physical order (src/sensor/effects/mod.rs).
     #[allow(clippy::too_many_arguments)]
     fn row_dn_effects(
@@ -353,27 +389,9 @@ impl Realism {
             NoiseModel::None => {}
             NoiseModel::Gaussian => {
                 s.prepare(n, &self.a_dn, &self.b_dn);
-                Self::row_normals(seed, row as isize, height, n, &mut s.z);
-                let alpha = self.plan.corr_alpha;
-                if alpha > 0.0 {
-                    let (mut up, mut down) = (Vec::new(), Vec::new());
-                    Self::row_normals(seed, row as isize - 1, height, n, &mut up);
-                    Self::row_normals(seed, row as isize + 1, height, n, &mut down);
-                    let z = s.z.clone();
-                    let vertical = (row > 0) as usize + (row + 1 < height) as usize;
-                    for k in 0..n {
-                        let left = k >= 3;
-                        let right = k + 3 < n;
-                        let mut v = z[k] + alpha * (up[k] + down[k]);
-                        if left {
-                            v += alpha * z[k - 3];
-                        }
-                        if right {
-                            v += alpha * z[k + 3];
-                        }
-                        let m = (vertical + left as usize + right as usize) as f32;
-                        s.z[k] = v / (1.0 + m * alpha * alpha).sqrt();
-                    }
+                match &self.plan.corr_kernels {
+                    Some((kh, kv)) => Self::filtered_normals(seed, row, n, kh, kv, &mut s.z),
+                    None => Self::row_normals(seed, row as isize, height, n, &mut s.z),
                 }
                 match &heavy {
                     None => {

@@ -41,7 +41,12 @@ pub struct Truth {
     pub channel: Option<([f64; 3], [f64; 3])>,
     pub vignetting: f64,
     pub corr_rho: f64,
+    /// Noise filtered by a 2-D Gaussian kernel of this σ (pixels; 0 = off), applied directly
+    /// (not separated) to draws padded beyond the frame, normalised to Σk² = 1 (variance kept).
+    pub corr_gauss: f64,
     pub exponent: f64,
+    /// Write the three-exposure scene (false: darks, flats and the chart only).
+    pub scenes: bool,
     pub seed: u64,
 }
 
@@ -66,7 +71,9 @@ impl Truth {
             channel: None,
             vignetting: 0.0,
             corr_rho: 0.0,
+            corr_gauss: 0.0,
             exponent: 1.0,
+            scenes: true,
             seed,
         }
     }
@@ -142,6 +149,7 @@ impl Truth {
             0.0
         };
         let norm = (1.0 + beta * beta).sqrt();
+        let gauss = (self.corr_gauss > 0.0).then(|| self.gauss_field(&mut rng));
         let t = self.heavy_dof.map(|d| StudentT::new(d).unwrap());
         let (a0, b0) = (self.a100 * iso / 100.0, self.b100 * iso / 100.0);
         let mut out = vec![0.0f32; n3];
@@ -157,7 +165,10 @@ impl Truth {
                     };
                     let mut s = (target[i] * pat.0[i]).max(0.0);
                     s = r * (s / r).powf(self.exponent);
-                    let z = (e[i] + beta * e[i + w * 3]) / norm;
+                    let z = match &gauss {
+                        Some(g) => g[i],
+                        None => (e[i] + beta * e[i + w * 3]) / norm,
+                    };
                     let noise = match &t {
                         None => (ac * s + bc).sqrt() * z,
                         Some(t) => {
@@ -172,6 +183,58 @@ impl Truth {
             }
         }
         Image::from_vec(w, h, out)
+    }
+
+    /// Unit-variance noise field (w × h × 3) filtered by the 2-D Gaussian kernel of σ
+    /// `corr_gauss`, radius ⌈4σ⌉, over draws padded by the radius on every side.
+    fn gauss_field(&self, rng: &mut Xoshiro256PlusPlus) -> Vec<f64> {
+        let (w, h, s) = (self.width, self.height, self.corr_gauss);
+        let r = (4.0 * s).ceil() as usize;
+        let (pw, ph) = (w + 2 * r, h + 2 * r);
+        let e: Vec<f64> = (0..pw * ph * 3)
+            .map(|_| StandardNormal.sample(rng))
+            .collect();
+        let n = 2 * r + 1;
+        let mut k = vec![0.0; n * n];
+        for j in 0..n {
+            for i in 0..n {
+                let (dx, dy) = (i as f64 - r as f64, j as f64 - r as f64);
+                k[j * n + i] = (-(dx * dx + dy * dy) / (2.0 * s * s)).exp();
+            }
+        }
+        let norm = k.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let mut out = vec![0.0; w * h * 3];
+        for y in 0..h {
+            for x in 0..w {
+                for c in 0..3 {
+                    let mut acc = 0.0;
+                    for j in 0..n {
+                        for i in 0..n {
+                            acc += k[j * n + i] * e[((y + j) * pw + x + i) * 3 + c];
+                        }
+                    }
+                    out[(y * w + x) * 3 + c] = acc / norm;
+                }
+            }
+        }
+        out
+    }
+
+    /// Lag-1 correlation of `corr_gauss` noise along an axis, by hand from the kernel:
+    /// Σ k(i, j)·k(i + 1, j) / Σ k² (the 2-D Gaussian factorises, so the sums over j cancel).
+    pub fn gauss_lag1(&self) -> f64 {
+        let s = self.corr_gauss;
+        let r = (4.0 * s).ceil() as i64;
+        let g = |i: i64| {
+            if i.abs() > r {
+                0.0
+            } else {
+                (-((i * i) as f64) / (2.0 * s * s)).exp()
+            }
+        };
+        let num: f64 = (-r..=r).map(|i| g(i) * g(i + 1)).sum();
+        let den: f64 = (-r..=r).map(|i| g(i) * g(i)).sum();
+        num / den
     }
 
     /// Write the capture set: per ISO a dark burst and flats at 20 % and 55 % of the range;
@@ -197,6 +260,7 @@ impl Truth {
                 iso,
                 exposure_s,
                 frames: (0..n).map(|f| format!("{name}/{f:03}.png")).collect(),
+                scene: None,
             });
             frames.push(imgs);
         };
@@ -247,7 +311,8 @@ impl Truth {
                 (0.05 + 0.85 * u) * r
             })
             .collect();
-        for (k, e) in [16.0, 4.0, 1.0].iter().enumerate() {
+        let exposures: &[f64] = if self.scenes { &[16.0, 4.0, 1.0] } else { &[] };
+        for (k, e) in exposures.iter().enumerate() {
             let t: Vec<f64> = scene.iter().map(|v| v * e / 16.0).collect();
             add(
                 format!("scene_{k}"),
@@ -261,4 +326,49 @@ impl Truth {
         write_capture_set(dir, &m, &frames).expect("write capture set");
         pat.2
     }
+}
+
+/// A scene-only capture set like the paper's public samples: per scene an EV0 and an EV−3
+/// burst of one frame each (8 and 1 ms), 8-bit range (white 255, black 0), all scenes of one
+/// frame size. Scene k has its own radiance pattern and response exponent `exponents[k]`
+/// (I → R·(I/R)^p before noise of variance a·I + b). `keys`: declare `scene = "scene<k>"`.
+pub fn write_scene_pairs(dir: &Path, w: usize, h: usize, exponents: &[f64], keys: bool, seed: u64) {
+    let (white, a, b) = (255.0f64, 0.05, 0.3);
+    let mut m = CaptureManifest::new();
+    m.sensor.name = Some("scene pairs".into());
+    m.sensor.white_level = Some(white);
+    m.sensor.black_level = Some(0.0);
+    let mut frames = Vec::new();
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed ^ 0x5ce4e);
+    for (k, &p) in exponents.iter().enumerate() {
+        // Scene k: a pattern of its own (different period and phase per scene).
+        let radiance: Vec<f64> = (0..w * h * 3)
+            .map(|i| {
+                let (x, y, c) = ((i / 3) % w, i / 3 / w, i % 3);
+                let u = ((x * (5 + 2 * k) + y * (3 + k) + c * 7 + 13 * k) % 89) as f64 / 88.0;
+                (0.05 + 0.9 * u) * white
+            })
+            .collect();
+        for (name, e) in [("ev0", 1.0), ("ev-3", 0.125)] {
+            let data: Vec<f32> = radiance
+                .iter()
+                .map(|&r| {
+                    let s = white * (r * e / white).powf(p);
+                    let z: f64 = StandardNormal.sample(&mut rng);
+                    (s + (a * s + b).sqrt() * z).clamp(0.0, white).round() as f32
+                })
+                .collect();
+            let bname = format!("scene{k}_{name}");
+            m.bursts.push(Burst {
+                name: bname.clone(),
+                kind: BurstKind::Scene,
+                iso: 100.0,
+                exposure_s: 0.008 * e,
+                frames: vec![format!("{bname}/000.png")],
+                scene: keys.then(|| format!("scene{k}")),
+            });
+            frames.push(vec![Image::from_vec(w, h, data)]);
+        }
+    }
+    write_capture_set(dir, &m, &frames).expect("write capture set");
 }

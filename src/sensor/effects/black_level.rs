@@ -3,9 +3,10 @@
 //!
 //! Statistic (dark bursts): the mean of the temporal mean over non-hot values. Zero-mean fixed
 //! patterns and noise leave it alone; hot values are masked. Fit: offset = measured −
-//! simulated, averaged over dark bursts. A photon-transfer fit made with the wrong black level
-//! measured every signal `offset` too high, which lowered its b by a·offset; adding the effect
-//! gives that back.
+//! simulated, averaged over dark bursts. No adjustment of the noise: the base model's (a, b)
+//! are measured from the dark mean (`summary::temporal_ptc`) and refitted after every step, and
+//! a given profile's noise is the user's. (The old rule b += a·offset assumed an unclamped
+//! photon-transfer fit without darks; with b clamped at 0 it broke, issue 15.)
 
 use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, number, only, table};
 use crate::sensor::captures::BurstKind;
@@ -16,10 +17,11 @@ const NAME: &str = "mean dark level";
 pub const ENTRY: Entry = Entry {
     id: ID,
     about: "pedestal offset from the declared black level (DN)",
+    needs: "a dark burst",
     install,
     statistics,
     fit,
-    adjust: Some(adjust),
+    adjust: None,
 };
 
 fn install(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
@@ -44,14 +46,4 @@ fn statistics(p: &Protocol, s: &[Summary], out: &mut Vec<Stat>) {
 fn fit(ctx: &FitCtx) -> Result<toml::Table, String> {
     let d = ctx.mean_excess(ID, NAME)?;
     Ok(table(&[("offset_dn", float(d))]))
-}
-
-fn adjust(profile: &mut crate::sensor::profile::SensorProfile, params: &toml::Table) {
-    let off = number(params, "offset_dn").unwrap_or(0.0);
-    let range = profile.levels.white_level - profile.levels.black_level;
-    for n in &mut profile.noise {
-        for c in 0..3 {
-            n.b[c] = (n.b[c] + n.a[c] * off / range).max(0.0);
-        }
-    }
 }

@@ -5,8 +5,8 @@
 //! Statistic (dark and flat bursts): each channel's mean temporal variance over the mean of the
 //! three (non-hot values); effects shared by the channels (row offsets, correlated or heavy-
 //! tailed noise of equal variance) leave these ratios alone. Fit: the captures' per-channel
-//! photon-transfer fit (src/sensor/noise.rs) over the model's a, b at each calibrated ISO,
-//! averaged over ISOs (row-offset variance, modelled separately, is taken out of b first).
+//! temporal photon transfer (`summary::temporal_ptc`, row-offset variance taken out of b) over
+//! the model's a, b at each ISO with dark and flat bursts, averaged over ISOs.
 
 use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, only, table};
 use crate::sensor::captures::BurstKind;
@@ -21,6 +21,7 @@ const NAMES: [&str; 3] = [
 pub const ENTRY: Entry = Entry {
     id: ID,
     about: "different noise a, b per colour channel (multipliers on the profile's a, b)",
+    needs: "a dark or flat burst with ≥ 2 frames",
     install,
     statistics,
     fit,
@@ -72,15 +73,13 @@ fn statistics(p: &Protocol, s: &[Summary], out: &mut Vec<Stat>) {
 }
 
 fn fit(ctx: &FitCtx) -> Result<toml::Table, String> {
-    let cal = ctx
-        .calibration
-        .ok_or("no per-channel noise calibration of the captures")?;
     let range = ctx.profile.levels.white_level - ctx.profile.levels.black_level;
     let plan = super::Plan::from_effects(&ctx.profile.effects)?;
     let row_var = (plan.row_sigma as f64).powi(2);
+    let ptc = super::summary::temporal_ptc(ctx.summaries, ctx.protocol.black, row_var);
     let (mut sa, mut sb, mut n) = ([0.0; 3], [0.0; 3], 0.0);
-    for f in &cal.isos {
-        let Ok((a, b)) = ctx.profile.noise_at(f.iso) else {
+    for f in &ptc {
+        let (Some(fa), Ok((a, b))) = (f.a, ctx.profile.noise_at(f.iso)) else {
             continue;
         };
         for c in 0..3 {
@@ -88,13 +87,13 @@ fn fit(ctx: &FitCtx) -> Result<toml::Table, String> {
             if am <= 0.0 || bm <= 0.0 {
                 return Err(format!("model a or b is 0 at ISO {}", f.iso));
             }
-            sa[c] += f.channels[c].a / am;
-            sb[c] += (f.channels[c].b - row_var).max(0.0) / bm;
+            sa[c] += fa[c] / am;
+            sb[c] += f.b[c] / bm;
         }
         n += 1.0;
     }
     if n == 0.0 {
-        return Err("no calibrated ISO inside the model's range".into());
+        return Err("no ISO with dark and flat bursts inside the model's range".into());
     }
     let arr = |s: [f64; 3]| toml::Value::Array(s.iter().map(|v| float(v / n)).collect());
     Ok(table(&[("a_scale", arr(sa)), ("b_scale", arr(sb))]))

@@ -17,6 +17,7 @@ const NAME: &str = "column offset covariance (top × bottom half)";
 pub const ENTRY: Entry = Entry {
     id: ID,
     about: "column offsets N(0, sigma_dn²), fixed across frames",
+    needs: "a dark burst with ≥ 2 frames",
     install,
     statistics,
     fit,

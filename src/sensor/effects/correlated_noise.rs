@@ -1,55 +1,135 @@
-//! `correlated_noise`: spatially correlated noise (e.g. from an ISP's demosaicing or
-//! denoising): the normal draws z of the noise are filtered as
-//! z' = (z + α·Σ of the 4 neighbours) / √(1 + n·α²) (n neighbours inside the frame), which keeps
-//! each value's variance and gives lag-1 correlation ρ = 2α / (1 + 4α²) horizontally and
-//! vertically; the parameter is ρ (noise stage; the Gaussian noise model).
+//! `correlated_noise`: spatially correlated noise (an ISP's demosaicing, denoising or binning):
+//! the normal draws z of the noise are filtered by a separable discrete Gaussian kernel,
+//! k(i) ∝ exp(−i²/(2s²)) for |i| ≤ ⌈3s⌉, one width per axis, normalised to Σk² = 1 so each
+//! value keeps its variance (draws outside the frame are made too, so the field is stationary
+//! up to the border). The lag-d correlation along an axis is Σ_i k(i)·k(i + d), which spans
+//! [0, 1) as s grows (0.95 at s ≈ 2.2); the parameters are the lag-1 correlations
+//! `rho_h`, `rho_v` ∈ [0, 0.95] (`rho` alone sets both; noise stage, Gaussian noise model).
 //!
-//! Statistic (dark bursts): lag-1 vertical correlation of the temporal residuals x_f − M
-//! (vertical, because row offsets correlate a row horizontally at every lag; fixed patterns
-//! cancel in the residual). Fit: ρ = (measured − simulated) × m2 / (m2 − q − row), the residual
-//! variance without the uncorrelated parts (quantisation q = (L − 1)/(12 L), row offsets).
+//! Statistics (dark bursts, temporal residuals x_f − M, same channel; fixed patterns cancel):
+//! vertical lag-1 and lag-2 correlation, and horizontal lag-1 correlation less the row-offset
+//! part (a row offset correlates a row at every horizontal lag; its variance is the row
+//! statistic's covariance of half-row means). Fit (from the measured 2-D autocorrelation
+//! directly, EMVA-style): per axis, the noise correlation at lags 1 and 2 is the residual
+//! covariance over the residual variance without its uncorrelated parts (quantisation, and
+//! horizontally the row offsets), and the kernel width minimises the squared error at both
+//! lags.
 
 use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, number, only, table};
 use crate::sensor::captures::BurstKind;
 
 pub const ID: &str = "correlated_noise";
-const NAME: &str = "vertical lag-1 correlation of temporal residuals";
+const NAMES: [&str; 3] = [
+    "vertical lag-1 correlation of temporal residuals",
+    "vertical lag-2 correlation of temporal residuals",
+    "horizontal lag-1 correlation of temporal residuals (row offsets removed)",
+];
+/// Largest lag-1 correlation of the family (kernel radius 7).
+pub const RHO_MAX: f64 = 0.95;
 
 pub const ENTRY: Entry = Entry {
     id: ID,
-    about: "spatially correlated noise, lag-1 correlation rho (filtered normal draws)",
+    about: "spatially correlated noise: separable Gaussian kernel, lag-1 correlation rho_h, rho_v",
+    needs: "a dark burst with ≥ 2 frames",
     install,
     statistics,
     fit,
     adjust: None,
 };
 
-/// Filter weight α giving lag-1 correlation ρ ∈ [0, 0.5).
-pub fn alpha(rho: f64) -> f64 {
-    if rho <= 0.0 {
-        0.0
-    } else {
-        (1.0 - (1.0 - 4.0 * rho * rho).sqrt()) / (4.0 * rho)
+/// Half kernel (k(0), k(1), …, k(R)) of width `s`, normalised so the full kernel has Σk² = 1.
+pub fn kernel(s: f64) -> Vec<f64> {
+    if s <= 0.0 {
+        return vec![1.0];
     }
+    let r = (3.0 * s).ceil().max(1.0) as usize;
+    let mut k: Vec<f64> = (0..=r)
+        .map(|i| (-((i * i) as f64) / (2.0 * s * s)).exp())
+        .collect();
+    let ss = k[0] * k[0] + 2.0 * k[1..].iter().map(|v| v * v).sum::<f64>();
+    for v in &mut k {
+        *v /= ss.sqrt();
+    }
+    k
+}
+
+/// Lag-`d` correlation of white noise filtered by the full kernel of half kernel `k`.
+pub fn lag_correlation(k: &[f64], d: usize) -> f64 {
+    let r = k.len() as isize - 1;
+    let at = |i: isize| {
+        if i.abs() <= r {
+            k[i.unsigned_abs()]
+        } else {
+            0.0
+        }
+    };
+    (-r..=r).map(|i| at(i) * at(i + d as isize)).sum()
+}
+
+/// Kernel width whose lag-1 correlation is `rho` (bisection; the correlation grows with s).
+pub fn width(rho: f64) -> f64 {
+    if rho <= 0.0 {
+        return 0.0;
+    }
+    let (mut lo, mut hi) = (0.0, 4.0);
+    for _ in 0..60 {
+        let mid = 0.5 * (lo + hi);
+        if lag_correlation(&kernel(mid), 1) < rho {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    0.5 * (lo + hi)
+}
+
+fn rho(p: &toml::Table, key: &str) -> Result<Option<f64>, String> {
+    if !p.contains_key(key) {
+        return Ok(None);
+    }
+    let r = number(p, key)?;
+    if !(0.0..=RHO_MAX).contains(&r) {
+        return Err(format!("{key} {r} must be in [0, {RHO_MAX}]"));
+    }
+    Ok(Some(r))
 }
 
 fn install(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
-    only(p, &["rho"])?;
-    let r = number(p, "rho")?;
-    if !(0.0..0.5).contains(&r) {
-        return Err(format!("rho {r} must be in [0, 0.5)"));
-    }
-    plan.corr_alpha = alpha(r) as f32;
+    only(p, &["rho", "rho_h", "rho_v"])?;
+    let both = rho(p, "rho")?;
+    let (h, v) = (rho(p, "rho_h")?.or(both), rho(p, "rho_v")?.or(both));
+    let (Some(h), Some(v)) = (h, v) else {
+        return Err("needs rho_h and rho_v (or rho for both axes)".into());
+    };
+    let f = |r: f64| kernel(width(r)).iter().map(|&x| x as f32).collect();
+    plan.corr_kernels = Some((f(h), f(v)));
     Ok(())
+}
+
+/// Residual noise correlations of a dark summary: (vertical lag 1, vertical lag 2, horizontal
+/// lag 1 without row offsets), each over the residual variance without its uncorrelated parts
+/// (quantisation, and for the horizontal lag the row offsets, which are also in m2).
+fn correlations(b: &Summary) -> Option<[[f64; 2]; 2]> {
+    let r = b.resid.as_ref()?;
+    let l = b.frames as f64;
+    let k = (l - 1.0) / l;
+    let m2 = r.m2.iter().sum::<f64>() / 3.0;
+    let row = k * r.row_cov.max(0.0);
+    let denom = (m2 - k / 12.0 - row).max(1e-9);
+    Some([
+        [r.cov_v[0] / denom, r.cov_v[1] / denom],
+        [(r.cov_h[0] - row) / denom, (r.cov_h[1] - row) / denom],
+    ])
 }
 
 fn statistics(p: &Protocol, s: &[Summary], out: &mut Vec<Stat>) {
     for b in s.iter().filter(|b| b.kind == BurstKind::Dark) {
-        if let Some(r) = &b.resid {
+        let Some(c) = correlations(b) else { continue };
+        for (name, v) in NAMES.iter().zip([c[0][0], c[0][1], c[1][0]]) {
             out.push(Stat {
-                key: format!("{}: {NAME}", p.bursts[b.burst].name),
+                key: format!("{}: {name}", p.bursts[b.burst].name),
                 effect: Some(ID),
-                value: r.vcorr,
+                value: v,
                 min_effect: 0.02,
                 sd_floor: 1e-4,
                 unit: "",
@@ -58,23 +138,46 @@ fn statistics(p: &Protocol, s: &[Summary], out: &mut Vec<Stat>) {
     }
 }
 
-fn fit(ctx: &FitCtx) -> Result<toml::Table, String> {
-    let plan = super::Plan::from_effects(&ctx.profile.effects)?;
-    let mut rhos = Vec::new();
-    for (st, sim, b) in ctx.per_burst(ID) {
-        let Some(r) = &b.resid else { continue };
-        let l = b.frames as f64;
-        let k = (l - 1.0) / l;
-        let uncorrelated = k / 12.0 + k * (plan.row_sigma as f64).powi(2);
-        let m2 = r.m2.iter().sum::<f64>() / 3.0;
-        rhos.push((st.value - sim) * m2 / (m2 - uncorrelated).max(1e-9));
+/// Lag-1 correlation of the kernel that best matches measured lag-1 and lag-2 correlations.
+fn fit_axis(m1: f64, m2: f64) -> f64 {
+    let err = |s: f64| {
+        let k = kernel(s);
+        (lag_correlation(&k, 1) - m1).powi(2) + (lag_correlation(&k, 2) - m2).powi(2)
+    };
+    // Grid, then a ternary search around the best node (the error is smooth in s).
+    let (s_max, n) = (width(RHO_MAX), 200);
+    let step = s_max / n as f64;
+    let best = (0..=n)
+        .map(|i| step * i as f64)
+        .min_by(|a, b| err(*a).total_cmp(&err(*b)))
+        .unwrap_or(0.0);
+    let (mut lo, mut hi) = ((best - step).max(0.0), (best + step).min(s_max));
+    for _ in 0..40 {
+        let (a, b) = (lo + (hi - lo) / 3.0, hi - (hi - lo) / 3.0);
+        if err(a) < err(b) {
+            hi = b;
+        } else {
+            lo = a;
+        }
     }
-    if rhos.is_empty() {
+    lag_correlation(&kernel(0.5 * (lo + hi)), 1)
+}
+
+fn fit(ctx: &FitCtx) -> Result<toml::Table, String> {
+    let cs: Vec<[[f64; 2]; 2]> = super::of_kind(ctx.summaries, BurstKind::Dark)
+        .filter_map(correlations)
+        .collect();
+    if cs.is_empty() {
         return Err("no dark burst with ≥ 2 frames".into());
     }
-    let rho = rhos.iter().sum::<f64>() / rhos.len() as f64;
-    if !(rho > 0.0 && rho < 0.5) {
-        return Err(format!("fitted correlation {rho:.4} is outside (0, 0.5)"));
+    let n = cs.len() as f64;
+    let mean = |a: usize, l: usize| cs.iter().map(|c| c[a][l]).sum::<f64>() / n;
+    let (v, h) = (
+        fit_axis(mean(0, 0), mean(0, 1)),
+        fit_axis(mean(1, 0), mean(1, 1)),
+    );
+    if v.max(h) <= 0.0 {
+        return Err("no positive noise correlation at lags 1 and 2".into());
     }
-    Ok(table(&[("rho", float(rho))]))
+    Ok(table(&[("rho_h", float(h)), ("rho_v", float(v))]))
 }

@@ -16,6 +16,7 @@ const NAME: &str = "fixed pixel variance (rows, columns removed)";
 pub const ENTRY: Entry = Entry {
     id: ID,
     about: "fixed per-pixel dark offsets N(0, sigma_dn²) without row/column structure",
+    needs: "a dark burst with ≥ 2 frames",
     install,
     statistics,
     fit,

@@ -19,6 +19,7 @@ const NAME: &str = "excess kurtosis of temporal residuals";
 pub const ENTRY: Entry = Entry {
     id: ID,
     about: "Student-t read noise (dof degrees of freedom) of the profile's variance b",
+    needs: "a dark burst with ≥ 2 frames",
     install,
     statistics,
     fit,

@@ -17,6 +17,7 @@ const NAME: &str = "hot value fraction";
 pub const ENTRY: Entry = Entry {
     id: ID,
     about: "a fraction of values with a fixed extra dark offset (offset_dn)",
+    needs: "a dark burst",
     install,
     statistics,
     fit,

@@ -9,7 +9,8 @@
 //! Physical order inside the realism operator (docs/diagnose.md):
 //! signal stage (before noise): vignetting gain → PRNU gain → nonlinear response;
 //! noise stage: channel noise scales a, b per channel; heavy tails replace the Gaussian read
-//! noise by a Student-t of the same variance; correlated noise filters the normal draws;
+//! noise by a Student-t of the same variance; correlated noise filters the normal draws with a
+//! separable Gaussian kernel;
 //! offset stage (after the black level): black-level offset, row offsets (new every frame),
 //! column offsets, DSNU, hot pixels (fixed patterns); then clip and quantise.
 //!
@@ -19,7 +20,6 @@
 
 use crate::rng::{hash, unit_f32};
 use crate::sensor::captures::BurstKind;
-use crate::sensor::noise::NoiseCalibration;
 use crate::sensor::profile::{EffectSpec, SensorProfile};
 
 pub mod black_level;
@@ -42,15 +42,18 @@ pub struct Entry {
     pub id: &'static str,
     /// One line: what the effect is.
     pub about: &'static str,
+    /// The bursts its statistics need (reported when a capture set has none).
+    pub needs: &'static str,
     /// Check the parameters and add the effect to the plan.
     pub install: fn(&toml::Table, &mut Plan) -> Result<(), String>,
     /// The effect's diagnostic statistics of one capture set (measured or simulated).
     pub statistics: fn(&Protocol, &[Summary], &mut Vec<Stat>),
     /// Fit the parameters from the captures (measured statistics against the current model's
-    /// simulated ones, the measured summaries, the noise calibration).
+    /// simulated ones, the measured summaries).
     pub fit: fn(&FitCtx) -> Result<toml::Table, String>,
-    /// Change the rest of the profile when the effect is added (e.g. row noise is already in
-    /// the base model's b, which must then shrink by its variance).
+    /// Change the rest of a *given* profile when the effect is added (e.g. row noise is already
+    /// in its b, which must then shrink by its variance). A base model fitted from the captures
+    /// is refitted instead (`diagnose::refit_noise`).
     pub adjust: Option<fn(&mut SensorProfile, &toml::Table)>,
 }
 
@@ -97,8 +100,9 @@ pub struct Plan {
     pub b_scale: [f32; 3],
     /// Heavy-tailed read noise: Student-t degrees of freedom.
     pub heavy_dof: Option<f32>,
-    /// Correlated noise: weight α of the 4 neighbours in the filter of the normal draws.
-    pub corr_alpha: f32,
+    /// Correlated noise: half kernels (k(0)..k(R)) filtering the normal draws horizontally
+    /// and vertically (separable, Σk² = 1 over each full kernel).
+    pub corr_kernels: Option<(Vec<f32>, Vec<f32>)>,
     /// Black-level offset in DN.
     pub black_offset: f32,
     /// Row offsets: σ in DN, drawn anew in every frame.
@@ -120,7 +124,7 @@ impl Default for Plan {
             a_scale: [1.0; 3],
             b_scale: [1.0; 3],
             heavy_dof: None,
-            corr_alpha: 0.0,
+            corr_kernels: None,
             black_offset: 0.0,
             row_sigma: 0.0,
             column: None,
@@ -305,8 +309,6 @@ pub struct FitCtx<'a> {
     pub summaries: &'a [Summary],
     pub protocol: &'a Protocol,
     pub profile: &'a SensorProfile,
-    /// Per-channel noise calibration of the captures (None if it could not be made).
-    pub calibration: Option<&'a NoiseCalibration>,
     /// Seed for the fitted effect's fixed pattern.
     pub seed: u64,
 }

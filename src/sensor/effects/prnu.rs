@@ -17,6 +17,7 @@ const NAME: &str = "PRNU variance (relative²)";
 pub const ENTRY: Entry = Entry {
     id: ID,
     about: "fixed per-pixel gain 1 + σ·z (high-frequency photo-response non-uniformity)",
+    needs: "a flat burst with ≥ 2 frames",
     install,
     statistics,
     fit,

@@ -18,6 +18,7 @@ const NAME: &str = "row offset covariance (left × right half)";
 pub const ENTRY: Entry = Entry {
     id: ID,
     about: "row offsets N(0, sigma_dn²) drawn anew in every frame",
+    needs: "a dark burst with ≥ 2 frames",
     install,
     statistics,
     fit,

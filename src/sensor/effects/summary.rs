@@ -7,7 +7,7 @@
 //! absorbs vignetting and illumination falloff, then minus row and column means: a two-way
 //! decomposition) and a hot-value mask (fixed residual above 8 robust σ). Dark bursts with ≥ 2
 //! frames also give pooled moments of the temporal residuals x_f − M (second and fourth, for
-//! the kurtosis), their vertical lag-1 correlation, and the covariance over frames of the left-
+//! the kurtosis), their covariance at lags 1 and 2 vertically and horizontally, and the covariance over frames of the left-
 //! and right-half means of each row (a row offset shared by both halves; no pixel-level noise
 //! process correlates two half rows).
 
@@ -38,6 +38,8 @@ pub struct BurstInfo {
     pub width: usize,
     pub height: usize,
     pub frames: usize,
+    /// The `scene` key of a scene burst (captures.toml), if declared.
+    pub scene: Option<String>,
 }
 
 impl BurstInfo {
@@ -54,8 +56,11 @@ pub struct Residuals {
     /// excess kurtosis of its own).
     pub m2: [f64; 3],
     pub m4: [f64; 3],
-    /// Σ r(x, y)·r(x, y + 1) / Σ r² (same frame, same channel).
-    pub vcorr: f64,
+    /// Mean residual covariance r(x, y)·r(x, y + d) over pairs and frames, d = 1, 2 (same
+    /// channel, channels pooled).
+    pub cov_v: [f64; 2],
+    /// The same horizontally, r(x, y)·r(x + d, y), d = 1, 2.
+    pub cov_h: [f64; 2],
     /// Mean over rows of the covariance over frames of the left- and right-half row means (DN²).
     pub row_cov: f64,
 }
@@ -69,6 +74,8 @@ pub struct Summary {
     pub width: usize,
     pub height: usize,
     pub frames: usize,
+    /// The declared scene of a scene burst.
+    pub scene: Option<String>,
     /// Temporal mean per value (DN).
     pub mean: Vec<f64>,
     /// Temporal unbiased variance per value (DN²); empty with one frame or for scene bursts.
@@ -120,7 +127,7 @@ pub struct Accumulator {
 impl Accumulator {
     pub fn new(info: &BurstInfo) -> Accumulator {
         let stride = match info.kind {
-            BurstKind::Dark => 5,
+            BurstKind::Dark => 8,
             BurstKind::Flat => 2,
             _ => 1,
         };
@@ -166,7 +173,8 @@ impl Accumulator {
                     }
                     _ => {
                         let next = (y + 1 < h).then(|| &data[(y + 1) * w3..(y + 2) * w3]);
-                        for (i, (s, &v)) in a.chunks_exact_mut(5).zip(row).enumerate() {
+                        let next2 = (y + 2 < h).then(|| &data[(y + 2) * w3..(y + 3) * w3]);
+                        for (i, (s, &v)) in a.chunks_exact_mut(8).zip(row).enumerate() {
                             let d = v as f64 - c;
                             let d2 = d * d;
                             s[0] += d;
@@ -175,6 +183,16 @@ impl Accumulator {
                             s[3] += d2 * d2;
                             if let Some(nx) = next {
                                 s[4] += d * (nx[i] as f64 - c);
+                            }
+                            if let Some(nx) = next2 {
+                                s[5] += d * (nx[i] as f64 - c);
+                            }
+                            // Same channel, one and two pixels to the right.
+                            if let Some(&r1) = row.get(i + 3) {
+                                s[6] += d * (r1 as f64 - c);
+                            }
+                            if let Some(&r2) = row.get(i + 6) {
+                                s[7] += d * (r2 as f64 - c);
                             }
                         }
                     }
@@ -216,6 +234,7 @@ impl Accumulator {
             width: self.w,
             height: self.h,
             frames: self.n,
+            scene: info.scene.clone(),
             mean,
             var,
             fixed: Vec::new(),
@@ -235,22 +254,33 @@ impl Accumulator {
         }
         if self.kind == BurstKind::Dark && self.n >= 2 {
             let w3 = self.w * 3;
-            let (mut r2, mut r4, mut cv, mut pairs) = ([0.0; 3], [0.0; 3], 0.0, 0usize);
+            let (mut r2, mut r4) = ([0.0; 3], [0.0; 3]);
+            // (sum, pairs) of residual products: vertical lags 1, 2, horizontal lags 1, 2.
+            let mut cv = [(0.0, 0usize); 4];
+            let mean = |j: usize| self.acc[j * 8] / n;
             for i in 0..nv {
-                let a = &self.acc[i * 5..i * 5 + 5];
+                let a = &self.acc[i * 8..i * 8 + 8];
                 let m = a[0] / n;
                 r2[i % 3] += a[1] - n * m * m;
                 r4[i % 3] += a[3] - 4.0 * m * a[2] + 6.0 * m * m * a[1] - 3.0 * n * m.powi(4);
-                if i + w3 < nv {
-                    let mn = self.acc[(i + w3) * 5] / n;
-                    cv += a[4] - n * m * mn;
-                    pairs += 1;
+                let x = (i % w3) / 3;
+                let partner = [
+                    (i + w3 < nv).then_some(i + w3),
+                    (i + 2 * w3 < nv).then_some(i + 2 * w3),
+                    (x + 1 < self.w).then_some(i + 3),
+                    (x + 2 < self.w).then_some(i + 6),
+                ];
+                for (l, j) in partner.iter().enumerate() {
+                    if let Some(j) = *j {
+                        cv[l].0 += a[4 + l] - n * m * mean(j);
+                        cv[l].1 += 1;
+                    }
                 }
             }
             let per = nv as f64 / 3.0 * n;
             let m2 = r2.map(|v| v / per);
             let m4 = r4.map(|v| v / per);
-            let vcorr = cv / (pairs.max(1) as f64 * n) / (m2.iter().sum::<f64>() / 3.0);
+            let cov = |l: usize| cv[l].0 / (cv[l].1.max(1) as f64 * n);
             let h = self.h;
             let mut row_cov = 0.0;
             for y in 0..h {
@@ -266,7 +296,8 @@ impl Accumulator {
             s.resid = Some(Residuals {
                 m2,
                 m4,
-                vcorr,
+                cov_v: [cov(0), cov(1)],
+                cov_h: [cov(2), cov(3)],
                 row_cov: row_cov / h as f64,
             });
         }
@@ -435,4 +466,111 @@ fn solve6(mut a: [[f64; 6]; 6], mut b: [f64; 6]) -> [f64; 6] {
         };
     }
     x
+}
+
+/// Per-channel mean of the dark bursts of one ISO (non-hot values): the zero of signals
+/// (EMVA 1288 measures every signal above the dark mean). None without a dark burst.
+pub fn dark_mean(s: &[Summary], iso: f64) -> Option<[f64; 3]> {
+    let darks: Vec<&Summary> = s
+        .iter()
+        .filter(|b| b.kind == BurstKind::Dark && b.iso == iso)
+        .collect();
+    if darks.is_empty() {
+        return None;
+    }
+    Some(std::array::from_fn(|c| {
+        darks
+            .iter()
+            .map(|b| super::masked_mean(&b.mean, |i| i % 3 == c && b.not_hot(i)))
+            .sum::<f64>()
+            / darks.len() as f64
+    }))
+}
+
+/// Photon transfer of one ISO from burst summaries (DN, DN², per channel); `a` is None when
+/// the ISO has no flat burst (darks alone fix b only).
+#[derive(Clone, Debug, PartialEq)]
+pub struct TemporalPtc {
+    pub iso: f64,
+    pub a: Option<[f64; 3]>,
+    pub b: [f64; 3],
+}
+
+/// Photon transfer from the dark and flat summaries (EMVA 1288's method): per ISO and channel,
+/// each burst's mean temporal variance over non-hot values (less the 1/12 DN² of integer
+/// quantisation, which the simulation adds back, and `extra_var`, variance the model draws
+/// separately, e.g. row offsets) against its mean signal above the same ISO's dark mean (above
+/// `black` when the ISO has no dark burst), then a weighted straight line (`noise::wls`).
+/// Temporal variances do not see fixed patterns (constant over frames), and measuring the
+/// signal from the dark mean removes any pedestal, so neither a wrong black level nor column,
+/// pixel or gain patterns move a or b; the mean variance over values is linear in the mean
+/// signal, so vignetting and PRNU (signal spread within a burst) do not either.
+pub fn temporal_ptc(s: &[Summary], black: f64, extra_var: f64) -> Vec<TemporalPtc> {
+    use crate::sensor::noise::{Bin, wls};
+    let usable =
+        |b: &&Summary| matches!(b.kind, BurstKind::Dark | BurstKind::Flat) && !b.var.is_empty();
+    let mut isos: Vec<f64> = s.iter().filter(usable).map(|b| b.iso).collect();
+    isos.sort_by(f64::total_cmp);
+    isos.dedup();
+    let mut out = Vec::new();
+    for iso in isos {
+        let bursts: Vec<&Summary> = s.iter().filter(usable).filter(|b| b.iso == iso).collect();
+        let chan_mean = |b: &Summary, c: usize, v: &[f64]| {
+            super::masked_mean(v, |i| i % 3 == c && b.not_hot(i))
+        };
+        let zero = dark_mean(s, iso).unwrap_or([black; 3]);
+        let mut a = [0.0; 3];
+        let mut b = [0.0; 3];
+        let mut has_a = true;
+        for c in 0..3 {
+            let bins: Vec<Bin> = bursts
+                .iter()
+                .map(|s| {
+                    let keep = |i: usize| i % 3 == c && s.not_hot(i);
+                    let n = s.var.iter().enumerate().filter(|(i, _)| keep(*i)).count();
+                    let m = s.temporal_var[c];
+                    let ss: f64 = s
+                        .var
+                        .iter()
+                        .enumerate()
+                        .filter(|(i, _)| keep(*i))
+                        .map(|(_, v)| (v - m) * (v - m))
+                        .sum();
+                    let sd = (ss / (n.max(2) - 1) as f64).sqrt();
+                    Bin {
+                        burst: s.burst,
+                        signal: chan_mean(s, c, &s.mean) - zero[c],
+                        variance: m - 1.0 / 12.0 - extra_var,
+                        stderr: sd / (n.max(1) as f64).sqrt(),
+                        pixels: n,
+                    }
+                })
+                .collect();
+            match wls(&bins) {
+                Ok(f) => {
+                    a[c] = f.a.max(0.0);
+                    b[c] = f.b.max(0.0);
+                }
+                // One signal level only (darks alone): b is their mean variance.
+                Err(_) => {
+                    has_a = false;
+                    let dark: Vec<&Bin> = bins.iter().filter(|x| x.signal.abs() < 1.0).collect();
+                    if dark.is_empty() {
+                        b[c] = f64::NAN;
+                    } else {
+                        b[c] = (dark.iter().map(|x| x.variance).sum::<f64>() / dark.len() as f64)
+                            .max(0.0);
+                    }
+                }
+            }
+        }
+        if b.iter().all(|v| v.is_finite()) {
+            out.push(TemporalPtc {
+                iso,
+                a: has_a.then_some(a),
+                b,
+            });
+        }
+    }
+    out
 }

@@ -18,6 +18,7 @@ const NAME: &str = "radial falloff k (flat mean vs r²)";
 pub const ENTRY: Entry = Entry {
     id: ID,
     about: "radial gain falloff 1 − k·r² (r: distance from the centre / half-diagonal)",
+    needs: "a flat burst",
     install,
     statistics,
     fit,
