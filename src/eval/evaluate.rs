@@ -329,9 +329,7 @@ pub fn network1_reference(
         Network1Reference::CleanWeights => {
             let read = |i: usize| -> Result<Image> {
                 let p = &set.clean_frames[i];
-                let img = read_image(p)?;
-                layout_size(p, &img, set)?;
-                Ok(img)
+                layout::read_set_image(set, p)
             };
             let (cl, ch) = rayon::join(|| read(pair.0), || read(pair.1));
             let w = ground_truth::blend_weights_high(&cl?, &ch?)?;
@@ -373,9 +371,7 @@ impl Method for Network1 {
         let (lo, hi) = set.network1_pair()?;
         let read = |i: usize| -> Result<Image> {
             let p = &set.static_frames[i];
-            let img = read_image(p)?;
-            layout_size(p, &img, set)?;
-            Ok(img)
+            layout::read_set_image(set, p)
         };
         let (low, high) = rayon::join(|| read(lo), || read(hi));
         let (low, high) = (low?, high?);
@@ -477,19 +473,6 @@ impl Method for Network2 {
             notes: Vec::new(),
         })
     }
-}
-
-fn layout_size(path: &Path, img: &Image, set: &SetInfo) -> Result<()> {
-    if (img.width, img.height) != (set.width, set.height) {
-        return Err(Error::layout(
-            path,
-            format!(
-                "size {}×{} differs from the set's {}×{}",
-                img.width, img.height, set.width, set.height
-            ),
-        ));
-    }
-    Ok(())
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -9,6 +9,7 @@ mod exr;
 mod hdr;
 pub mod image;
 mod ldr;
+pub mod limits;
 pub mod srgb;
 
 pub use image::{Image, dynamic_range_stops, luminance};

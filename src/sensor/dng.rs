@@ -153,6 +153,9 @@ pub fn read_dng_mosaic(path: &Path) -> Result<(Mosaic, DngInfo)> {
     let tiff = Tiff::parse(&bytes, path)?;
     let ifd = tiff.raw_ifd()?;
     let info = info_from(&tiff, &ifd)?;
+    // Before the raw buffer is allocated (decompression bombs); the demosaiced image is the
+    // largest buffer this reader makes.
+    crate::io::limits::check(path, "DNG", info.raw_width as u64, info.raw_height as u64)?;
     let raw = tiff.decode_samples(&ifd, &info)?;
     let lin = tiff
         .uints(&ifd, TAG_LINEARIZATION)?

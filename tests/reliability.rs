@@ -1,0 +1,302 @@
+//! Issue 16: hostile and careless inputs. Each file here is crafted byte by byte (a few hundred
+//! bytes at most); none is committed.
+
+mod common;
+
+use hdrsynth::data::layout;
+use hdrsynth::data::loader::{Loader, LoaderConfig};
+use hdrsynth::io::limits::DecodeLimits;
+use hdrsynth::io::{BitDepth, ExrPrecision, Image, read_image, write_exr, write_ldr};
+use std::path::{Path, PathBuf};
+
+// ---------------------------------------------------------------------------------------------
+// Item 1: decompression bombs. Every file declares 100000×100000 pixels (120 GB as f32 RGB);
+// before the limits, each aborted the process on the pixel buffer's allocation.
+
+const BOMB: u32 = 100_000;
+
+/// CRC-32 (ISO-HDLC, as PNG uses), bitwise: the reference definition, independent of any crate.
+fn crc32(bytes: &[u8]) -> u32 {
+    let mut c = 0xFFFF_FFFFu32;
+    for &b in bytes {
+        c ^= u32::from(b);
+        for _ in 0..8 {
+            c = if c & 1 != 0 {
+                (c >> 1) ^ 0xEDB8_8320
+            } else {
+                c >> 1
+            };
+        }
+    }
+    !c
+}
+
+fn png_chunk(out: &mut Vec<u8>, kind: &[u8; 4], data: &[u8]) {
+    out.extend((data.len() as u32).to_be_bytes());
+    let mut body = kind.to_vec();
+    body.extend(data);
+    out.extend(&body);
+    out.extend(crc32(&body).to_be_bytes());
+}
+
+fn bomb_png(w: u32, h: u32) -> Vec<u8> {
+    let mut out = vec![0x89, b'P', b'N', b'G', 0x0d, 0x0a, 0x1a, 0x0a];
+    let mut ihdr = Vec::new();
+    ihdr.extend(w.to_be_bytes());
+    ihdr.extend(h.to_be_bytes());
+    ihdr.extend([8, 2, 0, 0, 0]); // 8-bit RGB, deflate, adaptive filter, no interlace
+    png_chunk(&mut out, b"IHDR", &ihdr);
+    // A zlib stream of a few zero bytes: far too short, but the size is what must be refused.
+    png_chunk(
+        &mut out,
+        b"IDAT",
+        &[0x78, 0x9c, 0x63, 0x00, 0x00, 0x00, 0x01, 0x00, 0x01],
+    );
+    png_chunk(&mut out, b"IEND", &[]);
+    out
+}
+
+/// A little-endian classic TIFF with one IFD of (tag, type, count, inline value) entries and
+/// `data` after it; entries' values must fit in 4 bytes.
+fn tiff_with(entries: &[(u16, u16, u32, u32)], data: &[u8]) -> Vec<u8> {
+    let mut out = b"II".to_vec();
+    out.extend(42u16.to_le_bytes());
+    out.extend(8u32.to_le_bytes());
+    out.extend((entries.len() as u16).to_le_bytes());
+    for &(tag, typ, count, val) in entries {
+        out.extend(tag.to_le_bytes());
+        out.extend(typ.to_le_bytes());
+        out.extend(count.to_le_bytes());
+        if typ == 3 {
+            out.extend((val as u16).to_le_bytes());
+            out.extend([0, 0]);
+        } else {
+            out.extend(val.to_le_bytes());
+        }
+    }
+    out.extend(0u32.to_le_bytes());
+    out.extend(data);
+    out
+}
+
+fn data_offset(entries: usize) -> u32 {
+    (8 + 2 + 12 * entries + 4) as u32
+}
+
+fn bomb_tiff() -> Vec<u8> {
+    let n = 9;
+    tiff_with(
+        &[
+            (256, 4, 1, BOMB),           // ImageWidth
+            (257, 4, 1, BOMB),           // ImageLength
+            (258, 3, 1, 8),              // BitsPerSample (one value: all channels)
+            (259, 3, 1, 1),              // no compression
+            (262, 3, 1, 1),              // BlackIsZero grey
+            (273, 4, 1, data_offset(n)), // StripOffsets
+            (277, 3, 1, 1),              // SamplesPerPixel
+            (278, 4, 1, BOMB),           // RowsPerStrip
+            (279, 4, 1, 16),             // StripByteCounts
+        ],
+        &[0u8; 16],
+    )
+}
+
+fn bomb_dng() -> Vec<u8> {
+    // The DNG reader accepts up to 65536 per side in its header checks; 60000² of 16-bit
+    // samples is 7.2 GB of raw buffer.
+    let side = 60_000;
+    let n = 12;
+    let mut d = tiff_with(
+        &[
+            (254, 4, 1, 0),              // NewSubfileType: main image
+            (256, 4, 1, side),           // ImageWidth
+            (257, 4, 1, side),           // ImageLength
+            (258, 3, 1, 16),             // BitsPerSample
+            (259, 3, 1, 1),              // no compression
+            (262, 3, 1, 32803),          // CFA
+            (273, 4, 1, data_offset(n)), // StripOffsets
+            (277, 3, 1, 1),              // SamplesPerPixel
+            (278, 4, 1, side),           // RowsPerStrip
+            (279, 4, 1, 16),             // StripByteCounts
+            (33421, 3, 2, 2 | (2 << 16)),
+            (33422, 1, 4, u32::from_le_bytes([0, 1, 1, 2])), // RGGB
+        ],
+        &[0u8; 16],
+    );
+    // Type-3 entries with count 2 keep both shorts inline: rewrite the CFARepeatPatternDim
+    // value field as two little-endian shorts (tiff_with wrote only the low one).
+    let entry = 8 + 2 + 12 * 10;
+    d[entry + 8..entry + 12].copy_from_slice(&[2, 0, 2, 0]);
+    d
+}
+
+fn bomb_hdr() -> Vec<u8> {
+    let mut b = format!("#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y {BOMB} +X {BOMB}\n").into_bytes();
+    b.extend([0u8; 32]);
+    b
+}
+
+/// A 1×1 EXR written by the crate, its dataWindow rewritten to (0,0)–(99999,99999).
+fn bomb_exr(dir: &Path) -> Vec<u8> {
+    let p = dir.join("one.exr");
+    write_exr(&p, &Image::new(1, 1), ExrPrecision::Half).unwrap();
+    let mut b = std::fs::read(&p).unwrap();
+    let key = b"dataWindow\0box2i\0";
+    let at = b
+        .windows(key.len())
+        .position(|w| w == key)
+        .expect("dataWindow attribute")
+        + key.len()
+        + 4; // attribute size
+    let max = (BOMB - 1).to_le_bytes();
+    b[at + 8..at + 12].copy_from_slice(&max);
+    b[at + 12..at + 16].copy_from_slice(&max);
+    b
+}
+
+fn assert_refused(path: &Path, e: &str) {
+    let name = path.file_name().unwrap().to_string_lossy();
+    assert!(
+        e.contains(&*name) && e.contains("decode limit"),
+        "error should name {name} and the decode limit: {e}"
+    );
+}
+
+#[test]
+fn decompression_bombs_are_refused_by_every_decoder_with_the_file_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let cases: Vec<(&str, Vec<u8>)> = vec![
+        ("bomb.png", bomb_png(BOMB, BOMB)),
+        ("bomb.tif", bomb_tiff()),
+        ("bomb.hdr", bomb_hdr()),
+        ("bomb.exr", bomb_exr(dir.path())),
+    ];
+    for (name, bytes) in cases {
+        assert!(bytes.len() < 1024, "{name} is a tiny file");
+        let p = dir.path().join(name);
+        std::fs::write(&p, &bytes).unwrap();
+        let e = read_image(&p).expect_err(name).to_string();
+        assert_refused(&p, &e);
+    }
+    let p = dir.path().join("bomb.dng");
+    std::fs::write(&p, bomb_dng()).unwrap();
+    let e = hdrsynth::sensor::dng::read_dng(&p)
+        .expect_err("dng bomb")
+        .to_string();
+    assert_refused(&p, &e);
+}
+
+#[test]
+fn the_side_limit_alone_refuses_a_long_thin_png() {
+    // 20000×1 is only 240 kB decoded but over 16384 per side.
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("thin.png");
+    std::fs::write(&p, bomb_png(20_000, 1)).unwrap();
+    assert_refused(&p, &read_image(&p).unwrap_err().to_string());
+}
+
+#[test]
+fn decode_limits_default_parse_and_check_by_hand() {
+    let d = DecodeLimits::parse(None, None).unwrap();
+    assert_eq!((d.max_side, d.max_decoded_bytes), (16384, 1 << 30));
+    let l = DecodeLimits::parse(Some("100"), Some("2M")).unwrap();
+    assert_eq!((l.max_side, l.max_decoded_bytes), (100, 2 * 1024 * 1024));
+    for bad in ["", "0", "-5", "12x", "1.5G"] {
+        let e = DecodeLimits::parse(Some(bad), None)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("HDRSYNTH_MAX_IMAGE_SIDE"), "{bad:?}: {e}");
+    }
+    let p = Path::new("f.png");
+    // 100×100 f32 RGB = 120000 bytes: the byte limit is inclusive.
+    let l = DecodeLimits {
+        max_side: 100,
+        max_decoded_bytes: 120_000,
+    };
+    assert!(l.check(p, "PNG", 100, 100).is_ok());
+    assert!(l.check(p, "PNG", 101, 1).is_err());
+    let l = DecodeLimits {
+        max_side: 100,
+        max_decoded_bytes: 119_999,
+    };
+    assert!(l.check(p, "PNG", 100, 100).is_err());
+    // A 4032×3024 phone frame (146 MB) passes the defaults.
+    assert!(d.check(p, "PNG", 4032, 3024).is_ok());
+}
+
+// ---------------------------------------------------------------------------------------------
+// Item 2: frame sizes are checked against the set, never trusted from meta.toml.
+
+fn static_pngs(set: &Path) -> Vec<PathBuf> {
+    let mut v: Vec<PathBuf> = std::fs::read_dir(set.join("static"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| {
+            let n = p.file_name().unwrap().to_string_lossy();
+            n.starts_with("ev") && n.ends_with(".png")
+        })
+        .collect();
+    v.sort();
+    v
+}
+
+fn pure_loader(dir: &Path, kind: &str) -> LoaderConfig {
+    let text = format!(
+        "dataset = {dir:?}\nkind = \"{kind}\"\npatch = 48\nbatch_size = 1\nworkers = 1\nseed = 9\n"
+    );
+    hdrsynth::config::parse_toml(&text, Path::new("loader.toml")).unwrap()
+}
+
+#[test]
+fn a_frame_smaller_than_its_set_is_an_error_naming_it_not_a_panic() {
+    let dir = tempfile::tempdir().unwrap();
+    common::generate(dir.path(), 3, 1, (96, 80), "[-3.0, -2.0, 0.0, 2.0, 3.0]");
+    let set = common::first_set(dir.path());
+    let frames = static_pngs(&set);
+    assert_eq!(frames.len(), 5);
+    // Every static frame 60×50: any crop of a 96×80 set (patch 48) reaches past it.
+    for f in &frames {
+        write_ldr(f, &Image::new(60, 50), BitDepth::Eight).unwrap();
+    }
+    for kind in ["network1", "network2"] {
+        let l = Loader::new(&pure_loader(dir.path(), kind)).unwrap();
+        let e = l.sample(0, 0).expect_err(kind).to_string();
+        assert!(
+            e.contains("60×50") && e.contains("96×80") && e.contains("static"),
+            "{kind}: {e}"
+        );
+    }
+}
+
+#[test]
+fn a_larger_frame_is_refused_rather_than_silently_cropped() {
+    let dir = tempfile::tempdir().unwrap();
+    common::generate(dir.path(), 3, 1, (96, 80), "[-3.0, -2.0, 0.0, 2.0, 3.0]");
+    let set = common::first_set(dir.path());
+    for f in static_pngs(&set) {
+        write_ldr(&f, &Image::new(128, 96), BitDepth::Eight).unwrap();
+    }
+    let l = Loader::new(&pure_loader(dir.path(), "network1")).unwrap();
+    let e = l.sample(0, 0).unwrap_err().to_string();
+    assert!(e.contains("128×96"), "{e}");
+}
+
+#[test]
+fn verify_decodes_every_file_and_lists_truncated_empty_and_wrong_size_ones() {
+    let dir = tempfile::tempdir().unwrap();
+    common::generate(dir.path(), 4, 1, (64, 48), "[-3.0, 0.0, 3.0]");
+    let set = common::first_set(dir.path());
+    let info = layout::detect(dir.path()).unwrap();
+    assert!(layout::verify(&info).is_empty(), "a fresh dataset verifies");
+
+    let frames = static_pngs(&set);
+    let bytes = std::fs::read(&frames[0]).unwrap();
+    std::fs::write(&frames[0], &bytes[..bytes.len() / 2]).unwrap(); // truncated
+    std::fs::write(&frames[1], b"").unwrap(); // 0 bytes
+    write_ldr(&frames[2], &Image::new(32, 48), BitDepth::Eight).unwrap(); // wrong size
+    // `info` without --verify reads only the metadata, so detection still succeeds.
+    let info = layout::detect(dir.path()).unwrap();
+    let mut bad: Vec<PathBuf> = layout::verify(&info).into_iter().map(|(p, _)| p).collect();
+    bad.sort();
+    assert_eq!(bad, frames);
+}
