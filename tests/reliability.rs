@@ -300,3 +300,181 @@ fn verify_decodes_every_file_and_lists_truncated_empty_and_wrong_size_ones() {
     bad.sort();
     assert_eq!(bad, frames);
 }
+
+// ---------------------------------------------------------------------------------------------
+// Items 3–5: outputs outside inputs, one writer per output, nothing half-written.
+
+use hdrsynth::data::testset::{self, TestsetOptions};
+use hdrsynth::eval::evaluate::{self, EvalOptions, Network2};
+use hdrsynth::io::guard::{self, OutputLock};
+use hdrsynth::sensor::profile::SensorProfile;
+use hdrsynth::sensor::realism::NoiseModel;
+
+#[test]
+fn outputs_inside_inputs_are_refused_however_spelled() {
+    let dir = tempfile::tempdir().unwrap();
+    let x = dir.path().join("x");
+    std::fs::create_dir_all(x.join("sub")).unwrap();
+    std::os::unix::fs::symlink(&x, dir.path().join("link")).unwrap();
+    for out in [
+        x.clone(),
+        x.join("out"),
+        x.join("sub/../new"),
+        dir.path().join("link/out"),
+        dir.path().join("y/../x"),
+    ] {
+        let e = guard::refuse_output_inside(&x, &out).expect_err(&out.display().to_string());
+        assert!(e.to_string().contains("input"), "{e}");
+    }
+    assert!(guard::refuse_output_inside(&x, &dir.path().join("y")).is_ok());
+    assert!(guard::refuse_output_inside(&x, &dir.path().join("x2")).is_ok());
+}
+
+#[test]
+fn the_folder_walk_ends_on_a_symlink_loop_and_lists_each_file_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = dir.path().join("a");
+    std::fs::create_dir_all(a.join("b")).unwrap();
+    write_ldr(&a.join("b/f.png"), &Image::new(2, 2), BitDepth::Eight).unwrap();
+    // a/b/loop → a: the old walk followed it without end (41 nested copies in the issue).
+    std::os::unix::fs::symlink(&a, a.join("b/loop")).unwrap();
+    let files = guard::images_under(&a).unwrap();
+    assert_eq!(files, vec![a.join("b/f.png")]);
+}
+
+fn bin() -> std::process::Command {
+    std::process::Command::new(env!("CARGO_BIN_EXE_hdrsynth"))
+}
+
+#[test]
+fn realism_refuses_to_write_into_its_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let x = dir.path().join("x");
+    write_ldr(&x.join("f.png"), &Image::new(8, 8), BitDepth::Eight).unwrap();
+    let before = std::fs::read(x.join("f.png")).unwrap();
+    let profile = SensorProfile::shipped_dir().join("example_synthetic.toml");
+    for out in [x.clone(), x.join("out")] {
+        let o = bin()
+            .args(["realism", "--iso", "100", "--profile"])
+            .arg(&profile)
+            .arg("--in")
+            .arg(&x)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && err.contains("input"), "{err}");
+    }
+    assert_eq!(std::fs::read(x.join("f.png")).unwrap(), before);
+    assert!(!x.join("out").exists());
+}
+
+#[test]
+fn a_second_writer_is_refused_and_a_killed_holder_does_not_block() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("data");
+    let held = OutputLock::acquire(&out, "test").unwrap();
+    let e = OutputLock::acquire(&out, "second").unwrap_err().to_string();
+    assert!(
+        e.contains("in use") && e.contains(&format!("pid {}", std::process::id())),
+        "{e}"
+    );
+    // generate takes the same lock: a second generator into the folder is refused.
+    let cfg: hdrsynth::config::GenerateConfig = hdrsynth::config::parse_toml(
+        "seed = 1\ncount = 1\nwidth = 32\nheight = 32\nevs = [-3.0, 0.0]\n",
+        Path::new("g.toml"),
+    )
+    .unwrap();
+    let e = hdrsynth::cli::generate::generate(&cfg, &out, false).unwrap_err();
+    assert!(format!("{e:#}").contains("in use"), "{e:#}");
+    drop(held);
+    OutputLock::acquire(&out, "after").expect("released on drop");
+
+    // Another process holds the lock, then dies by SIGKILL: the OS releases it.
+    let lock_file = dir.path().join(".data.lock");
+    // `-o`: flock itself holds the lock and its `sleep` child does not inherit it, so killing
+    // flock kills the only holder (the orphaned sleep exits on its own).
+    let Ok(mut child) = std::process::Command::new("flock")
+        .arg("-o")
+        .arg(&lock_file)
+        .args(["sleep", "20"])
+        .spawn()
+    else {
+        eprintln!("skipped the cross-process half: util-linux `flock` is absent");
+        return;
+    };
+    let t0 = std::time::Instant::now();
+    while OutputLock::acquire(&out, "probe").is_ok() {
+        assert!(t0.elapsed().as_secs() < 10, "flock never took the lock");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    child.kill().unwrap(); // SIGKILL
+    child.wait().unwrap();
+    OutputLock::acquire(&out, "after kill").expect("a dead holder's lock is released");
+}
+
+#[test]
+fn a_failed_eval_leaves_no_output_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("data");
+    common::generate(&data, 6, 2, (48, 32), "[-2.0, 0.0, 2.0]");
+    let calls = std::sync::atomic::AtomicUsize::new(0);
+    // Scores the first set, fails on the second: the old code left the first set's files.
+    let method = Network2 {
+        description: "fails on the second set".into(),
+        infer: Box::new(move |frames: [&Image; 3], _| {
+            if calls.fetch_add(1, std::sync::atomic::Ordering::SeqCst) == 1 {
+                return Err(hdrsynth::error::Error::Invalid("crafted failure".into()));
+            }
+            Ok(frames[1].clone())
+        }),
+    };
+    let out = dir.path().join("eval");
+    let opts = EvalOptions {
+        progress: false,
+        ..EvalOptions::default()
+    };
+    evaluate::evaluate(&data, &method, &out, &opts).expect_err("second set fails");
+    assert!(!out.exists(), "no partial eval output");
+    assert!(
+        !dir.path().join(".eval.partial").exists(),
+        "staging removed"
+    );
+}
+
+#[test]
+fn a_testset_failing_on_its_second_file_leaves_nothing_and_resumes() {
+    let dir = tempfile::tempdir().unwrap();
+    let src = dir.path().join("radiance");
+    std::fs::create_dir_all(&src).unwrap();
+    let ramp = Image::from_fn(24, 16, |x, _| [(x as f32 / 3.0 - 4.0).exp2(); 3]);
+    write_exr(&src.join("a.exr"), &ramp, ExrPrecision::Float).unwrap();
+    std::fs::write(src.join("b.exr"), b"not an exr").unwrap();
+    let opts = TestsetOptions {
+        isos: vec![100.0],
+        evs: vec![-2.0, 0.0, 2.0],
+        noise: NoiseModel::None,
+        ..TestsetOptions::default()
+    };
+    let profile =
+        SensorProfile::load(&SensorProfile::shipped_dir().join("canon_eos_550d.toml")).unwrap();
+    let out = dir.path().join("ts");
+    let e = testset::build(&src, &profile, &opts, &out)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("b.exr"), "{e}");
+    assert!(!out.exists(), "the old code left a 1-set test set here");
+    assert!(layout::detect(&out).is_err());
+    // Fixed input, same command: the staged first set is kept, the second added.
+    write_exr(&src.join("b.exr"), &ramp, ExrPrecision::Float).unwrap();
+    let s = testset::build(&src, &profile, &opts, &out).unwrap();
+    let written: Vec<bool> = s.sets.iter().map(|s| s.written).collect();
+    assert_eq!(written, vec![false, true]);
+    assert_eq!(layout::detect(&out).unwrap().sets.len(), 2);
+    // An output inside the radiance folder is refused.
+    let e = testset::build(&src, &profile, &opts, &src.join("ts"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("inside the input"), "{e}");
+}

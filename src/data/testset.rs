@@ -315,6 +315,18 @@ pub fn build(
         options: opts.clone(),
         scenes: scenes.clone(),
     };
+    // Never inside the radiance folder; one writer per output. A new test set is built in a
+    // hidden staging sibling that a rerun resumes, and appears at `out` only when complete,
+    // so a failure on the second radiance file leaves no 1-set test set for readers to accept.
+    // An existing `out` (complete, or from before staging) is continued in place.
+    crate::io::guard::refuse_output_inside(input, out)?;
+    let lock = crate::io::guard::OutputLock::acquire(out, "testset")?;
+    let staged = if out.exists() {
+        None
+    } else {
+        Some(lock.stage(true)?)
+    };
+    let out = staged.as_ref().map_or(out, |s| s.path());
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let recipe_path = out.join(RECIPE);
     if recipe_path.is_file() {
@@ -354,6 +366,9 @@ pub fn build(
                 out, scene, index, iso, &radiance, key, &device, &opts,
             )?);
         }
+    }
+    if let Some(s) = staged {
+        s.commit()?;
     }
     Ok(TestsetSummary { sets, notes })
 }

@@ -588,7 +588,13 @@ pub fn evaluate(
             ),
         ));
     }
-    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    // One writer per output folder; everything is written into a hidden staging sibling and
+    // moved into `out` only when every set has been scored, so an error leaves no partial
+    // output where readers look (docs/reliability.md).
+    let lock = crate::io::guard::OutputLock::acquire(out, "eval")?;
+    let staged = lock.stage(false)?;
+    let final_out = out;
+    let out = staged.path();
     let bar = if opts.progress {
         let b = ProgressBar::new(sets.len() as u64);
         if let Ok(style) =
@@ -606,14 +612,15 @@ pub fn evaluate(
         bar.set_message(set.name.clone());
         let row = evaluate_set(set, method, out, opts, &mut notes)?;
         rows.push(row);
-        // Rewritten after every set so an interrupted run keeps what it scored.
+        // Rewritten after every set: an interrupted run's scores stay readable in the
+        // staging folder until the next run of this output clears it.
         report::write_text(&out.join(PER_IMAGE), &report::per_image_csv(&rows))?;
         bar.inc(1);
     }
     bar.finish_and_clear();
     let summary = report::summarise(&rows, opts.resamples, opts.seed, opts.level);
     let result = EvalSummary {
-        out: out.to_path_buf(),
+        out: final_out.to_path_buf(),
         method: method.describe(opts),
         rows,
         summary,
@@ -628,6 +635,7 @@ pub fn evaluate(
     )?;
     report::write_text(&out.join(SUMMARY_MD), &summary_md(&result, testset, opts))?;
     report::write_text(&out.join(REPORT), &report_md(&result, testset, opts))?;
+    staged.commit()?;
     Ok(result)
 }
 

@@ -6,6 +6,7 @@
 
 pub mod atomic;
 mod exr;
+pub mod guard;
 mod hdr;
 pub mod image;
 mod ldr;

@@ -261,6 +261,8 @@ pub fn train<T: Task>(
     loader: Arc<Loader>,
 ) -> Result<TrainSummary> {
     let run = &cfg.run.out;
+    // One trainer per run folder: a second would interleave checkpoints with this one's.
+    let _lock = crate::io::guard::OutputLock::acquire(run, "train")?;
     std::fs::create_dir_all(run).map_err(|e| Error::io(run, e))?;
     // Which frames the run trains on (pure, linear EXRs, display frames) for whoever reads it.
     let source = loader.describe_source();
