@@ -478,3 +478,166 @@ fn a_testset_failing_on_its_second_file_leaves_nothing_and_resumes() {
         .to_string();
     assert!(e.contains("inside the input"), "{e}");
 }
+
+// ---------------------------------------------------------------------------------------------
+// Item 6: values that make no sense are errors naming the key and the file.
+
+fn write_cfg(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+#[test]
+fn nonsense_generate_values_are_errors_naming_key_and_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let base = "seed = 1\ncount = 1\nwidth = 32\nheight = 32\n";
+    for (key, extra) in [
+        ("evs", "evs = [-300.0, 0.0]\n"),
+        (
+            "camera.candidates",
+            "evs = [-3.0, 0.0]\n[camera]\ncandidates = 0\n",
+        ),
+        (
+            "scene.min_dynamic_range",
+            "evs = [-3.0, 0.0]\n[scene]\nmin_dynamic_range = 1000.0\n",
+        ),
+        (
+            "scene.real_background_probability",
+            "evs = [-3.0, 0.0]\n[scene]\nreal_background_probability = 1.0\n",
+        ),
+    ] {
+        let p = write_cfg(dir.path(), "g.toml", &format!("{base}{extra}"));
+        let e = hdrsynth::config::GenerateConfig::load(&p)
+            .expect_err(key)
+            .to_string();
+        assert!(e.contains(key) && e.contains("g.toml"), "{key}: {e}");
+    }
+    // The shipped configs (probability 0.5, backgrounds commented out) stay valid.
+    let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/generate.toml");
+    hdrsynth::config::GenerateConfig::load(&shipped).expect("configs/generate.toml");
+}
+
+#[test]
+fn nonsense_optimiser_values_are_errors_naming_key_and_file() {
+    let dir = tempfile::tempdir().unwrap();
+    for (key, line) in [
+        ("optim.epsilon", "epsilon = -1.0"),
+        ("optim.weight_decay", "weight_decay = -5.0"),
+    ] {
+        let text = format!(
+            "[run]\nout = \"r\"\nseed = 1\nsteps = 2\ncheckpoint_every = 1\nlog_every = 1\n\
+             [model]\nkind = \"blend_unet\"\nbase_width = 4\ndepth = 2\nbatch_norm = true\n\
+             [data]\ndataset = \"d\"\npatch = 32\nbatch_size = 1\nworkers = 1\n\
+             profile = \"pure\"\n[optim]\nlr = 1e-3\n{line}\n"
+        );
+        let p = write_cfg(dir.path(), "t.toml", &text);
+        let e = hdrsynth::train::config::TrainConfig::load(&p)
+            .expect_err(key)
+            .to_string();
+        assert!(e.contains(key) && e.contains("t.toml"), "{key}: {e}");
+    }
+}
+
+#[test]
+fn a_singular_or_zero_colour_matrix_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let canon =
+        std::fs::read_to_string(SensorProfile::shipped_dir().join("canon_eos_550d.toml")).unwrap();
+    let line = canon
+        .lines()
+        .find(|l| l.starts_with("matrix = "))
+        .expect("the canon profile has a colour matrix");
+    for (what, m) in [
+        (
+            "zero",
+            "[[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]",
+        ),
+        // Third row = first + second: rank 2.
+        (
+            "singular",
+            "[[0.6, 0.3, 0.1], [0.1, 0.7, 0.2], [0.7, 1.0, 0.3]]",
+        ),
+    ] {
+        let p = write_cfg(
+            dir.path(),
+            "p.toml",
+            &canon.replace(line, &format!("matrix = {m}")),
+        );
+        let e = SensorProfile::load(&p).expect_err(what).to_string();
+        assert!(
+            e.contains("colour.matrix") && e.contains("singular") && e.contains("p.toml"),
+            "{what}: {e}"
+        );
+    }
+    SensorProfile::load(&SensorProfile::shipped_dir().join("canon_eos_550d.toml"))
+        .expect("the shipped matrix is fine");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Item 7: leftovers of a killed run are cleaned; --resume on a finished run succeeds.
+
+#[test]
+fn temp_names_are_recognised_exactly() {
+    use hdrsynth::io::atomic::is_temp_name;
+    for yes in [".latest.4242.tmp", ".ev+0.png.17.tmp"] {
+        assert!(is_temp_name(yes), "{yes}");
+    }
+    for no in [
+        "latest.4242.tmp",
+        ".latest.tmp",
+        ".latest.42x.tmp",
+        "..1.tmp",
+        "ev0.png",
+    ] {
+        assert!(!is_temp_name(no), "{no}");
+    }
+}
+
+#[test]
+fn a_finished_run_resumes_to_success_and_leftovers_are_removed() {
+    use hdrsynth::train::{TrainOptions, config::TrainConfig};
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("data");
+    common::generate(&data, 7, 2, (48, 48), "[-3.0, 0.0]");
+    let run = dir.path().join("run");
+    let text = format!(
+        "[run]\nout = {run:?}\nseed = 3\nsteps = 2\ncheckpoint_every = 1\nlog_every = 1\n\
+         keep_checkpoints = 1\n[model]\nkind = \"blend_unet\"\nbase_width = 4\ndepth = 2\n\
+         batch_norm = true\n[data]\ndataset = {data:?}\npatch = 32\nbatch_size = 1\n\
+         workers = 1\nprofile = \"pure\"\n\
+         [optim]\nlr = 1e-3\n"
+    );
+    let cfg: TrainConfig = hdrsynth::config::parse_toml(&text, Path::new("t.toml")).unwrap();
+    let quiet = |resume| TrainOptions {
+        resume,
+        progress: false,
+    };
+    hdrsynth::train::run(&cfg, &quiet(false)).unwrap();
+    let last = hdrsynth::train::checkpoint::latest(&run).unwrap().unwrap();
+    let root = last.parent().unwrap().to_path_buf();
+    // What kills leave: a save cut short, a prune cut short (old and new style), temp files.
+    let leftovers = [
+        root.join(".tmp-step-00000009"),
+        root.join(".prune-step-00000001"),
+        root.join("step-00000001"),
+    ];
+    for d in &leftovers {
+        std::fs::create_dir_all(d).unwrap();
+        std::fs::write(d.join("model.mpk"), b"partial").unwrap();
+    }
+    let temps = [root.join(".latest.4242.tmp"), run.join(".log.jsonl.17.tmp")];
+    for t in &temps {
+        std::fs::write(t, b"partial").unwrap();
+    }
+    // The old code refused this with "already at step 2 of 2".
+    let s = hdrsynth::train::run(&cfg, &quiet(true)).expect("a finished run resumes to success");
+    assert!(s.already_finished && s.start_step == 2, "{s:?}");
+    for p in leftovers.iter().chain(&temps) {
+        assert!(!p.exists(), "{} should be gone", p.display());
+    }
+    assert_eq!(
+        hdrsynth::train::checkpoint::latest(&run).unwrap().unwrap(),
+        last
+    );
+}
