@@ -363,7 +363,7 @@ impl<'a> Tiff<'a> {
             .ok_or_else(|| {
                 Error::decode(
                     self.path,
-                    format!("truncated: needs bytes {off}..{}", off + len),
+                    format!("truncated: needs bytes {off}..{}", off.saturating_add(len)),
                 )
             })
     }
@@ -413,6 +413,13 @@ impl<'a> Tiff<'a> {
             return Ok(None);
         };
         let size = type_size(e.typ).expect("known type");
+        // The values must lie in the file before `count` sizes any allocation: a corrupt count
+        // of 2^32 would otherwise reserve 34 GB (found by tests/fuzz.rs).
+        let len = size.checked_mul(e.count as usize).ok_or_else(|| {
+            Error::decode(self.path, format!("tag {tag}: count {} overflows", e.count))
+        })?;
+        self.slice(e.offset, len)
+            .map_err(|_| Error::decode(self.path, format!("tag {tag}: {} values of {size} bytes at offset {} run past the end of the file", e.count, e.offset)))?;
         let mut out = Vec::with_capacity(e.count as usize);
         for i in 0..e.count as usize {
             let o = e.offset + i * size;
