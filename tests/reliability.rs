@@ -392,7 +392,8 @@ fn a_second_writer_is_refused_and_a_killed_holder_does_not_block() {
     OutputLock::acquire(&out, "after").expect("released on drop");
 
     // Another process holds the lock, then dies by SIGKILL: the OS releases it.
-    let lock_file = dir.path().join(".data.lock");
+    std::fs::create_dir_all(&out).unwrap();
+    let lock_file = out.join(guard::LOCK_FILE);
     // `-o`: flock itself holds the lock and its `sleep` child does not inherit it, so killing
     // flock kills the only holder (the orphaned sleep exits on its own).
     let Ok(mut child) = std::process::Command::new("flock")

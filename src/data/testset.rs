@@ -320,8 +320,10 @@ pub fn build(
     // so a failure on the second radiance file leaves no 1-set test set for readers to accept.
     // An existing `out` (complete, or from before staging) is continued in place.
     crate::io::guard::refuse_output_inside(input, out)?;
+    // A test set (or another dataset, refused below) already there is handled in place.
+    let existed = out.join(RECIPE).is_file() || out.join(own::MANIFEST).is_file();
     let lock = crate::io::guard::OutputLock::acquire(out, "testset")?;
-    let staged = if out.exists() {
+    let staged = if existed {
         None
     } else {
         Some(lock.stage(true)?)

@@ -67,29 +67,37 @@ pub fn refuse_output_inside(input: &Path, output: &Path) -> Result<()> {
     Ok(())
 }
 
-/// An exclusive lock on an output path, held until dropped.
+/// An exclusive lock on an output folder, held until dropped.
 ///
 /// The lock is an OS advisory lock (`flock` on Unix, `LockFileEx` on Windows, through
-/// `std::fs::File::try_lock`) on the sibling file `.<name>.lock`, which also records the
-/// holder's pid for the message a second writer gets. The OS releases it when the holder
-/// exits in any way, kill -9 included, so a dead holder never blocks a later run: there are no
-/// stale locks to detect. The file itself stays (deleting it would let a waiter lock an
-/// unlinked inode); it is empty of meaning when nobody holds it. Network file systems without
-/// `flock` support may not enforce the lock.
+/// `std::fs::File::try_lock`) on `OUT/.hdrsynth.lock`, which also records the holder's command
+/// and pid for the message a second writer gets. Every command that writes an output folder
+/// takes it on that folder, so any two of them exclude each other. The OS releases it when the
+/// holder exits in any way, kill -9 included, so a dead holder never blocks a later run: there
+/// are no stale locks to detect. The file stays in the folder (deleting it would let a waiter
+/// lock an unlinked file); it means nothing when nobody holds it. A folder the lock created
+/// and that holds nothing else when the lock is dropped (a command that failed before writing
+/// anything, or a staged output that was never committed) is removed again. Network file
+/// systems without `flock` support may not enforce the lock.
 #[derive(Debug)]
 pub struct OutputLock {
-    _file: File,
+    file: Option<File>,
     lock_path: PathBuf,
     out: PathBuf,
+    created: bool,
 }
 
+/// The lock file inside a locked output folder.
+pub const LOCK_FILE: &str = ".hdrsynth.lock";
+
 impl OutputLock {
-    /// Lock `out` (which need not exist yet) for `command`, or fail naming the holder's pid.
+    /// Create the folder `out` if needed and lock it for `command`, or fail naming the
+    /// holder's command and pid.
     pub fn acquire(out: &Path, command: &str) -> Result<OutputLock> {
+        let created = !out.exists();
+        std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
         let resolved = resolve(out)?;
-        let (parent, name) = split(&resolved, out)?;
-        std::fs::create_dir_all(&parent).map_err(|e| Error::io(&parent, e))?;
-        let lock_path = parent.join(format!(".{name}.lock"));
+        let lock_path = resolved.join(LOCK_FILE);
         let mut file = OpenOptions::new()
             .read(true)
             .write(true)
@@ -123,9 +131,10 @@ impl OutputLock {
         })();
         res.map_err(|e| Error::io(&lock_path, e))?;
         Ok(OutputLock {
-            _file: file,
+            file: Some(file),
             lock_path,
             out: resolved,
+            created,
         })
     }
 
@@ -149,9 +158,9 @@ fn split(resolved: &Path, shown: &Path) -> Result<(PathBuf, String)> {
     }
 }
 
-/// An output built in the hidden sibling `.<name>.partial` and moved to its final path only by
-/// [`Staged::commit`], so an error or a kill never leaves a half-written output where readers
-/// look. Not resumable: the staging folder is removed on drop without commit, and a leftover
+/// An output built in the hidden sibling `.<name>.partial` and moved into its final folder
+/// only by [`Staged::commit`], so an error or a kill never leaves a half-written output where
+/// readers look (the locked final folder holds only the lock file until then). Not resumable: the staging folder is removed on drop without commit, and a leftover
 /// one (a kill) is cleared at the next start. Resumable: it is kept, and the next run continues
 /// in it. Created through [`OutputLock::stage`], so one writer owns the staging name.
 #[derive(Debug)]
@@ -183,18 +192,29 @@ impl Staged {
         &self.tmp
     }
 
-    /// Move the staged output to its final path: one rename when the final folder does not
-    /// exist yet; otherwise entry by entry (each an atomic rename, replacing files of the same
-    /// name and merging folders), leaving other files in the final folder alone.
+    /// Move the staged output into its final folder (which holds the lock), entry by entry:
+    /// each an atomic rename, replacing files of the same name and merging folders, leaving
+    /// other files in the final folder alone.
     pub fn commit(mut self) -> Result<PathBuf> {
-        if std::fs::symlink_metadata(&self.out).is_err() {
-            std::fs::rename(&self.tmp, &self.out).map_err(|e| Error::io(&self.out, e))?;
-        } else {
-            merge_into(&self.tmp, &self.out)?;
-            std::fs::remove_dir_all(&self.tmp).map_err(|e| Error::io(&self.tmp, e))?;
-        }
+        merge_into(&self.tmp, &self.out)?;
+        std::fs::remove_dir_all(&self.tmp).map_err(|e| Error::io(&self.tmp, e))?;
         self.done = true;
         Ok(self.out.clone())
+    }
+}
+
+impl Drop for OutputLock {
+    fn drop(&mut self) {
+        // Unlock (by closing) first; then remove a folder this lock created if nothing but
+        // the lock file is in it.
+        drop(self.file.take());
+        if self.created
+            && let Ok(mut entries) = std::fs::read_dir(&self.out)
+            && entries.all(|e| e.is_ok_and(|e| e.file_name() == LOCK_FILE))
+        {
+            let _ = std::fs::remove_file(&self.lock_path);
+            let _ = std::fs::remove_dir(&self.out);
+        }
     }
 }
 
