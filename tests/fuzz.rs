@@ -288,6 +288,20 @@ fn small_dng() -> Vec<u8> {
     out
 }
 
+/// Found by the long run of `fuzz_dng`: a numeric tag with count 0 (here BitsPerSample)
+/// indexed an empty list and panicked.
+#[test]
+fn a_dng_tag_with_no_values_is_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut d = small_dng();
+    let count_at = 8 + 2 + 12 * 3 + 4; // entry 3 (BitsPerSample), its count field
+    d[count_at..count_at + 4].copy_from_slice(&0u32.to_le_bytes());
+    let p = dir.path().join("zero.dng");
+    std::fs::write(&p, d).unwrap();
+    let e = hdrsynth::sensor::dng::read_dng(&p).unwrap_err().to_string();
+    assert!(e.contains("zero.dng") && e.contains("no values"), "{e}");
+}
+
 #[test]
 fn fuzz_dng() {
     let dir = tempfile::tempdir().unwrap();

@@ -413,6 +413,10 @@ impl<'a> Tiff<'a> {
             return Ok(None);
         };
         let size = type_size(e.typ).expect("known type");
+        // Callers index the first value (found by tests/fuzz.rs: BlackLevel with count 0).
+        if e.count == 0 {
+            return Err(Error::decode(self.path, format!("tag {tag} has no values")));
+        }
         // The values must lie in the file before `count` sizes any allocation: a corrupt count
         // of 2^32 would otherwise reserve 34 GB (found by tests/fuzz.rs).
         let len = size.checked_mul(e.count as usize).ok_or_else(|| {
