@@ -73,6 +73,12 @@ pub struct GenerateConfig {
     pub source: Option<PathBuf>,
 }
 
+/// Largest |EV| of a bracket frame: beyond it the frame is all black or all white at 8 or 16
+/// bits (16 stops is the whole code range of a 16-bit frame).
+pub const MAX_EV: f32 = 16.0;
+/// Largest `scene.min_dynamic_range` (stops); the engine's scenes span about 16–24.
+pub const MAX_DYNAMIC_RANGE: f32 = 32.0;
+
 fn default_bits() -> u32 {
     8
 }
@@ -111,6 +117,32 @@ impl GenerateConfig {
             return bad(format!(
                 "evs {:?} must be finite and strictly ascending",
                 self.evs
+            ));
+        }
+        if let Some(e) = self.evs.iter().find(|e| e.abs() > MAX_EV) {
+            return bad(format!(
+                "evs: {e} stops is beyond ±{MAX_EV}: such a frame is all black or all white at \
+                 8 or 16 bits"
+            ));
+        }
+        // Below 1 the probability applies only "when backgrounds_dir is set" (the shipped
+        // configs keep 0.5 with the folder commented out); 1 demands a real background for
+        // every sample, which no folder cannot give.
+        if self.scene.real_background_probability == 1.0 && self.scene.backgrounds_dir.is_none() {
+            return bad(
+                "scene.real_background_probability = 1 (every sample on a real background) \
+                 needs scene.backgrounds_dir"
+                    .into(),
+            );
+        }
+        if self.camera.candidates == 0 {
+            return bad("camera.candidates = 0: at least one viewpoint must be tried".into());
+        }
+        let dr = self.scene.min_dynamic_range;
+        if !(dr.is_finite() && (0.0..=MAX_DYNAMIC_RANGE).contains(&dr)) {
+            return bad(format!(
+                "scene.min_dynamic_range = {dr} must be in [0, {MAX_DYNAMIC_RANGE}] stops (the \
+                 engine's scenes span about 16–24; a larger minimum is never met)"
             ));
         }
         if BitDepth::from_bits(self.bit_depth).is_none() {

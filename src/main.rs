@@ -71,7 +71,13 @@ enum CalibrateCommand {
 #[derive(Subcommand)]
 enum DatasetCommand {
     /// Detect a folder's layout and list its sets, sizes, EVs and dynamic range.
-    Info { dir: PathBuf },
+    Info {
+        dir: PathBuf,
+        /// Decode every frame, mask and ground truth and check its size against its set
+        /// (slow: one full decode per file); exits non-zero when a file is bad.
+        #[arg(long)]
+        verify: bool,
+    },
     /// Blend-class maps per set, class frequencies and inverse-frequency weights (+ plot).
     Weights(hdrsynth::cli::weights::Args),
     /// Contact sheet of loader samples: pure frames, realistic frames, target.
@@ -107,8 +113,12 @@ fn main() -> Result<()> {
         Command::Diagnose(args) => println!("{}", hdrsynth::cli::diagnose::run(&args)?),
         Command::Export { command } => println!("{}", hdrsynth::cli::export::run(&command)?),
         Command::Dataset { command } => match command {
-            DatasetCommand::Info { dir } => {
-                print!("{}", hdrsynth::cli::dataset::info_report(&dir)?)
+            DatasetCommand::Info { dir, verify } => {
+                let (report, bad) = hdrsynth::cli::dataset::info_report_verified(&dir, verify)?;
+                print!("{report}");
+                if bad > 0 {
+                    anyhow::bail!("dataset info --verify {}: {bad} bad file(s)", dir.display());
+                }
             }
             DatasetCommand::Weights(args) => println!("{}", hdrsynth::cli::weights::run(&args)?),
             DatasetCommand::Preview(args) => println!("{}", hdrsynth::cli::preview::run(&args)?),

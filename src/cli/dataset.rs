@@ -66,15 +66,46 @@ fn gt_kind(set: &SetInfo) -> &'static str {
 /// Human-readable report of the dataset at `dir`: root, layout, sets, skipped folders with
 /// reasons, one line per set (at most 50, then a summary of all sets).
 pub fn info_report(dir: &Path) -> anyhow::Result<String> {
+    Ok(info_report_verified(dir, false)?.0)
+}
+
+/// [`info_report`], and with `verify` every file decoded and checked against its set's size
+/// ([`layout::verify`]): the bad files are listed in the report and counted in the second value.
+pub fn info_report_verified(dir: &Path, verify: bool) -> anyhow::Result<(String, usize)> {
     let info = layout::detect(dir)
         .with_context(|| format!("dataset info {}: detecting the layout", dir.display()))?;
+    if verify {
+        let bad = layout::verify(&info);
+        let mut out = String::new();
+        let files: usize = info.sets.iter().map(|s| layout::set_files(s).len()).sum();
+        if bad.is_empty() {
+            let _ = writeln!(out, "verify:  every file decodes and has its set's size");
+        } else {
+            let _ = writeln!(out, "verify:  {} bad file(s):", bad.len());
+            for (_, e) in &bad {
+                let _ = writeln!(out, "  {e}");
+            }
+        }
+        let _ = writeln!(
+            out,
+            "         ({files} frame/mask/ground-truth files, plus linear .exr siblings)"
+        );
+        // The per-set table still needs readable ground truth; report the bad files instead
+        // of failing on the first one.
+        let drs: Vec<Dr> = info
+            .sets
+            .iter()
+            .map(|s| set_dr(s).unwrap_or(Dr::NotApplicable("unreadable GT")))
+            .collect();
+        return Ok((format!("{}\n{out}", render(&info, &drs)), bad.len()));
+    }
     let drs = info
         .sets
         .par_iter()
         .map(set_dr)
         .collect::<anyhow::Result<Vec<_>>>()
         .with_context(|| format!("dataset info {}", dir.display()))?;
-    Ok(render(&info, &drs))
+    Ok((render(&info, &drs), 0))
 }
 
 fn render(info: &DatasetInfo, drs: &[Dr]) -> String {

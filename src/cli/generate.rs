@@ -28,6 +28,10 @@ pub fn run(config: &Path, out: &Path, progress: bool) -> Result<Summary> {
 pub fn generate(cfg: &GenerateConfig, out: &Path, progress: bool) -> Result<Summary> {
     let generator = Generator::new(cfg)?;
     let manifest = layout::manifest_for(cfg);
+    // One generator per dataset folder: two with different configs would mix their sets.
+    let _lock = crate::io::guard::OutputLock::acquire(out, "generate")?;
+    // Under the lock, temp files in the folder are a killed run's.
+    crate::io::atomic::remove_stale_temps(out)?;
     if layout::is_dataset(out) {
         let existing = layout::read_manifest(out)?;
         // Compare everything but where the config was read from.

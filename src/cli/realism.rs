@@ -54,32 +54,6 @@ fn parse_noise(s: &str) -> Result<NoiseModel, String> {
     }
 }
 
-fn is_image(p: &Path) -> bool {
-    matches!(
-        p.extension()
-            .and_then(|e| e.to_str())
-            .map(str::to_ascii_lowercase)
-            .as_deref(),
-        Some("png" | "tif" | "tiff" | "exr" | "hdr")
-    )
-}
-
-fn walk(dir: &Path, out: &mut Vec<PathBuf>) -> Result<()> {
-    let mut entries: Vec<PathBuf> = std::fs::read_dir(dir)
-        .with_context(|| format!("reading {}", dir.display()))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .collect();
-    entries.sort();
-    for p in entries {
-        if p.is_dir() {
-            walk(&p, out)?;
-        } else if is_image(&p) {
-            out.push(p);
-        }
-    }
-    Ok(())
-}
-
 /// (input file, path relative to the input root) of every frame to process.
 fn inputs(root: &Path) -> Result<Vec<(PathBuf, PathBuf)>> {
     if root.is_file() {
@@ -95,11 +69,8 @@ fn inputs(root: &Path) -> Result<Vec<(PathBuf, PathBuf)>> {
             .iter()
             .flat_map(|s| s.static_frames.iter().chain(&s.dynamic_frames).cloned())
             .collect(),
-        Err(_) => {
-            let mut v = Vec::new();
-            walk(root, &mut v)?;
-            v
-        }
+        // Symlinked folders are followed once, so a symlink loop cannot recurse forever.
+        Err(_) => crate::io::guard::images_under(root)?,
     };
     if files.is_empty() {
         bail!("{}: no images found", root.display());
@@ -110,7 +81,8 @@ fn inputs(root: &Path) -> Result<Vec<(PathBuf, PathBuf)>> {
             let rel = f
                 .strip_prefix(root)
                 .map(Path::to_path_buf)
-                .unwrap_or_else(|_| f.clone());
+                // Never an absolute path: joined to the output, it would write outside it.
+                .unwrap_or_else(|_| f.file_name().map(PathBuf::from).unwrap_or_default());
             (f, rel)
         })
         .collect())
@@ -139,7 +111,12 @@ pub fn run(args: &Args) -> Result<String> {
     };
     let op = Realism::new(&profile, &opts)
         .with_context(|| format!("profile {}", args.profile.display()))?;
+    // Never write into the input (it would overwrite frames, or re-read its own output on a
+    // rerun); one writer per output; the output appears only when every frame is done.
+    crate::io::guard::refuse_output_inside(&args.input, &args.out)?;
     let files = inputs(&args.input)?;
+    let lock = crate::io::guard::OutputLock::acquire(&args.out, "realism")?;
+    let staged = lock.stage(false)?;
     let bar = ProgressBar::new(files.len() as u64);
     bar.set_style(
         ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} frames")
@@ -151,12 +128,13 @@ pub fn run(args: &Args) -> Result<String> {
     for (path, rel) in &files {
         let img = read_image(path)?;
         op.apply_into(&img, file_seed(args.seed, rel), &mut out);
-        let dest = args.out.join(rel).with_extension("png");
+        let dest = staged.path().join(rel).with_extension("png");
         write_ldr(&dest, &out, depth)?;
         mpix += img.pixel_count() as f64 / 1e6;
         bar.inc(1);
     }
     bar.finish_and_clear();
+    staged.commit()?;
     let secs = start.elapsed().as_secs_f64();
     Ok(format!(
         "{} frames → {} (profile '{}' ({}), ISO {}, noise {:?}, colour {}), {:.1} s, {:.1} Mpix/s incl. I/O",

@@ -51,6 +51,17 @@ pub fn run(args: &Args) -> Result<TrainSummary> {
 
 pub fn report(s: &TrainSummary) -> String {
     let mut r = String::new();
+    if s.already_finished {
+        let _ = write!(
+            r,
+            "{} is already finished at step {}; nothing to do (raise run.steps to train \
+             further)\ncheckpoint: {}",
+            s.run.display(),
+            s.start_step,
+            s.checkpoint.display()
+        );
+        return r;
+    }
     let _ = writeln!(
         r,
         "trained steps {}..{} in {}: loss {:.5} → {:.5} (mean of the first and last logged \

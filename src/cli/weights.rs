@@ -11,7 +11,7 @@ use crate::data::ground_truth::{
     self, CLASS_MAP_FILE, CLASS_WEIGHTS_FILE, CLASSES, ClassWeights, MertensWeights,
 };
 use crate::data::layout::{self, SetInfo};
-use crate::io::{BitDepth, Image, read_image, write_ldr};
+use crate::io::{BitDepth, Image, write_ldr};
 use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
@@ -84,18 +84,7 @@ fn process_set(set: &SetInfo, w: MertensWeights) -> Result<SetResult> {
                 set.evs.len()
             )
         })?;
-        let img = read_image(p)?;
-        if (img.width, img.height) != (set.width, set.height) {
-            bail!(
-                "{}: size {}×{} differs from the set's {}×{}",
-                p.display(),
-                img.width,
-                img.height,
-                set.width,
-                set.height
-            );
-        }
-        Ok(img)
+        Ok(crate::data::layout::read_set_image(set, p)?)
     };
     let (low, high) = (frame(lo)?, frame(hi)?);
     let weights = ground_truth::blend_weights_high_with(&low, &high, w)?;

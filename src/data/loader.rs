@@ -21,9 +21,9 @@
 
 use crate::config::load_toml;
 use crate::data::ground_truth::{blend_classes_smoothed, triangle_merge};
-use crate::data::layout::{self, GroundTruthKind, SetInfo};
+use crate::data::layout::{self, GroundTruthKind, SetInfo, read_set_image};
 use crate::error::{Error, Result};
-use crate::io::{Image, read_image};
+use crate::io::Image;
 use crate::rng::{Rng, hash};
 use crate::sensor::metering::Metering;
 use crate::sensor::profile::{Response, SensorProfile};
@@ -408,12 +408,11 @@ impl Loader {
 
     /// A frame as linear values in realism's starting unit: the EXR sibling (Linear source),
     /// or the display frame through the source response (Display source, 1 = its white).
-    fn linear_frame(&self, frame: &Path) -> Result<Image> {
+    fn linear_frame(&self, set: &SetInfo, frame: &Path) -> Result<Image> {
         match &self.linearise {
-            None => read_image(&linear_sibling(frame)),
-            Some(lut) => {
-                Ok(read_image(frame)?.map(|v| lut[(v.clamp(0.0, 1.0) * 65535.0).round() as usize]))
-            }
+            None => read_set_image(set, &linear_sibling(frame)),
+            Some(lut) => Ok(read_set_image(set, frame)?
+                .map(|v| lut[(v.clamp(0.0, 1.0) * 65535.0).round() as usize])),
         }
     }
 
@@ -427,7 +426,7 @@ impl Loader {
             .get_or_init(|| {
                 let radiance = match (&set.ground_truth, self.source) {
                     (Some(gt), Source::Linear) if gt.kind == GroundTruthKind::Linear => {
-                        read_image(&gt.path)
+                        read_set_image(set, &gt.path)
                     }
                     _ => {
                         let frames = if set.static_frames.is_empty() {
@@ -435,7 +434,7 @@ impl Loader {
                         } else {
                             &set.static_frames
                         };
-                        self.linear_frame(&frames[set.reference])
+                        self.linear_frame(set, &frames[set.reference])
                     }
                 }
                 .map_err(|e| e.to_string())?;
@@ -473,11 +472,12 @@ impl Loader {
         let realistic = |frame: &Path, k: u64| -> Result<Image> {
             Ok(match op {
                 Some((_, r)) => {
-                    let lin = crop(&self.linear_frame(frame)?, x0, y0, p).map(|v| v * exposure);
+                    let lin =
+                        crop(&self.linear_frame(set, frame)?, x0, y0, p).map(|v| v * exposure);
                     r.apply(&lin, hash(noise_seed, &[k]))
                 }
                 // Pure mode still quantises to 8 bits, as the networks see 8-bit frames.
-                None => crop(&read_image(frame)?, x0, y0, p)
+                None => crop(&read_set_image(set, frame)?, x0, y0, p)
                     .map(|v| (v.clamp(0.0, 1.0) * 255.0).round() / 255.0),
             })
         };
@@ -521,14 +521,19 @@ impl Loader {
                 // are first brought from their own unit into the reference's.
                 let (hdr, white) = match &set.ground_truth {
                     Some(gt) if gt.kind == GroundTruthKind::Linear => (
-                        layout::to_reference_unit(set, gt, crop(&read_image(&gt.path)?, x0, y0, p)),
+                        layout::to_reference_unit(
+                            set,
+                            gt,
+                            crop(&read_set_image(set, &gt.path)?, x0, y0, p),
+                        ),
                         self.white,
                     ),
                     _ if stat => {
                         let s: Vec<Image> = idx
                             .iter()
                             .map(|&i| {
-                                read_image(&set.static_frames[i]).map(|f| crop(&f, x0, y0, p))
+                                read_set_image(set, &set.static_frames[i])
+                                    .map(|f| crop(&f, x0, y0, p))
                             })
                             .collect::<Result<_>>()?;
                         // LDR^2.2 / t: the reference frame's white is 1.

@@ -315,7 +315,22 @@ pub fn build(
         options: opts.clone(),
         scenes: scenes.clone(),
     };
+    // Never inside the radiance folder; one writer per output. A new test set is built in a
+    // hidden staging sibling that a rerun resumes, and appears at `out` only when complete,
+    // so a failure on the second radiance file leaves no 1-set test set for readers to accept.
+    // An existing `out` (complete, or from before staging) is continued in place.
+    crate::io::guard::refuse_output_inside(input, out)?;
+    // A test set (or another dataset, refused below) already there is handled in place.
+    let existed = out.join(RECIPE).is_file() || out.join(own::MANIFEST).is_file();
+    let lock = crate::io::guard::OutputLock::acquire(out, "testset")?;
+    let staged = if existed {
+        None
+    } else {
+        Some(lock.stage(true)?)
+    };
+    let out = staged.as_ref().map_or(out, |s| s.path());
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    crate::io::atomic::remove_stale_temps(out)?;
     let recipe_path = out.join(RECIPE);
     if recipe_path.is_file() {
         let old: Recipe = crate::config::load_toml(&recipe_path)?;
@@ -354,6 +369,9 @@ pub fn build(
                 out, scene, index, iso, &radiance, key, &device, &opts,
             )?);
         }
+    }
+    if let Some(s) = staged {
+        s.commit()?;
     }
     Ok(TestsetSummary { sets, notes })
 }
@@ -582,37 +600,7 @@ pub fn load_radiance(
 
 type M3 = [[f64; 3]; 3];
 
-fn mul(a: &M3, b: &M3) -> M3 {
-    std::array::from_fn(|i| std::array::from_fn(|j| (0..3).map(|k| a[i][k] * b[k][j]).sum()))
-}
-
-fn inverse(m: &M3) -> Option<M3> {
-    let det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
-        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
-        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
-    if !det.is_finite() || det.abs() < 1e-15 {
-        return None;
-    }
-    let c =
-        |r0: usize, r1: usize, c0: usize, c1: usize| m[r0][c0] * m[r1][c1] - m[r0][c1] * m[r1][c0];
-    Some([
-        [
-            c(1, 2, 1, 2) / det,
-            -c(0, 2, 1, 2) / det,
-            c(0, 1, 1, 2) / det,
-        ],
-        [
-            -c(1, 2, 0, 2) / det,
-            c(0, 2, 0, 2) / det,
-            -c(0, 1, 0, 2) / det,
-        ],
-        [
-            c(1, 2, 0, 1) / det,
-            -c(0, 2, 0, 1) / det,
-            c(0, 1, 0, 1) / det,
-        ],
-    ])
-}
+use crate::sensor::colour::{inverse3 as inverse, mul3 as mul};
 
 /// Rec. 709 primaries and D65 white, as (x, y): red, green, blue, white.
 const REC709: [[f64; 2]; 4] = [[0.64, 0.33], [0.30, 0.60], [0.15, 0.06], [0.3127, 0.3290]];

@@ -347,7 +347,10 @@ pub fn run(cfg: &AblateConfig, config_path: &Path, progress: bool) -> Result<Abl
             ),
         ));
     }
+    // One ablation per output folder: two would train and evaluate the same cells at once.
+    let _lock = crate::io::guard::OutputLock::acquire(&cfg.out, "ablate")?;
     std::fs::create_dir_all(&cfg.out).map_err(|e| Error::io(&cfg.out, e))?;
+    crate::io::atomic::remove_stale_temps(&cfg.out)?;
     let cells = cfg.cells();
     let mut results = Vec::new();
     for (k, &(r, c)) in cells.iter().enumerate() {

@@ -329,9 +329,7 @@ pub fn network1_reference(
         Network1Reference::CleanWeights => {
             let read = |i: usize| -> Result<Image> {
                 let p = &set.clean_frames[i];
-                let img = read_image(p)?;
-                layout_size(p, &img, set)?;
-                Ok(img)
+                layout::read_set_image(set, p)
             };
             let (cl, ch) = rayon::join(|| read(pair.0), || read(pair.1));
             let w = ground_truth::blend_weights_high(&cl?, &ch?)?;
@@ -373,9 +371,7 @@ impl Method for Network1 {
         let (lo, hi) = set.network1_pair()?;
         let read = |i: usize| -> Result<Image> {
             let p = &set.static_frames[i];
-            let img = read_image(p)?;
-            layout_size(p, &img, set)?;
-            Ok(img)
+            layout::read_set_image(set, p)
         };
         let (low, high) = rayon::join(|| read(lo), || read(hi));
         let (low, high) = (low?, high?);
@@ -477,19 +473,6 @@ impl Method for Network2 {
             notes: Vec::new(),
         })
     }
-}
-
-fn layout_size(path: &Path, img: &Image, set: &SetInfo) -> Result<()> {
-    if (img.width, img.height) != (set.width, set.height) {
-        return Err(Error::layout(
-            path,
-            format!(
-                "size {}×{} differs from the set's {}×{}",
-                img.width, img.height, set.width, set.height
-            ),
-        ));
-    }
-    Ok(())
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -605,7 +588,13 @@ pub fn evaluate(
             ),
         ));
     }
-    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    // One writer per output folder; everything is written into a hidden staging sibling and
+    // moved into `out` only when every set has been scored, so an error leaves no partial
+    // output where readers look (docs/reliability.md).
+    let lock = crate::io::guard::OutputLock::acquire(out, "eval")?;
+    let staged = lock.stage(false)?;
+    let final_out = out;
+    let out = staged.path();
     let bar = if opts.progress {
         let b = ProgressBar::new(sets.len() as u64);
         if let Ok(style) =
@@ -623,7 +612,8 @@ pub fn evaluate(
         bar.set_message(set.name.clone());
         let row = evaluate_set(set, method, out, opts, &mut notes)?;
         rows.push(row);
-        // Rewritten after every set so an interrupted run keeps what it scored.
+        // Rewritten after every set: an interrupted run's scores stay readable in the
+        // staging folder until the next run of this output clears it.
         report::write_text(&out.join(PER_IMAGE), &report::per_image_csv(&rows))?;
         bar.inc(1);
     }
@@ -632,7 +622,7 @@ pub fn evaluate(
         crate::data::testset::scenes_of_sets(testset, rows.iter().map(|r| r.set.as_str()))?;
     let summary = report::summarise(&rows, &scenes, opts.resamples, opts.seed, opts.level);
     let result = EvalSummary {
-        out: out.to_path_buf(),
+        out: final_out.to_path_buf(),
         method: method.describe(opts),
         rows,
         summary,
@@ -647,6 +637,7 @@ pub fn evaluate(
     )?;
     report::write_text(&out.join(SUMMARY_MD), &summary_md(&result, testset, opts))?;
     report::write_text(&out.join(REPORT), &report_md(&result, testset, opts))?;
+    staged.commit()?;
     Ok(result)
 }
 

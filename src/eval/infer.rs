@@ -8,7 +8,6 @@ use crate::error::{Error, Result};
 use crate::eval::blend::{BlendWeight, DEFAULT_TONE_K, fuse, weight_from_logits};
 use crate::eval::tiling::{Planar, Tiling, run_tiled};
 use crate::io::Image;
-use crate::io::read_image;
 use crate::models::{BlendUNet, BlendUNetConfig, WuConfig, WuNet};
 use burn::tensor::{Device, Tensor, TensorData};
 
@@ -176,7 +175,7 @@ pub fn network2_frames(set: &SetInfo) -> Result<([Image; 3], [f32; 3])> {
         } else {
             &set.dynamic_frames
         };
-        read_image(&frames[i])
+        crate::data::layout::read_set_image(set, &frames[i])
     };
     let times = [lo, r, hi].map(|i| 2f32.powf(set.evs[i] - set.evs[r]));
     Ok(([pick(lo)?, pick(r)?, pick(hi)?], times))

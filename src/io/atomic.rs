@@ -26,6 +26,43 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     })
 }
 
+/// Whether `name` is one of [`write_atomic`]'s temp names, `.<name>.<pid>.tmp`.
+pub fn is_temp_name(name: &str) -> bool {
+    let Some(stem) = name.strip_prefix('.').and_then(|n| n.strip_suffix(".tmp")) else {
+        return false;
+    };
+    match stem.rsplit_once('.') {
+        Some((base, pid)) => {
+            !base.is_empty() && !pid.is_empty() && pid.bytes().all(|b| b.is_ascii_digit())
+        }
+        None => false,
+    }
+}
+
+/// Remove the temp files a killed [`write_atomic`] left under `dir` (recursively, without
+/// following symlinks); returns how many. Only for a folder whose writer lock
+/// ([`super::guard::OutputLock`]) the caller holds: then no live process owns such a file.
+pub fn remove_stale_temps(dir: &Path) -> Result<usize> {
+    let entries = match std::fs::read_dir(dir) {
+        Ok(e) => e,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(0),
+        Err(e) => return Err(Error::io(dir, e)),
+    };
+    let mut n = 0;
+    for entry in entries {
+        let entry = entry.map_err(|e| Error::io(dir, e))?;
+        let path = entry.path();
+        let kind = entry.file_type().map_err(|e| Error::io(&path, e))?;
+        if kind.is_dir() {
+            n += remove_stale_temps(&path)?;
+        } else if kind.is_file() && is_temp_name(&entry.file_name().to_string_lossy()) {
+            std::fs::remove_file(&path).map_err(|e| Error::io(&path, e))?;
+            n += 1;
+        }
+    }
+    Ok(n)
+}
+
 fn temp_path(path: &Path) -> PathBuf {
     let name = path
         .file_name()

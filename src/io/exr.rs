@@ -100,6 +100,13 @@ fn decode(path: &Path, bytes: &[u8]) -> Result<Image> {
     // offset tables.
     let sel = select(path, &meta)?;
     let header = &meta.headers[sel.header];
+    // Before the offset tables or any pixel buffer are allocated (decompression bombs).
+    super::limits::check(
+        path,
+        "EXR",
+        header.layer_size.width() as u64,
+        header.layer_size.height() as u64,
+    )?;
     check_sampling(path, header)?;
     validate(path, &meta)?;
 

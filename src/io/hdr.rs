@@ -19,12 +19,18 @@ fn image_err(path: &Path, e: ImageError) -> Error {
 pub(super) fn read(path: &Path) -> Result<Image> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     // Strict first (needs the "#?RADIANCE"/"#?RGBE" signature); old .pic files have none.
-    let decoder = match HdrDecoder::new(Cursor::new(&bytes[..])) {
+    let mut decoder = match HdrDecoder::new(Cursor::new(&bytes[..])) {
         Ok(d) => d,
         Err(strict_err) => HdrDecoder::new_nonstrict(Cursor::new(&bytes[..]))
             .map_err(|_| image_err(path, strict_err))?,
     };
+    // The declared size is checked before anything is allocated (decompression bombs).
+    let limits = super::limits::DecodeLimits::from_env()?;
     let (w, h) = decoder.dimensions();
+    limits.check(path, "Radiance HDR", w.into(), h.into())?;
+    decoder
+        .set_limits(limits.to_image_limits())
+        .map_err(|e| image_err(path, e))?;
     let (w, h) = (w as usize, h as usize);
     let total = usize::try_from(decoder.total_bytes())
         .map_err(|_| Error::unsupported(path, "Radiance HDR: image too large"))?;

@@ -75,7 +75,14 @@ fn check_png_depth(path: &Path, bytes: &[u8]) -> Result<()> {
     }
 }
 
-fn decode(path: &Path, what: &str, decoder: impl ImageDecoder) -> Result<(Image, BitDepth)> {
+fn decode(path: &Path, what: &str, mut decoder: impl ImageDecoder) -> Result<(Image, BitDepth)> {
+    // The declared size is checked before anything is allocated (decompression bombs).
+    let limits = super::limits::DecodeLimits::from_env()?;
+    let (w, h) = decoder.dimensions();
+    limits.check(path, what, w.into(), h.into())?;
+    decoder
+        .set_limits(limits.to_image_limits())
+        .map_err(|e| image_err(path, what, e))?;
     let colour = decoder.color_type();
     let original = decoder.original_color_type();
     if original != ExtendedColorType::from(colour) {

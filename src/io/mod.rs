@@ -7,9 +7,11 @@
 
 pub mod atomic;
 mod exr;
+pub mod guard;
 mod hdr;
 pub mod image;
 mod ldr;
+pub mod limits;
 pub mod srgb;
 
 pub use image::{Image, dynamic_range_stops, luminance};

@@ -208,6 +208,45 @@ pub fn reference_linear_srgb() -> Vec<[f64; 3]> {
 
 pub type Mat3 = [[f64; 3]; 3];
 
+/// 3×3 matrix product.
+pub fn mul3(a: &Mat3, b: &Mat3) -> Mat3 {
+    std::array::from_fn(|i| std::array::from_fn(|j| (0..3).map(|k| a[i][k] * b[k][j]).sum()))
+}
+
+/// 3×3 determinant.
+pub fn det3(m: &Mat3) -> f64 {
+    m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
+}
+
+/// 3×3 inverse by cofactors; None when the determinant is not finite or below 1e-15.
+pub fn inverse3(m: &Mat3) -> Option<Mat3> {
+    let det = det3(m);
+    if !det.is_finite() || det.abs() < 1e-15 {
+        return None;
+    }
+    let c =
+        |r0: usize, r1: usize, c0: usize, c1: usize| m[r0][c0] * m[r1][c1] - m[r0][c1] * m[r1][c0];
+    Some([
+        [
+            c(1, 2, 1, 2) / det,
+            -c(0, 2, 1, 2) / det,
+            c(0, 1, 1, 2) / det,
+        ],
+        [
+            -c(1, 2, 0, 2) / det,
+            c(0, 2, 0, 2) / det,
+            -c(0, 1, 0, 2) / det,
+        ],
+        [
+            c(1, 2, 0, 1) / det,
+            -c(0, 2, 0, 1) / det,
+            c(0, 1, 0, 1) / det,
+        ],
+    ])
+}
+
 /// colour-science's sRGB RGB → XYZ matrix (`RGB_COLOURSPACES['sRGB'].matrix_RGB_to_XYZ`).
 pub const SRGB_TO_XYZ: Mat3 = [
     [0.4124, 0.3576, 0.1805],

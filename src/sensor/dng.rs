@@ -153,6 +153,9 @@ pub fn read_dng_mosaic(path: &Path) -> Result<(Mosaic, DngInfo)> {
     let tiff = Tiff::parse(&bytes, path)?;
     let ifd = tiff.raw_ifd()?;
     let info = info_from(&tiff, &ifd)?;
+    // Before the raw buffer is allocated (decompression bombs); the demosaiced image is the
+    // largest buffer this reader makes.
+    crate::io::limits::check(path, "DNG", info.raw_width as u64, info.raw_height as u64)?;
     let raw = tiff.decode_samples(&ifd, &info)?;
     let lin = tiff
         .uints(&ifd, TAG_LINEARIZATION)?
@@ -360,7 +363,7 @@ impl<'a> Tiff<'a> {
             .ok_or_else(|| {
                 Error::decode(
                     self.path,
-                    format!("truncated: needs bytes {off}..{}", off + len),
+                    format!("truncated: needs bytes {off}..{}", off.saturating_add(len)),
                 )
             })
     }
@@ -410,6 +413,17 @@ impl<'a> Tiff<'a> {
             return Ok(None);
         };
         let size = type_size(e.typ).expect("known type");
+        // Callers index the first value (found by tests/fuzz.rs: BlackLevel with count 0).
+        if e.count == 0 {
+            return Err(Error::decode(self.path, format!("tag {tag} has no values")));
+        }
+        // The values must lie in the file before `count` sizes any allocation: a corrupt count
+        // of 2^32 would otherwise reserve 34 GB (found by tests/fuzz.rs).
+        let len = size.checked_mul(e.count as usize).ok_or_else(|| {
+            Error::decode(self.path, format!("tag {tag}: count {} overflows", e.count))
+        })?;
+        self.slice(e.offset, len)
+            .map_err(|_| Error::decode(self.path, format!("tag {tag}: {} values of {size} bytes at offset {} run past the end of the file", e.count, e.offset)))?;
         let mut out = Vec::with_capacity(e.count as usize);
         for i in 0..e.count as usize {
             let o = e.offset + i * size;

@@ -295,6 +295,22 @@ impl SensorProfile {
             if c.matrix.iter().flatten().any(|v| !v.is_finite()) {
                 return Err("colour.matrix has non-finite entries".into());
             }
+            // A singular T maps distinct colours to one (an all-zero T gives black frames).
+            // Scale-free test: |det| against the product of the row norms (1 for orthogonal
+            // rows, 0 for dependent ones).
+            let det = crate::sensor::colour::det3(&c.matrix);
+            let norms: f64 = c
+                .matrix
+                .iter()
+                .map(|r| r.iter().map(|v| v * v).sum::<f64>().sqrt())
+                .product();
+            if !(norms > 0.0 && det.abs() > 1e-6 * norms) {
+                return Err(format!(
+                    "colour.matrix {:?} is singular (determinant {det:.3e}): it would map \
+                     distinct colours to one; calibrate it again or remove [colour]",
+                    c.matrix
+                ));
+            }
             if c.use_root_polynomial && c.root_polynomial.is_none() {
                 return Err(
                     "colour.use_root_polynomial = true but no root_polynomial matrix".into(),

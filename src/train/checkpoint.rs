@@ -145,9 +145,39 @@ fn list(root: &Path) -> Result<Vec<(u64, PathBuf)>> {
 fn prune(root: &Path, keep: usize) -> Result<()> {
     let all = list(root)?;
     for (_, dir) in all.iter().take(all.len().saturating_sub(keep)) {
-        std::fs::remove_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        // Renamed out of the `step-` namespace first (atomic), so a kill during the removal
+        // leaves a `.prune-` folder that `clean_leftovers` removes, never a half-deleted
+        // `step-` folder.
+        let name = dir.file_name().map(|n| n.to_string_lossy().into_owned());
+        let doomed = root.join(format!(".prune-{}", name.unwrap_or_default()));
+        std::fs::rename(dir, &doomed).map_err(|e| Error::io(dir, e))?;
+        std::fs::remove_dir_all(&doomed).map_err(|e| Error::io(&doomed, e))?;
     }
     Ok(())
+}
+
+/// Remove what a killed run left in its checkpoints folder: `.tmp-step-…` (a save cut short),
+/// `.prune-…` (a prune cut short), `step-…` folders without a state file (a prune cut short
+/// by an older version, which deleted in place) and `write_atomic` temp files in the run
+/// folder. Returns how many entries were removed. The caller holds the run's writer lock.
+pub fn clean_leftovers(run: &Path) -> Result<usize> {
+    let root = dir_of(run);
+    let mut n = 0;
+    if let Ok(entries) = std::fs::read_dir(&root) {
+        for entry in entries {
+            let entry = entry.map_err(|e| Error::io(&root, e))?;
+            let path = entry.path();
+            let name = entry.file_name().to_string_lossy().into_owned();
+            let leftover = name.starts_with(".tmp-step-")
+                || name.starts_with(".prune-")
+                || (name.starts_with("step-") && !path.join(STATE_FILE).is_file());
+            if leftover && path.is_dir() {
+                std::fs::remove_dir_all(&path).map_err(|e| Error::io(&path, e))?;
+                n += 1;
+            }
+        }
+    }
+    Ok(n + crate::io::atomic::remove_stale_temps(run)?)
 }
 
 /// The newest complete checkpoint of a run, if any (`latest`, else the highest step folder).

@@ -412,6 +412,19 @@ impl TrainConfig {
         if !(0.0..1.0).contains(&self.optim.beta1) || !(0.0..1.0).contains(&self.optim.beta2) {
             return Err(Error::Invalid("optim: betas must lie in [0, 1)".into()));
         }
+        if !(self.optim.epsilon.is_finite() && self.optim.epsilon > 0.0) {
+            return Err(Error::Invalid(format!(
+                "optim.epsilon = {} must be finite and > 0 (Adam divides by √v + ε)",
+                self.optim.epsilon
+            )));
+        }
+        if !(self.optim.weight_decay.is_finite() && self.optim.weight_decay >= 0.0) {
+            return Err(Error::Invalid(format!(
+                "optim.weight_decay = {} must be finite and ≥ 0 (a negative one grows the \
+                 weights)",
+                self.optim.weight_decay
+            )));
+        }
         self.schedule.validate()?;
         match &self.model {
             ModelConfig::BlendUnet(m) => m.validate()?,

@@ -123,6 +123,8 @@ pub struct TrainSummary {
     pub samples_per_s: f64,
     /// The last validation scores, if validation ran.
     pub validation: Vec<(String, f64)>,
+    /// `--resume` found the run already at `run.steps`: nothing was trained.
+    pub already_finished: bool,
 }
 
 /// The resolved config of a run, written as `RUN/config.toml`.
@@ -261,7 +263,17 @@ pub fn train<T: Task>(
     loader: Arc<Loader>,
 ) -> Result<TrainSummary> {
     let run = &cfg.run.out;
+    // One trainer per run folder: a second would interleave checkpoints with this one's.
+    let _lock = crate::io::guard::OutputLock::acquire(run, "train")?;
     std::fs::create_dir_all(run).map_err(|e| Error::io(run, e))?;
+    // Under the lock, anything half-written in the run folder is a killed run's.
+    let cleaned = checkpoint::clean_leftovers(run)?;
+    if cleaned > 0 && opts.progress {
+        eprintln!(
+            "removed {cleaned} leftover(s) of an interrupted run in {}",
+            run.display()
+        );
+    }
     // Which frames the run trains on (pure, linear EXRs, display frames) for whoever reads it.
     let source = loader.describe_source();
     write_atomic(
@@ -348,11 +360,19 @@ pub fn train<T: Task>(
         }
     };
     if start >= cfg.run.steps {
-        return Err(Error::Invalid(format!(
-            "{}: already at step {start} of {}; raise run.steps to train further",
-            run.display(),
-            cfg.run.steps
-        )));
+        // Only a resumed run gets here (a new one starts at 0 < steps): it is finished, which
+        // is success, not an error; raising run.steps continues it.
+        return Ok(TrainSummary {
+            run: run.clone(),
+            start_step: start,
+            steps: start,
+            first_loss: f64::NAN,
+            last_loss: f64::NAN,
+            checkpoint: existing.clone().unwrap_or_default(),
+            samples_per_s: 0.0,
+            validation: Vec::new(),
+            already_finished: true,
+        });
     }
 
     let mut log = Log::open(run, opts.resume.then_some(start))?;
@@ -495,6 +515,7 @@ pub fn train<T: Task>(
         checkpoint: last_checkpoint.unwrap_or_default(),
         samples_per_s: ((total - start) * bs) as f64 / secs.max(1e-9),
         validation: last_validation,
+        already_finished: false,
     })
 }
 

@@ -313,8 +313,7 @@ pub fn to_reference_unit(set: &SetInfo, gt: &GroundTruth, mut img: Image) -> Ima
 pub fn read_linear_ground_truth(set: &SetInfo) -> Result<Image> {
     match &set.ground_truth {
         Some(gt) if gt.kind == GroundTruthKind::Linear => {
-            let img = crate::io::read_image(&gt.path)?;
-            check_size(&gt.path, img.width, img.height, set.width, set.height)?;
+            let img = read_set_image(set, &gt.path)?;
             Ok(to_reference_unit(set, gt, img))
         }
         Some(gt) => Err(Error::layout(
@@ -332,14 +331,57 @@ pub fn read_linear_ground_truth(set: &SetInfo) -> Result<Image> {
     }
 }
 
+/// Read one image of `set` (a frame, mask, clean frame, ground truth or a frame's linear
+/// sibling), refusing it unless it has the set's size: a size is never trusted from the set's
+/// metadata alone (a short frame would otherwise panic a crop, a larger one be used silently).
+pub fn read_set_image(set: &SetInfo, path: &Path) -> Result<Image> {
+    let img = crate::io::read_image(path)?;
+    check_size(path, img.width, img.height, set.width, set.height)?;
+    Ok(img)
+}
+
+/// Every file a set refers to (frames, masks, clean frames, ground truth), in that order.
+pub fn set_files(set: &SetInfo) -> Vec<PathBuf> {
+    let mut files: Vec<PathBuf> = set
+        .static_frames
+        .iter()
+        .chain(&set.dynamic_frames)
+        .chain(&set.masks)
+        .chain(&set.clean_frames)
+        .cloned()
+        .collect();
+    files.extend(set.ground_truth.as_ref().map(|g| g.path.clone()));
+    files.dedup();
+    files
+}
+
+/// Decode every file of every set (plus each frame's linear `.exr` sibling where there is one,
+/// as the loader reads it) and check its size against its set. Returns the files that fail,
+/// each with its error; empty when the dataset is sound. Costs one full decode per file.
+pub fn verify(info: &DatasetInfo) -> Vec<(PathBuf, Error)> {
+    let jobs: Vec<(&SetInfo, PathBuf)> = info
+        .sets
+        .iter()
+        .flat_map(|set| {
+            let mut files = set_files(set);
+            for f in set.static_frames.iter().chain(&set.dynamic_frames) {
+                let sib = f.with_extension("exr");
+                if sib != *f && sib.exists() && !files.contains(&sib) {
+                    files.push(sib);
+                }
+            }
+            files.into_iter().map(move |f| (set, f))
+        })
+        .collect();
+    jobs.par_iter()
+        .filter_map(|(set, f)| read_set_image(set, f).err().map(|e| (f.clone(), e)))
+        .collect()
+}
+
 /// Load a set's frames and ground truth (linear ground truth in hdrsynth's unit, see
 /// [`to_reference_unit`]). Every image must have the set's size.
 pub fn load_set(set: &SetInfo) -> Result<LoadedSet> {
-    let read = |path: &PathBuf| -> Result<Image> {
-        let img = crate::io::read_image(path)?;
-        check_size(path, img.width, img.height, set.width, set.height)?;
-        Ok(img)
-    };
+    let read = |path: &PathBuf| -> Result<Image> { read_set_image(set, path) };
     let static_frames = set
         .static_frames
         .par_iter()
