@@ -146,6 +146,9 @@ fn predictions_equal_to_the_ground_truth_give_inf_psnr_and_ssim_1() {
         h,
         ["metric", "n", "n_inf", "mean", "ci_lo", "ci_hi", "n_scenes"]
     );
+    for r in &summary {
+        assert_eq!(r.len(), 7, "every summary row has n_scenes: {r:?}");
+    }
     let psnr_l = summary.iter().find(|r| r[0] == "psnr_l").expect("psnr_l");
     assert_eq!(num(&psnr_l[1]) as usize, sets.len());
     assert_eq!(num(&psnr_l[2]) as usize, sets.len());

@@ -142,8 +142,8 @@ pub fn summary_csv(summary: &[MetricSummary]) -> String {
     for m in summary {
         let _ = writeln!(
             out,
-            "{},{},{},{},{},{}",
-            m.metric, m.n, m.n_inf, m.mean, m.lo, m.hi
+            "{},{},{},{},{},{},{}",
+            m.metric, m.n, m.n_inf, m.mean, m.lo, m.hi, m.n_scenes
         );
     }
     out
@@ -332,6 +332,14 @@ mod tests {
             assert!((m.mean - 27.5).abs() < 1e-12, "{}: {}", m.metric, m.mean);
             assert!(m.lo >= 15.0 && m.hi <= 40.0 && m.lo < m.hi, "{m:?}");
         }
+        // summary.csv carries n_scenes in its last column.
+        let csv = summary_csv(&summarise(&rows, &scenes, 500, 0, 0.95));
+        let psnr_t = csv
+            .lines()
+            .find(|l| l.starts_with("psnr_t,"))
+            .expect("psnr_t");
+        assert_eq!(psnr_t.split(',').count(), 7, "{psnr_t}");
+        assert!(psnr_t.ends_with(",2"), "{psnr_t}");
         // Without a scene map every set is its own scene: the plain mean over sets.
         let m = &summarise(&rows, &BTreeMap::new(), 500, 0, 0.95)[0];
         assert_eq!(m.n_scenes, 3);
