@@ -365,6 +365,22 @@ fn a_short_run_learns_the_blend_weights() {
         assert!(st.success());
         hdrsynth::io::read_image(&out.join("linear.exr")).expect("linear.exr")
     };
+    // A missing input is an error naming it, and leaves no output folder behind.
+    let missing = set.join("static/ev-9.png");
+    let failed = tmp.path().join("failed");
+    let o = bin()
+        .args(["infer", "--checkpoint"])
+        .arg(&run)
+        .arg("--inputs")
+        .arg(&missing)
+        .arg(set.join("static/ev+0.png"))
+        .arg("--out")
+        .arg(&failed)
+        .output()
+        .expect("infer");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("ev-9.png"), "{err}");
+    assert!(!failed.exists(), "a failed infer left {}", failed.display());
     let whole = infer(&tmp.path().join("whole"), "384");
     let tiled = infer(&tmp.path().join("tiled"), "32");
     assert_eq!((whole.width, whole.height), (96, 80));
