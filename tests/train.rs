@@ -390,3 +390,21 @@ fn a_short_run_learns_the_blend_weights() {
         assert!(tmp.path().join("tiled").join(name).is_file(), "{name}");
     }
 }
+
+/// One writer per run folder (issue 16): while another holder has the run's lock, `train`
+/// refuses with a message naming the lock, and writes no checkpoint.
+#[test]
+fn a_second_trainer_into_a_locked_run_folder_is_refused() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let run = tmp.path().join("run");
+    let cfg = parse(&config_text(&run, 2, "", 1e-3, true));
+    let held = hdrsynth::io::guard::OutputLock::acquire(&run, "another trainer").expect("lock");
+    let e = hdrsynth::train::run(&cfg, &TrainOptions::default())
+        .expect_err("a locked run folder")
+        .to_string();
+    assert!(e.contains("in use"), "{e}");
+    assert!(!run.join("checkpoints").exists(), "wrote into a locked run");
+    drop(held);
+    hdrsynth::train::run(&cfg, &TrainOptions::default()).expect("trains once released");
+    assert!(run.join("checkpoints").is_dir());
+}
