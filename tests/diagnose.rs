@@ -730,6 +730,67 @@ fn linearity_from_flat_series() {
     }
 }
 
+/// Issue 15, item 1 (second half): toe/shoulder responses from an EMVA 1288 flat series of seven
+/// levels (5–80 % of the range before the curve), with and without a scene; the catalogue
+/// names the shape it found and recovers its parameters (toe within 15 %, shoulder within
+/// 10 %), and a pure power law is still named a power law. The truth applies the curves in
+/// its own code (tests/truth: the definitions of `toe` and `shoulder`).
+#[test]
+fn response_shapes_toe_shoulder_and_power_law() {
+    let levels = vec![0.05, 0.1, 0.2, 0.35, 0.5, 0.65, 0.8];
+    // (toe, shoulder, exponent, scenes, shape named)
+    let cases = [
+        (0.03, 0.0, 1.0, false, "toe"),
+        (0.08, 0.0, 1.0, true, "toe"),
+        (0.0, 0.75, 1.0, false, "shoulder"),
+        (0.0, 1.1, 1.0, true, "shoulder"),
+        (0.05, 0.8, 1.0, false, "toe_shoulder"),
+        (0.0, 0.0, 0.9, false, "power_law"),
+        (0.0, 0.0, 1.1, true, "power_law"),
+    ];
+    let mut bad = Vec::new();
+    for (k, &(toe, shoulder, p, scenes, shape)) in cases.iter().enumerate() {
+        let mut t = Truth::new(64, 48, 8, 1900 + k as u64);
+        t.flat_levels = levels.clone();
+        t.scenes = scenes;
+        (t.toe, t.shoulder, t.exponent) = (toe, shoulder, p);
+        let what = format!("toe {toe}, shoulder {shoulder}, exponent {p}, scenes {scenes}");
+        let (d, _) = run(&t, &format!("shape-{k}"));
+        single(&d, "nonlinear_response");
+        let step = &d.steps[0];
+        let named = step.params.get("shape").and_then(|v| v.as_str());
+        if named != Some(shape) {
+            bad.push(format!("{what}: named {named:?}, want {shape}"));
+            continue;
+        }
+        let near = |key: &str, want: f64, tol: f64| match number(&step.params, key) {
+            Ok(got) if (got - want).abs() <= tol * want => None,
+            got => Some(format!("{what}: {key} {got:?}, planted {want}")),
+        };
+        bad.extend(near("toe", toe, 0.15).filter(|_| toe > 0.0));
+        bad.extend(near("shoulder", shoulder, 0.10).filter(|_| shoulder > 0.0));
+        bad.extend(near("exponent", p, 0.05).filter(|_| p != 1.0));
+    }
+    assert!(bad.is_empty(), "{}", bad.join("\n"));
+}
+
+/// The null case with the seven-level flat series (six response statistics per ISO) stays
+/// clean over seeds and two ISOs.
+#[test]
+fn linear_sensor_with_a_long_flat_series_names_nothing() {
+    for seed in 0..3u64 {
+        let mut t = Truth::new(64, 48, 8, 1950 + seed);
+        t.flat_levels = vec![0.05, 0.1, 0.2, 0.35, 0.5, 0.65, 0.8];
+        t.isos = vec![100.0, 400.0];
+        let (d, _) = run(&t, &format!("linear-long-{seed}"));
+        assert!(
+            d.steps.is_empty() && d.final_gap() <= d.threshold,
+            "seed {seed}: {}",
+            d.report_json()
+        );
+    }
+}
+
 /// Issue 15, item 6: a scene-only set (three scenes of one size, an EV0/EV−3 pair each, one
 /// frame per burst, no darks or flats) runs without a profile; with `scene` keys each pair is
 /// compared within its scene and the shared tone curve is named and recovered (exponents 0.8

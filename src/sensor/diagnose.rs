@@ -126,7 +126,7 @@ pub fn protocol(set: &CaptureSet, profile: &SensorProfile) -> Result<Protocol> {
         black: profile.levels.black_level + plan.black_offset as f64,
         white: profile.levels.white_level,
         range: profile.levels.white_level - profile.levels.black_level,
-        exponent: plan.exponent.unwrap_or(1.0) as f64,
+        response: plan.response,
     })
 }
 
@@ -334,8 +334,7 @@ fn declared_levels(set: &CaptureSet) -> Option<(f64, f64)> {
 /// bursts that no statistic uses (charts, lone scene bursts).
 fn targets(proto: &Protocol, measured: &[Summary], plan: &Plan) -> Vec<Option<Image>> {
     let range = proto.range;
-    let p = proto.exponent;
-    let lin = |s: f64| range * (s.max(0.0) / range).powf(1.0 / p);
+    let lin = |s: f64| range * proto.linearise(s / range);
     let groups = effects::nonlinear_response::scene_groups(measured);
     let flat_series: Vec<(Vec<&Summary>, Option<&Summary>)> =
         effects::nonlinear_response::flat_series(measured)
@@ -803,8 +802,8 @@ pub fn diagnose(
     {
         notes.push(format!(
             "{}: the signal scales as exposure^{:.3} instead of exposure^{:.3}: the frames hide \
-             a tone curve (not linear sensor data); a curve that differs between scenes or has \
-             a toe/shoulder is outside the catalogue's power law",
+             a tone curve (not linear sensor data); a curve that differs between scenes is \
+             outside the catalogue's response shapes (power law, toe, shoulder)",
             r.stat.key, r.stat.value, r.sim_mean
         ));
     }

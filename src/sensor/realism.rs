@@ -370,10 +370,10 @@ impl Realism {
                 *o *= g;
             }
         }
-        if let Some(p) = self.plan.exponent {
-            let r = self.range;
+        if let Some(c) = &self.plan.response {
+            let r = self.range as f64;
             for o in out.iter_mut() {
-                *o = r * (o.max(0.0) / r).powf(p);
+                *o = (r * c.apply(*o as f64 / r)) as f32;
             }
         }
         // Noise stage.

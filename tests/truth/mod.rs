@@ -5,7 +5,8 @@
 //! `hdrsynth-captures/1` format with the library's `write_capture_set`.
 //!
 //! Conventions (the physical meaning of each catalogue parameter):
-//! signal S = level × (1 − k·r²) × (1 + σ_prnu·z), then S → R·(S/R)^p; noise with variance
+//! signal S = level × (1 − k·r²) × (1 + σ_prnu·z), then S → R·(S/R)^p, then the toe
+//! u → √(u² + t²) − t and the shoulder u → u / (1 + (u/s)⁴)^¼ on u = S/R; noise with variance
 //! a_c·S + b_c (read part Student-t of variance b_c when `heavy_dof`); offsets: declared black +
 //! black offset + row offset (per frame) + column offset + DSNU + hot offset; clip to
 //! [0, white], round.
@@ -45,6 +46,11 @@ pub struct Truth {
     /// (not separated) to draws padded beyond the frame, normalised to Σk² = 1 (variance kept).
     pub corr_gauss: f64,
     pub exponent: f64,
+    /// Response toe t (fraction of the range; 0 = none) and shoulder s (0 = none).
+    pub toe: f64,
+    pub shoulder: f64,
+    /// Flat levels per ISO (fractions of the range at exposure level / 20 s).
+    pub flat_levels: Vec<f64>,
     /// Write the three-exposure scene (false: darks, flats and the chart only).
     pub scenes: bool,
     pub seed: u64,
@@ -73,6 +79,9 @@ impl Truth {
             corr_rho: 0.0,
             corr_gauss: 0.0,
             exponent: 1.0,
+            toe: 0.0,
+            shoulder: 0.0,
+            flat_levels: vec![0.2, 0.55],
             scenes: true,
             seed,
         }
@@ -165,6 +174,14 @@ impl Truth {
                     };
                     let mut s = (target[i] * pat.0[i]).max(0.0);
                     s = r * (s / r).powf(self.exponent);
+                    if self.toe > 0.0 {
+                        let u = s / r;
+                        s = r * ((u * u + self.toe * self.toe).sqrt() - self.toe);
+                    }
+                    if self.shoulder > 0.0 {
+                        let q = (s / r / self.shoulder).powi(4);
+                        s /= (1.0 + q).powf(0.25);
+                    }
                     let z = match &gauss {
                         Some(g) => g[i],
                         None => (e[i] + beta * e[i + w * 3]) / norm,
@@ -237,7 +254,8 @@ impl Truth {
         num / den
     }
 
-    /// Write the capture set: per ISO a dark burst and flats at 20 % and 55 % of the range;
+    /// Write the capture set: per ISO a dark burst and flats at `flat_levels` (20 % and 55 % of
+    /// the range unless set);
     /// a chart burst (ColorChecker reference × 0.5 of the range, T = identity); one scene at
     /// exposures 16, 4 and 1 ms (2 frames each). Returns the number of hot values planted.
     pub fn write(&self, dir: &Path) -> usize {
@@ -273,7 +291,7 @@ impl Truth {
                 vec![0.0; w * h * 3],
                 self.frames,
             );
-            for (k, level) in [0.2, 0.55].iter().enumerate() {
+            for (k, level) in self.flat_levels.iter().enumerate() {
                 add(
                     format!("flat_{iso}_{k}"),
                     BurstKind::Flat,

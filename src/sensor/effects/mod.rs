@@ -93,8 +93,8 @@ pub struct Plan {
     pub vignetting_k: f32,
     /// PRNU: gain 1 + σ·z per value, (σ, seed).
     pub prnu: Option<(f32, u64)>,
-    /// Nonlinear response: I → R·(I/R)^p, R = white − black.
-    pub exponent: Option<f32>,
+    /// Nonlinear response: I → R·f(I/R), R = white − black.
+    pub response: Option<nonlinear_response::Curve>,
     /// Channel noise: multipliers on a and b per channel.
     pub a_scale: [f32; 3],
     pub b_scale: [f32; 3],
@@ -120,7 +120,7 @@ impl Default for Plan {
         Plan {
             vignetting_k: 0.0,
             prnu: None,
-            exponent: None,
+            response: None,
             a_scale: [1.0; 3],
             b_scale: [1.0; 3],
             heavy_dof: None,

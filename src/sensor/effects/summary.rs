@@ -25,8 +25,23 @@ pub struct Protocol {
     pub white: f64,
     /// white − the profile's black level (the normalisation of signals).
     pub range: f64,
-    /// The model's response exponent (1 = linear), to linearise scene bursts.
-    pub exponent: f64,
+    /// The model's response curve (None: linear), to linearise flat and scene bursts.
+    pub response: Option<super::nonlinear_response::Curve>,
+}
+
+impl Protocol {
+    /// The model's power-law exponent (1 when the response is linear or not a power law).
+    pub fn exponent(&self) -> f64 {
+        match self.response {
+            Some(super::nonlinear_response::Curve::Power(p)) => p,
+            _ => 1.0,
+        }
+    }
+
+    /// The model's inverse response on a normalised signal (identity when linear).
+    pub fn linearise(&self, y: f64) -> f64 {
+        self.response.map_or(y.max(0.0), |c| c.inverse(y))
+    }
 }
 
 #[derive(Clone, Debug, PartialEq)]
