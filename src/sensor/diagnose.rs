@@ -446,6 +446,7 @@ fn simulate(
     let lo = p.noise.first().map_or(0.0, |n| n.iso);
     let hi = p.noise.last().map_or(0.0, |n| n.iso);
     let mut out = Vec::new();
+    let mut frame = Image::new(0, 0);
     for (i, (info, t)) in proto.bursts.iter().zip(targets).enumerate() {
         let Some(t) = t else { continue };
         let mut opts = RealismOptions::new(info.iso.clamp(lo, hi));
@@ -455,7 +456,8 @@ fn simulate(
         let r = Realism::new(&p, &opts)?;
         let mut acc = Accumulator::new(info);
         for j in 0..info.frames {
-            acc.add(&r.to_dn(t, hash(seed, &[k as u64, i as u64, j as u64])));
+            r.to_dn_into(t, hash(seed, &[k as u64, i as u64, j as u64]), &mut frame);
+            acc.add(&frame);
         }
         out.push(acc.finish(i, info));
     }

@@ -509,6 +509,12 @@ impl Realism {
         out
     }
 
+    /// `to_dn` into a caller's buffer (resized as needed): the gap workflow simulates
+    /// thousands of frames, and a fresh frame each time cost page faults and memset.
+    pub fn to_dn_into(&self, input: &Image, seed: u64, out: &mut Image) {
+        self.rows_into(input, seed, out, false);
+    }
+
     /// Device response of a DN frame: code values in [0, 1], quantised to the output bits.
     pub fn dn_to_ldr(&self, dn: &Image) -> Image {
         dn.map(|d| self.output_lut[index(bound(d, self.white))])
