@@ -774,6 +774,51 @@ fn response_shapes_toe_shoulder_and_power_law() {
     assert!(bad.is_empty(), "{}", bad.join("\n"));
 }
 
+/// The response shapes against hand-computed values: toe t = 0.1 at u = 0.1 gives √0.02 − 0.1
+/// = 0.0414214, shoulder s = 0.5 at v = 0.5 gives 0.5 / 2^¼ = 0.4204482, both at u = 0.3:
+/// T = √0.1 − 0.1 = 0.2162278, S = T / (1 + (T/0.5)⁴)^¼ = 0.2143774; inverses round-trip;
+/// profiles written before the family (`exponent` only) still load as a power law; bad
+/// shapes and values are refused with the parameter named.
+#[test]
+fn response_curves_by_hand() {
+    use hdrsynth::sensor::effects::nonlinear_response::{Curve, curve};
+    let c = |toe: f64, shoulder: f64| Curve::ToeShoulder { toe, shoulder };
+    let cases = [
+        (c(0.1, f64::INFINITY), 0.1, 0.0414214),
+        (c(0.0, 0.5), 0.5, 0.4204482),
+        (c(0.1, 0.5), 0.3, 0.2143774),
+        (Curve::Power(0.8), 0.5, 0.5743492),
+    ];
+    for (k, (f, u, want)) in cases.into_iter().enumerate() {
+        let y = f.apply(u);
+        assert!(
+            (y - want).abs() < 1e-6,
+            "case {k}: f({u}) = {y}, by hand {want}"
+        );
+        assert!((f.inverse(y) - u).abs() < 1e-9, "case {k}: inverse");
+    }
+    let t = |s: &str| -> toml::Table { toml::from_str(s).unwrap() };
+    assert_eq!(curve(&t("exponent = 0.8")), Ok(Curve::Power(0.8)));
+    assert_eq!(
+        curve(&t("shape = \"toe_shoulder\"\ntoe = 0.05\nshoulder = 0.8")),
+        Ok(c(0.05, 0.8))
+    );
+    assert_eq!(c(0.05, f64::INFINITY).shape(), "toe");
+    assert_eq!(c(0.0, 0.8).shape(), "shoulder");
+    for (bad, word) in [
+        ("shape = \"s-curve\"", "unknown shape"),
+        ("shape = \"toe\"\ntoe = 0.9", "toe 0.9"),
+        (
+            "shape = \"shoulder\"\ntoe = 0.1\nshoulder = 1.0",
+            "unknown parameter 'toe'",
+        ),
+        ("shape = \"power_law\"", "missing parameter 'exponent'"),
+    ] {
+        let e = curve(&t(bad)).unwrap_err();
+        assert!(e.contains(word), "{bad}: {e}");
+    }
+}
+
 /// The null case with the seven-level flat series (six response statistics per ISO) stays
 /// clean over seeds and two ISOs.
 #[test]
