@@ -346,6 +346,8 @@ pub fn exposure_pairs(p: &Protocol, s: &[Summary]) -> Vec<Pair> {
     for g in flat_series(s) {
         let zero = super::summary::dark_mean(s, g[0].iso).unwrap_or([p.black; 3]);
         let levels: Vec<[f64; 3]> = g.iter().map(|b| flat_level(b, zero)).collect();
+        // Per channel: a coloured illumination gives each channel its own level.
+        #[allow(clippy::needless_range_loop)]
         for c in 0..3 {
             for i in 0..g.len() {
                 for j in i + 1..g.len() {

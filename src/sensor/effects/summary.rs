@@ -336,7 +336,7 @@ pub fn summarise(burst: usize, info: &BurstInfo, frames: &[Image]) -> Summary {
 fn sampled_median(v: impl Iterator<Item = f64>, len: usize) -> f64 {
     let mut step = len.div_ceil(40_000).max(1);
     // Values interleave three channels: a stride of a multiple of 3 would sample only one.
-    if step % 3 == 0 {
+    if step.is_multiple_of(3) {
         step += 1;
     }
     let mut s: Vec<f64> = v.step_by(step).filter(|x| x.is_finite()).collect();
