@@ -34,6 +34,18 @@ pub fn device_from_name(name: &str) -> Result<Device> {
     }
 }
 
+/// Whether `device` computes on the host CPU (flex or ndarray).
+pub fn is_cpu(device: &Device) -> bool {
+    let mut cpu = Vec::new();
+    #[cfg(feature = "flex")]
+    cpu.push(Device::flex());
+    #[cfg(feature = "ndarray")]
+    #[allow(deprecated)]
+    cpu.push(Device::ndarray());
+    let plain = device.clone().without_autodiff();
+    cpu.contains(&plain)
+}
+
 pub fn compiled_backends() -> Vec<&'static str> {
     let mut v = Vec::new();
     if cfg!(feature = "flex") {

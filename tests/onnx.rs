@@ -434,7 +434,23 @@ fn export_cli_verifies_and_infer_onnx_matches_the_checkpoint() {
             &s(reference.clone()),
             "--tile",
             "32",
+            "--engine",
+            "burn",
         ]);
+        // The default engine (auto) runs a checkpoint in ONNX Runtime on CPU when it is there.
+        let auto = t.join(format!("{name}-auto"));
+        let text = run(&[
+            "infer",
+            "--checkpoint",
+            &ckpt,
+            "--set",
+            &set,
+            "--out",
+            &s(auto.clone()),
+            "--tile",
+            "32",
+        ]);
+        assert!(text.contains("ONNX Runtime"), "{text}");
         let via_onnx = t.join(format!("{name}-onnx"));
         run(&[
             "infer",
@@ -455,6 +471,9 @@ fn export_cli_verifies_and_infer_onnx_matches_the_checkpoint() {
         let d = common::max_abs_diff(&exr(&reference.join(file)), &exr(&via_onnx.join(file)));
         eprintln!("{name}: infer --onnx vs --checkpoint, {file}: max abs diff {d:.3e}");
         assert!(d <= TOLERANCE, "{name}: infer --onnx vs --checkpoint: {d}");
+        let d = common::max_abs_diff(&exr(&reference.join(file)), &exr(&auto.join(file)));
+        eprintln!("{name}: --engine auto (ONNX Runtime) vs burn, {file}: max abs diff {d:.3e}");
+        assert!(d <= TOLERANCE, "{name}: --engine auto vs burn: {d}");
         // A static export runs through the same tiles (windows padded to its size).
         let static_file = s(t.join(format!("{name}-static.onnx")));
         run(&[
@@ -605,5 +624,88 @@ fn exported_graphs_have_the_promised_structure() {
                 "exposure_times"
             ]
         );
+    }
+}
+
+/// `eval::engine` (issue 18 item 3): a checkpoint run through each engine. `auto` on the CPU
+/// device picks ONNX Runtime when it is there (these tests require it), `burn` forces Burn, and
+/// both agree within the parity tolerance on Network-1's blend weights and Network-2's HDR.
+#[test]
+fn engines_agree_and_auto_picks_onnx_runtime_on_cpu() {
+    use hdrsynth::eval::engine::{Engine, LoadedNetwork};
+    use hdrsynth::eval::infer::NetworkOptions;
+    require_ort();
+    let tmp = tempfile::tempdir().expect("tmp");
+    let t = tmp.path();
+    let n1_cfg = BlendUNetConfig {
+        base_width: 4,
+        depth: 2,
+        ..Default::default()
+    };
+    save_checkpoint(
+        &t.join("run1"),
+        &network1(&n1_cfg, 50, t),
+        ModelConfig::BlendUnet(n1_cfg.clone()),
+    );
+    let mut n2_cfg = WuConfig::resnet(2);
+    n2_cfg.res_blocks = 2;
+    save_checkpoint(
+        &t.join("run2"),
+        &network2(&n2_cfg, 51, t),
+        ModelConfig::Wu(n2_cfg.clone()),
+    );
+    let (w, h) = (72, 56);
+    let frame = |seed: u64, gain: f32| {
+        let v = common::values(w * h * 3, seed);
+        hdrsynth::io::Image::from_vec(w, h, v.iter().map(|x| (x * gain).min(1.0)).collect())
+    };
+    let (low, high, mid) = (frame(1, 0.3), frame(2, 1.0), frame(3, 0.7));
+    let load = |run: &str, engine: Engine| {
+        let opts = NetworkOptions {
+            tile: Some(32),
+            engine,
+            ..NetworkOptions::default()
+        };
+        LoadedNetwork::from_checkpoint(&t.join(run), &opts, &device()).expect("load")
+    };
+    for run in ["run1", "run2"] {
+        let auto = load(run, Engine::Auto);
+        let burn = load(run, Engine::Burn);
+        let onnx = load(run, Engine::Onnx);
+        assert_eq!(auto.engine(), "ONNX Runtime", "{run}: {}", auto.describe());
+        assert_eq!(burn.engine(), "Burn");
+        assert_eq!(onnx.engine(), "ONNX Runtime");
+        assert_eq!(
+            burn.tiling, onnx.tiling,
+            "{run}: one tiling for every engine"
+        );
+        let out = |n: &LoadedNetwork| -> Vec<f32> {
+            if run == "run1" {
+                n.network1_weight(&low, &high, Default::default())
+                    .expect("weights")
+            } else {
+                n.network2_hdr([&low, &mid, &high], [0.25, 1.0, 4.0])
+                    .expect("hdr")
+                    .data
+            }
+        };
+        let (b, o) = (out(&burn), out(&onnx));
+        assert_eq!(b.len(), o.len());
+        let d = common::max_abs_diff(&b, &o);
+        eprintln!("{run}: ONNX Runtime vs Burn, max abs diff {d:.3e}");
+        assert!(d <= TOLERANCE, "{run}: engines differ by {d}");
+        assert!(
+            b.iter().any(|&v| v != b[0]),
+            "{run}: a constant output tests nothing"
+        );
+        // A wrong-network call is an error, not a panic.
+        let wrong = if run == "run1" {
+            onnx.network2_hdr([&low, &mid, &high], [0.25, 1.0, 4.0])
+                .is_err()
+        } else {
+            onnx.network1_weight(&low, &high, Default::default())
+                .is_err()
+        };
+        assert!(wrong, "{run}: the other network's call must fail");
     }
 }

@@ -11,15 +11,12 @@
 
 use crate::data::layout::{self, SetInfo};
 use crate::device::device_from_name;
-use crate::eval::infer::{
-    NetworkOptions, network1_fuse, network1_tiling, network2_frames, network2_hdr, network2_tiling,
-};
+use crate::eval::blend::fuse;
+use crate::eval::engine::{LoadedNetwork, Network};
+use crate::eval::infer::{NetworkOptions, network2_frames};
 use crate::eval::metrics::mu_law;
 use crate::io::{BitDepth, ExrPrecision, Image, read_image, write_exr, write_ldr};
-use crate::train::checkpoint;
-use crate::train::config::ModelConfig;
 use anyhow::{Context, Result, bail};
-use burn::module::Module;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -126,99 +123,21 @@ fn write_network2(out: &Path, hdr: &Image, hdr_input_scale: f32) -> Result<()> {
 }
 
 pub fn run(args: &Args) -> Result<String> {
-    if let Some(onnx) = &args.onnx {
-        return run_onnx(args, onnx);
-    }
-    let Some(checkpoint) = &args.checkpoint else {
-        bail!("--checkpoint or --onnx is required");
+    let began = Instant::now();
+    let net = match (&args.onnx, &args.checkpoint) {
+        (Some(onnx), _) => from_onnx_file(onnx, &args.network)?,
+        (None, Some(checkpoint)) => {
+            let device = device_from_name(&args.backend)?;
+            LoadedNetwork::from_checkpoint(checkpoint, &args.network, &device)?
+        }
+        (None, None) => bail!("--checkpoint or --onnx is required"),
     };
-    let dir = checkpoint::resolve(checkpoint)?;
-    let state = checkpoint::read_state(&dir)?;
-    let device = device_from_name(&args.backend)?;
-    let began = Instant::now();
     let set = args.set.as_deref().map(find_set).transpose()?;
-    match &state.model {
-        ModelConfig::BlendUnet(cfg) => {
-            let (low_img, high_img) = network1_frames(args, set.as_ref())?;
-            let model = checkpoint::load_model(cfg.init(&device)?, &dir)?.valid();
-            let tiling = args.network.tiling(network1_tiling(cfg));
-            let (w, linear, toned) = network1_fuse(
-                &model,
-                &low_img,
-                &high_img,
-                tiling,
-                args.network.weight,
-                args.network.tone_k,
-                &device,
-            )?;
-            write_network1(&args.out, &w, &linear, &toned)?;
-            Ok(format!(
-                "Network-1 ({}) on {}×{} in {:.1} s (tile {}, overlap {}): wrote linear.exr, \
-                 tonemapped.exr, tonemapped.png, blend_weight.png to {}",
-                dir.display(),
-                linear.width,
-                linear.height,
-                began.elapsed().as_secs_f64(),
-                tiling.tile,
-                tiling.overlap,
-                args.out.display()
-            ))
-        }
-        ModelConfig::Wu(cfg) => {
-            let Some(set) = &set else {
-                bail!("Network-2 needs --set DIR (three exposures and their EVs)");
-            };
-            let (frames, times) = network2_frames(set)?;
-            let model = checkpoint::load_model(cfg.init(&device)?, &dir)?.valid();
-            let tiling = args.network.tiling(network2_tiling(cfg));
-            let [a, b, c] = &frames;
-            let hdr = network2_hdr(&model, [a, b, c], times, tiling, &device)?;
-            write_network2(&args.out, &hdr, cfg.hdr_input_scale as f32)?;
-            Ok(format!(
-                "Network-2 ({}) on set {} ({}×{}, t = {:?}) in {:.1} s (tile {}, overlap {}): \
-                 wrote hdr.exr, hdr_mulaw.png to {}",
-                dir.display(),
-                set.name,
-                hdr.width,
-                hdr.height,
-                times,
-                began.elapsed().as_secs_f64(),
-                tiling.tile,
-                tiling.overlap,
-                args.out.display()
-            ))
-        }
-    }
-}
-
-#[cfg(not(feature = "onnx"))]
-fn run_onnx(_: &Args, _: &Path) -> Result<String> {
-    bail!(
-        "--onnx: this hdrsynth was built without ONNX support: rebuild with \
-         `cargo build --release --features onnx` (docs/onnx.md)"
-    )
-}
-
-/// `--onnx`: the exported model in ONNX Runtime, same tiling and outputs as a checkpoint.
-#[cfg(feature = "onnx")]
-fn run_onnx(args: &Args, path: &Path) -> Result<String> {
-    use crate::onnx::infer as oi;
-    use crate::onnx::runtime::{Network, OnnxModel};
-    let began = Instant::now();
-    let mut model = OnnxModel::load(path, None)?;
-    let set = args.set.as_deref().map(find_set).transpose()?;
-    let tiling = args.network.tiling(oi::default_tiling(&model)?);
-    let what = match model.network {
+    let what = match net.network {
         Network::Network1 => {
             let (low, high) = network1_frames(args, set.as_ref())?;
-            let (w, linear, toned) = oi::network1_fuse(
-                &mut model,
-                &low,
-                &high,
-                tiling,
-                args.network.weight,
-                args.network.tone_k,
-            )?;
+            let w = net.network1_weight(&low, &high, args.network.weight)?;
+            let (linear, toned) = fuse(&low, &high, &w, args.network.tone_k)?;
             write_network1(&args.out, &w, &linear, &toned)?;
             format!(
                 "Network-1 on {}×{}: wrote linear.exr, tonemapped.exr, tonemapped.png, \
@@ -232,8 +151,8 @@ fn run_onnx(args: &Args, path: &Path) -> Result<String> {
             };
             let (frames, times) = network2_frames(set)?;
             let [a, b, c] = &frames;
-            let hdr = oi::network2_hdr(&mut model, [a, b, c], times, tiling)?;
-            write_network2(&args.out, &hdr, model.hdr_input_scale.unwrap_or(1.0))?;
+            let hdr = net.network2_hdr([a, b, c], times)?;
+            write_network2(&args.out, &hdr, net.hdr_input_scale.unwrap_or(1.0))?;
             format!(
                 "Network-2 on set {} ({}×{}, t = {times:?}): wrote hdr.exr, hdr_mulaw.png",
                 set.name, hdr.width, hdr.height
@@ -241,11 +160,22 @@ fn run_onnx(args: &Args, path: &Path) -> Result<String> {
         }
     };
     Ok(format!(
-        "{what} to {} in {:.1} s with ONNX Runtime ({}; tile {}, overlap {})",
+        "{what} to {} in {:.1} s ({})",
         args.out.display(),
         began.elapsed().as_secs_f64(),
-        path.display(),
-        tiling.tile,
-        tiling.overlap
+        net.describe()
     ))
+}
+
+#[cfg(feature = "onnx")]
+fn from_onnx_file(path: &Path, opts: &NetworkOptions) -> Result<LoadedNetwork> {
+    Ok(LoadedNetwork::from_onnx_file(path, opts)?)
+}
+
+#[cfg(not(feature = "onnx"))]
+fn from_onnx_file(_: &Path, _: &NetworkOptions) -> Result<LoadedNetwork> {
+    bail!(
+        "--onnx: this hdrsynth was built without ONNX support: rebuild with \
+         `cargo build --release --features onnx` (docs/onnx.md)"
+    )
 }

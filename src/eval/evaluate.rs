@@ -22,15 +22,12 @@ use crate::data::scene::ev_tag;
 use crate::data::testset::resize;
 use crate::error::{Error, Result};
 use crate::eval::blend::{blend_pair, tone_curve};
+use crate::eval::engine::{LoadedNetwork, Network};
+use crate::eval::infer;
 pub use crate::eval::infer::NetworkOptions;
-use crate::eval::infer::{self, network1_tiling, network1_weight};
 use crate::eval::metrics::{self, MetricOptions, Pu21Scale, Scores};
 use crate::eval::report::{self, Cell, MetricSummary, SetScore};
-use crate::eval::tiling::Tiling;
 use crate::io::{BitDepth, ExrPrecision, Image, read_image, write_exr, write_ldr};
-use crate::train::checkpoint;
-use crate::train::config::ModelConfig;
-use burn::module::Module;
 use burn::tensor::Device;
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
@@ -218,50 +215,32 @@ impl Method for Predictions {
 // ---------------------------------------------------------------------------------------------
 // Networks from a checkpoint
 
-/// The method for a checkpoint (or run folder): the network its state names, weights loaded.
+/// The method for a checkpoint (or run folder): the network its state names, weights loaded,
+/// on the engine `opts.engine` chooses (`eval::engine`).
 pub fn from_checkpoint(
     path: &Path,
     opts: &NetworkOptions,
     device: &Device,
 ) -> Result<Box<dyn Method>> {
-    let dir = checkpoint::resolve(path)?;
-    let state = checkpoint::read_state(&dir)?;
-    let with = |t: Tiling| opts.tiling(t);
-    match &state.model {
-        ModelConfig::BlendUnet(cfg) => {
-            let model = checkpoint::load_model(cfg.init(device)?, &dir)?.valid();
-            let tiling = with(network1_tiling(cfg));
-            let (mode, device) = (opts.weight, device.clone());
-            Ok(Box::new(Network1 {
-                description: format!(
-                    "Network-1 (blend-map U-Net) from {}, tile {} overlap {}, weight {:?}",
-                    dir.display(),
-                    tiling.tile,
-                    tiling.overlap,
-                    mode
-                ),
-                weights: Box::new(move |low, high| {
-                    network1_weight(&model, low, high, tiling, mode, &device)
-                }),
+    let net = LoadedNetwork::from_checkpoint(path, opts, device)?;
+    Ok(from_network(net, opts))
+}
+
+/// The method for a loaded network (a checkpoint's, or an exported ONNX file's).
+pub fn from_network(net: LoadedNetwork, opts: &NetworkOptions) -> Box<dyn Method> {
+    match net.network {
+        Network::Network1 => {
+            let mode = opts.weight;
+            Box::new(Network1 {
+                description: format!("{}, weight {mode:?}", net.describe()),
+                weights: Box::new(move |low, high| net.network1_weight(low, high, mode)),
                 tone_k: opts.tone_k,
-            }))
+            })
         }
-        ModelConfig::Wu(cfg) => {
-            let model = checkpoint::load_model(cfg.init(device)?, &dir)?.valid();
-            let tiling = with(infer::network2_tiling(cfg));
-            let device = device.clone();
-            Ok(Box::new(Network2 {
-                description: format!(
-                    "Network-2 (Wu et al.) from {}, tile {} overlap {}",
-                    dir.display(),
-                    tiling.tile,
-                    tiling.overlap
-                ),
-                infer: Box::new(move |frames, times| {
-                    infer::network2_hdr(&model, frames, times, tiling, &device)
-                }),
-            }))
-        }
+        Network::Network2 => Box::new(Network2 {
+            description: net.describe(),
+            infer: Box::new(move |frames, times| net.network2_hdr(frames, times)),
+        }),
     }
 }
 

@@ -6,6 +6,7 @@
 use crate::data::layout::SetInfo;
 use crate::error::{Error, Result};
 use crate::eval::blend::{BlendWeight, DEFAULT_TONE_K, fuse, weight_from_logits};
+use crate::eval::engine::Engine;
 use crate::eval::tiling::{Planar, Tiling, run_tiled};
 use crate::io::Image;
 use crate::models::{BlendUNet, BlendUNetConfig, WuConfig, WuNet};
@@ -29,6 +30,10 @@ pub struct NetworkOptions {
     /// Network-1's tone curve k: T(x) = (1 − e^(−kx)) / (1 − e^(−k)); 0 = none.
     #[arg(long, default_value_t = DEFAULT_TONE_K)]
     pub tone_k: f32,
+    /// Inference engine for a checkpoint: auto (ONNX Runtime on CPU when built with `onnx`
+    /// and ORT_DYLIB_PATH is set, else Burn), burn or onnx.
+    #[arg(long, value_enum, default_value_t = Engine::Auto)]
+    pub engine: Engine,
 }
 
 impl Default for NetworkOptions {
@@ -38,6 +43,7 @@ impl Default for NetworkOptions {
             overlap: None,
             weight: BlendWeight::Expected,
             tone_k: DEFAULT_TONE_K,
+            engine: Engine::Auto,
         }
     }
 }

@@ -2,6 +2,7 @@
 //! blend-map fusion (blend map → Laplacian blend → tone curve), and the field's metrics.
 pub mod ablate;
 pub mod blend;
+pub mod engine;
 pub mod evaluate;
 pub mod infer;
 pub mod metrics;

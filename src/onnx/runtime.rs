@@ -103,19 +103,33 @@ impl OnnxModel {
     /// Loads `path`; `threads` sets ONNX Runtime's intra-op threads (default: its own choice,
     /// one per physical core).
     pub fn load(path: &Path, threads: Option<usize>) -> Result<OnnxModel> {
-        let env = environment()?;
-        let err = |e: &dyn std::fmt::Display| Error::decode(path, format!("ONNX Runtime: {e}"));
         if !path.is_file() {
             return Err(Error::io(
                 path,
                 std::io::Error::new(std::io::ErrorKind::NotFound, "no such ONNX model"),
             ));
         }
+        Self::build(path, threads, |b| b.commit_from_file(path))
+    }
+
+    /// A model serialised in memory (a checkpoint exported on the fly: `eval::engine`);
+    /// `label` names it in messages.
+    pub fn from_bytes(bytes: &[u8], label: &Path, threads: Option<usize>) -> Result<OnnxModel> {
+        Self::build(label, threads, |b| b.commit_from_memory(bytes))
+    }
+
+    fn build(
+        path: &Path,
+        threads: Option<usize>,
+        commit: impl FnOnce(&mut ort::session::builder::SessionBuilder) -> ort::Result<Session>,
+    ) -> Result<OnnxModel> {
+        let env = environment()?;
+        let err = |e: &dyn std::fmt::Display| Error::decode(path, format!("ONNX Runtime: {e}"));
         let mut builder = Session::builder(&env).map_err(|e| err(&e))?;
         if let Some(n) = threads {
             builder = builder.with_intra_threads(n).map_err(|e| err(&e))?;
         }
-        let session = builder.commit_from_file(path).map_err(|e| err(&e))?;
+        let session = commit(&mut builder).map_err(|e| err(&e))?;
         let network = {
             let meta = session.metadata().map_err(|e| err(&e))?;
             match meta.custom(META_NETWORK).as_deref() {

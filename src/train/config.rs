@@ -42,6 +42,10 @@ pub struct RunConfig {
     /// "flex" (CPU, default), "ndarray", "wgpu", "cuda[:N]": the backends compiled in.
     #[serde(default = "default_backend")]
     pub backend: String,
+    /// Data-parallel training: device names (as `backend`), each taking a shard of every
+    /// batch (`train::train_step_parallel`); the first holds the model. Empty: `backend` alone.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub devices: Vec<String>,
     #[serde(default = "default_checkpoint_every")]
     pub checkpoint_every: u64,
     /// Checkpoints kept (the newest); the final one is always kept.
@@ -423,6 +427,13 @@ impl TrainConfig {
                 "optim.weight_decay = {} must be finite and ≥ 0 (a negative one grows the \
                  weights)",
                 self.optim.weight_decay
+            )));
+        }
+        if r.devices.len() > self.data.batch_size {
+            return Err(Error::Invalid(format!(
+                "run.devices: {} devices need data.batch_size ≥ {0} (one shard each), got {}",
+                r.devices.len(),
+                self.data.batch_size
             )));
         }
         self.schedule.validate()?;

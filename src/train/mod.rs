@@ -20,7 +20,7 @@ use crate::error::{Error, Result};
 use crate::io::atomic::write_atomic;
 use crate::models::BlendUNet;
 use burn::module::{Module, ModuleVisitor, Param};
-use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
+use burn::optim::{AdamConfig, GradientsAccumulator, GradientsParams, ModuleOptimizer};
 use burn::tensor::activation::softmax;
 use burn::tensor::{Bool, Device, Int, Tensor};
 use checkpoint::CheckpointState;
@@ -68,6 +68,94 @@ pub fn train_step<T: Task>(
     }
     let grads = GradientsParams::from_grads(loss.backward(), &model);
     Ok((optim.step(lr, model, grads), value))
+}
+
+/// One data-parallel optimisation step over `devices` (autodiff devices; the model lives on the
+/// first): [`parallel_gradients`], then one optimiser step on the first device. Equals
+/// [`train_step`] on the combined batch for a network without batch statistics; BatchNorm
+/// normalises per shard (as PyTorch's DDP without SyncBatchNorm) and its running statistics
+/// come from the first device's shard. One device: exactly [`train_step`].
+pub fn train_step_parallel<T: Task + Sync>(
+    task: &T,
+    model: T::Model,
+    optim: &mut ModuleOptimizer,
+    lr: f64,
+    batch: &[Sample],
+    devices: &[Device],
+) -> Result<(T::Model, f64)> {
+    if let [device] = devices {
+        return train_step(task, model, optim, lr, batch, device);
+    }
+    let (grads, value) = parallel_gradients(task, &model, batch, devices)?;
+    if !value.is_finite() {
+        return Ok((model, value));
+    }
+    Ok((optim.step(lr, model, grads), value))
+}
+
+/// The gradients of the batch's mean loss, computed data-parallel: the batch is split into one
+/// contiguous shard per device, each device computes its shard's loss weighted by the shard's
+/// share of the batch on its own replica (Burn's `Module::fork`), concurrently; the gradients
+/// are moved to the first device and summed in device order (Burn's `GradientsAccumulator`),
+/// so the result is deterministic. Burn 0.22's collective all-reduce
+/// (`burn::tensor::distributed`) exists only for CUDA devices (flex and ndarray are not
+/// collective backends), so this gathers instead; docs/training.md. Returns the gradients
+/// and the batch's loss.
+pub fn parallel_gradients<T: Task + Sync>(
+    task: &T,
+    model: &T::Model,
+    batch: &[Sample],
+    devices: &[Device],
+) -> Result<(GradientsParams, f64)> {
+    let n = devices.len();
+    let Some(main) = devices.first() else {
+        return Err(Error::Invalid("data-parallel training: no device".into()));
+    };
+    if batch.len() < n {
+        return Err(Error::Invalid(format!(
+            "a batch of {} cannot be split over {n} devices: batch_size must be ≥ the number of \
+             devices",
+            batch.len()
+        )));
+    }
+    // Contiguous shards, the first `batch.len() % n` one sample larger.
+    let (q, r) = (batch.len() / n, batch.len() % n);
+    let mut shards = Vec::with_capacity(n);
+    let mut at = 0;
+    for i in 0..n {
+        let len = q + usize::from(i < r);
+        shards.push(&batch[at..at + len]);
+        at += len;
+    }
+    let total = batch.len() as f64;
+    let results: Vec<Result<(GradientsParams, f64)>> = std::thread::scope(|scope| {
+        let handles: Vec<_> = devices
+            .iter()
+            .zip(&shards)
+            .map(|(device, shard)| {
+                let replica = model.clone().fork(device);
+                scope.spawn(move || -> Result<(GradientsParams, f64)> {
+                    let share = shard.len() as f64 / total;
+                    let loss = task.loss(&replica, shard, device)?.mul_scalar(share);
+                    let value = loss.clone().into_scalar::<f32>() as f64;
+                    let grads = GradientsParams::from_grads(loss.backward(), &replica);
+                    Ok((grads, value))
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| h.join().unwrap_or_else(|p| std::panic::resume_unwind(p)))
+            .collect()
+    });
+    let mut accumulator = GradientsAccumulator::<T::Model>::new();
+    let mut value = 0.0;
+    for result in results {
+        let (grads, v) = result?;
+        value += v;
+        accumulator.accumulate(model, grads.to_device(main, model));
+    }
+    Ok((accumulator.grads(), value))
 }
 
 /// Burn's seed is global to a backend: seeding and initialising under one lock keeps
@@ -256,7 +344,7 @@ fn json_f64(v: f64) -> String {
 }
 
 /// The training loop shared by both networks.
-pub fn train<T: Task>(
+pub fn train<T: Task + Sync>(
     task: &T,
     cfg: &TrainConfig,
     opts: &TrainOptions,
@@ -283,8 +371,17 @@ pub fn train<T: Task>(
     if opts.progress {
         eprintln!("training data: {source}");
     }
-    let device = device_from_name(&cfg.run.backend)?;
-    let ad = device.clone().autodiff();
+    let devices: Vec<Device> = if cfg.run.devices.is_empty() {
+        vec![device_from_name(&cfg.run.backend)?.autodiff()]
+    } else {
+        cfg.run
+            .devices
+            .iter()
+            .map(|d| Ok(device_from_name(d)?.autodiff()))
+            .collect::<Result<_>>()?
+    };
+    let ad = devices[0].clone();
+    let device = ad.clone().without_autodiff();
     let identity = identity_of(cfg)?;
     let existing = checkpoint::latest(run)?;
     let mut optim = AdamConfig::new()
@@ -445,7 +542,7 @@ pub fn train<T: Task>(
             .next()
             .ok_or_else(|| Error::Invalid("data stream ended early".into()))??;
         let lr = cfg.schedule.lr(cfg.optim.lr, step, total);
-        let (next, value) = train_step(task, model, &mut optim, lr, &batch, &ad)?;
+        let (next, value) = train_step_parallel(task, model, &mut optim, lr, &batch, &devices)?;
         model = next;
         if !value.is_finite() {
             log.write(&[

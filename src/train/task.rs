@@ -20,7 +20,7 @@ use std::path::Path;
 pub const CHECKPOINT_ALPHA_FILE: &str = "class_weights.toml";
 
 pub trait Task {
-    type Model: Module + Clone + std::fmt::Debug;
+    type Model: Module + Clone + std::fmt::Debug + Send;
 
     /// The `[model]` table that rebuilds this network (stored in every checkpoint).
     fn model_config(&self) -> ModelConfig;

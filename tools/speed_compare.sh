@@ -1,0 +1,37 @@
+#!/usr/bin/env bash
+# Issue 18 item 1: one command, one machine, one run — the training step of both networks in
+# Burn (cargo bench --bench train_step, criterion's median) against PyTorch CPU
+# (tools/torch_step_reference.py, same architectures, batch, crop, loss, Adam; run before and
+# after Burn so drift shows), then whole-image inference in Burn flex against ONNX Runtime
+# (cargo bench --features onnx --bench onnx). Prints the ratios; paste them into BENCHMARKS.md
+# with the machine and its load.
+#   TORCH_PY=/tmp/torchenv/bin/python THREADS=2 bash tools/speed_compare.sh
+set -euo pipefail
+cd "$(dirname "$0")/.."
+PY=${TORCH_PY:-/tmp/torchenv/bin/python}
+THREADS=${THREADS:-2}
+log=$(mktemp -d)
+echo "machine: $(nproc) cores, $(uname -m); load before: $(cut -d' ' -f1-3 /proc/loadavg)"
+"$PY" tools/torch_step_reference.py --threads "$THREADS" | tee "$log/torch1"
+RAYON_NUM_THREADS=$THREADS cargo bench --bench train_step 2>&1 | grep -E "s/step|time:" | tee "$log/burn"
+"$PY" tools/torch_step_reference.py --threads "$THREADS" | tee "$log/torch2"
+ORT_DYLIB_PATH="$(tools/setup_ort.sh)" RAYON_NUM_THREADS=$THREADS \
+  cargo bench --features onnx --bench onnx 2>/dev/null | tee "$log/onnx"
+echo "load after: $(cut -d' ' -f1-3 /proc/loadavg)"
+"$PY" - "$log" <<'PY'
+import json, re, sys, pathlib
+log = pathlib.Path(sys.argv[1])
+torch = {}
+for f in ("torch1", "torch2"):
+    for line in (log / f).read_text().splitlines():
+        m = re.match(r"(\S+): .*median ([0-9.]+) s per step", line)
+        if m:
+            torch.setdefault(m[1], []).append(float(m[2]))
+print("\n| network | Burn flex (criterion median) | PyTorch CPU (before, after) | Burn / PyTorch |")
+print("|---|---|---|---|")
+for name, ts in torch.items():
+    est = pathlib.Path("target/criterion/train_step") / f"{name.replace('/', '_')}_flex" / "new/estimates.json"
+    burn = json.loads(est.read_text())["median"]["point_estimate"] / 1e9
+    mean = sum(ts) / len(ts)
+    print(f"| {name} | {burn:.3f} s | {', '.join(f'{t:.3f}' for t in ts)} s | {burn / mean:.2f}× |")
+PY
