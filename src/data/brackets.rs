@@ -208,7 +208,10 @@ pub fn orient(img: crate::io::Image, frame: &BracketFrame) -> Result<crate::io::
     match frame.exif.orientation.unwrap_or(1) {
         1 => Ok(img),
         o => img.oriented(o).ok_or_else(|| {
-            Error::decode(&frame.path, format!("EXIF Orientation {o} is not one of 1–8"))
+            Error::decode(
+                &frame.path,
+                format!("EXIF Orientation {o} is not one of 1–8"),
+            )
         }),
     }
 }

@@ -101,7 +101,8 @@ pub fn calibrate_debevec(
 ) -> Result<[Vec<f64>; 3]> {
     let (w, h) = check_frames("Debevec", frames, times)?;
     let pts = sample_points(w, h, opts.samples.max(1));
-    let code = |f: &Image, x: usize, y: usize, c: usize| -> usize { code8(f.data[(y * w + x) * 3 + c]) };
+    let code =
+        |f: &Image, x: usize, y: usize, c: usize| -> usize { code8(f.data[(y * w + x) * 3 + c]) };
     let cols = LDR_SIZE + pts.len();
     let mut out: [Vec<f64>; 3] = Default::default();
     for (c, o) in out.iter_mut().enumerate() {
