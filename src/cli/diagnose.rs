@@ -97,7 +97,7 @@ fn run_brackets(dir: &std::path::Path, args: &Args, diagnose: DiagnoseOptions) -
     }
     let _ = write!(
         s,
-        "wrote {}/{{brackets.md, brackets.toml, captures/, profile.toml, report.md, report.json,          *.png}} in {:.1} s",
+        "wrote {}/{{brackets.md, brackets.toml, captures/, profile.toml, report.md, report.json, *.png}} in {:.1} s",
         args.out.display(),
         t0.elapsed().as_secs_f64()
     );

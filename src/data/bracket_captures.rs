@@ -354,7 +354,7 @@ impl BracketDiagnosis {
             r.exponent, r.tolerance_stops
         );
         s.push_str(
-            "| set | frame | reference | EXIF stops | measured stops | residual | values | named |\n\
+            "| set | frame | reference | EXIF/sidecar stops | measured stops | residual | values | named |\n\
              |---|---|---|---|---|---|---|---|\n",
         );
         for p in &r.pairs {
