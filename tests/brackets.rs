@@ -1422,3 +1422,31 @@ fn a_misreported_exposure_is_named_by_file_and_left_out() {
     let md = std::fs::read_to_string(root.join("diag/brackets.md")).expect("md");
     assert!(md.contains("f0.jpg") && md.contains("**yes**"), "{md}");
 }
+
+#[test]
+fn testset_with_robertson_records_the_estimator_and_writes_its_curve() {
+    use hdrsynth::sensor::crf::RobertsonOptions;
+    let tmp = tempfile::tempdir().expect("tmp");
+    bracket_folder(tmp.path());
+    let opts = BracketOptions {
+        scan: ScanOptions::default(),
+        response: ResponseChoice::Robertson(RobertsonOptions::default()),
+        align: None,
+    };
+    let out = tmp.path().join("out");
+    let built = bracket_testset::build(tmp.path(), &opts, &out).expect("build");
+    assert!(
+        built.sets[0].response.contains("Robertson"),
+        "{}",
+        built.sets[0].response
+    );
+    let rec = std::fs::read_to_string(out.join("scene1/brackets.toml")).expect("record");
+    assert!(rec.contains("CalibrateRobertson"), "{rec}");
+    let rows = read_csv_rows(&out.join("crf_robertson.csv"));
+    assert_eq!(rows.len(), 256);
+    // I(128) = 1 in every channel (Robertson's normalisation; the csv has a code column first).
+    for c in 1..4 {
+        assert!((rows[128][c] - 1.0).abs() < 1e-12, "{:?}", rows[128]);
+    }
+    assert!(!out.join("crf_debevec.csv").exists());
+}

@@ -50,9 +50,9 @@ pub struct Args {
     #[arg(long)]
     pub out: PathBuf,
     /// Bootstrap replicates of the capture protocol per comparison.
-    #[arg(long, default_value_t = 30)]
+    #[arg(long, default_value_t = DiagnoseOptions::default().replicates)]
     pub replicates: usize,
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = DiagnoseOptions::default().seed)]
     pub seed: u64,
 }
 
@@ -129,6 +129,24 @@ fn summary(d: &diagnose::Diagnosis) -> String {
         let _ = writeln!(s, "  unexplained: {u}");
     }
     s
+}
+
+impl Default for Args {
+    /// The command line's defaults (no capture set, no output folder).
+    fn default() -> Self {
+        Args {
+            captures: None,
+            brackets: None,
+            profile: None,
+            response: None,
+            declared_evs: None,
+            out: PathBuf::new(),
+            max_gap: ScanOptions::default().max_gap_s,
+            ratio_tolerance: BracketDiagnoseOptions::default().ratio_tolerance_stops,
+            replicates: DiagnoseOptions::default().replicates,
+            seed: DiagnoseOptions::default().seed,
+        }
+    }
 }
 
 pub fn run(args: &Args) -> Result<String> {
