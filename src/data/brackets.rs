@@ -20,6 +20,10 @@
 //! capture times are more than `max_gap_s` apart. How each set was grouped, and anything
 //! ambiguous (sets of differing sizes, times missing on some frames), is reported.
 //! Frames whose exposure cannot be determined are refused, named.
+//!
+//! Orientation: the EXIF/TIFF Orientation tag (1–8) is read with the exposure tags and applied
+//! when a frame is read ([`read_frame_image`], [`orient`]), so portrait brackets come out
+//! upright; a set whose frames differ in orientation is refused, every file named.
 
 use crate::error::{Error, Result};
 use std::collections::BTreeMap;
