@@ -1299,7 +1299,8 @@ fn diagnose_srgb(root: &Path) -> bracket_captures::BracketDiagnosis {
         response: ResponseChoice::Declared(Response::Srgb),
         ..BracketDiagnoseOptions::default()
     };
-    bracket_captures::diagnose_brackets(root, &opts, &root.join("diag")).expect("diagnose")
+    let out = root.with_file_name("diag");
+    bracket_captures::diagnose_brackets(root, &opts, &out).expect("diagnose")
 }
 
 fn step_names(b: &bracket_captures::BracketDiagnosis) -> Vec<String> {
@@ -1344,7 +1345,7 @@ fn a_clean_bracket_folder_names_nothing() {
         b.linearisation
     );
     // The capture set and both reports are written; the capture set groups by scene key.
-    let out = root.join("diag");
+    let out = root.with_file_name("diag");
     for f in [
         "brackets.md",
         "brackets.toml",
@@ -1417,10 +1418,21 @@ fn a_misreported_exposure_is_named_by_file_and_left_out() {
         "{:?}",
         b.diagnosis.unexplained
     );
-    let m = std::fs::read_to_string(root.join("diag/captures/captures.toml")).expect("manifest");
+    let m = std::fs::read_to_string(root.with_file_name("diag").join("captures/captures.toml"))
+        .expect("manifest");
     assert_eq!(m.matches("scene = \"scene_1\"").count(), 2, "{m}");
-    let md = std::fs::read_to_string(root.join("diag/brackets.md")).expect("md");
+    let md = std::fs::read_to_string(root.with_file_name("diag").join("brackets.md")).expect("md");
     assert!(md.contains("f0.jpg") && md.contains("**yes**"), "{md}");
+    // An output inside the bracket folder is refused (a rerun would scan it as a set).
+    let e = bracket_captures::diagnose_brackets(
+        &root,
+        &BracketDiagnoseOptions::default(),
+        &root.join("diag"),
+    )
+    .err()
+    .expect("output inside the input")
+    .to_string();
+    assert!(e.contains("inside"), "{e}");
 }
 
 #[test]

@@ -225,8 +225,10 @@ pub fn diagnose_brackets(
             opts.ratio_tolerance_stops
         )));
     }
+    // The output would otherwise be scanned as a sub-folder of brackets on the next run.
+    crate::io::guard::refuse_output_inside(dir, out)?;
     let brackets::BracketScan { sets, mut notes } = brackets::scan(dir, &opts.scan)?;
-    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    let _lock = crate::io::guard::OutputLock::acquire(out, "diagnose --brackets")?;
     let lin = bracket_testset::resolve_linearisation(&sets, &opts.response, out, &mut notes)?;
     let estimated = matches!(
         opts.response,
