@@ -25,6 +25,8 @@ struct Tags {
     /// "YYYY:MM:DD HH:MM:SS"
     date: Option<String>,
     subsec: Option<String>,
+    /// TIFF/EXIF Orientation (tag 274, IFD0).
+    orientation: Option<u16>,
 }
 
 /// One IFD entry: tag, TIFF type, count, value bytes (little-endian).
@@ -88,10 +90,15 @@ fn exif_app1(t: &Tags) -> Vec<u8> {
     let exif_at = 8 + 18;
     let mut tiff = b"II*\0".to_vec();
     tiff.extend(8u32.to_le_bytes());
-    tiff.extend(ifd(
-        8,
-        vec![(0x8769, 4, 1, (exif_at as u32).to_le_bytes().to_vec())],
-    ));
+    let mut ifd0 = vec![(0x8769, 4, 1, (exif_at as u32).to_le_bytes().to_vec())];
+    let exif_at = if let Some(o) = t.orientation {
+        ifd0.push((274, 3, 1, o.to_le_bytes().to_vec()));
+        exif_at + 12
+    } else {
+        exif_at
+    };
+    ifd0[0].3 = (exif_at as u32).to_le_bytes().to_vec();
+    tiff.extend(ifd(8, ifd0));
     assert_eq!(tiff.len(), exif_at);
     tiff.extend(ifd(exif_at as u32, exif));
     let mut seg = vec![0xFF, 0xE1];
@@ -668,6 +675,71 @@ fn debevec_response_matches_opencv_calibrate_debevec() {
     );
 }
 
+#[test]
+fn robertson_response_matches_opencv_calibrate_robertson() {
+    use hdrsynth::sensor::crf::{self, RobertsonOptions};
+    let dir = oracle_dir();
+    let times: Vec<f64> = std::fs::read_to_string(dir.join("crf_times.txt"))
+        .expect("times")
+        .split_whitespace()
+        .map(|v| v.parse().expect("number"))
+        .collect();
+    let frames: Vec<hdrsynth::io::Image> = (0..times.len())
+        .map(|i| hdrsynth::io::read_image(&dir.join(format!("crf_{i}.png"))).expect("png"))
+        .collect();
+    let ours = crf::calibrate_robertson(&frames, &times, RobertsonOptions::default()).expect("crf");
+    // OpenCV's CalibrateRobertson (defaults), "nan" where a code never occurs.
+    let cv = read_csv_rows(&dir.join("crf_robertson.csv"));
+    assert_eq!(cv.len(), 256);
+    let x_of =
+        |z: usize| -> f64 { -(1.0 - (z as f64 / 255.0) * (1.0 - (-4.0f64).exp())).ln() / 4.0 };
+    let (mut vs_cv, mut ours_truth, mut cv_truth) = (Vec::new(), Vec::new(), Vec::new());
+    let mut unseen = 0;
+    for z in 0..256 {
+        for c in 0..3 {
+            assert!(ours[c][z].is_finite() && ours[c][z] >= 0.0, "code {z} c{c}");
+            if cv[z][c].is_nan() {
+                unseen += 1;
+                continue;
+            }
+            // Codes 1..=254: 0 and 255 have weight 0 (clipped), their I is the mean exposure
+            // of everything clipped there, compared too but not against the truth.
+            vs_cv.push((ours[c][z] / cv[z][c]).ln().abs());
+            if (16..=240).contains(&z) {
+                let truth = x_of(z) / x_of(128);
+                ours_truth.push((ours[c][z] / truth).ln().abs());
+                cv_truth.push((cv[z][c] / truth).ln().abs());
+            }
+        }
+    }
+    // The oracle's frames leave code 0 (all channels) and code 1 (green) unobserved.
+    assert_eq!(unseen, 4, "unobserved codes in OpenCV's curve");
+    let stats = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        (v[v.len() / 2], v[v.len() * 95 / 100], v[v.len() - 1])
+    };
+    let (a, b, c) = (
+        stats(&mut vs_cv),
+        stats(&mut ours_truth),
+        stats(&mut cv_truth),
+    );
+    eprintln!(
+        "Robertson |ln ratio| median/p95/max: ours vs OpenCV {a:?}; ours vs truth {b:.4?}; \
+         OpenCV vs truth {c:.4?}"
+    );
+    // Same algorithm, same iteration count (an unobserved code keeps both running all 30):
+    // only float32 (OpenCV) against float64 (ours) accumulation differs.
+    assert!(a.2 < ROBERTSON_TOL, "ours vs OpenCV {a:?}");
+    assert!(
+        b.0 < 0.1 && c.0 < 0.1,
+        "ours vs truth {b:?}, OpenCV vs truth {c:?}"
+    );
+}
+
+/// Largest |ln(ours / OpenCV)| over every observed code and channel (docs/your_device.md);
+/// measured 3.2e-6 (median 6.4e-7).
+const ROBERTSON_TOL: f64 = 1e-5;
+
 // ---------------------------------------------------------------------------------------------
 // Item 3: MTB alignment, against OpenCV AlignMTB (tools/crf_oracle.py).
 
@@ -993,4 +1065,400 @@ fn mtb_keeps_a_textureless_frame_in_place_against_itself() {
     // (OpenCV measured (−3, −4) for a smooth 4032×3024 frame against itself).
     let img = hdrsynth::io::Image::from_fn(256, 192, |_, _| [0.5; 3]);
     assert_eq!(align::mtb_shift(&img, &img, MtbOptions::default()), (0, 0));
+}
+
+// ---------------------------------------------------------------------------------------------
+// EXIF orientation (issue 19, session 6): frames are read upright.
+
+/// The stored 3×2 test image's labels: row 0 = A B C, row 1 = D E F.
+const LABELS: [[u8; 3]; 6] = [
+    [250, 10, 10],   // A
+    [10, 250, 10],   // B
+    [10, 10, 250],   // C
+    [250, 250, 10],  // D
+    [10, 250, 250],  // E
+    [130, 130, 130], // F
+];
+
+/// The displayed label grid (rows of label indices, A = 0) for each Orientation, rotated by
+/// hand from the EXIF 2.32 definitions (where stored row 0 and column 0 appear).
+fn displayed(o: u16) -> Vec<Vec<usize>> {
+    let (a, b, c, d, e, f) = (0, 1, 2, 3, 4, 5);
+    match o {
+        1 => vec![vec![a, b, c], vec![d, e, f]],
+        2 => vec![vec![c, b, a], vec![f, e, d]],
+        3 => vec![vec![f, e, d], vec![c, b, a]],
+        4 => vec![vec![d, e, f], vec![a, b, c]],
+        5 => vec![vec![a, d], vec![b, e], vec![c, f]],
+        6 => vec![vec![d, a], vec![e, b], vec![f, c]],
+        7 => vec![vec![f, c], vec![e, b], vec![d, a]],
+        8 => vec![vec![c, f], vec![b, e], vec![a, d]],
+        _ => unreachable!(),
+    }
+}
+
+/// The stored image, each label a `block`×`block` square.
+fn label_pixels(block: usize) -> (usize, usize, Vec<u8>) {
+    let (w, h) = (3 * block, 2 * block);
+    let mut rgb = Vec::with_capacity(w * h * 3);
+    for y in 0..h {
+        for x in 0..w {
+            rgb.extend(LABELS[(y / block) * 3 + x / block]);
+        }
+    }
+    (w, h, rgb)
+}
+
+/// A little-endian baseline 8-bit RGB TIFF (uncompressed, one strip) with Orientation `o`.
+fn write_oriented_tiff(path: &Path, block: usize, o: u16) {
+    let (w, h, rgb) = label_pixels(block);
+    let entries = |strip_at: u32| -> Vec<Entry> {
+        vec![
+            (256, 4, 1, (w as u32).to_le_bytes().to_vec()),
+            (257, 4, 1, (h as u32).to_le_bytes().to_vec()),
+            (
+                258,
+                3,
+                3,
+                [8u16, 8, 8].iter().flat_map(|v| v.to_le_bytes()).collect(),
+            ),
+            (259, 3, 1, 1u16.to_le_bytes().to_vec()),
+            (262, 3, 1, 2u16.to_le_bytes().to_vec()),
+            (273, 4, 1, strip_at.to_le_bytes().to_vec()),
+            (274, 3, 1, o.to_le_bytes().to_vec()),
+            (277, 3, 1, 3u16.to_le_bytes().to_vec()),
+            (278, 4, 1, (h as u32).to_le_bytes().to_vec()),
+            (279, 4, 1, (rgb.len() as u32).to_le_bytes().to_vec()),
+        ]
+    };
+    let strip_at = 8 + ifd(8, entries(0)).len() as u32;
+    let mut out = b"II*\0".to_vec();
+    out.extend(8u32.to_le_bytes());
+    out.extend(ifd(8, entries(strip_at)));
+    assert_eq!(out.len(), strip_at as usize);
+    out.extend(rgb);
+    std::fs::write(path, out).expect("write tiff");
+}
+
+/// Assert that `img` shows `displayed(o)` with `block`-pixel labels (centres within `tol`).
+fn assert_displayed(img: &hdrsynth::io::Image, o: u16, block: usize, tol: f32, what: &str) {
+    let grid = displayed(o);
+    assert_eq!(
+        (img.width, img.height),
+        (grid[0].len() * block, grid.len() * block),
+        "{what}: size"
+    );
+    for (gy, row) in grid.iter().enumerate() {
+        for (gx, &label) in row.iter().enumerate() {
+            let p = img.get(gx * block + block / 2, gy * block + block / 2);
+            for c in 0..3 {
+                let want = f32::from(LABELS[label][c]) / 255.0;
+                assert!(
+                    (p[c] - want).abs() <= tol,
+                    "{what}: orientation {o}, cell ({gx}, {gy}) channel {c}: {} vs {want}",
+                    p[c]
+                );
+            }
+        }
+    }
+}
+
+fn scan_one_set(dir: &Path) -> brackets::BracketSet {
+    let s = scan(dir);
+    assert_eq!(s.sets.len(), 1, "{:?}", s.notes);
+    s.sets.into_iter().next().expect("set")
+}
+
+#[test]
+fn every_exif_orientation_is_applied_to_tiff_and_jpeg_frames() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    for o in 1..=8u16 {
+        // TIFF: exact pixels, stops from Kalantari's exposure.txt.
+        let d = tmp.path().join(format!("tif_{o}"));
+        std::fs::create_dir_all(&d).expect("mkdir");
+        for n in ["a.tif", "b.tif", "c.tif"] {
+            write_oriented_tiff(&d.join(n), 1, o);
+        }
+        std::fs::write(d.join("exposure.txt"), "0\n2\n4\n").expect("expo");
+        let set = scan_one_set(&d);
+        for f in &set.frames {
+            assert_eq!(f.exif.orientation, Some(o));
+            let img = brackets::read_frame_image(f).expect("read");
+            assert_displayed(&img, o, 1, 0.0, "tiff");
+        }
+        // JPEG: 16-px label blocks (block centres are clear of the codec's edge ringing).
+        let d = tmp.path().join(format!("jpg_{o}"));
+        std::fs::create_dir_all(&d).expect("mkdir");
+        let (w, h, rgb) = label_pixels(16);
+        for (n, den) in [("a.jpg", 400u32), ("b.jpg", 100), ("c.jpg", 25)] {
+            let t = Tags {
+                exposure_time: Some((1, den)),
+                orientation: Some(o),
+                ..Tags::default()
+            };
+            write_jpeg(&d.join(n), w as u32, h as u32, &rgb, Some(&t));
+        }
+        let set = scan_one_set(&d);
+        assert_close(&stops_rel(&set), &[0.0, 2.0, 4.0], 1e-9);
+        for f in &set.frames {
+            let img = brackets::read_frame_image(f).expect("read");
+            assert_displayed(&img, o, 16, 0.05, "jpeg");
+        }
+    }
+}
+
+#[test]
+fn frames_of_one_set_with_different_orientations_are_refused_naming_them() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let d = tmp.path().join("portrait");
+    std::fs::create_dir_all(&d).expect("mkdir");
+    for (n, o) in [("a.tif", 6u16), ("b.tif", 1), ("c.tif", 6)] {
+        write_oriented_tiff(&d.join(n), 1, o);
+    }
+    std::fs::write(d.join("exposure.txt"), "0\n2\n4\n").expect("expo");
+    let e = brackets::scan(tmp.path(), &ScanOptions::default())
+        .expect_err("mixed orientations")
+        .to_string();
+    assert!(e.contains("different EXIF orientations"), "{e}");
+    for n in ["a.tif", "b.tif", "c.tif"] {
+        assert!(e.contains(n), "{e}");
+    }
+    // An Orientation outside 1–8 is an error naming the file, not a panic.
+    let d = tmp.path().join("bad");
+    std::fs::create_dir_all(&d).expect("mkdir");
+    write_oriented_tiff(&d.join("x.tif"), 1, 9);
+    write_oriented_tiff(&d.join("y.tif"), 1, 1);
+    std::fs::write(d.join("exposure.txt"), "0\n2\n").expect("expo");
+    let e = brackets::scan(&d, &ScanOptions::default())
+        .expect_err("orientation 9")
+        .to_string();
+    assert!(e.contains("x.tif") && e.contains("Orientation"), "{e}");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Item 5: `diagnose --brackets`: a bracket folder as scene bursts (response and exposure-ratio
+// checks). The truth here is this test's own camera: radiance × exposure time, an optional
+// hidden power-law response before the sRGB encoding, and an optional frame whose true exposure
+// differs from the one written into its EXIF.
+
+use hdrsynth::data::bracket_captures::{self, BracketDiagnoseOptions};
+
+/// EXIF exposure times of every set (EV −2/0/+2), seconds.
+const DIAG_TIMES: [u32; 3] = [400, 100, 25];
+
+/// Radiance of scene `s` (three scenes): a 10-stop ramp with a wavy row structure.
+fn diag_radiance(s: usize, x: usize, y: usize) -> [f64; 3] {
+    let u = -7.0 + 10.0 * x as f64 / (W - 1) as f64 + 0.5 * (y as f64 / 3.0 + s as f64).sin();
+    let l = u.exp2();
+    let c = y as f64 / (H - 1) as f64;
+    [l * (0.6 + 0.4 * c), l, l * (1.0 - 0.5 * c)]
+}
+
+/// Three sub-folders of sRGB JPEGs with EXIF ExposureTime and ISO 100. The camera's signal is
+/// (radiance · t · 12.5)^`exponent` (clipped at 1) before the sRGB encoding; `wrong` = (scene,
+/// frame, stops) exposes that frame 2^stops longer than its EXIF says.
+fn diag_brackets(root: &Path, exponent: f64, wrong: Option<(usize, usize, f64)>) {
+    for s in 0..3 {
+        let d = root.join(format!("scene_{s}"));
+        std::fs::create_dir_all(&d).expect("mkdir");
+        for (j, den) in DIAG_TIMES.iter().enumerate() {
+            let mut t = 1.0 / f64::from(*den);
+            if let Some((ws, wj, stops)) = wrong
+                && (ws, wj) == (s, j)
+            {
+                t *= stops.exp2();
+            }
+            let mut rgb = Vec::with_capacity(W * H * 3);
+            for y in 0..H {
+                for x in 0..W {
+                    for v in diag_radiance(s, x, y) {
+                        let signal = (v * t * 12.5).min(1.0).powf(exponent);
+                        rgb.push((srgb(signal) * 255.0).round() as u8);
+                    }
+                }
+            }
+            let tags = Tags {
+                exposure_time: Some((1, *den)),
+                iso: Some(100),
+                ..Tags::default()
+            };
+            write_jpeg(
+                &d.join(format!("f{j}.jpg")),
+                W as u32,
+                H as u32,
+                &rgb,
+                Some(&tags),
+            );
+        }
+    }
+}
+
+fn diagnose_srgb(root: &Path) -> bracket_captures::BracketDiagnosis {
+    let opts = BracketDiagnoseOptions {
+        // The user declares the phone's curve as sRGB (what a JPEG claims to be).
+        response: ResponseChoice::Declared(Response::Srgb),
+        ..BracketDiagnoseOptions::default()
+    };
+    let out = root.with_file_name("diag");
+    bracket_captures::diagnose_brackets(root, &opts, &out).expect("diagnose")
+}
+
+fn step_names(b: &bracket_captures::BracketDiagnosis) -> Vec<String> {
+    b.diagnosis.steps.iter().map(|s| s.effect.clone()).collect()
+}
+
+#[test]
+fn a_clean_bracket_folder_names_nothing() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let root = tmp.path().join("brackets");
+    diag_brackets(&root, 1.0, None);
+    let b = diagnose_srgb(&root);
+    for p in &b.ratios.pairs {
+        eprintln!(
+            "{} {:+.4} vs {:+.4} (residual {:+.4})",
+            p.frame.display(),
+            p.measured_stops,
+            p.exif_stops,
+            p.residual_stops
+        );
+    }
+    // Three sets, two pairs each (each frame against the middle one).
+    assert_eq!(b.ratios.pairs.len(), 6);
+    assert!(b.ratios.named().next().is_none(), "{:?}", b.ratios.pairs);
+    assert!(
+        (b.ratios.exponent - 1.0).abs() < 0.02,
+        "{}",
+        b.ratios.exponent
+    );
+    assert!(step_names(&b).is_empty(), "{:?}", step_names(&b));
+    assert!(
+        b.diagnosis.unexplained.is_empty(),
+        "{:?}",
+        b.diagnosis.unexplained
+    );
+    assert!(b.diagnosis.final_gap() < b.diagnosis.threshold);
+    // The noise statistics cannot be tested by one frame per exposure and are listed.
+    assert!(!b.diagnosis.skipped.is_empty());
+    assert!(
+        b.linearisation.contains("sRGB") || b.linearisation.contains("srgb"),
+        "{}",
+        b.linearisation
+    );
+    // The capture set and both reports are written; the capture set groups by scene key.
+    let out = root.with_file_name("diag");
+    for f in [
+        "brackets.md",
+        "brackets.toml",
+        "report.md",
+        "report.json",
+        "captures/captures.toml",
+    ] {
+        assert!(out.join(f).is_file(), "{f}");
+    }
+    let m = std::fs::read_to_string(out.join("captures/captures.toml")).expect("manifest");
+    assert_eq!(m.matches("scene = \"scene_1\"").count(), 3, "{m}");
+}
+
+#[test]
+fn a_hidden_response_is_named_with_its_exponent() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let root = tmp.path().join("brackets");
+    diag_brackets(&root, 0.8, None);
+    let b = diagnose_srgb(&root);
+    // A power law scales every log ratio alike: no frame is named, the shared exponent is 0.8.
+    assert!(b.ratios.named().next().is_none(), "{:?}", b.ratios.pairs);
+    assert!(
+        (b.ratios.exponent - 0.8).abs() < 0.02,
+        "{}",
+        b.ratios.exponent
+    );
+    assert_eq!(step_names(&b), vec!["nonlinear_response".to_string()]);
+    let e = b.diagnosis.steps[0].params["exponent"]
+        .as_float()
+        .expect("exponent");
+    eprintln!(
+        "ratio-check exponent {:.4}, fitted {e:.4}",
+        b.ratios.exponent
+    );
+    assert!((e - 0.8).abs() < 0.02, "fitted exponent {e}, planted 0.8");
+    assert!(
+        b.diagnosis.unexplained.is_empty(),
+        "{:?}",
+        b.diagnosis.unexplained
+    );
+}
+
+#[test]
+fn a_misreported_exposure_is_named_by_file_and_left_out() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let root = tmp.path().join("brackets");
+    // scene_1's EV −2 frame was exposed half a stop longer than its EXIF 1/400 s says.
+    diag_brackets(&root, 1.0, Some((1, 0, 0.5)));
+    let b = diagnose_srgb(&root);
+    let named: Vec<&bracket_captures::FrameRatio> = b.ratios.named().collect();
+    assert_eq!(named.len(), 1, "{:?}", b.ratios.pairs);
+    eprintln!(
+        "named {:?}: residual {:+.4} stops",
+        named[0].frame, named[0].residual_stops
+    );
+    assert!(
+        named[0].frame.ends_with("scene_1/f0.jpg"),
+        "{:?}",
+        named[0].frame
+    );
+    assert!(
+        (named[0].residual_stops - 0.5).abs() < 0.05,
+        "off by {} stops, planted +0.5",
+        named[0].residual_stops
+    );
+    // Left out of the scene bursts, so the workflow does not fit it as a response.
+    assert!(step_names(&b).is_empty(), "{:?}", step_names(&b));
+    assert!(
+        b.diagnosis.unexplained.is_empty(),
+        "{:?}",
+        b.diagnosis.unexplained
+    );
+    let m = std::fs::read_to_string(root.with_file_name("diag").join("captures/captures.toml"))
+        .expect("manifest");
+    assert_eq!(m.matches("scene = \"scene_1\"").count(), 2, "{m}");
+    let md = std::fs::read_to_string(root.with_file_name("diag").join("brackets.md")).expect("md");
+    assert!(md.contains("f0.jpg") && md.contains("**yes**"), "{md}");
+    // An output inside the bracket folder is refused (a rerun would scan it as a set).
+    let e = bracket_captures::diagnose_brackets(
+        &root,
+        &BracketDiagnoseOptions::default(),
+        &root.join("diag"),
+    )
+    .err()
+    .expect("output inside the input")
+    .to_string();
+    assert!(e.contains("inside"), "{e}");
+}
+
+#[test]
+fn testset_with_robertson_records_the_estimator_and_writes_its_curve() {
+    use hdrsynth::sensor::crf::RobertsonOptions;
+    let tmp = tempfile::tempdir().expect("tmp");
+    bracket_folder(tmp.path());
+    let opts = BracketOptions {
+        scan: ScanOptions::default(),
+        response: ResponseChoice::Robertson(RobertsonOptions::default()),
+        align: None,
+    };
+    let out = tmp.path().join("out");
+    let built = bracket_testset::build(tmp.path(), &opts, &out).expect("build");
+    assert!(
+        built.sets[0].response.contains("Robertson"),
+        "{}",
+        built.sets[0].response
+    );
+    let rec = std::fs::read_to_string(out.join("scene1/brackets.toml")).expect("record");
+    assert!(rec.contains("CalibrateRobertson"), "{rec}");
+    let rows = read_csv_rows(&out.join("crf_robertson.csv"));
+    assert_eq!(rows.len(), 256);
+    // I(128) = 1 in every channel (Robertson's normalisation; the csv has a code column first).
+    for c in 1..4 {
+        assert!((rows[128][c] - 1.0).abs() < 1e-12, "{:?}", rows[128]);
+    }
+    assert!(!out.join("crf_debevec.csv").exists());
 }

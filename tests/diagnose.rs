@@ -299,11 +299,11 @@ fn cli_report_and_profile_flow_into_the_realism_operator() {
     t.write(&tmp.join("captures"));
     let out = tmp.join("diag");
     let args = hdrsynth::cli::diagnose::Args {
-        captures: tmp.join("captures"),
-        profile: None,
+        captures: Some(tmp.join("captures")),
         out: out.clone(),
         replicates: 12,
         seed: 3,
+        ..Default::default()
     };
     let summary = hdrsynth::cli::diagnose::run(&args).expect("diagnose");
     eprintln!("{summary}");

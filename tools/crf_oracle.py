@@ -5,6 +5,9 @@ AlignMTB shifts on small deterministic brackets. Writes tests/data/brackets/:
                       non-gamma response (1 - exp(-4x)) / (1 - exp(-4))
   crf_debevec.csv     OpenCV's response, 256 rows "r,g,b" (exp g(z), g(128) = 0), defaults
                       (samples 70, lambda 10, random false)
+  crf_robertson.csv   OpenCV's CalibrateRobertson response of the same frames, 256 rows
+                      "r,g,b" (I(z), I(128) = 1; "nan" for codes never observed), defaults
+                      (max_iter 30, threshold 0.01)
   mtb_{0,1,2}.png     160×128: one frame and two shifted, differently exposed copies
   mtb_shifts.txt      the applied shifts and OpenCV AlignMTB's calculateShift (x y per line)
 Run: python3 -m venv v && v/bin/pip install opencv-python-headless numpy && v/bin/python tools/crf_oracle.py
@@ -44,6 +47,13 @@ crf = crf.reshape(256, 3)[:, ::-1]  # BGR -> RGB
 with open(os.path.join(OUT, "crf_debevec.csv"), "w") as f:
     f.write("r,g,b\n")
     for r in crf:
+        f.write(",".join(f"{v:.7g}" for v in r) + "\n")
+
+rob = cv2.createCalibrateRobertson().process(bgr, np.array(times, dtype=np.float32))
+rob = rob.reshape(256, 3)[:, ::-1]
+with open(os.path.join(OUT, "crf_robertson.csv"), "w") as f:
+    f.write("r,g,b\n")
+    for r in rob:
         f.write(",".join(f"{v:.7g}" for v in r) + "\n")
 
 # MTB: a textured scene (blocks of random grey), three exposures, two shifted.

@@ -7,7 +7,7 @@ use crate::data::align::MtbOptions;
 use crate::data::bracket_testset::{self, BracketOptions, ResponseChoice};
 use crate::data::brackets::ScanOptions;
 use crate::data::testset::{self, TestsetOptions, TestsetSummary};
-use crate::sensor::crf::DebevecOptions;
+use crate::sensor::crf::{DebevecOptions, RobertsonOptions};
 use crate::sensor::metering::Metering;
 use crate::sensor::profile::{Response, SensorProfile};
 use crate::sensor::realism::NoiseModel;
@@ -32,8 +32,9 @@ pub struct Args {
     /// device response linearises the frames.
     #[arg(long, required_unless_present = "brackets")]
     pub profile: Option<PathBuf>,
-    /// --brackets: the frames' response when no profile is given: srgb, linear, gamma:G, or
-    /// debevec (estimated from the brackets, Debevec–Malik as OpenCV's CalibrateDebevec).
+    /// --brackets: the frames' response when no profile is given: srgb, linear, gamma:G,
+    /// debevec or robertson (estimated from the brackets as OpenCV's CalibrateDebevec /
+    /// CalibrateRobertson).
     #[arg(long, value_parser = parse_response, conflicts_with = "profile")]
     pub response: Option<ResponseArg>,
     /// --brackets: declared EV steps in capture order, for frames without EXIF or sidecar.
@@ -94,13 +95,37 @@ fn parse_noise(s: &str) -> Result<NoiseModel, String> {
 pub enum ResponseArg {
     Curve(Response),
     Debevec,
+    Robertson,
 }
 
-fn parse_response(s: &str) -> Result<ResponseArg, String> {
-    if s == "debevec" {
-        return Ok(ResponseArg::Debevec);
+pub(crate) fn parse_response(s: &str) -> Result<ResponseArg, String> {
+    match s {
+        "debevec" => Ok(ResponseArg::Debevec),
+        "robertson" => Ok(ResponseArg::Robertson),
+        _ => parse_curve(s).map(ResponseArg::Curve).map_err(|e| {
+            format!("{e}, or an estimator: debevec (Debevec–Malik) or robertson (Robertson)")
+        }),
     }
-    parse_curve(s).map(ResponseArg::Curve)
+}
+
+/// The linearisation of bracket frames from `--profile` / `--response` (default: Debevec).
+pub(crate) fn response_choice(
+    profile: Option<&std::path::Path>,
+    response: Option<&ResponseArg>,
+) -> Result<ResponseChoice> {
+    Ok(match (profile, response) {
+        (Some(p), _) => ResponseChoice::Profile {
+            name: p.display().to_string(),
+            response: load_profile(p)?.response,
+        },
+        (None, Some(ResponseArg::Curve(r))) => ResponseChoice::Declared(r.clone()),
+        (None, Some(ResponseArg::Robertson)) => {
+            ResponseChoice::Robertson(RobertsonOptions::default())
+        }
+        (None, Some(ResponseArg::Debevec)) | (None, None) => {
+            ResponseChoice::Debevec(DebevecOptions::default())
+        }
+    })
 }
 
 fn parse_curve(s: &str) -> Result<Response, String> {
@@ -162,16 +187,7 @@ pub fn build(args: &Args) -> Result<TestsetSummary> {
 
 /// `--brackets`: the options of the bracket test set.
 pub fn bracket_options(args: &Args) -> Result<BracketOptions> {
-    let response = match (&args.profile, &args.response) {
-        (Some(p), _) => ResponseChoice::Profile {
-            name: p.display().to_string(),
-            response: load_profile(p)?.response,
-        },
-        (None, Some(ResponseArg::Curve(r))) => ResponseChoice::Declared(r.clone()),
-        (None, Some(ResponseArg::Debevec)) | (None, None) => {
-            ResponseChoice::Debevec(DebevecOptions::default())
-        }
-    };
+    let response = response_choice(args.profile.as_deref(), args.response.as_ref())?;
     Ok(BracketOptions {
         scan: ScanOptions {
             evs: args.declared_evs.clone(),

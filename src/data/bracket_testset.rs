@@ -22,8 +22,8 @@ use crate::data::align::{self, MtbOptions};
 use crate::data::brackets::{self, BracketFrame, BracketScan, FrameKind, ScanOptions};
 use crate::data::ground_truth;
 use crate::error::{Error, Result};
-use crate::io::{BitDepth, Image, read_image, write_hdr, write_ldr};
-use crate::sensor::crf::{self, DebevecOptions};
+use crate::io::{BitDepth, Image, write_hdr, write_ldr};
+use crate::sensor::crf::{self, DebevecOptions, RobertsonOptions};
 use crate::sensor::profile::Response;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -34,6 +34,8 @@ pub const FRAME_NAMES: [&str; 3] = ["frame_1.tif", "frame_2.tif", "frame_3.tif"]
 pub const RECORD: &str = crate::data::layout::kalantari::STATIC_MARKER;
 /// `--response debevec`: the estimated response exp(g(z)), OpenCV's convention.
 pub const CRF_FILE: &str = "crf_debevec.csv";
+/// `--response robertson`: the estimated response I(z), OpenCV's convention (I(128) = 1).
+pub const CRF_ROBERTSON_FILE: &str = "crf_robertson.csv";
 
 /// How code values of LDR frames become linear.
 #[derive(Clone, Debug, PartialEq)]
@@ -45,6 +47,9 @@ pub enum ResponseChoice {
     /// Debevec–Malik from the brackets (`--response debevec`): estimated on the first set with
     /// LDR frames, all its frames, and used for every set (one device).
     Debevec(DebevecOptions),
+    /// Robertson et al. from the brackets (`--response robertson`), OpenCV's
+    /// CalibrateRobertson; estimated and used like `Debevec`.
+    Robertson(RobertsonOptions),
 }
 
 /// A resolved linearisation of LDR code values.
@@ -69,6 +74,11 @@ impl ResponseChoice {
                 "Debevec–Malik response estimated from the brackets (OpenCV's CalibrateDebevec \
                  recipe: {} samples, λ {})",
                 o.samples, o.lambda
+            ),
+            ResponseChoice::Robertson(o) => format!(
+                "Robertson response estimated from the brackets (OpenCV's CalibrateRobertson \
+                 recipe: every pixel, at most {} iterations, threshold {})",
+                o.max_iter, o.threshold
             ),
         }
     }
@@ -142,10 +152,10 @@ pub fn linear_frame(frame: &BracketFrame, lin: &Linearise) -> Result<Image> {
                     p[c] = (p[c] * gain[c]).clamp(0.0, 1.0);
                 }
             }
-            Ok(img)
+            brackets::orient(img, frame)
         }
         FrameKind::Ldr => {
-            let img = read_image(&frame.path)?;
+            let img = brackets::read_frame_image(frame)?;
             match lin {
                 Linearise::Curve(r) => {
                     // 16-bit codes make a per-pixel inverse costly for LUT curves: tabulate it.
@@ -171,53 +181,78 @@ pub fn linear_frame(frame: &BracketFrame, lin: &Linearise) -> Result<Image> {
     }
 }
 
+/// The linearisation of LDR frames for the scanned `sets` under `choice`: a curve as given, or
+/// a response estimated from the first set whose frames are all LDR (all its frames, times
+/// from their stops), written to `crf_dir` (OpenCV's convention) and noted. With no LDR set
+/// (DNG brackets, linear after their levels) nothing is estimated.
+pub fn resolve_linearisation(
+    sets: &[brackets::BracketSet],
+    choice: &ResponseChoice,
+    crf_dir: &Path,
+    notes: &mut Vec<String>,
+) -> Result<Linearise> {
+    let (name, file) = match choice {
+        ResponseChoice::Profile { response, .. } | ResponseChoice::Declared(response) => {
+            return Ok(Linearise::Curve(response.clone()));
+        }
+        ResponseChoice::Debevec(_) => ("Debevec–Malik", CRF_FILE),
+        ResponseChoice::Robertson(_) => ("Robertson", CRF_ROBERTSON_FILE),
+    };
+    let ldr = sets
+        .iter()
+        .find(|s| s.frames.iter().all(|f| f.kind == FrameKind::Ldr));
+    let Some(set) = ldr else {
+        return Ok(Linearise::Curve(Response::Linear));
+    };
+    let frames = set
+        .frames
+        .iter()
+        .map(brackets::read_frame_image)
+        .collect::<Result<Vec<Image>>>()?;
+    // Only ratios matter: times relative to the shortest frame.
+    let times: Vec<f64> = set
+        .frames
+        .iter()
+        .map(|f| (f.stop - set.frames[0].stop).exp2())
+        .collect();
+    let mut response = match choice {
+        ResponseChoice::Robertson(o) => crf::calibrate_robertson(&frames, &times, *o)?,
+        ResponseChoice::Debevec(o) => crf::calibrate_debevec(&frames, &times, *o)?,
+        _ => unreachable!("curves returned above"),
+    };
+    let mut csv = String::from("code,r,g,b\n");
+    for (z, ((r, g), b)) in response[0]
+        .iter()
+        .zip(&response[1])
+        .zip(&response[2])
+        .enumerate()
+    {
+        csv.push_str(&format!("{z},{r},{g},{b}\n"));
+    }
+    std::fs::create_dir_all(crf_dir).map_err(|e| Error::io(crf_dir, e))?;
+    let path = crf_dir.join(file);
+    crate::io::atomic::write_atomic(&path, csv.as_bytes())?;
+    notes.push(format!(
+        "response: {name} estimated from set '{}' ({} frames), written to {}",
+        set.name,
+        set.frames.len(),
+        path.display()
+    ));
+    if matches!(choice, ResponseChoice::Robertson(_)) {
+        // Robertson's I(255) is the mean exposure of all clipped observations, far above the
+        // clipping point; the clipping white is taken one code step beyond 254 instead.
+        for r in &mut response {
+            r[255] = r[254] + (r[254] - r[253]).max(0.0);
+        }
+    }
+    Ok(Linearise::Table(crf::linearisation_table(&response)))
+}
+
 /// Scan `dir` and write every set to `out` in Kalantari's layout.
 pub fn build(dir: &Path, opts: &BracketOptions, out: &Path) -> Result<BracketSummary> {
     let BracketScan { sets, mut notes } = brackets::scan(dir, &opts.scan)?;
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
-    let lin = match &opts.response {
-        ResponseChoice::Profile { response, .. } | ResponseChoice::Declared(response) => {
-            Linearise::Curve(response.clone())
-        }
-        ResponseChoice::Debevec(o) => {
-            let ldr = sets
-                .iter()
-                .find(|s| s.frames.iter().all(|f| f.kind == FrameKind::Ldr));
-            // DNG frames are linear: with no LDR set there is nothing to estimate.
-            let Some(set) = ldr else {
-                return build_sets(&sets, &Linearise::Curve(Response::Linear), opts, out, notes);
-            };
-            let frames = set
-                .frames
-                .iter()
-                .map(|f| read_image(&f.path))
-                .collect::<Result<Vec<Image>>>()?;
-            // Only ratios matter: times relative to the shortest frame.
-            let times: Vec<f64> = set
-                .frames
-                .iter()
-                .map(|f| (f.stop - set.frames[0].stop).exp2())
-                .collect();
-            let response = crf::calibrate_debevec(&frames, &times, *o)?;
-            let mut csv = String::from("code,r,g,b\n");
-            for (z, ((r, g), b)) in response[0]
-                .iter()
-                .zip(&response[1])
-                .zip(&response[2])
-                .enumerate()
-            {
-                csv.push_str(&format!("{z},{r},{g},{b}\n"));
-            }
-            crate::io::atomic::write_atomic(&out.join(CRF_FILE), csv.as_bytes())?;
-            notes.push(format!(
-                "response: Debevec–Malik estimated from set '{}' ({} frames), written to {}",
-                set.name,
-                set.frames.len(),
-                out.join(CRF_FILE).display()
-            ));
-            Linearise::Table(crf::linearisation_table(&response))
-        }
-    };
+    let lin = resolve_linearisation(&sets, &opts.response, out, &mut notes)?;
     build_sets(&sets, &lin, opts, out, notes)
 }
 

@@ -20,6 +20,10 @@
 //! capture times are more than `max_gap_s` apart. How each set was grouped, and anything
 //! ambiguous (sets of differing sizes, times missing on some frames), is reported.
 //! Frames whose exposure cannot be determined are refused, named.
+//!
+//! Orientation: the EXIF/TIFF Orientation tag (1–8) is read with the exposure tags and applied
+//! when a frame is read ([`read_frame_image`], [`orient`]), so portrait brackets come out
+//! upright; a set whose frames differ in orientation is refused, every file named.
 
 use crate::error::{Error, Result};
 use std::collections::BTreeMap;
@@ -67,6 +71,8 @@ pub struct ExifExposure {
     pub baseline_exposure: Option<f64>,
     /// Seconds since 0000-01-01 (only differences are used), with sub-seconds.
     pub captured_s: Option<f64>,
+    /// EXIF/TIFF Orientation (1–8) where present; frames are read upright through it.
+    pub orientation: Option<u16>,
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -171,7 +177,20 @@ pub fn read_exif(path: &Path) -> Result<ExifExposure> {
                 + f64::from(d.second)
                 + sub
         });
+    let orientation = match field(Tag::Orientation) {
+        None => None,
+        Some(v) if v.get_uint(0).is_some_and(|o| (1..=8).contains(&o)) => {
+            v.get_uint(0).map(|o| o as u16)
+        }
+        Some(v) => {
+            return Err(Error::decode(
+                path,
+                format!("EXIF Orientation {v:?} is not one of the values 1–8"),
+            ));
+        }
+    };
     Ok(ExifExposure {
+        orientation,
         exposure_time: real(Tag::ExposureTime).filter(|&t| t > 0.0),
         iso: real(Tag::PhotographicSensitivity).filter(|&s| s > 0.0),
         f_number: real(Tag::FNumber).filter(|&n| n > 0.0),
@@ -180,6 +199,25 @@ pub fn read_exif(path: &Path) -> Result<ExifExposure> {
         baseline_exposure: real(Tag(exif::Context::Tiff, 50730)),
         captured_s,
     })
+}
+
+/// A frame's pixels as stored, turned upright by its EXIF Orientation (LDR frames; DNG frames
+/// are decoded by src/sensor/dng.rs and turned by [`orient`]).
+pub fn read_frame_image(frame: &BracketFrame) -> Result<crate::io::Image> {
+    orient(crate::io::read_image(&frame.path)?, frame)
+}
+
+/// `img` (decoded from `frame`) as displayed under the frame's EXIF Orientation.
+pub fn orient(img: crate::io::Image, frame: &BracketFrame) -> Result<crate::io::Image> {
+    match frame.exif.orientation.unwrap_or(1) {
+        1 => Ok(img),
+        o => img.oriented(o).ok_or_else(|| {
+            Error::decode(
+                &frame.path,
+                format!("EXIF Orientation {o} is not one of 1–8"),
+            )
+        }),
+    }
 }
 
 /// Days since 1970-01-01 of a Gregorian date (Howard Hinnant's algorithm).
@@ -559,6 +597,24 @@ fn scan_folder(
             })
             .collect();
         set_frames.sort_by(|a, b| a.stop.total_cmp(&b.stop));
+        let orient_of = |f: &BracketFrame| f.exif.orientation.unwrap_or(1);
+        if set_frames
+            .iter()
+            .any(|f| orient_of(f) != orient_of(&set_frames[0]))
+        {
+            return Err(Error::layout(
+                &set_frames[0].path,
+                format!(
+                    "set '{name}': its frames have different EXIF orientations ({}); the frames \
+                     of one bracket must be captured in one orientation",
+                    set_frames
+                        .iter()
+                        .map(|f| format!("{} {}", f.path.display(), orient_of(f)))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            ));
+        }
         if let Some(w) = set_frames
             .windows(2)
             .find(|w| (w[1].stop - w[0].stop).abs() < SAME_STOP)

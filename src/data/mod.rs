@@ -1,5 +1,6 @@
 //! Synthetic sources and datasets: the procedural scene engine and dataset layouts.
 pub mod align;
+pub mod bracket_captures;
 pub mod bracket_testset;
 pub mod brackets;
 pub mod ground_truth;

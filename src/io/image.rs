@@ -74,6 +74,31 @@ impl Image {
         }
     }
 
+    /// The image as displayed under EXIF/TIFF `Orientation` `o` (1–8; TIFF 6.0 tag 274): the
+    /// stored image mirrored and/or rotated so that row 0 is the visual top. None for values
+    /// outside 1–8. 5–8 swap width and height.
+    pub fn oriented(&self, o: u16) -> Option<Image> {
+        let (w, h) = (self.width, self.height);
+        // Display (x, y) → stored (x, y), read off the tag's definition of where stored row 0
+        // and column 0 appear.
+        let map: fn(usize, usize, usize, usize) -> (usize, usize) = match o {
+            1 => |x, y, _, _| (x, y),
+            2 => |x, y, w, _| (w - 1 - x, y),
+            3 => |x, y, w, h| (w - 1 - x, h - 1 - y),
+            4 => |x, y, _, h| (x, h - 1 - y),
+            5 => |x, y, _, _| (y, x),
+            6 => |x, y, _, h| (y, h - 1 - x),
+            7 => |x, y, w, h| (w - 1 - y, h - 1 - x),
+            8 => |x, y, w, _| (w - 1 - y, x),
+            _ => return None,
+        };
+        let (dw, dh) = if o >= 5 { (h, w) } else { (w, h) };
+        Some(Image::from_fn(dw, dh, |x, y| {
+            let (sx, sy) = map(x, y, w, h);
+            self.get(sx, sy)
+        }))
+    }
+
     /// Rec. 709 / sRGB-primaries relative luminance of each pixel.
     pub fn luminance(&self) -> Vec<f32> {
         self.pixels().map(luminance).collect()

@@ -6,6 +6,15 @@
 //! 256 − z from 128; samples on OpenCV's regular grid (its default, `random = false`). Solved by
 //! least squares (Householder QR, the full-rank solution OpenCV's SVD solve also gives).
 //! The result is OpenCV's: exp(g(z)) per code and channel, the exposure giving code z.
+//!
+//! Robertson, Borman & Stevenson 1999/2003 ("Estimation-theoretic approach to dynamic range
+//! enhancement using multiple exposures") is the second estimator, computed as OpenCV's
+//! `CalibrateRobertson` computes it: every pixel (no sampling), response I(z) started linear
+//! (z / 128), then alternately the weighted maximum-likelihood radiance
+//! E = Σ t_j w(z) I(z) / Σ t_j² w(z) (OpenCV's `MergeRobertson`, Gaussian-like weights
+//! w(z) = e⁴/(e⁴−1)·exp(−(z/63.75 − 2)²) + 1/(1−e⁴), zero at codes 0 and 255) and
+//! I(z) = mean of t_j·E over every observation of code z, normalised to I(128) = 1, until the
+//! summed change |ΔI| / 3 falls under the threshold or `max_iter` is reached.
 
 use crate::error::{Error, Result};
 use crate::io::Image;
@@ -27,6 +36,34 @@ impl Default for DebevecOptions {
             lambda: 10.0,
         }
     }
+}
+
+/// Frames, times and sizes every estimator needs; the message names the estimator.
+fn check_frames(what: &str, frames: &[Image], times: &[f64]) -> Result<(usize, usize)> {
+    if frames.len() < 2 || frames.len() != times.len() {
+        return Err(Error::Invalid(format!(
+            "{what} response: need two or more frames with one time each ({} frames, {} times)",
+            frames.len(),
+            times.len()
+        )));
+    }
+    if times.iter().any(|t| !(t.is_finite() && *t > 0.0)) {
+        return Err(Error::Invalid(format!(
+            "{what} response: times {times:?} must be positive"
+        )));
+    }
+    let (w, h) = (frames[0].width, frames[0].height);
+    if frames.iter().any(|f| (f.width, f.height) != (w, h)) || w == 0 || h == 0 {
+        return Err(Error::Invalid(format!(
+            "{what} response: frames differ in size"
+        )));
+    }
+    Ok((w, h))
+}
+
+/// An 8-bit code of a [0, 1] value (as the frames were stored).
+fn code8(v: f32) -> usize {
+    (v.clamp(0.0, 1.0) * 255.0).round() as usize
 }
 
 fn weight(z: usize) -> f64 {
@@ -62,28 +99,10 @@ pub fn calibrate_debevec(
     times: &[f64],
     opts: DebevecOptions,
 ) -> Result<[Vec<f64>; 3]> {
-    if frames.len() < 2 || frames.len() != times.len() {
-        return Err(Error::Invalid(format!(
-            "Debevec response: need two or more frames with one time each ({} frames, {} times)",
-            frames.len(),
-            times.len()
-        )));
-    }
-    if times.iter().any(|t| !(t.is_finite() && *t > 0.0)) {
-        return Err(Error::Invalid(format!(
-            "Debevec response: times {times:?} must be positive"
-        )));
-    }
-    let (w, h) = (frames[0].width, frames[0].height);
-    if frames.iter().any(|f| (f.width, f.height) != (w, h)) || w == 0 || h == 0 {
-        return Err(Error::Invalid(
-            "Debevec response: frames differ in size".into(),
-        ));
-    }
+    let (w, h) = check_frames("Debevec", frames, times)?;
     let pts = sample_points(w, h, opts.samples.max(1));
-    let code = |f: &Image, x: usize, y: usize, c: usize| -> usize {
-        (f.data[(y * w + x) * 3 + c].clamp(0.0, 1.0) * 255.0).round() as usize
-    };
+    let code =
+        |f: &Image, x: usize, y: usize, c: usize| -> usize { code8(f.data[(y * w + x) * 3 + c]) };
     let cols = LDR_SIZE + pts.len();
     let mut out: [Vec<f64>; 3] = Default::default();
     for (c, o) in out.iter_mut().enumerate() {
@@ -117,6 +136,133 @@ pub fn calibrate_debevec(
         *o = x[..LDR_SIZE].iter().map(|g| g[0].exp()).collect();
     }
     Ok(out)
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RobertsonOptions {
+    /// Iterations at most (OpenCV default 30).
+    pub max_iter: usize,
+    /// Stop when Σ|ΔI| / 3 over the 256 codes falls under this (OpenCV default 0.01).
+    pub threshold: f64,
+}
+
+impl Default for RobertsonOptions {
+    fn default() -> Self {
+        RobertsonOptions {
+            max_iter: 30,
+            threshold: 0.01,
+        }
+    }
+}
+
+/// OpenCV's `RobertsonWeights`: a Gaussian over the codes, 0 at codes 0 and 255.
+fn robertson_weight(z: usize) -> f64 {
+    let q = (LDR_SIZE - 1) as f64 / 4.0;
+    let e4 = 4.0f64.exp();
+    let v = z as f64 / q - 2.0;
+    e4 / (e4 - 1.0) * (-v * v).exp() + 1.0 / (1.0 - e4)
+}
+
+/// Robertson's response I(z) for z = 0..255 per channel (I(128) = 1), OpenCV's convention (the
+/// exposure giving code z), from frames of one static scene (code values in [0, 1], quantised
+/// to 8 bits here) and their exposure times. Codes never observed in a channel are NaN in
+/// OpenCV's result (0 · 1/0); here they are interpolated linearly between the nearest observed
+/// codes (held flat beyond them) so that the curve can linearise. As in OpenCV, an unobserved
+/// code makes the change per iteration undefined, so the iteration then runs `max_iter` times.
+pub fn calibrate_robertson(
+    frames: &[Image],
+    times: &[f64],
+    opts: RobertsonOptions,
+) -> Result<[Vec<f64>; 3]> {
+    let (w, h) = check_frames("Robertson", frames, times)?;
+    let n = w * h * 3;
+    let codes: Vec<Vec<u8>> = frames
+        .iter()
+        .map(|f| f.data.iter().map(|&v| code8(v) as u8).collect())
+        .collect();
+    let wt: Vec<f64> = (0..LDR_SIZE).map(robertson_weight).collect();
+    let mut card = [[0usize; LDR_SIZE]; 3];
+    for f in &codes {
+        for (i, &z) in f.iter().enumerate() {
+            card[i % 3][z as usize] += 1;
+        }
+    }
+    if (0..3).any(|c| card[c][LDR_SIZE / 2] == 0) {
+        return Err(Error::Invalid(
+            "Robertson response: code 128 (the normalisation point, I(128) = 1) never occurs \
+             in some channel of the frames"
+                .into(),
+        ));
+    }
+    let all_seen = card.iter().all(|c| c.iter().all(|&k| k > 0));
+    let mut resp: [Vec<f64>; 3] =
+        std::array::from_fn(|_| (0..LDR_SIZE).map(|z| z as f64 / 128.0).collect());
+    let mut rad = vec![0.0f64; n];
+    for _ in 0..opts.max_iter {
+        // MergeRobertson: maximum-likelihood radiance under the current response.
+        for (i, r) in rad.iter_mut().enumerate() {
+            let c = i % 3;
+            let (mut num, mut den) = (0.0, 0.0);
+            for (f, &t) in codes.iter().zip(times) {
+                let z = f[i] as usize;
+                num += t * wt[z] * resp[c][z];
+                den += t * t * wt[z];
+            }
+            *r = num / (den + f64::EPSILON);
+        }
+        let mut new: [Vec<f64>; 3] = std::array::from_fn(|_| vec![0.0; LDR_SIZE]);
+        for (f, &t) in codes.iter().zip(times) {
+            for (i, &z) in f.iter().enumerate() {
+                new[i % 3][z as usize] += t * rad[i];
+            }
+        }
+        for c in 0..3 {
+            for z in 0..LDR_SIZE {
+                new[c][z] /= card[c][z] as f64;
+            }
+            let mid = new[c][LDR_SIZE / 2];
+            for v in &mut new[c] {
+                *v /= mid;
+            }
+        }
+        let diff: f64 = (0..3)
+            .flat_map(|c| (0..LDR_SIZE).map(move |z| (c, z)))
+            .filter(|&(c, z)| card[c][z] > 0)
+            .map(|(c, z)| (new[c][z] - resp[c][z]).abs())
+            .sum::<f64>()
+            / 3.0;
+        resp = new;
+        if all_seen && diff < opts.threshold {
+            break;
+        }
+    }
+    for c in 0..3 {
+        fill_unseen(&mut resp[c], &card[c]);
+    }
+    Ok(resp)
+}
+
+/// Replace values at codes with no observation by linear interpolation between the nearest
+/// observed codes (flat beyond the first and last).
+fn fill_unseen(r: &mut [f64], card: &[usize; LDR_SIZE]) {
+    let seen: Vec<usize> = (0..LDR_SIZE).filter(|&z| card[z] > 0).collect();
+    let (Some(&first), Some(&last)) = (seen.first(), seen.last()) else {
+        return;
+    };
+    for z in 0..LDR_SIZE {
+        if card[z] > 0 {
+            continue;
+        }
+        r[z] = if z < first {
+            r[first]
+        } else if z > last {
+            r[last]
+        } else {
+            let hi = seen.partition_point(|&s| s < z);
+            let (a, b) = (seen[hi - 1], seen[hi]);
+            r[a] + (r[b] - r[a]) * (z - a) as f64 / (b - a) as f64
+        };
+    }
 }
 
 /// Code value → linear per channel from a response (exp g): normalised to 1 at code 255 and made

@@ -595,7 +595,7 @@ fn robust_frame_mean(img: &Image) -> f64 {
 
 /// Median (mean of the two middle values for even lengths); NaN when empty. One generic
 /// function for the f32 per-pixel statistics and the f64 fit inputs.
-fn median<T>(v: &mut [T]) -> T
+pub(crate) fn median<T>(v: &mut [T]) -> T
 where
     T: Copy
         + PartialOrd
