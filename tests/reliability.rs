@@ -15,28 +15,12 @@ use std::path::{Path, PathBuf};
 
 const BOMB: u32 = 100_000;
 
-/// CRC-32 (ISO-HDLC, as PNG uses), bitwise: the reference definition, independent of any crate.
-fn crc32(bytes: &[u8]) -> u32 {
-    let mut c = 0xFFFF_FFFFu32;
-    for &b in bytes {
-        c ^= u32::from(b);
-        for _ in 0..8 {
-            c = if c & 1 != 0 {
-                (c >> 1) ^ 0xEDB8_8320
-            } else {
-                c >> 1
-            };
-        }
-    }
-    !c
-}
-
 fn png_chunk(out: &mut Vec<u8>, kind: &[u8; 4], data: &[u8]) {
     out.extend((data.len() as u32).to_be_bytes());
     let mut body = kind.to_vec();
     body.extend(data);
     out.extend(&body);
-    out.extend(crc32(&body).to_be_bytes());
+    out.extend(common::crc32(&body).to_be_bytes());
 }
 
 fn bomb_png(w: u32, h: u32) -> Vec<u8> {
