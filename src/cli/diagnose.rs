@@ -29,6 +29,8 @@ pub struct Args {
 
 pub fn run(args: &Args) -> Result<String> {
     let t0 = Instant::now();
+    // One writer per output, refused before the (long) analysis rather than after it.
+    let _lock = crate::io::guard::OutputLock::acquire(&args.out, "diagnose")?;
     let set = CaptureSet::load(&args.captures)?;
     let profile = match &args.profile {
         Some(p) => Some(SensorProfile::load(p)?),
