@@ -674,3 +674,125 @@ fn fuzz_class_weights() {
         }
     });
 }
+
+/// A checkpoint's `state.toml` (`eval --checkpoint`, `infer`, `train --resume`), in memory.
+#[test]
+fn fuzz_checkpoint_state() {
+    use hdrsynth::train::checkpoint::parse_state;
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("data");
+    common::generate(&data, 3, 1, (32, 32), "[-3.0, 0.0]");
+    let cfg_path = dir.path().join("t.toml");
+    std::fs::write(
+        &cfg_path,
+        format!(
+            "[run]\nout = {:?}\nseed = 1\nsteps = 1\ncheckpoint_every = 1\n\
+             [model]\nkind = \"blend_unet\"\nbase_width = 2\ndepth = 1\n\
+             [data]\ndataset = {data:?}\npatch = 16\nbatch_size = 1\nworkers = 1\n\
+             profile = \"pure\"\n",
+            dir.path().join("run")
+        ),
+    )
+    .unwrap();
+    let cfg = hdrsynth::train::config::TrainConfig::load(&cfg_path).unwrap();
+    let opts = hdrsynth::train::TrainOptions {
+        resume: false,
+        progress: false,
+    };
+    hdrsynth::train::run(&cfg, &opts).unwrap();
+    let ckpt = hdrsynth::train::checkpoint::resolve(&dir.path().join("run")).unwrap();
+    let state = std::fs::read(ckpt.join("state.toml")).unwrap();
+    let path = Path::new("state.toml");
+    parse_state(std::str::from_utf8(&state).unwrap(), path).expect("the seed is valid");
+    fuzz("checkpoint_state_toml", &[state], true, |bytes| {
+        if let Ok(text) = std::str::from_utf8(bytes) {
+            let _ = parse_state(text, path);
+        }
+    });
+}
+
+/// A small Wu ResNet (width 2) for the weight-file targets.
+fn small_wu() -> hdrsynth::models::wu::WuNet {
+    let dev = burn::tensor::Device::flex();
+    let cfg = hdrsynth::models::wu::WuConfig::resnet(2);
+    hdrsynth::train::seeded_init(&dev, 0, || cfg.init(&dev)).unwrap()
+}
+
+/// A checkpoint's `model.bpk` (Burn's record), decoded into the model in memory.
+#[test]
+fn fuzz_checkpoint_model_record() {
+    use hdrsynth::train::checkpoint::{model_from_bytes, model_to_bytes};
+    let model = small_wu();
+    let path = Path::new("model.bpk");
+    let seed = model_to_bytes(&model, path).unwrap();
+    model_from_bytes(model.clone(), seed.clone(), path).expect("the seed is valid");
+    fuzz("checkpoint_model_bpk", &[seed], false, |bytes| {
+        let _ = model_from_bytes(model.clone(), bytes.to_vec(), path);
+    });
+}
+
+/// Pretrained weights in SafeTensors (`[init] safetensors`), imported in memory.
+#[test]
+fn fuzz_safetensors_import() {
+    use hdrsynth::models::import::import_weights_bytes;
+    let dir = tempfile::tempdir().unwrap();
+    let model = small_wu();
+    let file = dir.path().join("w.safetensors");
+    hdrsynth::models::wu::export_weights(&model, &file).unwrap();
+    let seed = std::fs::read(&file).unwrap();
+    let path = Path::new("w.safetensors");
+    import_weights_bytes(model.clone(), seed.clone(), path).expect("the seed is valid");
+    fuzz("safetensors", &[seed], false, |bytes| {
+        let _ = import_weights_bytes(model.clone(), bytes.to_vec(), path);
+    });
+}
+
+/// EXIF exposure tags of a bracket JPEG (`testset --brackets`), through `brackets::read_exif`,
+/// which reads a file: each execution writes one (put TMPDIR on a RAM disk for long runs).
+#[test]
+fn fuzz_bracket_exif() {
+    // Little-endian TIFF: IFD0 at 8 holds only the Exif IFD pointer; the Exif IFD at 26 holds
+    // ExposureTime (RATIONAL at 68), ISOSpeedRatings and ExposureBiasValue (SRATIONAL at 76).
+    let mut tiff = b"II*\0".to_vec();
+    tiff.extend(8u32.to_le_bytes());
+    let entry = |t: &mut Vec<u8>, tag: u16, typ: u16, count: u32, val: u32| {
+        t.extend(tag.to_le_bytes());
+        t.extend(typ.to_le_bytes());
+        t.extend(count.to_le_bytes());
+        t.extend(val.to_le_bytes());
+    };
+    tiff.extend(1u16.to_le_bytes());
+    entry(&mut tiff, 0x8769, 4, 1, 26);
+    tiff.extend(0u32.to_le_bytes());
+    tiff.extend(3u16.to_le_bytes());
+    entry(&mut tiff, 0x829A, 5, 1, 68);
+    entry(&mut tiff, 0x8827, 3, 1, 100);
+    entry(&mut tiff, 0x9204, 10, 1, 76);
+    tiff.extend(0u32.to_le_bytes());
+    assert_eq!(tiff.len(), 68);
+    for v in [1u32, 250, (-2i32) as u32, 3] {
+        tiff.extend(v.to_le_bytes());
+    }
+    let mut jpeg = vec![0xFF, 0xD8, 0xFF, 0xE1];
+    jpeg.extend(((tiff.len() + 8) as u16).to_be_bytes());
+    jpeg.extend(b"Exif\0\0");
+    jpeg.extend(&tiff);
+    let mut body = Vec::new();
+    image::codecs::jpeg::JpegEncoder::new_with_quality(&mut body, 90)
+        .encode(&[128u8; 8 * 8 * 3], 8, 8, image::ExtendedColorType::Rgb8)
+        .unwrap();
+    jpeg.extend(&body[2..]); // the encoder's stream after its SOI
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("seed.jpg");
+    std::fs::write(&p, &jpeg).unwrap();
+    let e = hdrsynth::data::brackets::read_exif(&p).expect("the seed is valid");
+    assert_eq!((e.exposure_time, e.iso), (Some(1.0 / 250.0), Some(100.0)));
+    fuzz(
+        "bracket_exif",
+        &[jpeg],
+        false,
+        file_target(dir.path(), "input.jpg", |p| {
+            let _ = hdrsynth::data::brackets::read_exif(p);
+        }),
+    );
+}
