@@ -644,6 +644,34 @@ fn a_failed_eval_leaves_no_output_folder() {
     );
 }
 
+/// realism stages its output: a corrupt frame after a good one (file-name order) leaves no
+/// output folder and no staging folder, where the issue found the good frame written.
+#[test]
+fn a_failed_realism_leaves_no_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let x = dir.path().join("x");
+    write_ldr(&x.join("a.png"), &Image::new(8, 8), BitDepth::Eight).unwrap();
+    std::fs::write(x.join("b.png"), b"not a png").unwrap();
+    let out = dir.path().join("out");
+    let profile = SensorProfile::shipped_dir().join("example_synthetic.toml");
+    let o = bin()
+        .args(["realism", "--iso", "100", "--profile"])
+        .arg(&profile)
+        .arg("--in")
+        .arg(&x)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("b.png"), "{err}");
+    assert!(!out.exists(), "realism left a partial output");
+    assert!(
+        !dir.path().join(".out.partial").exists(),
+        "staging left behind"
+    );
+}
+
 #[test]
 fn a_testset_failing_on_its_second_file_leaves_nothing_and_resumes() {
     let dir = tempfile::tempdir().unwrap();
