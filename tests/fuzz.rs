@@ -711,10 +711,14 @@ fn fuzz_checkpoint_state() {
     });
 }
 
-/// A small Wu ResNet (width 2) for the weight-file targets.
+/// A small Wu ResNet (width 2, one residual block) for the weight-file targets: every kind
+/// of tensor (convolutions, deconvolutions, BatchNorm) with few bytes to mutate and decode.
 fn small_wu() -> hdrsynth::models::wu::WuNet {
     let dev = burn::tensor::Device::flex();
-    let cfg = hdrsynth::models::wu::WuConfig::resnet(2);
+    let cfg = hdrsynth::models::wu::WuConfig {
+        res_blocks: 1,
+        ..hdrsynth::models::wu::WuConfig::resnet(2)
+    };
     hdrsynth::train::seeded_init(&dev, 0, || cfg.init(&dev)).unwrap()
 }
 
