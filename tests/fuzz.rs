@@ -735,6 +735,29 @@ fn fuzz_checkpoint_model_record() {
     });
 }
 
+/// Found by the long run of `fuzz_checkpoint_model_record` (execution 972,913): one byte of
+/// the record header changed, a float tensor's dtype "F32" read as "U32", and Burn panicked
+/// while loading it into the model.
+#[test]
+fn a_checkpoint_tensor_of_the_wrong_dtype_is_an_error() {
+    use hdrsynth::train::checkpoint::{model_from_bytes, model_to_bytes};
+    let model = small_wu();
+    let path = Path::new("run/step-00000001/model.bpk");
+    let mut bytes = model_to_bytes(&model, path).unwrap();
+    let at = bytes
+        .windows(9)
+        .position(|w| w == b"dtypecF32")
+        .expect("a CBOR dtype entry");
+    bytes[at + 6] = b'U';
+    let e = model_from_bytes(model, bytes, path)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("model.bpk") && e.contains("corrupt checkpoint"),
+        "{e}"
+    );
+}
+
 /// Pretrained weights in SafeTensors (`[init] safetensors`), imported in memory.
 #[test]
 fn fuzz_safetensors_import() {

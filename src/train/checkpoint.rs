@@ -238,9 +238,26 @@ pub fn load_model<M: Module>(model: M, dir: &Path) -> Result<M> {
 pub fn model_from_bytes<M: Module>(model: M, bytes: Vec<u8>, path: &Path) -> Result<M> {
     let record = ModuleRecord::from_bytes(Bytes::from_bytes_vec(bytes))
         .map_err(|e| Error::decode(path, e))?;
-    model
-        .try_load_record(record)
-        .map_err(|e| Error::decode(path, e))
+    // Burn 0.22 panics instead of erring when a record tensor has a non-float dtype where a
+    // float parameter is (found by tests/fuzz.rs: one byte "F32" → "U32" in the header), and
+    // the record's dtypes are not public to check first; a crafted checkpoint must give an
+    // error naming the file, not take the process down.
+    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        model.try_load_record(record)
+    })) {
+        Ok(loaded) => loaded.map_err(|e| Error::decode(path, e)),
+        Err(panic) => {
+            let why = panic
+                .downcast_ref::<String>()
+                .map(String::as_str)
+                .or_else(|| panic.downcast_ref::<&str>().copied())
+                .unwrap_or("unknown");
+            Err(Error::decode(
+                path,
+                format!("corrupt checkpoint: the record does not fit the model ({why})"),
+            ))
+        }
+    }
 }
 
 /// The bytes [`save`] writes to `model.bpk` (`path` names it in errors).
