@@ -12,7 +12,11 @@
 
 mod common;
 
-use hdrsynth::io::{BitDepth, ExrPrecision, Image, read_image, write_exr, write_hdr, write_ldr};
+use hdrsynth::data::layout::{self, hdrsynth as lh};
+
+use hdrsynth::io::{
+    BitDepth, ExrPrecision, Format, Image, read_image_bytes, write_exr, write_hdr, write_ldr,
+};
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -124,6 +128,18 @@ fn mutate(seed: &[u8], rng: &mut Rng, text: bool) -> Vec<u8> {
 
 /// Run `target` on mutations of `seeds` within the budget; returns the number of executions.
 fn fuzz(name: &str, seeds: &[Vec<u8>], text: bool, target: impl Fn(&[u8])) -> u64 {
+    fuzz_with(name, seeds, text, |d| d, target)
+}
+
+/// [`fuzz`] with `fix` applied to each mutation before the target sees it (e.g. PNG's chunk
+/// checksums, so that mutations reach the decoder instead of stopping at the CRC check).
+fn fuzz_with(
+    name: &str,
+    seeds: &[Vec<u8>],
+    text: bool,
+    fix: impl Fn(Vec<u8>) -> Vec<u8>,
+    target: impl Fn(&[u8]),
+) -> u64 {
     assert!(!seeds.is_empty());
     // Every seed must be accepted as-is by the harness (a sanity check of the target).
     for s in seeds {
@@ -146,7 +162,7 @@ fn fuzz(name: &str, seeds: &[Vec<u8>], text: bool, target: impl Fn(&[u8])) -> u6
             _ => {}
         }
         let seed = &seeds[rng.below(seeds.len())];
-        let input = mutate(seed, &mut rng, text);
+        let input = fix(mutate(seed, &mut rng, text));
         if catch_unwind(AssertUnwindSafe(|| target(&input))).is_err() {
             let crash = std::env::temp_dir().join(format!("hdrsynth-fuzz-{name}-{n}.bin"));
             std::fs::write(&crash, &input).unwrap();
@@ -184,23 +200,49 @@ fn written(dir: &Path, name: &str, write: impl FnOnce(&Path)) -> Vec<u8> {
     std::fs::read(&p).unwrap()
 }
 
-fn image_target(name: &str, ext: &str, seeds: impl FnOnce(&Path) -> Vec<Vec<u8>>) {
+/// An image target, in memory: `read_image_bytes` is the decoder path `read_image` takes after
+/// reading the file (same limits and checks), so no file is written per execution.
+fn image_target(name: &str, format: Format, seeds: impl FnOnce(&Path) -> Vec<Vec<u8>>) {
+    // Half the PNG mutations get their chunk CRCs recomputed: the other half still tests
+    // the CRC check itself.
+    let half = std::cell::Cell::new(false);
+    let fix = |d: Vec<u8>| {
+        half.set(!half.get());
+        if format == Format::Png && half.get() {
+            fix_png_crcs(d)
+        } else {
+            d
+        }
+    };
     let dir = tempfile::tempdir().unwrap();
     let seeds = seeds(dir.path());
-    let file = format!("input.{ext}");
-    fuzz(
-        name,
-        &seeds,
-        false,
-        file_target(dir.path(), &file, |p| {
-            let _ = read_image(p);
-        }),
-    );
+    let path = Path::new(name);
+    for s in &seeds {
+        read_image_bytes(s, format, path).expect("the seed image is valid");
+    }
+    fuzz_with(name, &seeds, false, fix, |bytes| {
+        let _ = read_image_bytes(bytes, format, path);
+    });
+}
+
+/// Rewrite the CRC of every whole chunk after PNG's 8-byte signature (length, type, data, CRC).
+fn fix_png_crcs(mut d: Vec<u8>) -> Vec<u8> {
+    let mut at = 8;
+    while at + 12 <= d.len() {
+        let len = u32::from_be_bytes(d[at..at + 4].try_into().unwrap()) as usize;
+        let Some(end) = (at + 8).checked_add(len).filter(|&e| e + 4 <= d.len()) else {
+            break;
+        };
+        let crc = common::crc32(&d[at + 4..end]);
+        d[end..end + 4].copy_from_slice(&crc.to_be_bytes());
+        at = end + 4;
+    }
+    d
 }
 
 #[test]
 fn fuzz_png() {
-    image_target("png", "png", |d| {
+    image_target("png", Format::Png, |d| {
         let img = image(6, 5).map(|v| v / 4.0);
         vec![
             written(d, "8.png", |p| write_ldr(p, &img, BitDepth::Eight).unwrap()),
@@ -213,7 +255,7 @@ fn fuzz_png() {
 
 #[test]
 fn fuzz_tiff() {
-    image_target("tiff", "tif", |d| {
+    image_target("tiff", Format::Tiff, |d| {
         let img = image(6, 5).map(|v| v / 4.0);
         vec![
             written(d, "8.tif", |p| write_ldr(p, &img, BitDepth::Eight).unwrap()),
@@ -226,7 +268,7 @@ fn fuzz_tiff() {
 
 #[test]
 fn fuzz_radiance_hdr() {
-    image_target("hdr", "hdr", |d| {
+    image_target("hdr", Format::Hdr, |d| {
         vec![
             written(d, "a.hdr", |p| write_hdr(p, &image(6, 5)).unwrap()),
             // Wide enough for the run-length encoded scan lines (8 ≤ width < 32768).
@@ -237,7 +279,7 @@ fn fuzz_radiance_hdr() {
 
 #[test]
 fn fuzz_exr() {
-    image_target("exr", "exr", |d| {
+    image_target("exr", Format::Exr, |d| {
         vec![
             written(d, "f.exr", |p| {
                 write_exr(p, &image(6, 5), ExrPrecision::Float).unwrap()
@@ -245,6 +287,26 @@ fn fuzz_exr() {
             written(d, "h.exr", |p| {
                 write_exr(p, &image(6, 5), ExrPrecision::Half).unwrap()
             }),
+        ]
+    });
+}
+
+#[test]
+fn fuzz_jpeg() {
+    image_target("jpeg", Format::Jpeg, |_| {
+        let img = image(17, 9).map(|v| v / 4.0);
+        let rgb: Vec<u8> = img.data.iter().map(|v| (v * 255.0).round() as u8).collect();
+        let grey: Vec<u8> = rgb.chunks(3).map(|p| p[1]).collect();
+        let enc = |data: &[u8], colour: image::ExtendedColorType| {
+            let mut out = Vec::new();
+            image::codecs::jpeg::JpegEncoder::new_with_quality(&mut out, 90)
+                .encode(data, 17, 9, colour)
+                .unwrap();
+            out
+        };
+        vec![
+            enc(&rgb, image::ExtendedColorType::Rgb8),
+            enc(&grey, image::ExtendedColorType::L8),
         ]
     });
 }
@@ -304,19 +366,12 @@ fn a_dng_tag_with_no_values_is_an_error() {
 
 #[test]
 fn fuzz_dng() {
-    let dir = tempfile::tempdir().unwrap();
     let seed = small_dng();
-    let p = dir.path().join("seed.dng");
-    std::fs::write(&p, &seed).unwrap();
-    hdrsynth::sensor::dng::read_dng(&p).expect("the seed DNG is valid");
-    fuzz(
-        "dng",
-        &[seed],
-        false,
-        file_target(dir.path(), "input.dng", |p| {
-            let _ = hdrsynth::sensor::dng::read_dng(p);
-        }),
-    );
+    let path = Path::new("input.dng");
+    hdrsynth::sensor::dng::read_dng_bytes(&seed, path).expect("the seed DNG is valid");
+    fuzz("dng", &[seed], false, |bytes| {
+        let _ = hdrsynth::sensor::dng::read_dng_bytes(bytes, path);
+    });
 }
 
 fn repo(rel: &str) -> Vec<u8> {
@@ -401,7 +456,137 @@ fn fuzz_captures_manifest() {
     });
 }
 
-/// A Kalantari set (three tiny 16-bit TIFFs, exposure.txt, HDRImg.hdr) in `root/set`.
+/// An exposure file's text through the code both layout readers run on it: `parse_stops` (3
+/// values) and `relative_evs` (stops relative to the reference frame, distinct exposures).
+fn stops_target(name: &str, file: &str, seeds: &[Vec<u8>]) {
+    let path = Path::new(file);
+    let run = |text: &str| {
+        layout::parse_stops(text, path, 3).and_then(|s| layout::relative_evs(path, &s, 1))
+    };
+    for s in seeds {
+        run(std::str::from_utf8(s).unwrap()).expect("the seed is valid");
+    }
+    fuzz(name, seeds, true, |bytes| {
+        if let Ok(text) = std::str::from_utf8(bytes) {
+            let _ = run(text);
+        }
+    });
+}
+
+#[test]
+fn fuzz_kalantari_exposure_txt() {
+    stops_target(
+        "exposure_txt",
+        "exposure.txt",
+        &[b"0\n2\n4\n".to_vec(), b"-2.0\r\n0.0\r\n2.0\r\n".to_vec()],
+    );
+}
+
+/// Wu et al.'s `input_exp.txt` (any order; the reader sorts frames by number, not stop).
+#[test]
+fn fuzz_wu_input_exp_txt() {
+    stops_target(
+        "input_exp_txt",
+        "input_exp.txt",
+        &[b"-2 0 2\n".to_vec(), b"2.0\n0.0\n-2.0\n".to_vec()],
+    );
+}
+
+/// A set's `meta.toml` and the dataset's `dataset.toml`, in memory, through the parsers the
+/// hdrsynth layout reader uses, and the names it derives from the parsed EVs.
+#[test]
+fn fuzz_set_meta_and_dataset_manifest() {
+    let dir = tempfile::tempdir().unwrap();
+    common::generate(dir.path(), 2, 1, (16, 16), "[-2.0, 0.0, 2.0]");
+    let meta_seed = std::fs::read(common::first_set(dir.path()).join("meta.toml")).unwrap();
+    let manifest_seed = std::fs::read(dir.path().join("dataset.toml")).unwrap();
+    let names = |evs: &[f32]| {
+        for &ev in evs {
+            let _ = hdrsynth::data::scene::ev_tag(ev);
+            let _ = lh::clean_frame_name(ev);
+        }
+    };
+    let (mp, dp) = (Path::new("meta.toml"), Path::new("dataset.toml"));
+    lh::parse_set_meta(std::str::from_utf8(&meta_seed).unwrap(), mp).expect("valid seed");
+    lh::parse_manifest(std::str::from_utf8(&manifest_seed).unwrap(), dp).expect("valid seed");
+    fuzz("meta_toml", &[meta_seed], true, |bytes| {
+        if let Ok(text) = std::str::from_utf8(bytes)
+            && let Ok(m) = lh::parse_set_meta(text, mp)
+        {
+            names(&m.evs);
+        }
+    });
+    fuzz("dataset_toml", &[manifest_seed], true, |bytes| {
+        if let Ok(text) = std::str::from_utf8(bytes)
+            && let Ok(m) = lh::parse_manifest(text, dp)
+        {
+            names(&m.evs);
+            if let Some(g) = m.generator {
+                let _ = g.validate();
+            }
+        }
+    });
+}
+
+/// darktable's noise presets flattened to CSV (`profile import-darktable`), through the parser,
+/// the camera selection and the conversion to profile noise entries.
+#[test]
+fn fuzz_darktable_csv() {
+    use hdrsynth::sensor::darktable::{NegativeRule, Query, parse_csv, select, to_noise};
+    let seed = "maker,model,iso,a_R,a_G,a_B,b_R,b_G,b_B,profile_name\n\
+        Canon,EOS 550D,100,4.5e-06,2.1e-06,3.1e-06,2.5e-08,-2.0e-08,2.6e-08,EOS 550D iso 100\n\
+        Canon,EOS 550D,200,9.0e-06,4.2e-06,6.3e-06,5.1e-08,4.1e-08,5.3e-08,EOS 550D iso 200\n\
+        Canon,EOS 550D,200,9.1e-06,4.3e-06,6.2e-06,5.0e-08,4.0e-08,5.2e-08,\"EOS 550D, second\"\n"
+        .as_bytes()
+        .to_vec();
+    let path = Path::new("noiseprofiles.csv");
+    let levels = hdrsynth::sensor::profile::Levels {
+        black_level: 2048.0,
+        white_level: 15000.0,
+        bit_depth: 14,
+    };
+    let run = |text: &str| -> Option<usize> {
+        let rows = parse_csv(text, path).ok()?;
+        let first = rows.first()?;
+        let q = Query {
+            maker: first.maker.clone(),
+            model: first.model.clone(),
+            profile_name: None,
+            set: Some(1),
+        };
+        let sel = select(&rows, &q, path).ok()?;
+        for rule in [
+            NegativeRule::Floor,
+            NegativeRule::Verbatim,
+            NegativeRule::Zero,
+        ] {
+            let _ = to_noise(&sel, rule, &levels);
+        }
+        Some(sel.rows.len())
+    };
+    assert_eq!(run(std::str::from_utf8(&seed).unwrap()), Some(2));
+    fuzz("darktable_csv", &[seed], true, |bytes| {
+        if let Ok(text) = std::str::from_utf8(bytes) {
+            run(text);
+        }
+    });
+}
+
+/// `calibrate colour --illuminant`: a name or three comma-separated gains.
+#[test]
+fn fuzz_illuminant_argument() {
+    let seeds = [b"D65".to_vec(), b"1.9, 1.0, 1.6".to_vec()];
+    fuzz("illuminant_arg", &seeds, true, |bytes| {
+        if let Ok(text) = std::str::from_utf8(bytes) {
+            let _ = text.parse::<hdrsynth::sensor::colour::Illuminant>();
+        }
+    });
+}
+
+// End to end through the layout detector on files (each execution writes the file and
+// detects the folder: slower, so the long run reaches fewer executions; docs/reliability.md).
+
+/// A Kalantari set (three tiny 16-bit TIFFs, exposure.txt, HDRImg.hdr) in `root/001`.
 fn kalantari(root: &Path) -> PathBuf {
     let set = root.join("001");
     let img = image(8, 6).map(|v| v / 4.0);
@@ -413,46 +598,228 @@ fn kalantari(root: &Path) -> PathBuf {
     set
 }
 
-#[test]
-fn fuzz_exposure_txt_through_the_layout_detector() {
+/// A Wu set (input_{1,2,3}_aligned.tif, input_exp.txt, ref_hdr_aligned.hdr) in `root/001`.
+fn wu(root: &Path) -> PathBuf {
+    let set = root.join("001");
+    let img = image(8, 6).map(|v| v / 4.0);
+    for i in 1..=3 {
+        let p = set.join(format!("input_{i}_aligned.tif"));
+        write_ldr(&p, &img, BitDepth::Sixteen).unwrap();
+    }
+    write_hdr(&set.join("ref_hdr_aligned.hdr"), &image(8, 6)).unwrap();
+    std::fs::write(set.join("input_exp.txt"), "-2 0 2\n").unwrap();
+    set
+}
+
+fn detector_target(name: &str, make: fn(&Path) -> PathBuf, file: &str, seeds: &[Vec<u8>]) {
     let dir = tempfile::tempdir().unwrap();
-    let set = kalantari(dir.path());
-    hdrsynth::data::layout::detect(dir.path()).expect("the seed set is valid");
-    let seeds = [b"0\n2\n4\n".to_vec(), b"-2.0\r\n0.0\r\n2.0\r\n".to_vec()];
+    let set = make(dir.path());
+    layout::detect(dir.path()).expect("the seed set is valid");
     fuzz(
-        "exposure_txt",
-        &seeds,
+        name,
+        seeds,
         true,
-        file_target(&set, "exposure.txt", |_| {
-            let _ = hdrsynth::data::layout::detect(dir.path());
+        file_target(&set, file, |_| {
+            let _ = layout::detect(dir.path());
         }),
     );
 }
 
 #[test]
-fn fuzz_set_meta_through_the_layout_detector() {
+fn fuzz_exposure_txt_through_the_layout_detector() {
+    let seeds = [b"0\n2\n4\n".to_vec(), b"-2.0\r\n0.0\r\n2.0\r\n".to_vec()];
+    detector_target("detect_exposure_txt", kalantari, "exposure.txt", &seeds);
+}
+
+#[test]
+fn fuzz_input_exp_txt_through_the_layout_detector() {
+    let seeds = [b"-2 0 2\n".to_vec(), b"2.0\n0.0\n-2.0\n".to_vec()];
+    detector_target("detect_input_exp_txt", wu, "input_exp.txt", &seeds);
+}
+
+/// An ablation grid config (`hdrsynth ablate CONFIG`), parsed and checked in memory.
+#[test]
+fn fuzz_ablate_config() {
+    let seeds = [
+        repo("configs/experiments/cpu/exp2_network2.toml"),
+        repo("configs/experiments/exp1_network1.toml"),
+    ];
+    let path = Path::new("ablate.toml");
+    for s in &seeds {
+        let text = std::str::from_utf8(s).unwrap();
+        hdrsynth::eval::ablate::AblateConfig::parse(text, path).expect("the seed is valid");
+    }
+    fuzz("ablate_toml", &seeds, true, |bytes| {
+        if let Ok(text) = std::str::from_utf8(bytes) {
+            let _ = hdrsynth::eval::ablate::AblateConfig::parse(text, path);
+        }
+    });
+}
+
+/// A dataset's `class_weights.toml` (read by train), parsed and checked in memory.
+#[test]
+fn fuzz_class_weights() {
+    use hdrsynth::data::ground_truth::{ClassWeights, MertensWeights};
+    let mut hist = [0u64; 256];
+    for (i, h) in hist.iter_mut().enumerate() {
+        *h = (i as u64 * 37) % 11;
+    }
+    let cw = ClassWeights::new(&hist, MertensWeights::OPENCV_DEFAULT, 3);
+    let seed = toml::to_string(&cw).unwrap().into_bytes();
+    let path = Path::new("class_weights.toml");
+    ClassWeights::parse(std::str::from_utf8(&seed).unwrap(), path).expect("the seed is valid");
+    fuzz("class_weights_toml", &[seed], true, |bytes| {
+        if let Ok(text) = std::str::from_utf8(bytes) {
+            let _ = ClassWeights::parse(text, path);
+        }
+    });
+}
+
+/// A checkpoint's `state.toml` (`eval --checkpoint`, `infer`, `train --resume`), in memory.
+#[test]
+fn fuzz_checkpoint_state() {
+    use hdrsynth::train::checkpoint::parse_state;
     let dir = tempfile::tempdir().unwrap();
-    common::generate(dir.path(), 2, 1, (16, 16), "[-2.0, 0.0, 2.0]");
-    let set = common::first_set(dir.path());
-    let meta = set.join("meta.toml");
-    let seeds = [std::fs::read(&meta).unwrap()];
-    let manifest = dir.path().join("dataset.toml");
-    let manifest_seed = std::fs::read(&manifest).unwrap();
-    fuzz(
-        "meta_toml",
-        &seeds,
-        true,
-        file_target(&set, "meta.toml", |_| {
-            let _ = hdrsynth::data::layout::detect(dir.path());
-        }),
+    let data = dir.path().join("data");
+    common::generate(&data, 3, 1, (32, 32), "[-3.0, 0.0]");
+    let cfg_path = dir.path().join("t.toml");
+    std::fs::write(
+        &cfg_path,
+        format!(
+            "[run]\nout = {:?}\nseed = 1\nsteps = 1\ncheckpoint_every = 1\n\
+             [model]\nkind = \"blend_unet\"\nbase_width = 2\ndepth = 1\n\
+             [data]\ndataset = {data:?}\npatch = 16\nbatch_size = 1\nworkers = 1\n\
+             profile = \"pure\"\n",
+            dir.path().join("run")
+        ),
+    )
+    .unwrap();
+    let cfg = hdrsynth::train::config::TrainConfig::load(&cfg_path).unwrap();
+    let opts = hdrsynth::train::TrainOptions {
+        resume: false,
+        progress: false,
+    };
+    hdrsynth::train::run(&cfg, &opts).unwrap();
+    let ckpt = hdrsynth::train::checkpoint::resolve(&dir.path().join("run")).unwrap();
+    let state = std::fs::read(ckpt.join("state.toml")).unwrap();
+    let path = Path::new("state.toml");
+    parse_state(std::str::from_utf8(&state).unwrap(), path).expect("the seed is valid");
+    fuzz("checkpoint_state_toml", &[state], true, |bytes| {
+        if let Ok(text) = std::str::from_utf8(bytes) {
+            let _ = parse_state(text, path);
+        }
+    });
+}
+
+/// A small Wu ResNet (width 2, one residual block) for the weight-file targets: every kind
+/// of tensor (convolutions, deconvolutions, BatchNorm) with few bytes to mutate and decode.
+fn small_wu() -> hdrsynth::models::wu::WuNet {
+    let dev = burn::tensor::Device::flex();
+    let cfg = hdrsynth::models::wu::WuConfig {
+        res_blocks: 1,
+        ..hdrsynth::models::wu::WuConfig::resnet(2)
+    };
+    hdrsynth::train::seeded_init(&dev, 0, || cfg.init(&dev)).unwrap()
+}
+
+/// A checkpoint's `model.bpk` (Burn's record), decoded into the model in memory.
+#[test]
+fn fuzz_checkpoint_model_record() {
+    use hdrsynth::train::checkpoint::{model_from_bytes, model_to_bytes};
+    let model = small_wu();
+    let path = Path::new("model.bpk");
+    let seed = model_to_bytes(&model, path).unwrap();
+    model_from_bytes(model.clone(), seed.clone(), path).expect("the seed is valid");
+    fuzz("checkpoint_model_bpk", &[seed], false, |bytes| {
+        let _ = model_from_bytes(model.clone(), bytes.to_vec(), path);
+    });
+}
+
+/// Found by the long run of `fuzz_checkpoint_model_record` (execution 972,913): one byte of
+/// the record header changed, a float tensor's dtype "F32" read as "U32", and Burn panicked
+/// while loading it into the model.
+#[test]
+fn a_checkpoint_tensor_of_the_wrong_dtype_is_an_error() {
+    use hdrsynth::train::checkpoint::{model_from_bytes, model_to_bytes};
+    let model = small_wu();
+    let path = Path::new("run/step-00000001/model.bpk");
+    let mut bytes = model_to_bytes(&model, path).unwrap();
+    let at = bytes
+        .windows(9)
+        .position(|w| w == b"dtypecF32")
+        .expect("a CBOR dtype entry");
+    bytes[at + 6] = b'U';
+    let e = model_from_bytes(model, bytes, path)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("model.bpk") && e.contains("corrupt checkpoint"),
+        "{e}"
     );
-    std::fs::write(&meta, &seeds[0]).unwrap();
+}
+
+/// Pretrained weights in SafeTensors (`[init] safetensors`), imported in memory.
+#[test]
+fn fuzz_safetensors_import() {
+    use hdrsynth::models::import::import_weights_bytes;
+    let dir = tempfile::tempdir().unwrap();
+    let model = small_wu();
+    let file = dir.path().join("w.safetensors");
+    hdrsynth::models::wu::export_weights(&model, &file).unwrap();
+    let seed = std::fs::read(&file).unwrap();
+    let path = Path::new("w.safetensors");
+    import_weights_bytes(model.clone(), seed.clone(), path).expect("the seed is valid");
+    fuzz("safetensors", &[seed], false, |bytes| {
+        let _ = import_weights_bytes(model.clone(), bytes.to_vec(), path);
+    });
+}
+
+/// EXIF exposure tags of a bracket JPEG (`testset --brackets`), through `brackets::read_exif`,
+/// which reads a file: each execution writes one (put TMPDIR on a RAM disk for long runs).
+#[test]
+fn fuzz_bracket_exif() {
+    // Little-endian TIFF: IFD0 at 8 holds only the Exif IFD pointer; the Exif IFD at 26 holds
+    // ExposureTime (RATIONAL at 68), ISOSpeedRatings and ExposureBiasValue (SRATIONAL at 76).
+    let mut tiff = b"II*\0".to_vec();
+    tiff.extend(8u32.to_le_bytes());
+    let entry = |t: &mut Vec<u8>, tag: u16, typ: u16, count: u32, val: u32| {
+        t.extend(tag.to_le_bytes());
+        t.extend(typ.to_le_bytes());
+        t.extend(count.to_le_bytes());
+        t.extend(val.to_le_bytes());
+    };
+    tiff.extend(1u16.to_le_bytes());
+    entry(&mut tiff, 0x8769, 4, 1, 26);
+    tiff.extend(0u32.to_le_bytes());
+    tiff.extend(3u16.to_le_bytes());
+    entry(&mut tiff, 0x829A, 5, 1, 68);
+    entry(&mut tiff, 0x8827, 3, 1, 100);
+    entry(&mut tiff, 0x9204, 10, 1, 76);
+    tiff.extend(0u32.to_le_bytes());
+    assert_eq!(tiff.len(), 68);
+    for v in [1u32, 250, (-2i32) as u32, 3] {
+        tiff.extend(v.to_le_bytes());
+    }
+    let mut jpeg = vec![0xFF, 0xD8, 0xFF, 0xE1];
+    jpeg.extend(((tiff.len() + 8) as u16).to_be_bytes());
+    jpeg.extend(b"Exif\0\0");
+    jpeg.extend(&tiff);
+    let mut body = Vec::new();
+    image::codecs::jpeg::JpegEncoder::new_with_quality(&mut body, 90)
+        .encode(&[128u8; 8 * 8 * 3], 8, 8, image::ExtendedColorType::Rgb8)
+        .unwrap();
+    jpeg.extend(&body[2..]); // the encoder's stream after its SOI
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("seed.jpg");
+    std::fs::write(&p, &jpeg).unwrap();
+    let e = hdrsynth::data::brackets::read_exif(&p).expect("the seed is valid");
+    assert_eq!((e.exposure_time, e.iso), (Some(1.0 / 250.0), Some(100.0)));
     fuzz(
-        "dataset_toml",
-        &[manifest_seed],
-        true,
-        file_target(dir.path(), "dataset.toml", |_| {
-            let _ = hdrsynth::data::layout::detect(dir.path());
+        "bracket_exif",
+        &[jpeg],
+        false,
+        file_target(dir.path(), "input.jpg", |p| {
+            let _ = hdrsynth::data::brackets::read_exif(p);
         }),
     );
 }

@@ -15,28 +15,12 @@ use std::path::{Path, PathBuf};
 
 const BOMB: u32 = 100_000;
 
-/// CRC-32 (ISO-HDLC, as PNG uses), bitwise: the reference definition, independent of any crate.
-fn crc32(bytes: &[u8]) -> u32 {
-    let mut c = 0xFFFF_FFFFu32;
-    for &b in bytes {
-        c ^= u32::from(b);
-        for _ in 0..8 {
-            c = if c & 1 != 0 {
-                (c >> 1) ^ 0xEDB8_8320
-            } else {
-                c >> 1
-            };
-        }
-    }
-    !c
-}
-
 fn png_chunk(out: &mut Vec<u8>, kind: &[u8; 4], data: &[u8]) {
     out.extend((data.len() as u32).to_be_bytes());
     let mut body = kind.to_vec();
     body.extend(data);
     out.extend(&body);
-    out.extend(crc32(&body).to_be_bytes());
+    out.extend(common::crc32(&body).to_be_bytes());
 }
 
 fn bomb_png(w: u32, h: u32) -> Vec<u8> {
@@ -415,6 +399,217 @@ fn a_second_writer_is_refused_and_a_killed_holder_does_not_block() {
     OutputLock::acquire(&out, "after kill").expect("a dead holder's lock is released");
 }
 
+// Every writer refuses an output folder another holds. The test holds the lock through the
+// library's `OutputLock` (flock is per open file, so a second open in this process conflicts
+// as another process's would), calls the command, and checks the error names the folder and
+// that nothing in it changed (the holder's lock file included).
+
+/// Every file under `dir` with its bytes.
+fn snapshot(dir: &Path) -> std::collections::BTreeMap<PathBuf, Vec<u8>> {
+    let mut out = std::collections::BTreeMap::new();
+    let mut todo = vec![dir.to_path_buf()];
+    while let Some(d) = todo.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                todo.push(p);
+            } else {
+                out.insert(p.clone(), std::fs::read(&p).unwrap());
+            }
+        }
+    }
+    out
+}
+
+/// A locked output folder holding one earlier result; returns the lock and the folder's state.
+fn locked_output(out: &Path) -> (OutputLock, std::collections::BTreeMap<PathBuf, Vec<u8>>) {
+    std::fs::create_dir_all(out).unwrap();
+    std::fs::write(out.join("earlier.txt"), "an earlier run's output").unwrap();
+    let held = OutputLock::acquire(out, "holder").unwrap();
+    let before = snapshot(out);
+    (held, before)
+}
+
+fn assert_refused_lock(out: &Path, e: &str, before: &std::collections::BTreeMap<PathBuf, Vec<u8>>) {
+    assert!(
+        e.contains("in use by another hdrsynth process")
+            && e.contains(&out.display().to_string())
+            && e.contains("holder"),
+        "{e}"
+    );
+    assert_eq!(
+        &snapshot(out),
+        before,
+        "the refused writer changed {}",
+        out.display()
+    );
+    let partial = out.with_file_name(format!(
+        ".{}.partial",
+        out.file_name().unwrap().to_string_lossy()
+    ));
+    assert!(
+        !partial.exists(),
+        "the refused writer staged {}",
+        partial.display()
+    );
+}
+
+#[test]
+fn eval_refuses_a_locked_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("data");
+    common::generate(&data, 6, 1, (48, 32), "[-2.0, 0.0, 2.0]");
+    let out = dir.path().join("eval");
+    let (_held, before) = locked_output(&out);
+    let method = Network2 {
+        description: "identity".into(),
+        infer: Box::new(|frames: [&Image; 3], _| Ok(frames[1].clone())),
+    };
+    let opts = EvalOptions {
+        progress: false,
+        ..EvalOptions::default()
+    };
+    let e = evaluate::evaluate(&data, &method, &out, &opts).expect_err("locked");
+    assert_refused_lock(&out, &e.to_string(), &before);
+}
+
+#[test]
+fn testset_refuses_a_locked_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let src = dir.path().join("radiance");
+    std::fs::create_dir_all(&src).unwrap();
+    let ramp = Image::from_fn(24, 16, |x, _| [(x as f32 / 3.0 - 4.0).exp2(); 3]);
+    write_exr(&src.join("a.exr"), &ramp, ExrPrecision::Float).unwrap();
+    let opts = TestsetOptions {
+        isos: vec![100.0],
+        noise: NoiseModel::None,
+        ..TestsetOptions::default()
+    };
+    let profile =
+        SensorProfile::load(&SensorProfile::shipped_dir().join("canon_eos_550d.toml")).unwrap();
+    let out = dir.path().join("ts");
+    let (_held, before) = locked_output(&out);
+    let e = testset::build(&src, &profile, &opts, &out).expect_err("locked");
+    assert_refused_lock(&out, &e.to_string(), &before);
+}
+
+#[test]
+fn a_bracket_testset_refuses_a_locked_output() {
+    use hdrsynth::data::bracket_testset::{self, BracketOptions, ResponseChoice};
+    use hdrsynth::sensor::profile::Response;
+    let dir = tempfile::tempdir().unwrap();
+    let brackets = dir.path().join("brackets");
+    std::fs::create_dir_all(&brackets).unwrap();
+    let opts = BracketOptions {
+        scan: Default::default(),
+        response: ResponseChoice::Declared(Response::Srgb),
+        align: None,
+    };
+    let out = dir.path().join("ts");
+    let (held, before) = locked_output(&out);
+    let e = bracket_testset::build(&brackets, &opts, &out).expect_err("locked");
+    assert_refused_lock(&out, &e.to_string(), &before);
+    drop(held);
+}
+
+#[test]
+fn ablate_refuses_a_locked_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path();
+    std::fs::create_dir_all(root.join("testset")).unwrap();
+    std::fs::write(root.join("base.toml"), "[run]\nsteps = 1\n").unwrap();
+    let cfg_path = root.join("grid.toml");
+    std::fs::write(
+        &cfg_path,
+        format!(
+            "title = \"t\"\nout = {:?}\nbase = {:?}\n[testset]\ndir = {:?}\n\
+             [[rows]]\nname = \"a\"\nlabel = \"A\"\nset = {{ optim = {{ lr = 1e-3 }} }}\n",
+            root.join("grid"),
+            root.join("base.toml"),
+            root.join("testset"),
+        ),
+    )
+    .unwrap();
+    let cfg = hdrsynth::eval::ablate::AblateConfig::load(&cfg_path).unwrap();
+    let (_held, before) = locked_output(&cfg.out);
+    let e = hdrsynth::eval::ablate::run(&cfg, &cfg_path, false).expect_err("locked");
+    assert_refused_lock(&cfg.out, &e.to_string(), &before);
+}
+
+/// The commands whose folder logic sits in the CLI (realism, infer, diagnose, quickstart),
+/// through the binary: another process, as a user would run it. Each must be refused at once;
+/// a command that ignored the lock would run on (quickstart for minutes), so it is killed
+/// after 60 s and the test fails.
+#[test]
+fn the_cli_writers_refuse_a_locked_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let x = dir.path().join("x");
+    write_ldr(&x.join("f.png"), &Image::new(8, 8), BitDepth::Eight).unwrap();
+    let profile = SensorProfile::shipped_dir().join("example_synthetic.toml");
+    let out = dir.path().join("out");
+    let (_held, before) = locked_output(&out);
+    let p = |p: &Path| p.display().to_string();
+    let commands: Vec<Vec<String>> = vec![
+        vec![
+            "realism".into(),
+            "--iso".into(),
+            "100".into(),
+            "--profile".into(),
+            p(&profile),
+            "--in".into(),
+            p(&x),
+            "--out".into(),
+            p(&out),
+        ],
+        vec![
+            "infer".into(),
+            "--checkpoint".into(),
+            p(&dir.path().join("run")),
+            "--inputs".into(),
+            p(&x.join("f.png")),
+            p(&x.join("f.png")),
+            "--out".into(),
+            p(&out),
+        ],
+        vec![
+            "diagnose".into(),
+            p(&dir.path().join("captures.toml")),
+            "--out".into(),
+            p(&out),
+        ],
+        vec![
+            "quickstart".into(),
+            "--quiet".into(),
+            "--out".into(),
+            p(&out),
+        ],
+    ];
+    for args in commands {
+        let mut child = bin()
+            .args(&args)
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let t0 = std::time::Instant::now();
+        let status = loop {
+            if let Some(s) = child.try_wait().unwrap() {
+                break s;
+            }
+            if t0.elapsed().as_secs() > 60 {
+                child.kill().unwrap();
+                child.wait().unwrap();
+                panic!("`hdrsynth {}` ignored the lock and ran on", args[0]);
+            }
+            std::thread::sleep(std::time::Duration::from_millis(50));
+        };
+        let mut err = String::new();
+        std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut err).unwrap();
+        assert!(!status.success(), "{}: {err}", args[0]);
+        assert_refused_lock(&out, &err, &before);
+    }
+}
+
 #[test]
 fn a_failed_eval_leaves_no_output_folder() {
     let dir = tempfile::tempdir().unwrap();
@@ -441,6 +636,34 @@ fn a_failed_eval_leaves_no_output_folder() {
     assert!(
         !dir.path().join(".eval.partial").exists(),
         "staging removed"
+    );
+}
+
+/// realism stages its output: a corrupt frame after a good one (file-name order) leaves no
+/// output folder and no staging folder, where the issue found the good frame written.
+#[test]
+fn a_failed_realism_leaves_no_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let x = dir.path().join("x");
+    write_ldr(&x.join("a.png"), &Image::new(8, 8), BitDepth::Eight).unwrap();
+    std::fs::write(x.join("b.png"), b"not a png").unwrap();
+    let out = dir.path().join("out");
+    let profile = SensorProfile::shipped_dir().join("example_synthetic.toml");
+    let o = bin()
+        .args(["realism", "--iso", "100", "--profile"])
+        .arg(&profile)
+        .arg("--in")
+        .arg(&x)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("b.png"), "{err}");
+    assert!(!out.exists(), "realism left a partial output");
+    assert!(
+        !dir.path().join(".out.partial").exists(),
+        "staging left behind"
     );
 }
 

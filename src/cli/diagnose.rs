@@ -161,6 +161,8 @@ pub fn run(args: &Args) -> Result<String> {
         (None, Some(c)) => c,
         (None, None) => anyhow::bail!("give a capture set or --brackets DIR"),
     };
+    // One writer per output, refused before the (long) analysis rather than after it.
+    let _lock = crate::io::guard::OutputLock::acquire(&args.out, "diagnose")?;
     let set = CaptureSet::load(captures)?;
     let profile = match &args.profile {
         Some(p) => Some(SensorProfile::load(p)?),

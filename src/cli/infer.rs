@@ -92,15 +92,8 @@ fn network1_frames(args: &Args, set: Option<&SetInfo>) -> Result<(Image, Image)>
     })
 }
 
-/// The output folder, created only once there is something to write: an error reading the
-/// inputs or running the network leaves no folder behind.
-fn create_out(out: &Path) -> Result<()> {
-    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))
-}
-
 /// Network-1's outputs: linear.exr, tonemapped.exr/.png, blend_weight.png.
 fn write_network1(out: &Path, w: &[f32], linear: &Image, toned: &Image) -> Result<()> {
-    create_out(out)?;
     write_exr(&out.join("linear.exr"), linear, ExrPrecision::Float)?;
     write_exr(&out.join("tonemapped.exr"), toned, ExrPrecision::Float)?;
     write_ldr(&out.join("tonemapped.png"), toned, BitDepth::Eight)?;
@@ -115,7 +108,6 @@ fn write_network1(out: &Path, w: &[f32], linear: &Image, toned: &Image) -> Resul
 
 /// Network-2's outputs: hdr.exr and its μ-law preview in the network's [0, 1] range.
 fn write_network2(out: &Path, hdr: &Image, hdr_input_scale: f32) -> Result<()> {
-    create_out(out)?;
     write_exr(&out.join("hdr.exr"), hdr, ExrPrecision::Float)?;
     let preview = hdr.map(|v| mu_law((v * hdr_input_scale).clamp(0.0, 1.0) as f64) as f32);
     write_ldr(&out.join("hdr_mulaw.png"), &preview, BitDepth::Eight)?;
@@ -123,6 +115,9 @@ fn write_network2(out: &Path, hdr: &Image, hdr_input_scale: f32) -> Result<()> {
 }
 
 pub fn run(args: &Args) -> Result<String> {
+    // One writer per output (two infers would mix their files). A folder the lock creates is
+    // removed again if the command fails before writing.
+    let _lock = crate::io::guard::OutputLock::acquire(&args.out, "infer")?;
     let began = Instant::now();
     let net = match (&args.onnx, &args.checkpoint) {
         (Some(onnx), _) => from_onnx_file(onnx, &args.network)?,

@@ -323,6 +323,9 @@ pub fn run(args: &Args) -> Result<String> {
     let s = sizes(args.preset);
     let backend = args.backend.as_deref().unwrap_or(s.backend);
     let out = &args.out;
+    // One quickstart per folder: a second would rewrite the configs the first is reading. The
+    // commands it runs lock their own subfolders (data/…, pretrain, experiment).
+    let _lock = crate::io::guard::OutputLock::acquire(out, "quickstart")?;
     let configs = out.join("configs");
     let sensors = configs.join("sensors");
     std::fs::create_dir_all(&sensors).with_context(|| format!("creating {}", sensors.display()))?;

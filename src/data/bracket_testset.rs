@@ -250,6 +250,8 @@ pub fn resolve_linearisation(
 
 /// Scan `dir` and write every set to `out` in Kalantari's layout.
 pub fn build(dir: &Path, opts: &BracketOptions, out: &Path) -> Result<BracketSummary> {
+    // One writer per output (issue 16), held to the end.
+    let _lock = crate::io::guard::OutputLock::acquire(out, "testset --brackets")?;
     let BracketScan { sets, mut notes } = brackets::scan(dir, &opts.scan)?;
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let lin = resolve_linearisation(&sets, &opts.response, out, &mut notes)?;

@@ -469,7 +469,13 @@ impl ClassWeights {
 
     /// Read and check: format, 256 counts and 256 finite positive α.
     pub fn load(path: &Path) -> Result<ClassWeights> {
-        let cw: ClassWeights = crate::config::load_toml(path)?;
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        Self::parse(&text, path)
+    }
+
+    /// The file's text, checked as [`ClassWeights::load`] checks `path` (named in errors).
+    pub fn parse(text: &str, path: &Path) -> Result<ClassWeights> {
+        let cw: ClassWeights = crate::config::parse_toml(text, path)?;
         if cw.format != CLASS_WEIGHTS_FORMAT {
             return Err(Error::config(
                 path,

@@ -15,7 +15,7 @@
 //! a cell killed while evaluating evaluates again (into `eval.partial/`, renamed when complete).
 //! A cell that ran under a different config is refused, not silently reused.
 
-use crate::config::{load_toml, merge_tables};
+use crate::config::merge_tables;
 use crate::data::testset::{self, TestsetOptions};
 use crate::device::device_from_name;
 use crate::error::{Error, Result};
@@ -151,7 +151,14 @@ impl Axis {
 
 impl AblateConfig {
     pub fn load(path: &Path) -> Result<AblateConfig> {
-        let cfg: AblateConfig = load_toml(path)?;
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        Self::parse(&text, path)
+    }
+
+    /// The config's text, checked as [`AblateConfig::load`] checks the file `path` (named in
+    /// errors); in memory for the fuzzer.
+    pub fn parse(text: &str, path: &Path) -> Result<AblateConfig> {
+        let cfg: AblateConfig = crate::config::parse_toml(text, path)?;
         cfg.validate().map_err(|m| Error::config(path, m))?;
         Ok(cfg)
     }

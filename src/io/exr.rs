@@ -18,11 +18,6 @@ use rayon::prelude::*;
 use std::io::{Cursor, Seek, SeekFrom};
 use std::path::Path;
 
-pub(super) fn read(path: &Path) -> Result<Image> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    decode(path, &bytes)
-}
-
 pub(super) fn write(path: &Path, img: &Image, precision: ExrPrecision) -> Result<()> {
     use exr::prelude::{Encoding, Layer, LayerAttributes, SpecificChannels, WritableImage, f16};
     if img.width == 0 || img.height == 0 {
@@ -92,7 +87,7 @@ fn exr_err(path: &Path, e: exr::error::Error) -> Error {
     }
 }
 
-fn decode(path: &Path, bytes: &[u8]) -> Result<Image> {
+pub(super) fn decode(path: &Path, bytes: &[u8]) -> Result<Image> {
     let mut cursor = Cursor::new(bytes);
     // Unvalidated: the crate's validation rejects any subsampled channel.
     let meta = MetaData::read_from_buffered(&mut cursor, false).map_err(|e| exr_err(path, e))?;

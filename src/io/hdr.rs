@@ -16,12 +16,11 @@ fn image_err(path: &Path, e: ImageError) -> Error {
     }
 }
 
-pub(super) fn read(path: &Path) -> Result<Image> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+pub(super) fn decode(path: &Path, bytes: &[u8]) -> Result<Image> {
     // Strict first (needs the "#?RADIANCE"/"#?RGBE" signature); old .pic files have none.
-    let mut decoder = match HdrDecoder::new(Cursor::new(&bytes[..])) {
+    let mut decoder = match HdrDecoder::new(Cursor::new(bytes)) {
         Ok(d) => d,
-        Err(strict_err) => HdrDecoder::new_nonstrict(Cursor::new(&bytes[..]))
+        Err(strict_err) => HdrDecoder::new_nonstrict(Cursor::new(bytes))
             .map_err(|_| image_err(path, strict_err))?,
     };
     // The declared size is checked before anything is allocated (decompression bombs).

@@ -21,24 +21,22 @@ fn image_err(path: &Path, what: &str, e: ImageError) -> Error {
     }
 }
 
-pub(super) fn read(path: &Path) -> Result<(Image, BitDepth)> {
-    let format = Format::from_path(path)?;
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+pub(super) fn decode_bytes(path: &Path, format: Format, bytes: &[u8]) -> Result<(Image, BitDepth)> {
     match format {
         Format::Png => {
-            check_png_depth(path, &bytes)?;
+            check_png_depth(path, bytes)?;
             let decoder =
-                PngDecoder::new(Cursor::new(&bytes[..])).map_err(|e| image_err(path, "PNG", e))?;
+                PngDecoder::new(Cursor::new(bytes)).map_err(|e| image_err(path, "PNG", e))?;
             decode(path, "PNG", decoder)
         }
         Format::Tiff => {
-            let decoder = TiffDecoder::new(Cursor::new(&bytes[..]))
-                .map_err(|e| image_err(path, "TIFF", e))?;
+            let decoder =
+                TiffDecoder::new(Cursor::new(bytes)).map_err(|e| image_err(path, "TIFF", e))?;
             decode(path, "TIFF", decoder)
         }
         Format::Jpeg => {
-            let decoder = JpegDecoder::new(Cursor::new(&bytes[..]))
-                .map_err(|e| image_err(path, "JPEG", e))?;
+            let decoder =
+                JpegDecoder::new(Cursor::new(bytes)).map_err(|e| image_err(path, "JPEG", e))?;
             decode(path, "JPEG", decoder)
         }
         other => Err(Error::unsupported(

@@ -102,17 +102,27 @@ pub fn read_image(path: &Path) -> Result<Image> {
 
 pub fn read_image_info(path: &Path) -> Result<(Image, ReadInfo)> {
     let format = Format::from_path(path)?;
-    if !path.exists() {
-        return Err(Error::io(
-            path,
-            std::io::Error::new(std::io::ErrorKind::NotFound, "file not found"),
-        ));
-    }
+    let bytes = match std::fs::read(path) {
+        Ok(b) => b,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            return Err(Error::io(
+                path,
+                std::io::Error::new(std::io::ErrorKind::NotFound, "file not found"),
+            ));
+        }
+        Err(e) => return Err(Error::io(path, e)),
+    };
+    read_image_bytes(&bytes, format, path)
+}
+
+/// Decode an image held in memory, as [`read_image_info`] does for a file (it calls this):
+/// the same decoders, decode limits and checks. `path` only names the source in errors.
+pub fn read_image_bytes(bytes: &[u8], format: Format, path: &Path) -> Result<(Image, ReadInfo)> {
     let (img, bit_depth) = match format {
-        Format::Exr => (exr::read(path)?, None),
-        Format::Hdr => (hdr::read(path)?, None),
+        Format::Exr => (exr::decode(path, bytes)?, None),
+        Format::Hdr => (hdr::decode(path, bytes)?, None),
         Format::Png | Format::Tiff | Format::Jpeg => {
-            let (img, d) = ldr::read(path)?;
+            let (img, d) = ldr::decode_bytes(path, format, bytes)?;
             (img, Some(d))
         }
     };

@@ -55,7 +55,7 @@ fn list(keys: &[String]) -> String {
 ///
 /// Strict: a missing tensor, a tensor of another shape or a non-float dtype, or a tensor that
 /// matches no parameter is an error naming the key and the file; `model` is then not modified.
-pub fn import_weights<M: Module>(mut model: M, path: &Path) -> Result<M> {
+pub fn import_weights<M: Module>(model: M, path: &Path) -> Result<M> {
     if !path.is_file() {
         return Err(Error::io(
             path,
@@ -82,7 +82,14 @@ pub fn import_weights<M: Module>(mut model: M, path: &Path) -> Result<M> {
             ));
         }
     }
-    let mut store = SafetensorsStore::from_file(path);
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    import_weights_bytes(model, bytes, path)
+}
+
+/// [`import_weights`] of a SafeTensors file held in memory (`path` names it in errors); the
+/// file reader calls this, so both share every check.
+pub fn import_weights_bytes<M: Module>(mut model: M, bytes: Vec<u8>, path: &Path) -> Result<M> {
+    let mut store = SafetensorsStore::from_bytes(Some(bytes));
     let stored = store
         .get_all_tensors()
         .map_err(|e| Error::decode(path, e))?

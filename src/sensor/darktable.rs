@@ -82,6 +82,11 @@ fn split_csv_line(line: &str) -> Vec<String> {
 /// Read the whole CSV. Errors name the file and line.
 pub fn read_csv(path: &Path) -> Result<Vec<DarktableRow>> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    parse_csv(&text, path)
+}
+
+/// The CSV's text, parsed as [`read_csv`] parses the file `path` (named in errors).
+pub fn parse_csv(text: &str, path: &Path) -> Result<Vec<DarktableRow>> {
     let mut lines = text.lines().enumerate();
     let Some((_, header)) = lines.next() else {
         return Err(Error::decode(path, "empty file"));

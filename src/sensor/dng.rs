@@ -128,7 +128,13 @@ pub struct Dng {
 
 /// Read a DNG, demosaic bilinearly, crop to the DefaultCrop.
 pub fn read_dng(path: &Path) -> Result<Dng> {
-    let (mosaic, info) = read_dng_mosaic(path)?;
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    read_dng_bytes(&bytes, path)
+}
+
+/// [`read_dng`] of a file held in memory (`path` names it in errors): the same code path.
+pub fn read_dng_bytes(bytes: &[u8], path: &Path) -> Result<Dng> {
+    let (mosaic, info) = mosaic_from_bytes(bytes, path)?;
     let full = demosaic_bilinear(&mosaic);
     let [cx, cy, cw, ch] = info.default_crop;
     let image = if [cx, cy, cw, ch] == [0, 0, full.width, full.height] {
@@ -150,7 +156,11 @@ pub fn read_dng_info(path: &Path) -> Result<DngInfo> {
 /// Read the active area's normalised mosaic (before demosaicing and the DefaultCrop).
 pub fn read_dng_mosaic(path: &Path) -> Result<(Mosaic, DngInfo)> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    let tiff = Tiff::parse(&bytes, path)?;
+    mosaic_from_bytes(&bytes, path)
+}
+
+fn mosaic_from_bytes(bytes: &[u8], path: &Path) -> Result<(Mosaic, DngInfo)> {
+    let tiff = Tiff::parse(bytes, path)?;
     let ifd = tiff.raw_ifd()?;
     let info = info_from(&tiff, &ifd)?;
     // Before the raw buffer is allocated (decompression bombs); the demosaiced image is the

@@ -3,7 +3,7 @@
 //! regenerating only the sets without one.
 
 use super::{DatasetInfo, GroundTruth, GroundTruthKind, LayoutKind, SetInfo};
-use crate::config::{GenerateConfig, load_toml};
+use crate::config::{GenerateConfig, parse_toml};
 use crate::data::scene::{RenderedSample, SampleStats, ev_tag};
 use crate::error::{Error, Result};
 use crate::io::{Image, atomic::write_atomic, write_exr, write_ldr};
@@ -84,10 +84,16 @@ pub fn write_manifest(root: &Path, m: &Manifest) -> Result<()> {
 
 pub fn read_manifest(root: &Path) -> Result<Manifest> {
     let path = root.join(MANIFEST);
-    let m: Manifest = load_toml(&path)?;
+    let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+    parse_manifest(&text, &path)
+}
+
+/// A `dataset.toml`'s text, checked as [`read_manifest`] checks the file `path` (named in errors).
+pub fn parse_manifest(text: &str, path: &Path) -> Result<Manifest> {
+    let m: Manifest = parse_toml(text, path)?;
     if m.format != FORMAT {
         return Err(Error::layout(
-            &path,
+            path,
             format!("format '{}' is not '{FORMAT}'", m.format),
         ));
     }
@@ -167,7 +173,14 @@ pub fn write_set(
 }
 
 pub fn read_set_meta(dir: &Path) -> Result<SetMeta> {
-    load_toml(&dir.join(SET_META))
+    let path = dir.join(SET_META);
+    let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+    parse_set_meta(&text, &path)
+}
+
+/// A set's `meta.toml` text, as [`read_set_meta`] reads the file `path` (named in errors).
+pub fn parse_set_meta(text: &str, path: &Path) -> Result<SetMeta> {
+    parse_toml(text, path)
 }
 
 /// Describe a dataset in hdrsynth's layout.

@@ -571,6 +571,12 @@ pub(crate) fn read_stops(path: &Path, expected: usize, what: &str) -> Result<Vec
         }
         Err(e) => return Err(Error::io(path, e)),
     };
+    parse_stops(&text, path, expected)
+}
+
+/// The values of an exposure file's text, as [`read_stops`] reads them from `path` (named in
+/// errors); in memory so the fuzzer can run it without a file.
+pub fn parse_stops(text: &str, path: &Path, expected: usize) -> Result<Vec<f32>> {
     let text = text.trim_start_matches('\u{feff}');
     let mut values = Vec::new();
     for tok in text.split_whitespace() {
@@ -695,7 +701,7 @@ pub(crate) fn common_size(
 }
 
 /// EVs relative to frame `reference` of `stops`; error naming `path` when two are equal.
-pub(crate) fn relative_evs(path: &Path, stops: &[f32], reference: usize) -> Result<Vec<f32>> {
+pub fn relative_evs(path: &Path, stops: &[f32], reference: usize) -> Result<Vec<f32>> {
     for i in 0..stops.len() {
         for j in i + 1..stops.len() {
             if stops[i] == stops[j] {
