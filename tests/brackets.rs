@@ -389,7 +389,8 @@ fn a_corrupt_jpeg_is_an_error_naming_it_not_a_panic() {
         response: ResponseChoice::Declared(Response::Srgb),
         align: None,
     };
-    let err = bracket_testset::build(tmp.path(), &opts, &tmp.path().join("out"))
+    let beside = tempfile::tempdir().expect("tmp"); // outputs inside the input are refused
+    let err = bracket_testset::build(tmp.path(), &opts, &beside.path().join("out"))
         .expect_err("corrupt")
         .to_string();
     assert!(err.contains("f1.jpg"), "{err}");
@@ -429,12 +430,20 @@ fn read_rgbe(path: &Path) -> Vec<f64> {
 fn the_ground_truth_is_the_triangle_merge_of_the_written_frames() {
     let tmp = tempfile::tempdir().expect("tmp");
     bracket_folder(tmp.path());
-    let out = tmp.path().join("out");
+    let beside = tempfile::tempdir().expect("tmp"); // outputs inside the input are refused
+    let out = beside.path().join("out");
     let opts = BracketOptions {
         scan: ScanOptions::default(),
         response: ResponseChoice::Declared(Response::Srgb),
         align: None,
     };
+    // An output inside the bracket folder is refused before anything is written (a rerun
+    // would scan its Kalantari sets as brackets; issue 16 item 3).
+    let inside = tmp.path().join("out");
+    let e = bracket_testset::build(tmp.path(), &opts, &inside)
+        .expect_err("output inside the input")
+        .to_string();
+    assert!(e.contains("inside") && !inside.exists(), "{e}");
     let summary = bracket_testset::build(tmp.path(), &opts, &out).expect("build");
     assert_eq!(summary.sets.len(), 1);
     let set = out.join("scene1");
@@ -545,7 +554,8 @@ fn the_bracket_test_set_reads_as_kalantari_and_eval_scores_it() {
     use hdrsynth::io::Image;
     let tmp = tempfile::tempdir().expect("tmp");
     bracket_folder(tmp.path());
-    let out = tmp.path().join("out");
+    let beside = tempfile::tempdir().expect("tmp"); // outputs inside the input are refused
+    let out = beside.path().join("out");
     let opts = BracketOptions {
         scan: ScanOptions::default(),
         response: ResponseChoice::Declared(Response::Srgb),
@@ -981,7 +991,9 @@ fn dng_brackets_are_linear_raw_with_exif_exposures() {
         response: ResponseChoice::Declared(Response::Srgb),
         align: None,
     };
-    let built = bracket_testset::build(tmp.path(), &opts, &tmp.path().join("out")).expect("build");
+    let beside = tempfile::tempdir().expect("tmp"); // outputs inside the input are refused
+    let built =
+        bracket_testset::build(tmp.path(), &opts, &beside.path().join("out")).expect("build");
     assert!(
         built.sets[0].response.contains("linear raw"),
         "{}",
@@ -1046,7 +1058,9 @@ fn hand_held_sets_are_aligned_by_mtb_and_cropped() {
             exclude: 4,
         }),
     };
-    let built = bracket_testset::build(tmp.path(), &opts, &tmp.path().join("out")).expect("build");
+    let beside = tempfile::tempdir().expect("tmp"); // outputs inside the input are refused
+    let built =
+        bracket_testset::build(tmp.path(), &opts, &beside.path().join("out")).expect("build");
     let b = &built.sets[0];
     // The shifts undo the motion: short (1, −2), middle 0, long (−2, 1).
     assert_eq!(b.shifts, vec![[1, -2], [0, 0], [-2, 1]]);
@@ -1445,7 +1459,8 @@ fn testset_with_robertson_records_the_estimator_and_writes_its_curve() {
         response: ResponseChoice::Robertson(RobertsonOptions::default()),
         align: None,
     };
-    let out = tmp.path().join("out");
+    let beside = tempfile::tempdir().expect("tmp"); // outputs inside the input are refused
+    let out = beside.path().join("out");
     let built = bracket_testset::build(tmp.path(), &opts, &out).expect("build");
     assert!(
         built.sets[0].response.contains("Robertson"),

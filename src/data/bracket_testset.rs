@@ -250,6 +250,8 @@ pub fn resolve_linearisation(
 
 /// Scan `dir` and write every set to `out` in Kalantari's layout.
 pub fn build(dir: &Path, opts: &BracketOptions, out: &Path) -> Result<BracketSummary> {
+    // A test set inside the bracket folder would be scanned as brackets by the next run.
+    crate::io::guard::refuse_output_inside(dir, out)?;
     // One writer per output (issue 16), held to the end.
     let _lock = crate::io::guard::OutputLock::acquire(out, "testset --brackets")?;
     let BracketScan { sets, mut notes } = brackets::scan(dir, &opts.scan)?;
