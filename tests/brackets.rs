@@ -458,16 +458,9 @@ fn the_ground_truth_is_the_triangle_merge_of_the_written_frames() {
 
     // Frames: the JPEG's sRGB code linearised by hand, re-encoded as linear^(1/2.2), 16 bits.
     let jpeg = |name: &str| -> Vec<f64> {
-        let img = image::open(
-            set.parent()
-                .unwrap()
-                .parent()
-                .unwrap()
-                .join("scene1")
-                .join(name),
-        )
-        .expect("jpeg")
-        .to_rgb8();
+        let img = image::open(tmp.path().join("scene1").join(name))
+            .expect("jpeg")
+            .to_rgb8();
         img.into_raw().iter().map(|&v| v as f64 / 255.0).collect()
     };
     let srgb_decode = |v: f64| {
@@ -999,7 +992,7 @@ fn dng_brackets_are_linear_raw_with_exif_exposures() {
         "{}",
         built.sets[0].response
     );
-    let set = tmp.path().join("out/raw");
+    let set = beside.path().join("out/raw");
     for (n, den) in [
         ("frame_1.tif", 400u32),
         ("frame_2.tif", 100),
@@ -1066,7 +1059,7 @@ fn hand_held_sets_are_aligned_by_mtb_and_cropped() {
     assert_eq!(b.shifts, vec![[1, -2], [0, 0], [-2, 1]]);
     // Common region: x from 1 to 158, y from 1 to 126 (hand-computed from the shifts).
     assert_eq!((b.width, b.height), (157, 125));
-    let (tw, th, _) = read_u16_tiff(&tmp.path().join("out/handheld/frame_1.tif"));
+    let (tw, th, _) = read_u16_tiff(&beside.path().join("out/handheld/frame_1.tif"));
     assert_eq!((tw, th), (157, 125));
 }
 
