@@ -89,6 +89,37 @@ fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_hdrsynth"))
 }
 
+/// Runs `train --config cfg`, kills it with SIGKILL as soon as its first checkpoint in `run` is
+/// complete (mid-way through later steps), resumes it to the end, and returns the step of the
+/// checkpoint it was killed after.
+fn kill_after_first_checkpoint_and_resume(cfg: &Path, run: &Path) -> u64 {
+    let mut child = bin()
+        .args(["train", "--quiet", "--config"])
+        .arg(cfg)
+        .spawn()
+        .expect("spawn");
+    let began = Instant::now();
+    while checkpoint::latest(run).expect("latest").is_none() {
+        assert!(
+            began.elapsed() < Duration::from_secs(300),
+            "no checkpoint appeared"
+        );
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    child.kill().expect("SIGKILL");
+    child.wait().expect("wait");
+    let at_kill = checkpoint::read_state(&checkpoint::latest(run).unwrap().unwrap())
+        .expect("state")
+        .step;
+    let st = bin()
+        .args(["train", "--quiet", "--resume", "--config"])
+        .arg(cfg)
+        .status()
+        .expect("resume");
+    assert!(st.success());
+    at_kill
+}
+
 #[test]
 fn killed_with_sigkill_and_resumed_ends_with_the_same_weights() {
     let tmp = tempfile::tempdir().expect("tmp");
@@ -108,38 +139,11 @@ fn killed_with_sigkill_and_resumed_ends_with_the_same_weights() {
     assert!(st.success());
 
     let (run_b, cfg_b) = write("killed");
-    let mut child = bin()
-        .args(["train", "--quiet", "--config"])
-        .arg(&cfg_b)
-        .spawn()
-        .expect("spawn");
-    // Kill as soon as the first checkpoint is complete: mid-way through later steps.
-    let began = Instant::now();
-    loop {
-        if checkpoint::latest(&run_b).expect("latest").is_some() {
-            break;
-        }
-        assert!(
-            began.elapsed() < Duration::from_secs(300),
-            "no checkpoint appeared"
-        );
-        std::thread::sleep(Duration::from_millis(2));
-    }
-    child.kill().expect("SIGKILL");
-    child.wait().expect("wait");
-    let at_kill = checkpoint::read_state(&checkpoint::latest(&run_b).unwrap().unwrap())
-        .expect("state")
-        .step;
+    let at_kill = kill_after_first_checkpoint_and_resume(&cfg_b, &run_b);
     assert!(
         at_kill < steps,
         "the run finished before the kill (step {at_kill})"
     );
-    let st = bin()
-        .args(["train", "--quiet", "--resume", "--config"])
-        .arg(&cfg_b)
-        .status()
-        .expect("resume");
-    assert!(st.success());
 
     let (a, b) = (load_final(&run_a), load_final(&run_b));
     assert_eq!(a.len(), b.len());
@@ -540,27 +544,11 @@ fn two_device_training_matches_one_device_and_resumes_bit_identically() {
     let out = tmp.path().join("killed");
     let cfg_path = tmp.path().join("killed.toml");
     std::fs::write(&cfg_path, config_text(&out, steps, devices, 3e-3, false)).expect("write");
-    let mut child = bin()
-        .args(["train", "--quiet", "--config"])
-        .arg(&cfg_path)
-        .spawn()
-        .expect("spawn");
-    let began = Instant::now();
-    while checkpoint::latest(&out).expect("latest").is_none() {
-        assert!(
-            began.elapsed() < Duration::from_secs(300),
-            "no checkpoint appeared"
-        );
-        std::thread::sleep(Duration::from_millis(2));
-    }
-    child.kill().expect("SIGKILL");
-    child.wait().expect("wait");
-    let st = bin()
-        .args(["train", "--quiet", "--resume", "--config"])
-        .arg(&cfg_path)
-        .status()
-        .expect("resume");
-    assert!(st.success());
+    let at_kill = kill_after_first_checkpoint_and_resume(&cfg_path, &out);
+    assert!(
+        at_kill < steps,
+        "the run finished before the kill (step {at_kill})"
+    );
     let (x, y) = (load_final(&two), load_final(&out));
     for (i, (p, q)) in x.iter().zip(&y).enumerate() {
         assert!(
