@@ -3,7 +3,8 @@
 //!
 //! `cargo bench --bench diagnose` (env: HDRSYNTH_BENCH_DIR to keep the capture set between
 //! runs, default a temp folder; HDRSYNTH_BENCH_REPLICATES, default 30; HDRSYNTH_BENCH_SIZE,
-//! default 1024; HDRSYNTH_BENCH_FRAMES, default 50). The capture set: ISO 100, 400, 1600, each a
+//! default 1024; HDRSYNTH_BENCH_FRAMES, default 50; HDRSYNTH_BENCH_MAX_PIXELS, default the
+//! diagnosis's, 0 to analyse every row). The capture set: ISO 100, 400, 1600, each a
 //! dark burst and flats at 10 %, 30 % and 60 % of the range, simulated from an invented
 //! profile with no extra effects (so the diagnosis makes one comparison and names nothing).
 
@@ -121,14 +122,19 @@ fn main() {
     let t = Instant::now();
     let opts = DiagnoseOptions {
         replicates: k,
+        max_pixels: env(
+            "HDRSYNTH_BENCH_MAX_PIXELS",
+            DiagnoseOptions::default().max_pixels,
+        ),
         ..DiagnoseOptions::default()
     };
     let d = diagnose(&set, None, &opts).unwrap();
     let total = t.elapsed().as_secs_f64();
     println!(
-        "diagnose {} bursts × {frames} frames × {size}×{size} ({n} PNGs), {k} replicates, {} \
-         step(s), gap {:.2} → {:.2}, threads {}",
+        "diagnose {} bursts × {frames} frames × {size}×{size} ({n} PNGs), {k} replicates, \
+         max_pixels {}, {} step(s), gap {:.2} → {:.2}, threads {}",
         set.bursts().len(),
+        opts.max_pixels,
         d.steps.len(),
         d.initial_gap(),
         d.final_gap(),

@@ -54,6 +54,10 @@ pub struct Args {
     pub replicates: usize,
     #[arg(long, default_value_t = DiagnoseOptions::default().seed)]
     pub seed: u64,
+    /// Analyse bursts larger than this on evenly spread bands of rows of about this many
+    /// pixels, in the measurement and the simulation alike (0: every row; docs/diagnose.md).
+    #[arg(long, default_value_t = DiagnoseOptions::default().max_pixels)]
+    pub max_pixels: usize,
 }
 
 fn run_brackets(dir: &std::path::Path, args: &Args, diagnose: DiagnoseOptions) -> Result<String> {
@@ -145,6 +149,7 @@ impl Default for Args {
             ratio_tolerance: BracketDiagnoseOptions::default().ratio_tolerance_stops,
             replicates: DiagnoseOptions::default().replicates,
             seed: DiagnoseOptions::default().seed,
+            max_pixels: DiagnoseOptions::default().max_pixels,
         }
     }
 }
@@ -154,6 +159,7 @@ pub fn run(args: &Args) -> Result<String> {
     let opts = DiagnoseOptions {
         replicates: args.replicates,
         seed: args.seed,
+        max_pixels: args.max_pixels,
         ..DiagnoseOptions::default()
     };
     let captures = match (&args.brackets, &args.captures) {

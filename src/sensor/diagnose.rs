@@ -42,6 +42,9 @@ pub struct DiagnoseOptions {
     pub seed: u64,
     /// Family-wise false-alarm rate of the Bonferroni threshold.
     pub alpha: f64,
+    /// Bursts of more pixels are analysed on bands of rows of about this many pixels
+    /// (`summary::analysed_rows`), measured and simulated alike; 0: every row.
+    pub max_pixels: usize,
 }
 
 impl Default for DiagnoseOptions {
@@ -50,6 +53,7 @@ impl Default for DiagnoseOptions {
             replicates: 30,
             seed: 1,
             alpha: 0.05,
+            max_pixels: 1 << 16,
         }
     }
 }
@@ -104,25 +108,11 @@ pub struct Diagnosis {
     pub radial: Vec<(String, Vec<(f64, f64)>)>,
 }
 
-/// The capture protocol of a set.
-pub fn protocol(set: &CaptureSet, profile: &SensorProfile) -> Result<Protocol> {
+/// The capture protocol of a set under `profile`'s levels and effects.
+pub fn protocol(set: &CaptureSet, profile: &SensorProfile, max_pixels: usize) -> Result<Protocol> {
     let plan = Plan::from_effects(&profile.effects).map_err(Error::Invalid)?;
     Ok(Protocol {
-        bursts: set
-            .bursts()
-            .iter()
-            .zip(&set.sizes)
-            .map(|(b, &(w, h))| BurstInfo {
-                name: b.name.clone(),
-                kind: b.kind,
-                iso: b.iso,
-                exposure_s: b.exposure_s,
-                width: w,
-                height: h,
-                frames: b.frames.len(),
-                scene: b.scene.clone(),
-            })
-            .collect(),
+        bursts: burst_infos(set, max_pixels),
         black: profile.levels.black_level + plan.black_offset as f64,
         white: profile.levels.white_level,
         range: profile.levels.white_level - profile.levels.black_level,
@@ -130,53 +120,109 @@ pub fn protocol(set: &CaptureSet, profile: &SensorProfile) -> Result<Protocol> {
     })
 }
 
-/// Summaries of the measured bursts (frames decoded in parallel batches, accumulated in order).
-pub fn measure(set: &CaptureSet, proto: &Protocol) -> Result<Vec<Summary>> {
+/// What each burst is, analysing rows of at most about `max_pixels` per burst (0: all); chart
+/// bursts are always whole (their patches are located in the whole frame).
+fn burst_infos(set: &CaptureSet, max_pixels: usize) -> Vec<BurstInfo> {
+    set.bursts()
+        .iter()
+        .zip(&set.sizes)
+        .map(|(b, &(w, h))| BurstInfo {
+            name: b.name.clone(),
+            kind: b.kind,
+            iso: b.iso,
+            exposure_s: b.exposure_s,
+            width: w,
+            height: h,
+            frames: b.frames.len(),
+            scene: b.scene.clone(),
+            rows: if b.kind == BurstKind::Chart {
+                (0..h).collect()
+            } else {
+                effects::summary::analysed_rows(w, h, max_pixels)
+            },
+        })
+        .collect()
+}
+
+/// Summaries of the measured bursts (frames decoded in parallel batches, their analysed rows
+/// accumulated in order), and in the same pass the noise calibration of the photon-transfer
+/// bursts (`ptc_bursts`) on those rows, so no frame is decoded twice.
+pub fn measure(
+    set: &CaptureSet,
+    infos: &[BurstInfo],
+    cal_opts: &CalibrateOptions,
+) -> Result<(Vec<Summary>, Result<NoiseCalibration>)> {
+    let ptc = ptc_bursts(set);
+    let plan = noise::CalibrationPlan::new(&ptc.set, cal_opts);
+    let mut cal: Vec<(usize, noise::BurstFrames)> = match &plan {
+        Ok(p) => p
+            .used
+            .iter()
+            .map(|&k| {
+                let i = ptc.index[k];
+                let info = &infos[i];
+                // Neighbourhoods stay inside a band when only bands of rows are analysed.
+                let whole = info.rows.len() == info.height;
+                let band = if whole {
+                    usize::MAX
+                } else {
+                    effects::summary::BAND
+                };
+                (
+                    i,
+                    noise::BurstFrames::new(info.kind == BurstKind::Dark, band),
+                )
+            })
+            .collect(),
+        Err(_) => Vec::new(),
+    };
     let mut out = Vec::new();
-    for (i, info) in proto.bursts.iter().enumerate() {
+    for (i, info) in infos.iter().enumerate() {
         let mut acc = Accumulator::new(info);
+        let mut frames_acc = cal.iter_mut().find(|(b, _)| *b == i).map(|(_, f)| f);
         let n = info.frames;
         let batch = rayon::current_num_threads().max(2);
         for start in (0..n).step_by(batch) {
             let frames: Vec<Image> = (start..(start + batch).min(n))
                 .into_par_iter()
-                .map(|j| set.read_frame(i, j))
+                .map(|j| {
+                    Ok(effects::summary::crop_rows(
+                        &set.read_frame(i, j)?,
+                        &info.rows,
+                    ))
+                })
                 .collect::<Result<_>>()?;
             for f in &frames {
                 acc.add(f);
+                if let Some(c) = frames_acc.as_mut() {
+                    c.add(f);
+                }
             }
         }
         out.push(acc.finish(i, info));
     }
-    Ok(out)
+    let calibration =
+        plan.and_then(|p| p.finish(&ptc.set, cal_opts, cal.into_iter().map(|c| c.1).collect()));
+    Ok((out, calibration))
 }
 
-/// The dark and flat bursts of a set (when it has any flat): the photon-transfer targets. Scene
-/// and chart bursts with fine detail break the calibration's neighbour-median binning (a pixel's
-/// neighbours no longer share its signal), which biases a.
-pub fn ptc_bursts(set: &CaptureSet) -> CaptureSet {
-    if !set.bursts().iter().any(|b| b.kind == BurstKind::Flat) {
-        return set.clone();
-    }
+/// The dark and flat bursts of a set (when it has any flat): the photon-transfer targets, with
+/// each one's index in `set`. Scene and chart bursts with fine detail break the calibration's
+/// neighbour-median binning (a pixel's neighbours no longer share its signal), which biases a.
+struct PtcBursts {
+    set: CaptureSet,
+    index: Vec<usize>,
+}
+
+fn ptc_bursts(set: &CaptureSet) -> PtcBursts {
+    let any_flat = set.bursts().iter().any(|b| b.kind == BurstKind::Flat);
+    let index: Vec<usize> = (0..set.bursts().len())
+        .filter(|&i| !any_flat || matches!(set.bursts()[i].kind, BurstKind::Dark | BurstKind::Flat))
+        .collect();
     let mut s = set.clone();
-    let keep: Vec<bool> = set
-        .bursts()
-        .iter()
-        .map(|b| matches!(b.kind, BurstKind::Dark | BurstKind::Flat))
-        .collect();
-    let mut i = 0;
-    s.manifest.bursts.retain(|_| {
-        i += 1;
-        keep[i - 1]
-    });
-    s.sizes = set
-        .sizes
-        .iter()
-        .zip(&keep)
-        .filter(|(_, k)| **k)
-        .map(|(z, _)| *z)
-        .collect();
-    s
+    s.manifest.bursts = index.iter().map(|&i| set.bursts()[i].clone()).collect();
+    s.sizes = index.iter().map(|&i| set.sizes[i]).collect();
+    PtcBursts { set: s, index }
 }
 
 /// The paper's base model from the captures (no profile given).
@@ -358,9 +404,15 @@ fn targets(proto: &Protocol, measured: &[Summary], plan: &Plan) -> Vec<Option<Im
                 BurstKind::Dark => Some(Image::new(w, h)),
                 BurstKind::Flat => {
                     let mut g = 0.0;
-                    for y in 0..h {
+                    for &y in &m.rows {
                         for x in 0..w {
-                            g += effects::vignetting::gain(plan.vignetting_k, x, y, w, h) as f64;
+                            g += effects::vignetting::gain(
+                                plan.vignetting_k,
+                                x,
+                                y,
+                                w,
+                                m.full_height,
+                            ) as f64;
                         }
                     }
                     g /= (w * h) as f64;
@@ -456,7 +508,8 @@ fn simulate(
         let r = Realism::new(&p, &opts)?;
         let mut acc = Accumulator::new(info);
         for j in 0..info.frames {
-            r.to_dn_into(t, hash(seed, &[k as u64, i as u64, j as u64]), &mut frame);
+            let seed = hash(seed, &[k as u64, i as u64, j as u64]);
+            r.to_dn_rows_into(t, &info.rows, info.height, seed, &mut frame);
             acc.add(&frame);
         }
         out.push(acc.finish(i, info));
@@ -525,7 +578,7 @@ struct Context<'a> {
 
 /// Compare the measured statistics with K simulated replicates of `profile`.
 fn evaluate(ctx: &Context, profile: &SensorProfile) -> Result<Evaluation> {
-    let proto = protocol(ctx.set, profile)?;
+    let proto = protocol(ctx.set, profile, ctx.opts.max_pixels)?;
     let plan = Plan::from_effects(&profile.effects).map_err(Error::Invalid)?;
     let measured = statistics(&proto, ctx.measured);
     let tg = targets(&proto, ctx.measured, &plan);
@@ -610,40 +663,42 @@ pub fn diagnose(
         white_level: profile.as_ref().map(|p| p.levels.white_level),
         black_level: profile.as_ref().map(|p| p.levels.black_level),
     };
-    let calibration = noise::calibrate(&ptc_bursts(set), &cal_opts);
-    // Levels for the summaries: the profile's, the calibration's, or (a set without darks
-    // and flats, e.g. scene pairs) the declared ones.
-    let (white, black) = match (&profile, &calibration) {
-        (Some(p), _) => (p.levels.white_level, p.levels.black_level),
-        (None, Ok(cal)) => (cal.white_level, cal.black_level),
-        (None, Err(e)) => declared_levels(set).ok_or_else(|| {
-            Error::config(
-                &set.manifest_path,
-                format!(
-                    "the base model needs a noise calibration of the captures ({e}), or, for a \
-                     set without dark and flat bursts, declared [sensor] white_level and \
-                     black_level (or --profile)"
-                ),
-            )
-        })?,
-    };
-    let levels_proto = protocol(
-        set,
-        &noise::new_measured_profile(
-            "levels",
-            Levels {
-                black_level: black,
-                white_level: white,
-                bit_depth: noise::bits_for_white(white),
-            },
-            "",
-            Vec::new(),
-            "",
-        ),
-    )?;
-    let measured = measure(set, &levels_proto)?;
+    let (measured, calibration) = measure(set, &burst_infos(set, opts.max_pixels), &cal_opts)?;
+    // The base model takes its levels from the calibration or, for a set without darks and
+    // flats (e.g. scene pairs), the declared ones.
+    if let (None, Err(e), None) = (&profile, &calibration, declared_levels(set)) {
+        return Err(Error::config(
+            &set.manifest_path,
+            format!(
+                "the base model needs a noise calibration of the captures ({e}), or, for a set \
+                 without dark and flat bursts, declared [sensor] white_level and black_level \
+                 (or --profile)"
+            ),
+        ));
+    }
     let fitted_base = profile.is_none();
     let mut notes = Vec::new();
+    let banded: Vec<String> = measured
+        .iter()
+        .filter(|m| m.height < m.full_height)
+        .map(|m| {
+            format!(
+                "'{}' {} of {}",
+                set.bursts()[m.burst].name,
+                m.height,
+                m.full_height
+            )
+        })
+        .collect();
+    if !banded.is_empty() {
+        notes.push(format!(
+            "bursts over {} pixels were analysed on evenly spread bands of {} rows, measured and \
+             simulated alike (rows: {}); --max-pixels 0 analyses every row (slower, more power)",
+            opts.max_pixels,
+            effects::summary::BAND,
+            banded.join(", ")
+        ));
+    }
     let (mut model, base) = match profile {
         Some(p) => {
             let name = p.name.clone();
@@ -671,7 +726,7 @@ pub fn diagnose(
             }
         },
     };
-    let proto0 = protocol(set, &model)?;
+    let proto0 = protocol(set, &model, opts.max_pixels)?;
     let m = statistics(&proto0, &measured).len();
     let ctx = Context {
         set,
@@ -732,7 +787,7 @@ pub fn diagnose(
         let id = top.stat.effect.expect("filtered");
         tried.push(id);
         let entry = effects::entry(id).expect("catalogue id");
-        let proto = protocol(set, &model)?;
+        let proto = protocol(set, &model, opts.max_pixels)?;
         let meas: Vec<Stat> = current.rows.iter().map(|r| r.stat.clone()).collect();
         let sim_mean: Vec<f64> = current.rows.iter().map(|r| r.sim_mean).collect();
         let fctx = FitCtx {
@@ -854,7 +909,7 @@ fn radial_profile(s: &Summary, proto: &Protocol) -> Vec<(f64, f64)> {
     for y in 0..h {
         for x in 0..w {
             let i = (y * w + x) * 3;
-            let (u, v) = effects::summary::normalised_xy(x, y, w, h);
+            let (u, v) = s.xy(x, y);
             let r2 = u * u + v * v;
             let k = ((r2 * 16.0) as usize).min(15);
             bins[k].0 += r2;

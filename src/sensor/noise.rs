@@ -170,165 +170,201 @@ pub struct NoiseCalibration {
 /// flat bursts with fewer are an error; chart and scene bursts with fewer are skipped (they may
 /// be there for colour calibration).
 pub fn calibrate(set: &CaptureSet, opts: &CalibrateOptions) -> Result<NoiseCalibration> {
-    let manifest_err = |m: String| Error::config(&set.manifest_path, m);
-    let sensor = &set.manifest.sensor;
-    let (white_level, white_source) = match (opts.white_level, sensor.white_level) {
-        (Some(w), _) => (w, LevelSource::Override),
-        (None, Some(w)) => (w, LevelSource::Declared),
-        (None, None) => {
-            return Err(manifest_err(
-                "white level unknown: declare [sensor].white_level or pass --white-level".into(),
-            ));
-        }
-    };
-    if !(white_level.is_finite() && white_level > 0.0) {
-        return Err(manifest_err(format!(
-            "white level {white_level} must be > 0"
-        )));
-    }
-
-    let mut skipped = Vec::new();
-    let mut used = Vec::new();
-    for (i, b) in set.bursts().iter().enumerate() {
-        if b.frames.len() >= 2 {
-            used.push(i);
-        } else if matches!(b.kind, BurstKind::Dark | BurstKind::Flat) {
-            set.require_frames(i, 2)?;
-        } else {
-            skipped.push(format!(
-                "{}: {} burst with {} frame; temporal statistics need ≥ 2",
-                set.burst_label(i),
-                b.kind.as_str(),
-                b.frames.len()
-            ));
-        }
-    }
-    if used.is_empty() {
-        return Err(manifest_err(
-            "no burst with ≥ 2 frames: noise calibration needs dark and/or flat bursts".into(),
-        ));
-    }
-
-    // Black level: override > declared > dark-frame estimate.
-    let darks: Vec<usize> = used
-        .iter()
-        .copied()
-        .filter(|&i| set.bursts()[i].kind == BurstKind::Dark)
-        .collect();
-    let black_estimated = if darks.is_empty() {
-        None
-    } else {
-        let mut means = Vec::new();
-        for &i in &darks {
-            for j in 0..set.bursts()[i].frames.len() {
-                means.push(robust_frame_mean(&set.read_frame(i, j)?));
-            }
-        }
-        Some(median(&mut means))
-    };
-    let black_declared = sensor.black_level;
-    let (black_level, black_source) = match (opts.black_level, black_declared, black_estimated) {
-        (Some(b), _, _) => (b, LevelSource::Override),
-        (None, Some(b), _) => (b, LevelSource::Declared),
-        (None, None, Some(b)) => (b, LevelSource::EstimatedFromDark),
-        (None, None, None) => {
-            return Err(manifest_err(
-                "black level unknown: declare [sensor].black_level, pass --black-level, or \
-                 include a dark burst"
-                    .into(),
-            ));
-        }
-    };
-    if !(black_level.is_finite() && black_level >= 0.0 && black_level < white_level) {
-        return Err(manifest_err(format!(
-            "black level {black_level} must be ≥ 0 and below the white level {white_level}"
-        )));
-    }
-
-    // Per-burst statistics and bins.
-    let s_lin = ((white_level - black_level) / 200.0).max(1.0);
-    let mut per_burst = Vec::new();
-    let mut summaries = Vec::new();
-    for &i in &used {
-        let stats = burst_stats(set, i, white_level)?;
-        let mut bins: [Vec<Bin>; 3] = Default::default();
-        let mut counts = [Counts::default(); 3];
-        for c in 0..3 {
-            let (b, n) = channel_bins(&stats, c, i, black_level, s_lin);
-            bins[c] = b;
-            counts[c] = n;
-        }
+    let plan = CalibrationPlan::new(set, opts)?;
+    let mut stats = Vec::new();
+    for &i in &plan.used {
         let b = &set.bursts()[i];
-        summaries.push(BurstSummary {
-            burst: i,
-            name: b.name.clone(),
-            kind: b.kind,
-            iso: b.iso,
-            frames: stats.frames,
-            counts,
-        });
-        per_burst.push((i, bins, counts));
+        let mut acc = BurstFrames::new(b.kind == BurstKind::Dark, usize::MAX);
+        for j in 0..b.frames.len() {
+            acc.add(&set.read_frame(i, j)?);
+        }
+        stats.push(acc);
+    }
+    plan.finish(set, opts, stats)
+}
+
+/// What a calibration of a set will use, checked before any frame is read: the white level and
+/// the bursts with ≥ 2 frames (`used`, in set order).
+pub struct CalibrationPlan {
+    white_level: f64,
+    white_source: LevelSource,
+    pub used: Vec<usize>,
+    skipped: Vec<String>,
+}
+
+impl CalibrationPlan {
+    pub fn new(set: &CaptureSet, opts: &CalibrateOptions) -> Result<CalibrationPlan> {
+        let manifest_err = |m: String| Error::config(&set.manifest_path, m);
+        let (white_level, white_source) = match (opts.white_level, set.manifest.sensor.white_level)
+        {
+            (Some(w), _) => (w, LevelSource::Override),
+            (None, Some(w)) => (w, LevelSource::Declared),
+            (None, None) => {
+                return Err(manifest_err(
+                    "white level unknown: declare [sensor].white_level or pass --white-level"
+                        .into(),
+                ));
+            }
+        };
+        if !(white_level.is_finite() && white_level > 0.0) {
+            return Err(manifest_err(format!(
+                "white level {white_level} must be > 0"
+            )));
+        }
+        let mut skipped = Vec::new();
+        let mut used = Vec::new();
+        for (i, b) in set.bursts().iter().enumerate() {
+            if b.frames.len() >= 2 {
+                used.push(i);
+            } else if matches!(b.kind, BurstKind::Dark | BurstKind::Flat) {
+                set.require_frames(i, 2)?;
+            } else {
+                skipped.push(format!(
+                    "{}: {} burst with {} frame; temporal statistics need ≥ 2",
+                    set.burst_label(i),
+                    b.kind.as_str(),
+                    b.frames.len()
+                ));
+            }
+        }
+        if used.is_empty() {
+            return Err(manifest_err(
+                "no burst with ≥ 2 frames: noise calibration needs dark and/or flat bursts".into(),
+            ));
+        }
+        Ok(CalibrationPlan {
+            white_level,
+            white_source,
+            used,
+            skipped,
+        })
     }
 
-    // Group by ISO and fit.
-    let mut iso_values: Vec<f64> = used.iter().map(|&i| set.bursts()[i].iso).collect();
-    iso_values.sort_by(f64::total_cmp);
-    iso_values.dedup();
-    let mut isos = Vec::new();
-    for iso in iso_values {
-        let group: Vec<_> = per_burst
-            .iter()
-            .filter(|(i, _, _)| set.bursts()[*i].iso == iso)
-            .collect();
-        let bursts: Vec<usize> = group.iter().map(|(i, _, _)| *i).collect();
-        let mut channels = Vec::new();
-        for (c, cname) in CHANNELS.iter().enumerate() {
-            let mut bins = Vec::new();
-            let mut counts = Counts::default();
-            for (_, b, n) in &group {
-                bins.extend(b[c].iter().cloned());
-                counts.add(&n[c]);
+    /// The calibration from the frames of the `used` bursts (`stats[k]` of burst `used[k]`).
+    pub fn finish(
+        self,
+        set: &CaptureSet,
+        opts: &CalibrateOptions,
+        stats: Vec<BurstFrames>,
+    ) -> Result<NoiseCalibration> {
+        let manifest_err = |m: String| Error::config(&set.manifest_path, m);
+        let CalibrationPlan {
+            white_level,
+            white_source,
+            used,
+            skipped,
+        } = self;
+        // Black level: override > declared > dark-frame estimate (median over dark frames of
+        // each frame's outlier-clipped mean).
+        let mut means: Vec<f64> = stats.iter().flat_map(|s| s.frame_means.clone()).collect();
+        let black_estimated = (!means.is_empty()).then(|| median(&mut means));
+        let black_declared = set.manifest.sensor.black_level;
+        let (black_level, black_source) = match (opts.black_level, black_declared, black_estimated)
+        {
+            (Some(b), _, _) => (b, LevelSource::Override),
+            (None, Some(b), _) => (b, LevelSource::Declared),
+            (None, None, Some(b)) => (b, LevelSource::EstimatedFromDark),
+            (None, None, None) => {
+                return Err(manifest_err(
+                    "black level unknown: declare [sensor].black_level, pass --black-level, or \
+                     include a dark burst"
+                        .into(),
+                ));
             }
-            let fit = wls(&bins).map_err(|m| {
-                manifest_err(format!(
-                    "ISO {iso}, channel {cname} (bursts {}): {m}",
-                    bursts
-                        .iter()
-                        .map(|&i| format!("'{}'", set.bursts()[i].name))
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                ))
-            })?;
-            channels.push(ChannelFit {
-                a: fit.a,
-                b: fit.b,
-                a_stderr: fit.a_se,
-                b_stderr: fit.b_se,
-                chi2_reduced: fit.chi2_reduced,
-                bins,
+        };
+        if !(black_level.is_finite() && black_level >= 0.0 && black_level < white_level) {
+            return Err(manifest_err(format!(
+                "black level {black_level} must be ≥ 0 and below the white level {white_level}"
+            )));
+        }
+
+        // Per-burst statistics and bins (bins of every band of a burst together).
+        let s_lin = ((white_level - black_level) / 200.0).max(1.0);
+        let mut per_burst = Vec::new();
+        let mut summaries = Vec::new();
+        for (&i, acc) in used.iter().zip(stats) {
+            let frames = acc.frames;
+            let mut bins: [Vec<Bin>; 3] = Default::default();
+            let mut counts = [Counts::default(); 3];
+            for band in acc.finish(white_level) {
+                for c in 0..3 {
+                    let (b, n) = channel_bins(&band, c, i, black_level, s_lin);
+                    bins[c].extend(b);
+                    counts[c].add(&n);
+                }
+            }
+            let b = &set.bursts()[i];
+            summaries.push(BurstSummary {
+                burst: i,
+                name: b.name.clone(),
+                kind: b.kind,
+                iso: b.iso,
+                frames,
                 counts,
             });
+            per_burst.push((i, bins, counts));
         }
-        let channels: [ChannelFit; 3] = channels.try_into().expect("three channels");
-        isos.push(IsoFit {
-            iso,
-            bursts,
-            channels,
-        });
-    }
 
-    Ok(NoiseCalibration {
-        source: set.dir.display().to_string(),
-        white_level,
-        white_source,
-        black_level,
-        black_source,
-        black_declared,
-        black_estimated,
-        isos,
-        bursts: summaries,
-        skipped,
-    })
+        // Group by ISO and fit.
+        let mut iso_values: Vec<f64> = used.iter().map(|&i| set.bursts()[i].iso).collect();
+        iso_values.sort_by(f64::total_cmp);
+        iso_values.dedup();
+        let mut isos = Vec::new();
+        for iso in iso_values {
+            let group: Vec<_> = per_burst
+                .iter()
+                .filter(|(i, _, _)| set.bursts()[*i].iso == iso)
+                .collect();
+            let bursts: Vec<usize> = group.iter().map(|(i, _, _)| *i).collect();
+            let mut channels = Vec::new();
+            for (c, cname) in CHANNELS.iter().enumerate() {
+                let mut bins = Vec::new();
+                let mut counts = Counts::default();
+                for (_, b, n) in &group {
+                    bins.extend(b[c].iter().cloned());
+                    counts.add(&n[c]);
+                }
+                let fit = wls(&bins).map_err(|m| {
+                    manifest_err(format!(
+                        "ISO {iso}, channel {cname} (bursts {}): {m}",
+                        bursts
+                            .iter()
+                            .map(|&i| format!("'{}'", set.bursts()[i].name))
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    ))
+                })?;
+                channels.push(ChannelFit {
+                    a: fit.a,
+                    b: fit.b,
+                    a_stderr: fit.a_se,
+                    b_stderr: fit.b_se,
+                    chi2_reduced: fit.chi2_reduced,
+                    bins,
+                    counts,
+                });
+            }
+            let channels: [ChannelFit; 3] = channels.try_into().expect("three channels");
+            isos.push(IsoFit {
+                iso,
+                bursts,
+                channels,
+            });
+        }
+
+        Ok(NoiseCalibration {
+            source: set.dir.display().to_string(),
+            white_level,
+            white_source,
+            black_level,
+            black_source,
+            black_declared,
+            black_estimated,
+            isos,
+            bursts: summaries,
+            skipped,
+        })
+    }
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -346,24 +382,66 @@ struct BurstStats {
     white: f64,
 }
 
-/// Temporal mean and unbiased variance per pixel and channel, streaming the frames. Sums are
-/// exact: integer DN offsets from the first frame in i32/u64.
-fn burst_stats(set: &CaptureSet, burst: usize, white: f64) -> Result<BurstStats> {
-    let n = set.bursts()[burst].frames.len();
-    let first = set.read_frame(burst, 0)?;
-    let to_u16 = |v: f32| v.clamp(0.0, 65535.0) as u16;
-    let k: Vec<u16> = first.data.iter().map(|&v| to_u16(v)).collect();
-    let len = k.len();
-    let mut s1 = vec![0i32; len];
-    let mut s2 = vec![0u64; len];
-    let mut min = k.clone();
-    let mut max = k.clone();
-    for j in 1..n {
-        let f = set.read_frame(burst, j)?;
-        (s1.par_iter_mut(), s2.par_iter_mut())
+/// Temporal mean and unbiased variance per pixel and channel of one burst, frame by frame (the
+/// gap workflow feeds the frames it decodes anyway). Sums are exact: integer DN offsets from
+/// the first frame in i32/u64. Frames may be bands of `band` rows of a larger frame stacked
+/// (`summary::crop_rows`): neighbourhoods then stay inside a band.
+pub struct BurstFrames {
+    dark: bool,
+    band: usize,
+    width: usize,
+    height: usize,
+    frames: usize,
+    k: Vec<u16>,
+    s1: Vec<i32>,
+    s2: Vec<u64>,
+    min: Vec<u16>,
+    max: Vec<u16>,
+    /// Dark bursts: each frame's outlier-clipped mean (the black-level estimate).
+    frame_means: Vec<f64>,
+}
+
+fn to_u16(v: f32) -> u16 {
+    v.clamp(0.0, 65535.0) as u16
+}
+
+impl BurstFrames {
+    pub fn new(dark: bool, band: usize) -> BurstFrames {
+        BurstFrames {
+            dark,
+            band: band.max(1),
+            width: 0,
+            height: 0,
+            frames: 0,
+            k: Vec::new(),
+            s1: Vec::new(),
+            s2: Vec::new(),
+            min: Vec::new(),
+            max: Vec::new(),
+            frame_means: Vec::new(),
+        }
+    }
+
+    /// Add one frame (every frame of a burst has the burst's size: `CaptureSet::read_frame`).
+    pub fn add(&mut self, f: &Image) {
+        if self.dark {
+            self.frame_means.push(robust_frame_mean(f));
+        }
+        self.frames += 1;
+        if self.frames == 1 {
+            self.width = f.width;
+            self.height = f.height;
+            self.k = f.data.iter().map(|&v| to_u16(v)).collect();
+            self.s1 = vec![0; self.k.len()];
+            self.s2 = vec![0; self.k.len()];
+            self.min = self.k.clone();
+            self.max = self.k.clone();
+            return;
+        }
+        (self.s1.par_iter_mut(), self.s2.par_iter_mut())
             .into_par_iter()
-            .zip((min.par_iter_mut(), max.par_iter_mut()))
-            .zip((k.par_iter(), f.data.par_iter()))
+            .zip((self.min.par_iter_mut(), self.max.par_iter_mut()))
+            .zip((self.k.par_iter(), f.data.par_iter()))
             .for_each(|(((s1, s2), (lo, hi)), (&k, &v))| {
                 let v = to_u16(v);
                 let d = v as i32 - k as i32;
@@ -373,26 +451,39 @@ fn burst_stats(set: &CaptureSet, burst: usize, white: f64) -> Result<BurstStats>
                 *hi = (*hi).max(v);
             });
     }
-    let nf = n as f64;
-    let (mean, var): (Vec<f32>, Vec<f32>) = (k.par_iter(), s1.par_iter(), s2.par_iter())
-        .into_par_iter()
-        .map(|(&k, &s1, &s2)| {
-            let s1 = s1 as f64;
-            let m = k as f64 + s1 / nf;
-            let v = ((s2 as f64 - s1 * s1 / nf) / (nf - 1.0)).max(0.0);
-            (m as f32, v as f32)
-        })
-        .unzip();
-    Ok(BurstStats {
-        width: first.width,
-        height: first.height,
-        frames: n,
-        mean,
-        var,
-        min,
-        max,
-        white,
-    })
+
+    /// Per-band statistics.
+    fn finish(self, white: f64) -> Vec<BurstStats> {
+        let nf = self.frames as f64;
+        let (mean, var): (Vec<f32>, Vec<f32>) =
+            (self.k.par_iter(), self.s1.par_iter(), self.s2.par_iter())
+                .into_par_iter()
+                .map(|(&k, &s1, &s2)| {
+                    let s1 = s1 as f64;
+                    let m = k as f64 + s1 / nf;
+                    let v = ((s2 as f64 - s1 * s1 / nf) / (nf - 1.0)).max(0.0);
+                    (m as f32, v as f32)
+                })
+                .unzip();
+        let w3 = self.width * 3;
+        (0..self.height)
+            .step_by(self.band)
+            .map(|y0| {
+                let y1 = (y0 + self.band).min(self.height);
+                let r = y0 * w3..y1 * w3;
+                BurstStats {
+                    width: self.width,
+                    height: y1 - y0,
+                    frames: self.frames,
+                    mean: mean[r.clone()].to_vec(),
+                    var: var[r.clone()].to_vec(),
+                    min: self.min[r.clone()].to_vec(),
+                    max: self.max[r].to_vec(),
+                    white,
+                }
+            })
+            .collect()
+    }
 }
 
 const OK: u8 = 0;

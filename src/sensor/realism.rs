@@ -515,6 +515,22 @@ impl Realism {
         self.rows_into(input, seed, out, false);
     }
 
+    /// `to_dn_into` for some rows of a frame of `height` rows: `input` holds rows `rows`
+    /// stacked, and each output row is bit-identical to that row of the whole frame's `to_dn`
+    /// (its draws and patterns depend on the frame row), so the gap workflow can simulate a
+    /// subset of a large frame exactly.
+    pub fn to_dn_rows_into(
+        &self,
+        input: &Image,
+        rows: &[usize],
+        height: usize,
+        seed: u64,
+        out: &mut Image,
+    ) {
+        assert_eq!(input.height, rows.len(), "one input row per frame row");
+        self.rows_of(input, Some((rows, height)), seed, out, false);
+    }
+
     /// Device response of a DN frame: code values in [0, 1], quantised to the output bits.
     pub fn dn_to_ldr(&self, dn: &Image) -> Image {
         dn.map(|d| self.output_lut[index(bound(d, self.white))])
@@ -534,17 +550,31 @@ impl Realism {
 
     /// Rows in parallel into `out`: DN, then (with `ldr`) the device response.
     fn rows_into(&self, input: &Image, seed: u64, out: &mut Image, ldr: bool) {
+        self.rows_of(input, None, seed, out, ldr);
+    }
+
+    /// `rows_into` where input row r is frame row `rows[r]` of a frame of `height` rows
+    /// (None: the input is the whole frame).
+    fn rows_of(
+        &self,
+        input: &Image,
+        frame: Option<(&[usize], usize)>,
+        seed: u64,
+        out: &mut Image,
+        ldr: bool,
+    ) {
         out.width = input.width;
         out.height = input.height;
         out.data.resize(input.data.len(), 0.0);
         let w3 = input.width * 3;
-        let pat = (!self.plain).then(|| self.patterns(input.width, input.height));
-        let height = input.height;
+        let height = frame.map_or(input.height, |f| f.1);
+        let pat = (!self.plain).then(|| self.patterns(input.width, height));
         out.data
             .par_chunks_mut(w3)
             .zip(input.data.par_chunks(w3))
             .enumerate()
-            .for_each_init(Scratch::default, |sc, (row, (o, i))| {
+            .for_each_init(Scratch::default, |sc, (r, (o, i))| {
+                let row = frame.map_or(r, |f| f.0[r]);
                 match &pat {
                     None => self.row_dn(i, o, seed, row, sc),
                     Some(p) => self.row_dn_effects(i, o, seed, row, height, p, sc),

@@ -55,6 +55,45 @@ pub struct BurstInfo {
     pub frames: usize,
     /// The `scene` key of a scene burst (captures.toml), if declared.
     pub scene: Option<String>,
+    /// The frame rows analysed (ascending; `analysed_rows`): measured and simulated alike.
+    pub rows: Vec<usize>,
+}
+
+/// Rows analysed in a `width` × `height` frame: all when it has at most `max_pixels` pixels
+/// (0: no limit), else bands of `BAND` consecutive rows spaced evenly from the top to the
+/// bottom edge, about `max_pixels` in all but at least `MIN_BANDS` bands (row and column
+/// statistics need rows however wide the frame). Bands keep the vertical lags, neighbourhoods and row
+/// statistics local; their spread keeps the whole field (vignetting, radial profiles).
+/// Measurement and simulation use the same rows, so every statistic is computed the same way
+/// on both sides and the comparison stays exact; only its power falls with the pixel count.
+pub fn analysed_rows(width: usize, height: usize, max_pixels: usize) -> Vec<usize> {
+    let bands = max_pixels.div_ceil(width.max(1) * BAND).max(MIN_BANDS);
+    if max_pixels == 0 || width * height <= max_pixels || bands * BAND >= height {
+        return (0..height).collect();
+    }
+    (0..bands)
+        .flat_map(|k| {
+            let top = k * (height - BAND) / (bands - 1);
+            top..top + BAND
+        })
+        .collect()
+}
+
+/// Rows per band of `analysed_rows`, and the fewest bands.
+pub const BAND: usize = 8;
+pub const MIN_BANDS: usize = 8;
+
+/// Rows `rows` of `frame`, stacked.
+pub fn crop_rows(frame: &Image, rows: &[usize]) -> Image {
+    if rows.len() == frame.height {
+        return frame.clone();
+    }
+    let w3 = frame.width * 3;
+    let mut data = Vec::with_capacity(rows.len() * w3);
+    for &y in rows {
+        data.extend_from_slice(&frame.data[y * w3..(y + 1) * w3]);
+    }
+    Image::from_vec(frame.width, rows.len(), data)
 }
 
 impl BurstInfo {
@@ -87,7 +126,11 @@ pub struct Summary {
     pub iso: f64,
     pub exposure_s: f64,
     pub width: usize,
+    /// Rows stored (`rows.len()`): `mean`, `var`, … hold `width` × `height` × 3 values.
     pub height: usize,
+    /// The frame's height and the frame row of each stored row (geometry: surfaces, radii).
+    pub full_height: usize,
+    pub rows: Vec<usize>,
     pub frames: usize,
     /// The declared scene of a scene burst.
     pub scene: Option<String>,
@@ -124,6 +167,16 @@ impl Summary {
     pub fn not_hot(&self, i: usize) -> bool {
         self.hot.get(i).is_none_or(|h| !h)
     }
+
+    /// Centred coordinates (`normalised_xy`) of stored pixel (x, stored row r) in its frame.
+    pub fn xy(&self, x: usize, r: usize) -> (f64, f64) {
+        normalised_xy(x, self.rows[r], self.width, self.full_height)
+    }
+}
+
+/// Whether stored rows r and r + d are frame rows y and y + d (inside one band).
+fn adjacent(rows: &[usize], r: usize, d: usize) -> bool {
+    rows.get(r + d).is_some_and(|&y| y == rows[r] + d)
 }
 
 /// Streaming per-burst accumulator.
@@ -134,6 +187,7 @@ pub struct Accumulator {
     n: usize,
     shift: f64,
     stride: usize,
+    rows: Vec<usize>,
     acc: Vec<f64>,
     /// Per frame, per row: (left-half mean, right-half mean).
     halves: Vec<[f64; 2]>,
@@ -149,15 +203,17 @@ impl Accumulator {
         Accumulator {
             kind: info.kind,
             w: info.width,
-            h: info.height,
+            h: info.rows.len(),
             n: 0,
             shift: 0.0,
             stride,
-            acc: vec![0.0; info.width * info.height * 3 * stride],
+            rows: info.rows.clone(),
+            acc: vec![0.0; info.width * info.rows.len() * 3 * stride],
             halves: Vec::new(),
         }
     }
 
+    /// Add a frame of the analysed rows (`crop_rows`).
     pub fn add(&mut self, f: &Image) {
         assert_eq!((f.width, f.height), (self.w, self.h), "frame size");
         if self.n == 0 {
@@ -166,7 +222,8 @@ impl Accumulator {
             self.shift = self.shift.round();
         }
         self.n += 1;
-        let (w3, h, k, c) = (self.w * 3, self.h, self.stride, self.shift);
+        let (w3, k, c) = (self.w * 3, self.stride, self.shift);
+        let rows = &self.rows;
         let data = &f.data;
         self.acc
             .par_chunks_mut(w3 * k)
@@ -187,8 +244,8 @@ impl Accumulator {
                         }
                     }
                     _ => {
-                        let next = (y + 1 < h).then(|| &data[(y + 1) * w3..(y + 2) * w3]);
-                        let next2 = (y + 2 < h).then(|| &data[(y + 2) * w3..(y + 3) * w3]);
+                        let next = adjacent(rows, y, 1).then(|| &data[(y + 1) * w3..(y + 2) * w3]);
+                        let next2 = adjacent(rows, y, 2).then(|| &data[(y + 2) * w3..(y + 3) * w3]);
                         for (i, (s, &v)) in a.chunks_exact_mut(8).zip(row).enumerate() {
                             let d = v as f64 - c;
                             let d2 = d * d;
@@ -248,6 +305,8 @@ impl Accumulator {
             exposure_s: info.exposure_s,
             width: self.w,
             height: self.h,
+            full_height: info.height,
+            rows: self.rows.clone(),
             frames: self.n,
             scene: info.scene.clone(),
             mean,
@@ -279,9 +338,10 @@ impl Accumulator {
                 r2[i % 3] += a[1] - n * m * m;
                 r4[i % 3] += a[3] - 4.0 * m * a[2] + 6.0 * m * m * a[1] - 3.0 * n * m.powi(4);
                 let x = (i % w3) / 3;
+                let r = i / w3;
                 let partner = [
-                    (i + w3 < nv).then_some(i + w3),
-                    (i + 2 * w3 < nv).then_some(i + 2 * w3),
+                    adjacent(&self.rows, r, 1).then_some(i + w3),
+                    adjacent(&self.rows, r, 2).then_some(i + 2 * w3),
                     (x + 1 < self.w).then_some(i + 3),
                     (x + 2 < self.w).then_some(i + 6),
                 ];
@@ -356,10 +416,10 @@ fn fixed_residual(s: &mut Summary, surface: bool) {
     let mut base = s.mean.clone();
     if surface {
         for c in 0..3 {
-            let coef = quadratic_fit(&base, w, h, c);
+            let coef = quadratic_fit(s, &base, c);
             for y in 0..h {
                 for x in 0..w {
-                    base[(y * w + x) * 3 + c] -= quadratic_eval(&coef, x, y, w, h);
+                    base[(y * w + x) * 3 + c] -= quadratic_eval(&coef, s.xy(x, y));
                 }
             }
         }
@@ -426,26 +486,22 @@ pub fn normalised_xy(x: usize, y: usize, w: usize, h: usize) -> (f64, f64) {
     )
 }
 
-fn quad_terms(x: usize, y: usize, w: usize, h: usize) -> [f64; 6] {
-    let (u, v) = normalised_xy(x, y, w, h);
+fn quad_terms((u, v): (f64, f64)) -> [f64; 6] {
     [1.0, u, v, u * u, u * v, v * v]
 }
 
-fn quadratic_eval(c: &[f64; 6], x: usize, y: usize, w: usize, h: usize) -> f64 {
-    quad_terms(x, y, w, h)
-        .iter()
-        .zip(c)
-        .map(|(a, b)| a * b)
-        .sum()
+fn quadratic_eval(c: &[f64; 6], uv: (f64, f64)) -> f64 {
+    quad_terms(uv).iter().zip(c).map(|(a, b)| a * b).sum()
 }
 
-/// Least-squares quadratic surface of channel `c`.
-fn quadratic_fit(m: &[f64], w: usize, h: usize, c: usize) -> [f64; 6] {
+/// Least-squares quadratic surface of channel `c` of `m` (laid out like `s.mean`).
+fn quadratic_fit(s: &Summary, m: &[f64], c: usize) -> [f64; 6] {
+    let (w, h) = (s.width, s.height);
     let mut a = [[0.0; 6]; 6];
     let mut b = [0.0; 6];
     for y in 0..h {
         for x in 0..w {
-            let t = quad_terms(x, y, w, h);
+            let t = quad_terms(s.xy(x, y));
             let v = m[(y * w + x) * 3 + c];
             for i in 0..6 {
                 b[i] += t[i] * v;

@@ -52,7 +52,7 @@ pub fn radial_k(s: &Summary, black: f64) -> f64 {
                 continue;
             }
             let v = (s.mean[i] + s.mean[i + 1] + s.mean[i + 2]) / 3.0 - black;
-            let (u, t) = normalised_xy(x, y, w, h);
+            let (u, t) = s.xy(x, y);
             let r2 = u * u + t * t;
             n += 1.0;
             sx += r2;
