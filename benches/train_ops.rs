@@ -3,7 +3,8 @@
 //! gradient on an autodiff device, then the other op kinds of the step (BatchNorm, ReLU,
 //! max-pool, concatenation) at their largest shape. The backward costs are the differences.
 //! Plain timings (median of `HDRSYNTH_BENCH_REPS`, default 3, after one warm-up), on the backend
-//! named by `HDRSYNTH_BENCH_BACKEND` (default flex):
+//! named by `HDRSYNTH_BENCH_BACKEND` (default flex); the convolutions go through the networks'
+//! `models::conv::conv2d_op`, or Burn's `conv2d` with `HDRSYNTH_BENCH_CONV=burn`:
 //!     cargo bench --bench train_ops
 
 #[path = "../tests/common/mod.rs"]
@@ -15,6 +16,7 @@ use burn::nn::{BatchNormConfig, Relu};
 use burn::tensor::module::{conv_transpose2d, conv2d};
 use burn::tensor::ops::{ConvOptions, ConvTransposeOptions};
 use burn::tensor::{Device, Tensor, TensorData};
+use hdrsynth::models::conv::conv2d_op;
 use std::time::Instant;
 
 const BATCH: usize = 4;
@@ -59,6 +61,8 @@ fn main() {
         .ok()
         .and_then(|v| v.parse().ok())
         .unwrap_or(3);
+    // `HDRSYNTH_BENCH_CONV=burn`: Burn's conv2d instead of the networks' (src/models/conv.rs).
+    let burn_conv = std::env::var("HDRSYNTH_BENCH_CONV").is_ok_and(|v| v == "burn");
     let dev = hdrsynth::device::device_from_name(&backend)
         .expect("backend")
         .autodiff();
@@ -128,7 +132,10 @@ fn main() {
         count: 1,
     });
 
-    println!("Network-1 ops on {backend}, batch {BATCH}, median of {reps} (seconds per op call)");
+    println!(
+        "Network-1 ops on {backend} ({} conv2d), batch {BATCH}, median of {reps} (seconds per op call)",
+        if burn_conv { "Burn's" } else { "the networks'" }
+    );
     println!("| op | in→out | size | × | forward | input grad | weight grad | total × count |");
     println!("|---|---|---|---|---|---|---|---|");
     let mut sum = [0.0f64; 3];
@@ -149,12 +156,12 @@ fn main() {
                     ConvTransposeOptions::new([2, 2], [0, 0], [0, 0], [1, 1], 1),
                 )
             } else {
-                conv2d(
-                    x,
-                    wt,
-                    None,
-                    ConvOptions::new([1, 1], [c.k / 2, c.k / 2], [1, 1], 1),
-                )
+                let options = ConvOptions::new([1, 1], [c.k / 2, c.k / 2], [1, 1], 1);
+                if burn_conv {
+                    conv2d(x, wt, None, options)
+                } else {
+                    conv2d_op(x, wt, None, options)
+                }
             }
         };
         let fwd = time(reps, || sync(run(x.clone(), wt.clone())));

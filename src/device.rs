@@ -58,6 +58,16 @@ pub fn is_cpu(device: &Device) -> bool {
     false
 }
 
+/// Whether `device` is flex (with or without autodiff).
+pub fn is_flex(device: &Device) -> bool {
+    #[cfg(feature = "flex")]
+    if device.clone().without_autodiff() == Device::flex() {
+        return true;
+    }
+    let _ = device;
+    false
+}
+
 pub fn compiled_backends() -> Vec<&'static str> {
     let mut v = Vec::new();
     if cfg!(feature = "flex") {
