@@ -95,7 +95,7 @@ pub(crate) mod flex {
             weight: FloatTensor<Self>,
             options: ConvOptions<2>,
         ) -> FloatTensor<Self> {
-            Flex::conv2d(x, weight, None, options)
+            forward(x, weight, options)
         }
     }
 
@@ -147,15 +147,12 @@ pub(crate) mod flex {
                     let weight_state = prep.checkpoint(&weight);
                     prep.finish(
                         (x_state, weight_state, options.clone()),
-                        Flex::conv2d(x.into_primitive(), weight.into_primitive(), None, options),
+                        forward(x.into_primitive(), weight.into_primitive(), options),
                     )
                 }
-                OpsKind::UnTracked(prep) => prep.finish(Flex::conv2d(
-                    x.into_primitive(),
-                    weight.into_primitive(),
-                    None,
-                    options,
-                )),
+                OpsKind::UnTracked(prep) => {
+                    prep.finish(forward(x.into_primitive(), weight.into_primitive(), options))
+                }
             }
         }
     }
@@ -166,6 +163,39 @@ pub(crate) mod flex {
             weight.into_dispatch(),
             options,
         ))
+    }
+
+    /// `Flex::conv2d(x, weight, None, options)` by [`forward_f32`]; flex's own for other dtypes
+    /// and grouped convolutions.
+    pub fn forward(
+        x: FloatTensor<Flex>,
+        weight: FloatTensor<Flex>,
+        options: ConvOptions<2>,
+    ) -> FloatTensor<Flex> {
+        if x.dtype() != DType::F32 || weight.dtype() != DType::F32 || options.groups != 1 {
+            return Flex::conv2d(x, weight, None, options);
+        }
+        let xs: [usize; 4] = x.shape().dims();
+        let ws: [usize; 4] = weight.shape().dims();
+        let out = |i: usize| {
+            let (begin, end) = options.padding[i];
+            let span = options.dilation[i] * (ws[2 + i] - 1) + 1;
+            (xs[2 + i] + begin + end).saturating_sub(span) / options.stride[i] + 1
+        };
+        let (ho, wo) = (out(0), out(1));
+        let (x, weight) = (x.to_contiguous(), weight.to_contiguous());
+        let y = forward_f32(
+            x.storage::<f32>(),
+            xs,
+            weight.storage::<f32>(),
+            ws,
+            [ho, wo],
+            &options,
+        );
+        Flex::float_from_data(
+            TensorData::new(y, Shape::from(vec![xs[0], ws[0], ho, wo])),
+            &Default::default(),
+        )
     }
 
     /// Bytes of one im2col tile (c_in·kh·kw rows × tile columns): small enough to stay in L2/L3
@@ -203,6 +233,117 @@ pub(crate) mod flex {
         )
     }
 
+    /// One tile of the im2col matrix of one image `xb` ([C_in, H, W]): output rows oh0.. (as many
+    /// as `col` holds, `col.len() / (C_in·kh·kw·wo)`), each of `wo` columns:
+    /// col[(ci, i, j), (oh, ow)] = x[ci, oh·sh + i·dh − pt, ow·sw + j·dw − pl], or 0 outside x.
+    fn im2col(
+        xb: &[f32],
+        [cin, h, w]: [usize; 3],
+        [kh, kw]: [usize; 2],
+        options: &ConvOptions<2>,
+        wo: usize,
+        oh0: usize,
+        col: &mut [f32],
+    ) {
+        let [sh, sw] = options.stride;
+        let [dh, dw] = options.dilation;
+        let [pt, pl] = options.padding_begin();
+        let t = col.len() / (cin * kh * kw);
+        col.par_chunks_mut(t).enumerate().for_each(|(r, row)| {
+            let (ci, i, j) = (r / (kh * kw), (r / kw) % kh, r % kw);
+            let plane = &xb[ci * h * w..(ci + 1) * h * w];
+            for (lo, out) in row.chunks_mut(wo).enumerate() {
+                let ih = ((oh0 + lo) * sh + i * dh) as isize - pt as isize;
+                if ih < 0 || ih >= h as isize {
+                    out.fill(0.0);
+                    continue;
+                }
+                let src = &plane[ih as usize * w..(ih as usize + 1) * w];
+                if sw == 1 {
+                    // A shifted copy of one input row with zeros outside it.
+                    let off = (j * dw) as isize - pl as isize;
+                    let lo = (-off).clamp(0, wo as isize) as usize;
+                    let hi = (w as isize - off).clamp(lo as isize, wo as isize) as usize;
+                    out[..lo].fill(0.0);
+                    let s0 = (lo as isize + off) as usize;
+                    out[lo..hi].copy_from_slice(&src[s0..s0 + hi - lo]);
+                    out[hi..].fill(0.0);
+                    continue;
+                }
+                for (ow, v) in out.iter_mut().enumerate() {
+                    let iw = (ow * sw + j * dw) as isize - pl as isize;
+                    *v = if iw >= 0 && iw < w as isize {
+                        src[iw as usize]
+                    } else {
+                        0.0
+                    };
+                }
+            }
+        });
+    }
+
+    /// Output rows per im2col tile: whole rows, about [`TILE_BYTES`].
+    fn tile_rows(rows: usize, wo: usize, ho: usize) -> usize {
+        (TILE_BYTES / 4 / rows.max(1) / wo.max(1)).clamp(1, ho.max(1))
+    }
+
+    /// The forward convolution (no bias, one group) on row-major slices by the same im2col
+    /// tiles: Y_b[co, tile] = W[co, (ci, i, j)] · col; `x` is [B, C_in, H, W], `w` is
+    /// [C_out, C_in, kh, kw]; returns Y as [B, C_out, H_out, W_out].
+    pub fn forward_f32(
+        x: &[f32],
+        xs: [usize; 4],
+        wt: &[f32],
+        ws: [usize; 4],
+        [ho, wo]: [usize; 2],
+        options: &ConvOptions<2>,
+    ) -> Vec<f32> {
+        let [batch, cin, h, w] = xs;
+        let [cout, _, kh, kw] = ws;
+        let rows = cin * kh * kw;
+        let p_all = ho * wo;
+        let mut y = vec![0.0f32; batch * cout * p_all];
+        if rows == 0 || p_all == 0 || cout == 0 {
+            return y;
+        }
+        let tile_rows = tile_rows(rows, wo, ho);
+        let mut col = vec![0.0f32; rows * tile_rows * wo];
+        for b in 0..batch {
+            let xb = &x[b * cin * h * w..(b + 1) * cin * h * w];
+            let yb = &mut y[b * cout * p_all..(b + 1) * cout * p_all];
+            for oh0 in (0..ho).step_by(tile_rows) {
+                let t = tile_rows.min(ho - oh0) * wo;
+                let col = &mut col[..rows * t];
+                im2col(xb, [cin, h, w], [kh, kw], options, wo, oh0, col);
+                // SAFETY: all strides and extents index inside `yb`, `wt` and `col`.
+                unsafe {
+                    gemm::gemm(
+                        cout,
+                        t,
+                        rows,
+                        yb.as_mut_ptr().add(oh0 * wo),
+                        1,
+                        p_all as isize,
+                        false,
+                        wt.as_ptr(),
+                        1,
+                        rows as isize,
+                        col.as_ptr(),
+                        1,
+                        t as isize,
+                        0.0,
+                        1.0,
+                        false,
+                        false,
+                        false,
+                        gemm::Parallelism::Rayon(0),
+                    );
+                }
+            }
+        }
+        y
+    }
+
     /// The kernel of [`weight_grad`] on row-major slices: `x` is [B, C_in, H, W], `dy` is
     /// [B, C_out, H_out, W_out]; returns dW as [C_out, C_in, kh, kw].
     pub fn weight_grad_f32(
@@ -216,17 +357,13 @@ pub(crate) mod flex {
         let [batch, cin, h, w] = xs;
         let [_, cout, ho, wo] = ys;
         let [kh, kw] = k;
-        let [sh, sw] = options.stride;
-        let [dh, dw] = options.dilation;
-        let [pt, pl] = options.padding_begin();
         let rows = cin * kh * kw;
         let p_all = ho * wo;
         let mut dw_out = vec![0.0f32; cout * rows];
         if rows == 0 || p_all == 0 || cout == 0 {
             return dw_out;
         }
-        // Whole output rows per tile keep each im2col row a run of full output rows.
-        let tile_rows = (TILE_BYTES / 4 / rows / wo).clamp(1, ho);
+        let tile_rows = tile_rows(rows, wo, ho);
         let mut col = vec![0.0f32; rows * tile_rows * wo];
         let mut first = true;
         for b in 0..batch {
@@ -236,38 +373,7 @@ pub(crate) mod flex {
                 let nrows = tile_rows.min(ho - oh0);
                 let t = nrows * wo;
                 let col = &mut col[..rows * t];
-                // col[(ci, i, j), (oh, ow)] = x[ci, oh·sh + i·dh − pt, ow·sw + j·dw − pl] or 0.
-                col.par_chunks_mut(t).enumerate().for_each(|(r, row)| {
-                    let (ci, i, j) = (r / (kh * kw), (r / kw) % kh, r % kw);
-                    let plane = &xb[ci * h * w..(ci + 1) * h * w];
-                    for (lo, out) in row.chunks_mut(wo).enumerate() {
-                        let ih = ((oh0 + lo) * sh + i * dh) as isize - pt as isize;
-                        if ih < 0 || ih >= h as isize {
-                            out.fill(0.0);
-                            continue;
-                        }
-                        let src = &plane[ih as usize * w..(ih as usize + 1) * w];
-                        if sw == 1 {
-                            // A shifted copy of one input row with zeros outside it.
-                            let off = (j * dw) as isize - pl as isize;
-                            let lo = (-off).clamp(0, wo as isize) as usize;
-                            let hi = (w as isize - off).clamp(lo as isize, wo as isize) as usize;
-                            out[..lo].fill(0.0);
-                            let s0 = (lo as isize + off) as usize;
-                            out[lo..hi].copy_from_slice(&src[s0..s0 + hi - lo]);
-                            out[hi..].fill(0.0);
-                            continue;
-                        }
-                        for (ow, v) in out.iter_mut().enumerate() {
-                            let iw = (ow * sw + j * dw) as isize - pl as isize;
-                            *v = if iw >= 0 && iw < w as isize {
-                                src[iw as usize]
-                            } else {
-                                0.0
-                            };
-                        }
-                    }
-                });
+                im2col(xb, [cin, h, w], k, options, wo, oh0, col);
                 // dW[co, r] (+)= Σ_p dY[co, oh0·wo + p] · col[r, p]: M = c_out, N = rows, K = t.
                 // SAFETY: all strides and extents index inside `dw_out`, `yb` and `col`.
                 unsafe {
