@@ -225,9 +225,7 @@ fn main() {
     });
     let cat_fb = time(reps, || {
         let xg = x.clone().require_grad();
-        let grads = Tensor::cat(vec![xg.clone(), x.clone()], 1)
-            .sum()
-            .backward();
+        let grads = Tensor::cat(vec![xg.clone(), x.clone()], 1).sum().backward();
         sync(xg.grad(&grads).expect("grad"));
     });
     let sum_fb = time(reps, || {
@@ -235,7 +233,9 @@ fn main() {
         let grads = xg.clone().sum().backward();
         sync(xg.grad(&grads).expect("grad"));
     });
-    println!("\nOther ops at 32×128² (batch {BATCH}); `+ backward` includes a sum and its backward");
+    println!(
+        "\nOther ops at 32×128² (batch {BATCH}); `+ backward` includes a sum and its backward"
+    );
     println!("| op | forward | forward + backward |");
     println!("|---|---|---|");
     println!("| BatchNorm (training) | {bn_f:.4} | {bn_fb:.4} |");

@@ -30,19 +30,11 @@ fn vec(t: Tensor<4>) -> Vec<f32> {
 }
 
 /// (output, dL/dx, dL/dW, dL/db) of Σ (y ⊙ r) for a fixed r, through `ours` or Burn's conv2d.
-fn grads(
-    ours: bool,
-    x: &Tensor<4>,
-    w: &Tensor<4>,
-    options: &ConvOptions<2>,
-) -> [Vec<f32>; 4] {
+fn grads(ours: bool, x: &Tensor<4>, w: &Tensor<4>, options: &ConvOptions<2>) -> [Vec<f32>; 4] {
     let (x, w) = (x.clone().require_grad(), w.clone().require_grad());
     let cout = w.dims()[0];
-    let b = Tensor::<1>::from_data(
-        TensorData::new(common::values(cout, 9), [cout]),
-        &dev(),
-    )
-    .require_grad();
+    let b = Tensor::<1>::from_data(TensorData::new(common::values(cout, 9), [cout]), &dev())
+        .require_grad();
     let y = if ours {
         conv2d_op(x.clone(), w.clone(), Some(b.clone()), options.clone())
     } else {
@@ -54,7 +46,11 @@ fn grads(
         vec(y),
         vec(x.grad(&g).expect("dx")),
         vec(w.grad(&g).expect("dw")),
-        b.grad(&g).expect("db").into_data().try_to_vec::<f32>().expect("f32"),
+        b.grad(&g)
+            .expect("db")
+            .into_data()
+            .try_to_vec::<f32>()
+            .expect("f32"),
     ]
 }
 
@@ -68,7 +64,12 @@ fn weight_gradient_by_hand() {
     );
     let w = Tensor::<4>::from_data(TensorData::new(vec![0.0f32; 4], [1, 1, 2, 2]), &dev())
         .require_grad();
-    let y = conv2d_op(x, w.clone(), None, ConvOptions::new([1, 1], [0, 0], [1, 1], 1));
+    let y = conv2d_op(
+        x,
+        w.clone(),
+        None,
+        ConvOptions::new([1, 1], [0, 0], [1, 1], 1),
+    );
     let g = y.sum().backward();
     assert_eq!(vec(w.grad(&g).expect("dw")), vec![12.0, 16.0, 24.0, 28.0]);
 }

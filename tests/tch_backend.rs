@@ -59,7 +59,10 @@ fn check<T: Task>(name: &str, task: &T, batch: &[Sample]) {
     let b = losses(task, batch, 4);
     assert_eq!(a, b, "{name}: two seeded runs on tch differ");
     assert!(a.iter().all(|l| l.is_finite()), "{name}: {a:?}");
-    assert!(a[3] < a[0], "{name}: the loss did not fall on a fixed batch: {a:?}");
+    assert!(
+        a[3] < a[0],
+        "{name}: the loss did not fall on a fixed batch: {a:?}"
+    );
 }
 
 #[test]

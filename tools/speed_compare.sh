@@ -19,7 +19,9 @@ echo "machine: $(nproc) cores, $(uname -m); load before: $(cut -d' ' -f1-3 /proc
 RAYON_NUM_THREADS=$THREADS cargo bench --bench train_step 2>&1 | grep -E "s/step|time:" | tee "$log/burn"
 if [ -n "${TCH_PY:-}" ]; then
   # LibTorch's intra-op threads follow OMP_NUM_THREADS / torch's default; pin them like PyTorch's.
+  TORCH_LIB=$("$TCH_PY" -c 'import os, torch; print(os.path.join(os.path.dirname(torch.__file__), "lib"))')
   PATH="$(dirname "$TCH_PY"):$PATH" LIBTORCH_USE_PYTORCH=1 OMP_NUM_THREADS=$THREADS \
+    LD_LIBRARY_PATH="$TORCH_LIB${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}" \
     HDRSYNTH_BENCH_BACKEND=tch cargo bench --features tch --bench train_step 2>&1 \
     | grep -E "s/step|time:" | tee "$log/tch"
 fi

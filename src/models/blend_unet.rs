@@ -24,8 +24,8 @@
 //! on an autodiff device, and the running statistics otherwise; call `model.valid()` for
 //! inference on an autodiff device.
 
-use crate::error::{Error, Result};
 use super::conv::conv2d;
+use crate::error::{Error, Result};
 use burn::module::Module;
 use burn::nn::conv::{Conv2d, Conv2dConfig, ConvTranspose2d, ConvTranspose2dConfig};
 use burn::nn::pool::{MaxPool2d, MaxPool2dConfig};

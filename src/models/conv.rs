@@ -1,4 +1,4 @@
-//! 2D convolution for the networks' layers, with a faster weight gradient on flex (issue 18).
+//! 2D convolution for the networks' layers, faster on flex (issue 18).
 //!
 //! Burn 0.22's default weight gradient (`burn-backend`'s `conv2d_weight_backward`, which flex
 //! inherits) is itself a convolution: x with batch and channels swapped, by the output gradient
@@ -6,21 +6,23 @@
 //! kh·kw output columns (9 for a 3×3 kernel) that re-packs the whole output gradient each time,
 //! so the weight gradient cost 1.5–3× the forward pass (`cargo bench --bench train_ops`).
 //! Here, on flex, it is the usual lowering instead: dW[co, (ci, i, j)] = Σ_b Σ_p dY_b[co, p] ·
-//! col_b[(ci, i, j), p], one GEMM per batch item and tile of output positions (M = c_out,
-//! N = c_in·kh·kw, K = the tile), accumulated in a fixed order, so results stay bit-for-bit
-//! deterministic for a fixed thread count. Forward and input gradient are flex's own.
+//! col_b[(ci, i, j), p], one GEMM per batch item and tile of output rows (M = c_out,
+//! N = c_in·kh·kw, K = the tile). The forward pass uses the same im2col tiles (Y_b = W · col,
+//! written straight into the NCHW output, no NHWC round trip); the input gradient is flex's own
+//! transposed convolution. Sums run in a fixed order (tiles and batch items in sequence, the
+//! GEMM splits its output, never its K), so results are bit-for-bit repeatable.
 //!
 //! It is a Burn backend extension (`#[backend_extension]`) with a hand-written autodiff step;
-//! other backends (tch, wgpu, cuda, ndarray) run Burn's `Conv2d::forward` unchanged. The
-//! weight-gradient kernel is written against flex's tensor type only, so it could be offered
-//! upstream as flex's `conv2d_weight_backward`.
+//! other backends (tch, wgpu, cuda, ndarray) run Burn's conv2d unchanged. The kernels take flex
+//! tensors and slices only, so they could be offered upstream as flex's `conv2d` and
+//! `conv2d_weight_backward`.
 
 use burn::nn::PaddingConfig2d;
 use burn::nn::conv::Conv2d;
 use burn::tensor::Tensor;
 use burn::tensor::ops::ConvOptions;
 
-/// `conv.forward(x)`, with the weight gradient above when `x` lives on flex.
+/// `conv.forward(x)`, through the kernels above when `x` lives on flex.
 pub fn conv2d(conv: &Conv2d, x: Tensor<4>) -> Tensor<4> {
     let ((top, bottom), (left, right)) = match conv.padding {
         PaddingConfig2d::Valid => ((0, 0), (0, 0)),
@@ -42,8 +44,8 @@ pub fn conv2d(conv: &Conv2d, x: Tensor<4>) -> Tensor<4> {
     )
 }
 
-/// `burn::tensor::module::conv2d`, with the weight gradient above when `x` lives on flex and
-/// the convolution has one group.
+/// `burn::tensor::module::conv2d`, through the kernels above when `x` lives on flex and the
+/// convolution has one group.
 pub fn conv2d_op(
     x: Tensor<4>,
     weight: Tensor<4>,
@@ -67,11 +69,11 @@ pub fn conv2d_op(
 #[cfg(feature = "flex")]
 pub(crate) mod flex {
     use burn::backend::autodiff::Autodiff;
+    use burn::backend::autodiff::NodeId;
     use burn::backend::autodiff::checkpoint::base::Checkpointer;
     use burn::backend::autodiff::checkpoint::strategy::CheckpointStrategy;
     use burn::backend::autodiff::grads::Gradients;
     use burn::backend::autodiff::ops::{Backward, Ops, OpsKind};
-    use burn::backend::autodiff::NodeId;
     use burn::backend::ops::{FloatTensorOps, ModuleOps};
     use burn::backend::tensor::FloatTensor;
     use burn::backend::{Dispatch, Flex, TensorMetadata, backend_extension};
@@ -79,7 +81,7 @@ pub(crate) mod flex {
     use burn::tensor::{DType, Shape, Tensor, TensorData};
     use rayon::prelude::*;
 
-    /// Conv2d without bias whose autodiff step uses [`weight_grad`].
+    /// Conv2d without bias by [`forward`], whose autodiff step uses [`weight_grad`].
     #[backend_extension(Flex, Autodiff)]
     pub trait FlexConv: burn::backend::Backend {
         fn conv2d_fast_wgrad(
@@ -150,9 +152,11 @@ pub(crate) mod flex {
                         forward(x.into_primitive(), weight.into_primitive(), options),
                     )
                 }
-                OpsKind::UnTracked(prep) => {
-                    prep.finish(forward(x.into_primitive(), weight.into_primitive(), options))
-                }
+                OpsKind::UnTracked(prep) => prep.finish(forward(
+                    x.into_primitive(),
+                    weight.into_primitive(),
+                    options,
+                )),
             }
         }
     }

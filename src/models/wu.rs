@@ -27,8 +27,8 @@
 //! 0.9, Burn momentum 0.1) when the input lives on an autodiff device, the running statistics
 //! otherwise; call `model.valid()` for inference on an autodiff device.
 
-use crate::error::{Error, Result};
 use super::conv::conv2d;
+use crate::error::{Error, Result};
 use burn::module::Module;
 use burn::nn::conv::{Conv2d, Conv2dConfig, ConvTranspose2d, ConvTranspose2dConfig};
 use burn::nn::{BatchNorm, BatchNormConfig, Initializer, PaddingConfig2d};
