@@ -5,7 +5,8 @@
 use crate::error::{Error, Result};
 pub use burn::tensor::Device;
 
-/// Names accepted: "flex" (default CPU), "ndarray", "wgpu", "cuda" / "cuda:N".
+/// Names accepted: "flex" (default CPU), "ndarray", "tch" / "libtorch" (LibTorch CPU), "wgpu",
+/// "cuda" / "cuda:N".
 pub fn device_from_name(name: &str) -> Result<Device> {
     let (kind, index) = match name.split_once(':') {
         Some((k, i)) => (
@@ -22,6 +23,9 @@ pub fn device_from_name(name: &str) -> Result<Device> {
         #[cfg(feature = "ndarray")]
         #[allow(deprecated)]
         "ndarray" => Ok(Device::ndarray()),
+        #[cfg(feature = "tch")]
+        #[allow(deprecated)]
+        "tch" | "libtorch" => Ok(Device::libtorch()),
         #[cfg(feature = "wgpu")]
         "wgpu" => Ok(Device::wgpu(burn::tensor::DeviceKind::DefaultDevice)),
         #[cfg(feature = "cuda")]
@@ -34,7 +38,7 @@ pub fn device_from_name(name: &str) -> Result<Device> {
     }
 }
 
-/// Whether `device` computes on the host CPU (flex or ndarray).
+/// Whether `device` computes on the host CPU (flex, ndarray or LibTorch's CPU device).
 pub fn is_cpu(device: &Device) -> bool {
     let plain = device.clone().without_autodiff();
     #[cfg(feature = "flex")]
@@ -46,6 +50,21 @@ pub fn is_cpu(device: &Device) -> bool {
     if plain == Device::ndarray() {
         return true;
     }
+    #[cfg(feature = "tch")]
+    #[allow(deprecated)]
+    if plain == Device::libtorch() {
+        return true;
+    }
+    false
+}
+
+/// Whether `device` is flex (with or without autodiff).
+pub fn is_flex(device: &Device) -> bool {
+    #[cfg(feature = "flex")]
+    if device.clone().without_autodiff() == Device::flex() {
+        return true;
+    }
+    let _ = device;
     false
 }
 
@@ -56,6 +75,9 @@ pub fn compiled_backends() -> Vec<&'static str> {
     }
     if cfg!(feature = "ndarray") {
         v.push("ndarray");
+    }
+    if cfg!(feature = "tch") {
+        v.push("tch");
     }
     if cfg!(feature = "wgpu") {
         v.push("wgpu");

@@ -24,6 +24,7 @@
 //! on an autodiff device, and the running statistics otherwise; call `model.valid()` for
 //! inference on an autodiff device.
 
+use super::conv::conv2d;
 use crate::error::{Error, Result};
 use burn::module::Module;
 use burn::nn::conv::{Conv2d, Conv2dConfig, ConvTranspose2d, ConvTranspose2dConfig};
@@ -211,12 +212,12 @@ impl ConvBlock {
     }
 
     fn forward(&self, x: Tensor<4>) -> Tensor<4> {
-        let mut x = self.conv1.forward(x);
+        let mut x = conv2d(&self.conv1, x);
         if let Some(n) = &self.norm1 {
             x = n.forward(x);
         }
         x = self.relu.forward(x);
-        x = self.conv2.forward(x);
+        x = conv2d(&self.conv2, x);
         if let Some(n) = &self.norm2 {
             x = n.forward(x);
         }
@@ -298,7 +299,7 @@ impl BlendUNet {
             let skip = skips.pop().expect("one skip per decoder level");
             x = up.forward(x, skip);
         }
-        self.head.forward(x)
+        conv2d(&self.head, x)
     }
 
     /// Class probabilities [B, classes, H, W] (softmax of the logits over dim 1).

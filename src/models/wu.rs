@@ -27,6 +27,7 @@
 //! 0.9, Burn momentum 0.1) when the input lives on an autodiff device, the running statistics
 //! otherwise; call `model.valid()` for inference on an autodiff device.
 
+use super::conv::conv2d;
 use crate::error::{Error, Result};
 use burn::module::Module;
 use burn::nn::conv::{Conv2d, Conv2dConfig, ConvTranspose2d, ConvTranspose2dConfig};
@@ -441,7 +442,7 @@ pub fn conv_same(conv: &Conv2d, x: Tensor<4>) -> Tensor<4> {
     let [_, _, h, w] = x.dims();
     let pv = same_padding(h, conv.kernel_size[0], conv.stride[0]);
     let ph = same_padding(w, conv.kernel_size[1], conv.stride[1]);
-    conv.forward(reflect_pad(x, pv, ph))
+    conv2d(conv, reflect_pad(x, pv, ph))
 }
 
 /// A 5×5 stride-2 transposed convolution to exactly twice the input size, built with

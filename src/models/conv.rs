@@ -1,0 +1,411 @@
+//! 2D convolution for the networks' layers, faster on flex (issue 18).
+//!
+//! Burn 0.22's default weight gradient (`burn-backend`'s `conv2d_weight_backward`, which flex
+//! inherits) is itself a convolution: x with batch and channels swapped, by the output gradient
+//! as a kernel as large as the image. On flex that becomes one GEMM per input channel with N =
+//! kh·kw output columns (9 for a 3×3 kernel) that re-packs the whole output gradient each time,
+//! so the weight gradient cost 1.5–3× the forward pass (`cargo bench --bench train_ops`).
+//! Here, on flex, it is the usual lowering instead: dW[co, (ci, i, j)] = Σ_b Σ_p dY_b[co, p] ·
+//! col_b[(ci, i, j), p], one GEMM per batch item and tile of output rows (M = c_out,
+//! N = c_in·kh·kw, K = the tile). The forward pass uses the same im2col tiles (Y_b = W · col,
+//! written straight into the NCHW output, no NHWC round trip); the input gradient is flex's own
+//! transposed convolution. Sums run in a fixed order (tiles and batch items in sequence, the
+//! GEMM splits its output, never its K), so results are bit-for-bit repeatable.
+//!
+//! It is a Burn backend extension (`#[backend_extension]`) with a hand-written autodiff step;
+//! other backends (tch, wgpu, cuda, ndarray) run Burn's conv2d unchanged. The kernels take flex
+//! tensors and slices only, so they could be offered upstream as flex's `conv2d` and
+//! `conv2d_weight_backward`.
+
+use burn::nn::PaddingConfig2d;
+use burn::nn::conv::Conv2d;
+use burn::tensor::Tensor;
+use burn::tensor::ops::ConvOptions;
+
+/// `conv.forward(x)`, through the kernels above when `x` lives on flex.
+pub fn conv2d(conv: &Conv2d, x: Tensor<4>) -> Tensor<4> {
+    let ((top, bottom), (left, right)) = match conv.padding {
+        PaddingConfig2d::Valid => ((0, 0), (0, 0)),
+        PaddingConfig2d::Explicit(top, left, bottom, right) => ((top, bottom), (left, right)),
+        // `Same` depends on the input size; the networks do not use it.
+        PaddingConfig2d::Same => return conv.forward(x),
+    };
+    let options = ConvOptions::new_with_padding(
+        conv.stride,
+        [(top, bottom), (left, right)],
+        conv.dilation,
+        conv.groups,
+    );
+    conv2d_op(
+        x,
+        conv.weight.val(),
+        conv.bias.as_ref().map(|b| b.val()),
+        options,
+    )
+}
+
+/// `burn::tensor::module::conv2d`, through the kernels above when `x` lives on flex and the
+/// convolution has one group.
+pub fn conv2d_op(
+    x: Tensor<4>,
+    weight: Tensor<4>,
+    bias: Option<Tensor<1>>,
+    options: ConvOptions<2>,
+) -> Tensor<4> {
+    #[cfg(feature = "flex")]
+    if options.groups == 1 && crate::device::is_flex(&x.device()) {
+        let y = flex::conv2d(x, weight, options);
+        return match bias {
+            Some(b) => {
+                let c = b.dims()[0];
+                y + b.reshape([1, c, 1, 1])
+            }
+            None => y,
+        };
+    }
+    burn::tensor::module::conv2d(x, weight, bias, options)
+}
+
+#[cfg(feature = "flex")]
+pub(crate) mod flex {
+    use burn::backend::autodiff::Autodiff;
+    use burn::backend::autodiff::NodeId;
+    use burn::backend::autodiff::checkpoint::base::Checkpointer;
+    use burn::backend::autodiff::checkpoint::strategy::CheckpointStrategy;
+    use burn::backend::autodiff::grads::Gradients;
+    use burn::backend::autodiff::ops::{Backward, Ops, OpsKind};
+    use burn::backend::ops::{FloatTensorOps, ModuleOps};
+    use burn::backend::tensor::FloatTensor;
+    use burn::backend::{Dispatch, Flex, TensorMetadata, backend_extension};
+    use burn::tensor::ops::ConvOptions;
+    use burn::tensor::{DType, Shape, Tensor, TensorData};
+    use rayon::prelude::*;
+
+    /// Conv2d without bias by [`forward`], whose autodiff step uses [`weight_grad`].
+    #[backend_extension(Flex, Autodiff)]
+    pub trait FlexConv: burn::backend::Backend {
+        fn conv2d_fast_wgrad(
+            x: FloatTensor<Self>,
+            weight: FloatTensor<Self>,
+            options: ConvOptions<2>,
+        ) -> FloatTensor<Self>;
+    }
+
+    impl FlexConv for Flex {
+        fn conv2d_fast_wgrad(
+            x: FloatTensor<Self>,
+            weight: FloatTensor<Self>,
+            options: ConvOptions<2>,
+        ) -> FloatTensor<Self> {
+            forward(x, weight, options)
+        }
+    }
+
+    #[derive(Debug)]
+    struct Conv2dFastWgrad;
+
+    impl Backward<Flex, 2> for Conv2dFastWgrad {
+        type State = (NodeId, NodeId, ConvOptions<2>);
+
+        fn backward(
+            self,
+            ops: Ops<Self::State, 2>,
+            grads: &mut Gradients,
+            checkpointer: &mut Checkpointer,
+        ) {
+            let [node_x, node_weight] = ops.parents;
+            let grad = grads.consume::<Flex>(&ops.node);
+            let (x_state, weight_state, options) = ops.state;
+            let x = checkpointer.retrieve_node_output::<FloatTensor<Flex>>(x_state);
+            let weight = checkpointer.retrieve_node_output::<FloatTensor<Flex>>(weight_state);
+            if let Some(node) = node_x {
+                let g = Flex::conv2d_x_backward(
+                    x.clone(),
+                    weight.clone(),
+                    grad.clone(),
+                    options.clone(),
+                );
+                grads.register::<Flex>(node.id, g);
+            }
+            if let Some(node) = node_weight {
+                grads.register::<Flex>(node.id, weight_grad(x, weight, grad, options));
+            }
+        }
+    }
+
+    impl<C: CheckpointStrategy> FlexConv for Autodiff<Flex, C> {
+        fn conv2d_fast_wgrad(
+            x: FloatTensor<Self>,
+            weight: FloatTensor<Self>,
+            options: ConvOptions<2>,
+        ) -> FloatTensor<Self> {
+            match Conv2dFastWgrad
+                .prepare::<C>([x.node(), weight.node()])
+                .compute_bound()
+                .stateful()
+            {
+                OpsKind::Tracked(mut prep) => {
+                    let x_state = prep.checkpoint(&x);
+                    let weight_state = prep.checkpoint(&weight);
+                    prep.finish(
+                        (x_state, weight_state, options.clone()),
+                        forward(x.into_primitive(), weight.into_primitive(), options),
+                    )
+                }
+                OpsKind::UnTracked(prep) => prep.finish(forward(
+                    x.into_primitive(),
+                    weight.into_primitive(),
+                    options,
+                )),
+            }
+        }
+    }
+
+    pub(super) fn conv2d(x: Tensor<4>, weight: Tensor<4>, options: ConvOptions<2>) -> Tensor<4> {
+        Tensor::from_dispatch(<Dispatch as FlexConv>::conv2d_fast_wgrad(
+            x.into_dispatch(),
+            weight.into_dispatch(),
+            options,
+        ))
+    }
+
+    /// `Flex::conv2d(x, weight, None, options)` by [`forward_f32`]; flex's own for other dtypes
+    /// and grouped convolutions.
+    pub fn forward(
+        x: FloatTensor<Flex>,
+        weight: FloatTensor<Flex>,
+        options: ConvOptions<2>,
+    ) -> FloatTensor<Flex> {
+        if x.dtype() != DType::F32 || weight.dtype() != DType::F32 || options.groups != 1 {
+            return Flex::conv2d(x, weight, None, options);
+        }
+        let xs: [usize; 4] = x.shape().dims();
+        let ws: [usize; 4] = weight.shape().dims();
+        let out = |i: usize| {
+            let (begin, end) = options.padding[i];
+            let span = options.dilation[i] * (ws[2 + i] - 1) + 1;
+            (xs[2 + i] + begin + end).saturating_sub(span) / options.stride[i] + 1
+        };
+        let (ho, wo) = (out(0), out(1));
+        let (x, weight) = (x.to_contiguous(), weight.to_contiguous());
+        let y = forward_f32(
+            x.storage::<f32>(),
+            xs,
+            weight.storage::<f32>(),
+            ws,
+            [ho, wo],
+            &options,
+        );
+        Flex::float_from_data(
+            TensorData::new(y, Shape::from(vec![xs[0], ws[0], ho, wo])),
+            &Default::default(),
+        )
+    }
+
+    /// Bytes of one im2col tile (c_in·kh·kw rows × tile columns): small enough to stay in L2/L3
+    /// while the GEMM packs it, large enough for a K dimension of thousands on the networks'
+    /// layers.
+    const TILE_BYTES: usize = 8 << 20;
+
+    /// dL/dW of `conv2d(x, weight)` (no groups) from the output gradient `dy`, by im2col + GEMM.
+    /// Falls back to flex's own weight gradient for other dtypes and grouped convolutions.
+    pub fn weight_grad(
+        x: FloatTensor<Flex>,
+        weight: FloatTensor<Flex>,
+        dy: FloatTensor<Flex>,
+        options: ConvOptions<2>,
+    ) -> FloatTensor<Flex> {
+        if x.dtype() != DType::F32 || dy.dtype() != DType::F32 || options.groups != 1 {
+            return Flex::conv2d_weight_backward(x, weight, dy, options);
+        }
+        let ws: [usize; 4] = weight.shape().dims();
+        let xs: [usize; 4] = x.shape().dims();
+        let ys: [usize; 4] = dy.shape().dims();
+        let x = x.to_contiguous();
+        let dy = dy.to_contiguous();
+        let out = weight_grad_f32(
+            x.storage::<f32>(),
+            xs,
+            dy.storage::<f32>(),
+            ys,
+            [ws[2], ws[3]],
+            &options,
+        );
+        Flex::float_from_data(
+            TensorData::new(out, Shape::from(ws.to_vec())),
+            &Default::default(),
+        )
+    }
+
+    /// One tile of the im2col matrix of one image `xb` ([C_in, H, W]): output rows oh0.. (as many
+    /// as `col` holds, `col.len() / (C_in·kh·kw·wo)`), each of `wo` columns:
+    /// col[(ci, i, j), (oh, ow)] = x[ci, oh·sh + i·dh − pt, ow·sw + j·dw − pl], or 0 outside x.
+    fn im2col(
+        xb: &[f32],
+        [cin, h, w]: [usize; 3],
+        [kh, kw]: [usize; 2],
+        options: &ConvOptions<2>,
+        wo: usize,
+        oh0: usize,
+        col: &mut [f32],
+    ) {
+        let [sh, sw] = options.stride;
+        let [dh, dw] = options.dilation;
+        let [pt, pl] = options.padding_begin();
+        let t = col.len() / (cin * kh * kw);
+        col.par_chunks_mut(t).enumerate().for_each(|(r, row)| {
+            let (ci, i, j) = (r / (kh * kw), (r / kw) % kh, r % kw);
+            let plane = &xb[ci * h * w..(ci + 1) * h * w];
+            for (lo, out) in row.chunks_mut(wo).enumerate() {
+                let ih = ((oh0 + lo) * sh + i * dh) as isize - pt as isize;
+                if ih < 0 || ih >= h as isize {
+                    out.fill(0.0);
+                    continue;
+                }
+                let src = &plane[ih as usize * w..(ih as usize + 1) * w];
+                if sw == 1 {
+                    // A shifted copy of one input row with zeros outside it.
+                    let off = (j * dw) as isize - pl as isize;
+                    let lo = (-off).clamp(0, wo as isize) as usize;
+                    let hi = (w as isize - off).clamp(lo as isize, wo as isize) as usize;
+                    out[..lo].fill(0.0);
+                    let s0 = (lo as isize + off) as usize;
+                    out[lo..hi].copy_from_slice(&src[s0..s0 + hi - lo]);
+                    out[hi..].fill(0.0);
+                    continue;
+                }
+                for (ow, v) in out.iter_mut().enumerate() {
+                    let iw = (ow * sw + j * dw) as isize - pl as isize;
+                    *v = if iw >= 0 && iw < w as isize {
+                        src[iw as usize]
+                    } else {
+                        0.0
+                    };
+                }
+            }
+        });
+    }
+
+    /// Output rows per im2col tile: whole rows, about [`TILE_BYTES`].
+    fn tile_rows(rows: usize, wo: usize, ho: usize) -> usize {
+        (TILE_BYTES / 4 / rows.max(1) / wo.max(1)).clamp(1, ho.max(1))
+    }
+
+    /// The forward convolution (no bias, one group) on row-major slices by the same im2col
+    /// tiles: Y_b[co, tile] = W[co, (ci, i, j)] · col; `x` is [B, C_in, H, W], `w` is
+    /// [C_out, C_in, kh, kw]; returns Y as [B, C_out, H_out, W_out].
+    pub fn forward_f32(
+        x: &[f32],
+        xs: [usize; 4],
+        wt: &[f32],
+        ws: [usize; 4],
+        [ho, wo]: [usize; 2],
+        options: &ConvOptions<2>,
+    ) -> Vec<f32> {
+        let [batch, cin, h, w] = xs;
+        let [cout, _, kh, kw] = ws;
+        let rows = cin * kh * kw;
+        let p_all = ho * wo;
+        let mut y = vec![0.0f32; batch * cout * p_all];
+        if rows == 0 || p_all == 0 || cout == 0 {
+            return y;
+        }
+        let tile_rows = tile_rows(rows, wo, ho);
+        let mut col = vec![0.0f32; rows * tile_rows * wo];
+        for b in 0..batch {
+            let xb = &x[b * cin * h * w..(b + 1) * cin * h * w];
+            let yb = &mut y[b * cout * p_all..(b + 1) * cout * p_all];
+            for oh0 in (0..ho).step_by(tile_rows) {
+                let t = tile_rows.min(ho - oh0) * wo;
+                let col = &mut col[..rows * t];
+                im2col(xb, [cin, h, w], [kh, kw], options, wo, oh0, col);
+                // SAFETY: all strides and extents index inside `yb`, `wt` and `col`.
+                unsafe {
+                    gemm::gemm(
+                        cout,
+                        t,
+                        rows,
+                        yb.as_mut_ptr().add(oh0 * wo),
+                        1,
+                        p_all as isize,
+                        false,
+                        wt.as_ptr(),
+                        1,
+                        rows as isize,
+                        col.as_ptr(),
+                        1,
+                        t as isize,
+                        0.0,
+                        1.0,
+                        false,
+                        false,
+                        false,
+                        gemm::Parallelism::Rayon(0),
+                    );
+                }
+            }
+        }
+        y
+    }
+
+    /// The kernel of [`weight_grad`] on row-major slices: `x` is [B, C_in, H, W], `dy` is
+    /// [B, C_out, H_out, W_out]; returns dW as [C_out, C_in, kh, kw].
+    pub fn weight_grad_f32(
+        x: &[f32],
+        xs: [usize; 4],
+        dy: &[f32],
+        ys: [usize; 4],
+        k: [usize; 2],
+        options: &ConvOptions<2>,
+    ) -> Vec<f32> {
+        let [batch, cin, h, w] = xs;
+        let [_, cout, ho, wo] = ys;
+        let [kh, kw] = k;
+        let rows = cin * kh * kw;
+        let p_all = ho * wo;
+        let mut dw_out = vec![0.0f32; cout * rows];
+        if rows == 0 || p_all == 0 || cout == 0 {
+            return dw_out;
+        }
+        let tile_rows = tile_rows(rows, wo, ho);
+        let mut col = vec![0.0f32; rows * tile_rows * wo];
+        let mut first = true;
+        for b in 0..batch {
+            let xb = &x[b * cin * h * w..(b + 1) * cin * h * w];
+            let yb = &dy[b * cout * p_all..(b + 1) * cout * p_all];
+            for oh0 in (0..ho).step_by(tile_rows) {
+                let nrows = tile_rows.min(ho - oh0);
+                let t = nrows * wo;
+                let col = &mut col[..rows * t];
+                im2col(xb, [cin, h, w], k, options, wo, oh0, col);
+                // dW[co, r] (+)= Σ_p dY[co, oh0·wo + p] · col[r, p]: M = c_out, N = rows, K = t.
+                // SAFETY: all strides and extents index inside `dw_out`, `yb` and `col`.
+                unsafe {
+                    gemm::gemm(
+                        cout,
+                        rows,
+                        t,
+                        dw_out.as_mut_ptr(),
+                        1,
+                        rows as isize,
+                        !first,
+                        yb.as_ptr().add(oh0 * wo),
+                        1,
+                        p_all as isize,
+                        col.as_ptr(),
+                        t as isize,
+                        1,
+                        1.0,
+                        1.0,
+                        false,
+                        false,
+                        false,
+                        gemm::Parallelism::Rayon(0),
+                    );
+                }
+                first = false;
+            }
+        }
+        dw_out
+    }
+}

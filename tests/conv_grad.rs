@@ -1,0 +1,127 @@
+//! The networks' convolution (`models::conv`, issue 18): on flex its weight gradient is an
+//! im2col + GEMM of our own; it must equal a hand-computed case, Burn's own conv2d gradients
+//! (burn-backend's default weight gradient, the reference it replaces) on the networks' kinds
+//! of layers, and be bit-for-bit repeatable.
+#![cfg(feature = "flex")]
+
+mod common;
+
+use burn::tensor::module::conv2d;
+use burn::tensor::ops::ConvOptions;
+use burn::tensor::{Device, Tensor, TensorData};
+use hdrsynth::models::conv::conv2d_op;
+
+fn dev() -> Device {
+    hdrsynth::device::device_from_name("flex")
+        .expect("flex")
+        .autodiff()
+}
+
+fn tensor(shape: [usize; 4], seed: u64) -> Tensor<4> {
+    let v = common::values(shape.iter().product(), seed)
+        .into_iter()
+        .map(|v| v - 0.5)
+        .collect::<Vec<_>>();
+    Tensor::from_data(TensorData::new(v, shape), &dev())
+}
+
+fn vec(t: Tensor<4>) -> Vec<f32> {
+    t.into_data().try_to_vec::<f32>().expect("f32")
+}
+
+/// (output, dL/dx, dL/dW, dL/db) of Σ (y ⊙ r) for a fixed r, through `ours` or Burn's conv2d.
+fn grads(ours: bool, x: &Tensor<4>, w: &Tensor<4>, options: &ConvOptions<2>) -> [Vec<f32>; 4] {
+    let (x, w) = (x.clone().require_grad(), w.clone().require_grad());
+    let cout = w.dims()[0];
+    let b = Tensor::<1>::from_data(TensorData::new(common::values(cout, 9), [cout]), &dev())
+        .require_grad();
+    let y = if ours {
+        conv2d_op(x.clone(), w.clone(), Some(b.clone()), options.clone())
+    } else {
+        conv2d(x.clone(), w.clone(), Some(b.clone()), options.clone())
+    };
+    let r = tensor(y.dims(), 7);
+    let g = (y.clone() * r).sum().backward();
+    [
+        vec(y),
+        vec(x.grad(&g).expect("dx")),
+        vec(w.grad(&g).expect("dw")),
+        b.grad(&g)
+            .expect("db")
+            .into_data()
+            .try_to_vec::<f32>()
+            .expect("f32"),
+    ]
+}
+
+#[test]
+fn weight_gradient_by_hand() {
+    // x = 1..9 on a 3×3 plane, 2×2 kernel, no padding, L = Σ y: dL/dW[i, j] is the sum of the
+    // 2×2 window of x at offset (i, j): 1+2+4+5, 2+3+5+6, 4+5+7+8, 5+6+8+9.
+    let x = Tensor::<4>::from_data(
+        TensorData::new((1..=9).map(|v| v as f32).collect(), [1, 1, 3, 3]),
+        &dev(),
+    );
+    let w = Tensor::<4>::from_data(TensorData::new(vec![0.0f32; 4], [1, 1, 2, 2]), &dev())
+        .require_grad();
+    let y = conv2d_op(
+        x,
+        w.clone(),
+        None,
+        ConvOptions::new([1, 1], [0, 0], [1, 1], 1),
+    );
+    let g = y.sum().backward();
+    assert_eq!(vec(w.grad(&g).expect("dw")), vec![12.0, 16.0, 24.0, 28.0]);
+}
+
+#[test]
+fn equals_burns_conv2d_on_the_networks_layer_kinds() {
+    // (x shape, c_out, kernel, stride, padding (top, bottom), (left, right), dilation)
+    type Case = ([usize; 4], usize, usize, usize, [(usize, usize); 2], usize);
+    let cases: [Case; 6] = [
+        // Network-1's 3×3 block conv and 5×5 head (padding k/2).
+        ([2, 6, 16, 16], 8, 3, 1, [(1, 1), (1, 1)], 1),
+        ([2, 8, 16, 12], 20, 5, 1, [(2, 2), (2, 2)], 1),
+        // Network-2's stride-2 convs on reflect-padded input (no padding of their own).
+        ([2, 6, 17, 17], 8, 5, 2, [(0, 0), (0, 0)], 1),
+        // Asymmetric padding, dilation.
+        ([1, 3, 11, 9], 4, 3, 1, [(0, 2), (1, 0)], 2),
+        // Big enough that the im2col is tiled over output rows (1600 rows × 128 columns).
+        ([1, 64, 40, 128], 2, 5, 1, [(2, 2), (2, 2)], 1),
+        ([3, 4, 9, 7], 5, 1, 1, [(0, 0), (0, 0)], 1),
+    ];
+    for (i, (xs, cout, k, s, pad, d)) in cases.into_iter().enumerate() {
+        let x = tensor(xs, 100 + i as u64);
+        let w = tensor([cout, xs[1], k, k], 200 + i as u64);
+        let options = ConvOptions::new_with_padding([s, s], pad, [d, d], 1);
+        let ours = grads(true, &x, &w, &options);
+        let burn = grads(false, &x, &w, &options);
+        for (name, a, b) in ["y", "dx", "dw", "db"]
+            .iter()
+            .zip(&ours)
+            .zip(&burn)
+            .map(|((n, a), b)| (n, a, b))
+        {
+            assert_eq!(a.len(), b.len(), "case {i} {name}: length");
+            let scale = b.iter().fold(1.0f32, |m, v| m.max(v.abs()));
+            let err = a
+                .iter()
+                .zip(b)
+                .fold(0.0f32, |m, (p, q)| m.max((p - q).abs()));
+            assert!(
+                err <= 1e-5 * scale,
+                "case {i} {name}: max |ours − Burn| = {err} (scale {scale})"
+            );
+        }
+    }
+}
+
+#[test]
+fn repeatable_bit_for_bit() {
+    let x = tensor([2, 8, 24, 24], 1);
+    let w = tensor([16, 8, 5, 5], 2);
+    let options = ConvOptions::new([1, 1], [2, 2], [1, 1], 1);
+    let a = grads(true, &x, &w, &options);
+    let b = grads(true, &x, &w, &options);
+    assert_eq!(a, b);
+}
