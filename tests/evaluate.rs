@@ -5,7 +5,8 @@
 mod common;
 
 use hdrsynth::cli::eval::Args as EvalArgs;
-use hdrsynth::config::{GenerateConfig, parse_toml};
+use hdrsynth::config::parse_toml;
+use hdrsynth::data::generate::GenerateConfig;
 use hdrsynth::data::layout::{self, LayoutKind};
 use hdrsynth::data::testset::{self, TestsetOptions};
 use hdrsynth::eval::blend::{DEFAULT_TONE_K, fuse};
@@ -552,7 +553,7 @@ fn dataset3() -> &'static Path {
                     [camera]\ncandidates = 2\n";
         let mut c: GenerateConfig = parse_toml(text, Path::new("gen.toml")).expect("config");
         c.source = None;
-        hdrsynth::cli::generate::generate(&c, dir.path(), false).expect("generate");
+        hdrsynth::data::generate::generate(&c, dir.path(), false).expect("generate");
         dir
     })
     .path()

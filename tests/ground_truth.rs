@@ -3,7 +3,8 @@
 //! merge against its oracle, the blend-class sign convention on hand examples, the class
 //! weights on hand histograms, and `dataset weights` on a small generated dataset.
 
-use hdrsynth::config::{GenerateConfig, parse_toml};
+use hdrsynth::config::parse_toml;
+use hdrsynth::data::generate::GenerateConfig;
 use hdrsynth::data::ground_truth::{
     self, CLASS_MAP_FILE, CLASS_WEIGHTS_FILE, ClassWeights, MertensWeights, blend_classes,
     blend_weights_high, class_alpha, class_histogram, mertens, read_class_map, triangle_merge,
@@ -436,7 +437,7 @@ fn gen_dataset(dir: &Path, evs: &str) {
     let mut c: GenerateConfig = parse_toml(&text, Path::new("test.toml")).expect("config parses");
     c.validate().expect("config valid");
     c.source = None;
-    hdrsynth::cli::generate::generate(&c, dir, false).expect("generate");
+    hdrsynth::data::generate::generate(&c, dir, false).expect("generate");
 }
 
 #[test]

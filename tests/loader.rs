@@ -1,7 +1,8 @@
 //! The training loader: determinism across workers, aligned augmentation, the Network-2
 //! reference from the static set, fresh noise per epoch.
 
-use hdrsynth::config::{GenerateConfig, parse_toml};
+use hdrsynth::config::parse_toml;
+use hdrsynth::data::generate::GenerateConfig;
 use hdrsynth::data::ground_truth::blend_classes;
 use hdrsynth::data::loader::{Loader, LoaderConfig, Sample, SampleKind, Target, dihedral};
 use hdrsynth::io::Image;
@@ -14,7 +15,7 @@ fn dataset(evs: &str, dir: &Path) {
     );
     let mut c: GenerateConfig = parse_toml(&text, Path::new("t.toml")).expect("config");
     c.source = None;
-    hdrsynth::cli::generate::generate(&c, dir, false).expect("generate");
+    hdrsynth::data::generate::generate(&c, dir, false).expect("generate");
 }
 
 fn loader_cfg(dir: &Path, kind: &str, workers: usize, realism: bool) -> LoaderConfig {
@@ -80,7 +81,7 @@ fn noise_differs_between_epochs_for_the_same_crop() {
     let text = "seed = 5\ncount = 3\nwidth = 64\nheight = 64\nevs = [-3.0, 0.0]\n[camera]\ncandidates = 4\n";
     let mut c: GenerateConfig = parse_toml(text, Path::new("t.toml")).expect("config");
     c.source = None;
-    hdrsynth::cli::generate::generate(&c, dir.path(), false).expect("generate");
+    hdrsynth::data::generate::generate(&c, dir.path(), false).expect("generate");
     let mut cfg = loader_cfg(dir.path(), "network1", 1, true);
     cfg.augment = false;
     cfg.patch = 64;

@@ -3,6 +3,7 @@ pub mod align;
 pub mod bracket_captures;
 pub mod bracket_testset;
 pub mod brackets;
+pub mod generate;
 pub mod ground_truth;
 pub mod layout;
 pub mod loader;
