@@ -321,7 +321,7 @@ fn generated_dataset_is_detected_loaded_and_reported() {
     for (d, g) in loaded.static_frames[1].data.iter().zip(&gt.data) {
         assert!((d - curve.apply(*g)).abs() <= 0.5 / 255.0 + 1e-6);
     }
-    let report = hdrsynth::cli::dataset::info_report(dir.path()).expect("report");
+    let report = hdrsynth::data::layout::info::info_report(dir.path()).expect("report");
     assert!(
         report.contains("hdrsynth") && report.contains("000001"),
         "{report}"
