@@ -206,7 +206,7 @@ fn preview_writes_a_contact_sheet_of_the_expected_size() {
     let dir = tempfile::tempdir().expect("tmp");
     dataset("[-3.0, 0.0]", dir.path());
     let out = dir.path().join("sheet.png");
-    let args = hdrsynth::cli::preview::Args {
+    let args = hdrsynth::data::preview::PreviewOptions {
         dir: dir.path().to_path_buf(),
         profile: hdrsynth::sensor::profile::SensorProfile::shipped_dir()
             .join("canon_eos_550d.toml"),
@@ -217,7 +217,7 @@ fn preview_writes_a_contact_sheet_of_the_expected_size() {
         seed: 0,
         out: out.clone(),
     };
-    hdrsynth::cli::preview::run(&args).expect("preview");
+    hdrsynth::data::preview::preview(&args).expect("preview");
     let img = hdrsynth::io::read_image(&out).expect("sheet");
     // Network-1: 2 pure + 2 realistic frames + target = 5 tiles of 48 px + 4 px gaps, 3 rows.
     assert_eq!((img.width, img.height), (5 * 52, 3 * 52));

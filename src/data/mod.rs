@@ -7,6 +7,7 @@ pub mod generate;
 pub mod ground_truth;
 pub mod layout;
 pub mod loader;
+pub mod preview;
 pub mod pyramid;
 pub mod scene;
 pub mod testset;
