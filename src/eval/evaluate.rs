@@ -226,6 +226,43 @@ pub fn from_checkpoint(
     Ok(from_network(net, opts))
 }
 
+/// What `hdrsynth eval` scores.
+#[derive(Clone, Debug)]
+pub enum Source {
+    /// A folder of linear predictions made elsewhere, `<set>.exr` (or `.hdr`).
+    Predictions(PathBuf),
+    /// A checkpoint (or run folder: its latest checkpoint) run here on the device `backend`
+    /// names (`device::device_from_name`).
+    Checkpoint {
+        path: PathBuf,
+        backend: String,
+        network: NetworkOptions,
+    },
+}
+
+/// The method that scores `source`.
+pub fn method_for(source: &Source) -> Result<Box<dyn Method>> {
+    match source {
+        Source::Predictions(dir) => {
+            if !dir.is_dir() {
+                return Err(Error::Invalid(format!(
+                    "--predictions {}: not a folder",
+                    dir.display()
+                )));
+            }
+            Ok(Box::new(Predictions { dir: dir.clone() }))
+        }
+        Source::Checkpoint {
+            path,
+            backend,
+            network,
+        } => {
+            let device = crate::device::device_from_name(backend)?;
+            from_checkpoint(path, network, &device)
+        }
+    }
+}
+
 /// The method for a loaded network (a checkpoint's, or an exported ONNX file's).
 pub fn from_network(net: LoadedNetwork, opts: &NetworkOptions) -> Box<dyn Method> {
     match net.network {
