@@ -1,7 +1,8 @@
 //! What a dataset folder holds, as detected by [`crate::data::layout`] (`hdrsynth dataset info`).
 
 use crate::data::layout::{self, DatasetInfo, GroundTruthKind, SetInfo};
-use crate::error::{Error, Result};
+use crate::data::within;
+use crate::error::Result;
 use rayon::prelude::*;
 use std::fmt::Write as _;
 use std::path::Path;
@@ -22,11 +23,6 @@ impl std::fmt::Display for Dr {
             Dr::NotApplicable(why) => write!(f, "n/a ({why})"),
         }
     }
-}
-
-/// `e` behind `what` ("what: e"), the message the CLI printed before this moved to the library.
-fn within(what: String) -> impl FnOnce(Error) -> Error {
-    move |e| Error::Invalid(format!("{what}: {e}"))
 }
 
 fn set_dr(set: &SetInfo) -> Result<Dr> {
