@@ -19,7 +19,6 @@
 use crate::data::ground_truth::{self, MertensWeights};
 use crate::data::layout::{self, SetInfo};
 use crate::data::scene::ev_tag;
-use crate::data::testset::resize;
 use crate::error::{Error, Result};
 use crate::eval::blend::{blend_pair, tone_curve};
 use crate::eval::engine::{LoadedNetwork, Network};
@@ -27,7 +26,7 @@ use crate::eval::infer;
 pub use crate::eval::infer::NetworkOptions;
 use crate::eval::metrics::{self, MetricOptions, Pu21Scale, Scores};
 use crate::eval::report::{self, Cell, MetricSummary, SetScore};
-use crate::io::{BitDepth, ExrPrecision, Image, read_image, write_exr, write_ldr};
+use crate::io::{BitDepth, ExrPrecision, Image, read_image, resize, write_exr, write_ldr};
 use burn::tensor::Device;
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
