@@ -24,7 +24,9 @@ use crate::data::scene::{Camera, SampleStats, ev_tag};
 use crate::error::{Error, Result};
 use crate::io::atomic::write_atomic;
 use crate::io::{BitDepth, ExrPrecision, Image, read_image, resize, write_exr, write_ldr};
+use crate::linalg::{Mat3, inverse3, mat_vec, mul3};
 use crate::rng::hash;
+use crate::sensor::colour::{BRADFORD, xy_to_xyz};
 use crate::sensor::metering::Metering;
 use crate::sensor::profile::{Response, SensorProfile};
 use crate::sensor::realism::{NoiseModel, Realism, RealismOptions};
@@ -598,23 +600,15 @@ pub fn load_radiance(
     Ok((img, note))
 }
 
-type M3 = [[f64; 3]; 3];
-
-use crate::sensor::colour::{inverse3 as inverse, mul3 as mul};
-
 /// Rec. 709 primaries and D65 white, as (x, y): red, green, blue, white.
 const REC709: [[f64; 2]; 4] = [[0.64, 0.33], [0.30, 0.60], [0.15, 0.06], [0.3127, 0.3290]];
 
-fn xyz(p: [f64; 2]) -> [f64; 3] {
-    [p[0] / p[1], 1.0, (1.0 - p[0] - p[1]) / p[1]]
-}
-
 /// RGB → XYZ of a set of primaries (columns scaled so RGB (1,1,1) is the white at Y = 1).
-fn rgb_to_xyz(c: [[f64; 2]; 4]) -> Option<M3> {
-    let cols = [xyz(c[0]), xyz(c[1]), xyz(c[2])];
-    let p: M3 = std::array::from_fn(|i| std::array::from_fn(|j| cols[j][i]));
-    let w = xyz(c[3]);
-    let inv = inverse(&p)?;
+fn rgb_to_xyz(c: [[f64; 2]; 4]) -> Option<Mat3> {
+    let cols = [xy_to_xyz(c[0]), xy_to_xyz(c[1]), xy_to_xyz(c[2])];
+    let p: Mat3 = std::array::from_fn(|i| std::array::from_fn(|j| cols[j][i]));
+    let w = xy_to_xyz(c[3]);
+    let inv = inverse3(&p)?;
     let s: [f64; 3] = std::array::from_fn(|i| (0..3).map(|k| inv[i][k] * w[k]).sum());
     Some(std::array::from_fn(|i| {
         std::array::from_fn(|j| p[i][j] * s[j])
@@ -650,24 +644,19 @@ pub fn to_rec709_matrix(path: &Path) -> Result<Option<[[f32; 3]; 3]>> {
     }
     let bad = || Error::unsupported(path, format!("degenerate chromaticities {c:?}"));
     let src = rgb_to_xyz(c).ok_or_else(bad)?;
-    let dst_inv = inverse(&rgb_to_xyz(REC709).expect("Rec. 709 is well formed"))
+    let dst_inv = inverse3(&rgb_to_xyz(REC709).expect("Rec. 709 is well formed"))
         .expect("Rec. 709 is invertible");
-    const BRADFORD: M3 = [
-        [0.8951, 0.2664, -0.1614],
-        [-0.7502, 1.7135, 0.0367],
-        [0.0389, -0.0685, 1.0296],
-    ];
-    let b_inv = inverse(&BRADFORD).expect("Bradford is invertible");
-    let cone = |w: [f64; 3]| -> [f64; 3] {
-        std::array::from_fn(|i| (0..3).map(|k| BRADFORD[i][k] * w[k]).sum())
-    };
-    let (s, d) = (cone(xyz(c[3])), cone(xyz(REC709[3])));
+    let b_inv = inverse3(&BRADFORD).expect("Bradford is invertible");
+    let (s, d) = (
+        mat_vec(&BRADFORD, xy_to_xyz(c[3])),
+        mat_vec(&BRADFORD, xy_to_xyz(REC709[3])),
+    );
     if s.iter().any(|v| v.abs() < 1e-12) {
         return Err(bad());
     }
-    let scale: M3 =
+    let scale: Mat3 =
         std::array::from_fn(|i| std::array::from_fn(|j| if i == j { d[i] / s[i] } else { 0.0 }));
-    let adapt = mul(&b_inv, &mul(&scale, &BRADFORD));
-    let m = mul(&dst_inv, &mul(&adapt, &src));
+    let adapt = mul3(&b_inv, &mul3(&scale, &BRADFORD));
+    let m = mul3(&dst_inv, &mul3(&adapt, &src));
     Ok(Some(m.map(|r| r.map(|v| v as f32))))
 }

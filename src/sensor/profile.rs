@@ -298,7 +298,7 @@ impl SensorProfile {
             // A singular T maps distinct colours to one (an all-zero T gives black frames).
             // Scale-free test: |det| against the product of the row norms (1 for orthogonal
             // rows, 0 for dependent ones).
-            let det = crate::sensor::colour::det3(&c.matrix);
+            let det = crate::linalg::det3(&c.matrix);
             let norms: f64 = c
                 .matrix
                 .iter()

@@ -27,7 +27,7 @@
 use crate::error::Error;
 use crate::io::{Format, Image, read_image_info};
 use crate::sensor::colour::{
-    self, COLORCHECKER24, ChartRegion, Evaluation, Fitted, Illuminant, Mat3, Model, PatchSample,
+    self, COLORCHECKER24, ChartRegion, Evaluation, Fitted, Illuminant, Model, PatchSample,
 };
 use crate::sensor::dng::{DngInfo, read_dng};
 use crate::sensor::profile::{
@@ -548,7 +548,7 @@ pub fn run(args: &Args) -> Result<String> {
     } else {
         new_profile(args, &inputs)?
     };
-    let t: Mat3 = match &cal.matrix.fitted {
+    let t: crate::linalg::Mat3 = match &cal.matrix.fitted {
         Fitted::Matrix(t) => *t,
         Fitted::RootPolynomial(_) => unreachable!("matrix evaluation holds a matrix"),
     };
