@@ -786,7 +786,7 @@ fn mtb_recovers_known_shifts_as_opencv_align_mtb_does() {
 
 fn train_tiny(run: &Path, model: &str, evs: &str) {
     use hdrsynth::config::parse_toml;
-use hdrsynth::data::generate::GenerateConfig;
+    use hdrsynth::data::generate::GenerateConfig;
     use hdrsynth::train::TrainOptions;
     use hdrsynth::train::config::TrainConfig;
     let data = run.with_extension("data");

@@ -446,7 +446,8 @@ fn dataset_weights_writes_class_maps_weights_and_plot() {
     let dir = tempfile::tempdir().expect("tempdir");
     gen_dataset(dir.path(), "[-3.0, 0.0]");
     let plot = dir.path().join("plots/classes.png");
-    let report = write_class_maps(&ClassMapOptions::new(dir.path(), Some(plot.clone()))).expect("dataset weights");
+    let report = write_class_maps(&ClassMapOptions::new(dir.path(), Some(plot.clone())))
+        .expect("dataset weights");
     println!("{report}");
     assert!(report.contains("EV-3 (short) + EV+0"), "{report}");
     assert!(report.contains("empty"), "{report}");
@@ -486,7 +487,8 @@ fn dataset_weights_falls_back_to_lowest_ev_and_refuses_single_frames() {
     use hdrsynth::data::class_maps::{ClassMapOptions, write_class_maps};
     let dir = tempfile::tempdir().expect("tempdir");
     gen_dataset(dir.path(), "[-2.0, 0.0, 2.0]");
-    let report = write_class_maps(&ClassMapOptions::new(dir.path(), None)).expect("dataset weights");
+    let report =
+        write_class_maps(&ClassMapOptions::new(dir.path(), None)).expect("dataset weights");
     assert!(report.contains("EV-2 (short) + EV+0"), "{report}");
     assert!(report.contains("no EV-3 frame"), "{report}");
     assert!(dir.path().join("000001").join(CLASS_MAP_FILE).is_file());

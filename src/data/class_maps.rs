@@ -11,9 +11,9 @@ use crate::data::ground_truth::{
     self, CLASS_MAP_FILE, CLASS_WEIGHTS_FILE, CLASSES, ClassWeights, MertensWeights,
 };
 use crate::data::layout::{self, SetInfo};
-use crate::io::{BitDepth, Image, write_ldr};
 use crate::data::within;
 use crate::error::{Error, Result};
+use crate::io::{BitDepth, Image, write_ldr};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use std::fmt::Write as _;

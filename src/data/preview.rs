@@ -3,9 +3,9 @@
 //! mapped) — built by the training loader itself, so the sheet cannot drift from training.
 
 use crate::data::loader::{Loader, LoaderConfig, RealismConfig, SampleKind, Target};
+use crate::error::{Error, Result};
 use crate::io::{BitDepth, Image, write_ldr};
 use crate::sensor::realism::NoiseModel;
-use crate::error::{Error, Result};
 use std::path::PathBuf;
 
 #[derive(Clone, Debug)]

@@ -30,9 +30,7 @@ use crate::sensor::colour::{
     self, COLORCHECKER24, ChartRegion, Evaluation, Fitted, Illuminant, Model, PatchSample,
 };
 use crate::sensor::dng::{DngInfo, read_dng};
-use crate::sensor::profile::{
-    Colour, Levels, Provenance, Response, SensorProfile,
-};
+use crate::sensor::profile::{Colour, Levels, Provenance, Response, SensorProfile};
 use anyhow::{Context, Result, anyhow, bail};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};

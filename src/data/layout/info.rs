@@ -32,8 +32,10 @@ fn set_dr(set: &SetInfo) -> Result<Dr> {
     if gt.kind == GroundTruthKind::Display {
         return Ok(Dr::NotApplicable("display-referred GT"));
     }
-    let img = crate::io::read_image(&gt.path)
-        .map_err(within(format!("set {}: reading the ground truth", set.name)))?;
+    let img = crate::io::read_image(&gt.path).map_err(within(format!(
+        "set {}: reading the ground truth",
+        set.name
+    )))?;
     Ok(match crate::io::dynamic_range_stops(&img, 0.1, 99.9) {
         Some(s) => Dr::Stops(s),
         None => Dr::NotApplicable("GT has fewer than two positive pixels"),
