@@ -8,6 +8,7 @@ pub mod device;
 pub mod error;
 pub mod eval;
 pub mod io;
+pub mod linalg;
 pub mod models;
 #[cfg(feature = "onnx")]
 pub mod onnx;

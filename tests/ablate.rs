@@ -259,7 +259,7 @@ fn the_cpu_scale_experiment_configs_parse_and_resolve_their_cells() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let dir = root.join("configs/experiments/cpu");
     for file in ["data_net1.toml", "data_net1_val.toml", "data_net2.toml"] {
-        let g = hdrsynth::config::GenerateConfig::load(&dir.join(file)).expect(file);
+        let g = hdrsynth::data::generate::GenerateConfig::load(&dir.join(file)).expect(file);
         g.validate().expect(file);
     }
     for (file, init) in [

@@ -785,7 +785,8 @@ fn mtb_recovers_known_shifts_as_opencv_align_mtb_does() {
 // a tiny Network-2 checkpoint and of a tiny Network-1 checkpoint on the written set.
 
 fn train_tiny(run: &Path, model: &str, evs: &str) {
-    use hdrsynth::config::{GenerateConfig, parse_toml};
+    use hdrsynth::config::parse_toml;
+    use hdrsynth::data::generate::GenerateConfig;
     use hdrsynth::train::TrainOptions;
     use hdrsynth::train::config::TrainConfig;
     let data = run.with_extension("data");
@@ -794,7 +795,7 @@ fn train_tiny(run: &Path, model: &str, evs: &str) {
     );
     let mut c: GenerateConfig = parse_toml(&text, Path::new("gen.toml")).expect("config");
     c.source = None;
-    hdrsynth::cli::generate::generate(&c, &data, false).expect("generate");
+    hdrsynth::data::generate::generate(&c, &data, false).expect("generate");
     let text = format!(
         "[run]\nout = {run:?}\nseed = 4\nsteps = 2\ncheckpoint_every = 2\nlog_every = 1\n\
          [model]\n{model}\n\

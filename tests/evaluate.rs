@@ -4,11 +4,12 @@
 
 mod common;
 
-use hdrsynth::cli::eval::Args as EvalArgs;
-use hdrsynth::config::{GenerateConfig, parse_toml};
+use hdrsynth::config::parse_toml;
+use hdrsynth::data::generate::GenerateConfig;
 use hdrsynth::data::layout::{self, LayoutKind};
 use hdrsynth::data::testset::{self, TestsetOptions};
 use hdrsynth::eval::blend::{DEFAULT_TONE_K, fuse};
+use hdrsynth::eval::evaluate::{EvalOptions, EvalSummary, NetworkOptions, Source, method_for};
 use hdrsynth::eval::metrics;
 use hdrsynth::io::{BitDepth, ExrPrecision, Image, read_image, read_image_info, write_exr};
 use hdrsynth::sensor::profile::SensorProfile;
@@ -18,6 +19,35 @@ use hdrsynth::train::config::TrainConfig;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::OnceLock;
+
+/// What `hdrsynth eval --testset T --out OUT` does for `source`, with `opts`.
+fn score(
+    testset: &Path,
+    source: Source,
+    out: &Path,
+    opts: &EvalOptions,
+) -> hdrsynth::Result<EvalSummary> {
+    let method = method_for(&source)?;
+    hdrsynth::eval::evaluate::evaluate(testset, method.as_ref(), out, opts)
+}
+
+/// The predictions in `dir`, scored with the defaults.
+fn score_predictions(testset: &Path, dir: &Path, out: &Path) -> hdrsynth::Result<EvalSummary> {
+    let source = Source::Predictions(dir.to_path_buf());
+    score(testset, source, out, &EvalOptions::default())
+}
+
+/// A checkpoint (or run folder) run on the CPU with tiles of 32 (a multiple of 2^depth = 4).
+fn checkpoint(path: &Path, backend: &str) -> Source {
+    Source::Checkpoint {
+        path: path.to_path_buf(),
+        backend: backend.into(),
+        network: NetworkOptions {
+            tile: Some(32),
+            ..NetworkOptions::default()
+        },
+    }
+}
 
 /// A small generated test set (EV −3/0, linear ground truth), shared by the tests.
 fn dataset() -> &'static Path {
@@ -111,8 +141,7 @@ fn predictions_equal_to_the_ground_truth_give_inf_psnr_and_ssim_1() {
     let tmp = tempfile::tempdir().expect("tmp");
     let (pred, out) = (tmp.path().join("pred"), tmp.path().join("out"));
     predictions(&pred, 1.0);
-    let r = hdrsynth::cli::eval::evaluate(&EvalArgs::predictions(dataset(), &pred, &out))
-        .expect("eval");
+    let r = score_predictions(dataset(), &pred, &out).expect("eval");
     let sets = set_names();
     assert_eq!(r.rows.len(), sets.len());
     let (header, rows) = read_csv(&out.join("per_image.csv"));
@@ -226,8 +255,7 @@ fn a_missing_prediction_is_an_error_naming_the_set_unless_allowed() {
     let sets = set_names();
     let gone = &sets[1];
     std::fs::remove_file(pred.join(format!("{gone}.exr"))).expect("rm");
-    let args = EvalArgs::predictions(dataset(), &pred, &out);
-    let err = hdrsynth::cli::eval::evaluate(&args).expect_err("missing");
+    let err = score_predictions(dataset(), &pred, &out).expect_err("missing");
     let msg = format!("{err:#}");
     assert!(msg.contains(&format!("set '{gone}'")), "{msg}");
     assert!(
@@ -236,11 +264,12 @@ fn a_missing_prediction_is_an_error_naming_the_set_unless_allowed() {
     );
     assert!(!out.join("per_image.csv").exists(), "nothing is written");
 
-    let allowed = EvalArgs {
+    let allowed = EvalOptions {
         allow_missing: true,
-        ..args
+        ..EvalOptions::default()
     };
-    let r = hdrsynth::cli::eval::evaluate(&allowed).expect("allowed");
+    let source = Source::Predictions(pred.clone());
+    let r = score(dataset(), source, &out, &allowed).expect("allowed");
     assert_eq!(r.rows.len(), sets.len() - 1);
     assert_eq!(r.missing.len(), 1);
     assert_eq!(&r.missing[0].0, gone);
@@ -256,8 +285,7 @@ fn a_prediction_of_the_wrong_size_is_an_error_naming_the_file() {
     let s = &set_names()[0];
     let bad = pred.join(format!("{s}.exr"));
     write_exr(&bad, &Image::new(32, 24), ExrPrecision::Float).expect("write");
-    let err = hdrsynth::cli::eval::evaluate(&EvalArgs::predictions(dataset(), &pred, &out))
-        .expect_err("size");
+    let err = score_predictions(dataset(), &pred, &out).expect_err("size");
     let msg = format!("{err:#}");
     assert!(msg.contains(&bad.display().to_string()), "{msg}");
     assert!(msg.contains("32×24") && msg.contains("64×48"), "{msg}");
@@ -297,10 +325,9 @@ fn a_tiny_network1_checkpoint_is_evaluated_at_full_resolution() {
     let run = tmp.path().join("run");
     hdrsynth::train::run(&train_config(&run), &TrainOptions::default()).expect("train");
     let out = tmp.path().join("out");
-    // Tiles of 32 (a multiple of 2^depth = 4) on 64×48 frames: several windows per set.
-    let mut args = EvalArgs::checkpoint(dataset(), &run, &out);
-    args.network.tile = Some(32);
-    let r = hdrsynth::cli::eval::evaluate(&args).expect("eval");
+    // Tiles of 32 on 64×48 frames: several windows per set.
+    let opts = EvalOptions::default();
+    let r = score(dataset(), checkpoint(&run, "flex"), &out, &opts).expect("eval");
     assert_eq!(r.rows.len(), set_names().len());
     assert!(r.method.contains("Mertens"), "{}", r.method);
     for row in &r.rows {
@@ -335,20 +362,17 @@ fn eval_with_a_training_config_scores_that_runs_latest_checkpoint() {
     hdrsynth::train::run(&cfg, &TrainOptions::default()).expect("train");
     let path = tmp.path().join("train.toml");
     std::fs::write(&path, toml::to_string(&cfg).expect("toml")).expect("write");
-    let score = |args: &mut EvalArgs| {
-        args.network.tile = Some(32);
-        let r = hdrsynth::cli::eval::evaluate(args).expect("eval");
+    let scores = |source: Source, out: &str| {
+        let opts = EvalOptions::default();
+        let r = score(dataset(), source, &tmp.path().join(out), &opts).expect("eval");
         r.rows.iter().map(|r| r.scores.psnr_t).collect::<Vec<_>>()
     };
-    let mut by_config = EvalArgs::checkpoint(dataset(), &run, tmp.path().join("a"));
-    by_config.checkpoint = None;
-    by_config.config = Some(path);
-    let by_run = score(&mut EvalArgs::checkpoint(
-        dataset(),
-        &run,
-        tmp.path().join("b"),
-    ));
-    assert_eq!(score(&mut by_config), by_run);
+    // What `hdrsynth eval --config` resolves: the run's folder (its latest checkpoint) on its
+    // backend.
+    let read = TrainConfig::load(&path).expect("config");
+    let by_config = scores(checkpoint(&read.run.out, &read.run.backend), "a");
+    let by_run = scores(checkpoint(&run, "flex"), "b");
+    assert_eq!(by_config, by_run);
     assert_eq!(by_run.len(), set_names().len());
 }
 
@@ -508,9 +532,7 @@ fn a_testset_from_real_radiance_has_noise_colour_and_scores_through_eval() {
         )
         .unwrap();
     }
-    let r =
-        hdrsynth::cli::eval::evaluate(&EvalArgs::predictions(&out, &pred, tmp.path().join("eval")))
-            .expect("eval");
+    let r = score_predictions(&out, &pred, &tmp.path().join("eval")).expect("eval");
     assert!(r.rows.iter().all(|r| r.scores.psnr_l == f64::INFINITY));
 }
 
@@ -518,7 +540,7 @@ fn a_testset_from_real_radiance_has_noise_colour_and_scores_through_eval() {
 /// frames (EV −2, 0, +2) with exposure times 1/4, 1, 4, scored against the linear ground truth.
 #[test]
 fn a_multi_frame_hdr_network_is_scored_against_the_linear_ground_truth() {
-    use hdrsynth::eval::evaluate::{self, EvalOptions, Network2};
+    use hdrsynth::eval::evaluate::{self, Network2};
     let tmp = tempfile::tempdir().expect("tmp");
     let data = dataset3();
     let method = Network2 {
@@ -552,7 +574,7 @@ fn dataset3() -> &'static Path {
                     [camera]\ncandidates = 2\n";
         let mut c: GenerateConfig = parse_toml(text, Path::new("gen.toml")).expect("config");
         c.source = None;
-        hdrsynth::cli::generate::generate(&c, dir.path(), false).expect("generate");
+        hdrsynth::data::generate::generate(&c, dir.path(), false).expect("generate");
         dir
     })
     .path()

@@ -395,7 +395,7 @@ fn text_target<T: serde::de::DeserializeOwned>(
 
 #[test]
 fn fuzz_generate_config() {
-    text_target::<hdrsynth::config::GenerateConfig>(
+    text_target::<hdrsynth::data::generate::GenerateConfig>(
         "generate_toml",
         &[
             repo("configs/generate.toml"),

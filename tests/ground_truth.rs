@@ -3,7 +3,8 @@
 //! merge against its oracle, the blend-class sign convention on hand examples, the class
 //! weights on hand histograms, and `dataset weights` on a small generated dataset.
 
-use hdrsynth::config::{GenerateConfig, parse_toml};
+use hdrsynth::config::parse_toml;
+use hdrsynth::data::generate::GenerateConfig;
 use hdrsynth::data::ground_truth::{
     self, CLASS_MAP_FILE, CLASS_WEIGHTS_FILE, ClassWeights, MertensWeights, blend_classes,
     blend_weights_high, class_alpha, class_histogram, mertens, read_class_map, triangle_merge,
@@ -436,16 +437,17 @@ fn gen_dataset(dir: &Path, evs: &str) {
     let mut c: GenerateConfig = parse_toml(&text, Path::new("test.toml")).expect("config parses");
     c.validate().expect("config valid");
     c.source = None;
-    hdrsynth::cli::generate::generate(&c, dir, false).expect("generate");
+    hdrsynth::data::generate::generate(&c, dir, false).expect("generate");
 }
 
 #[test]
 fn dataset_weights_writes_class_maps_weights_and_plot() {
-    use hdrsynth::cli::weights::{Args, PLOT_SIZE, run};
+    use hdrsynth::data::class_maps::{ClassMapOptions, PLOT_SIZE, write_class_maps};
     let dir = tempfile::tempdir().expect("tempdir");
     gen_dataset(dir.path(), "[-3.0, 0.0]");
     let plot = dir.path().join("plots/classes.png");
-    let report = run(&Args::new(dir.path(), Some(plot.clone()))).expect("dataset weights");
+    let report = write_class_maps(&ClassMapOptions::new(dir.path(), Some(plot.clone())))
+        .expect("dataset weights");
     println!("{report}");
     assert!(report.contains("EV-3 (short) + EV+0"), "{report}");
     assert!(report.contains("empty"), "{report}");
@@ -482,10 +484,11 @@ fn dataset_weights_writes_class_maps_weights_and_plot() {
 
 #[test]
 fn dataset_weights_falls_back_to_lowest_ev_and_refuses_single_frames() {
-    use hdrsynth::cli::weights::{Args, run};
+    use hdrsynth::data::class_maps::{ClassMapOptions, write_class_maps};
     let dir = tempfile::tempdir().expect("tempdir");
     gen_dataset(dir.path(), "[-2.0, 0.0, 2.0]");
-    let report = run(&Args::new(dir.path(), None)).expect("dataset weights");
+    let report =
+        write_class_maps(&ClassMapOptions::new(dir.path(), None)).expect("dataset weights");
     assert!(report.contains("EV-2 (short) + EV+0"), "{report}");
     assert!(report.contains("no EV-3 frame"), "{report}");
     assert!(dir.path().join("000001").join(CLASS_MAP_FILE).is_file());
@@ -494,7 +497,7 @@ fn dataset_weights_falls_back_to_lowest_ev_and_refuses_single_frames() {
     gen_dataset(single.path(), "[0.0, 1.0]");
     let e = format!(
         "{:#}",
-        run(&Args::new(single.path(), None)).expect_err("no short frame")
+        write_class_maps(&ClassMapOptions::new(single.path(), None)).expect_err("no short frame")
     );
     assert!(e.contains("shorter than the reference"), "{e}");
     assert!(!single.path().join(CLASS_WEIGHTS_FILE).exists());

@@ -556,7 +556,7 @@ fn info_report_lists_sets_and_skipped() {
     kalantari_set(&root.join("001"), "0\n2\n4");
     kalantari_set(&root.join("002"), "0\n3\n6");
     mkdir(&root.join("docs"));
-    let report = hdrsynth::cli::dataset::info_report(root).unwrap();
+    let report = hdrsynth::data::layout::info::info_report(root).unwrap();
     assert!(report.contains(&root.display().to_string()), "{report}");
     assert!(report.contains("kalantari"), "{report}");
     assert!(report.contains("sets:    2"), "{report}");
@@ -577,7 +577,7 @@ fn info_report_lists_sets_and_skipped() {
 
     let tmp1 = TempDir::new().unwrap();
     paper1_set(&tmp1.path().join("a"), false);
-    let report = hdrsynth::cli::dataset::info_report(tmp1.path()).unwrap();
+    let report = hdrsynth::data::layout::info::info_report(tmp1.path()).unwrap();
     assert!(report.contains("paper-dataset-1"), "{report}");
     assert!(report.contains("n/a (display-referred GT)"), "{report}");
     assert!(
@@ -592,7 +592,7 @@ fn info_report_summarises_many_sets() {
     for i in 0..53 {
         kalantari_set(&tmp.path().join(format!("{i:03}")), "0 2 4");
     }
-    let report = hdrsynth::cli::dataset::info_report(tmp.path()).unwrap();
+    let report = hdrsynth::data::layout::info::info_report(tmp.path()).unwrap();
     assert!(report.contains("sets:    53"), "{report}");
     assert!(
         report.contains("049") && !report.contains(" 050 "),
@@ -615,7 +615,7 @@ fn info_report_errors_name_the_dir() {
     let tmp = TempDir::new().unwrap();
     let msg = format!(
         "{:#}",
-        hdrsynth::cli::dataset::info_report(tmp.path()).unwrap_err()
+        hdrsynth::data::layout::info::info_report(tmp.path()).unwrap_err()
     );
     assert!(msg.contains(&tmp.path().display().to_string()), "{msg}");
     assert!(msg.contains("no sets found"), "{msg}");

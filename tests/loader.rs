@@ -1,7 +1,8 @@
 //! The training loader: determinism across workers, aligned augmentation, the Network-2
 //! reference from the static set, fresh noise per epoch.
 
-use hdrsynth::config::{GenerateConfig, parse_toml};
+use hdrsynth::config::parse_toml;
+use hdrsynth::data::generate::GenerateConfig;
 use hdrsynth::data::ground_truth::blend_classes;
 use hdrsynth::data::loader::{Loader, LoaderConfig, Sample, SampleKind, Target, dihedral};
 use hdrsynth::io::Image;
@@ -14,7 +15,7 @@ fn dataset(evs: &str, dir: &Path) {
     );
     let mut c: GenerateConfig = parse_toml(&text, Path::new("t.toml")).expect("config");
     c.source = None;
-    hdrsynth::cli::generate::generate(&c, dir, false).expect("generate");
+    hdrsynth::data::generate::generate(&c, dir, false).expect("generate");
 }
 
 fn loader_cfg(dir: &Path, kind: &str, workers: usize, realism: bool) -> LoaderConfig {
@@ -80,7 +81,7 @@ fn noise_differs_between_epochs_for_the_same_crop() {
     let text = "seed = 5\ncount = 3\nwidth = 64\nheight = 64\nevs = [-3.0, 0.0]\n[camera]\ncandidates = 4\n";
     let mut c: GenerateConfig = parse_toml(text, Path::new("t.toml")).expect("config");
     c.source = None;
-    hdrsynth::cli::generate::generate(&c, dir.path(), false).expect("generate");
+    hdrsynth::data::generate::generate(&c, dir.path(), false).expect("generate");
     let mut cfg = loader_cfg(dir.path(), "network1", 1, true);
     cfg.augment = false;
     cfg.patch = 64;
@@ -205,7 +206,7 @@ fn preview_writes_a_contact_sheet_of_the_expected_size() {
     let dir = tempfile::tempdir().expect("tmp");
     dataset("[-3.0, 0.0]", dir.path());
     let out = dir.path().join("sheet.png");
-    let args = hdrsynth::cli::preview::Args {
+    let args = hdrsynth::data::preview::PreviewOptions {
         dir: dir.path().to_path_buf(),
         profile: hdrsynth::sensor::profile::SensorProfile::shipped_dir()
             .join("canon_eos_550d.toml"),
@@ -216,7 +217,7 @@ fn preview_writes_a_contact_sheet_of_the_expected_size() {
         seed: 0,
         out: out.clone(),
     };
-    hdrsynth::cli::preview::run(&args).expect("preview");
+    hdrsynth::data::preview::preview(&args).expect("preview");
     let img = hdrsynth::io::read_image(&out).expect("sheet");
     // Network-1: 2 pure + 2 realistic frames + target = 5 tiles of 48 px + 4 px gaps, 3 rows.
     assert_eq!((img.width, img.height), (5 * 52, 3 * 52));

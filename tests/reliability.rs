@@ -365,12 +365,12 @@ fn a_second_writer_is_refused_and_a_killed_holder_does_not_block() {
         "{e}"
     );
     // generate takes the same lock: a second generator into the folder is refused.
-    let cfg: hdrsynth::config::GenerateConfig = hdrsynth::config::parse_toml(
+    let cfg: hdrsynth::data::generate::GenerateConfig = hdrsynth::config::parse_toml(
         "seed = 1\ncount = 1\nwidth = 32\nheight = 32\nevs = [-3.0, 0.0]\n",
         Path::new("g.toml"),
     )
     .unwrap();
-    let e = hdrsynth::cli::generate::generate(&cfg, &out, false).unwrap_err();
+    let e = hdrsynth::data::generate::generate(&cfg, &out, false).unwrap_err();
     assert!(format!("{e:#}").contains("in use"), "{e:#}");
     drop(held);
     OutputLock::acquire(&out, "after").expect("released on drop");
@@ -732,14 +732,14 @@ fn nonsense_generate_values_are_errors_naming_key_and_file() {
         ),
     ] {
         let p = write_cfg(dir.path(), "g.toml", &format!("{base}{extra}"));
-        let e = hdrsynth::config::GenerateConfig::load(&p)
+        let e = hdrsynth::data::generate::GenerateConfig::load(&p)
             .expect_err(key)
             .to_string();
         assert!(e.contains(key) && e.contains("g.toml"), "{key}: {e}");
     }
     // The shipped configs (probability 0.5, backgrounds commented out) stay valid.
     let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/generate.toml");
-    hdrsynth::config::GenerateConfig::load(&shipped).expect("configs/generate.toml");
+    hdrsynth::data::generate::GenerateConfig::load(&shipped).expect("configs/generate.toml");
 }
 
 #[test]

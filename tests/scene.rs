@@ -2,7 +2,8 @@
 //! dynamic range, determinism, resume and config errors. Values checked here are computed
 //! independently in the test (the filmic inverse is re-derived from Narkowicz's formula).
 
-use hdrsynth::config::{GenerateConfig, parse_toml};
+use hdrsynth::config::parse_toml;
+use hdrsynth::data::generate::GenerateConfig;
 use hdrsynth::data::scene::{Generator, ev_tag};
 use hdrsynth::io::{read_image, read_image_info};
 use std::path::{Path, PathBuf};
@@ -17,7 +18,7 @@ fn cfg(extra: &str) -> GenerateConfig {
 }
 
 fn generate(c: &GenerateConfig, out: &Path) {
-    hdrsynth::cli::generate::generate(c, out, false).expect("generate");
+    hdrsynth::data::generate::generate(c, out, false).expect("generate");
 }
 
 /// Independent inverse of the engine curve: sRGB decode, then solve
@@ -229,7 +230,7 @@ fn interrupted_generation_resumes_and_other_configs_are_refused() {
     // Simulate a crash while set 1 was being written: its meta.toml never landed.
     std::fs::remove_file(dir.path().join("000001/meta.toml")).expect("rm");
     std::fs::remove_file(dir.path().join("000001/hdr_gt.exr")).expect("rm");
-    let s = hdrsynth::cli::generate::generate(&c, dir.path(), false).expect("resume");
+    let s = hdrsynth::data::generate::generate(&c, dir.path(), false).expect("resume");
     assert_eq!((s.generated, s.resumed), (1, 2));
     assert_eq!(
         std::fs::read(dir.path().join("000001/hdr_gt.exr")).expect("gt"),
@@ -237,7 +238,7 @@ fn interrupted_generation_resumes_and_other_configs_are_refused() {
     );
     let mut other = c.clone();
     other.seed += 1;
-    let err = hdrsynth::cli::generate::generate(&other, dir.path(), false).expect_err("refused");
+    let err = hdrsynth::data::generate::generate(&other, dir.path(), false).expect_err("refused");
     assert!(err.to_string().contains("different config"), "{err}");
 }
 
@@ -320,7 +321,7 @@ fn generated_dataset_is_detected_loaded_and_reported() {
     for (d, g) in loaded.static_frames[1].data.iter().zip(&gt.data) {
         assert!((d - curve.apply(*g)).abs() <= 0.5 / 255.0 + 1e-6);
     }
-    let report = hdrsynth::cli::dataset::info_report(dir.path()).expect("report");
+    let report = hdrsynth::data::layout::info::info_report(dir.path()).expect("report");
     assert!(
         report.contains("hdrsynth") && report.contains("000001"),
         "{report}"

@@ -1,7 +1,8 @@
 //! Issue 14 items 2, 4, 5: one target unit in every mode, realism from linear frames, one
 //! auto-exposure rule. Expected values are hand-derived (see each test).
 
-use hdrsynth::config::{GenerateConfig, parse_toml};
+use hdrsynth::config::parse_toml;
+use hdrsynth::data::generate::GenerateConfig;
 use hdrsynth::data::loader::{Loader, LoaderConfig, Target};
 use hdrsynth::data::testset::{self, TestsetOptions};
 use hdrsynth::io::{BitDepth, ExrPrecision, Image, read_image, write_exr, write_ldr};
@@ -17,7 +18,7 @@ fn dataset(evs: &str, dir: &Path) {
     );
     let mut c: GenerateConfig = parse_toml(&text, Path::new("t.toml")).expect("config");
     c.source = None;
-    hdrsynth::cli::generate::generate(&c, dir, false).expect("generate");
+    hdrsynth::data::generate::generate(&c, dir, false).expect("generate");
 }
 
 fn loader(dir: &Path, kind: &str, realism: &str) -> Loader {

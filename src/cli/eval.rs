@@ -3,10 +3,8 @@
 //! or a checkpoint's network run here at full resolution with tiles — and write per-image and
 //! summary tables with bootstrap intervals, outputs, previews and a report (docs/evaluation.md).
 
-use crate::device::device_from_name;
 use crate::eval::evaluate::{
-    self, EvalOptions, EvalSummary, Method, Network1Reference, NetworkOptions, Predictions,
-    ScoreUnit, from_checkpoint,
+    EvalOptions, Network1Reference, NetworkOptions, ScoreUnit, Source, evaluate, method_for,
 };
 use crate::eval::metrics::{MetricOptions, Pu21Scale};
 use crate::eval::report;
@@ -84,47 +82,7 @@ fn parse_pu21_scale(s: &str) -> Result<Pu21Scale, String> {
 }
 
 impl Args {
-    /// Arguments with the defaults, scoring predictions.
-    pub fn predictions(
-        testset: impl Into<PathBuf>,
-        predictions: impl Into<PathBuf>,
-        out: impl Into<PathBuf>,
-    ) -> Args {
-        Args {
-            testset: testset.into(),
-            out: out.into(),
-            predictions: Some(predictions.into()),
-            checkpoint: None,
-            config: None,
-            allow_missing: false,
-            network: NetworkOptions::default(),
-            backend: None,
-            resamples: 2000,
-            seed: 0,
-            level: 0.95,
-            unit: ScoreUnit::Reference,
-            net1_reference: Network1Reference::CleanWeights,
-            pu21_scale: Pu21Scale::ReferenceMax,
-            peak_luminance: 4000.0,
-            thumb: 512,
-            quiet: true,
-        }
-    }
-
-    /// Arguments with the defaults, running a checkpoint.
-    pub fn checkpoint(
-        testset: impl Into<PathBuf>,
-        checkpoint: impl Into<PathBuf>,
-        out: impl Into<PathBuf>,
-    ) -> Args {
-        Args {
-            predictions: None,
-            checkpoint: Some(checkpoint.into()),
-            ..Args::predictions(testset, PathBuf::new(), out)
-        }
-    }
-
-    pub fn options(&self) -> EvalOptions {
+    fn options(&self) -> EvalOptions {
         EvalOptions {
             metrics: MetricOptions {
                 peak_luminance: self.peak_luminance,
@@ -140,45 +98,37 @@ impl Args {
             progress: !self.quiet,
         }
     }
-}
 
-pub fn evaluate(args: &Args) -> Result<EvalSummary> {
-    let train = match &args.config {
-        Some(path) => Some(TrainConfig::load(path)?),
-        None => None,
-    };
-    let checkpoint = args
-        .checkpoint
-        .clone()
-        .or_else(|| train.as_ref().map(|t| t.run.out.clone()));
-    let method: Box<dyn Method> = match (&args.predictions, checkpoint) {
-        (Some(dir), None) => {
-            if !dir.is_dir() {
-                bail!("--predictions {}: not a folder", dir.display());
-            }
-            Box::new(Predictions { dir: dir.clone() })
-        }
-        (None, Some(ckpt)) => {
-            let backend = args
-                .backend
-                .clone()
-                .or_else(|| train.as_ref().map(|t| t.run.backend.clone()))
-                .unwrap_or_else(|| "flex".into());
-            let device = device_from_name(&backend)?;
-            from_checkpoint(&ckpt, &args.network, &device)?
-        }
-        _ => bail!("give --predictions, or a network (--checkpoint and/or --config), not both"),
-    };
-    Ok(evaluate::evaluate(
-        &args.testset,
-        method.as_ref(),
-        &args.out,
-        &args.options(),
-    )?)
+    /// The flags as a source: --config supplies the checkpoint (its run.out) and the backend
+    /// (its run.backend) where --checkpoint and --backend do not.
+    fn source(&self) -> Result<Source> {
+        let train = match &self.config {
+            Some(path) => Some(TrainConfig::load(path)?),
+            None => None,
+        };
+        let checkpoint = self
+            .checkpoint
+            .clone()
+            .or_else(|| train.as_ref().map(|t| t.run.out.clone()));
+        Ok(match (&self.predictions, checkpoint) {
+            (Some(dir), None) => Source::Predictions(dir.clone()),
+            (None, Some(path)) => Source::Checkpoint {
+                path,
+                backend: self
+                    .backend
+                    .clone()
+                    .or_else(|| train.as_ref().map(|t| t.run.backend.clone()))
+                    .unwrap_or_else(|| "flex".into()),
+                network: self.network.clone(),
+            },
+            _ => bail!("give --predictions, or a network (--checkpoint and/or --config), not both"),
+        })
+    }
 }
 
 pub fn run(args: &Args) -> Result<String> {
-    let r = evaluate(args)?;
+    let method = method_for(&args.source()?)?;
+    let r = evaluate(&args.testset, method.as_ref(), &args.out, &args.options())?;
     let mut s = format!(
         "{} set(s) scored in {:.1} s; {}\n\n{}",
         r.rows.len(),

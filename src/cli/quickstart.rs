@@ -285,11 +285,11 @@ fn radiance_source(
         ));
     }
     let scenes = args.out.join("data/scenes");
-    let cfg: crate::config::GenerateConfig = parse_toml(
+    let cfg: crate::data::generate::GenerateConfig = parse_toml(
         &generate_toml(s, 77, 3, (s.train_size.0 * 2, s.train_size.1 * 2)),
         Path::new("scenes.toml"),
     )?;
-    crate::cli::generate::generate(&cfg, &scenes, progress)?;
+    crate::data::generate::generate(&cfg, &scenes, progress)?;
     let dir = args.out.join("data/radiance");
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
     for e in std::fs::read_dir(&scenes).with_context(|| format!("reading {}", scenes.display()))? {
@@ -468,7 +468,7 @@ mod tests {
         assert_eq!(dslr.provenance.noise, canon.provenance.noise);
         for preset in [Preset::Cpu, Preset::Gpu] {
             let s = sizes(preset);
-            let gen_cfg: crate::config::GenerateConfig = parse_toml(
+            let gen_cfg: crate::data::generate::GenerateConfig = parse_toml(
                 &generate_toml(&s, 1, s.train_sets, s.train_size),
                 Path::new("gen.toml"),
             )

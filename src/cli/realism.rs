@@ -33,7 +33,7 @@ pub struct Args {
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// gaussian (the paper's N(0, aI+b)), poisson-gaussian (exact), none.
-    #[arg(long, default_value = "gaussian", value_parser = parse_noise)]
+    #[arg(long, default_value = "gaussian", value_parser = super::parse_noise)]
     pub noise: NoiseModel,
     /// Skip the colour transform (colour ablation).
     #[arg(long)]
@@ -41,17 +41,6 @@ pub struct Args {
     /// Output PNG bits: 8 or 16.
     #[arg(long, default_value_t = 8)]
     pub bits: u32,
-}
-
-fn parse_noise(s: &str) -> Result<NoiseModel, String> {
-    match s {
-        "gaussian" => Ok(NoiseModel::Gaussian),
-        "poisson-gaussian" => Ok(NoiseModel::PoissonGaussian),
-        "none" => Ok(NoiseModel::None),
-        _ => Err(format!(
-            "'{s}': expected gaussian, poisson-gaussian or none"
-        )),
-    }
 }
 
 /// (input file, path relative to the input root) of every frame to process.

@@ -67,7 +67,7 @@ pub struct Args {
     #[arg(long, default_value_t = Metering::default().max_clipped)]
     pub max_clipped: f64,
     /// gaussian (the paper's N(0, aI+b)), poisson-gaussian (exact), none.
-    #[arg(long, default_value = "gaussian", value_parser = parse_noise)]
+    #[arg(long, default_value = "gaussian", value_parser = super::parse_noise)]
     pub noise: NoiseModel,
     /// Skip the colour transform T (frames and ground truth).
     #[arg(long)]
@@ -78,17 +78,6 @@ pub struct Args {
     /// Resample each radiance map to WIDTHxHEIGHT first (e.g. 4032x3024).
     #[arg(long, value_parser = parse_size)]
     pub resize: Option<(usize, usize)>,
-}
-
-fn parse_noise(s: &str) -> Result<NoiseModel, String> {
-    match s {
-        "gaussian" => Ok(NoiseModel::Gaussian),
-        "poisson-gaussian" => Ok(NoiseModel::PoissonGaussian),
-        "none" => Ok(NoiseModel::None),
-        _ => Err(format!(
-            "'{s}': expected gaussian, poisson-gaussian or none"
-        )),
-    }
 }
 
 #[derive(Clone, Debug)]

@@ -61,7 +61,7 @@ fn half(g: &Grey) -> Grey {
             .collect(),
     );
     let (w, h) = (g.w / 2, g.h / 2);
-    let small = crate::data::testset::resize(&img, w, h);
+    let small = crate::io::resize(&img, w, h);
     Grey {
         w,
         h,

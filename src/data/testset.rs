@@ -23,8 +23,10 @@ use crate::data::layout::hdrsynth::{self as own, Manifest, SET_META, SetMeta};
 use crate::data::scene::{Camera, SampleStats, ev_tag};
 use crate::error::{Error, Result};
 use crate::io::atomic::write_atomic;
-use crate::io::{BitDepth, ExrPrecision, Image, read_image, write_exr, write_ldr};
+use crate::io::{BitDepth, ExrPrecision, Image, read_image, resize, write_exr, write_ldr};
+use crate::linalg::{Mat3, inverse3, mat_vec, mul3};
 use crate::rng::hash;
+use crate::sensor::colour::{BRADFORD, xy_to_xyz};
 use crate::sensor::metering::Metering;
 use crate::sensor::profile::{Response, SensorProfile};
 use crate::sensor::realism::{NoiseModel, Realism, RealismOptions};
@@ -598,23 +600,15 @@ pub fn load_radiance(
     Ok((img, note))
 }
 
-type M3 = [[f64; 3]; 3];
-
-use crate::sensor::colour::{inverse3 as inverse, mul3 as mul};
-
 /// Rec. 709 primaries and D65 white, as (x, y): red, green, blue, white.
 const REC709: [[f64; 2]; 4] = [[0.64, 0.33], [0.30, 0.60], [0.15, 0.06], [0.3127, 0.3290]];
 
-fn xyz(p: [f64; 2]) -> [f64; 3] {
-    [p[0] / p[1], 1.0, (1.0 - p[0] - p[1]) / p[1]]
-}
-
 /// RGB → XYZ of a set of primaries (columns scaled so RGB (1,1,1) is the white at Y = 1).
-fn rgb_to_xyz(c: [[f64; 2]; 4]) -> Option<M3> {
-    let cols = [xyz(c[0]), xyz(c[1]), xyz(c[2])];
-    let p: M3 = std::array::from_fn(|i| std::array::from_fn(|j| cols[j][i]));
-    let w = xyz(c[3]);
-    let inv = inverse(&p)?;
+fn rgb_to_xyz(c: [[f64; 2]; 4]) -> Option<Mat3> {
+    let cols = [xy_to_xyz(c[0]), xy_to_xyz(c[1]), xy_to_xyz(c[2])];
+    let p: Mat3 = std::array::from_fn(|i| std::array::from_fn(|j| cols[j][i]));
+    let w = xy_to_xyz(c[3]);
+    let inv = inverse3(&p)?;
     let s: [f64; 3] = std::array::from_fn(|i| (0..3).map(|k| inv[i][k] * w[k]).sum());
     Some(std::array::from_fn(|i| {
         std::array::from_fn(|j| p[i][j] * s[j])
@@ -650,94 +644,19 @@ pub fn to_rec709_matrix(path: &Path) -> Result<Option<[[f32; 3]; 3]>> {
     }
     let bad = || Error::unsupported(path, format!("degenerate chromaticities {c:?}"));
     let src = rgb_to_xyz(c).ok_or_else(bad)?;
-    let dst_inv = inverse(&rgb_to_xyz(REC709).expect("Rec. 709 is well formed"))
+    let dst_inv = inverse3(&rgb_to_xyz(REC709).expect("Rec. 709 is well formed"))
         .expect("Rec. 709 is invertible");
-    const BRADFORD: M3 = [
-        [0.8951, 0.2664, -0.1614],
-        [-0.7502, 1.7135, 0.0367],
-        [0.0389, -0.0685, 1.0296],
-    ];
-    let b_inv = inverse(&BRADFORD).expect("Bradford is invertible");
-    let cone = |w: [f64; 3]| -> [f64; 3] {
-        std::array::from_fn(|i| (0..3).map(|k| BRADFORD[i][k] * w[k]).sum())
-    };
-    let (s, d) = (cone(xyz(c[3])), cone(xyz(REC709[3])));
+    let b_inv = inverse3(&BRADFORD).expect("Bradford is invertible");
+    let (s, d) = (
+        mat_vec(&BRADFORD, xy_to_xyz(c[3])),
+        mat_vec(&BRADFORD, xy_to_xyz(REC709[3])),
+    );
     if s.iter().any(|v| v.abs() < 1e-12) {
         return Err(bad());
     }
-    let scale: M3 =
+    let scale: Mat3 =
         std::array::from_fn(|i| std::array::from_fn(|j| if i == j { d[i] / s[i] } else { 0.0 }));
-    let adapt = mul(&b_inv, &mul(&scale, &BRADFORD));
-    let m = mul(&dst_inv, &mul(&adapt, &src));
+    let adapt = mul3(&b_inv, &mul3(&scale, &BRADFORD));
+    let m = mul3(&dst_inv, &mul3(&adapt, &src));
     Ok(Some(m.map(|r| r.map(|v| v as f32))))
-}
-
-/// Resample to `w`×`h`, separably: each output pixel averages the input over its footprint
-/// (a box filter, exact with fractional coverage) when shrinking, bilinear (pixel centres
-/// aligned, edges clamped) when enlarging. Values are averaged as given (linear in, linear out).
-pub fn resize(img: &Image, w: usize, h: usize) -> Image {
-    if (w, h) == (img.width, img.height) || img.width == 0 || img.height == 0 {
-        return img.clone();
-    }
-    let cols = taps(img.width, w);
-    let rows = taps(img.height, h);
-    // Horizontal pass into an intermediate w × source height image, then vertical.
-    let mut mid = vec![0f32; w * img.height * 3];
-    mid.par_chunks_mut(w * 3)
-        .zip(img.data.par_chunks(img.width * 3))
-        .for_each(|(o, src)| {
-            for (x, t) in cols.iter().enumerate() {
-                let mut acc = [0f32; 3];
-                for &(i, wt) in t {
-                    for c in 0..3 {
-                        acc[c] += wt * src[i * 3 + c];
-                    }
-                }
-                o[x * 3..x * 3 + 3].copy_from_slice(&acc);
-            }
-        });
-    let mut out = Image::new(w, h);
-    out.data
-        .par_chunks_mut(w * 3)
-        .zip(rows.par_iter())
-        .for_each(|(o, t)| {
-            for &(i, wt) in t {
-                let src = &mid[i * w * 3..(i + 1) * w * 3];
-                for (a, b) in o.iter_mut().zip(src) {
-                    *a += wt * b;
-                }
-            }
-        });
-    out
-}
-
-/// Per output index, the (input index, weight) pairs of a 1-D resampling from n to m.
-fn taps(n: usize, m: usize) -> Vec<Vec<(usize, f32)>> {
-    let scale = n as f64 / m as f64;
-    (0..m)
-        .map(|o| {
-            if scale > 1.0 {
-                let (a, b) = (o as f64 * scale, (o + 1) as f64 * scale);
-                let mut t = Vec::new();
-                let mut i = a.floor() as usize;
-                while (i as f64) < b && i < n {
-                    let cover = (b.min(i as f64 + 1.0) - a.max(i as f64)).max(0.0);
-                    if cover > 0.0 {
-                        t.push((i, (cover / scale) as f32));
-                    }
-                    i += 1;
-                }
-                t
-            } else {
-                let x = ((o as f64 + 0.5) * scale - 0.5).clamp(0.0, (n - 1) as f64);
-                let i = x.floor() as usize;
-                let f = x - i as f64;
-                if i + 1 < n && f > 0.0 {
-                    vec![(i, (1.0 - f) as f32), (i + 1, f as f32)]
-                } else {
-                    vec![(i, 1.0)]
-                }
-            }
-        })
-        .collect()
 }

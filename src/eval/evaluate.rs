@@ -19,7 +19,6 @@
 use crate::data::ground_truth::{self, MertensWeights};
 use crate::data::layout::{self, SetInfo};
 use crate::data::scene::ev_tag;
-use crate::data::testset::resize;
 use crate::error::{Error, Result};
 use crate::eval::blend::{blend_pair, tone_curve};
 use crate::eval::engine::{LoadedNetwork, Network};
@@ -27,7 +26,7 @@ use crate::eval::infer;
 pub use crate::eval::infer::NetworkOptions;
 use crate::eval::metrics::{self, MetricOptions, Pu21Scale, Scores};
 use crate::eval::report::{self, Cell, MetricSummary, SetScore};
-use crate::io::{BitDepth, ExrPrecision, Image, read_image, write_exr, write_ldr};
+use crate::io::{BitDepth, ExrPrecision, Image, read_image, resize, write_exr, write_ldr};
 use burn::tensor::Device;
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
@@ -224,6 +223,43 @@ pub fn from_checkpoint(
 ) -> Result<Box<dyn Method>> {
     let net = LoadedNetwork::from_checkpoint(path, opts, device)?;
     Ok(from_network(net, opts))
+}
+
+/// What `hdrsynth eval` scores.
+#[derive(Clone, Debug)]
+pub enum Source {
+    /// A folder of linear predictions made elsewhere, `<set>.exr` (or `.hdr`).
+    Predictions(PathBuf),
+    /// A checkpoint (or run folder: its latest checkpoint) run here on the device `backend`
+    /// names (`device::device_from_name`).
+    Checkpoint {
+        path: PathBuf,
+        backend: String,
+        network: NetworkOptions,
+    },
+}
+
+/// The method that scores `source`.
+pub fn method_for(source: &Source) -> Result<Box<dyn Method>> {
+    match source {
+        Source::Predictions(dir) => {
+            if !dir.is_dir() {
+                return Err(Error::Invalid(format!(
+                    "--predictions {}: not a folder",
+                    dir.display()
+                )));
+            }
+            Ok(Box::new(Predictions { dir: dir.clone() }))
+        }
+        Source::Checkpoint {
+            path,
+            backend,
+            network,
+        } => {
+            let device = crate::device::device_from_name(backend)?;
+            from_checkpoint(path, network, &device)
+        }
+    }
 }
 
 /// The method for a loaded network (a checkpoint's, or an exported ONNX file's).

@@ -701,7 +701,7 @@ fn yw_from_primaries(c: [[f64; 2]; 4]) -> Option<[f32; 3]> {
     let (r, g, b) = (col(c[0]), col(c[1]), col(c[2]));
     let w = [c[3][0] / c[3][1], 1.0, (1.0 - c[3][0] - c[3][1]) / c[3][1]];
     let m = [[r[0], g[0], b[0]], [r[1], g[1], b[1]], [r[2], g[2], b[2]]];
-    let s = solve3(m, w)?;
+    let s = crate::linalg::solve3(m, w)?;
     finish([s[0] * r[1], s[1] * g[1], s[2] * b[1]])
 }
 
@@ -715,25 +715,4 @@ fn finish(y: [f64; 3]) -> Option<[f32; 3]> {
         (y[1] / sum) as f32,
         (y[2] / sum) as f32,
     ])
-}
-
-fn solve3(m: [[f64; 3]; 3], v: [f64; 3]) -> Option<[f64; 3]> {
-    let det = |a: [[f64; 3]; 3]| {
-        a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1])
-            - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
-            + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0])
-    };
-    let d = det(m);
-    if d.abs() < 1e-15 || !d.is_finite() {
-        return None;
-    }
-    let mut out = [0.0; 3];
-    for (k, o) in out.iter_mut().enumerate() {
-        let mut mk = m;
-        for row in 0..3 {
-            mk[row][k] = v[row];
-        }
-        *o = det(mk) / d;
-    }
-    Some(out)
 }

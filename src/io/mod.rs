@@ -12,9 +12,11 @@ mod hdr;
 pub mod image;
 mod ldr;
 pub mod limits;
+mod resize;
 pub mod srgb;
 
 pub use image::{Image, dynamic_range_stops, luminance};
+pub use resize::resize;
 pub use srgb::{srgb_decode, srgb_encode, srgb_encode_fast};
 
 use crate::error::{Error, Result};

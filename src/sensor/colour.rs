@@ -21,6 +21,7 @@
 
 use crate::error::{Error, Result};
 use crate::io::Image;
+use crate::linalg::{Mat3, mat_inv, mat_vec, mul3};
 use crate::sensor::profile::Colour;
 use rayon::prelude::*;
 use std::fmt;
@@ -206,47 +207,6 @@ pub fn reference_linear_srgb() -> Vec<[f64; 3]> {
 // Colour maths
 // ---------------------------------------------------------------------------------------------
 
-pub type Mat3 = [[f64; 3]; 3];
-
-/// 3×3 matrix product.
-pub fn mul3(a: &Mat3, b: &Mat3) -> Mat3 {
-    std::array::from_fn(|i| std::array::from_fn(|j| (0..3).map(|k| a[i][k] * b[k][j]).sum()))
-}
-
-/// 3×3 determinant.
-pub fn det3(m: &Mat3) -> f64 {
-    m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
-        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
-        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
-}
-
-/// 3×3 inverse by cofactors; None when the determinant is not finite or below 1e-15.
-pub fn inverse3(m: &Mat3) -> Option<Mat3> {
-    let det = det3(m);
-    if !det.is_finite() || det.abs() < 1e-15 {
-        return None;
-    }
-    let c =
-        |r0: usize, r1: usize, c0: usize, c1: usize| m[r0][c0] * m[r1][c1] - m[r0][c1] * m[r1][c0];
-    Some([
-        [
-            c(1, 2, 1, 2) / det,
-            -c(0, 2, 1, 2) / det,
-            c(0, 1, 1, 2) / det,
-        ],
-        [
-            -c(1, 2, 0, 2) / det,
-            c(0, 2, 0, 2) / det,
-            -c(0, 1, 0, 2) / det,
-        ],
-        [
-            c(1, 2, 0, 1) / det,
-            -c(0, 2, 0, 1) / det,
-            c(0, 1, 0, 1) / det,
-        ],
-    ])
-}
-
 /// colour-science's sRGB RGB → XYZ matrix (`RGB_COLOURSPACES['sRGB'].matrix_RGB_to_XYZ`).
 pub const SRGB_TO_XYZ: Mat3 = [
     [0.4124, 0.3576, 0.1805],
@@ -267,34 +227,6 @@ pub const D65_XY: [f64; 2] = [0.3127, 0.329];
 pub const D50_XY: [f64; 2] = [0.345702914918791, 0.358538596679933];
 pub const A_XY: [f64; 2] = [0.44758, 0.40745];
 
-pub fn mat_vec(m: &Mat3, v: [f64; 3]) -> [f64; 3] {
-    std::array::from_fn(|i| m[i][0] * v[0] + m[i][1] * v[1] + m[i][2] * v[2])
-}
-
-pub fn mat_mul(a: &Mat3, b: &Mat3) -> Mat3 {
-    std::array::from_fn(|i| std::array::from_fn(|j| (0..3).map(|k| a[i][k] * b[k][j]).sum()))
-}
-
-/// Inverse of a 3×3 matrix; None when singular.
-pub fn mat_inv(m: &Mat3) -> Option<Mat3> {
-    let c =
-        |r0: usize, r1: usize, c0: usize, c1: usize| m[r0][c0] * m[r1][c1] - m[r0][c1] * m[r1][c0];
-    let cof = [
-        [c(1, 2, 1, 2), -c(1, 2, 0, 2), c(1, 2, 0, 1)],
-        [-c(0, 2, 1, 2), c(0, 2, 0, 2), -c(0, 2, 0, 1)],
-        [c(0, 1, 1, 2), -c(0, 1, 0, 2), c(0, 1, 0, 1)],
-    ];
-    let det = m[0][0] * cof[0][0] + m[0][1] * cof[0][1] + m[0][2] * cof[0][2];
-    let scale = m.iter().flatten().fold(0.0f64, |a, v| a.max(v.abs()));
-    if !det.is_finite() || det.abs() <= 1e-300 || det.abs() <= 1e-14 * scale.powi(3) {
-        return None;
-    }
-    // Inverse = adjugate / det; the adjugate is the transposed cofactor matrix.
-    Some(std::array::from_fn(|i| {
-        std::array::from_fn(|j| cof[j][i] / det)
-    }))
-}
-
 /// XYZ (Y = 1) of a chromaticity.
 pub fn xy_to_xyz(xy: [f64; 2]) -> [f64; 3] {
     [xy[0] / xy[1], 1.0, (1.0 - xy[0] - xy[1]) / xy[1]]
@@ -311,7 +243,7 @@ pub fn bradford(src: [f64; 3], dst: [f64; 3]) -> Mat3 {
         [0.0, 0.0, wr[2] / w[2]],
     ];
     let inv = mat_inv(&BRADFORD).expect("Bradford matrix is invertible");
-    mat_mul(&mat_mul(&inv, &d), &BRADFORD)
+    mul3(&mul3(&inv, &d), &BRADFORD)
 }
 
 /// Linear sRGB → XYZ (D65, Y of the sRGB white = 1).
@@ -350,7 +282,7 @@ pub fn xyz_to_lab(xyz: [f64; 3], white: [f64; 3]) -> [f64; 3] {
 
 /// Lab (D50) of a colour treated as linear sRGB (D65): sRGB → XYZ D65 → Bradford → Lab D50.
 pub fn linear_srgb_to_lab_d50(rgb: [f64; 3]) -> [f64; 3] {
-    let m = mat_mul(
+    let m = mul3(
         &bradford(xy_to_xyz(D65_XY), xy_to_xyz(D50_XY)),
         &SRGB_TO_XYZ,
     );
@@ -783,7 +715,7 @@ impl Illuminant {
         };
         let cat = bradford(xy_to_xyz(D65_XY), xy_to_xyz(white));
         let inv = mat_inv(&SRGB_TO_XYZ).expect("sRGB matrix is invertible");
-        let m = mat_mul(&inv, &mat_mul(&cat, &SRGB_TO_XYZ));
+        let m = mul3(&inv, &mul3(&cat, &SRGB_TO_XYZ));
         mat_vec(&m, [1.0; 3])
     }
 }
@@ -1113,7 +1045,7 @@ pub fn sample_chart(
 /// then scaled to sum to 1 so that a neutral stays neutral (white-balanced camera RGB, the
 /// profile's convention), exactly as dcraw normalises its `cam_rgb`.
 pub fn t_from_camera_xyz(cam_xyz: &Mat3) -> Result<Mat3> {
-    let m = mat_mul(cam_xyz, &SRGB_TO_XYZ);
+    let m = mul3(cam_xyz, &SRGB_TO_XYZ);
     let mut t = m;
     for row in &mut t {
         let s: f64 = row.iter().sum();

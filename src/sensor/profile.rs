@@ -243,6 +243,48 @@ impl Response {
 }
 
 impl SensorProfile {
+    /// A new profile of a measured device whose levels and response are known and nothing is
+    /// calibrated yet (no colour, no noise rows; source response the engine's filmic curve):
+    /// the calibrations fill in what they measure and its provenance.
+    pub fn new_measured(
+        name: impl Into<String>,
+        levels: Levels,
+        response: Response,
+        provenance: Provenance,
+    ) -> SensorProfile {
+        SensorProfile {
+            format: PROFILE_FORMAT.into(),
+            name: name.into(),
+            kind: ProfileKind::Measured,
+            provenance,
+            colour: None,
+            levels,
+            noise: Vec::new(),
+            response,
+            source_response: Response::Filmic,
+            effects: Vec::new(),
+        }
+    }
+
+    /// The profile at `path` to update, or `create()`'s where there is none; the flag says
+    /// whether it existed. A file there that is not a valid profile is an error, so a
+    /// calibration never overwrites something else.
+    pub fn load_or_create<E: From<Error>>(
+        path: &Path,
+        create: impl FnOnce() -> std::result::Result<SensorProfile, E>,
+    ) -> std::result::Result<(SensorProfile, bool), E> {
+        if !path.exists() {
+            return Ok((create()?, false));
+        }
+        let p = SensorProfile::load(path).map_err(|e| {
+            Error::config(
+                path,
+                format!("exists but is not a valid sensor profile ({e}); not overwriting it"),
+            )
+        })?;
+        Ok((p, true))
+    }
+
     pub fn load(path: &Path) -> Result<SensorProfile> {
         let p: SensorProfile = load_toml(path)?;
         p.validate().map_err(|m| Error::config(path, m))?;
@@ -298,7 +340,7 @@ impl SensorProfile {
             // A singular T maps distinct colours to one (an all-zero T gives black frames).
             // Scale-free test: |det| against the product of the row norms (1 for orthogonal
             // rows, 0 for dependent ones).
-            let det = crate::sensor::colour::det3(&c.matrix);
+            let det = crate::linalg::det3(&c.matrix);
             let norms: f64 = c
                 .matrix
                 .iter()

@@ -2,7 +2,8 @@
 //! binary uses every helper).
 #![allow(dead_code)]
 
-use hdrsynth::config::{GenerateConfig, parse_toml};
+use hdrsynth::config::parse_toml;
+use hdrsynth::data::generate::GenerateConfig;
 use std::path::Path;
 
 /// Generate a small pure synthetic dataset into `dir` with the scene engine.
@@ -13,7 +14,7 @@ pub fn generate(dir: &Path, seed: u64, count: usize, (width, height): (usize, us
     );
     let mut c: GenerateConfig = parse_toml(&text, Path::new("gen.toml")).expect("config");
     c.source = None;
-    hdrsynth::cli::generate::generate(&c, dir, false).expect("generate");
+    hdrsynth::data::generate::generate(&c, dir, false).expect("generate");
 }
 
 /// The validation score `key` the trainer logged at `step` in `RUN/log.jsonl` (step 0 is logged

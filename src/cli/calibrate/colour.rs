@@ -27,12 +27,10 @@
 use crate::error::Error;
 use crate::io::{Format, Image, read_image_info};
 use crate::sensor::colour::{
-    self, COLORCHECKER24, ChartRegion, Evaluation, Fitted, Illuminant, Mat3, Model, PatchSample,
+    self, COLORCHECKER24, ChartRegion, Evaluation, Fitted, Illuminant, Model, PatchSample,
 };
 use crate::sensor::dng::{DngInfo, read_dng};
-use crate::sensor::profile::{
-    Colour, Levels, PROFILE_FORMAT, ProfileKind, Provenance, Response, SensorProfile,
-};
+use crate::sensor::profile::{Colour, Levels, Provenance, Response, SensorProfile};
 use anyhow::{Context, Result, anyhow, bail};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -542,13 +540,9 @@ fn utc_now() -> String {
 /// `hdrsynth calibrate colour ...`: calibrate, write the profile, return the report.
 pub fn run(args: &Args) -> Result<String> {
     let (cal, inputs) = calibrate(args)?;
-    let exists = args.out.exists();
-    let mut profile = if exists {
-        SensorProfile::load(&args.out)?
-    } else {
-        new_profile(args, &inputs)?
-    };
-    let t: Mat3 = match &cal.matrix.fitted {
+    let (mut profile, exists) =
+        SensorProfile::load_or_create(&args.out, || new_profile(args, &inputs))?;
+    let t: crate::linalg::Mat3 = match &cal.matrix.fitted {
         Fitted::Matrix(t) => *t,
         Fitted::RootPolynomial(_) => unreachable!("matrix evaluation holds a matrix"),
     };
@@ -687,11 +681,11 @@ fn new_profile(args: &Args, inputs: &InputsInfo) -> Result<SensorProfile> {
             response_name(&response)
         )
     };
-    Ok(SensorProfile {
-        format: PROFILE_FORMAT.into(),
+    Ok(SensorProfile::new_measured(
         name,
-        kind: ProfileKind::Measured,
-        provenance: Provenance {
+        levels,
+        response,
+        Provenance {
             colour: String::new(),
             noise: "no noise calibration yet (profile created by `hdrsynth calibrate colour`)"
                 .into(),
@@ -703,11 +697,5 @@ fn new_profile(args: &Args, inputs: &InputsInfo) -> Result<SensorProfile> {
             ),
             notes: None,
         },
-        colour: None,
-        levels,
-        noise: Vec::new(),
-        response,
-        source_response: Response::Filmic,
-        effects: Vec::new(),
-    })
+    ))
 }

@@ -7,6 +7,7 @@
 //! ([`read_linear_ground_truth`]); the file's own unit follows from [`ExposureFile`].
 
 pub mod hdrsynth;
+pub mod info;
 pub mod kalantari;
 pub mod paper1;
 pub mod wu;

@@ -13,7 +13,7 @@ pub mod noise;
 pub mod subjects;
 pub mod world;
 
-use crate::config::GenerateConfig;
+use crate::data::generate::GenerateConfig;
 use crate::error::{Error, Result};
 use crate::io::{Image, dynamic_range_stops, read_image};
 use crate::rng::Rng;
