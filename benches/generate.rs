@@ -2,7 +2,7 @@
 //! per EV), rendering and tone mapping only (no file writes), at 1920×1080 and 4032×3024.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use hdrsynth::config::GenerateConfig;
+use hdrsynth::data::generate::GenerateConfig;
 use hdrsynth::data::scene::Generator;
 use std::time::Duration;
 

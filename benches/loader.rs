@@ -2,7 +2,8 @@
 //! samples at 128×128, on 1 and 2 workers. The dataset (16 sets, 512×384) is generated first.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use hdrsynth::config::{GenerateConfig, parse_toml};
+use hdrsynth::config::parse_toml;
+use hdrsynth::data::generate::GenerateConfig;
 use hdrsynth::data::loader::{Loader, LoaderConfig};
 use std::path::Path;
 use std::sync::Arc;
@@ -14,7 +15,7 @@ fn dataset(evs: &str, dir: &Path) {
     );
     let mut c: GenerateConfig = parse_toml(&text, Path::new("bench.toml")).expect("config");
     c.source = None;
-    hdrsynth::cli::generate::generate(&c, dir, false).expect("generate");
+    hdrsynth::data::generate::generate(&c, dir, false).expect("generate");
 }
 
 fn bench(c: &mut Criterion) {
