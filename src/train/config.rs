@@ -4,7 +4,7 @@
 use crate::config::load_toml;
 use crate::data::loader::{LoaderConfig, RealismConfig, SampleKind, Source};
 use crate::error::{Error, Result};
-use crate::models::{BlendUNetConfig, WuConfig};
+use crate::models::ModelConfig;
 use crate::sensor::metering::Metering;
 use crate::sensor::realism::NoiseModel;
 use crate::train::loss::Network1Reading;
@@ -67,41 +67,6 @@ fn default_keep() -> usize {
 }
 fn default_log_every() -> u64 {
     10
-}
-
-/// The network, tagged by `kind`.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "kind", rename_all = "snake_case")]
-pub enum ModelConfig {
-    /// Network-1, the blend-map U-Net.
-    BlendUnet(BlendUNetConfig),
-    /// Network-2, Wu et al.'s three-exposure merger.
-    Wu(WuConfig),
-}
-
-impl ModelConfig {
-    pub fn sample_kind(&self) -> SampleKind {
-        match self {
-            ModelConfig::BlendUnet(_) => SampleKind::Network1,
-            ModelConfig::Wu(_) => SampleKind::Network2,
-        }
-    }
-
-    /// H and W of an input must be multiples of this.
-    pub fn size_multiple(&self) -> usize {
-        match self {
-            ModelConfig::BlendUnet(m) => m.size_multiple(),
-            ModelConfig::Wu(m) => m.size_multiple(),
-        }
-    }
-
-    /// Receptive-field radius in input pixels: the overlap that makes tiling exact.
-    pub fn receptive_radius(&self) -> usize {
-        match self {
-            ModelConfig::BlendUnet(m) => m.receptive_radius(),
-            ModelConfig::Wu(m) => m.receptive_radius(),
-        }
-    }
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -437,10 +402,7 @@ impl TrainConfig {
             )));
         }
         self.schedule.validate()?;
-        match &self.model {
-            ModelConfig::BlendUnet(m) => m.validate()?,
-            ModelConfig::Wu(m) => m.validate()?,
-        }
+        self.model.validate()?;
         let m = self.model.size_multiple();
         if !self.data.patch.is_multiple_of(m) {
             return Err(Error::Invalid(format!(
