@@ -93,21 +93,16 @@ impl DeconvAlignment {
 /// Network-2 hyper-parameters (a `[model]` table in a training config). Defaults are the
 /// authors' (released ResNet model, `gf_dim` 64, 9 residual blocks).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct WuConfig {
-    #[serde(default)]
     pub variant: WuVariant,
     /// b: width of e_i1; e_i2 has 2b, the ResNet merger 4b.
-    #[serde(default = "default_base_width")]
     pub base_width: usize,
     /// Residual blocks of the ResNet merger (ignored by the U-Net).
-    #[serde(default = "default_res_blocks")]
     pub res_blocks: usize,
     /// Widths of the U-Net merger's stride-2 convolutions, in multiples of b (ignored by the
     /// ResNet). One entry per further down-sampling step.
-    #[serde(default = "default_unet_merger_widths")]
     pub unet_merger_widths: Vec<usize>,
-    #[serde(default)]
     pub deconv_alignment: DeconvAlignment,
     /// The HDR channels are multiplied by this before the x·2 − 1 mapping, and the output
     /// in [0, 1] is HDR × this (the trainer scales targets, inference divides it out). 0.25
@@ -115,32 +110,18 @@ pub struct WuConfig {
     /// bracket, so HDR inputs are ≤ 1 and output 1 is the short frame's white (4× the
     /// reference's). 1: t relative to the reference; the output then cannot exceed the
     /// reference's white.
-    #[serde(default = "default_hdr_input_scale")]
     pub hdr_input_scale: f64,
-}
-
-fn default_base_width() -> usize {
-    64
-}
-fn default_res_blocks() -> usize {
-    9
-}
-fn default_unet_merger_widths() -> Vec<usize> {
-    vec![4, 8, 8]
-}
-fn default_hdr_input_scale() -> f64 {
-    0.25
 }
 
 impl Default for WuConfig {
     fn default() -> Self {
         WuConfig {
             variant: WuVariant::Resnet,
-            base_width: default_base_width(),
-            res_blocks: default_res_blocks(),
-            unet_merger_widths: default_unet_merger_widths(),
+            base_width: 64,
+            res_blocks: 9,
+            unet_merger_widths: vec![4, 8, 8],
             deconv_alignment: DeconvAlignment::Tensorflow,
-            hdr_input_scale: default_hdr_input_scale(),
+            hdr_input_scale: 0.25,
         }
     }
 }
