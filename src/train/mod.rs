@@ -32,10 +32,12 @@ use std::sync::{Arc, Mutex};
 use std::time::Instant;
 use task::{CHECKPOINT_ALPHA_FILE, Network1, Network2, Task};
 
-/// One Network-1 optimisation step: forward, softmax, [`loss::weighted_l1`], backward, optimiser
-/// update. `input`, `target` and `alpha` must be on the model's (autodiff) device. Returns the
-/// updated model and the step's loss (detached, before the update). Used by the step benchmark;
-/// the trainer goes through [`Task::loss`].
+/// One bare Network-1 optimisation step: forward, softmax, [`loss::weighted_l1`] (paper Eq. 4 as
+/// written), backward, optimiser update. `input`, `target` and `alpha` must be on the model's
+/// (autodiff) device. Returns the updated model and the step's loss (detached, before the
+/// update). For use outside the trainer (docs/network1.md); the trainer and the step benchmark
+/// run [`train_step`], which reads the loss as `[loss] reading` says ([`Task::loss`]) and skips
+/// the update on a non-finite loss.
 pub fn network1_step(
     model: BlendUNet,
     optim: &mut ModuleOptimizer,
