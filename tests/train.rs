@@ -6,9 +6,9 @@ mod common;
 use burn::module::{Module, ModuleVisitor, Param};
 use burn::tensor::{Device, Tensor, TensorData};
 use hdrsynth::config::parse_toml;
-use hdrsynth::models::BlendUNetConfig;
+use hdrsynth::models::{BlendUNetConfig, ModelConfig};
 use hdrsynth::train::checkpoint::{self, CheckpointState};
-use hdrsynth::train::config::{ModelConfig, Schedule, ScheduleKind, TrainConfig};
+use hdrsynth::train::config::{Schedule, ScheduleKind, TrainConfig};
 use hdrsynth::train::{TrainOptions, seeded_init};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -279,6 +279,114 @@ fn unknown_keys_and_bad_values_are_config_errors_naming_the_line() {
     let cfg: TrainConfig = parse_toml(&text, Path::new("train.toml")).expect("parses");
     let err = cfg.validate().expect_err("patch not a multiple of 4");
     assert!(err.to_string().contains("multiple"), "{err}");
+}
+
+/// The defaults of every optional key (docs/training.md), pinned: a refactor of how serde fills
+/// them must not change a value any shipped or user config relies on.
+#[test]
+fn omitted_keys_take_the_documented_defaults() {
+    use hdrsynth::data::loader::Source;
+    use hdrsynth::models::{DeconvAlignment, WuConfig, WuVariant};
+    use hdrsynth::sensor::metering::Metering;
+    use hdrsynth::sensor::realism::NoiseModel;
+    use hdrsynth::train::loss::Network1Reading;
+    let minimal = |model: &str| {
+        parse(&format!(
+            "[run]\nout = \"r\"\nseed = 1\nsteps = 1\n[model]\nkind = \"{model}\"\n\
+             [data]\ndataset = \"d\"\npatch = 64\nbatch_size = 2\nprofile = \"p.toml\"\n\
+             isos = [100.0]\n"
+        ))
+    };
+    let cfg = minimal("blend_unet");
+    let r = &cfg.run;
+    assert_eq!(r.backend, "flex");
+    assert!(r.devices.is_empty());
+    assert_eq!(
+        (r.checkpoint_every, r.keep_checkpoints, r.log_every),
+        (500, 3, 10)
+    );
+    let d = &cfg.data;
+    assert_eq!((d.generate.clone(), d.workers, d.augment), (None, 2, true));
+    assert_eq!(
+        (d.noise, d.exposure, d.ev_jitter),
+        (NoiseModel::default(), 1.0, 0.5)
+    );
+    assert_eq!(
+        (d.metering, d.source, d.colour),
+        (Metering::default(), Source::Auto, true)
+    );
+    assert_eq!(d.target_sigma, 4.0);
+    let o = &cfg.optim;
+    assert_eq!(
+        (o.lr, o.beta1, o.beta2, o.epsilon, o.weight_decay),
+        (1e-4, 0.9, 0.999, 1e-8, 0.0)
+    );
+    assert_eq!(cfg.schedule, Schedule::default());
+    assert_eq!(cfg.schedule.kind, ScheduleKind::Constant);
+    assert_eq!((cfg.schedule.warmup_steps, cfg.schedule.every), (0, None));
+    let l = &cfg.loss;
+    assert_eq!((l.alpha.as_str(), l.alpha_samples), ("uniform", 64));
+    assert_eq!(
+        (l.reading, l.label_sigma),
+        (Network1Reading::default(), 8.0)
+    );
+    assert!(cfg.init.is_none() && cfg.validation.is_none());
+    assert_eq!(
+        cfg.model,
+        ModelConfig::BlendUnet(BlendUNetConfig {
+            base_width: 32,
+            depth: 4,
+            batch_norm: true,
+            classes: 256,
+        })
+    );
+    assert_eq!(
+        minimal("wu").model,
+        ModelConfig::Wu(WuConfig {
+            variant: WuVariant::Resnet,
+            base_width: 64,
+            res_blocks: 9,
+            unet_merger_widths: vec![4, 8, 8],
+            deconv_alignment: DeconvAlignment::Tensorflow,
+            hdr_input_scale: 0.25,
+        })
+    );
+    let with_validation = format!(
+        "{}[validation]\ndataset = \"v\"\nevery = 5\n",
+        config_text(Path::new("r"), 4, "", 1e-3, true)
+    );
+    let v = parse(&with_validation).validation.expect("validation");
+    assert_eq!((v.generate, v.samples, v.patch), (None, 16, None));
+    assert_eq!(v.target_sigma, 0.0);
+}
+
+/// Every training config shipped in configs/ (any depth: the files with a `[run]` table)
+/// parses and validates.
+#[test]
+fn every_shipped_training_config_parses() {
+    fn walk(dir: &Path, found: &mut Vec<PathBuf>) {
+        for entry in std::fs::read_dir(dir).expect("configs") {
+            let path = entry.expect("entry").path();
+            if path.is_dir() {
+                walk(&path, found);
+            } else if path.extension().is_some_and(|e| e == "toml") {
+                let text = std::fs::read_to_string(&path).expect("read");
+                let table: toml::Table = text.parse().expect("toml");
+                if table.contains_key("run") {
+                    found.push(path);
+                }
+            }
+        }
+    }
+    let mut found = Vec::new();
+    walk(
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join("configs"),
+        &mut found,
+    );
+    assert!(found.len() >= 9, "{found:?}");
+    for path in found {
+        TrainConfig::load(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    }
 }
 
 #[test]

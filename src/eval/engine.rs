@@ -13,9 +13,8 @@ use crate::eval::infer::{
 };
 use crate::eval::tiling::Tiling;
 use crate::io::Image;
-use crate::models::{BlendUNet, WuNet};
+use crate::models::{BlendUNet, ModelConfig, WuNet};
 use crate::train::checkpoint;
-use crate::train::config::ModelConfig;
 use burn::module::Module;
 use burn::tensor::Device;
 use std::path::{Path, PathBuf};

@@ -40,42 +40,25 @@ pub const INPUT_CHANNELS: usize = 6;
 
 /// Network-1 hyper-parameters (a `[model]` table in a training config).
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct BlendUNetConfig {
     /// Width of level 0; level l has base_width · 2^l channels.
-    #[serde(default = "default_base_width")]
     pub base_width: usize,
     /// Number of 2×2 down-sampling steps (H and W must be multiples of 2^depth).
-    #[serde(default = "default_depth")]
     pub depth: usize,
     /// BatchNorm after every 3×3 convolution.
-    #[serde(default = "yes")]
     pub batch_norm: bool,
     /// Output classes (256 blend-map classes).
-    #[serde(default = "default_classes")]
     pub classes: usize,
-}
-
-fn default_base_width() -> usize {
-    32
-}
-fn default_depth() -> usize {
-    4
-}
-fn yes() -> bool {
-    true
-}
-fn default_classes() -> usize {
-    crate::data::ground_truth::CLASSES
 }
 
 impl Default for BlendUNetConfig {
     fn default() -> Self {
         BlendUNetConfig {
-            base_width: default_base_width(),
-            depth: default_depth(),
+            base_width: 32,
+            depth: 4,
             batch_norm: true,
-            classes: default_classes(),
+            classes: crate::data::ground_truth::CLASSES,
         }
     }
 }

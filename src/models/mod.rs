@@ -5,11 +5,58 @@
 //! - [`wu`]: Network-2, Wu et al. (ECCV 2018), three exposures → linear HDR; [`import`] moves
 //!   weights to and from PyTorch-style SafeTensors files.
 //! - [`conv`]: the layers' 2D convolution, with a faster weight gradient on flex.
+//! - [`ModelConfig`]: either network's config, tagged by `kind` (training configs, checkpoints).
 
 pub mod blend_unet;
 pub mod conv;
 pub mod import;
 pub mod wu;
 
+use crate::data::loader::SampleKind;
+use crate::error::Result;
+use serde::{Deserialize, Serialize};
+
 pub use blend_unet::{BlendUNet, BlendUNetConfig};
 pub use wu::{DeconvAlignment, WuConfig, WuNet, WuVariant};
+
+/// The network, tagged by `kind`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum ModelConfig {
+    /// Network-1, the blend-map U-Net.
+    BlendUnet(BlendUNetConfig),
+    /// Network-2, Wu et al.'s three-exposure merger.
+    Wu(WuConfig),
+}
+
+impl ModelConfig {
+    pub fn sample_kind(&self) -> SampleKind {
+        match self {
+            ModelConfig::BlendUnet(_) => SampleKind::Network1,
+            ModelConfig::Wu(_) => SampleKind::Network2,
+        }
+    }
+
+    pub fn validate(&self) -> Result<()> {
+        match self {
+            ModelConfig::BlendUnet(m) => m.validate(),
+            ModelConfig::Wu(m) => m.validate(),
+        }
+    }
+
+    /// H and W of an input must be multiples of this.
+    pub fn size_multiple(&self) -> usize {
+        match self {
+            ModelConfig::BlendUnet(m) => m.size_multiple(),
+            ModelConfig::Wu(m) => m.size_multiple(),
+        }
+    }
+
+    /// Receptive-field radius in input pixels: the overlap that makes tiling exact.
+    pub fn receptive_radius(&self) -> usize {
+        match self {
+            ModelConfig::BlendUnet(m) => m.receptive_radius(),
+            ModelConfig::Wu(m) => m.receptive_radius(),
+        }
+    }
+}

@@ -94,21 +94,16 @@ impl DeconvAlignment {
 /// Network-2 hyper-parameters (a `[model]` table in a training config). Defaults are the
 /// authors' (released ResNet model, `gf_dim` 64, 9 residual blocks).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct WuConfig {
-    #[serde(default)]
     pub variant: WuVariant,
     /// b: width of e_i1; e_i2 has 2b, the ResNet merger 4b.
-    #[serde(default = "default_base_width")]
     pub base_width: usize,
     /// Residual blocks of the ResNet merger (ignored by the U-Net).
-    #[serde(default = "default_res_blocks")]
     pub res_blocks: usize,
     /// Widths of the U-Net merger's stride-2 convolutions, in multiples of b (ignored by the
     /// ResNet). One entry per further down-sampling step.
-    #[serde(default = "default_unet_merger_widths")]
     pub unet_merger_widths: Vec<usize>,
-    #[serde(default)]
     pub deconv_alignment: DeconvAlignment,
     /// The HDR channels are multiplied by this before the x·2 − 1 mapping, and the output
     /// in [0, 1] is HDR × this (the trainer scales targets, inference divides it out). 0.25
@@ -116,32 +111,18 @@ pub struct WuConfig {
     /// bracket, so HDR inputs are ≤ 1 and output 1 is the short frame's white (4× the
     /// reference's). 1: t relative to the reference; the output then cannot exceed the
     /// reference's white.
-    #[serde(default = "default_hdr_input_scale")]
     pub hdr_input_scale: f64,
-}
-
-fn default_base_width() -> usize {
-    64
-}
-fn default_res_blocks() -> usize {
-    9
-}
-fn default_unet_merger_widths() -> Vec<usize> {
-    vec![4, 8, 8]
-}
-fn default_hdr_input_scale() -> f64 {
-    0.25
 }
 
 impl Default for WuConfig {
     fn default() -> Self {
         WuConfig {
             variant: WuVariant::Resnet,
-            base_width: default_base_width(),
-            res_blocks: default_res_blocks(),
-            unet_merger_widths: default_unet_merger_widths(),
+            base_width: 64,
+            res_blocks: 9,
+            unet_merger_widths: vec![4, 8, 8],
             deconv_alignment: DeconvAlignment::Tensorflow,
-            hdr_input_scale: default_hdr_input_scale(),
+            hdr_input_scale: 0.25,
         }
     }
 }
@@ -289,47 +270,24 @@ impl WuConfig {
         self.validate()?;
         let b = self.base_width;
         let encoders = (0..FRAMES)
-            .map(|_| ExposureEncoder {
-                conv1: conv(FRAME_CHANNELS, b, 5, 2, device),
-                conv2: conv(b, 2 * b, 5, 2, device),
-                bn2: norm(2 * b, device),
-            })
+            .map(|_| ExposureEncoder::init(b, device))
             .collect();
         let mut down = Vec::new();
         let mut cin = FRAMES * 2 * b;
         for m in self.merger_widths() {
-            down.push(DownBlock {
-                conv: conv(cin, m, 5, 2, device),
-                bn: norm(m, device),
-            });
+            down.push(DownBlock::init(cin, m, device));
             cin = m;
         }
         let res = match self.variant {
             WuVariant::Resnet => (0..self.res_blocks)
-                .map(|_| ResBlock {
-                    conv1: conv(cin, cin, 3, 1, device),
-                    bn1: norm(cin, device),
-                    conv2: conv(cin, cin, 3, 1, device),
-                    bn2: norm(cin, device),
-                })
+                .map(|_| ResBlock::init(cin, device))
                 .collect(),
             WuVariant::Unet => Vec::new(),
         };
-        let (padding, padding_out) = self.deconv_alignment.paddings();
         let up = self
             .decoder_plan()
             .into_iter()
-            .map(|p| UpBlock {
-                deconv: zero_bias_t(
-                    ConvTranspose2dConfig::new([p.cin, p.cout], [5, 5])
-                        .with_stride([2, 2])
-                        .with_padding([padding, padding])
-                        .with_padding_out([padding_out, padding_out])
-                        .with_initializer(normal_init())
-                        .init(device),
-                ),
-                bn: norm(p.cout, device),
-            })
+            .map(|p| UpBlock::init(p, self.deconv_alignment, device))
             .collect();
         Ok(WuNet {
             encoders,
@@ -472,11 +430,43 @@ pub struct ExposureEncoder {
     bn2: BatchNorm,
 }
 
+impl ExposureEncoder {
+    fn init(b: usize, device: &Device) -> Self {
+        ExposureEncoder {
+            conv1: conv(FRAME_CHANNELS, b, 5, 2, device),
+            conv2: conv(b, 2 * b, 5, 2, device),
+            bn2: norm(2 * b, device),
+        }
+    }
+
+    /// (e1, e2) of one frame's 6 channels: e1 is the decoder's last skip, e2 the merger's input.
+    fn forward(&self, x: Tensor<4>) -> (Tensor<4>, Tensor<4>) {
+        let e1 = conv_same(&self.conv1, x);
+        let e2 = self
+            .bn2
+            .forward(conv_same(&self.conv2, leaky_relu(e1.clone(), LEAK)));
+        (e1, e2)
+    }
+}
+
 /// A stride-2 merger level: BN(conv(lrelu(x))).
 #[derive(Module, Debug)]
 pub struct DownBlock {
     conv: Conv2d,
     bn: BatchNorm,
+}
+
+impl DownBlock {
+    fn init(cin: usize, cout: usize, device: &Device) -> Self {
+        DownBlock {
+            conv: conv(cin, cout, 5, 2, device),
+            bn: norm(cout, device),
+        }
+    }
+
+    fn forward(&self, x: Tensor<4>) -> Tensor<4> {
+        self.bn.forward(conv_same(&self.conv, leaky_relu(x, LEAK)))
+    }
 }
 
 /// x + BN(conv3×3(relu(BN(conv3×3(x))))), reflect padding 1 (the released `residule_block`).
@@ -489,6 +479,15 @@ pub struct ResBlock {
 }
 
 impl ResBlock {
+    fn init(c: usize, device: &Device) -> Self {
+        ResBlock {
+            conv1: conv(c, c, 3, 1, device),
+            bn1: norm(c, device),
+            conv2: conv(c, c, 3, 1, device),
+            bn2: norm(c, device),
+        }
+    }
+
     fn forward(&self, x: Tensor<4>) -> Tensor<4> {
         let y = relu(self.bn1.forward(conv_same(&self.conv1, x.clone())));
         x + self.bn2.forward(conv_same(&self.conv2, y))
@@ -500,6 +499,31 @@ impl ResBlock {
 pub struct UpBlock {
     deconv: ConvTranspose2d,
     bn: BatchNorm,
+    #[module(skip)]
+    alignment: DeconvAlignment,
+}
+
+impl UpBlock {
+    fn init(plan: UpPlan, alignment: DeconvAlignment, device: &Device) -> Self {
+        let (padding, padding_out) = alignment.paddings();
+        UpBlock {
+            deconv: zero_bias_t(
+                ConvTranspose2dConfig::new([plan.cin, plan.cout], [5, 5])
+                    .with_stride([2, 2])
+                    .with_padding([padding, padding])
+                    .with_padding_out([padding_out, padding_out])
+                    .with_initializer(normal_init())
+                    .init(device),
+            ),
+            bn: norm(plan.cout, device),
+            alignment,
+        }
+    }
+
+    fn forward(&self, x: Tensor<4>) -> Tensor<4> {
+        self.bn
+            .forward(deconv_same(&self.deconv, relu(x), self.alignment))
+    }
 }
 
 /// `down`: the stride-2 convolutions (one for the ResNet); `res`: the residual blocks (none
@@ -587,23 +611,18 @@ impl WuNet {
             panic!("{e}");
         }
         let x = self.map_input(x);
-        let mut e1 = Vec::with_capacity(FRAMES);
-        let mut e2 = Vec::with_capacity(FRAMES);
-        for (i, enc) in self.encoders.iter().enumerate() {
-            let xi = x.clone().narrow(1, i * FRAME_CHANNELS, FRAME_CHANNELS);
-            let a = conv_same(&enc.conv1, xi);
-            e2.push(
-                enc.bn2
-                    .forward(conv_same(&enc.conv2, leaky_relu(a.clone(), LEAK))),
-            );
-            e1.push(a);
-        }
+        let (e1, e2): (Vec<_>, Vec<_>) = self
+            .encoders
+            .iter()
+            .enumerate()
+            .map(|(i, enc)| enc.forward(x.clone().narrow(1, i * FRAME_CHANNELS, FRAME_CHANNELS)))
+            .unzip();
         let e1 = Tensor::cat(e1, 1);
         let e2 = Tensor::cat(e2, 1);
         let mut levels = Vec::with_capacity(self.merger.down.len());
         let mut cur = e2.clone();
         for d in &self.merger.down {
-            cur = d.bn.forward(conv_same(&d.conv, leaky_relu(cur, LEAK)));
+            cur = d.forward(cur);
             levels.push(cur.clone());
         }
         let deepest = levels.pop().expect("at least one merger level");
@@ -622,11 +641,7 @@ impl WuNet {
         skips.extend([e2, e1]);
         let mut skips = skips.into_iter();
         for up in &self.decoder.up {
-            let y = up.bn.forward(deconv_same(
-                &up.deconv,
-                relu(cur),
-                self.config.deconv_alignment,
-            ));
+            let y = up.forward(cur);
             cur = match skips.next() {
                 Some(s) => Tensor::cat(vec![y, s], 1),
                 None => y,

@@ -16,7 +16,7 @@
 
 use crate::error::{Error, Result};
 use crate::io::atomic::write_atomic;
-use crate::train::config::ModelConfig;
+use crate::models::ModelConfig;
 use burn::module::Module;
 use burn::optim::ModuleOptimizer;
 use burn::store::ModuleRecord;

@@ -4,7 +4,7 @@
 use crate::config::load_toml;
 use crate::data::loader::{LoaderConfig, RealismConfig, SampleKind, Source};
 use crate::error::{Error, Result};
-use crate::models::{BlendUNetConfig, WuConfig};
+use crate::models::ModelConfig;
 use crate::sensor::metering::Metering;
 use crate::sensor::realism::NoiseModel;
 use crate::train::loss::Network1Reading;
@@ -67,41 +67,6 @@ fn default_keep() -> usize {
 }
 fn default_log_every() -> u64 {
     10
-}
-
-/// The network, tagged by `kind`.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "kind", rename_all = "snake_case")]
-pub enum ModelConfig {
-    /// Network-1, the blend-map U-Net.
-    BlendUnet(BlendUNetConfig),
-    /// Network-2, Wu et al.'s three-exposure merger.
-    Wu(WuConfig),
-}
-
-impl ModelConfig {
-    pub fn sample_kind(&self) -> SampleKind {
-        match self {
-            ModelConfig::BlendUnet(_) => SampleKind::Network1,
-            ModelConfig::Wu(_) => SampleKind::Network2,
-        }
-    }
-
-    /// H and W of an input must be multiples of this.
-    pub fn size_multiple(&self) -> usize {
-        match self {
-            ModelConfig::BlendUnet(m) => m.size_multiple(),
-            ModelConfig::Wu(m) => m.size_multiple(),
-        }
-    }
-
-    /// Receptive-field radius in input pixels: the overlap that makes tiling exact.
-    pub fn receptive_radius(&self) -> usize {
-        match self {
-            ModelConfig::BlendUnet(m) => m.receptive_radius(),
-            ModelConfig::Wu(m) => m.receptive_radius(),
-        }
-    }
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -206,40 +171,22 @@ impl DataConfig {
 
 /// Adam (Kingma and Ba) with decoupled-free L2 weight decay as Burn implements it.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct OptimConfig {
-    #[serde(default = "default_lr")]
     pub lr: f64,
-    #[serde(default = "default_beta1")]
     pub beta1: f32,
-    #[serde(default = "default_beta2")]
     pub beta2: f32,
-    #[serde(default = "default_eps")]
     pub epsilon: f32,
-    #[serde(default)]
     pub weight_decay: f32,
-}
-
-fn default_lr() -> f64 {
-    1e-4
-}
-fn default_beta1() -> f32 {
-    0.9
-}
-fn default_beta2() -> f32 {
-    0.999
-}
-fn default_eps() -> f32 {
-    1e-8
 }
 
 impl Default for OptimConfig {
     fn default() -> Self {
         OptimConfig {
-            lr: default_lr(),
-            beta1: default_beta1(),
-            beta2: default_beta2(),
-            epsilon: default_eps(),
+            lr: 1e-4,
+            beta1: 0.9,
+            beta2: 0.999,
+            epsilon: 1e-8,
             weight_decay: 0.0,
         }
     }
@@ -248,19 +195,14 @@ impl Default for OptimConfig {
 /// Learning-rate schedule, a pure function of the step (so resuming needs no state): a
 /// linear warm-up from 0 over `warmup_steps`, then the chosen decay of `optim.lr`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Default)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct Schedule {
-    #[serde(default)]
     pub kind: ScheduleKind,
-    #[serde(default)]
     pub warmup_steps: u64,
     /// `step`: multiply by `gamma` every `every` steps.
-    #[serde(default)]
     pub every: Option<u64>,
-    #[serde(default)]
     pub gamma: Option<f64>,
     /// `cosine`: the final learning rate (default 0).
-    #[serde(default)]
     pub min_lr: Option<f64>,
 }
 
@@ -310,12 +252,10 @@ impl Schedule {
 /// Where fine-tuning starts: exactly one of a checkpoint (or run folder: its latest) or a
 /// SafeTensors file of weights trained elsewhere (names: docs/network2.md). The optimizer
 /// starts fresh either way.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Default)]
+#[serde(default, deny_unknown_fields)]
 pub struct InitConfig {
-    #[serde(default)]
     pub checkpoint: Option<PathBuf>,
-    #[serde(default)]
     pub safetensors: Option<PathBuf>,
 }
 
@@ -324,45 +264,31 @@ pub struct InitConfig {
 /// data have different α, paper Fig. 6), "uniform", "checkpoint" (those stored in the `init`
 /// checkpoint), or the path of a `class_weights.toml` (`hdrsynth dataset weights`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct LossConfig {
-    #[serde(default = "default_alpha")]
     pub alpha: String,
     /// Samples of the stream counted for `alpha = "stream"`.
-    #[serde(default = "default_alpha_samples")]
     pub alpha_samples: u64,
     /// Network-1: how the loss reads the 256 classes — "literal" (paper Eq. 4 as written),
     /// "ordinal", "cross_entropy" or "soft" (docs/network1.md; default chosen by measurement).
-    #[serde(default)]
     pub reading: Network1Reading,
     /// Network-1, `reading = "soft"`: σ of the soft labels, in classes.
-    #[serde(default = "default_label_sigma")]
     pub label_sigma: f32,
 }
 
 /// Default σ of the soft labels, in classes (docs/network1.md).
 pub const DEFAULT_LABEL_SIGMA: f32 = 8.0;
 
-fn default_label_sigma() -> f32 {
-    DEFAULT_LABEL_SIGMA
-}
-
-/// "uniform" by measurement (docs/network1.md): at CPU scale the inverse-frequency α of the
-/// stream (the paper's) kept the held-out blend-weight MAE above the best constant's.
-fn default_alpha() -> String {
-    "uniform".into()
-}
-fn default_alpha_samples() -> u64 {
-    64
-}
-
 impl Default for LossConfig {
     fn default() -> Self {
         LossConfig {
-            alpha: default_alpha(),
-            alpha_samples: default_alpha_samples(),
+            // "uniform" by measurement (docs/network1.md): at CPU scale the inverse-frequency
+            // α of the stream (the paper's) kept the held-out blend-weight MAE above the best
+            // constant's.
+            alpha: "uniform".into(),
+            alpha_samples: 64,
             reading: Network1Reading::default(),
-            label_sigma: default_label_sigma(),
+            label_sigma: DEFAULT_LABEL_SIGMA,
         }
     }
 }
@@ -437,10 +363,7 @@ impl TrainConfig {
             )));
         }
         self.schedule.validate()?;
-        match &self.model {
-            ModelConfig::BlendUnet(m) => m.validate()?,
-            ModelConfig::Wu(m) => m.validate()?,
-        }
+        self.model.validate()?;
         let m = self.model.size_multiple();
         if !self.data.patch.is_multiple_of(m) {
             return Err(Error::Invalid(format!(

@@ -18,23 +18,26 @@ use crate::data::loader::{Loader, LoaderConfig, Sample, Target};
 use crate::device::device_from_name;
 use crate::error::{Error, Result};
 use crate::io::atomic::write_atomic;
-use crate::models::BlendUNet;
+use crate::models::{BlendUNet, ModelConfig};
 use burn::module::{Module, ModuleVisitor, Param};
 use burn::optim::{AdamConfig, GradientsAccumulator, GradientsParams, ModuleOptimizer};
 use burn::tensor::activation::softmax;
 use burn::tensor::{Bool, Device, Int, Tensor};
 use checkpoint::CheckpointState;
-use config::{ModelConfig, TrainConfig};
+use config::TrainConfig;
+use serde::{Deserialize, Serialize};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 use task::{CHECKPOINT_ALPHA_FILE, Network1, Network2, Task};
 
-/// One Network-1 optimisation step: forward, softmax, [`loss::weighted_l1`], backward, optimiser
-/// update. `input`, `target` and `alpha` must be on the model's (autodiff) device. Returns the
-/// updated model and the step's loss (detached, before the update). Used by the step benchmark;
-/// the trainer goes through [`Task::loss`].
+/// One bare Network-1 optimisation step: forward, softmax, [`loss::weighted_l1`] (paper Eq. 4 as
+/// written), backward, optimiser update. `input`, `target` and `alpha` must be on the model's
+/// (autodiff) device. Returns the updated model and the step's loss (detached, before the
+/// update). For use outside the trainer (docs/network1.md); the trainer and the step benchmark
+/// run [`train_step`], which reads the loss as `[loss] reading` says ([`Task::loss`]) and skips
+/// the update on a non-finite loss.
 pub fn network1_step(
     model: BlendUNet,
     optim: &mut ModuleOptimizer,
@@ -322,28 +325,69 @@ impl Log {
         Ok(Log { path, file })
     }
 
-    fn write(&mut self, fields: &[(&str, String)]) -> Result<()> {
-        let body: Vec<String> = fields.iter().map(|(k, v)| format!("\"{k}\":{v}")).collect();
-        writeln!(self.file, "{{{}}}", body.join(","))
+    fn write(&mut self, line: &LogLine) -> Result<()> {
+        let text = serde_json::to_string(line).map_err(|e| Error::encode(&self.path, e))?;
+        writeln!(self.file, "{text}")
             .and_then(|_| self.file.flush())
             .map_err(|e| Error::io(&self.path, e))
     }
 }
 
-fn line_step(line: &str) -> Option<u64> {
-    let rest = line.strip_prefix("{\"step\":")?;
-    rest.split([',', '}']).next()?.parse().ok()
+/// One line of the metrics log: a JSON object whose keys come in field order, `step` first.
+#[derive(Serialize)]
+#[serde(untagged)]
+enum LogLine<'a> {
+    Interval {
+        step: u64,
+        epoch: Number,
+        loss: Number,
+        lr: Number,
+        samples_per_s: Number,
+        elapsed_s: Number,
+    },
+    Validation {
+        step: u64,
+        validation: Scores<'a>,
+    },
+    Stopped {
+        step: u64,
+        loss: Number,
+        error: &'static str,
+    },
 }
 
-fn json_f64(v: f64) -> String {
-    if v.is_finite() {
-        format!("{v}")
-    } else {
-        format!("\"{v}\"")
+/// A score as JSON: a number, or its name as a string when not finite (JSON has no NaN).
+struct Number(f64);
+
+impl Serialize for Number {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        if self.0.is_finite() {
+            s.serialize_f64(self.0)
+        } else {
+            s.serialize_str(&self.0.to_string())
+        }
     }
 }
 
-/// The training loop shared by both networks.
+/// Validation scores as one JSON object, in the task's order.
+struct Scores<'a>(&'a [(String, f64)]);
+
+impl Serialize for Scores<'_> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        s.collect_map(self.0.iter().map(|(k, v)| (k, Number(*v))))
+    }
+}
+
+fn line_step(line: &str) -> Option<u64> {
+    #[derive(Deserialize)]
+    struct Step {
+        step: u64,
+    }
+    serde_json::from_str::<Step>(line).ok().map(|s| s.step)
+}
+
+/// The trainer shared by both networks: the run folder, then `start_or_resume`, the
+/// `validation_set`, and `train_loop`.
 pub fn train<T: Task + Sync>(
     task: &T,
     cfg: &TrainConfig,
@@ -380,11 +424,50 @@ pub fn train<T: Task + Sync>(
             .map(|d| Ok(device_from_name(d)?.autodiff()))
             .collect::<Result<_>>()?
     };
-    let ad = devices[0].clone();
-    let device = ad.clone().without_autodiff();
-    let identity = identity_of(cfg)?;
     let existing = checkpoint::latest(run)?;
-    let mut optim = AdamConfig::new()
+    let (model, optim, start) =
+        start_or_resume(task, cfg, opts.resume, &devices[0], existing.as_deref())?;
+    if start >= cfg.run.steps {
+        // Only a resumed run gets here (a new one starts at 0 < steps): it is finished, which
+        // is success, not an error; raising run.steps continues it.
+        return Ok(TrainSummary {
+            run: run.clone(),
+            start_step: start,
+            steps: start,
+            first_loss: f64::NAN,
+            last_loss: f64::NAN,
+            checkpoint: existing.unwrap_or_default(),
+            samples_per_s: 0.0,
+            validation: Vec::new(),
+            already_finished: true,
+        });
+    }
+    let log = Log::open(run, opts.resume.then_some(start))?;
+    let validation = validation_set(task, cfg, &loader)?;
+    let session = Session {
+        task,
+        cfg,
+        loader: &loader,
+        devices,
+        log,
+        validation,
+        progress: opts.progress,
+    };
+    train_loop(session, model, optim, start, existing)
+}
+
+/// The model, the optimizer and the first step: from the latest checkpoint on `resume`, else
+/// freshly initialised (seeded, then `[init]` weights) with the run's config written.
+fn start_or_resume<T: Task>(
+    task: &T,
+    cfg: &TrainConfig,
+    resume: bool,
+    device: &Device,
+    existing: Option<&Path>,
+) -> Result<(T::Model, ModuleOptimizer, u64)> {
+    let run = &cfg.run.out;
+    let identity = identity_of(cfg)?;
+    let optim = AdamConfig::new()
         .with_beta_1(cfg.optim.beta1)
         .with_beta_2(cfg.optim.beta2)
         .with_epsilon(cfg.optim.epsilon)
@@ -393,8 +476,7 @@ pub fn train<T: Task + Sync>(
                 .then(|| burn::optim::decay::WeightDecayConfig::new(cfg.optim.weight_decay)),
         )
         .init();
-
-    let (mut model, start) = match (&existing, opts.resume) {
+    match (existing, resume) {
         (Some(dir), true) => {
             let saved = std::fs::read_to_string(run.join(RUN_CONFIG))
                 .map_err(|e| Error::io(run.join(RUN_CONFIG), e))?;
@@ -412,28 +494,24 @@ pub fn train<T: Task + Sync>(
                     "checkpoint holds a different model",
                 ));
             }
-            let model = checkpoint::load_model(task.init(&ad)?, dir)?;
-            optim = checkpoint::load_optimizer(optim, dir)?;
-            (model, state.step)
+            let model = checkpoint::load_model(task.init(device)?, dir)?;
+            let optim = checkpoint::load_optimizer(optim, dir)?;
+            Ok((model, optim, state.step))
         }
-        (None, true) => {
-            return Err(Error::layout(
-                run,
-                "--resume: the run has no checkpoint yet",
-            ));
-        }
-        (Some(dir), false) => {
-            return Err(Error::layout(
-                run,
-                format!(
-                    "the run folder already holds checkpoints ({}): pass --resume to continue it, \
-                     or set run.out to a new folder",
-                    dir.display()
-                ),
-            ));
-        }
+        (None, true) => Err(Error::layout(
+            run,
+            "--resume: the run has no checkpoint yet",
+        )),
+        (Some(dir), false) => Err(Error::layout(
+            run,
+            format!(
+                "the run folder already holds checkpoints ({}): pass --resume to continue it, \
+                 or set run.out to a new folder",
+                dir.display()
+            ),
+        )),
         (None, false) => {
-            let mut model = seeded_init(&ad, cfg.run.seed, || task.init(&ad))?;
+            let mut model = seeded_init(device, cfg.run.seed, || task.init(device))?;
             if let Some(path) = cfg.init.as_ref().and_then(|i| i.safetensors.as_ref()) {
                 model = crate::models::import::import_weights(model, path)?;
             }
@@ -453,55 +531,90 @@ pub fn train<T: Task + Sync>(
                 model = checkpoint::load_model(model, &dir)?;
             }
             write_atomic(&run.join(RUN_CONFIG), identity.as_bytes())?;
-            (model, 0)
+            Ok((model, optim, 0))
         }
-    };
-    if start >= cfg.run.steps {
-        // Only a resumed run gets here (a new one starts at 0 < steps): it is finished, which
-        // is success, not an error; raising run.steps continues it.
-        return Ok(TrainSummary {
-            run: run.clone(),
-            start_step: start,
-            steps: start,
-            first_loss: f64::NAN,
-            last_loss: f64::NAN,
-            checkpoint: existing.clone().unwrap_or_default(),
-            samples_per_s: 0.0,
-            validation: Vec::new(),
-            already_finished: true,
-        });
     }
+}
 
-    let mut log = Log::open(run, opts.resume.then_some(start))?;
-    let validation = match &cfg.validation {
-        Some(v) => {
-            let mut lc: LoaderConfig = cfg.data.loader(loader.config().kind, cfg.run.seed)?;
-            lc.dataset = v.dataset.clone();
-            lc.augment = false;
-            lc.patch = v.patch.unwrap_or(cfg.data.patch);
-            // Validation targets are the configured ones (default: the paper's per-pixel
-            // maps), not the training smoothing, so runs with different targets compare.
-            lc.target_sigma = v.target_sigma;
-            let l = Arc::new(Loader::new(&lc)?);
-            let n = v.samples.min(l.len()) as u64;
-            let samples: Vec<Sample> = (0..n).map(|g| l.stream_sample(g)).collect::<Result<_>>()?;
-            let baseline: Vec<(String, f64)> = task
-                .validation_baseline(&samples)?
-                .into_iter()
-                .map(|(k, v)| (k.to_string(), v))
-                .collect();
-            Some((v.every, samples, baseline))
-        }
-        None => None,
+/// The fixed held-out samples scored every `every` steps, and the task's baseline scores on
+/// them (logged beside the model's).
+struct ValidationSet {
+    every: u64,
+    samples: Vec<Sample>,
+    baseline: Vec<(String, f64)>,
+}
+
+/// The `[validation]` samples: the training data's loader config on the validation dataset,
+/// without augmentation, at the validation patch and target smoothing.
+fn validation_set<T: Task>(
+    task: &T,
+    cfg: &TrainConfig,
+    loader: &Loader,
+) -> Result<Option<ValidationSet>> {
+    let Some(v) = &cfg.validation else {
+        return Ok(None);
     };
+    let mut lc: LoaderConfig = cfg.data.loader(loader.config().kind, cfg.run.seed)?;
+    lc.dataset = v.dataset.clone();
+    lc.augment = false;
+    lc.patch = v.patch.unwrap_or(cfg.data.patch);
+    // Validation targets are the configured ones (default: the paper's per-pixel maps), not
+    // the training smoothing, so runs with different targets compare.
+    lc.target_sigma = v.target_sigma;
+    let l = Loader::new(&lc)?;
+    let n = v.samples.min(l.len()) as u64;
+    let samples: Vec<Sample> = (0..n).map(|g| l.stream_sample(g)).collect::<Result<_>>()?;
+    let baseline = task
+        .validation_baseline(&samples)?
+        .into_iter()
+        .map(|(k, v)| (k.to_string(), v))
+        .collect();
+    Ok(Some(ValidationSet {
+        every: v.every,
+        samples,
+        baseline,
+    }))
+}
 
+/// What the loop runs with besides the model and the optimizer.
+struct Session<'a, T> {
+    task: &'a T,
+    cfg: &'a TrainConfig,
+    loader: &'a Arc<Loader>,
+    /// Autodiff devices; the model lives on the first.
+    devices: Vec<Device>,
+    log: Log,
+    validation: Option<ValidationSet>,
+    progress: bool,
+}
+
+/// Steps `start..run.steps`: train, log every `log_every`, validate, checkpoint; stop at a
+/// non-finite loss with the last good checkpoint in place.
+fn train_loop<T: Task + Sync>(
+    s: Session<T>,
+    mut model: T::Model,
+    mut optim: ModuleOptimizer,
+    start: u64,
+    existing: Option<PathBuf>,
+) -> Result<TrainSummary> {
+    let Session {
+        task,
+        cfg,
+        loader,
+        devices,
+        mut log,
+        validation,
+        progress,
+    } = s;
+    let run = &cfg.run.out;
+    let device = devices[0].clone().without_autodiff();
     let bs = cfg.data.batch_size as u64;
     let total = cfg.run.steps;
-    let bar = progress_bar(opts.progress, start, total);
+    let bar = progress_bar(progress, start, total);
     let mut batches = loader.range(start * bs, total * bs);
     let (mut interval_loss, mut interval_steps) = (0.0f64, 0u64);
     let (mut first_loss, mut last_loss) = (None, f64::NAN);
-    let mut last_checkpoint = existing.clone();
+    let mut last_checkpoint = existing;
     let mut last_validation = Vec::new();
     let began = Instant::now();
     let mut interval_start = Instant::now();
@@ -517,19 +630,15 @@ pub fn train<T: Task + Sync>(
 
     let validate_and_log =
         |log: &mut Log, model: &T::Model, done: u64| -> Result<Vec<(String, f64)>> {
-            let Some((_, samples, baseline)) = &validation else {
+            let Some(v) = &validation else {
                 return Ok(Vec::new());
             };
-            let mut scores = validate(task, model, samples, bs as usize, &device)?;
-            scores.extend(baseline.iter().cloned());
-            let fields: Vec<String> = scores
-                .iter()
-                .map(|(k, v)| format!("\"{k}\":{}", json_f64(*v)))
-                .collect();
-            log.write(&[
-                ("step", done.to_string()),
-                ("validation", format!("{{{}}}", fields.join(","))),
-            ])?;
+            let mut scores = validate(task, model, &v.samples, bs as usize, &device)?;
+            scores.extend(v.baseline.iter().cloned());
+            log.write(&LogLine::Validation {
+                step: done,
+                validation: Scores(&scores),
+            })?;
             Ok(scores)
         };
     // The untrained (or freshly initialised-from) model's scores: the baseline of the run.
@@ -545,11 +654,11 @@ pub fn train<T: Task + Sync>(
         let (next, value) = train_step_parallel(task, model, &mut optim, lr, &batch, &devices)?;
         model = next;
         if !value.is_finite() {
-            log.write(&[
-                ("step", step.to_string()),
-                ("loss", json_f64(value)),
-                ("error", "\"non-finite loss\"".into()),
-            ])?;
+            log.write(&LogLine::Stopped {
+                step,
+                loss: Number(value),
+                error: "non-finite loss",
+            })?;
             bar.abandon();
             let kept = match &last_checkpoint {
                 Some(d) => format!("the last good checkpoint is {}", d.display()),
@@ -573,19 +682,19 @@ pub fn train<T: Task + Sync>(
             first_loss.get_or_insert(mean);
             last_loss = mean;
             bar.set_message(format!("loss {mean:.4} · {sps:.1} samples/s"));
-            log.write(&[
-                ("step", done.to_string()),
-                ("epoch", json_f64((done * bs) as f64 / loader.len() as f64)),
-                ("loss", json_f64(mean)),
-                ("lr", json_f64(lr)),
-                ("samples_per_s", json_f64(sps)),
-                ("elapsed_s", json_f64(began.elapsed().as_secs_f64())),
-            ])?;
+            log.write(&LogLine::Interval {
+                step: done,
+                epoch: Number((done * bs) as f64 / loader.len() as f64),
+                loss: Number(mean),
+                lr: Number(lr),
+                samples_per_s: Number(sps),
+                elapsed_s: Number(began.elapsed().as_secs_f64()),
+            })?;
             (interval_loss, interval_steps) = (0.0, 0);
             interval_start = Instant::now();
         }
-        if let Some((every, _, _)) = &validation
-            && (done % every == 0 || done == total)
+        if let Some(v) = &validation
+            && (done % v.every == 0 || done == total)
         {
             last_validation = validate_and_log(&mut log, &model, done)?;
         }

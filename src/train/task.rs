@@ -5,8 +5,7 @@
 use crate::data::ground_truth::{CLASSES, ClassWeights};
 use crate::data::loader::{Sample, Target};
 use crate::error::Result;
-use crate::models::{BlendUNet, BlendUNetConfig, WuConfig, WuNet};
-use crate::train::config::ModelConfig;
+use crate::models::{BlendUNet, BlendUNetConfig, ModelConfig, WuConfig, WuNet};
 use crate::train::loss::{
     MU, Network1Reading, alpha_tensor, expected_weight, mu_law, mu_law_l2, network1_batch,
     network1_loss, network2_batch, weighted_l1,
