@@ -60,7 +60,7 @@ pub struct Args {
     #[arg(long, value_enum, default_value_t = Network1Reference::CleanWeights)]
     pub net1_reference: Network1Reference,
     /// PU21 absolute scale: reference-max (ground truth max → peak) or unit-value (1.0 → peak).
-    #[arg(long, default_value = "reference-max", value_parser = parse_pu21_scale)]
+    #[arg(long, value_enum, default_value = "reference-max")]
     pub pu21_scale: Pu21Scale,
     /// PU21 peak luminance in cd/m².
     #[arg(long, default_value_t = 4000.0)]
@@ -71,14 +71,6 @@ pub struct Args {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
-}
-
-fn parse_pu21_scale(s: &str) -> Result<Pu21Scale, String> {
-    match s {
-        "reference-max" => Ok(Pu21Scale::ReferenceMax),
-        "unit-value" => Ok(Pu21Scale::UnitValue),
-        _ => Err(format!("'{s}': expected reference-max or unit-value")),
-    }
 }
 
 impl Args {

@@ -14,16 +14,3 @@ pub mod realism;
 pub mod testset;
 pub mod train;
 pub mod weights;
-
-/// `--noise`: gaussian, poisson-gaussian or none.
-fn parse_noise(s: &str) -> Result<crate::sensor::realism::NoiseModel, String> {
-    use crate::sensor::realism::NoiseModel;
-    match s {
-        "gaussian" => Ok(NoiseModel::Gaussian),
-        "poisson-gaussian" => Ok(NoiseModel::PoissonGaussian),
-        "none" => Ok(NoiseModel::None),
-        _ => Err(format!(
-            "'{s}': expected gaussian, poisson-gaussian or none"
-        )),
-    }
-}

@@ -33,7 +33,7 @@ pub struct Args {
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// gaussian (the paper's N(0, aI+b)), poisson-gaussian (exact), none.
-    #[arg(long, default_value = "gaussian", value_parser = super::parse_noise)]
+    #[arg(long, value_enum, default_value = "gaussian")]
     pub noise: NoiseModel,
     /// Skip the colour transform (colour ablation).
     #[arg(long)]

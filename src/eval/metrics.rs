@@ -119,7 +119,17 @@ pub fn pu21_encode(y: f64) -> f64 {
 }
 
 /// How relative linear values become absolute luminance for PU21.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    PartialEq,
+    Eq,
+    Default,
+    serde::Serialize,
+    serde::Deserialize,
+    clap::ValueEnum,
+)]
 #[serde(rename_all = "snake_case")]
 pub enum Pu21Scale {
     /// The ground truth's maximum value (over all pixels and channels) maps to the peak, and the
