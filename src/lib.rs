@@ -8,12 +8,14 @@ pub mod device;
 pub mod error;
 pub mod eval;
 pub mod io;
+pub mod linalg;
 pub mod models;
 #[cfg(feature = "onnx")]
 pub mod onnx;
 pub mod plot;
 pub mod rng;
 pub mod sensor;
+pub mod stats;
 pub mod train;
 
 pub use error::{Error, Result};

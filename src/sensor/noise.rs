@@ -27,6 +27,7 @@ use crate::sensor::captures::{BurstKind, CaptureSet};
 use crate::sensor::profile::{
     Levels, NoiseAtIso, PROFILE_FORMAT, ProfileKind, Provenance, Response, SensorProfile,
 };
+use crate::stats::{self, median};
 use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -324,7 +325,7 @@ impl CalibrationPlan {
                     bins.extend(b[c].iter().cloned());
                     counts.add(&n[c]);
                 }
-                let fit = wls(&bins).map_err(|m| {
+                let fit = fit_bins(&bins).map_err(|m| {
                     manifest_err(format!(
                         "ISO {iso}, channel {cname} (bursts {}): {m}",
                         bursts
@@ -684,53 +685,9 @@ fn robust_frame_mean(img: &Image) -> f64 {
     sum / cnt.max(1) as f64
 }
 
-/// Median (mean of the two middle values for even lengths); NaN when empty. One generic
-/// function for the f32 per-pixel statistics and the f64 fit inputs.
-pub(crate) fn median<T>(v: &mut [T]) -> T
-where
-    T: Copy
-        + PartialOrd
-        + Into<f64>
-        + From<f32>
-        + std::ops::Add<Output = T>
-        + std::ops::Mul<Output = T>,
-{
-    if v.is_empty() {
-        return T::from(f32::NAN);
-    }
-    let m = v.len() / 2;
-    let cmp = |a: &T, b: &T| a.partial_cmp(b).unwrap_or(std::cmp::Ordering::Equal);
-    let (_, x, _) = v.select_nth_unstable_by(m, cmp);
-    let hi = *x;
-    if v.len() % 2 == 1 {
-        hi
-    } else {
-        let lo = v[..m]
-            .iter()
-            .copied()
-            .fold(v[0], |a, b| if cmp(&a, &b).is_lt() { b } else { a });
-        T::from(0.5) * (lo + hi)
-    }
-}
-
-// ---------------------------------------------------------------------------------------------
-// Weighted least squares
-
-pub(crate) struct Wls {
-    pub a: f64,
-    pub b: f64,
-    pub a_se: f64,
-    pub b_se: f64,
-    pub chi2_reduced: f64,
-}
-
-/// Straight-line WLS y = a·x + b with w_k = 1/SE_k²:
-/// S = Σw, Sx = Σwx, Sy = Σwy, Sxx = Σwx², Sxy = Σwxy, Δ = S·Sxx − Sx²,
-/// a = (S·Sxy − Sx·Sy)/Δ, b = (Sxx·Sy − Sx·Sxy)/Δ, Var a = S/Δ, Var b = Sxx/Δ.
-/// First pass with the empirical SEs, then three passes with SE_k = c·ŷ_k/√n_k (c the median
-/// of s_k/ȳ_k, ŷ_k the previous fit, floored at ȳ_k/2), which keeps the weights independent
-/// of each bin's own noise. Standard errors are scaled by √max(1, χ²/(K − 2)).
-pub(crate) fn wls(bins: &[Bin]) -> std::result::Result<Wls, String> {
+/// The straight-line WLS of variance on signal over `bins` ([`stats::wls`]), with the reasons
+/// it cannot be fitted in the words of a noise calibration.
+pub(crate) fn fit_bins(bins: &[Bin]) -> std::result::Result<stats::LineFit, String> {
     if bins.len() < 2 {
         return Err(format!(
             "{} usable bin(s); the fit needs ≥ 2 at different signal levels (a dark burst and \
@@ -738,33 +695,16 @@ pub(crate) fn wls(bins: &[Bin]) -> std::result::Result<Wls, String> {
             bins.len()
         ));
     }
-    let solve = |se: &[f64]| -> Option<(f64, f64, f64, f64, f64)> {
-        let (mut s, mut sx, mut sy, mut sxx, mut sxy) = (0.0, 0.0, 0.0, 0.0, 0.0);
-        for (b, &e) in bins.iter().zip(se) {
-            let w = 1.0 / (e * e);
-            s += w;
-            sx += w * b.signal;
-            sy += w * b.variance;
-            sxx += w * b.signal * b.signal;
-            sxy += w * b.signal * b.variance;
-        }
-        let delta = s * sxx - sx * sx;
-        if !delta.is_finite() || delta <= 1e-9 * s * sxx {
-            return None;
-        }
-        let a = (s * sxy - sx * sy) / delta;
-        let b = (sxx * sy - sx * sxy) / delta;
-        Some((a, b, s / delta, sxx / delta, 0.0))
-    };
-    // Floor SEs at a tiny fraction of the variance scale so that a zero SE cannot dominate.
-    let scale = bins
+    let points: Vec<stats::Point> = bins
         .iter()
-        .map(|b| b.variance.abs())
-        .fold(0.0, f64::max)
-        .max(1e-9);
-    let floor = 1e-6 * scale;
-    let mut se: Vec<f64> = bins.iter().map(|b| b.stderr.max(floor)).collect();
-    let degenerate = || {
+        .map(|b| stats::Point {
+            x: b.signal,
+            y: b.variance,
+            se: b.stderr,
+            n: b.pixels,
+        })
+        .collect();
+    stats::wls(&points).ok_or_else(|| {
         let lo = bins.iter().map(|b| b.signal).fold(f64::INFINITY, f64::min);
         let hi = bins
             .iter()
@@ -775,47 +715,6 @@ pub(crate) fn wls(bins: &[Bin]) -> std::result::Result<Wls, String> {
              levels (a dark burst and flat bursts, or flats at ≥ 2 levels)",
             bins.len()
         )
-    };
-    let (mut a, mut b, ..) = solve(&se).ok_or_else(degenerate)?;
-    let mut rel: Vec<f64> = bins
-        .iter()
-        .filter(|b| b.variance > 0.0 && b.pixels > 1)
-        .map(|b| b.stderr * (b.pixels as f64).sqrt() / b.variance)
-        .collect();
-    if !rel.is_empty() {
-        let c = median(&mut rel);
-        for _ in 0..3 {
-            se = bins
-                .iter()
-                .map(|bin| {
-                    let pred = (a * bin.signal + b).max(0.5 * bin.variance).max(floor);
-                    (c * pred / (bin.pixels as f64).sqrt()).max(floor)
-                })
-                .collect();
-            let (a1, b1, ..) = solve(&se).ok_or_else(degenerate)?;
-            a = a1;
-            b = b1;
-        }
-    }
-    let (a, b, var_a, var_b, _) = solve(&se).ok_or_else(degenerate)?;
-    let chi2: f64 = bins
-        .iter()
-        .zip(&se)
-        .map(|(bin, e)| ((bin.variance - a * bin.signal - b) / e).powi(2))
-        .sum();
-    let dof = bins.len() as f64 - 2.0;
-    let chi2_reduced = if dof > 0.0 { chi2 / dof } else { f64::NAN };
-    let inflate = if chi2_reduced.is_finite() {
-        chi2_reduced.max(1.0).sqrt()
-    } else {
-        1.0
-    };
-    Ok(Wls {
-        a,
-        b,
-        a_se: var_a.sqrt() * inflate,
-        b_se: var_b.sqrt() * inflate,
-        chi2_reduced,
     })
 }
 
