@@ -882,59 +882,50 @@ fn radial_profile(s: &Summary, proto: &Protocol) -> Vec<(f64, f64)> {
 // ---------------------------------------------------------------------------------------------
 // Report
 
-fn json_str(s: &str) -> String {
-    let mut o = String::from("\"");
-    for ch in s.chars() {
-        match ch {
-            '"' => o.push_str("\\\""),
-            '\\' => o.push_str("\\\\"),
-            '\n' => o.push_str("\\n"),
-            c if (c as u32) < 0x20 => {
-                let _ = write!(o, "\\u{:04x}", c as u32);
-            }
-            c => o.push(c),
-        }
-    }
-    o.push('"');
-    o
-}
+/// serde_json's compact output with a space after `:` and `,`, and floats as Rust prints them
+/// (`0.25`, `1148.0`, never an exponent): report.json's layout.
+struct Spaced;
 
-fn json_num(v: f64) -> String {
-    if v.is_finite() {
-        let s = format!("{v}");
+impl serde_json::ser::Formatter for Spaced {
+    fn begin_array_value<W: ?Sized + std::io::Write>(
+        &mut self,
+        w: &mut W,
+        first: bool,
+    ) -> std::io::Result<()> {
+        if first { Ok(()) } else { w.write_all(b", ") }
+    }
+
+    fn begin_object_key<W: ?Sized + std::io::Write>(
+        &mut self,
+        w: &mut W,
+        first: bool,
+    ) -> std::io::Result<()> {
+        self.begin_array_value(w, first)
+    }
+
+    fn begin_object_value<W: ?Sized + std::io::Write>(&mut self, w: &mut W) -> std::io::Result<()> {
+        w.write_all(b": ")
+    }
+
+    fn write_f64<W: ?Sized + std::io::Write>(&mut self, w: &mut W, v: f64) -> std::io::Result<()> {
+        let s = v.to_string();
+        w.write_all(s.as_bytes())?;
         if s.contains(['.', 'e']) {
-            s
+            Ok(())
         } else {
-            format!("{s}.0")
+            w.write_all(b".0")
         }
-    } else {
-        "null".into()
     }
 }
 
-fn json_value(v: &toml::Value) -> String {
-    match v {
-        toml::Value::Float(f) => json_num(*f),
-        toml::Value::Integer(i) => i.to_string(),
-        toml::Value::Boolean(b) => b.to_string(),
-        toml::Value::String(s) => json_str(s),
-        toml::Value::Array(a) => format!(
-            "[{}]",
-            a.iter().map(json_value).collect::<Vec<_>>().join(", ")
-        ),
-        toml::Value::Table(t) => json_table(t),
-        toml::Value::Datetime(d) => json_str(&d.to_string()),
-    }
-}
-
-fn json_table(t: &toml::Table) -> String {
-    format!(
-        "{{{}}}",
-        t.iter()
-            .map(|(k, v)| format!("{}: {}", json_str(k), json_value(v)))
-            .collect::<Vec<_>>()
-            .join(", ")
-    )
+/// One JSON value in report.json's layout (non-finite numbers are `null`).
+fn json<T: serde::Serialize + ?Sized>(v: &T) -> String {
+    let mut out = Vec::new();
+    v.serialize(&mut serde_json::Serializer::with_formatter(
+        &mut out, Spaced,
+    ))
+    .expect("strings, numbers and TOML tables serialise to JSON");
+    String::from_utf8(out).expect("serde_json writes UTF-8")
 }
 
 fn round2(v: f64) -> f64 {
@@ -953,29 +944,25 @@ impl Diagnosis {
     /// report.json (`hdrsynth-diagnosis/1`).
     pub fn report_json(&self) -> String {
         let mut s = String::from("{\n");
-        let _ = writeln!(s, "  \"format\": {},", json_str(REPORT_FORMAT));
-        let _ = writeln!(s, "  \"threshold\": {},", json_num(round2(self.threshold)));
+        let _ = writeln!(s, "  \"format\": {},", json(REPORT_FORMAT));
+        let _ = writeln!(s, "  \"threshold\": {},", json(&round2(self.threshold)));
         let _ = writeln!(
             s,
             "  \"initial_gap\": {},",
-            json_num(round2(self.initial_gap()))
+            json(&round2(self.initial_gap()))
         );
-        let _ = writeln!(
-            s,
-            "  \"final_gap\": {},",
-            json_num(round2(self.final_gap()))
-        );
+        let _ = writeln!(s, "  \"final_gap\": {},", json(&round2(self.final_gap())));
         let steps: Vec<String> = self
             .steps
             .iter()
             .map(|st| {
                 format!(
                     "    {{\"effect\": {}, \"params\": {}, \"gap_before\": {}, \"gap_after\": {},\n     \"evidence\": {}}}",
-                    json_str(&st.effect),
-                    json_table(&st.params),
-                    json_num(round2(st.gap_before)),
-                    json_num(round2(st.gap_after)),
-                    json_str(&st.evidence)
+                    json(&st.effect),
+                    json(&st.params),
+                    json(&round2(st.gap_before)),
+                    json(&round2(st.gap_after)),
+                    json(&st.evidence)
                 )
             })
             .collect();
@@ -984,10 +971,8 @@ impl Diagnosis {
         } else {
             let _ = writeln!(s, "  \"steps\": [\n{}\n  ],", steps.join(",\n"));
         }
-        let un: Vec<String> = self.unexplained.iter().map(|u| json_str(u)).collect();
-        let _ = writeln!(s, "  \"unexplained\": [{}],", un.join(", "));
-        let sk: Vec<String> = self.skipped.iter().map(|u| json_str(u)).collect();
-        let _ = writeln!(s, "  \"skipped\": [{}]", sk.join(", "));
+        let _ = writeln!(s, "  \"unexplained\": {},", json(&self.unexplained));
+        let _ = writeln!(s, "  \"skipped\": {}", json(&self.skipped));
         s.push_str("}\n");
         s
     }
@@ -1044,7 +1029,7 @@ impl Diagnosis {
                 i + 1,
                 st.effect,
                 st.evidence,
-                json_table(&st.params),
+                json(&st.params),
                 st.gap_before,
                 st.gap_after,
                 Self::table_md(&st.after)
