@@ -153,8 +153,8 @@ pub fn measure(
     cal_opts: &CalibrateOptions,
 ) -> Result<(Vec<Summary>, Result<NoiseCalibration>)> {
     let ptc = ptc_bursts(set);
-    let plan = noise::CalibrationPlan::new(&ptc.set, cal_opts);
-    let mut cal: Vec<(usize, noise::BurstFrames)> = match &plan {
+    let plan = noise::calibrate::CalibrationPlan::new(&ptc.set, cal_opts);
+    let mut cal: Vec<(usize, noise::bursts::BurstFrames)> = match &plan {
         Ok(p) => p
             .used
             .iter()
@@ -170,7 +170,7 @@ pub fn measure(
                 };
                 (
                     i,
-                    noise::BurstFrames::new(info.kind == BurstKind::Dark, band),
+                    noise::bursts::BurstFrames::new(info.kind == BurstKind::Dark, band),
                 )
             })
             .collect(),

@@ -552,7 +552,7 @@ pub struct TemporalPtc {
 /// pixel or gain patterns move a or b; the mean variance over values is linear in the mean
 /// signal, so vignetting and PRNU (signal spread within a burst) do not either.
 pub fn temporal_ptc(s: &[Summary], black: f64, extra_var: f64) -> Vec<TemporalPtc> {
-    use crate::sensor::noise::{Bin, fit_bins};
+    use crate::sensor::noise::{Bin, calibrate::fit_bins};
     let usable =
         |b: &&Summary| matches!(b.kind, BurstKind::Dark | BurstKind::Flat) && !b.var.is_empty();
     let mut isos: Vec<f64> = s.iter().filter(usable).map(|b| b.iso).collect();
