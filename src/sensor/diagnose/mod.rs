@@ -3,7 +3,7 @@
 //!
 //! 1. Base model: the given profile, or (none given) the paper's model fitted from the
 //!    captures: one (a, b) per ISO shared by the channels (mean of the per-channel photon-
-//!    transfer fits of src/sensor/noise.rs), the declared black and white levels, T from the
+//!    transfer fits of src/sensor/noise/), the declared black and white levels, T from the
 //!    chart burst; no extra effects.
 //! 2. Parametric bootstrap: K replicates of the whole protocol (same bursts, ISOs, exposures,
 //!    frame counts and sizes) simulated with `Realism::to_dn`; targets: dark = nothing, flat =
