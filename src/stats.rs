@@ -192,20 +192,14 @@ pub fn bootstrap_ci(values: &[f64], resamples: usize, seed: u64, level: f64) -> 
     if n == 1 || resamples == 0 {
         return (mean, mean, mean);
     }
-    let mut means: Vec<f64> = (0..resamples as u64)
+    let means: Vec<f64> = (0..resamples as u64)
         .into_par_iter()
         .map(|b| {
             let mut rng = Rng::from_parts(seed, &[b]);
             (0..n).map(|_| values[rng.int(0, n - 1)]).sum::<f64>() / n as f64
         })
         .collect();
-    means.sort_by(f64::total_cmp);
-    let alpha = (1.0 - level) / 2.0;
-    (
-        mean,
-        percentile_sorted(&means, alpha),
-        percentile_sorted(&means, 1.0 - alpha),
-    )
+    percentile_interval(mean, means, level)
 }
 
 /// Two-level percentile bootstrap of a grand mean over a crossed design: `values[s][c]` is the
@@ -254,7 +248,7 @@ pub fn bootstrap_crossed(
             (0..n).map(|_| rng.int(0, n - 1)).collect()
         }
     };
-    let mut means: Vec<f64> = (0..resamples as u64)
+    let means: Vec<f64> = (0..resamples as u64)
         .into_par_iter()
         .map(|b| {
             let mut rng = Rng::from_parts(seed, &[b]);
@@ -263,6 +257,11 @@ pub fn bootstrap_crossed(
             stat(&seeds, &scenes)
         })
         .collect();
+    percentile_interval(mean, means, level)
+}
+
+/// `(mean, lo, hi)` with `[lo, hi]` the central `level` interval of the resampled means.
+fn percentile_interval(mean: f64, mut means: Vec<f64>, level: f64) -> (f64, f64, f64) {
     means.sort_by(f64::total_cmp);
     let alpha = (1.0 - level) / 2.0;
     (
