@@ -3,7 +3,7 @@
 use super::{CHANNELS, NoiseCalibration};
 use crate::error::Result;
 use crate::io::Image;
-use crate::plot::Canvas;
+use crate::plot::{Canvas, decade_label, x_tick, y_tick};
 use embedded_graphics::mono_font::MonoTextStyle;
 use embedded_graphics::mono_font::iso_8859_1::{FONT_6X10, FONT_7X13_BOLD};
 use embedded_graphics::pixelcolor::Rgb888;
@@ -56,14 +56,6 @@ const LEFT: i32 = 56;
 const RIGHT: i32 = 14;
 const TOP: i32 = 30;
 const BOTTOM: i32 = 40;
-
-fn decade_label(k: i32) -> String {
-    match k {
-        0..=4 => format!("{}", 10i64.pow(k as u32)),
-        -2..=-1 => format!("{}", 10f64.powi(k)),
-        _ => format!("1e{k}"),
-    }
-}
 
 fn render(cal: &NoiseCalibration) -> Image {
     let (w, h) = ptc_plot_size(cal.isos.len());
@@ -132,29 +124,11 @@ fn render(cal: &NoiseCalibration) -> Image {
         // Grid and ticks.
         for d in x_lo..=x_hi {
             let x = map_x(10f64.powi(d)).round() as i32;
-            let _ = Line::new(Point::new(x, ay0), Point::new(x, ay1))
-                .into_styled(PrimitiveStyle::with_stroke(GRID, 1))
-                .draw(&mut cv);
-            let _ = Text::with_alignment(
-                &decade_label(d),
-                Point::new(x, ay1 + 13),
-                ink,
-                Alignment::Center,
-            )
-            .draw(&mut cv);
+            x_tick(&mut cv, (ay0, ay1), x, &decade_label(d), GRID, ink);
         }
         for d in y_lo..=y_hi {
             let y = map_y(10f64.powi(d)).round() as i32;
-            let _ = Line::new(Point::new(ax0, y), Point::new(ax1, y))
-                .into_styled(PrimitiveStyle::with_stroke(GRID, 1))
-                .draw(&mut cv);
-            let _ = Text::with_alignment(
-                &decade_label(d),
-                Point::new(ax0 - 4, y + 3),
-                ink,
-                Alignment::Right,
-            )
-            .draw(&mut cv);
+            y_tick(&mut cv, (ax0, ax1), y, &decade_label(d), GRID, ink);
         }
         let _ = Rectangle::new(
             Point::new(ax0, ay0),
