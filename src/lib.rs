@@ -15,6 +15,7 @@ pub mod onnx;
 pub mod plot;
 pub mod rng;
 pub mod sensor;
+pub mod stats;
 pub mod train;
 
 pub use error::{Error, Result};

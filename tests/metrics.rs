@@ -3,11 +3,11 @@
 
 use hdrsynth::error::Error;
 use hdrsynth::eval::metrics::{
-    self, MU, MetricOptions, Pu21Scale, bootstrap_ci, mu_law, psnr, pu21_encode, score, score_pair,
-    ssim,
+    self, MU, MetricOptions, Pu21Scale, mu_law, psnr, pu21_encode, score, score_pair, ssim,
 };
 use hdrsynth::io::{Image, read_image};
 use hdrsynth::rng::Rng;
+use hdrsynth::stats::bootstrap_ci;
 use std::path::{Path, PathBuf};
 
 fn oracle_dir() -> Option<PathBuf> {

@@ -15,7 +15,8 @@ use hdrsynth::sensor::captures::{
     write_capture_set,
 };
 use hdrsynth::sensor::darktable::NegativeRule;
-use hdrsynth::sensor::noise::{CalibrateOptions, NoiseCalibration, calibrate, ptc_plot_size};
+use hdrsynth::sensor::noise::plot::ptc_plot_size;
+use hdrsynth::sensor::noise::{CalibrateOptions, NoiseCalibration, calibrate};
 use hdrsynth::sensor::profile::{ProfileKind, SensorProfile};
 use std::path::{Path, PathBuf};
 

@@ -1,5 +1,5 @@
 //! `hdrsynth diagnose CAPTURES [--profile P] --out DIR`: the sim-to-real gap workflow
-//! (src/sensor/diagnose.rs, docs/diagnose.md). Writes DIR/profile.toml (the extended model),
+//! (src/sensor/diagnose/, docs/diagnose.md). Writes DIR/profile.toml (the extended model),
 //! DIR/report.md, DIR/report.json and plots (gap.png, radial.png, ptc.png); prints a summary.
 //! `hdrsynth diagnose --brackets DIR [--profile P | --response R] --out OUT`: a bracket folder
 //! as scene bursts (src/data/bracket_captures.rs), plus OUT/brackets.{md,toml} and OUT/captures.

@@ -188,7 +188,7 @@ pub fn ratio_check(sets: &[(&BracketSet, &[Image])], tolerance_stops: f64) -> Ra
             .iter()
             .map(|p| p.measured_stops / p.exif_stops)
             .collect();
-        crate::sensor::noise::median(&mut slopes)
+        crate::stats::median(&mut slopes)
     } else {
         if !pairs.is_empty() {
             notes.push(format!(

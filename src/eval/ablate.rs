@@ -7,7 +7,7 @@
 //! Statistics (docs/experiments.md): the unit of test-set variation is the scene (the sets of one
 //! scene at several ISOs are one cluster, `testset::scenes_of_sets`), and with `seeds = [...]`
 //! every trained cell is trained once per seed; intervals come from a two-level bootstrap
-//! (seeds, then scenes; `metrics::bootstrap_crossed`), differences are paired within seed, scene
+//! (seeds, then scenes; `stats::bootstrap_crossed`), differences are paired within seed, scene
 //! and set.
 //!
 //! Resumable at every level: a cell whose `eval/` folder exists is finished and skipped; a cell
@@ -20,10 +20,10 @@ use crate::data::testset::{self, TestsetOptions};
 use crate::device::device_from_name;
 use crate::error::{Error, Result};
 use crate::eval::evaluate::{self, EvalOptions, NetworkOptions, from_checkpoint};
-use crate::eval::metrics::bootstrap_crossed;
 use crate::eval::report::{self, METRICS};
 use crate::io::atomic::write_atomic;
 use crate::sensor::profile::SensorProfile;
+use crate::stats::bootstrap_crossed;
 use crate::train::config::TrainConfig;
 use crate::train::{self, TrainOptions, checkpoint};
 use serde::{Deserialize, Serialize};

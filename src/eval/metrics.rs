@@ -1,6 +1,6 @@
 //! Evaluation metrics for HDR reconstruction, computed the way the field's Python evaluation
-//! computes them (scikit-image 0.26 on float64), plus PU21 PSNR/SSIM (Mantiuk & Azimi 2021) and a
-//! percentile bootstrap for confidence intervals over a test set. See docs/metrics.md.
+//! computes them (scikit-image 0.26 on float64), plus PU21 PSNR/SSIM (Mantiuk & Azimi 2021); the
+//! bootstrap of their confidence intervals is in src/stats.rs. See docs/metrics.md.
 //!
 //! Conventions (checked against the oracle in shared/data/oracles/oracles.json to 1e-6):
 //! - PSNR-L: `skimage.metrics.peak_signal_noise_ratio(gt, pred, data_range=1.0)` on the linear
@@ -15,7 +15,6 @@
 
 use crate::error::{Error, Result};
 use crate::io::Image;
-use crate::rng::Rng;
 use rayon::prelude::*;
 
 /// μ of the μ-law tonemapper used for PSNR-T/SSIM-T.
@@ -276,119 +275,6 @@ pub fn score_pair(
         pu21_psnr: pu21_psnr(gt_l, pred_l, opts)?,
         pu21_ssim: pu21_ssim(gt_l, pred_l, opts)?,
     })
-}
-
-// ---------------------------------------------------------------------------------------------
-// Confidence intervals
-
-/// Percentile bootstrap of the mean: returns `(mean, lo, hi)` with `[lo, hi]` the central
-/// `level` interval (e.g. 0.95) of `resamples` resampled means. Deterministic from `seed`
-/// (resample b draws from `Rng::from_parts(seed, [b])`, so thread count does not matter);
-/// percentiles interpolate linearly as numpy's default does. An empty sample gives NaNs; one
-/// value or `resamples == 0` gives a zero-width interval at the mean. Non-finite values
-/// propagate (a +inf PSNR makes the mean +inf). Panics unless `0 < level < 1`.
-pub fn bootstrap_ci(values: &[f64], resamples: usize, seed: u64, level: f64) -> (f64, f64, f64) {
-    assert!(
-        level > 0.0 && level < 1.0,
-        "bootstrap_ci: level must be in (0, 1), got {level}"
-    );
-    let n = values.len();
-    if n == 0 {
-        return (f64::NAN, f64::NAN, f64::NAN);
-    }
-    let mean = values.iter().sum::<f64>() / n as f64;
-    if n == 1 || resamples == 0 {
-        return (mean, mean, mean);
-    }
-    let mut means: Vec<f64> = (0..resamples as u64)
-        .into_par_iter()
-        .map(|b| {
-            let mut rng = Rng::from_parts(seed, &[b]);
-            (0..n).map(|_| values[rng.int(0, n - 1)]).sum::<f64>() / n as f64
-        })
-        .collect();
-    means.sort_by(f64::total_cmp);
-    let alpha = (1.0 - level) / 2.0;
-    (
-        mean,
-        percentile_sorted(&means, alpha),
-        percentile_sorted(&means, 1.0 - alpha),
-    )
-}
-
-/// Two-level percentile bootstrap of a grand mean over a crossed design: `values[s][c]` is the
-/// value of training seed `s` on test scene `c` (every row the same length). The estimate is the
-/// mean over seeds of the mean over scenes; resample `b` draws seeds with replacement, then scenes
-/// with replacement (one draw of scenes shared by all drawn seeds, because every seed was scored on
-/// the same scenes), both from `Rng::from_parts(seed, [b])`. A level with one member is not
-/// resampled, so one row gives exactly `bootstrap_ci` of that row. Resampling both levels counts
-/// the seed × scene interaction twice: the interval errs on the wide side. Returns
-/// `(mean, lo, hi)`; an empty table gives NaNs. Panics unless `0 < level < 1` and rows are equal.
-pub fn bootstrap_crossed(
-    values: &[Vec<f64>],
-    resamples: usize,
-    seed: u64,
-    level: f64,
-) -> (f64, f64, f64) {
-    assert!(
-        level > 0.0 && level < 1.0,
-        "bootstrap_crossed: level must be in (0, 1), got {level}"
-    );
-    let (ns, nc) = (values.len(), values.first().map_or(0, Vec::len));
-    assert!(
-        values.iter().all(|r| r.len() == nc),
-        "bootstrap_crossed: rows of unequal length"
-    );
-    if ns == 0 || nc == 0 {
-        return (f64::NAN, f64::NAN, f64::NAN);
-    }
-    let stat = |seeds: &[usize], scenes: &[usize]| {
-        seeds
-            .iter()
-            .map(|&s| scenes.iter().map(|&c| values[s][c]).sum::<f64>() / scenes.len() as f64)
-            .sum::<f64>()
-            / seeds.len() as f64
-    };
-    let all_seeds: Vec<usize> = (0..ns).collect();
-    let all_scenes: Vec<usize> = (0..nc).collect();
-    let mean = stat(&all_seeds, &all_scenes);
-    if ns * nc == 1 || resamples == 0 {
-        return (mean, mean, mean);
-    }
-    let draw = |rng: &mut Rng, n: usize| -> Vec<usize> {
-        if n == 1 {
-            vec![0]
-        } else {
-            (0..n).map(|_| rng.int(0, n - 1)).collect()
-        }
-    };
-    let mut means: Vec<f64> = (0..resamples as u64)
-        .into_par_iter()
-        .map(|b| {
-            let mut rng = Rng::from_parts(seed, &[b]);
-            let seeds = draw(&mut rng, ns);
-            let scenes = draw(&mut rng, nc);
-            stat(&seeds, &scenes)
-        })
-        .collect();
-    means.sort_by(f64::total_cmp);
-    let alpha = (1.0 - level) / 2.0;
-    (
-        mean,
-        percentile_sorted(&means, alpha),
-        percentile_sorted(&means, 1.0 - alpha),
-    )
-}
-
-/// numpy's default ('linear') percentile of sorted data, `q` in [0, 1].
-fn percentile_sorted(sorted: &[f64], q: f64) -> f64 {
-    let pos = q * (sorted.len() - 1) as f64;
-    let i = pos.floor() as usize;
-    let frac = pos - i as f64;
-    if i + 1 >= sorted.len() {
-        return sorted[sorted.len() - 1];
-    }
-    sorted[i] + (sorted[i + 1] - sorted[i]) * frac
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -2,10 +2,11 @@
 //! Markdown), the Markdown report, and the per-set image grid (docs/evaluation.md).
 
 use crate::error::{Error, Result};
-use crate::eval::metrics::{Scores, bootstrap_ci};
+use crate::eval::metrics::Scores;
 use crate::io::Image;
 use crate::io::atomic::write_atomic;
 use crate::plot::Canvas;
+use crate::stats::bootstrap_ci;
 use embedded_graphics::mono_font::MonoTextStyle;
 use embedded_graphics::mono_font::iso_8859_1::FONT_7X13;
 use embedded_graphics::pixelcolor::Rgb888;

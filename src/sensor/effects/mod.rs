@@ -3,7 +3,7 @@
 //!
 //! A profile lists effects as `[[effects]]` tables `{ id = "...", <params> }`. The realism
 //! operator compiles them into a [`Plan`] (what to do at each stage of the pixel pipeline) with
-//! each effect's `install`; the gap workflow (src/sensor/diagnose.rs) evaluates every effect's
+//! each effect's `install`; the gap workflow (src/sensor/diagnose/) evaluates every effect's
 //! `statistics` on measured and simulated capture sets and calls `fit` on the one it names.
 //!
 //! Physical order inside the realism operator (docs/diagnose.md):

@@ -511,39 +511,7 @@ fn quadratic_fit(s: &Summary, m: &[f64], c: usize) -> [f64; 6] {
             }
         }
     }
-    solve6(a, b)
-}
-
-/// Gaussian elimination with partial pivoting (6×6 normal equations).
-#[allow(clippy::needless_range_loop)]
-fn solve6(mut a: [[f64; 6]; 6], mut b: [f64; 6]) -> [f64; 6] {
-    for i in 0..6 {
-        let p = (i..6)
-            .max_by(|&r, &s| a[r][i].abs().total_cmp(&a[s][i].abs()))
-            .unwrap_or(i);
-        a.swap(i, p);
-        b.swap(i, p);
-        if a[i][i].abs() < 1e-300 {
-            continue;
-        }
-        for r in i + 1..6 {
-            let f = a[r][i] / a[i][i];
-            for k in i..6 {
-                a[r][k] -= f * a[i][k];
-            }
-            b[r] -= f * b[i];
-        }
-    }
-    let mut x = [0.0; 6];
-    for i in (0..6).rev() {
-        let s: f64 = (i + 1..6).map(|k| a[i][k] * x[k]).sum();
-        x[i] = if a[i][i].abs() < 1e-300 {
-            0.0
-        } else {
-            (b[i] - s) / a[i][i]
-        };
-    }
-    x
+    crate::linalg::solve6(a, b)
 }
 
 /// Per-channel mean of the dark bursts of one ISO (non-hot values): the zero of signals
@@ -578,13 +546,13 @@ pub struct TemporalPtc {
 /// each burst's mean temporal variance over non-hot values (less the 1/12 DN² of integer
 /// quantisation, which the simulation adds back, and `extra_var`, variance the model draws
 /// separately, e.g. row offsets) against its mean signal above the same ISO's dark mean (above
-/// `black` when the ISO has no dark burst), then a weighted straight line (`noise::wls`).
+/// `black` when the ISO has no dark burst), then a weighted straight line (`stats::wls`).
 /// Temporal variances do not see fixed patterns (constant over frames), and measuring the
 /// signal from the dark mean removes any pedestal, so neither a wrong black level nor column,
 /// pixel or gain patterns move a or b; the mean variance over values is linear in the mean
 /// signal, so vignetting and PRNU (signal spread within a burst) do not either.
 pub fn temporal_ptc(s: &[Summary], black: f64, extra_var: f64) -> Vec<TemporalPtc> {
-    use crate::sensor::noise::{Bin, wls};
+    use crate::sensor::noise::{Bin, calibrate::fit_bins};
     let usable =
         |b: &&Summary| matches!(b.kind, BurstKind::Dark | BurstKind::Flat) && !b.var.is_empty();
     let mut isos: Vec<f64> = s.iter().filter(usable).map(|b| b.iso).collect();
@@ -624,7 +592,7 @@ pub fn temporal_ptc(s: &[Summary], black: f64, extra_var: f64) -> Vec<TemporalPt
                     }
                 })
                 .collect();
-            match wls(&bins) {
+            match fit_bins(&bins) {
                 Ok(f) => {
                     a[c] = f.a.max(0.0);
                     b[c] = f.b.max(0.0);
