@@ -204,3 +204,22 @@ fn composite_phone_profile_is_what_it_says() {
         .1;
     assert!(n.a[1] > canon.noise[0].a[1]);
 }
+
+/// `SensorProfile::load_existing` (every calibration that updates a profile goes through it):
+/// no file is None; a file that is not a profile is an error naming it, never overwritten.
+#[test]
+fn an_existing_file_that_is_not_a_profile_is_refused_not_overwritten() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("my_phone.toml");
+    assert!(SensorProfile::load_existing(&path).unwrap().is_none());
+    std::fs::write(&path, "not = [a profile").unwrap();
+    let e = SensorProfile::load_existing(&path).unwrap_err().to_string();
+    assert!(e.contains("my_phone.toml"), "{e}");
+    assert!(e.contains("not a valid sensor profile"), "{e}");
+    assert!(e.contains("not overwriting it"), "{e}");
+    let refused = SensorProfile::load_or_create(&path, || -> hdrsynth::error::Result<_> {
+        unreachable!("a file is there: nothing may be created over it")
+    });
+    assert!(refused.is_err());
+    assert_eq!(std::fs::read_to_string(&path).unwrap(), "not = [a profile");
+}

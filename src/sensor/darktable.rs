@@ -16,7 +16,6 @@
 //! negative value is listed in the provenance.
 
 use crate::error::{Error, Result};
-use crate::sensor::noise::new_measured_profile;
 use crate::sensor::profile::{Levels, NoiseAtIso, ProfileKind, SensorProfile};
 use std::path::{Path, PathBuf};
 
@@ -528,34 +527,28 @@ pub fn import(req: &ImportRequest) -> Result<ImportOutcome> {
     let sel = select(&rows, &req.query, &req.csv)?;
     let (noise, notes) = to_noise(&sel, req.rule, &req.levels);
     let noise_source = provenance(&req.query, &sel, &req.csv, &notes, req.rule, &req.levels);
-    let created = !req.out.exists();
-    let profile = if created {
+    let (mut profile, existed) = SensorProfile::load_or_create(&req.out, || {
         let name = req
             .name
             .clone()
             .unwrap_or_else(|| format!("{} {}", sel.rows[0].maker, sel.rows[0].model));
-        let mut p = new_measured_profile(
+        let mut p = SensorProfile::from_noise(
             &name,
             req.levels.clone(),
             &req.levels_source,
-            noise,
+            noise.clone(),
             &noise_source,
         );
         p.kind = req.kind;
-        p
-    } else {
-        let mut p = SensorProfile::load(&req.out).map_err(|e| {
-            Error::config(
-                &req.out,
-                format!("exists but is not a valid sensor profile ({e}); not overwriting it"),
-            )
-        })?;
-        p.noise = noise;
-        p.provenance.noise = noise_source;
-        p.levels = req.levels.clone();
-        p.provenance.levels = req.levels_source.clone();
-        p
-    };
+        Ok::<_, Error>(p)
+    })?;
+    if existed {
+        profile.noise = noise;
+        profile.provenance.noise = noise_source;
+        profile.levels = req.levels.clone();
+        profile.provenance.levels = req.levels_source.clone();
+    }
+    let created = !existed;
     profile.save(&req.out)?;
     Ok(ImportOutcome {
         profile,

@@ -266,23 +266,58 @@ impl SensorProfile {
         }
     }
 
-    /// The profile at `path` to update, or `create()`'s where there is none; the flag says
-    /// whether it existed. A file there that is not a valid profile is an error, so a
-    /// calibration never overwrites something else.
-    pub fn load_or_create<E: From<Error>>(
-        path: &Path,
-        create: impl FnOnce() -> std::result::Result<SensorProfile, E>,
-    ) -> std::result::Result<(SensorProfile, bool), E> {
+    /// A measured profile whose noise comes from a calibration (`calibrate noise`, the
+    /// darktable import, the gap workflow's base model): colour not calibrated yet, default
+    /// responses.
+    pub fn from_noise(
+        name: &str,
+        levels: Levels,
+        levels_source: &str,
+        noise: Vec<NoiseAtIso>,
+        noise_source: &str,
+    ) -> SensorProfile {
+        let mut p = SensorProfile::new_measured(
+            name,
+            levels,
+            Response::Srgb,
+            Provenance {
+                colour: "not calibrated yet (run `hdrsynth calibrate colour`)".into(),
+                noise: noise_source.to_string(),
+                levels: levels_source.to_string(),
+                response: "defaults, not measured: response = srgb, source_response = filmic \
+                           (the scene engine's display curve)"
+                    .into(),
+                notes: None,
+            },
+        );
+        p.noise = noise;
+        p
+    }
+
+    /// The profile at `path` to update, None where there is no file. A file there that is not
+    /// a valid profile is an error, so a calibration never overwrites something else.
+    pub fn load_existing(path: &Path) -> Result<Option<SensorProfile>> {
         if !path.exists() {
-            return Ok((create()?, false));
+            return Ok(None);
         }
-        let p = SensorProfile::load(path).map_err(|e| {
+        SensorProfile::load(path).map(Some).map_err(|e| {
             Error::config(
                 path,
                 format!("exists but is not a valid sensor profile ({e}); not overwriting it"),
             )
-        })?;
-        Ok((p, true))
+        })
+    }
+
+    /// `load_existing`, or `create()`'s profile where there is none; the flag says whether it
+    /// existed.
+    pub fn load_or_create<E: From<Error>>(
+        path: &Path,
+        create: impl FnOnce() -> std::result::Result<SensorProfile, E>,
+    ) -> std::result::Result<(SensorProfile, bool), E> {
+        match SensorProfile::load_existing(path)? {
+            Some(p) => Ok((p, true)),
+            None => Ok((create()?, false)),
+        }
     }
 
     pub fn load(path: &Path) -> Result<SensorProfile> {

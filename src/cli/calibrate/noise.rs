@@ -5,7 +5,6 @@
 use crate::sensor::captures::{BurstKind, CaptureSet};
 use crate::sensor::noise::{self, CalibrateOptions, LevelSource};
 use crate::sensor::profile::{Levels, SensorProfile};
-use anyhow::Context as _;
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Clone, Debug)]
@@ -35,16 +34,7 @@ pub fn default_plot_path(profile: &Path) -> PathBuf {
 /// Run the calibration; returns the report text.
 pub fn run(args: &Args) -> anyhow::Result<String> {
     let set = CaptureSet::load(&args.captures)?;
-    let existing = if args.out.exists() {
-        Some(SensorProfile::load(&args.out).with_context(|| {
-            format!(
-                "{} exists but is not a valid sensor profile; not overwriting it",
-                args.out.display()
-            )
-        })?)
-    } else {
-        None
-    };
+    let existing = SensorProfile::load_existing(&args.out)?;
     let sensor = &set.manifest.sensor;
     let mut opts = CalibrateOptions {
         white_level: args.white_level,
@@ -119,7 +109,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
                  ceil(log2(white + 1))",
                 cal.white_level, cal.black_level
             );
-            noise::new_measured_profile(
+            SensorProfile::from_noise(
                 &name,
                 levels,
                 &levels_source,

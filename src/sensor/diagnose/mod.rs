@@ -290,7 +290,7 @@ pub fn base_profile(
         .name
         .clone()
         .unwrap_or_else(|| "diagnosed sensor".into());
-    let mut p = noise::new_measured_profile(
+    let mut p = SensorProfile::from_noise(
         &name,
         Levels {
             black_level: black,

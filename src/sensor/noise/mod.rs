@@ -32,9 +32,6 @@ mod report;
 
 use crate::error::Result;
 use crate::sensor::captures::{BurstKind, CaptureSet};
-use crate::sensor::profile::{
-    Levels, NoiseAtIso, PROFILE_FORMAT, ProfileKind, Provenance, Response, SensorProfile,
-};
 use bursts::BurstFrames;
 use calibrate::CalibrationPlan;
 
@@ -187,37 +184,6 @@ pub fn calibrate(set: &CaptureSet, opts: &CalibrateOptions) -> Result<NoiseCalib
         stats.push(acc);
     }
     plan.finish(set, opts, stats)
-}
-
-/// A new measured profile with no colour calibration and default responses, for the
-/// calibrate/import commands when the output profile does not exist yet.
-pub fn new_measured_profile(
-    name: &str,
-    levels: Levels,
-    levels_source: &str,
-    noise: Vec<NoiseAtIso>,
-    noise_source: &str,
-) -> SensorProfile {
-    SensorProfile {
-        format: PROFILE_FORMAT.to_string(),
-        name: name.to_string(),
-        kind: ProfileKind::Measured,
-        provenance: Provenance {
-            colour: "not calibrated yet (run `hdrsynth calibrate colour`)".into(),
-            noise: noise_source.to_string(),
-            levels: levels_source.to_string(),
-            response: "defaults, not measured: response = srgb, source_response = filmic (the \
-                       scene engine's display curve)"
-                .into(),
-            notes: None,
-        },
-        colour: None,
-        levels,
-        noise,
-        response: Response::Srgb,
-        source_response: Response::Filmic,
-        effects: Vec::new(),
-    }
 }
 
 /// Bits needed to hold the white level: ceil(log2(white + 1)).
