@@ -223,3 +223,22 @@ fn an_existing_file_that_is_not_a_profile_is_refused_not_overwritten() {
     assert!(refused.is_err());
     assert_eq!(std::fs::read_to_string(&path).unwrap(), "not = [a profile");
 }
+
+/// The one parser of a response named on the command line (`--response` of calibrate colour,
+/// testset and diagnose): hand-written cases.
+#[test]
+fn responses_named_on_the_command_line() {
+    use hdrsynth::sensor::profile::Response;
+    assert_eq!("srgb".parse::<Response>(), Ok(Response::Srgb));
+    assert_eq!(" SRGB ".parse::<Response>(), Ok(Response::Srgb));
+    assert_eq!("linear".parse::<Response>(), Ok(Response::Linear));
+    assert_eq!(
+        "gamma:2.2".parse::<Response>(),
+        Ok(Response::Gamma { gamma: 2.2 })
+    );
+    let err = |s: &str| s.parse::<Response>().unwrap_err();
+    assert!(err("gamma:0").contains("gamma must be > 0"));
+    assert!(err("gamma:-1").contains("gamma must be > 0"));
+    assert!(err("gamma:x").contains("gamma 'x' is not a number"));
+    assert!(err("filmic").contains("expected srgb, linear or gamma:G"));
+}

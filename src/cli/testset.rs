@@ -91,7 +91,7 @@ pub(crate) fn parse_response(s: &str) -> Result<ResponseArg, String> {
     match s {
         "debevec" => Ok(ResponseArg::Debevec),
         "robertson" => Ok(ResponseArg::Robertson),
-        _ => parse_curve(s).map(ResponseArg::Curve).map_err(|e| {
+        _ => s.parse::<Response>().map(ResponseArg::Curve).map_err(|e| {
             format!("{e}, or an estimator: debevec (Debevec–Malik) or robertson (Robertson)")
         }),
     }
@@ -115,19 +115,6 @@ pub(crate) fn response_choice(
             ResponseChoice::Debevec(DebevecOptions::default())
         }
     })
-}
-
-fn parse_curve(s: &str) -> Result<Response, String> {
-    match s {
-        "srgb" => Ok(Response::Srgb),
-        "linear" => Ok(Response::Linear),
-        _ => match s.strip_prefix("gamma:").map(str::parse::<f64>) {
-            Some(Ok(gamma)) if gamma > 0.0 && gamma.is_finite() => Ok(Response::Gamma { gamma }),
-            _ => Err(format!(
-                "'{s}': expected srgb, linear or gamma:G (e.g. gamma:2.2)"
-            )),
-        },
-    }
 }
 
 fn parse_size(s: &str) -> Result<(usize, usize), String> {

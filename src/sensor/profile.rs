@@ -117,6 +117,30 @@ pub enum Response {
     },
 }
 
+/// A response named on the command line: `srgb`, `linear` or `gamma:G` (case and surrounding
+/// spaces ignored).
+impl std::str::FromStr for Response {
+    type Err = String;
+
+    fn from_str(s: &str) -> std::result::Result<Response, String> {
+        let t = s.trim().to_ascii_lowercase();
+        match t.as_str() {
+            "srgb" => Ok(Response::Srgb),
+            "linear" => Ok(Response::Linear),
+            _ => match t.strip_prefix("gamma:") {
+                Some(g) => match g.parse::<f64>() {
+                    Ok(gamma) if gamma > 0.0 && gamma.is_finite() => Ok(Response::Gamma { gamma }),
+                    Ok(_) => Err(format!("response '{s}': gamma must be > 0")),
+                    Err(_) => Err(format!("response '{s}': gamma '{g}' is not a number")),
+                },
+                None => Err(format!(
+                    "response '{s}': expected srgb, linear or gamma:G (e.g. gamma:2.2)"
+                )),
+            },
+        }
+    }
+}
+
 /// An extra physical effect, applied by the realism operator in physical order. Filled by the
 /// gap workflow; `id` must name an effect of the catalogue (src/sensor/effects/).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

@@ -31,7 +31,7 @@ use crate::sensor::colour::{
 };
 use crate::sensor::dng::{DngInfo, read_dng};
 use crate::sensor::profile::{Colour, Levels, Provenance, Response, SensorProfile};
-use anyhow::{Context, Result, anyhow, bail};
+use anyhow::{Context, Result, bail};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -160,28 +160,6 @@ impl Args {
     }
 }
 
-/// Parse `srgb`, `linear` or `gamma:G`.
-pub fn parse_response(s: &str) -> Result<Response> {
-    let t = s.trim().to_ascii_lowercase();
-    match t.as_str() {
-        "srgb" => Ok(Response::Srgb),
-        "linear" => Ok(Response::Linear),
-        _ => {
-            if let Some(g) = t.strip_prefix("gamma:") {
-                let gamma: f64 = g
-                    .parse()
-                    .map_err(|_| anyhow!("response '{s}': gamma '{g}' is not a number"))?;
-                if !(gamma > 0.0 && gamma.is_finite()) {
-                    bail!("response '{s}': gamma must be > 0");
-                }
-                Ok(Response::Gamma { gamma })
-            } else {
-                bail!("response '{s}': expected srgb, linear or gamma:G (e.g. gamma:2.2)")
-            }
-        }
-    }
-}
-
 fn response_name(r: &Response) -> String {
     match r {
         Response::Linear => "linear".into(),
@@ -208,7 +186,9 @@ fn load_input(path: &Path, response: Option<&str>, clip_level: Option<f64>) -> R
     let is_dng = path
         .extension()
         .is_some_and(|e| e.to_string_lossy().eq_ignore_ascii_case("dng"));
-    let given = response.map(parse_response).transpose()?;
+    let given = response
+        .map(|r| r.parse::<Response>().map_err(anyhow::Error::msg))
+        .transpose()?;
     if let Some(c) = clip_level
         && !(c > 0.0 && c.is_finite())
     {
