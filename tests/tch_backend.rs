@@ -8,33 +8,14 @@ mod common;
 
 use burn::optim::AdamConfig;
 use hdrsynth::data::ground_truth::{ClassWeights, MertensWeights};
-use hdrsynth::data::loader::{Sample, Target};
+use hdrsynth::data::loader::Sample;
 use hdrsynth::models::{BlendUNetConfig, WuConfig};
 use hdrsynth::train::loss::Network1Reading;
 use hdrsynth::train::task::{Network1, Network2, Task};
 use hdrsynth::train::{seeded_init, train_step};
 
 fn batch(channels: usize, size: usize, hdr: bool) -> Vec<Sample> {
-    (0..2)
-        .map(|i| Sample {
-            input: common::values(channels * size * size, 10 + i),
-            channels,
-            size,
-            target: if hdr {
-                Target::Hdr(common::values(3 * size * size, 20 + i))
-            } else {
-                Target::Classes(
-                    common::values(size * size, 20 + i)
-                        .iter()
-                        .map(|v| (v * 256.0) as u8)
-                        .collect(),
-                )
-            },
-            exposure_times: vec![],
-            set: format!("s{i}"),
-            iso: None,
-        })
-        .collect()
+    common::samples(2, channels, size, hdr)
 }
 
 /// Losses of `steps` Adam steps on one fixed batch, from a seeded initialisation.

@@ -530,30 +530,13 @@ fn a_second_trainer_into_a_locked_run_folder_is_refused() {
 fn data_parallel_gradients_equal_the_combined_batch() {
     use burn::optim::GradientsParams;
     use hdrsynth::data::ground_truth::{ClassWeights, MertensWeights};
-    use hdrsynth::data::loader::{Sample, Target};
+    use hdrsynth::data::loader::Sample;
     use hdrsynth::train::loss::Network1Reading;
     use hdrsynth::train::parallel_gradients;
     use hdrsynth::train::task::{Network1, Task};
 
     let size = 32;
-    let samples = |n: usize| -> Vec<Sample> {
-        (0..n)
-            .map(|i| Sample {
-                input: common::values(6 * size * size, 10 + i as u64),
-                channels: 6,
-                size,
-                target: Target::Classes(
-                    common::values(size * size, 20 + i as u64)
-                        .iter()
-                        .map(|v| (v * 256.0) as u8)
-                        .collect(),
-                ),
-                exposure_times: vec![],
-                set: format!("s{i}"),
-                iso: None,
-            })
-            .collect()
-    };
+    let samples = |n: usize| -> Vec<Sample> { common::samples(n, 6, size, false) };
     for reading in [Network1Reading::Literal, Network1Reading::Soft] {
         let task = Network1 {
             config: BlendUNetConfig {

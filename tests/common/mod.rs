@@ -47,6 +47,37 @@ pub fn values(n: usize, seed: u64) -> Vec<f32> {
         .collect()
 }
 
+/// `n` synthetic training samples of `channels` × `size`² inputs (values from `values`), with
+/// an HDR target (Network-2) or 256-class blend targets (Network-1).
+pub fn samples(
+    n: usize,
+    channels: usize,
+    size: usize,
+    hdr: bool,
+) -> Vec<hdrsynth::data::loader::Sample> {
+    use hdrsynth::data::loader::{Sample, Target};
+    (0..n as u64)
+        .map(|i| Sample {
+            input: values(channels * size * size, 10 + i),
+            channels,
+            size,
+            target: if hdr {
+                Target::Hdr(values(3 * size * size, 20 + i))
+            } else {
+                Target::Classes(
+                    values(size * size, 20 + i)
+                        .iter()
+                        .map(|v| (v * 256.0) as u8)
+                        .collect(),
+                )
+            },
+            exposure_times: vec![],
+            set: format!("s{i}"),
+            iso: None,
+        })
+        .collect()
+}
+
 /// The first set folder (one with `static/`) of a generated dataset.
 pub fn first_set(dataset: &Path) -> std::path::PathBuf {
     std::fs::read_dir(dataset)
