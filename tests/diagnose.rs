@@ -530,8 +530,8 @@ fn rows_simulated_alone_equal_those_rows_of_the_whole_frame() {
     assert_eq!(rows, want);
     assert_eq!(analysed_rows(w, h, 8 * 8 * w), want);
     let mut part = Image::new(0, 0);
-    r.to_dn_rows_into(&crop_rows(&input, &rows), &rows, h, 11, &mut part);
-    assert_eq!(part.data, crop_rows(&whole, &rows).data);
+    r.to_dn_rows_into(&crop_rows(input, &rows), &rows, h, 11, &mut part);
+    assert_eq!(part.data, crop_rows(whole, &rows).data);
     // Every row when the frame fits the budget, or with no budget.
     assert_eq!(analysed_rows(w, h, w * h), (0..h).collect::<Vec<_>>());
     assert_eq!(analysed_rows(w, h, 0), (0..h).collect::<Vec<_>>());

@@ -191,7 +191,7 @@ pub fn measure(
                 .into_par_iter()
                 .map(|j| {
                     Ok(effects::summary::crop_rows(
-                        &set.read_frame(i, j)?,
+                        set.read_frame(i, j)?,
                         &info.rows,
                     ))
                 })

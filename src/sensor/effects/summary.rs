@@ -83,10 +83,10 @@ pub fn analysed_rows(width: usize, height: usize, max_pixels: usize) -> Vec<usiz
 pub const BAND: usize = 8;
 pub const MIN_BANDS: usize = 8;
 
-/// Rows `rows` of `frame`, stacked.
-pub fn crop_rows(frame: &Image, rows: &[usize]) -> Image {
+/// Rows `rows` of `frame`, stacked (the frame itself, not a copy, when they are all its rows).
+pub fn crop_rows(frame: Image, rows: &[usize]) -> Image {
     if rows.len() == frame.height {
-        return frame.clone();
+        return frame;
     }
     let w3 = frame.width * 3;
     let mut data = Vec::with_capacity(rows.len() * w3);
