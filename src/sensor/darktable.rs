@@ -57,27 +57,6 @@ pub fn profile_family(name: &str) -> &str {
     name
 }
 
-/// Split one CSV line; fields may be double-quoted ("" inside quotes is a quote).
-fn split_csv_line(line: &str) -> Vec<String> {
-    let mut out = Vec::new();
-    let mut cur = String::new();
-    let mut quoted = false;
-    let mut chars = line.chars().peekable();
-    while let Some(ch) = chars.next() {
-        match ch {
-            '"' if quoted && chars.peek() == Some(&'"') => {
-                cur.push('"');
-                chars.next();
-            }
-            '"' => quoted = !quoted,
-            ',' if !quoted => out.push(std::mem::take(&mut cur)),
-            _ => cur.push(ch),
-        }
-    }
-    out.push(cur);
-    out
-}
-
 /// Read the whole CSV. Errors name the file and line.
 pub fn read_csv(path: &Path) -> Result<Vec<DarktableRow>> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
@@ -86,11 +65,19 @@ pub fn read_csv(path: &Path) -> Result<Vec<DarktableRow>> {
 
 /// The CSV's text, parsed as [`read_csv`] parses the file `path` (named in errors).
 pub fn parse_csv(text: &str, path: &Path) -> Result<Vec<DarktableRow>> {
-    let mut lines = text.lines().enumerate();
-    let Some((_, header)) = lines.next() else {
+    let text = text.trim_start_matches('\u{feff}');
+    if text.is_empty() {
         return Err(Error::decode(path, "empty file"));
+    }
+    // Rows of another length are reported with their line below, not by the reader.
+    let mut reader = csv::ReaderBuilder::new()
+        .flexible(true)
+        .from_reader(text.as_bytes());
+    let csv_err = |e: csv::Error| {
+        let line = e.position().map_or(1, |p| p.line());
+        Error::decode(path, format!("line {line}: {e}"))
     };
-    let header = split_csv_line(header.trim_start_matches('\u{feff}'));
+    let header = reader.headers().map_err(csv_err)?.clone();
     let col = |name: &str| header.iter().position(|h| h.trim() == name);
     let mut idx = [0usize; 10];
     for (k, name) in COLUMNS.iter().enumerate() {
@@ -105,12 +92,12 @@ pub fn parse_csv(text: &str, path: &Path) -> Result<Vec<DarktableRow>> {
         })?;
     }
     let mut rows = Vec::new();
-    for (i, line) in lines {
-        let line_no = i + 1;
-        if line.trim().is_empty() {
+    for record in reader.records() {
+        let f = record.map_err(csv_err)?;
+        if f.len() == 1 && f[0].trim().is_empty() {
             continue;
         }
-        let f = split_csv_line(line);
+        let line_no = f.position().map_or(0, |p| p.line() as usize);
         let at = |msg: String| Error::decode(path, format!("line {line_no}: {msg}"));
         if f.len() != header.len() {
             return Err(at(format!(
