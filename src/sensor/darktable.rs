@@ -63,6 +63,18 @@ pub fn read_csv(path: &Path) -> Result<Vec<DarktableRow>> {
     parse_csv(&text, path)
 }
 
+/// The 1-based line of the record the reader places at `byte`. Not the reader's own line count:
+/// csv 1.4 counts a CRLF file's lines one short, and a record's byte position may sit on the
+/// line breaks (and blank lines) before it, so skip those first.
+fn line_at(text: &str, byte: u64) -> usize {
+    let bytes = text.as_bytes();
+    let mut i = usize::try_from(byte).map_or(bytes.len(), |b| b.min(bytes.len()));
+    while i < bytes.len() && matches!(bytes[i], b'\r' | b'\n') {
+        i += 1;
+    }
+    1 + bytes[..i].iter().filter(|&&b| b == b'\n').count()
+}
+
 /// The CSV's text, parsed as [`read_csv`] parses the file `path` (named in errors).
 pub fn parse_csv(text: &str, path: &Path) -> Result<Vec<DarktableRow>> {
     let text = text.trim_start_matches('\u{feff}');
@@ -74,7 +86,7 @@ pub fn parse_csv(text: &str, path: &Path) -> Result<Vec<DarktableRow>> {
         .flexible(true)
         .from_reader(text.as_bytes());
     let csv_err = |e: csv::Error| {
-        let line = e.position().map_or(1, |p| p.line());
+        let line = e.position().map_or(1, |p| line_at(text, p.byte()));
         Error::decode(path, format!("line {line}: {e}"))
     };
     let header = reader.headers().map_err(csv_err)?.clone();
@@ -97,7 +109,7 @@ pub fn parse_csv(text: &str, path: &Path) -> Result<Vec<DarktableRow>> {
         if f.len() == 1 && f[0].trim().is_empty() {
             continue;
         }
-        let line_no = f.position().map_or(0, |p| p.line() as usize);
+        let line_no = f.position().map_or(0, |p| line_at(text, p.byte()));
         let at = |msg: String| Error::decode(path, format!("line {line_no}: {msg}"));
         if f.len() != header.len() {
             return Err(at(format!(
@@ -543,4 +555,29 @@ pub fn import(req: &ImportRequest) -> Result<ImportOutcome> {
         selection: sel,
         notes,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const HEADER: &str = "maker,model,iso,a_R,a_G,a_B,b_R,b_G,b_B,profile_name";
+    const ROW: &str = "Canon,EOS 550D,100,1e-6,1e-6,1e-6,2e-8,2e-8,2e-8,p";
+
+    /// Rows and errors carry the line as an editor shows it, for LF and CRLF files (darktable's
+    /// own CSV is CRLF) and across blank lines.
+    #[test]
+    fn lines_are_counted_as_an_editor_counts_them() {
+        for eol in ["\n", "\r\n"] {
+            let text = [HEADER, ROW, "", ROW, "Canon,EOS 550D,x,1,1,1,1,1,1,p"].join(eol);
+            let err = parse_csv(&text, Path::new("n.csv"))
+                .unwrap_err()
+                .to_string();
+            assert!(err.contains("line 5: iso = 'x'"), "{eol:?}: {err}");
+            let good = [HEADER, ROW, "", ROW].join(eol);
+            let rows = parse_csv(&good, Path::new("n.csv")).unwrap();
+            let lines: Vec<usize> = rows.iter().map(|r| r.line).collect();
+            assert_eq!(lines, [2, 4], "{eol:?}");
+        }
+    }
 }
