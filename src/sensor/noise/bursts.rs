@@ -16,16 +16,19 @@ pub(super) struct BurstStats {
     pub(super) white: f64,
 }
 
-/// Temporal mean and unbiased variance per pixel and channel of one burst, frame by frame (the
-/// gap workflow feeds the frames it decodes anyway). Sums are exact: integer DN offsets from
-/// the first frame in i32/u64. Frames may be bands of `band` rows of a larger frame stacked
-/// (`summary::crop_rows`): neighbourhoods then stay inside a band.
+/// THE burst accumulator: exact per-value temporal sums of a burst, frame by frame (frames are
+/// never all held in memory). Frames are integer DN in [0, 65535] (decoded captures:
+/// `read_dn_frame`; simulated ones are quantised), so the sums are exact integers: offsets from
+/// the first frame in i32/u64, and any other shift of them (`shifted_sums`) is exact too. The
+/// noise calibration bins its per-pixel statistics (`finish`); the effects' burst summaries
+/// (`effects::summary::Accumulator`) build on the same sums. Frames may be bands of `band` rows
+/// of a larger frame stacked (`summary::crop_rows`): neighbourhoods then stay inside a band.
 pub struct BurstFrames {
     dark: bool,
     band: usize,
     width: usize,
     height: usize,
-    pub(super) frames: usize,
+    pub(crate) frames: usize,
     k: Vec<u16>,
     s1: Vec<i32>,
     s2: Vec<u64>,
@@ -58,6 +61,10 @@ impl BurstFrames {
 
     /// Add one frame (every frame of a burst has the burst's size: `CaptureSet::read_frame`).
     pub fn add(&mut self, f: &Image) {
+        debug_assert!(
+            f.data.iter().all(|&v| v == to_u16(v) as f32),
+            "integer DN frames"
+        );
         if self.dark {
             self.frame_means.push(robust_frame_mean(f));
         }
@@ -84,6 +91,16 @@ impl BurstFrames {
                 *lo = (*lo).min(v);
                 *hi = (*hi).max(v);
             });
+    }
+
+    /// Σ(x − c) and Σ(x − c)² over the frames of value `i`, for an integer shift `c`: exact
+    /// integers, so equal to the same sums streamed in f64.
+    pub fn shifted_sums(&self, i: usize, c: f64) -> (f64, f64) {
+        let (n, off) = (self.frames as i128, self.k[i] as i128 - c as i128);
+        let s1 = self.s1[i] as i128;
+        let t1 = s1 + n * off;
+        let t2 = self.s2[i] as i128 + 2 * off * s1 + n * off * off;
+        (t1 as f64, t2 as f64)
     }
 
     /// Per-band statistics.
