@@ -7,9 +7,11 @@
 //! E = σ² (the total spatial variance of a dark mean would also fire on DSNU and hot pixels).
 //! Fit: σ² = measured − simulated.
 
-use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, hashed_normal, number, only};
-use super::{seed, seed_value, table};
+use super::params::{Finite, Seed, parse};
+use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, hashed_normal};
+use super::{seed_value, table};
 use crate::sensor::captures::BurstKind;
+use serde::Deserialize;
 
 pub const ID: &str = "column_noise";
 const NAME: &str = "column offset covariance (top × bottom half)";
@@ -28,13 +30,22 @@ pub fn offset(sigma: f32, seed: u64, x: usize) -> f32 {
     sigma * hashed_normal(seed, &[x as u64, 0xc0])
 }
 
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Params {
+    sigma_dn: Finite,
+    seed: Seed,
+}
+
 fn install(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
-    only(p, &["sigma_dn", "seed"])?;
-    let s = number(p, "sigma_dn")?;
+    let Params {
+        sigma_dn: Finite(s),
+        seed,
+    } = parse(p)?;
     if s < 0.0 {
         return Err(format!("sigma_dn {s} must be ≥ 0"));
     }
-    plan.column = Some((s as f32, seed(p)?));
+    plan.column = Some((s as f32, seed.0));
     Ok(())
 }
 
