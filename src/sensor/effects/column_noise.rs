@@ -86,26 +86,14 @@ fn statistics(p: &Protocol, s: &[Summary], out: &mut Vec<Stat>) {
         .iter()
         .filter(|b| b.kind == BurstKind::Dark && !b.var.is_empty())
     {
-        out.push(Stat {
-            key: format!("{}: {NAME}", p.bursts[b.burst].name),
-            effect: Some(ID),
-            value: column_cov(b),
-            min_effect: (0.02 * b.temporal_mean()).max(0.05),
-            sd_floor: 1e-4,
-            unit: "DN²",
-        });
+        out.push(Stat::dark_dn2(p, b, ID, NAME, column_cov(b)));
     }
 }
 
 fn fit(ctx: &FitCtx) -> Result<toml::Table, String> {
-    let v = ctx.mean_excess(ID, NAME)?;
-    if v <= 0.0 {
-        return Err(format!(
-            "excess column covariance {v:.4} DN² is not positive"
-        ));
-    }
+    let s = ctx.excess_sigma(ID, NAME, "column covariance")?;
     Ok(table(&[
-        ("sigma_dn", float(v.sqrt())),
+        ("sigma_dn", float(s)),
         ("seed", seed_value(ctx.seed)),
     ]))
 }

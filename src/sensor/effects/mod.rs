@@ -271,6 +271,27 @@ pub struct Stat {
     pub unit: &'static str,
 }
 
+impl Stat {
+    /// A DN² statistic of a dark burst (row, column or pixel offsets): the smallest effect is
+    /// 2 % of the burst's temporal variance, at least 0.05 DN².
+    pub fn dark_dn2(
+        p: &Protocol,
+        b: &Summary,
+        effect: &'static str,
+        name: &str,
+        value: f64,
+    ) -> Stat {
+        Stat {
+            key: format!("{}: {name}", p.bursts[b.burst].name),
+            effect: Some(effect),
+            value,
+            min_effect: (0.02 * b.temporal_mean()).max(0.05),
+            sd_floor: 1e-4,
+            unit: "DN²",
+        }
+    }
+}
+
 /// What a fit sees.
 pub struct FitCtx<'a> {
     /// Measured statistics and, aligned with them, their mean over the bootstrap replicates
@@ -313,6 +334,16 @@ impl FitCtx<'_> {
                 Some((st, sim, b))
             })
             .collect()
+    }
+
+    /// σ (DN) of offsets whose variance is the mean excess of the DN² statistics `name`
+    /// (`what` names them when the excess is not positive).
+    pub fn excess_sigma(&self, effect: &str, name: &str, what: &str) -> Result<f64, String> {
+        let v = self.mean_excess(effect, name)?;
+        if v <= 0.0 {
+            return Err(format!("excess {what} {v:.4} DN² is not positive"));
+        }
+        Ok(v.sqrt())
     }
 
     /// Mean of measured − simulated over this effect's statistics named `name`.

@@ -47,24 +47,14 @@ fn install(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
 fn statistics(p: &Protocol, s: &[Summary], out: &mut Vec<Stat>) {
     for b in s.iter().filter(|b| b.kind == BurstKind::Dark) {
         if let Some(r) = &b.resid {
-            out.push(Stat {
-                key: format!("{}: {NAME}", p.bursts[b.burst].name),
-                effect: Some(ID),
-                value: r.row_cov,
-                min_effect: (0.02 * b.temporal_mean()).max(0.05),
-                sd_floor: 1e-4,
-                unit: "DN²",
-            });
+            out.push(Stat::dark_dn2(p, b, ID, NAME, r.row_cov));
         }
     }
 }
 
 fn fit(ctx: &FitCtx) -> Result<toml::Table, String> {
-    let v = ctx.mean_excess(ID, NAME)?;
-    if v <= 0.0 {
-        return Err(format!("excess row covariance {v:.4} DN² is not positive"));
-    }
-    Ok(table(&[("sigma_dn", float(v.sqrt()))]))
+    let s = ctx.excess_sigma(ID, NAME, "row covariance")?;
+    Ok(table(&[("sigma_dn", float(s))]))
 }
 
 fn adjust(profile: &mut SensorProfile, params: &toml::Table) {
