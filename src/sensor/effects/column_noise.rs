@@ -7,11 +7,10 @@
 //! E = σ² (the total spatial variance of a dark mean would also fire on DSNU and hot pixels).
 //! Fit: σ² = measured − simulated.
 
-use super::params::{Finite, Seed, parse};
+use super::params::{OffsetPattern, parse};
 use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, hashed_normal};
 use super::{seed_value, table};
 use crate::sensor::captures::BurstKind;
-use serde::Deserialize;
 
 pub const ID: &str = "column_noise";
 const NAME: &str = "column offset covariance (top × bottom half)";
@@ -30,22 +29,8 @@ pub fn offset(sigma: f32, seed: u64, x: usize) -> f32 {
     sigma * hashed_normal(seed, &[x as u64, 0xc0])
 }
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct Params {
-    sigma_dn: Finite,
-    seed: Seed,
-}
-
 fn install(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
-    let Params {
-        sigma_dn: Finite(s),
-        seed,
-    } = parse(p)?;
-    if s < 0.0 {
-        return Err(format!("sigma_dn {s} must be ≥ 0"));
-    }
-    plan.column = Some((s as f32, seed.0));
+    plan.column = Some(parse::<OffsetPattern>(p)?.checked()?);
     Ok(())
 }
 

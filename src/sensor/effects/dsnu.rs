@@ -6,11 +6,10 @@
 //! removed degrees of freedom, minus the temporal part v̄/L (EMVA 1288). Fit: σ² = measured −
 //! simulated.
 
-use super::params::{Finite, Seed, parse};
+use super::params::{OffsetPattern, parse};
 use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, hashed_normal};
 use super::{prnu::fixed_excess, seed_value, table};
 use crate::sensor::captures::BurstKind;
-use serde::Deserialize;
 
 pub const ID: &str = "dsnu";
 const NAME: &str = "fixed pixel variance (rows, columns removed)";
@@ -29,22 +28,8 @@ pub fn offset(sigma: f32, seed: u64, x: usize, y: usize, c: usize) -> f32 {
     sigma * hashed_normal(seed, &[x as u64, y as u64, c as u64, 0xd5])
 }
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct Params {
-    sigma_dn: Finite,
-    seed: Seed,
-}
-
 fn install(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
-    let Params {
-        sigma_dn: Finite(s),
-        seed,
-    } = parse(p)?;
-    if s < 0.0 {
-        return Err(format!("sigma_dn {s} must be ≥ 0"));
-    }
-    plan.dsnu = Some((s as f32, seed.0));
+    plan.dsnu = Some(parse::<OffsetPattern>(p)?.checked()?);
     Ok(())
 }
 

@@ -65,6 +65,25 @@ impl<'de> Deserialize<'de> for Seed {
     }
 }
 
+/// A fixed offset pattern (column offsets, DSNU): σ in DN and the pattern's seed.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OffsetPattern {
+    sigma_dn: Finite,
+    seed: Seed,
+}
+
+impl OffsetPattern {
+    /// (σ, seed) for the plan; σ must be ≥ 0.
+    pub fn checked(self) -> Result<(f32, u64), String> {
+        let s = self.sigma_dn.0;
+        if s < 0.0 {
+            return Err(format!("sigma_dn {s} must be ≥ 0"));
+        }
+        Ok((s as f32, self.seed.0))
+    }
+}
+
 /// Three numbers > 0 (one per colour channel).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Triple(pub [f64; 3]);
