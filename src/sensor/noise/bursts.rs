@@ -79,27 +79,36 @@ impl BurstFrames {
             self.max = self.k.clone();
             return;
         }
-        (self.s1.par_iter_mut(), self.s2.par_iter_mut())
+        // Chunks of values, not single values, per task: the sums run once per simulated
+        // frame of every bootstrap replicate.
+        const CHUNK: usize = 4096;
+        (self.s1.par_chunks_mut(CHUNK), self.s2.par_chunks_mut(CHUNK))
             .into_par_iter()
-            .zip((self.min.par_iter_mut(), self.max.par_iter_mut()))
-            .zip((self.k.par_iter(), f.data.par_iter()))
-            .for_each(|(((s1, s2), (lo, hi)), (&k, &v))| {
-                let v = to_u16(v);
-                let d = v as i32 - k as i32;
-                *s1 += d;
-                *s2 += (d as i64 * d as i64) as u64;
-                *lo = (*lo).min(v);
-                *hi = (*hi).max(v);
+            .zip((
+                self.min.par_chunks_mut(CHUNK),
+                self.max.par_chunks_mut(CHUNK),
+            ))
+            .zip((self.k.par_chunks(CHUNK), f.data.par_chunks(CHUNK)))
+            .for_each(|(((s1, s2), (lo, hi)), (k, x))| {
+                for i in 0..x.len() {
+                    let v = to_u16(x[i]);
+                    let d = v as i32 - k[i] as i32;
+                    s1[i] += d;
+                    s2[i] += (d as i64 * d as i64) as u64;
+                    lo[i] = lo[i].min(v);
+                    hi[i] = hi[i].max(v);
+                }
             });
     }
 
-    /// Σ(x − c) and Σ(x − c)² over the frames of value `i`, for an integer shift `c`: exact
-    /// integers, so equal to the same sums streamed in f64.
+    /// Σ(x − c) and Σ(x − c)² over the frames of value `i`, for an integer shift `c` in
+    /// [0, 65535]: exact integers (i32 sums bound the frames to n · 65535 < 2^31, so every term
+    /// is below 2^49), equal to the same sums streamed in f64.
     pub fn shifted_sums(&self, i: usize, c: f64) -> (f64, f64) {
-        let (n, off) = (self.frames as i128, self.k[i] as i128 - c as i128);
-        let s1 = self.s1[i] as i128;
+        let (n, off) = (self.frames as i64, self.k[i] as i64 - c as i64);
+        let s1 = self.s1[i] as i64;
         let t1 = s1 + n * off;
-        let t2 = self.s2[i] as i128 + 2 * off * s1 + n * off * off;
+        let t2 = self.s2[i] as i64 + 2 * off * s1 + n * off * off;
         (t1 as f64, t2 as f64)
     }
 
