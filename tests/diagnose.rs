@@ -7,7 +7,6 @@ mod truth;
 
 use hdrsynth::sensor::captures::CaptureSet;
 use hdrsynth::sensor::diagnose::{DiagnoseOptions, Diagnosis, diagnose};
-use hdrsynth::sensor::effects::number;
 use hdrsynth::sensor::profile::SensorProfile;
 use std::path::Path;
 use truth::Truth;
@@ -34,6 +33,13 @@ fn run_max(t: &Truth, name: &str, max_pixels: usize) -> (Diagnosis, usize) {
         eprintln!("note: {n}");
     }
     (d, hot)
+}
+
+/// A fitted parameter (fits write floats: `effects::float`).
+fn number(p: &toml::Table, key: &str) -> Result<f64, String> {
+    p.get(key)
+        .and_then(toml::Value::as_float)
+        .ok_or_else(|| format!("no number '{key}' in {p}"))
 }
 
 fn param(d: &Diagnosis, effect: &str, key: &str) -> f64 {
@@ -912,6 +918,137 @@ fn response_curves_by_hand() {
     ] {
         let e = curve(&t(bad)).unwrap_err();
         assert!(e.contains(word), "{bad}: {e}");
+    }
+}
+
+/// Every effect parameter fault is named with the effect and the parameter (messages written
+/// by hand); an unknown key is reported before anything else, and a missing parameter where it
+/// falls in the effect's parameter order.
+#[test]
+fn effect_parameter_errors_name_the_effect_and_the_parameter() {
+    use hdrsynth::sensor::effects::Plan;
+    use hdrsynth::sensor::profile::EffectSpec;
+    let cases = [
+        (
+            "row_noise",
+            "sigma_dn = 1\nextra = 2",
+            "unknown parameter 'extra' (expected sigma_dn)",
+        ),
+        ("row_noise", "", "missing parameter 'sigma_dn'"),
+        (
+            "row_noise",
+            "sigma_dn = \"x\"",
+            "'sigma_dn' must be a finite number, got \"x\"",
+        ),
+        (
+            "row_noise",
+            "sigma_dn = nan",
+            "'sigma_dn' must be a finite number, got nan",
+        ),
+        ("row_noise", "sigma_dn = -1", "sigma_dn -1 must be ≥ 0"),
+        (
+            "vignetting",
+            "strength = [1]",
+            "'strength' must be a finite number, got [1]",
+        ),
+        (
+            "dsnu",
+            "zz = 1",
+            "unknown parameter 'zz' (expected sigma_dn, seed)",
+        ),
+        (
+            "dsnu",
+            "sigma_dn = 1",
+            "missing parameter 'seed' (fixed patterns derive from it)",
+        ),
+        (
+            "dsnu",
+            "sigma_dn = 1\nseed = -3",
+            "'seed' must be an integer ≥ 0, got -3",
+        ),
+        (
+            "dsnu",
+            "sigma_dn = 1\nseed = 1.5",
+            "'seed' must be an integer ≥ 0, got 1.5",
+        ),
+        (
+            "hot_pixels",
+            "offset_dn = \"x\"\nseed = 1",
+            "missing parameter 'fraction'",
+        ),
+        (
+            "hot_pixels",
+            "fraction = 0.5\noffset_dn = 1\nseed = 1",
+            "fraction 0.5 must be in [0, 0.1) and offset_dn 1 ≥ 0",
+        ),
+        (
+            "channel_noise",
+            "b_scale = [1, 1, 1]",
+            "'a_scale' must be an array of 3 numbers",
+        ),
+        (
+            "channel_noise",
+            "a_scale = 2\nb_scale = [1, 1, 1]",
+            "'a_scale' must be an array of 3 numbers",
+        ),
+        (
+            "channel_noise",
+            "a_scale = [1, \"x\", 1]\nb_scale = [1, 1, 1]",
+            "'a_scale' must be 3 numbers > 0",
+        ),
+        (
+            "channel_noise",
+            "a_scale = [1, 1]\nb_scale = [1, 1, 1]",
+            "'a_scale' must be 3 numbers > 0",
+        ),
+        (
+            "channel_noise",
+            "a_scale = [1, 1, 1]\nb_scale = [1, 0, 1]",
+            "'b_scale' must be 3 numbers > 0",
+        ),
+        (
+            "correlated_noise",
+            "rho_h = 0.2",
+            "needs rho_h and rho_v (or rho for both axes)",
+        ),
+        (
+            "correlated_noise",
+            "rho_h = 0.99\nrho_v = 0.1",
+            "rho_h 0.99 must be in [0, 0.95]",
+        ),
+        (
+            "correlated_noise",
+            "rho = true",
+            "'rho' must be a finite number, got true",
+        ),
+        (
+            "heavy_tailed_read_noise",
+            "dof = 3",
+            "dof 3 must be > 4 (finite kurtosis)",
+        ),
+        (
+            "nonlinear_response",
+            "shape = 3",
+            "'shape' must be a string, got 3",
+        ),
+        (
+            "nonlinear_response",
+            "shape = \"toe_shoulder\"\ntoe = 0.1",
+            "missing parameter 'shoulder'",
+        ),
+        (
+            "nonlinear_response",
+            "exponent = 1\ntoe = 0.1",
+            "unknown parameter 'toe' (expected shape, exponent)",
+        ),
+    ];
+    for (id, params, want) in cases {
+        let spec = EffectSpec {
+            id: id.into(),
+            params: toml::from_str(params).unwrap(),
+        };
+        let got = Plan::from_effects(&[spec]).unwrap_err();
+        assert_eq!(got, format!("effect '{id}': {want}"), "{id} {{ {params} }}");
     }
 }
 

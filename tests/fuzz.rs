@@ -435,6 +435,46 @@ fn fuzz_sensor_profile() {
     );
 }
 
+/// Every catalogue effect with valid parameters (the effect-parameter target's seed).
+const ALL_EFFECTS: &str = "[[effects]]\nid = \"vignetting\"\nstrength = 0.2\n\
+[[effects]]\nid = \"prnu\"\nsigma = 0.01\nseed = 1\n\
+[[effects]]\nid = \"nonlinear_response\"\nshape = \"toe_shoulder\"\ntoe = 0.05\nshoulder = 0.8\n\
+[[effects]]\nid = \"channel_noise\"\na_scale = [1.0, 1.1, 0.9]\nb_scale = [1, 1, 1]\n\
+[[effects]]\nid = \"heavy_tailed_read_noise\"\ndof = 6\n\
+[[effects]]\nid = \"correlated_noise\"\nrho_h = 0.2\nrho_v = 0.3\n\
+[[effects]]\nid = \"black_level\"\noffset_dn = 2.5\n\
+[[effects]]\nid = \"row_noise\"\nsigma_dn = 1.0\n\
+[[effects]]\nid = \"column_noise\"\nsigma_dn = 0.5\nseed = 2\n\
+[[effects]]\nid = \"dsnu\"\nsigma_dn = 0.5\nseed = 3\n\
+[[effects]]\nid = \"hot_pixels\"\nfraction = 0.001\noffset_dn = 200\nseed = 4\n";
+
+#[test]
+fn fuzz_effect_parameters() {
+    use hdrsynth::sensor::effects::Plan;
+    use hdrsynth::sensor::profile::EffectSpec;
+    #[derive(serde::Deserialize)]
+    struct Effects {
+        effects: Vec<EffectSpec>,
+    }
+    let power_law = ALL_EFFECTS
+        .replace(
+            "shape = \"toe_shoulder\"\ntoe = 0.05\nshoulder = 0.8",
+            "exponent = 0.9",
+        )
+        .replace("rho_h = 0.2\nrho_v = 0.3", "rho = 0.25");
+    for seed in [ALL_EFFECTS, &power_law] {
+        let e: Effects = toml::from_str(seed).unwrap();
+        Plan::from_effects(&e.effects).expect("the seed's parameters are valid");
+    }
+    text_target::<Effects>(
+        "effect_parameters",
+        &[ALL_EFFECTS.as_bytes().to_vec(), power_law.into_bytes()],
+        |e| {
+            let _ = Plan::from_effects(&e.effects);
+        },
+    );
+}
+
 #[test]
 fn fuzz_captures_manifest() {
     let seed = b"format = \"hdrsynth-captures/1\"\n[sensor]\nname = \"p\"\nwhite_level = 4095\n\

@@ -141,13 +141,13 @@ fn simulate(
         opts.noise = NoiseModel::Gaussian;
         opts.output_bits = 16;
         let r = Realism::new(&p, &opts)?;
-        let mut acc = Accumulator::new(info);
+        let mut acc = Accumulator::new(info, false);
         for j in 0..info.frames {
             let seed = hash(seed, &[k as u64, i as u64, j as u64]);
             r.to_dn_rows_into(t, &info.rows, info.height, seed, &mut frame);
             acc.add(&frame);
         }
-        out.push(acc.finish(i, info));
+        out.push(acc.finish(i, info).0);
     }
     Ok(out)
 }

@@ -158,32 +158,15 @@ pub fn measure(
 ) -> Result<(Vec<Summary>, Result<NoiseCalibration>)> {
     let ptc = ptc_bursts(set);
     let plan = noise::calibrate::CalibrationPlan::new(&ptc.set, cal_opts);
-    let mut cal: Vec<(usize, noise::bursts::BurstFrames)> = match &plan {
-        Ok(p) => p
-            .used
-            .iter()
-            .map(|&k| {
-                let i = ptc.index[k];
-                let info = &infos[i];
-                // Neighbourhoods stay inside a band when only bands of rows are analysed.
-                let whole = info.rows.len() == info.height;
-                let band = if whole {
-                    usize::MAX
-                } else {
-                    effects::summary::BAND
-                };
-                (
-                    i,
-                    noise::bursts::BurstFrames::new(info.kind == BurstKind::Dark, band),
-                )
-            })
-            .collect(),
+    // The measured bursts whose sums the calibration bins too.
+    let calibrated: Vec<usize> = match &plan {
+        Ok(p) => p.used.iter().map(|&k| ptc.index[k]).collect(),
         Err(_) => Vec::new(),
     };
     let mut out = Vec::new();
+    let mut cal = Vec::new();
     for (i, info) in infos.iter().enumerate() {
-        let mut acc = Accumulator::new(info);
-        let mut frames_acc = cal.iter_mut().find(|(b, _)| *b == i).map(|(_, f)| f);
+        let mut acc = Accumulator::new(info, calibrated.contains(&i));
         let n = info.frames;
         let batch = rayon::current_num_threads().max(2);
         for start in (0..n).step_by(batch) {
@@ -198,15 +181,15 @@ pub fn measure(
                 .collect::<Result<_>>()?;
             for f in &frames {
                 acc.add(f);
-                if let Some(c) = frames_acc.as_mut() {
-                    c.add(f);
-                }
             }
         }
-        out.push(acc.finish(i, info));
+        let (summary, sums) = acc.finish(i, info);
+        out.push(summary);
+        if calibrated.contains(&i) {
+            cal.push(sums);
+        }
     }
-    let calibration =
-        plan.and_then(|p| p.finish(&ptc.set, cal_opts, cal.into_iter().map(|c| c.1).collect()));
+    let calibration = plan.and_then(|p| p.finish(&ptc.set, cal_opts, cal));
     Ok((out, calibration))
 }
 

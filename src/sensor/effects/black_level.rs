@@ -8,8 +8,10 @@
 //! a given profile's noise is the user's. (The old rule b += a·offset assumed an unclamped
 //! photon-transfer fit without darks; with b clamped at 0 it broke, issue 15.)
 
-use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, number, only, table};
+use super::params::{Finite, parse};
+use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, table};
 use crate::sensor::captures::BurstKind;
+use serde::Deserialize;
 
 pub const ID: &str = "black_level";
 const NAME: &str = "mean dark level";
@@ -24,9 +26,15 @@ pub const ENTRY: Entry = Entry {
     adjust: None,
 };
 
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Params {
+    offset_dn: Finite,
+}
+
 fn install(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
-    only(p, &["offset_dn"])?;
-    plan.black_offset += number(p, "offset_dn")? as f32;
+    let Params { offset_dn } = parse(p)?;
+    plan.black_offset += offset_dn.0 as f32;
     Ok(())
 }
 

@@ -8,8 +8,10 @@
 //! temporal photon transfer (`summary::temporal_ptc`, row-offset variance taken out of b) over
 //! the model's a, b at each ISO with dark and flat bursts, averaged over ISOs.
 
-use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, only, table};
+use super::params::{Triple, parse};
+use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, table};
 use crate::sensor::captures::BurstKind;
+use serde::Deserialize;
 
 pub const ID: &str = "channel_noise";
 const NAMES: [&str; 3] = [
@@ -28,24 +30,18 @@ pub const ENTRY: Entry = Entry {
     adjust: None,
 };
 
-fn triple(p: &toml::Table, key: &str) -> Result<[f64; 3], String> {
-    let a = p
-        .get(key)
-        .and_then(|v| v.as_array())
-        .ok_or_else(|| format!("'{key}' must be an array of 3 numbers"))?;
-    let v: Vec<f64> = a
-        .iter()
-        .filter_map(|x| x.as_float().or_else(|| x.as_integer().map(|i| i as f64)))
-        .collect();
-    if v.len() != 3 || a.len() != 3 || v.iter().any(|x| !(x.is_finite() && *x > 0.0)) {
-        return Err(format!("'{key}' must be 3 numbers > 0"));
-    }
-    Ok([v[0], v[1], v[2]])
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Params {
+    a_scale: Triple,
+    b_scale: Triple,
 }
 
 fn install(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
-    only(p, &["a_scale", "b_scale"])?;
-    let (a, b) = (triple(p, "a_scale")?, triple(p, "b_scale")?);
+    let Params {
+        a_scale: Triple(a),
+        b_scale: Triple(b),
+    } = parse(p)?;
     for c in 0..3 {
         plan.a_scale[c] *= a[c] as f32;
         plan.b_scale[c] *= b[c] as f32;

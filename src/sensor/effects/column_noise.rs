@@ -7,8 +7,9 @@
 //! E = σ² (the total spatial variance of a dark mean would also fire on DSNU and hot pixels).
 //! Fit: σ² = measured − simulated.
 
-use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, hashed_normal, number, only};
-use super::{seed, seed_value, table};
+use super::params::{OffsetPattern, parse};
+use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, hashed_normal};
+use super::{seed_value, table};
 use crate::sensor::captures::BurstKind;
 
 pub const ID: &str = "column_noise";
@@ -29,12 +30,7 @@ pub fn offset(sigma: f32, seed: u64, x: usize) -> f32 {
 }
 
 fn install(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
-    only(p, &["sigma_dn", "seed"])?;
-    let s = number(p, "sigma_dn")?;
-    if s < 0.0 {
-        return Err(format!("sigma_dn {s} must be ≥ 0"));
-    }
-    plan.column = Some((s as f32, seed(p)?));
+    plan.column = Some(parse::<OffsetPattern>(p)?.checked()?);
     Ok(())
 }
 
@@ -75,26 +71,14 @@ fn statistics(p: &Protocol, s: &[Summary], out: &mut Vec<Stat>) {
         .iter()
         .filter(|b| b.kind == BurstKind::Dark && !b.var.is_empty())
     {
-        out.push(Stat {
-            key: format!("{}: {NAME}", p.bursts[b.burst].name),
-            effect: Some(ID),
-            value: column_cov(b),
-            min_effect: (0.02 * b.temporal_mean()).max(0.05),
-            sd_floor: 1e-4,
-            unit: "DN²",
-        });
+        out.push(Stat::dark_dn2(p, b, ID, NAME, column_cov(b)));
     }
 }
 
 fn fit(ctx: &FitCtx) -> Result<toml::Table, String> {
-    let v = ctx.mean_excess(ID, NAME)?;
-    if v <= 0.0 {
-        return Err(format!(
-            "excess column covariance {v:.4} DN² is not positive"
-        ));
-    }
+    let s = ctx.excess_sigma(ID, NAME, "column covariance")?;
     Ok(table(&[
-        ("sigma_dn", float(v.sqrt())),
+        ("sigma_dn", float(s)),
         ("seed", seed_value(ctx.seed)),
     ]))
 }

@@ -15,8 +15,10 @@
 //! horizontally the row offsets), and the kernel width minimises the squared error at both
 //! lags.
 
-use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, number, only, table};
+use super::params::{Finite, parse};
+use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, table};
 use crate::sensor::captures::BurstKind;
+use serde::Deserialize;
 
 pub const ID: &str = "correlated_noise";
 const NAMES: [&str; 3] = [
@@ -83,21 +85,31 @@ pub fn width(rho: f64) -> f64 {
     0.5 * (lo + hi)
 }
 
-fn rho(p: &toml::Table, key: &str) -> Result<Option<f64>, String> {
-    if !p.contains_key(key) {
-        return Ok(None);
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Params {
+    rho: Option<Finite>,
+    rho_h: Option<Finite>,
+    rho_v: Option<Finite>,
+}
+
+fn rho(r: Option<Finite>, key: &str) -> Result<Option<f64>, String> {
+    match r {
+        Some(Finite(r)) if !(0.0..=RHO_MAX).contains(&r) => {
+            Err(format!("{key} {r} must be in [0, {RHO_MAX}]"))
+        }
+        r => Ok(r.map(|r| r.0)),
     }
-    let r = number(p, key)?;
-    if !(0.0..=RHO_MAX).contains(&r) {
-        return Err(format!("{key} {r} must be in [0, {RHO_MAX}]"));
-    }
-    Ok(Some(r))
 }
 
 fn install(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
-    only(p, &["rho", "rho_h", "rho_v"])?;
-    let both = rho(p, "rho")?;
-    let (h, v) = (rho(p, "rho_h")?.or(both), rho(p, "rho_v")?.or(both));
+    let Params {
+        rho: r,
+        rho_h,
+        rho_v,
+    } = parse(p)?;
+    let both = rho(r, "rho")?;
+    let (h, v) = (rho(rho_h, "rho_h")?.or(both), rho(rho_v, "rho_v")?.or(both));
     let (Some(h), Some(v)) = (h, v) else {
         return Err("needs rho_h and rho_v (or rho for both axes)".into());
     };

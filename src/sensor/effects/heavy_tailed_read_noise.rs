@@ -10,8 +10,10 @@
 //! the excess over the simulated value, times m2², gives κ4 of the read noise, its excess
 //! kurtosis κ = κ4 / b², and the Student-t with that kurtosis has dof = 4 + 6/κ.
 
-use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, number, only, table};
+use super::params::{Finite, parse};
+use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, table};
 use crate::sensor::captures::BurstKind;
+use serde::Deserialize;
 
 pub const ID: &str = "heavy_tailed_read_noise";
 const NAME: &str = "excess kurtosis of temporal residuals";
@@ -26,9 +28,14 @@ pub const ENTRY: Entry = Entry {
     adjust: None,
 };
 
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Params {
+    dof: Finite,
+}
+
 fn install(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
-    only(p, &["dof"])?;
-    let d = number(p, "dof")?;
+    let Params { dof: Finite(d) } = parse(p)?;
     if !(d > 4.0 && d.is_finite()) {
         return Err(format!("dof {d} must be > 4 (finite kurtosis)"));
     }

@@ -7,9 +7,11 @@
 //! single-frame spike of s DN moves it by s/L only. Fit: fraction = measured − simulated;
 //! offset = median residual of the measured hot values.
 
-use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, hashed_unit, number, only};
-use super::{seed, seed_value, table};
+use super::params::{Finite, Seed, parse};
+use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, hashed_unit};
+use super::{seed_value, table};
 use crate::sensor::captures::BurstKind;
+use serde::Deserialize;
 
 pub const ID: &str = "hot_pixels";
 const NAME: &str = "hot value fraction";
@@ -32,16 +34,26 @@ pub fn offset(fraction: f32, off: f32, seed: u64, x: usize, y: usize, c: usize) 
     }
 }
 
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Params {
+    fraction: Finite,
+    offset_dn: Finite,
+    seed: Seed,
+}
+
 fn install(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
-    only(p, &["fraction", "offset_dn", "seed"])?;
-    let f = number(p, "fraction")?;
-    let o = number(p, "offset_dn")?;
+    let Params {
+        fraction: Finite(f),
+        offset_dn: Finite(o),
+        seed,
+    } = parse(p)?;
     if !(0.0..0.1).contains(&f) || o < 0.0 {
         return Err(format!(
             "fraction {f} must be in [0, 0.1) and offset_dn {o} ≥ 0"
         ));
     }
-    plan.hot = Some((f as f32, o as f32, seed(p)?));
+    plan.hot = Some((f as f32, o as f32, seed.0));
     Ok(())
 }
 

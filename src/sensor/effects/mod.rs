@@ -30,6 +30,7 @@ pub mod dsnu;
 pub mod heavy_tailed_read_noise;
 pub mod hot_pixels;
 pub mod nonlinear_response;
+pub mod params;
 pub mod prnu;
 pub mod row_noise;
 pub mod summary;
@@ -229,37 +230,7 @@ pub fn hashed_unit(seed: u64, parts: &[u64]) -> f32 {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Parameters
-
-/// A finite number parameter (integer or float in the TOML).
-pub fn number(p: &toml::Table, key: &str) -> Result<f64, String> {
-    match p.get(key) {
-        Some(toml::Value::Float(v)) if v.is_finite() => Ok(*v),
-        Some(toml::Value::Integer(v)) => Ok(*v as f64),
-        Some(v) => Err(format!("'{key}' must be a finite number, got {v}")),
-        None => Err(format!("missing parameter '{key}'")),
-    }
-}
-
-/// A pattern seed (TOML integer ≥ 0).
-pub fn seed(p: &toml::Table) -> Result<u64, String> {
-    match p.get("seed") {
-        Some(toml::Value::Integer(v)) if *v >= 0 => Ok(*v as u64),
-        Some(v) => Err(format!("'seed' must be an integer ≥ 0, got {v}")),
-        None => Err("missing parameter 'seed' (fixed patterns derive from it)".into()),
-    }
-}
-
-/// Reject keys other than `allowed` (typos would otherwise be silently ignored).
-pub fn only(p: &toml::Table, allowed: &[&str]) -> Result<(), String> {
-    match p.keys().find(|k| !allowed.contains(&k.as_str())) {
-        Some(k) => Err(format!(
-            "unknown parameter '{k}' (expected {})",
-            allowed.join(", ")
-        )),
-        None => Ok(()),
-    }
-}
+// Parameters (each effect's struct: `params::parse`)
 
 /// A pattern seed as a TOML value (62 bits, so it fits an i64).
 pub fn seed_value(seed: u64) -> toml::Value {
@@ -298,6 +269,27 @@ pub struct Stat {
     /// Floor of the simulated standard deviation (statistics that are constant under the model).
     pub sd_floor: f64,
     pub unit: &'static str,
+}
+
+impl Stat {
+    /// A DN² statistic of a dark burst (row, column or pixel offsets): the smallest effect is
+    /// 2 % of the burst's temporal variance, at least 0.05 DN².
+    pub fn dark_dn2(
+        p: &Protocol,
+        b: &Summary,
+        effect: &'static str,
+        name: &str,
+        value: f64,
+    ) -> Stat {
+        Stat {
+            key: format!("{}: {name}", p.bursts[b.burst].name),
+            effect: Some(effect),
+            value,
+            min_effect: (0.02 * b.temporal_mean()).max(0.05),
+            sd_floor: 1e-4,
+            unit: "DN²",
+        }
+    }
 }
 
 /// What a fit sees.
@@ -342,6 +334,16 @@ impl FitCtx<'_> {
                 Some((st, sim, b))
             })
             .collect()
+    }
+
+    /// σ (DN) of offsets whose variance is the mean excess of the DN² statistics `name`
+    /// (`what` names them when the excess is not positive).
+    pub fn excess_sigma(&self, effect: &str, name: &str, what: &str) -> Result<f64, String> {
+        let v = self.mean_excess(effect, name)?;
+        if v <= 0.0 {
+            return Err(format!("excess {what} {v:.4} DN² is not positive"));
+        }
+        Ok(v.sqrt())
     }
 
     /// Mean of measured − simulated over this effect's statistics named `name`.

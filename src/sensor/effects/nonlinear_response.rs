@@ -27,8 +27,11 @@
 //! power law. A power law keeps the calibrated estimate p = p_model × mean(measured /
 //! simulated) over its statistics.
 
-use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, number, only, table};
+use super::params::{Finite, parse};
+use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, table};
 use crate::sensor::captures::BurstKind;
+use serde::Deserialize;
+use serde::de::IgnoredAny;
 
 pub const ID: &str = "nonlinear_response";
 const NAME: &str = "response exponent";
@@ -136,43 +139,22 @@ pub fn curve(p: &toml::Table) -> Result<Curve, String> {
         Some(toml::Value::String(s)) => s.as_str(),
         Some(v) => return Err(format!("'shape' must be a string, got {v}")),
     };
-    let c = match shape {
+    let (toe, shoulder) = match shape {
         "power_law" => {
-            only(p, &["shape", "exponent"])?;
-            let e = number(p, "exponent")?;
+            let PowerLaw {
+                exponent: Finite(e),
+                ..
+            } = parse(p)?;
             if !(0.2..=5.0).contains(&e) {
                 return Err(format!("exponent {e} must be in [0.2, 5]"));
             }
-            Curve::Power(e)
+            return Ok(Curve::Power(e));
         }
-        "toe" | "shoulder" | "toe_shoulder" => {
-            let needs: &[&str] = match shape {
-                "toe" => &["shape", "toe"],
-                "shoulder" => &["shape", "shoulder"],
-                _ => &["shape", "toe", "shoulder"],
-            };
-            only(p, needs)?;
-            let toe = if needs.contains(&"toe") {
-                number(p, "toe")?
-            } else {
-                0.0
-            };
-            let shoulder = if needs.contains(&"shoulder") {
-                number(p, "shoulder")?
-            } else {
-                f64::INFINITY
-            };
-            if !(toe > 0.0 && toe <= 0.5) && needs.contains(&"toe") {
-                return Err(format!(
-                    "toe {toe} must be in (0, 0.5] (a fraction of the range)"
-                ));
-            }
-            if !(0.2..=20.0).contains(&shoulder) && needs.contains(&"shoulder") {
-                return Err(format!(
-                    "shoulder {shoulder} must be in [0.2, 20] (a fraction of the range)"
-                ));
-            }
-            Curve::ToeShoulder { toe, shoulder }
+        "toe" => (Some(parse::<Toe>(p)?.toe.0), None),
+        "shoulder" => (None, Some(parse::<Shoulder>(p)?.shoulder.0)),
+        "toe_shoulder" => {
+            let t: ToeShoulder = parse(p)?;
+            (Some(t.toe.0), Some(t.shoulder.0))
         }
         s => {
             return Err(format!(
@@ -180,7 +162,54 @@ pub fn curve(p: &toml::Table) -> Result<Curve, String> {
             ));
         }
     };
-    Ok(c)
+    if let Some(toe) = toe.filter(|t| !(*t > 0.0 && *t <= 0.5)) {
+        return Err(format!(
+            "toe {toe} must be in (0, 0.5] (a fraction of the range)"
+        ));
+    }
+    if let Some(shoulder) = shoulder.filter(|s| !(0.2..=20.0).contains(s)) {
+        return Err(format!(
+            "shoulder {shoulder} must be in [0.2, 20] (a fraction of the range)"
+        ));
+    }
+    Ok(Curve::ToeShoulder {
+        toe: toe.unwrap_or(0.0),
+        shoulder: shoulder.unwrap_or(f64::INFINITY),
+    })
+}
+
+// The parameters of each shape (`shape` itself is read first, by `curve`).
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PowerLaw {
+    #[serde(rename = "shape")]
+    _shape: Option<IgnoredAny>,
+    exponent: Finite,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Toe {
+    #[serde(rename = "shape")]
+    _shape: IgnoredAny,
+    toe: Finite,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Shoulder {
+    #[serde(rename = "shape")]
+    _shape: IgnoredAny,
+    shoulder: Finite,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ToeShoulder {
+    #[serde(rename = "shape")]
+    _shape: IgnoredAny,
+    toe: Finite,
+    shoulder: Finite,
 }
 
 fn install(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {

@@ -7,9 +7,11 @@
 //! offset-only excess of a dark burst at the same ISO (DSNU), divided by the squared mean
 //! signal: an estimate of σ². Fit: σ² = measured − simulated.
 
-use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, hashed_normal, number, only};
-use super::{seed, seed_value, table};
+use super::params::{Finite, Seed, parse};
+use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, hashed_normal};
+use super::{seed_value, table};
 use crate::sensor::captures::BurstKind;
+use serde::Deserialize;
 
 pub const ID: &str = "prnu";
 const NAME: &str = "PRNU variance (relative²)";
@@ -28,13 +30,22 @@ pub fn gain(sigma: f32, seed: u64, x: usize, y: usize, c: usize) -> f32 {
     1.0 + sigma * hashed_normal(seed, &[x as u64, y as u64, c as u64, 0x9d])
 }
 
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Params {
+    sigma: Finite,
+    seed: Seed,
+}
+
 fn install(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
-    only(p, &["sigma", "seed"])?;
-    let s = number(p, "sigma")?;
+    let Params {
+        sigma: Finite(s),
+        seed,
+    } = parse(p)?;
     if !(0.0..0.5).contains(&s) {
         return Err(format!("sigma {s} must be in [0, 0.5)"));
     }
-    plan.prnu = Some((s as f32, seed(p)?));
+    plan.prnu = Some((s as f32, seed.0));
     Ok(())
 }
 

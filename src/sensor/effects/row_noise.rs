@@ -8,9 +8,11 @@
 //! The base model's b was fitted to temporal variances that include σ², so adding the effect
 //! lowers b by σ² (in DN²) at every ISO.
 
-use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, number, only, table};
+use super::params::{Finite, parse};
+use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, table};
 use crate::sensor::captures::BurstKind;
 use crate::sensor::profile::SensorProfile;
+use serde::Deserialize;
 
 pub const ID: &str = "row_noise";
 const NAME: &str = "row offset covariance (left × right half)";
@@ -25,9 +27,16 @@ pub const ENTRY: Entry = Entry {
     adjust: Some(adjust),
 };
 
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Params {
+    sigma_dn: Finite,
+}
+
 fn install(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
-    only(p, &["sigma_dn"])?;
-    let s = number(p, "sigma_dn")?;
+    let Params {
+        sigma_dn: Finite(s),
+    } = parse(p)?;
     if s < 0.0 {
         return Err(format!("sigma_dn {s} must be ≥ 0"));
     }
@@ -38,28 +47,18 @@ fn install(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
 fn statistics(p: &Protocol, s: &[Summary], out: &mut Vec<Stat>) {
     for b in s.iter().filter(|b| b.kind == BurstKind::Dark) {
         if let Some(r) = &b.resid {
-            out.push(Stat {
-                key: format!("{}: {NAME}", p.bursts[b.burst].name),
-                effect: Some(ID),
-                value: r.row_cov,
-                min_effect: (0.02 * b.temporal_mean()).max(0.05),
-                sd_floor: 1e-4,
-                unit: "DN²",
-            });
+            out.push(Stat::dark_dn2(p, b, ID, NAME, r.row_cov));
         }
     }
 }
 
 fn fit(ctx: &FitCtx) -> Result<toml::Table, String> {
-    let v = ctx.mean_excess(ID, NAME)?;
-    if v <= 0.0 {
-        return Err(format!("excess row covariance {v:.4} DN² is not positive"));
-    }
-    Ok(table(&[("sigma_dn", float(v.sqrt()))]))
+    let s = ctx.excess_sigma(ID, NAME, "row covariance")?;
+    Ok(table(&[("sigma_dn", float(s))]))
 }
 
 fn adjust(profile: &mut SensorProfile, params: &toml::Table) {
-    let s = super::number(params, "sigma_dn").unwrap_or(0.0);
+    let s = parse::<Params>(params).map_or(0.0, |p| p.sigma_dn.0);
     let range = profile.levels.white_level - profile.levels.black_level;
     for n in &mut profile.noise {
         for b in &mut n.b {

@@ -13,6 +13,7 @@
 
 use crate::io::Image;
 use crate::sensor::captures::BurstKind;
+use crate::sensor::noise::bursts::BurstFrames;
 use rayon::prelude::*;
 
 /// The capture protocol (what was captured, not the pixels) plus the model levels that the
@@ -179,36 +180,52 @@ fn adjacent(rows: &[usize], r: usize, d: usize) -> bool {
     rows.get(r + d).is_some_and(|&y| y == rows[r] + d)
 }
 
-/// Streaming per-burst accumulator.
+/// Streaming per-burst accumulator: the burst's exact temporal sums (`BurstFrames`, which the
+/// noise calibration bins too) and, for dark bursts, the residual moments that only the
+/// statistics need.
 pub struct Accumulator {
     kind: BurstKind,
     w: usize,
     h: usize,
-    n: usize,
-    shift: f64,
-    stride: usize,
     rows: Vec<usize>,
-    acc: Vec<f64>,
+    sums: BurstFrames,
+    /// Integer shift of the residual sums (the first frame's rounded mean): it keeps the power
+    /// sums well conditioned.
+    shift: f64,
+    /// Dark bursts, per value: Σd³, Σd⁴ and the lag products Σd·d' (vertical lags 1, 2,
+    /// horizontal lags 1, 2), d = x − shift.
+    resid: Vec<f64>,
     /// Per frame, per row: (left-half mean, right-half mean).
     halves: Vec<[f64; 2]>,
 }
 
+/// Residual sums per value of a dark burst.
+const RESID: usize = 6;
+
 impl Accumulator {
-    pub fn new(info: &BurstInfo) -> Accumulator {
-        let stride = match info.kind {
-            BurstKind::Dark => 8,
-            BurstKind::Flat => 2,
-            _ => 1,
+    /// `calibration`: the noise calibration will bin these sums too (`finish`'s second value),
+    /// so a dark burst also keeps each frame's robust mean (its black-level estimate).
+    pub fn new(info: &BurstInfo, calibration: bool) -> Accumulator {
+        let dark = info.kind == BurstKind::Dark;
+        // Neighbourhoods stay inside a band when only bands of rows are analysed.
+        let band = if info.rows.len() == info.height {
+            usize::MAX
+        } else {
+            BAND
         };
+        let nv = info.width * info.rows.len() * 3;
         Accumulator {
             kind: info.kind,
             w: info.width,
             h: info.rows.len(),
-            n: 0,
-            shift: 0.0,
-            stride,
             rows: info.rows.clone(),
-            acc: vec![0.0; info.width * info.rows.len() * 3 * stride],
+            sums: BurstFrames::new(dark && calibration, band),
+            shift: 0.0,
+            resid: if dark {
+                vec![0.0; nv * RESID]
+            } else {
+                Vec::new()
+            },
             halves: Vec::new(),
         }
     }
@@ -216,84 +233,69 @@ impl Accumulator {
     /// Add a frame of the analysed rows (`crop_rows`).
     pub fn add(&mut self, f: &Image) {
         assert_eq!((f.width, f.height), (self.w, self.h), "frame size");
-        if self.n == 0 {
-            // Shifting by the first frame's mean keeps the power sums well conditioned.
+        if self.sums.frames == 0 {
             self.shift = f.data.iter().map(|&v| v as f64).sum::<f64>() / f.data.len() as f64;
             self.shift = self.shift.round();
         }
-        self.n += 1;
-        let (w3, k, c) = (self.w * 3, self.stride, self.shift);
+        self.sums.add(f);
+        if self.kind != BurstKind::Dark {
+            return;
+        }
+        let (w3, c) = (self.w * 3, self.shift);
         let rows = &self.rows;
         let data = &f.data;
-        self.acc
-            .par_chunks_mut(w3 * k)
+        self.resid
+            .par_chunks_mut(w3 * RESID)
             .enumerate()
             .for_each(|(y, a)| {
                 let row = &data[y * w3..(y + 1) * w3];
-                match k {
-                    1 => {
-                        for (s, &v) in a.iter_mut().zip(row) {
-                            *s += v as f64 - c;
-                        }
+                let next = adjacent(rows, y, 1).then(|| &data[(y + 1) * w3..(y + 2) * w3]);
+                let next2 = adjacent(rows, y, 2).then(|| &data[(y + 2) * w3..(y + 3) * w3]);
+                for (i, (s, &v)) in a.chunks_exact_mut(RESID).zip(row).enumerate() {
+                    let d = v as f64 - c;
+                    let d2 = d * d;
+                    s[0] += d2 * d;
+                    s[1] += d2 * d2;
+                    if let Some(nx) = next {
+                        s[2] += d * (nx[i] as f64 - c);
                     }
-                    2 => {
-                        for (s, &v) in a.chunks_exact_mut(2).zip(row) {
-                            let d = v as f64 - c;
-                            s[0] += d;
-                            s[1] += d * d;
-                        }
+                    if let Some(nx) = next2 {
+                        s[3] += d * (nx[i] as f64 - c);
                     }
-                    _ => {
-                        let next = adjacent(rows, y, 1).then(|| &data[(y + 1) * w3..(y + 2) * w3]);
-                        let next2 = adjacent(rows, y, 2).then(|| &data[(y + 2) * w3..(y + 3) * w3]);
-                        for (i, (s, &v)) in a.chunks_exact_mut(8).zip(row).enumerate() {
-                            let d = v as f64 - c;
-                            let d2 = d * d;
-                            s[0] += d;
-                            s[1] += d2;
-                            s[2] += d2 * d;
-                            s[3] += d2 * d2;
-                            if let Some(nx) = next {
-                                s[4] += d * (nx[i] as f64 - c);
-                            }
-                            if let Some(nx) = next2 {
-                                s[5] += d * (nx[i] as f64 - c);
-                            }
-                            // Same channel, one and two pixels to the right.
-                            if let Some(&r1) = row.get(i + 3) {
-                                s[6] += d * (r1 as f64 - c);
-                            }
-                            if let Some(&r2) = row.get(i + 6) {
-                                s[7] += d * (r2 as f64 - c);
-                            }
-                        }
+                    // Same channel, one and two pixels to the right.
+                    if let Some(&r1) = row.get(i + 3) {
+                        s[4] += d * (r1 as f64 - c);
+                    }
+                    if let Some(&r2) = row.get(i + 6) {
+                        s[5] += d * (r2 as f64 - c);
                     }
                 }
             });
-        if self.kind == BurstKind::Dark {
-            let half = (self.w / 2) * 3;
-            let rows: Vec<[f64; 2]> = data
-                .par_chunks(w3)
-                .map(|r| {
-                    let l = r[..half].iter().map(|&v| v as f64).sum::<f64>() / half as f64;
-                    let rr = r[half..].iter().map(|&v| v as f64).sum::<f64>() / (w3 - half) as f64;
-                    [l, rr]
-                })
-                .collect();
-            self.halves.extend(rows);
-        }
+        let half = (self.w / 2) * 3;
+        let rows: Vec<[f64; 2]> = data
+            .par_chunks(w3)
+            .map(|r| {
+                let l = r[..half].iter().map(|&v| v as f64).sum::<f64>() / half as f64;
+                let rr = r[half..].iter().map(|&v| v as f64).sum::<f64>() / (w3 - half) as f64;
+                [l, rr]
+            })
+            .collect();
+        self.halves.extend(rows);
     }
 
-    pub fn finish(self, burst: usize, info: &BurstInfo) -> Summary {
-        let (n, k, c) = (self.n as f64, self.stride, self.shift);
+    /// The burst's summary, and its sums for the noise calibration.
+    pub fn finish(self, burst: usize, info: &BurstInfo) -> (Summary, BurstFrames) {
+        let frames = self.sums.frames;
+        let (n, c) = (frames as f64, self.shift);
         let nv = self.w * self.h * 3;
-        let mean: Vec<f64> = (0..nv).map(|i| c + self.acc[i * k] / n).collect();
-        let var: Vec<f64> = if k >= 2 && self.n >= 2 {
-            (0..nv)
-                .map(|i| {
-                    let (s1, s2) = (self.acc[i * k], self.acc[i * k + 1]);
-                    ((s2 - s1 * s1 / n) / (n - 1.0)).max(0.0)
-                })
+        // Σ(x − c), Σ(x − c)² per value.
+        let power: Vec<(f64, f64)> = (0..nv).map(|i| self.sums.shifted_sums(i, c)).collect();
+        let mean: Vec<f64> = power.iter().map(|&(s1, _)| c + s1 / n).collect();
+        let var: Vec<f64> = if matches!(self.kind, BurstKind::Dark | BurstKind::Flat) && frames >= 2
+        {
+            power
+                .iter()
+                .map(|&(s1, s2)| ((s2 - s1 * s1 / n) / (n - 1.0)).max(0.0))
                 .collect()
         } else {
             Vec::new()
@@ -307,7 +309,7 @@ impl Accumulator {
             height: self.h,
             full_height: info.height,
             rows: self.rows.clone(),
-            frames: self.n,
+            frames,
             scene: info.scene.clone(),
             mean,
             var,
@@ -326,17 +328,18 @@ impl Accumulator {
                 });
             }
         }
-        if self.kind == BurstKind::Dark && self.n >= 2 {
+        if self.kind == BurstKind::Dark && frames >= 2 {
             let w3 = self.w * 3;
             let (mut r2, mut r4) = ([0.0; 3], [0.0; 3]);
             // (sum, pairs) of residual products: vertical lags 1, 2, horizontal lags 1, 2.
             let mut cv = [(0.0, 0usize); 4];
-            let mean = |j: usize| self.acc[j * 8] / n;
+            let mean = |j: usize| power[j].0 / n;
             for i in 0..nv {
-                let a = &self.acc[i * 8..i * 8 + 8];
-                let m = a[0] / n;
-                r2[i % 3] += a[1] - n * m * m;
-                r4[i % 3] += a[3] - 4.0 * m * a[2] + 6.0 * m * m * a[1] - 3.0 * n * m.powi(4);
+                let (s1, s2) = power[i];
+                let a = &self.resid[i * RESID..(i + 1) * RESID];
+                let m = s1 / n;
+                r2[i % 3] += s2 - n * m * m;
+                r4[i % 3] += a[1] - 4.0 * m * a[0] + 6.0 * m * m * s2 - 3.0 * n * m.powi(4);
                 let x = (i % w3) / 3;
                 let r = i / w3;
                 let partner = [
@@ -347,7 +350,7 @@ impl Accumulator {
                 ];
                 for (l, j) in partner.iter().enumerate() {
                     if let Some(j) = *j {
-                        cv[l].0 += a[4 + l] - n * m * mean(j);
+                        cv[l].0 += a[2 + l] - n * m * mean(j);
                         cv[l].1 += 1;
                     }
                 }
@@ -360,7 +363,7 @@ impl Accumulator {
             let mut row_cov = 0.0;
             for y in 0..h {
                 let (mut sl, mut sr, mut slr) = (0.0, 0.0, 0.0);
-                for f in 0..self.n {
+                for f in 0..frames {
                     let [l, r] = self.halves[f * h + y];
                     sl += l;
                     sr += r;
@@ -376,17 +379,8 @@ impl Accumulator {
                 row_cov: row_cov / h as f64,
             });
         }
-        s
+        (s, self.sums)
     }
-}
-
-/// Summarise a burst from frames in memory.
-pub fn summarise(burst: usize, info: &BurstInfo, frames: &[Image]) -> Summary {
-    let mut acc = Accumulator::new(info);
-    for f in frames {
-        acc.add(f);
-    }
-    acc.finish(burst, info)
 }
 
 /// Median of a sample of at most ~40k values (strided), for robust scales: its relative

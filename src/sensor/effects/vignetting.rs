@@ -8,9 +8,11 @@
 //! quadratic surface first, so the two do not confuse each other.
 //! Fit: k = measured k̂ − simulated k̂ (the simulated model has no vignetting).
 
+use super::params::{Finite, parse};
 use super::summary::normalised_xy;
-use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, number, only, table};
+use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, table};
 use crate::sensor::captures::BurstKind;
+use serde::Deserialize;
 
 pub const ID: &str = "vignetting";
 const NAME: &str = "radial falloff k (flat mean vs r²)";
@@ -31,9 +33,16 @@ pub fn gain(k: f32, x: usize, y: usize, w: usize, h: usize) -> f32 {
     (1.0 - k as f64 * (u * u + v * v)).max(0.0) as f32
 }
 
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Params {
+    strength: Finite,
+}
+
 fn install(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
-    only(p, &["strength"])?;
-    let k = number(p, "strength")?;
+    let Params {
+        strength: Finite(k),
+    } = parse(p)?;
     if !(0.0..1.0).contains(&k) {
         return Err(format!("strength {k} must be in [0, 1)"));
     }

@@ -16,16 +16,19 @@ pub(super) struct BurstStats {
     pub(super) white: f64,
 }
 
-/// Temporal mean and unbiased variance per pixel and channel of one burst, frame by frame (the
-/// gap workflow feeds the frames it decodes anyway). Sums are exact: integer DN offsets from
-/// the first frame in i32/u64. Frames may be bands of `band` rows of a larger frame stacked
-/// (`summary::crop_rows`): neighbourhoods then stay inside a band.
+/// THE burst accumulator: exact per-value temporal sums of a burst, frame by frame (frames are
+/// never all held in memory). Frames are integer DN in [0, 65535] (decoded captures:
+/// `read_dn_frame`; simulated ones are quantised), so the sums are exact integers: offsets from
+/// the first frame in i32/u64, and any other shift of them (`shifted_sums`) is exact too. The
+/// noise calibration bins its per-pixel statistics (`finish`); the effects' burst summaries
+/// (`effects::summary::Accumulator`) build on the same sums. Frames may be bands of `band` rows
+/// of a larger frame stacked (`summary::crop_rows`): neighbourhoods then stay inside a band.
 pub struct BurstFrames {
     dark: bool,
     band: usize,
     width: usize,
     height: usize,
-    pub(super) frames: usize,
+    pub(crate) frames: usize,
     k: Vec<u16>,
     s1: Vec<i32>,
     s2: Vec<u64>,
@@ -58,6 +61,10 @@ impl BurstFrames {
 
     /// Add one frame (every frame of a burst has the burst's size: `CaptureSet::read_frame`).
     pub fn add(&mut self, f: &Image) {
+        debug_assert!(
+            f.data.iter().all(|&v| v == to_u16(v) as f32),
+            "integer DN frames"
+        );
         if self.dark {
             self.frame_means.push(robust_frame_mean(f));
         }
@@ -72,18 +79,37 @@ impl BurstFrames {
             self.max = self.k.clone();
             return;
         }
-        (self.s1.par_iter_mut(), self.s2.par_iter_mut())
+        // Chunks of values, not single values, per task: the sums run once per simulated
+        // frame of every bootstrap replicate.
+        const CHUNK: usize = 4096;
+        (self.s1.par_chunks_mut(CHUNK), self.s2.par_chunks_mut(CHUNK))
             .into_par_iter()
-            .zip((self.min.par_iter_mut(), self.max.par_iter_mut()))
-            .zip((self.k.par_iter(), f.data.par_iter()))
-            .for_each(|(((s1, s2), (lo, hi)), (&k, &v))| {
-                let v = to_u16(v);
-                let d = v as i32 - k as i32;
-                *s1 += d;
-                *s2 += (d as i64 * d as i64) as u64;
-                *lo = (*lo).min(v);
-                *hi = (*hi).max(v);
+            .zip((
+                self.min.par_chunks_mut(CHUNK),
+                self.max.par_chunks_mut(CHUNK),
+            ))
+            .zip((self.k.par_chunks(CHUNK), f.data.par_chunks(CHUNK)))
+            .for_each(|(((s1, s2), (lo, hi)), (k, x))| {
+                for i in 0..x.len() {
+                    let v = to_u16(x[i]);
+                    let d = v as i32 - k[i] as i32;
+                    s1[i] += d;
+                    s2[i] += (d as i64 * d as i64) as u64;
+                    lo[i] = lo[i].min(v);
+                    hi[i] = hi[i].max(v);
+                }
             });
+    }
+
+    /// Σ(x − c) and Σ(x − c)² over the frames of value `i`, for an integer shift `c` in
+    /// [0, 65535]: exact integers (i32 sums bound the frames to n · 65535 < 2^31, so every term
+    /// is below 2^49), equal to the same sums streamed in f64.
+    pub fn shifted_sums(&self, i: usize, c: f64) -> (f64, f64) {
+        let (n, off) = (self.frames as i64, self.k[i] as i64 - c as i64);
+        let s1 = self.s1[i] as i64;
+        let t1 = s1 + n * off;
+        let t2 = self.s2[i] as i64 + 2 * off * s1 + n * off * off;
+        (t1 as f64, t2 as f64)
     }
 
     /// Per-band statistics.
