@@ -1,5 +1,8 @@
-//! Small dense linear algebra: 3×3 colour transforms (colour, EXR, test sets) and the 6×6
-//! normal equations of the flat-field surface (sensor/effects/summary.rs).
+//! Small dense linear algebra: 3×3 colour transforms (colour, EXR, test sets), least squares by
+//! Householder QR (colour fits, the Debevec–Malik response) and the 6×6 normal equations of the
+//! flat-field surface (sensor/effects/summary.rs).
+
+use crate::error::{Error, Result};
 
 // --- 3×3 (colour transforms, chromaticities) -------------------------------------------------
 
@@ -83,6 +86,91 @@ pub fn solve3(m: Mat3, v: [f64; 3]) -> Option<[f64; 3]> {
         *o = det3(&mk) / d;
     }
     Some(out)
+}
+
+// --- Least squares (colour fits, the Debevec–Malik response) ----------------------------------
+
+/// Least squares: the k×M X minimising ‖A·X − B‖ (A n×k, rows `a`), by Householder QR. This is
+/// the solution colour-science's Moore–Penrose mapping (and OpenCV's `solve(DECOMP_SVD)`) gives
+/// when A has full column rank; a rank-deficient A (rows that do not span the unknowns) is an
+/// error, not a minimum-norm guess. `what` names the fit in errors. Also the solver of the
+/// Debevec–Malik response (src/sensor/crf.rs).
+#[allow(clippy::needless_range_loop)]
+pub fn least_squares<const M: usize>(
+    what: &str,
+    a: &[Vec<f64>],
+    b: &[[f64; M]],
+) -> Result<Vec<[f64; M]>> {
+    let n = a.len();
+    let k = a.first().map_or(0, |r| r.len());
+    if n != b.len() {
+        return Err(Error::Invalid(format!(
+            "{what}: {n} rows of A but {} of B",
+            b.len()
+        )));
+    }
+    if k == 0 || n < k {
+        return Err(Error::Invalid(format!(
+            "{what}: {n} equations cannot determine {k} unknowns"
+        )));
+    }
+    if a.iter()
+        .flatten()
+        .chain(b.iter().flatten())
+        .any(|v| !v.is_finite())
+    {
+        return Err(Error::Invalid(format!("{what}: non-finite values")));
+    }
+    // Column-major copy of A and a copy of B we transform in place.
+    let mut q: Vec<Vec<f64>> = (0..k).map(|j| a.iter().map(|r| r[j]).collect()).collect();
+    let mut rhs: Vec<[f64; M]> = b.to_vec();
+    let scale = q.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
+    let mut diag = vec![0.0; k];
+    for j in 0..k {
+        let norm = q[j][j..].iter().map(|v| v * v).sum::<f64>().sqrt();
+        if norm <= 1e-12 * scale * (n as f64).sqrt() || norm == 0.0 {
+            return Err(Error::Invalid(format!(
+                "{what}: the data do not determine unknown {} (rank-deficient design)",
+                j + 1
+            )));
+        }
+        let alpha = if q[j][j] > 0.0 { -norm } else { norm };
+        // v = x − alpha·e1, stored in q[j][j..].
+        q[j][j] -= alpha;
+        let vnorm2: f64 = q[j][j..].iter().map(|v| v * v).sum();
+        diag[j] = alpha;
+        let v: Vec<f64> = q[j][j..].to_vec();
+        for c in j + 1..k {
+            let dot: f64 = v.iter().zip(&q[c][j..]).map(|(x, y)| x * y).sum();
+            let f = 2.0 * dot / vnorm2;
+            for (i, vi) in v.iter().enumerate() {
+                q[c][j + i] -= f * vi;
+            }
+        }
+        for ch in 0..M {
+            let dot: f64 = v
+                .iter()
+                .enumerate()
+                .map(|(i, vi)| vi * rhs[j + i][ch])
+                .sum();
+            let f = 2.0 * dot / vnorm2;
+            for (i, vi) in v.iter().enumerate() {
+                rhs[j + i][ch] -= f * vi;
+            }
+        }
+    }
+    // Back substitution with R (upper triangle in q above the diagonal, diagonal in diag).
+    let mut x = vec![[0.0; M]; k];
+    for j in (0..k).rev() {
+        for ch in 0..M {
+            let mut s = rhs[j][ch];
+            for c in j + 1..k {
+                s -= q[c][j] * x[c][ch];
+            }
+            x[j][ch] = s / diag[j];
+        }
+    }
+    Ok(x)
 }
 
 // --- 6×6 (the flat-field surface's normal equations) -------------------------------------------

@@ -26,7 +26,7 @@ use crate::io::atomic::write_atomic;
 use crate::io::{BitDepth, ExrPrecision, Image, read_image, resize, write_exr, write_ldr};
 use crate::linalg::{Mat3, inverse3, mat_vec, mul3};
 use crate::rng::hash;
-use crate::sensor::colour::{BRADFORD, xy_to_xyz};
+use crate::sensor::colour::cie::{BRADFORD, xy_to_xyz};
 use crate::sensor::metering::Metering;
 use crate::sensor::profile::{Response, SensorProfile};
 use crate::sensor::realism::{NoiseModel, Realism, RealismOptions};

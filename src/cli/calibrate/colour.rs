@@ -26,9 +26,10 @@
 
 use crate::error::Error;
 use crate::io::{Format, Image, read_image_info};
-use crate::sensor::colour::{
-    self, COLORCHECKER24, ChartRegion, Evaluation, Fitted, Illuminant, Model, PatchSample,
+use crate::sensor::colour::chart::{
+    self, COLORCHECKER24, ChartRegion, Illuminant, PatchSample,
 };
+use crate::sensor::colour::fit::{self, Evaluation, Fitted, Model};
 use crate::sensor::dng::{DngInfo, read_dng};
 use crate::sensor::profile::{Colour, Levels, Provenance, Response, SensorProfile};
 use anyhow::{Context, Result, bail};
@@ -262,9 +263,9 @@ fn load_input(path: &Path, response: Option<&str>, clip_level: Option<f64>) -> R
 fn sample(input: &Input, region: &ChartRegion) -> Result<Vec<PatchSample>> {
     let ctx = || format!("{}: sampling the chart ({region})", input.path.display());
     if let Some((img, level)) = &input.clip {
-        colour::sample_chart(img, region, Some(*level)).with_context(ctx)?;
+        chart::sample_chart(img, region, Some(*level)).with_context(ctx)?;
     }
-    colour::sample_chart(&input.linear, region, None).with_context(ctx)
+    chart::sample_chart(&input.linear, region, None).with_context(ctx)
 }
 
 /// What `calibrate colour` found (also returned to library users).
@@ -303,8 +304,8 @@ pub fn calibrate(args: &Args) -> Result<(Calibration, InputsInfo)> {
         if !(exposure > 0.0 && exposure.is_finite()) {
             bail!("--exposure {exposure} must be > 0");
         }
-        let img = colour::render_chart(600, 400, &illuminant, exposure);
-        let s = colour::sample_chart(&img, &ChartRegion::FullFrame, None)?;
+        let img = chart::render_chart(600, 400, &illuminant, exposure);
+        let s = chart::sample_chart(&img, &ChartRegion::FullFrame, None)?;
         let g = illuminant.gains();
         (
             s,
@@ -336,7 +337,7 @@ pub fn calibrate(args: &Args) -> Result<(Calibration, InputsInfo)> {
     let raw: Vec<[f64; 3]> = real_samples.iter().map(|s| s.mean).collect();
     let synthetic: Vec<[f64; 3]> = synthetic_samples.iter().map(|s| s.mean).collect();
     let gains = match args.white_balance {
-        WhiteBalance::Neutral => colour::neutral_gains(&raw)
+        WhiteBalance::Neutral => chart::neutral_gains(&raw)
             .with_context(|| format!("{}: white balance", args.real.display()))?,
         WhiteBalance::None => [1.0; 3],
     };
@@ -345,8 +346,8 @@ pub fn calibrate(args: &Args) -> Result<(Calibration, InputsInfo)> {
         .map(|p| std::array::from_fn(|c| p[c] * gains[c]))
         .collect();
     let (nr, ns) = (
-        colour::neutral_mean(&balanced),
-        colour::neutral_mean(&synthetic),
+        chart::neutral_mean(&balanced),
+        chart::neutral_mean(&synthetic),
     );
     if !(nr > 0.0 && ns > 0.0) {
         bail!(
@@ -357,7 +358,7 @@ pub fn calibrate(args: &Args) -> Result<(Calibration, InputsInfo)> {
     }
     let k = ns / nr;
     // Common scale putting the synthetic neutrals on their reference reflectance.
-    let s = colour::neutral_mean(&colour::reference_linear_srgb()) / ns;
+    let s = chart::neutral_mean(&chart::reference_linear_srgb()) / ns;
     let scale = |v: &[f64; 3], f: f64| -> [f64; 3] { std::array::from_fn(|c| v[c] * f) };
     let real_fit: Vec<[f64; 3]> = balanced.iter().map(|p| scale(p, k * s)).collect();
     let syn_fit: Vec<[f64; 3]> = synthetic.iter().map(|p| scale(p, s)).collect();
@@ -365,9 +366,9 @@ pub fn calibrate(args: &Args) -> Result<(Calibration, InputsInfo)> {
         .iter()
         .map(|p| std::array::from_fn(|c| p.std[c] * gains[c] * k * s))
         .collect();
-    let matrix = colour::fit_and_evaluate(Model::Matrix, &syn_fit, &real_fit)?;
+    let matrix = fit::fit_and_evaluate(Model::Matrix, &syn_fit, &real_fit)?;
     let root_polynomial = if args.root_polynomial {
-        Some(colour::fit_and_evaluate(
+        Some(fit::fit_and_evaluate(
             Model::RootPolynomial,
             &syn_fit,
             &real_fit,
