@@ -3,14 +3,12 @@
 //! `calibrate colour` command end to end.
 #![allow(clippy::needless_range_loop)]
 
-use hdrsynth::cli::calibrate::colour::{Args, run};
 use hdrsynth::io::{Image, write_exr};
 use hdrsynth::rng::Rng;
-use hdrsynth::sensor::colour::chart::{
-    self, COLORCHECKER24, ChartRegion, Homography, Illuminant,
-};
-use hdrsynth::sensor::colour::fit::{self, Model};
+use hdrsynth::sensor::colour::calibrate::{CalibrateOptions, SyntheticChart, WhiteBalance, run};
+use hdrsynth::sensor::colour::chart::{self, COLORCHECKER24, ChartRegion, Homography, Illuminant};
 use hdrsynth::sensor::colour::cie;
+use hdrsynth::sensor::colour::fit::{self, Model};
 use hdrsynth::sensor::dng::{read_dng, read_dng_info, read_dng_mosaic};
 use hdrsynth::sensor::profile::{
     Levels, NoiseAtIso, PROFILE_FORMAT, ProfileKind, Provenance, Response, SensorProfile,
@@ -710,8 +708,13 @@ fn synthetic_dng_unpacks_bits_and_reads_the_cfa_pattern() {
 /// a preview: the outer corners of patches 1, 6, 24, 19 (fitted through all 24 patch centres).
 const DNG_CORNERS: &str = "665,579,1303,564,1316,974,645,984";
 
-fn args(words: &[&str]) -> Args {
-    Args::parse_from(words.iter().copied()).unwrap()
+/// The defaults of `calibrate colour` for a real capture and a profile path.
+fn options(real: &Path, out: &Path) -> CalibrateOptions {
+    CalibrateOptions::new(
+        real.to_path_buf(),
+        out.to_path_buf(),
+        "tests/colour.rs".into(),
+    )
 }
 
 #[test]
@@ -721,9 +724,11 @@ fn calibrate_colour_on_the_real_dng_writes_a_profile() {
     };
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("canon.toml");
-    let d = dng.to_str().unwrap();
-    let o = out.to_str().unwrap();
-    let report = run(&args(&["--real", d, "--out", o, "--corners", DNG_CORNERS])).unwrap();
+    let opts = CalibrateOptions {
+        real_region: ChartRegion::parse_corners(DNG_CORNERS).unwrap(),
+        ..options(&dng, &out)
+    };
+    let report = run(&opts).unwrap();
     println!("{report}");
     println!("{}", std::fs::read_to_string(&out).unwrap());
     let p = SensorProfile::load(&out).unwrap();
@@ -771,15 +776,11 @@ fn calibrate_colour_on_the_real_dng_writes_a_profile() {
     let mut edited = p.clone();
     edited.provenance.notes = Some("keep me".into());
     edited.save(&out).unwrap();
-    let report = run(&args(&[
-        "--real",
-        d,
-        "--out",
-        o,
-        "--corners",
-        DNG_CORNERS,
-        "--root-polynomial",
-    ]))
+    let report = run(&CalibrateOptions {
+        root_polynomial: true,
+        invocation: "calibrate with --root-polynomial".into(),
+        ..opts
+    })
     .unwrap();
     println!("{report}");
     let q = SensorProfile::load(&out).unwrap();
@@ -787,7 +788,16 @@ fn calibrate_colour_on_the_real_dng_writes_a_profile() {
     assert_eq!(q.levels, p.levels);
     let qc = q.colour.unwrap();
     assert!(qc.use_root_polynomial && qc.root_polynomial.is_some());
-    assert!(q.provenance.colour.contains("--root-polynomial"));
+    assert!(
+        q.provenance
+            .colour
+            .contains("fit by `calibrate with --root-polynomial`")
+    );
+    assert!(
+        q.provenance
+            .colour
+            .contains("Root-polynomial degree 2 (used)")
+    );
 }
 
 fn example_profile() -> SensorProfile {
@@ -833,17 +843,11 @@ fn calibrate_colour_updates_an_existing_profile_from_an_exr() {
     write_exr(&real_path, &real, hdrsynth::io::ExrPrecision::Float).unwrap();
     let out = dir.path().join("profile.toml");
     example_profile().save(&out).unwrap();
-    let corner_arg = "40,30,560,42,548,380,35,370";
-    let report = run(&args(&[
-        "--real",
-        real_path.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--corners",
-        corner_arg,
-        "--white-balance",
-        "none",
-    ]))
+    let report = run(&CalibrateOptions {
+        real_region: ChartRegion::Corners(corners),
+        white_balance: WhiteBalance::None,
+        ..options(&real_path, &out)
+    })
     .unwrap();
     let p = SensorProfile::load(&out).unwrap();
     assert_eq!(p.noise, example_profile().noise);
@@ -889,20 +893,13 @@ fn calibrate_colour_writes_nothing_on_failure() {
     )
     .unwrap();
     let out = dir.path().join("new.toml");
-    let o = out.to_str().unwrap();
-    let e = run(&args(&[
-        "--real",
-        png.to_str().unwrap(),
-        "--out",
-        o,
-        "--black",
-        "0",
-        "--white",
-        "65535",
-        "--bits",
-        "16",
-    ]))
-    .unwrap_err();
+    let with_levels = |png: &Path| CalibrateOptions {
+        black: Some(0.0),
+        white: Some(65535.0),
+        bits: Some(16),
+        ..options(png, &out)
+    };
+    let e = run(&with_levels(&png)).unwrap_err();
     let msg = format!("{e:#}");
     assert!(
         msg.contains("clipped.png") && msg.contains("patch 19"),
@@ -918,24 +915,12 @@ fn calibrate_colour_writes_nothing_on_failure() {
         hdrsynth::io::BitDepth::Sixteen,
     )
     .unwrap();
-    let e = run(&args(&["--real", png.to_str().unwrap(), "--out", o])).unwrap_err();
+    let e = run(&options(&png, &out)).unwrap_err();
     assert!(format!("{e:#}").contains("--black"), "{e:#}");
     assert!(!out.exists());
     // With levels it works; 16-bit PNG is read as linear by default; an identity T results
     // (the negative R of patch 18 is clamped in the PNG, so allow a small deviation).
-    let report = run(&args(&[
-        "--real",
-        png.to_str().unwrap(),
-        "--out",
-        o,
-        "--black",
-        "0",
-        "--white",
-        "65535",
-        "--bits",
-        "16",
-    ]))
-    .unwrap();
+    let report = run(&with_levels(&png)).unwrap();
     let p = SensorProfile::load(&out).unwrap();
     assert_eq!(p.response, Response::Linear);
     let t = p.colour.unwrap().matrix;
@@ -945,29 +930,55 @@ fn calibrate_colour_writes_nothing_on_failure() {
             assert!((t[i][j] - want).abs() < 0.03, "{t:?}\n{report}");
         }
     }
-    // Options that contradict each other are refused.
-    assert!(
-        run(&args(&[
-            "--real",
-            png.to_str().unwrap(),
-            "--out",
-            o,
-            "--synthetic",
-            png.to_str().unwrap(),
-            "--exposure",
-            "2"
-        ]))
-        .is_err()
+    // Inputs the calibration cannot use are refused.
+    let e = run(&CalibrateOptions {
+        synthetic: SyntheticChart::Render {
+            illuminant: Illuminant::D65,
+            exposure: -2.0,
+        },
+        ..with_levels(&png)
+    })
+    .unwrap_err();
+    assert!(e.to_string().contains("--exposure -2 must be > 0"), "{e}");
+    let e = run(&CalibrateOptions {
+        synthetic: SyntheticChart::Image {
+            path: dir.path().join("synthetic.dng"),
+            region: ChartRegion::FullFrame,
+            response: None,
+        },
+        ..with_levels(&png)
+    })
+    .unwrap_err();
+    assert!(e.to_string().contains("cannot be a DNG"), "{e}");
+}
+
+/// The command line: arguments that contradict each other or do not parse are refused before
+/// anything is read.
+#[test]
+fn calibrate_colour_command_refuses_contradicting_arguments() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("p.toml");
+    let refused = |extra: &[&str], want: &str| {
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_hdrsynth"))
+            .args(["calibrate", "colour", "--real", "absent.png", "--out"])
+            .arg(&out)
+            .args(extra)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            !o.status.success() && err.contains(want),
+            "{extra:?}: {err}"
+        );
+    };
+    refused(
+        &["--synthetic", "syn.png", "--exposure", "2"],
+        "--illuminant and --exposure apply to `--synthetic render` only",
     );
-    assert!(
-        run(&args(&[
-            "--real",
-            png.to_str().unwrap(),
-            "--out",
-            o,
-            "--real-response",
-            "gamma:x"
-        ]))
-        .is_err()
+    refused(
+        &["--synthetic-corners", "0,0,1,0,1,1,0,1"],
+        "apply to a synthetic image, not to `render`",
     );
+    refused(&["--real-response", "gamma:x"], "gamma 'x' is not a number");
+    assert!(!out.exists());
 }
