@@ -20,10 +20,12 @@ pub fn det3(m: &Mat3) -> f64 {
         + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
 }
 
-/// 3×3 inverse by cofactors; None when the determinant is not finite or below 1e-15.
+/// 3×3 inverse by cofactors; None when the determinant is not finite, 0, or tiny for the
+/// matrix's scale (|det| ≤ 1e-14 · max|m|³, so the test means the same at any unit).
 pub fn inverse3(m: &Mat3) -> Option<Mat3> {
     let det = det3(m);
-    if !det.is_finite() || det.abs() < 1e-15 {
+    let scale = m.iter().flatten().fold(0.0f64, |a, v| a.max(v.abs()));
+    if !det.is_finite() || det.abs() <= 1e-300 || det.abs() <= 1e-14 * scale.powi(3) {
         return None;
     }
     let c =
@@ -49,26 +51,6 @@ pub fn inverse3(m: &Mat3) -> Option<Mat3> {
 
 pub fn mat_vec(m: &Mat3, v: [f64; 3]) -> [f64; 3] {
     std::array::from_fn(|i| m[i][0] * v[0] + m[i][1] * v[1] + m[i][2] * v[2])
-}
-
-/// Inverse of a 3×3 matrix; None when singular.
-pub fn mat_inv(m: &Mat3) -> Option<Mat3> {
-    let c =
-        |r0: usize, r1: usize, c0: usize, c1: usize| m[r0][c0] * m[r1][c1] - m[r0][c1] * m[r1][c0];
-    let cof = [
-        [c(1, 2, 1, 2), -c(1, 2, 0, 2), c(1, 2, 0, 1)],
-        [-c(0, 2, 1, 2), c(0, 2, 0, 2), -c(0, 2, 0, 1)],
-        [c(0, 1, 1, 2), -c(0, 1, 0, 2), c(0, 1, 0, 1)],
-    ];
-    let det = m[0][0] * cof[0][0] + m[0][1] * cof[0][1] + m[0][2] * cof[0][2];
-    let scale = m.iter().flatten().fold(0.0f64, |a, v| a.max(v.abs()));
-    if !det.is_finite() || det.abs() <= 1e-300 || det.abs() <= 1e-14 * scale.powi(3) {
-        return None;
-    }
-    // Inverse = adjugate / det; the adjugate is the transposed cofactor matrix.
-    Some(std::array::from_fn(|i| {
-        std::array::from_fn(|j| cof[j][i] / det)
-    }))
 }
 
 /// m · x = v by Cramer's rule; None when the determinant is not finite or below 1e-15.

@@ -338,7 +338,7 @@ fn known_matrix_is_recovered_from_a_noisy_chart() {
             }
         }
     }
-    let inv = hdrsynth::linalg::mat_inv(&sts).unwrap();
+    let inv = hdrsynth::linalg::inverse3(&sts).unwrap();
     let sigma_m = sigma / (n as f64).sqrt();
     for i in 0..3 {
         for j in 0..3 {

@@ -7,7 +7,7 @@ use super::cie::{A_XY, D50_XY, D65_XY, SRGB_TO_XYZ, bradford, xy_to_xyz};
 use super::parse_floats;
 use crate::error::{Error, Result};
 use crate::io::Image;
-use crate::linalg::{Mat3, mat_inv, mat_vec, mul3};
+use crate::linalg::{Mat3, inverse3, mat_vec, mul3};
 use std::fmt;
 use std::str::FromStr;
 
@@ -248,8 +248,8 @@ impl Illuminant {
             Illuminant::A => A_XY,
             Illuminant::Gains(g) => return *g,
         };
-        let cat = bradford(xy_to_xyz(D65_XY), xy_to_xyz(white));
-        let inv = mat_inv(&SRGB_TO_XYZ).expect("sRGB matrix is invertible");
+        let cat = bradford(xy_to_xyz(D65_XY), xy_to_xyz(white)).expect("D65 adapts");
+        let inv = inverse3(&SRGB_TO_XYZ).expect("sRGB matrix is invertible");
         let m = mul3(&inv, &mul3(&cat, &SRGB_TO_XYZ));
         mat_vec(&m, [1.0; 3])
     }
@@ -371,7 +371,7 @@ impl Homography {
     }
 
     pub fn inverse(&self) -> Option<Homography> {
-        mat_inv(&self.0).map(Homography)
+        inverse3(&self.0).map(Homography)
     }
 }
 

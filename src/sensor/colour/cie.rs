@@ -1,7 +1,7 @@
 //! Colour maths as colour-science computes it: linear sRGB ↔ XYZ (D65), Bradford chromatic
 //! adaptation, CIE 1976 L*a*b* (D50) and CIEDE2000. Conventions: the module docs of `colour`.
 
-use crate::linalg::{Mat3, mat_inv, mat_vec, mul3};
+use crate::linalg::{Mat3, inverse3, mat_vec, mul3};
 
 /// colour-science's sRGB RGB → XYZ matrix (`RGB_COLOURSPACES['sRGB'].matrix_RGB_to_XYZ`).
 pub const SRGB_TO_XYZ: Mat3 = [
@@ -30,16 +30,25 @@ pub fn xy_to_xyz(xy: [f64; 2]) -> [f64; 3] {
 
 /// von Kries chromatic adaptation matrix with the Bradford cone space, from white `src` to white
 /// `dst` (XYZ), built as colour-science's `matrix_chromatic_adaptation_VonKries` builds it.
-pub fn bradford(src: [f64; 3], dst: [f64; 3]) -> Mat3 {
+/// None when a cone response of `src` is (near) 0: no adaptation from that white.
+pub fn bradford(src: [f64; 3], dst: [f64; 3]) -> Option<Mat3> {
     let w = mat_vec(&BRADFORD, src);
     let wr = mat_vec(&BRADFORD, dst);
+    if w.iter().any(|v| v.abs() < 1e-12) {
+        return None;
+    }
     let d: Mat3 = [
         [wr[0] / w[0], 0.0, 0.0],
         [0.0, wr[1] / w[1], 0.0],
         [0.0, 0.0, wr[2] / w[2]],
     ];
-    let inv = mat_inv(&BRADFORD).expect("Bradford matrix is invertible");
-    mul3(&mul3(&inv, &d), &BRADFORD)
+    let inv = inverse3(&BRADFORD).expect("Bradford matrix is invertible");
+    Some(mul3(&mul3(&inv, &d), &BRADFORD))
+}
+
+/// Bradford D65 → the ColorChecker D50.
+fn d65_to_d50() -> Mat3 {
+    bradford(xy_to_xyz(D65_XY), xy_to_xyz(D50_XY)).expect("D65 has non-zero cone responses")
 }
 
 /// Linear sRGB → XYZ (D65, Y of the sRGB white = 1).
@@ -49,13 +58,13 @@ pub fn linear_srgb_to_xyz(rgb: [f64; 3]) -> [f64; 3] {
 
 /// XYZ → linear sRGB (exact inverse of [`SRGB_TO_XYZ`]).
 pub fn xyz_to_linear_srgb(xyz: [f64; 3]) -> [f64; 3] {
-    let inv = mat_inv(&SRGB_TO_XYZ).expect("sRGB matrix is invertible");
+    let inv = inverse3(&SRGB_TO_XYZ).expect("sRGB matrix is invertible");
     mat_vec(&inv, xyz)
 }
 
 /// Bradford D65 → D50 (the ColorChecker D50, [`D50_XY`]).
 pub fn xyz_d65_to_d50(xyz: [f64; 3]) -> [f64; 3] {
-    mat_vec(&bradford(xy_to_xyz(D65_XY), xy_to_xyz(D50_XY)), xyz)
+    mat_vec(&d65_to_d50(), xyz)
 }
 
 /// CIE 1976 L*a*b* of `xyz` relative to the white `white` (XYZ), as colour-science's
@@ -78,10 +87,7 @@ pub fn xyz_to_lab(xyz: [f64; 3], white: [f64; 3]) -> [f64; 3] {
 
 /// Lab (D50) of a colour treated as linear sRGB (D65): sRGB → XYZ D65 → Bradford → Lab D50.
 pub fn linear_srgb_to_lab_d50(rgb: [f64; 3]) -> [f64; 3] {
-    let m = mul3(
-        &bradford(xy_to_xyz(D65_XY), xy_to_xyz(D50_XY)),
-        &SRGB_TO_XYZ,
-    );
+    let m = mul3(&d65_to_d50(), &SRGB_TO_XYZ);
     xyz_to_lab(mat_vec(&m, rgb), xy_to_xyz(D50_XY))
 }
 
