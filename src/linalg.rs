@@ -189,3 +189,36 @@ pub fn solve6(mut a: [[f64; 6]; 6], mut b: [f64; 6]) -> [f64; 6] {
     }
     x
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn inverse3_judges_singularity_relative_to_the_matrix_scale() {
+        // A well-conditioned matrix in small units (det 1e-18) is invertible …
+        let small: Mat3 = [[1e-6, 0.0, 0.0], [0.0, 2e-6, 0.0], [0.0, 0.0, 5e-7]];
+        let inv = inverse3(&small).unwrap();
+        let want = [[1e6, 0.0, 0.0], [0.0, 5e5, 0.0], [0.0, 0.0, 2e6]];
+        let close = |a: &Mat3, b: &Mat3, tol: f64| {
+            a.iter()
+                .flatten()
+                .zip(b.iter().flatten())
+                .all(|(x, y)| (x - y).abs() <= tol * y.abs().max(1.0))
+        };
+        assert!(close(&inv, &want, 1e-12), "{inv:?}");
+        // … and rank 2 is not, at any scale.
+        for s in [1e-6, 1.0, 1e6] {
+            let m: Mat3 = [
+                [s, 2.0 * s, 3.0 * s],
+                [2.0 * s, 4.0 * s, 6.0 * s],
+                [0.0, s, s],
+            ];
+            assert!(inverse3(&m).is_none(), "{s}");
+        }
+        let m: Mat3 = [[2.0, 1.0, 0.5], [0.3, 1.7, 0.2], [0.1, -0.4, 1.1]];
+        let p = mul3(&m, &inverse3(&m).unwrap());
+        let identity = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        assert!(close(&p, &identity, 1e-12), "{p:?}");
+    }
+}
