@@ -3,12 +3,12 @@
 //! `calibrate colour` command end to end.
 #![allow(clippy::needless_range_loop)]
 
-use hdrsynth::cli::calibrate::colour::{Args, run};
 use hdrsynth::io::{Image, write_exr};
 use hdrsynth::rng::Rng;
-use hdrsynth::sensor::colour::{
-    self as col, COLORCHECKER24, ChartRegion, Homography, Illuminant, Model,
-};
+use hdrsynth::sensor::colour::calibrate::{CalibrateOptions, SyntheticChart, WhiteBalance, run};
+use hdrsynth::sensor::colour::chart::{self, COLORCHECKER24, ChartRegion, Homography, Illuminant};
+use hdrsynth::sensor::colour::cie;
+use hdrsynth::sensor::colour::fit::{self, Model};
 use hdrsynth::sensor::dng::{read_dng, read_dng_info, read_dng_mosaic};
 use hdrsynth::sensor::profile::{
     Levels, NoiseAtIso, PROFILE_FORMAT, ProfileKind, Provenance, Response, SensorProfile,
@@ -195,11 +195,11 @@ fn delta_e_2000_matches_colour_science_on_40_pairs() {
             p.get("lab2").vec3(),
             p.get("de00").num(),
         );
-        let got = col::delta_e_2000(l1, l2);
+        let got = cie::delta_e_2000(l1, l2);
         assert!((got - want).abs() < 1e-6, "pair {k}: {got} vs {want}");
         // Symmetric.
         assert!(
-            (col::delta_e_2000(l2, l1) - want).abs() < 1e-6,
+            (cie::delta_e_2000(l2, l1) - want).abs() < 1e-6,
             "pair {k} swapped"
         );
     }
@@ -208,12 +208,12 @@ fn delta_e_2000_matches_colour_science_on_40_pairs() {
 #[test]
 fn delta_e_2000_edge_cases() {
     // Identical colours, zero chroma on one side, hue wrap-around (Sharma 2005 test pairs 7, 17).
-    assert_eq!(col::delta_e_2000([50.0, 0.0, 0.0], [50.0, 0.0, 0.0]), 0.0);
-    let d = col::delta_e_2000([50.0, 0.0, 0.0], [50.0, -1.0, 2.0]);
+    assert_eq!(cie::delta_e_2000([50.0, 0.0, 0.0], [50.0, 0.0, 0.0]), 0.0);
+    let d = cie::delta_e_2000([50.0, 0.0, 0.0], [50.0, -1.0, 2.0]);
     assert!((d - 2.3669).abs() < 1e-4, "{d}");
-    let d = col::delta_e_2000([50.0, 2.5, 0.0], [73.0, 25.0, -18.0]);
+    let d = cie::delta_e_2000([50.0, 2.5, 0.0], [73.0, 25.0, -18.0]);
     assert!((d - 27.1492).abs() < 1e-4, "{d}");
-    let d = col::delta_e_2000([2.0776, 0.0795, -1.135], [0.9033, -0.0636, -0.5514]);
+    let d = cie::delta_e_2000([2.0776, 0.0795, -1.135], [0.9033, -0.0636, -0.5514]);
     assert!((d - 0.9082).abs() < 1e-4, "{d}");
 }
 
@@ -229,7 +229,7 @@ fn least_squares_and_root_polynomial_match_colour_science() {
         "the oracle has a negative synthetic value"
     );
     let want_t = cc.get("T_least_squares_3x3").matrix();
-    let t = col::fit_matrix(&syn, &real).unwrap();
+    let t = fit::fit_matrix(&syn, &real).unwrap();
     for i in 0..3 {
         for j in 0..3 {
             assert!(
@@ -241,7 +241,7 @@ fn least_squares_and_root_polynomial_match_colour_science() {
         }
     }
     let want_rp = cc.get("root_polynomial_degree2_matrix").matrix();
-    let rp = col::fit_root_polynomial(&syn, &real).unwrap();
+    let rp = fit::fit_root_polynomial(&syn, &real).unwrap();
     for i in 0..3 {
         for j in 0..6 {
             assert!(
@@ -258,9 +258,9 @@ fn least_squares_and_root_polynomial_match_colour_science() {
     }
     // Applying the fits to colours and images agrees.
     let img = Image::from_fn(24, 1, |x, _| syn[x].map(|v| v as f32));
-    let out = col::apply_root_polynomial_image(&rp, &img);
+    let out = fit::apply_root_polynomial_image(&rp, &img);
     for x in 0..24 {
-        let want = col::apply_root_polynomial(&rp, syn[x]);
+        let want = fit::apply_root_polynomial(&rp, syn[x]);
         let got = out.get(x, 0);
         for c in 0..3 {
             assert!((got[c] as f64 - want[c]).abs() < 1e-5);
@@ -273,13 +273,13 @@ fn reference_table_round_trips_to_its_lab() {
     // linear sRGB → XYZ D65 → Bradford → Lab D50 of the shipped linear values gives the shipped
     // Lab (the linear values are rounded to 6 decimals, hence the small tolerance).
     for p in &COLORCHECKER24 {
-        let lab = col::linear_srgb_to_lab_d50(p.linear_srgb);
-        let de = col::delta_e_2000(lab, p.lab_d50);
+        let lab = cie::linear_srgb_to_lab_d50(p.linear_srgb);
+        let de = cie::delta_e_2000(lab, p.lab_d50);
         assert!(de < 0.01, "patch {} ({}): ΔE00 {de}", p.number, p.name);
     }
     // Patch 1 through colour-science 0.4.7 (RGB_to_XYZ 'sRGB' with Bradford to the chart's D50,
     // XYZ_to_Lab), computed at development time.
-    let lab = col::linear_srgb_to_lab_d50(COLORCHECKER24[0].linear_srgb);
+    let lab = cie::linear_srgb_to_lab_d50(COLORCHECKER24[0].linear_srgb);
     let want = [37.54081845880617, 14.368174961664648, 14.920555790621492];
     for c in 0..3 {
         assert!((lab[c] - want[c]).abs() < 1e-9, "{lab:?}");
@@ -313,9 +313,9 @@ fn known_matrix_is_recovered_from_a_noisy_chart() {
     // covariance σ_m² (SᵀS)⁻¹ (S the 24×3 synthetic colours): entry (i, j) has standard error
     // σ_m √[(SᵀS)⁻¹]_jj. We allow 5 standard errors.
     let sigma = 0.02;
-    let syn_img = col::render_chart(600, 400, &Illuminant::D65, 1.0);
-    let real_img = add_noise(&col::apply_matrix_image(&KNOWN_T, &syn_img), sigma, 7);
-    let samples = col::sample_chart(&real_img, &ChartRegion::FullFrame, None).unwrap();
+    let syn_img = chart::render_chart(600, 400, &Illuminant::D65, 1.0);
+    let real_img = add_noise(&fit::apply_matrix_image(&KNOWN_T, &syn_img), sigma, 7);
+    let samples = chart::sample_chart(&real_img, &ChartRegion::FullFrame, None).unwrap();
     let n = samples[0].pixels;
     assert_eq!(n, 50 * 50);
     for s in &samples {
@@ -327,9 +327,9 @@ fn known_matrix_is_recovered_from_a_noisy_chart() {
             );
         }
     }
-    let syn = col::reference_linear_srgb();
+    let syn = chart::reference_linear_srgb();
     let real: Vec<[f64; 3]> = samples.iter().map(|s| s.mean).collect();
-    let t = col::fit_matrix(&syn, &real).unwrap();
+    let t = fit::fit_matrix(&syn, &real).unwrap();
     let mut sts = [[0.0; 3]; 3];
     for s in &syn {
         for i in 0..3 {
@@ -338,7 +338,7 @@ fn known_matrix_is_recovered_from_a_noisy_chart() {
             }
         }
     }
-    let inv = hdrsynth::linalg::mat_inv(&sts).unwrap();
+    let inv = hdrsynth::linalg::inverse3(&sts).unwrap();
     let sigma_m = sigma / (n as f64).sqrt();
     for i in 0..3 {
         for j in 0..3 {
@@ -357,14 +357,14 @@ fn known_matrix_is_recovered_from_a_noisy_chart() {
 
 #[test]
 fn leave_one_out_exceeds_in_sample_on_noisy_data() {
-    let syn = col::reference_linear_srgb();
+    let syn = chart::reference_linear_srgb();
     let mut rng = Rng::new(11);
     let real: Vec<[f64; 3]> = syn
         .iter()
-        .map(|&s| col::apply_matrix(&KNOWN_T, s).map(|v| v + 0.01 * gauss(&mut rng)))
+        .map(|&s| fit::apply_matrix(&KNOWN_T, s).map(|v| v + 0.01 * gauss(&mut rng)))
         .collect();
     for model in [Model::Matrix, Model::RootPolynomial] {
-        let e = col::fit_and_evaluate(model, &syn, &real).unwrap();
+        let e = fit::fit_and_evaluate(model, &syn, &real).unwrap();
         assert!(
             e.loo.mean > e.after.mean,
             "{model:?}: LOO {} vs in-sample {}",
@@ -377,9 +377,9 @@ fn leave_one_out_exceeds_in_sample_on_noisy_data() {
     // Noise-free: the fit is exact and LOO is exact too.
     let exact: Vec<[f64; 3]> = syn
         .iter()
-        .map(|&s| col::apply_matrix(&KNOWN_T, s))
+        .map(|&s| fit::apply_matrix(&KNOWN_T, s))
         .collect();
-    let e = col::fit_and_evaluate(Model::Matrix, &syn, &exact).unwrap();
+    let e = fit::fit_and_evaluate(Model::Matrix, &syn, &exact).unwrap();
     assert!(
         e.after.max < 1e-6 && e.loo.max < 1e-6,
         "{} {}",
@@ -392,7 +392,7 @@ fn leave_one_out_exceeds_in_sample_on_noisy_data() {
 
 #[test]
 fn rendered_chart_layout_and_illuminants() {
-    let img = col::render_chart(60, 40, &Illuminant::D65, 2.0);
+    let img = chart::render_chart(60, 40, &Illuminant::D65, 2.0);
     let at = |x, y| img.get(x, y).map(|v| v as f64);
     let p1 = COLORCHECKER24[0].linear_srgb;
     let p24 = COLORCHECKER24[23].linear_srgb;
@@ -403,7 +403,7 @@ fn rendered_chart_layout_and_illuminants() {
         assert!((at(59, 0)[c] - 2.0 * p6[c]).abs() < 1e-6);
     }
     let a = Illuminant::A.gains();
-    let ia = col::render_chart(60, 40, &Illuminant::A, 1.0);
+    let ia = chart::render_chart(60, 40, &Illuminant::A, 1.0);
     let px = ia.get(0, 0);
     for c in 0..3 {
         assert!((px[c] as f64 - p1[c] * a[c]).abs() < 1e-6);
@@ -460,7 +460,7 @@ fn corner_sampling_recovers_patches_through_a_homography() {
     let region =
         ChartRegion::parse_corners("120.3,80.7,610.2,60.1,650.8,430.4,90.5,460.9").unwrap();
     assert_eq!(region, ChartRegion::Corners(corners));
-    let s = col::sample_chart(&img, &region, Some(1.0)).unwrap();
+    let s = chart::sample_chart(&img, &region, Some(1.0)).unwrap();
     for (k, p) in COLORCHECKER24.iter().enumerate() {
         assert!(s[k].pixels > 500, "patch {}: {} px", p.number, s[k].pixels);
         for c in 0..3 {
@@ -476,7 +476,7 @@ fn corner_sampling_recovers_patches_through_a_homography() {
     }
     // Corners off by 4 px still land inside every patch.
     let off = [[124.0, 77.0], [606.0, 64.0], [654.0, 427.0], [87.0, 464.0]];
-    let s = col::sample_chart(&img, &ChartRegion::Corners(off), None).unwrap();
+    let s = chart::sample_chart(&img, &ChartRegion::Corners(off), None).unwrap();
     for (k, p) in COLORCHECKER24.iter().enumerate() {
         for c in 0..3 {
             assert!(
@@ -494,21 +494,21 @@ fn corner_sampling_recovers_patches_through_a_homography() {
         [-300.0, 460.0],
     ]);
     assert!(
-        col::sample_chart(&img, &out, None)
+        chart::sample_chart(&img, &out, None)
             .unwrap_err()
             .to_string()
             .contains("outside")
     );
     let twisted = ChartRegion::Corners([corners[0], corners[2], corners[1], corners[3]]);
-    assert!(col::sample_chart(&img, &twisted, None).is_err());
+    assert!(chart::sample_chart(&img, &twisted, None).is_err());
     assert!(ChartRegion::parse_corners("1,2,3").is_err());
 }
 
 #[test]
 fn clipped_patch_error_names_the_patch() {
     // Exposure 1.12 puts patch 19 (white, G 0.885) at 0.991 ≥ 0.98 while patch 20 stays at 0.66.
-    let img = col::render_chart(600, 400, &Illuminant::D65, 1.12);
-    let err = col::sample_chart(&img, &ChartRegion::FullFrame, Some(1.0))
+    let img = chart::render_chart(600, 400, &Illuminant::D65, 1.12);
+    let err = chart::sample_chart(&img, &ChartRegion::FullFrame, Some(1.0))
         .unwrap_err()
         .to_string();
     assert!(
@@ -516,7 +516,7 @@ fn clipped_patch_error_names_the_patch() {
         "{err}"
     );
     // No clip level: no check.
-    assert!(col::sample_chart(&img, &ChartRegion::FullFrame, None).is_ok());
+    assert!(chart::sample_chart(&img, &ChartRegion::FullFrame, None).is_ok());
 }
 
 // --- DNG ----------------------------------------------------------------------------------------
@@ -708,8 +708,13 @@ fn synthetic_dng_unpacks_bits_and_reads_the_cfa_pattern() {
 /// a preview: the outer corners of patches 1, 6, 24, 19 (fitted through all 24 patch centres).
 const DNG_CORNERS: &str = "665,579,1303,564,1316,974,645,984";
 
-fn args(words: &[&str]) -> Args {
-    Args::parse_from(words.iter().copied()).unwrap()
+/// The defaults of `calibrate colour` for a real capture and a profile path.
+fn options(real: &Path, out: &Path) -> CalibrateOptions {
+    CalibrateOptions::new(
+        real.to_path_buf(),
+        out.to_path_buf(),
+        "tests/colour.rs".into(),
+    )
 }
 
 #[test]
@@ -719,9 +724,11 @@ fn calibrate_colour_on_the_real_dng_writes_a_profile() {
     };
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("canon.toml");
-    let d = dng.to_str().unwrap();
-    let o = out.to_str().unwrap();
-    let report = run(&args(&["--real", d, "--out", o, "--corners", DNG_CORNERS])).unwrap();
+    let opts = CalibrateOptions {
+        real_region: ChartRegion::parse_corners(DNG_CORNERS).unwrap(),
+        ..options(&dng, &out)
+    };
+    let report = run(&opts).unwrap();
     println!("{report}");
     println!("{}", std::fs::read_to_string(&out).unwrap());
     let p = SensorProfile::load(&out).unwrap();
@@ -769,15 +776,11 @@ fn calibrate_colour_on_the_real_dng_writes_a_profile() {
     let mut edited = p.clone();
     edited.provenance.notes = Some("keep me".into());
     edited.save(&out).unwrap();
-    let report = run(&args(&[
-        "--real",
-        d,
-        "--out",
-        o,
-        "--corners",
-        DNG_CORNERS,
-        "--root-polynomial",
-    ]))
+    let report = run(&CalibrateOptions {
+        root_polynomial: true,
+        invocation: "calibrate with --root-polynomial".into(),
+        ..opts
+    })
     .unwrap();
     println!("{report}");
     let q = SensorProfile::load(&out).unwrap();
@@ -785,7 +788,16 @@ fn calibrate_colour_on_the_real_dng_writes_a_profile() {
     assert_eq!(q.levels, p.levels);
     let qc = q.colour.unwrap();
     assert!(qc.use_root_polynomial && qc.root_polynomial.is_some());
-    assert!(q.provenance.colour.contains("--root-polynomial"));
+    assert!(
+        q.provenance
+            .colour
+            .contains("fit by `calibrate with --root-polynomial`")
+    );
+    assert!(
+        q.provenance
+            .colour
+            .contains("Root-polynomial degree 2 (used)")
+    );
 }
 
 fn example_profile() -> SensorProfile {
@@ -825,23 +837,17 @@ fn calibrate_colour_updates_an_existing_profile_from_an_exr() {
     let dir = tempfile::tempdir().unwrap();
     let corners = [[40.0, 30.0], [560.0, 42.0], [548.0, 380.0], [35.0, 370.0]];
     let h = Homography::chart_to_image(corners).unwrap();
-    let chart = warped_chart(600, 420, &h);
-    let real = col::apply_matrix_image(&KNOWN_T, &chart).map(|v| v * 0.5);
+    let rendered = warped_chart(600, 420, &h);
+    let real = fit::apply_matrix_image(&KNOWN_T, &rendered).map(|v| v * 0.5);
     let real_path = dir.path().join("real.exr");
     write_exr(&real_path, &real, hdrsynth::io::ExrPrecision::Float).unwrap();
     let out = dir.path().join("profile.toml");
     example_profile().save(&out).unwrap();
-    let corner_arg = "40,30,560,42,548,380,35,370";
-    let report = run(&args(&[
-        "--real",
-        real_path.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--corners",
-        corner_arg,
-        "--white-balance",
-        "none",
-    ]))
+    let report = run(&CalibrateOptions {
+        real_region: ChartRegion::Corners(corners),
+        white_balance: WhiteBalance::None,
+        ..options(&real_path, &out)
+    })
     .unwrap();
     let p = SensorProfile::load(&out).unwrap();
     assert_eq!(p.noise, example_profile().noise);
@@ -850,15 +856,15 @@ fn calibrate_colour_updates_an_existing_profile_from_an_exr() {
     let t = p.colour.unwrap().matrix;
     // Exposure is normalised on the neutral patches 20–23, so T = KNOWN_T / g with g the mean
     // response of KNOWN_T on them relative to the synthetic neutrals.
-    let refs = col::reference_linear_srgb();
+    let refs = chart::reference_linear_srgb();
     let mapped: Vec<[f64; 3]> = refs
         .iter()
-        .map(|&s| col::apply_matrix(&KNOWN_T, s.map(|v| v.max(0.0))))
+        .map(|&s| fit::apply_matrix(&KNOWN_T, s.map(|v| v.max(0.0))))
         .collect();
-    let g = col::neutral_mean(&mapped) / col::neutral_mean(&refs);
+    let g = chart::neutral_mean(&mapped) / chart::neutral_mean(&refs);
     // Patch 18 (cyan) has R < 0 in the table but the warped chart stores 0: the fit maps the
     // rendered (negative) synthetic value to what the capture holds.
-    let want = col::fit_matrix(
+    let want = fit::fit_matrix(
         &refs,
         &mapped.iter().map(|m| m.map(|v| v / g)).collect::<Vec<_>>(),
     )
@@ -878,7 +884,7 @@ fn calibrate_colour_updates_an_existing_profile_from_an_exr() {
 fn calibrate_colour_writes_nothing_on_failure() {
     let dir = tempfile::tempdir().unwrap();
     // A PNG capture that clips patch 19 (white, G 0.885 × 1.12 = 0.991) and no other.
-    let img = col::render_chart(300, 200, &Illuminant::D65, 1.12);
+    let img = chart::render_chart(300, 200, &Illuminant::D65, 1.12);
     let png = dir.path().join("clipped.png");
     hdrsynth::io::write_ldr(
         &png,
@@ -887,20 +893,13 @@ fn calibrate_colour_writes_nothing_on_failure() {
     )
     .unwrap();
     let out = dir.path().join("new.toml");
-    let o = out.to_str().unwrap();
-    let e = run(&args(&[
-        "--real",
-        png.to_str().unwrap(),
-        "--out",
-        o,
-        "--black",
-        "0",
-        "--white",
-        "65535",
-        "--bits",
-        "16",
-    ]))
-    .unwrap_err();
+    let with_levels = |png: &Path| CalibrateOptions {
+        black: Some(0.0),
+        white: Some(65535.0),
+        bits: Some(16),
+        ..options(png, &out)
+    };
+    let e = run(&with_levels(&png)).unwrap_err();
     let msg = format!("{e:#}");
     assert!(
         msg.contains("clipped.png") && msg.contains("patch 19"),
@@ -908,7 +907,7 @@ fn calibrate_colour_writes_nothing_on_failure() {
     );
     assert!(!out.exists());
     // A good capture but no levels for a new profile: refused, nothing written.
-    let img = col::render_chart(300, 200, &Illuminant::D65, 0.9);
+    let img = chart::render_chart(300, 200, &Illuminant::D65, 0.9);
     let png = dir.path().join("good.png");
     hdrsynth::io::write_ldr(
         &png,
@@ -916,24 +915,12 @@ fn calibrate_colour_writes_nothing_on_failure() {
         hdrsynth::io::BitDepth::Sixteen,
     )
     .unwrap();
-    let e = run(&args(&["--real", png.to_str().unwrap(), "--out", o])).unwrap_err();
+    let e = run(&options(&png, &out)).unwrap_err();
     assert!(format!("{e:#}").contains("--black"), "{e:#}");
     assert!(!out.exists());
     // With levels it works; 16-bit PNG is read as linear by default; an identity T results
     // (the negative R of patch 18 is clamped in the PNG, so allow a small deviation).
-    let report = run(&args(&[
-        "--real",
-        png.to_str().unwrap(),
-        "--out",
-        o,
-        "--black",
-        "0",
-        "--white",
-        "65535",
-        "--bits",
-        "16",
-    ]))
-    .unwrap();
+    let report = run(&with_levels(&png)).unwrap();
     let p = SensorProfile::load(&out).unwrap();
     assert_eq!(p.response, Response::Linear);
     let t = p.colour.unwrap().matrix;
@@ -943,29 +930,55 @@ fn calibrate_colour_writes_nothing_on_failure() {
             assert!((t[i][j] - want).abs() < 0.03, "{t:?}\n{report}");
         }
     }
-    // Options that contradict each other are refused.
-    assert!(
-        run(&args(&[
-            "--real",
-            png.to_str().unwrap(),
-            "--out",
-            o,
-            "--synthetic",
-            png.to_str().unwrap(),
-            "--exposure",
-            "2"
-        ]))
-        .is_err()
+    // Inputs the calibration cannot use are refused.
+    let e = run(&CalibrateOptions {
+        synthetic: SyntheticChart::Render {
+            illuminant: Illuminant::D65,
+            exposure: -2.0,
+        },
+        ..with_levels(&png)
+    })
+    .unwrap_err();
+    assert!(e.to_string().contains("--exposure -2 must be > 0"), "{e}");
+    let e = run(&CalibrateOptions {
+        synthetic: SyntheticChart::Image {
+            path: dir.path().join("synthetic.dng"),
+            region: ChartRegion::FullFrame,
+            response: None,
+        },
+        ..with_levels(&png)
+    })
+    .unwrap_err();
+    assert!(e.to_string().contains("cannot be a DNG"), "{e}");
+}
+
+/// The command line: arguments that contradict each other or do not parse are refused before
+/// anything is read.
+#[test]
+fn calibrate_colour_command_refuses_contradicting_arguments() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("p.toml");
+    let refused = |extra: &[&str], want: &str| {
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_hdrsynth"))
+            .args(["calibrate", "colour", "--real", "absent.png", "--out"])
+            .arg(&out)
+            .args(extra)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            !o.status.success() && err.contains(want),
+            "{extra:?}: {err}"
+        );
+    };
+    refused(
+        &["--synthetic", "syn.png", "--exposure", "2"],
+        "--illuminant and --exposure apply to `--synthetic render` only",
     );
-    assert!(
-        run(&args(&[
-            "--real",
-            png.to_str().unwrap(),
-            "--out",
-            o,
-            "--real-response",
-            "gamma:x"
-        ]))
-        .is_err()
+    refused(
+        &["--synthetic-corners", "0,0,1,0,1,1,0,1"],
+        "apply to a synthetic image, not to `render`",
     );
+    refused(&["--real-response", "gamma:x"], "gamma 'x' is not a number");
+    assert!(!out.exists());
 }

@@ -618,7 +618,7 @@ fn fuzz_illuminant_argument() {
     let seeds = [b"D65".to_vec(), b"1.9, 1.0, 1.6".to_vec()];
     fuzz("illuminant_arg", &seeds, true, |bytes| {
         if let Ok(text) = std::str::from_utf8(bytes) {
-            let _ = text.parse::<hdrsynth::sensor::colour::Illuminant>();
+            let _ = text.parse::<hdrsynth::sensor::colour::chart::Illuminant>();
         }
     });
 }

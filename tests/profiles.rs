@@ -1,7 +1,9 @@
 //! The shipped sensor profiles: valid, honest about provenance, and different enough in colour
 //! for the colour ablation; the chart-fitted Canon T agrees with Adobe's published matrix.
 
-use hdrsynth::sensor::colour::{delta_e_linear_srgb, reference_linear_srgb, t_from_camera_xyz};
+use hdrsynth::sensor::colour::chart::reference_linear_srgb;
+use hdrsynth::sensor::colour::cie::delta_e_linear_srgb;
+use hdrsynth::sensor::colour::fit::t_from_camera_xyz;
 use hdrsynth::sensor::profile::{ProfileKind, SensorProfile};
 
 fn shipped() -> Vec<(String, SensorProfile)> {

@@ -112,7 +112,7 @@ fn colour_from_matrix(args: &MatrixArgs) -> anyhow::Result<String> {
     let v = crate::sensor::colour::parse_floats(&args.matrix, 9, "--matrix")?;
     let cam_xyz: [[f64; 3]; 3] =
         std::array::from_fn(|r| std::array::from_fn(|c| v[r * 3 + c] / args.scale));
-    let t = crate::sensor::colour::t_from_camera_xyz(&cam_xyz)?;
+    let t = crate::sensor::colour::fit::t_from_camera_xyz(&cam_xyz)?;
     let mut p = SensorProfile::load(&args.out)?;
     p.colour = Some(crate::sensor::profile::Colour {
         matrix: t,

@@ -24,9 +24,9 @@ use crate::data::scene::{Camera, SampleStats, ev_tag};
 use crate::error::{Error, Result};
 use crate::io::atomic::write_atomic;
 use crate::io::{BitDepth, ExrPrecision, Image, read_image, resize, write_exr, write_ldr};
-use crate::linalg::{Mat3, inverse3, mat_vec, mul3};
+use crate::linalg::{Mat3, inverse3, mul3};
 use crate::rng::hash;
-use crate::sensor::colour::{BRADFORD, xy_to_xyz};
+use crate::sensor::colour::cie::{bradford, xy_to_xyz};
 use crate::sensor::metering::Metering;
 use crate::sensor::profile::{Response, SensorProfile};
 use crate::sensor::realism::{NoiseModel, Realism, RealismOptions};
@@ -646,17 +646,7 @@ pub fn to_rec709_matrix(path: &Path) -> Result<Option<[[f32; 3]; 3]>> {
     let src = rgb_to_xyz(c).ok_or_else(bad)?;
     let dst_inv = inverse3(&rgb_to_xyz(REC709).expect("Rec. 709 is well formed"))
         .expect("Rec. 709 is invertible");
-    let b_inv = inverse3(&BRADFORD).expect("Bradford is invertible");
-    let (s, d) = (
-        mat_vec(&BRADFORD, xy_to_xyz(c[3])),
-        mat_vec(&BRADFORD, xy_to_xyz(REC709[3])),
-    );
-    if s.iter().any(|v| v.abs() < 1e-12) {
-        return Err(bad());
-    }
-    let scale: Mat3 =
-        std::array::from_fn(|i| std::array::from_fn(|j| if i == j { d[i] / s[i] } else { 0.0 }));
-    let adapt = mul3(&b_inv, &mul3(&scale, &BRADFORD));
+    let adapt = bradford(xy_to_xyz(c[3]), xy_to_xyz(REC709[3])).ok_or_else(bad)?;
     let m = mul3(&dst_inv, &mul3(&adapt, &src));
     Ok(Some(m.map(|r| r.map(|v| v as f32))))
 }

@@ -132,7 +132,7 @@ pub fn calibrate_debevec(
             a.push(row);
             b.push([0.0]);
         }
-        let x = crate::sensor::colour::least_squares("Debevec response", &a, &b)?;
+        let x = crate::linalg::least_squares("Debevec response", &a, &b)?;
         *o = x[..LDR_SIZE].iter().map(|g| g[0].exp()).collect();
     }
     Ok(out)

@@ -302,7 +302,7 @@ impl Truth {
                 );
             }
         }
-        let reference = hdrsynth::sensor::colour::reference_linear_srgb();
+        let reference = hdrsynth::sensor::colour::chart::reference_linear_srgb();
         let mut chart = vec![0.0; w * h * 3];
         for y in 0..h {
             for x in 0..w {

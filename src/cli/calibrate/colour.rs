@@ -1,47 +1,12 @@
-//! `hdrsynth calibrate colour`: fit a SensorProfile's colour transform T (real = T · synthetic,
-//! the paper's Eq. 1) from a real capture of a ColorChecker24 and a synthetic one (rendered by
-//! hdrsynth by default), report per-patch ΔE00 before/after and leave-one-patch-out, and write
-//! the profile atomically (see docs/colour.md).
-//!
-//! Steps:
-//! 1. Read the real capture. DNG: black-subtracted, normalised by (white − black), bilinear
-//!    demosaic, camera RGB. EXR/HDR: linear as stored. PNG/TIFF: code values, linearised with
-//!    `--real-response` (default: sRGB for 8-bit files, linear for 16-bit files, which raw
-//!    converters such as `dcraw -4 -T` write linear).
-//! 2. Sample the 24 patches (central half of each cell; full frame or `--corners`); a clipped
-//!    patch (any channel ≥ 0.98 of the input's clip level, judged in the input's own code
-//!    values or normalised DN) is an error naming the patch and the file.
-//! 3. The synthetic patches: the rendered chart (reference linear sRGB × illuminant gains ×
-//!    exposure), or a synthetic image sampled the same way.
-//! 4. White balance `neutral` (default): real channels scaled by mean_G / mean_c over the neutral
-//!    patches 20–23, so their mean is neutral (device linear RGB is white-balanced camera RGB).
-//! 5. Exposure: the real patches are scaled by one factor so the mean of patches 20–23 (all
-//!    channels) equals the synthetic one; then both sets are scaled by one common factor so the
-//!    synthetic neutrals match their reference reflectance (ΔE00 is then on the chart's scale;
-//!    T does not depend on it).
-//! 6. Fit T by least squares (and the root-polynomial with `--root-polynomial`), ΔE00 with the
-//!    colours treated as linear sRGB D65, Lab D50.
-//! 7. Write the profile: an existing one keeps everything but `colour` and `provenance.colour`.
-#![allow(clippy::needless_range_loop)]
+//! `hdrsynth calibrate colour`: arguments → [`CalibrateOptions`] →
+//! `sensor::colour::calibrate::run` (the calibration and its steps: there and docs/colour.md).
 
-use crate::error::Error;
-use crate::io::{Format, Image, read_image_info};
-use crate::sensor::colour::{
-    self, COLORCHECKER24, ChartRegion, Evaluation, Fitted, Illuminant, Model, PatchSample,
-};
-use crate::sensor::dng::{DngInfo, read_dng};
-use crate::sensor::profile::{Colour, Levels, Provenance, Response, SensorProfile};
-use anyhow::{Context, Result, bail};
+use crate::sensor::colour::calibrate::{self, CalibrateOptions, SyntheticChart, WhiteBalance};
+use crate::sensor::colour::chart::ChartRegion;
+use crate::sensor::profile::Response;
+use anyhow::{Result, bail};
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum WhiteBalance {
-    /// Scale the real channels so the mean of neutral patches 20–23 is neutral.
-    Neutral,
-    /// Use the real colours as they are.
-    None,
-}
+use std::path::PathBuf;
 
 /// Fit a profile's colour transform T (real = T · synthetic) from a ColorChecker24 capture.
 #[derive(Clone, Debug, clap::Args)]
@@ -99,28 +64,9 @@ pub struct Args {
     pub name: Option<String>,
 }
 
-#[derive(clap::Parser)]
-#[command(name = "hdrsynth calibrate colour")]
-struct Wrapper {
-    #[command(flatten)]
-    args: Args,
-}
-
 impl Args {
-    /// Parse from command-line words (without the program name), e.g. for tests.
-    pub fn parse_from<I, S>(words: I) -> Result<Args>
-    where
-        I: IntoIterator<Item = S>,
-        S: Into<std::ffi::OsString> + Clone,
-    {
-        use clap::Parser;
-        let all = std::iter::once(std::ffi::OsString::from("colour"))
-            .chain(words.into_iter().map(Into::into));
-        Ok(Wrapper::try_parse_from(all)?.args)
-    }
-
     /// The command line these arguments stand for.
-    pub fn command_line(&self) -> String {
+    fn command_line(&self) -> String {
         let q = |s: &str| {
             if s.is_empty() || s.contains(|c: char| c.is_whitespace() || "'\"$\\".contains(c)) {
                 format!("'{}'", s.replace('\'', r"'\''"))
@@ -158,524 +104,59 @@ impl Args {
         }
         c
     }
-}
 
-fn response_name(r: &Response) -> String {
-    match r {
-        Response::Linear => "linear".into(),
-        Response::Srgb => "srgb".into(),
-        Response::Gamma { gamma } => format!("gamma:{gamma}"),
-        Response::Filmic => "filmic".into(),
-        Response::Lut { lut } => format!("lut ({} samples)", lut.len()),
-    }
-}
-
-/// An input image ready for sampling.
-struct Input {
-    path: PathBuf,
-    /// Linear values.
-    linear: Image,
-    /// The image and level to judge clipping on (the input's own units), if any.
-    clip: Option<(Image, f64)>,
-    response: Response,
-    dng: Option<DngInfo>,
-    what: String,
-}
-
-fn load_input(path: &Path, response: Option<&str>, clip_level: Option<f64>) -> Result<Input> {
-    let is_dng = path
-        .extension()
-        .is_some_and(|e| e.to_string_lossy().eq_ignore_ascii_case("dng"));
-    let given = response
-        .map(|r| r.parse::<Response>().map_err(anyhow::Error::msg))
-        .transpose()?;
-    if let Some(c) = clip_level
-        && !(c > 0.0 && c.is_finite())
-    {
-        bail!("--clip-level {c} must be > 0");
-    }
-    if is_dng {
-        if given.as_ref().is_some_and(|r| *r != Response::Linear) {
-            bail!(
-                "{}: a raw DNG is linear; drop the response option",
-                path.display()
-            );
-        }
-        let dng = read_dng(path)?;
-        let what = format!("raw DNG, {}", dng.info.describe());
-        let level = clip_level.unwrap_or(1.0);
-        return Ok(Input {
-            path: path.to_path_buf(),
-            clip: Some((dng.image.clone(), level)),
-            linear: dng.image,
-            response: Response::Linear,
-            dng: Some(dng.info),
-            what,
-        });
-    }
-    let (img, info) = read_image_info(path)?;
-    match info.format {
-        Format::Exr | Format::Hdr => {
-            if given.as_ref().is_some_and(|r| *r != Response::Linear) {
+    /// The typed options; malformed or contradicting arguments are refused here.
+    pub fn options(&self) -> Result<CalibrateOptions> {
+        let response = |s: &Option<String>| {
+            s.as_deref()
+                .map(|r| r.parse::<Response>().map_err(anyhow::Error::msg))
+                .transpose()
+        };
+        let region = |s: &Option<String>| -> Result<ChartRegion> {
+            Ok(match s {
+                Some(s) => ChartRegion::parse_corners(s)?,
+                None => ChartRegion::FullFrame,
+            })
+        };
+        let synthetic = if self.synthetic.eq_ignore_ascii_case("render") {
+            if self.synthetic_corners.is_some() || self.synthetic_response.is_some() {
                 bail!(
-                    "{}: EXR/HDR files hold linear values; drop the response option",
-                    path.display()
+                    "--synthetic-corners and --synthetic-response apply to a synthetic image, not to `render`"
                 );
             }
-            Ok(Input {
-                path: path.to_path_buf(),
-                clip: clip_level.map(|c| (img.clone(), c)),
-                linear: img,
-                response: Response::Linear,
-                dng: None,
-                what: "linear float image".into(),
-            })
-        }
-        Format::Png | Format::Tiff | Format::Jpeg => {
-            let bits = match info.bit_depth {
-                Some(crate::io::BitDepth::Eight) => 8,
-                _ => 16,
-            };
-            let r = given.unwrap_or(if bits == 8 {
-                Response::Srgb
-            } else {
-                Response::Linear
-            });
-            let linear = if r == Response::Linear {
-                img.clone()
-            } else {
-                img.map(|v| r.invert(v as f64) as f32)
-            };
-            let what = format!("{bits}-bit code values linearised as {}", response_name(&r));
-            Ok(Input {
-                path: path.to_path_buf(),
-                clip: Some((img, clip_level.unwrap_or(1.0))),
-                linear,
-                response: r,
-                dng: None,
-                what,
-            })
-        }
-    }
-}
-
-fn sample(input: &Input, region: &ChartRegion) -> Result<Vec<PatchSample>> {
-    let ctx = || format!("{}: sampling the chart ({region})", input.path.display());
-    if let Some((img, level)) = &input.clip {
-        colour::sample_chart(img, region, Some(*level)).with_context(ctx)?;
-    }
-    colour::sample_chart(&input.linear, region, None).with_context(ctx)
-}
-
-/// What `calibrate colour` found (also returned to library users).
-#[derive(Clone, Debug)]
-pub struct Calibration {
-    /// Synthetic and real patch colours as fitted (after white balance and scaling).
-    pub synthetic: Vec<[f64; 3]>,
-    pub real: Vec<[f64; 3]>,
-    /// Per-patch standard deviation of the real samples, on the same scale as `real`.
-    pub real_std: Vec<[f64; 3]>,
-    pub white_balance_gains: [f64; 3],
-    /// Scale applied to the white-balanced real patches to match the synthetic exposure.
-    pub exposure_scale: f64,
-    pub matrix: Evaluation,
-    pub root_polynomial: Option<Evaluation>,
-}
-
-/// Run the calibration without writing anything.
-pub fn calibrate(args: &Args) -> Result<(Calibration, InputsInfo)> {
-    let real = load_input(&args.real, args.real_response.as_deref(), args.clip_level)?;
-    let real_region = match &args.corners {
-        Some(s) => ChartRegion::parse_corners(s)?,
-        None => ChartRegion::FullFrame,
-    };
-    let real_samples = sample(&real, &real_region)?;
-
-    let render = args.synthetic.eq_ignore_ascii_case("render");
-    let (synthetic_samples, synthetic_what) = if render {
-        if args.synthetic_corners.is_some() || args.synthetic_response.is_some() {
-            bail!(
-                "--synthetic-corners and --synthetic-response apply to a synthetic image, not to `render`"
-            );
-        }
-        let illuminant: Illuminant = args.illuminant.as_deref().unwrap_or("D65").parse()?;
-        let exposure = args.exposure.unwrap_or(1.0);
-        if !(exposure > 0.0 && exposure.is_finite()) {
-            bail!("--exposure {exposure} must be > 0");
-        }
-        let img = colour::render_chart(600, 400, &illuminant, exposure);
-        let s = colour::sample_chart(&img, &ChartRegion::FullFrame, None)?;
-        let g = illuminant.gains();
-        (
-            s,
-            format!(
-                "rendered ColorChecker24 (reference linear sRGB × {illuminant} gains ({:.4}, {:.4}, {:.4}) × exposure {exposure})",
-                g[0], g[1], g[2]
-            ),
-        )
-    } else {
-        if args.illuminant.is_some() || args.exposure.is_some() {
-            bail!("--illuminant and --exposure apply to `--synthetic render` only");
-        }
-        let path = PathBuf::from(&args.synthetic);
-        if path
-            .extension()
-            .is_some_and(|e| e.to_string_lossy().eq_ignore_ascii_case("dng"))
-        {
-            bail!("{}: the synthetic chart cannot be a DNG", path.display());
-        }
-        let syn = load_input(&path, args.synthetic_response.as_deref(), args.clip_level)?;
-        let region = match &args.synthetic_corners {
-            Some(s) => ChartRegion::parse_corners(s)?,
-            None => ChartRegion::FullFrame,
+            SyntheticChart::Render {
+                illuminant: self.illuminant.as_deref().unwrap_or("D65").parse()?,
+                exposure: self.exposure.unwrap_or(1.0),
+            }
+        } else {
+            if self.illuminant.is_some() || self.exposure.is_some() {
+                bail!("--illuminant and --exposure apply to `--synthetic render` only");
+            }
+            SyntheticChart::Image {
+                path: PathBuf::from(&self.synthetic),
+                region: region(&self.synthetic_corners)?,
+                response: response(&self.synthetic_response)?,
+            }
         };
-        let what = format!("{} ({}), chart at {region}", path.display(), syn.what);
-        (sample(&syn, &region)?, what)
-    };
-
-    let raw: Vec<[f64; 3]> = real_samples.iter().map(|s| s.mean).collect();
-    let synthetic: Vec<[f64; 3]> = synthetic_samples.iter().map(|s| s.mean).collect();
-    let gains = match args.white_balance {
-        WhiteBalance::Neutral => colour::neutral_gains(&raw)
-            .with_context(|| format!("{}: white balance", args.real.display()))?,
-        WhiteBalance::None => [1.0; 3],
-    };
-    let balanced: Vec<[f64; 3]> = raw
-        .iter()
-        .map(|p| std::array::from_fn(|c| p[c] * gains[c]))
-        .collect();
-    let (nr, ns) = (
-        colour::neutral_mean(&balanced),
-        colour::neutral_mean(&synthetic),
-    );
-    if !(nr > 0.0 && ns > 0.0) {
-        bail!(
-            "{}: the neutral patches 20–23 average {nr:.5} (real) and {ns:.5} (synthetic); both \
-             must be > 0 (chart located correctly? black level right?)",
-            args.real.display()
-        );
-    }
-    let k = ns / nr;
-    // Common scale putting the synthetic neutrals on their reference reflectance.
-    let s = colour::neutral_mean(&colour::reference_linear_srgb()) / ns;
-    let scale = |v: &[f64; 3], f: f64| -> [f64; 3] { std::array::from_fn(|c| v[c] * f) };
-    let real_fit: Vec<[f64; 3]> = balanced.iter().map(|p| scale(p, k * s)).collect();
-    let syn_fit: Vec<[f64; 3]> = synthetic.iter().map(|p| scale(p, s)).collect();
-    let real_std: Vec<[f64; 3]> = real_samples
-        .iter()
-        .map(|p| std::array::from_fn(|c| p.std[c] * gains[c] * k * s))
-        .collect();
-    let matrix = colour::fit_and_evaluate(Model::Matrix, &syn_fit, &real_fit)?;
-    let root_polynomial = if args.root_polynomial {
-        Some(colour::fit_and_evaluate(
-            Model::RootPolynomial,
-            &syn_fit,
-            &real_fit,
-        )?)
-    } else {
-        None
-    };
-    Ok((
-        Calibration {
-            synthetic: syn_fit,
-            real: real_fit,
-            real_std,
-            white_balance_gains: gains,
-            exposure_scale: k,
-            matrix,
-            root_polynomial,
-        },
-        InputsInfo {
-            real_what: real.what.clone(),
-            real_response: real.response.clone(),
-            real_region,
-            dng: real.dng.clone(),
-            synthetic_what,
-        },
-    ))
-}
-
-/// What the inputs were, for the report and provenance.
-#[derive(Clone, Debug)]
-pub struct InputsInfo {
-    pub real_what: String,
-    pub real_response: Response,
-    pub real_region: ChartRegion,
-    pub dng: Option<DngInfo>,
-    pub synthetic_what: String,
-}
-
-fn fmt_matrix<const N: usize>(m: &[[f64; N]; 3]) -> String {
-    m.iter()
-        .map(|r| {
-            let cells: Vec<String> = r.iter().map(|v| format!("{v:9.5}")).collect();
-            format!("  [{}]", cells.join(", "))
+        Ok(CalibrateOptions {
+            real: self.real.clone(),
+            real_region: region(&self.corners)?,
+            real_response: response(&self.real_response)?,
+            synthetic,
+            white_balance: self.white_balance,
+            root_polynomial: self.root_polynomial,
+            clip_level: self.clip_level,
+            out: self.out.clone(),
+            black: self.black,
+            white: self.white,
+            bits: self.bits,
+            name: self.name.clone(),
+            invocation: self.command_line(),
         })
-        .collect::<Vec<_>>()
-        .join("\n")
-}
-
-/// The report table and summary.
-pub fn report(c: &Calibration, inputs: &InputsInfo) -> String {
-    let mut r = String::new();
-    let _ = writeln!(r, "real:      {}", inputs.real_what);
-    let _ = writeln!(r, "           chart at {}", inputs.real_region);
-    let _ = writeln!(r, "synthetic: {}", inputs.synthetic_what);
-    let g = c.white_balance_gains;
-    let _ = writeln!(
-        r,
-        "white balance gains (R, G, B): {:.5}, {:.5}, {:.5}; exposure scale of the real patches: {:.5}",
-        g[0], g[1], g[2], c.exposure_scale
-    );
-    let _ = writeln!(r);
-    let with_rp = c.root_polynomial.as_ref();
-    let _ = write!(
-        r,
-        "{:>2} {:<22} {:>26} {:>26} {:>8} {:>7} {:>7} {:>7}",
-        "#", "patch", "synthetic (R, G, B)", "real (R, G, B)", "real std", "ΔE00", "T", "T LOO"
-    );
-    if with_rp.is_some() {
-        let _ = write!(r, " {:>7} {:>7}", "RP", "RP LOO");
     }
-    let _ = writeln!(r);
-    for (i, p) in COLORCHECKER24.iter().enumerate() {
-        let (s, q, sd) = (c.synthetic[i], c.real[i], c.real_std[i]);
-        let _ = write!(
-            r,
-            "{:>2} {:<22} {:>26} {:>26} {:>8.5} {:>7.3} {:>7.3} {:>7.3}",
-            p.number,
-            p.name,
-            format!("{:.5}, {:.5}, {:.5}", s[0], s[1], s[2]),
-            format!("{:.5}, {:.5}, {:.5}", q[0], q[1], q[2]),
-            sd.iter().fold(0.0f64, |a, &b| a.max(b)),
-            c.matrix.before.per_patch[i],
-            c.matrix.after.per_patch[i],
-            c.matrix.loo.per_patch[i]
-        );
-        if let Some(rp) = with_rp {
-            let _ = write!(
-                r,
-                " {:>7.3} {:>7.3}",
-                rp.after.per_patch[i], rp.loo.per_patch[i]
-            );
-        }
-        let _ = writeln!(r);
-    }
-    let _ = writeln!(r);
-    let m = &c.matrix;
-    let _ = writeln!(
-        r,
-        "ΔE00 before (identity): mean {:.3}, max {:.3}",
-        m.before.mean, m.before.max
-    );
-    let _ = writeln!(
-        r,
-        "ΔE00 after T (3×3):     mean {:.3}, max {:.3}; leave-one-patch-out mean {:.3}, max {:.3}",
-        m.after.mean, m.after.max, m.loo.mean, m.loo.max
-    );
-    if let Some(rp) = with_rp {
-        let _ = writeln!(
-            r,
-            "ΔE00 after root-poly:   mean {:.3}, max {:.3}; leave-one-patch-out mean {:.3}, max {:.3}",
-            rp.after.mean, rp.after.max, rp.loo.mean, rp.loo.max
-        );
-    }
-    if let Fitted::Matrix(t) = &m.fitted {
-        let _ = writeln!(r, "T (real = T · synthetic):\n{}", fmt_matrix(t));
-    }
-    if let Some(Fitted::RootPolynomial(rp)) = with_rp.map(|e| &e.fitted) {
-        let _ = writeln!(
-            r,
-            "root-polynomial (R, G, B, √RG, √GB, √RB):\n{}",
-            fmt_matrix(rp)
-        );
-    }
-    r
-}
-
-/// Today's date and time in UTC, "YYYY-MM-DD HH:MM UTC".
-fn utc_now() -> String {
-    let secs = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map(|d| d.as_secs() as i64)
-        .unwrap_or(0);
-    let (days, rem) = (secs.div_euclid(86400), secs.rem_euclid(86400));
-    // Civil date from days since 1970-01-01 (H. Hinnant's algorithm).
-    let z = days + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z - era * 146_097;
-    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let d = doy - (153 * mp + 2) / 5 + 1;
-    let m = if mp < 10 { mp + 3 } else { mp - 9 };
-    let y = yoe + era * 400 + i64::from(m <= 2);
-    format!(
-        "{y:04}-{m:02}-{d:02} {:02}:{:02} UTC",
-        rem / 3600,
-        rem % 3600 / 60
-    )
 }
 
 /// `hdrsynth calibrate colour ...`: calibrate, write the profile, return the report.
 pub fn run(args: &Args) -> Result<String> {
-    let (cal, inputs) = calibrate(args)?;
-    let (mut profile, exists) =
-        SensorProfile::load_or_create(&args.out, || new_profile(args, &inputs))?;
-    let t: crate::linalg::Mat3 = match &cal.matrix.fitted {
-        Fitted::Matrix(t) => *t,
-        Fitted::RootPolynomial(_) => unreachable!("matrix evaluation holds a matrix"),
-    };
-    let rp = cal.root_polynomial.as_ref().map(|e| match &e.fitted {
-        Fitted::RootPolynomial(m) => *m,
-        Fitted::Matrix(_) => unreachable!("root-polynomial evaluation holds a 3×6 matrix"),
-    });
-    profile.colour = Some(Colour {
-        matrix: t,
-        root_polynomial: rp,
-        use_root_polynomial: rp.is_some(),
-    });
-    let m = &cal.matrix;
-    let mut prov = format!(
-        "ColorChecker24 fit by `{}` on {}. Real: {} ({}), chart at {}. Synthetic: {}. White \
-         balance: {}. 3×3 T least squares (real = T · synthetic): ΔE00 mean {:.3} (max {:.3}) \
-         after, {:.3} (max {:.3}) before, leave-one-patch-out mean {:.3} (max {:.3}); ΔE00 on \
-         colours treated as linear sRGB D65, Lab D50.",
-        args.command_line(),
-        utc_now(),
-        args.real.display(),
-        inputs.real_what,
-        inputs.real_region,
-        inputs.synthetic_what,
-        match args.white_balance {
-            WhiteBalance::Neutral => {
-                let g = cal.white_balance_gains;
-                format!(
-                    "neutral patches 20–23 (gains {:.4}, {:.4}, {:.4})",
-                    g[0], g[1], g[2]
-                )
-            }
-            WhiteBalance::None => "none".into(),
-        },
-        m.after.mean,
-        m.after.max,
-        m.before.mean,
-        m.before.max,
-        m.loo.mean,
-        m.loo.max
-    );
-    if let Some(e) = &cal.root_polynomial {
-        let _ = write!(
-            prov,
-            " Root-polynomial degree 2 (used): ΔE00 mean {:.3} (max {:.3}), leave-one-patch-out \
-             mean {:.3} (max {:.3}).",
-            e.after.mean, e.after.max, e.loo.mean, e.loo.max
-        );
-    }
-    profile.provenance.colour = prov;
-    profile
-        .validate()
-        .map_err(|msg| Error::config(&args.out, msg))?;
-    profile.save(&args.out)?;
-    let mut text = report(&cal, &inputs);
-    let _ = writeln!(
-        text,
-        "\n{} {} (colour{}).",
-        if exists { "updated" } else { "created" },
-        args.out.display(),
-        if exists {
-            " and provenance.colour replaced; everything else kept"
-        } else {
-            ""
-        }
-    );
-    if exists && (args.black.is_some() || args.white.is_some() || args.bits.is_some()) {
-        text.push_str(
-            "note: --black/--white/--bits were not used: the profile already has levels.\n",
-        );
-    }
-    Ok(text)
-}
-
-fn new_profile(args: &Args, inputs: &InputsInfo) -> Result<SensorProfile> {
-    let (levels, levels_prov) = match (&inputs.dng, args.black, args.white, args.bits) {
-        (_, Some(black), Some(white), Some(bits)) => (
-            Levels {
-                black_level: black,
-                white_level: white,
-                bit_depth: bits,
-            },
-            format!(
-                "given on the command line (--black {black} --white {white} --bits {bits}) to \
-                 `hdrsynth calibrate colour`"
-            ),
-        ),
-        (Some(d), None, None, None) => (
-            Levels {
-                black_level: d.black_level_mean(),
-                white_level: d.white_level,
-                bit_depth: d.bits_per_sample,
-            },
-            format!(
-                "BlackLevel (mean over the CFA), WhiteLevel and BitsPerSample tags of {} ({})",
-                args.real.display(),
-                d.describe()
-            ),
-        ),
-        _ => bail!(
-            "{} does not exist and a new profile needs its levels: give --black, --white and \
-             --bits together{}",
-            args.out.display(),
-            if inputs.dng.is_some() {
-                " (or none of them to take them from the DNG)"
-            } else {
-                " (the real capture is not a DNG, whose tags would give them)"
-            }
-        ),
-    };
-    let name = args
-        .name
-        .clone()
-        .or_else(|| {
-            inputs.dng.as_ref().and_then(|d| {
-                d.unique_camera_model
-                    .clone()
-                    .or_else(|| match (&d.make, &d.model) {
-                        (Some(a), Some(b)) => Some(format!("{a} {b}")),
-                        _ => None,
-                    })
-            })
-        })
-        .or_else(|| {
-            args.out
-                .file_stem()
-                .map(|s| s.to_string_lossy().into_owned())
-        })
-        .unwrap_or_else(|| "sensor".into());
-    let response = inputs.real_response.clone();
-    let response_why = if inputs.dng.is_some() {
-        "linear: the real capture is a raw DNG (DN linear in exposure)".to_string()
-    } else {
-        format!(
-            "{}: the response the real capture was linearised with",
-            response_name(&response)
-        )
-    };
-    Ok(SensorProfile::new_measured(
-        name,
-        levels,
-        response,
-        Provenance {
-            colour: String::new(),
-            noise: "no noise calibration yet (profile created by `hdrsynth calibrate colour`)"
-                .into(),
-            levels: levels_prov,
-            response: format!(
-                "defaults chosen by `hdrsynth calibrate colour`, not measured: response {response_why}; \
-                 source_response filmic: the default display curve of `hdrsynth generate` \
-                 (docs/scene.md); change it if the synthetic frames use another curve"
-            ),
-            notes: None,
-        },
-    ))
+    Ok(calibrate::run(&args.options()?)?)
 }

@@ -303,16 +303,16 @@ pub fn base_profile(
             chart.mean.iter().map(|&v| (v - black) as f32).collect(),
         );
         let raw = crate::sensor::captures::chart_patch_means(&img);
-        let gains = crate::sensor::colour::neutral_gains(&raw)?;
+        let gains = crate::sensor::colour::chart::neutral_gains(&raw)?;
         let balanced: Vec<[f64; 3]> = raw
             .iter()
             .map(|p| std::array::from_fn(|c| p[c] * gains[c]))
             .collect();
-        let reference = crate::sensor::colour::reference_linear_srgb();
-        let s = crate::sensor::colour::neutral_mean(&reference)
-            / crate::sensor::colour::neutral_mean(&balanced);
+        let reference = crate::sensor::colour::chart::reference_linear_srgb();
+        let s = crate::sensor::colour::chart::neutral_mean(&reference)
+            / crate::sensor::colour::chart::neutral_mean(&balanced);
         let real: Vec<[f64; 3]> = balanced.iter().map(|p| p.map(|v| v * s)).collect();
-        let t = crate::sensor::colour::fit_matrix(&reference, &real)?;
+        let t = crate::sensor::colour::fit::fit_matrix(&reference, &real)?;
         p.colour = Some(Colour {
             matrix: t,
             root_polynomial: None,
