@@ -69,8 +69,11 @@ impl std::fmt::Display for Source {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RealismConfig {
+    /// A sensor profile TOML; in a training config's `[data]`, "pure" for no realism.
     pub profile: PathBuf,
-    /// ISO drawn uniformly per sample from this list (one entry = fixed ISO).
+    /// ISO drawn uniformly per sample from this list (one entry = fixed ISO); the loader
+    /// refuses an empty one. Optional in the file for `[data]`'s "pure" profile.
+    #[serde(default)]
     pub isos: Vec<f64>,
     #[serde(default)]
     pub noise: NoiseModel,
