@@ -95,6 +95,22 @@ pub struct RealismConfig {
     pub colour: bool,
 }
 
+impl RealismConfig {
+    /// `profile` at `isos`, every other key at its default.
+    pub fn new(profile: PathBuf, isos: Vec<f64>) -> Self {
+        RealismConfig {
+            profile,
+            isos,
+            noise: NoiseModel::default(),
+            exposure: one(),
+            metering: Metering::default(),
+            ev_jitter: half(),
+            source: Source::default(),
+            colour: yes(),
+        }
+    }
+}
+
 fn one() -> f64 {
     1.0
 }

@@ -96,6 +96,7 @@ pub struct DataConfig {
 
 /// Network-1's default target smoothing, chosen by measurement (docs/network1.md).
 pub const DEFAULT_TARGET_SIGMA: f32 = 4.0;
+const DEFAULT_WORKERS: usize = 2;
 
 /// Every key `[data]` accepts, in the order the error message lists them (the serialised
 /// order): its own around the realism keys, which come from `RealismConfig`'s derive.
@@ -159,7 +160,7 @@ impl<'de> de::Visitor<'de> for DataVisitor {
             generate: own.generate,
             patch: own.patch.ok_or_else(|| missing("patch"))?,
             batch_size: own.batch_size.ok_or_else(|| missing("batch_size"))?,
-            workers: own.workers.unwrap_or(2),
+            workers: own.workers.unwrap_or(DEFAULT_WORKERS),
             augment: own.augment.unwrap_or(true),
             realism,
             target_sigma: own.target_sigma.unwrap_or(DEFAULT_TARGET_SIGMA),
@@ -228,6 +229,20 @@ impl<'de> de::DeserializeSeed<'de> for KnownKey {
 }
 
 impl DataConfig {
+    /// `[data]` with every optional key at its default.
+    pub fn new(dataset: PathBuf, patch: usize, batch_size: usize, realism: RealismConfig) -> Self {
+        DataConfig {
+            dataset,
+            generate: None,
+            patch,
+            batch_size,
+            workers: DEFAULT_WORKERS,
+            augment: true,
+            realism,
+            target_sigma: DEFAULT_TARGET_SIGMA,
+        }
+    }
+
     /// The loader config of this data section (training: augmentation as configured).
     pub fn loader(&self, kind: SampleKind, seed: u64) -> Result<LoaderConfig> {
         let realism = if self.realism.profile == Path::new("pure") {
