@@ -35,6 +35,14 @@ pub enum Error {
     /// Invalid parameters passed by code (not tied to a file).
     #[error("{0}")]
     Invalid(String),
+    /// A named step of a longer job (e.g. a quickstart stage) that failed; the cause is the
+    /// source, so the message reads like `anyhow`'s context at the CLI edge.
+    #[error("{what}")]
+    Context {
+        what: String,
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
 }
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;
@@ -68,6 +76,15 @@ impl Error {
         Error::Config {
             path: path.as_ref().to_path_buf(),
             msg: msg.to_string(),
+        }
+    }
+    pub fn context(
+        what: impl ToString,
+        source: impl Into<Box<dyn std::error::Error + Send + Sync>>,
+    ) -> Self {
+        Error::Context {
+            what: what.to_string(),
+            source: source.into(),
         }
     }
     pub fn layout(path: impl AsRef<Path>, msg: impl ToString) -> Self {

@@ -169,7 +169,8 @@ fn shipped_training_configs_parse_and_validate() {
         if name.contains("finetune") {
             assert!(cfg.init.is_some(), "{name} must start from a checkpoint");
             assert_ne!(
-                cfg.data.profile, "pure",
+                cfg.data.realism.profile,
+                std::path::Path::new("pure"),
                 "{name} is the sensor-realistic stage"
             );
         }

@@ -7,7 +7,6 @@
 //! (ISO, channel, parameter) estimates within 5 % of the truth, and at least 80 % of them
 //! within 3 reported standard errors.
 
-use hdrsynth::cli::calibrate::noise as calibrate_cli;
 use hdrsynth::cli::profile::{self as profile_cli, ImportArgs, ProfileCommand};
 use hdrsynth::io::{Image, read_image_info};
 use hdrsynth::sensor::captures::{
@@ -17,6 +16,7 @@ use hdrsynth::sensor::captures::{
 use hdrsynth::sensor::darktable::NegativeRule;
 use hdrsynth::sensor::noise::plot::ptc_plot_size;
 use hdrsynth::sensor::noise::{CalibrateOptions, NoiseCalibration, calibrate};
+use hdrsynth::sensor::noise_profile::{NoiseProfileOptions, calibrate_noise_profile};
 use hdrsynth::sensor::profile::{ProfileKind, SensorProfile};
 use std::path::{Path, PathBuf};
 
@@ -191,8 +191,8 @@ fn check_recovery(cal: &NoiseCalibration) -> (usize, usize) {
     (ok5, ok3se)
 }
 
-fn cli_args(captures: &Path, out: &Path) -> calibrate_cli::Args {
-    calibrate_cli::Args {
+fn options(captures: &Path, out: &Path) -> NoiseProfileOptions {
+    NoiseProfileOptions {
         captures: captures.to_path_buf(),
         out: out.to_path_buf(),
         plot: None,
@@ -240,7 +240,7 @@ fn recovers_known_noise_and_writes_profile_and_ptc_plot() {
 
     // CLI: new profile from the capture set, plus the PTC plot next to it.
     let out = tmp.path().join("profiles/sim.toml");
-    let report = calibrate_cli::run(&cli_args(&dir, &out)).unwrap();
+    let report = calibrate_noise_profile(&options(&dir, &out)).unwrap();
     println!("{report}");
     let p = SensorProfile::load(&out).unwrap();
     assert_eq!(p.name, "sim-sensor");
@@ -286,9 +286,9 @@ fn recovers_known_noise_and_writes_profile_and_ptc_plot() {
     edited.provenance.noise = "old".into();
     edited.save(&out).unwrap();
     let plot2 = tmp.path().join("ptc2.png");
-    let mut args = cli_args(&dir, &out);
+    let mut args = options(&dir, &out);
     args.plot = Some(plot2.clone());
-    calibrate_cli::run(&args).unwrap();
+    calibrate_noise_profile(&args).unwrap();
     let q = SensorProfile::load(&out).unwrap();
     assert_eq!(q.name, "renamed");
     assert_eq!(q.noise, p.noise);
@@ -484,7 +484,7 @@ fn manifest_errors_name_the_burst_and_file_and_write_nothing() {
         // Sanity: the unmodified set calibrates.
         if what == "unknown key" {
             let ok = out_dir.join("ok.toml");
-            calibrate_cli::run(&cli_args(&dir, &ok)).unwrap();
+            calibrate_noise_profile(&options(&dir, &ok)).unwrap();
             std::fs::copy(&ok, &existing).unwrap();
             std::fs::remove_file(&ok).unwrap();
             std::fs::remove_file(ok.with_extension("ptc.png")).unwrap();
@@ -492,7 +492,7 @@ fn manifest_errors_name_the_burst_and_file_and_write_nothing() {
         mutate(&dir);
         let before = std::fs::read(&existing).unwrap();
         for out in [&fresh, &existing] {
-            let err = calibrate_cli::run(&cli_args(&dir, out))
+            let err = calibrate_noise_profile(&options(&dir, out))
                 .expect_err(what)
                 .to_string();
             println!("{what}: {err}");

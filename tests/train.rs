@@ -281,6 +281,70 @@ fn unknown_keys_and_bad_values_are_config_errors_naming_the_line() {
     assert!(err.to_string().contains("multiple"), "{err}");
 }
 
+/// `[data]` embeds the loader's `RealismConfig` (its keys written in `[data]` itself) and still
+/// reports an unknown key at its own line with every valid key, and a mistyped one (own or
+/// realism) at its line; a profile other than "pure" still needs ISOs.
+#[test]
+fn data_section_errors_name_the_key_line_and_the_valid_keys() {
+    use hdrsynth::data::loader::SampleKind;
+    let base = config_text(Path::new("/tmp/x"), 4, "", 1e-3, true);
+    let with = |extra: &str| base.replace("profile = \"pure\"", extra);
+    let err = |text: &str| {
+        parse_toml::<TrainConfig>(text, Path::new("train.toml"))
+            .expect_err("refused")
+            .to_string()
+    };
+    // Line 19 is `profile`, so the added key is on line 20.
+    let e = err(&with("profile = \"pure\"\nbogus = 1"));
+    assert!(
+        e.contains(
+            "train.toml:20: unknown field `bogus`, expected one of `dataset`, `generate`, \
+             `patch`, `batch_size`, `workers`, `augment`, `profile`, `isos`, `noise`, \
+             `exposure`, `metering`, `ev_jitter`, `source`, `colour`, `target_sigma`"
+        ),
+        "{e}"
+    );
+    let e = err(&with("profile = \"pure\"\nev_jitter = \"x\""));
+    assert!(e.contains("train.toml:20: invalid type"), "{e}");
+    let e = err(&base.replace("workers = 2", "workers = \"x\""));
+    assert!(e.contains("train.toml:18: invalid type"), "{e}");
+    let e = err(&base.replace("patch = 32\n", ""));
+    assert!(e.contains("missing field `patch`"), "{e}");
+    let e = err(&with("isos = [100.0]"));
+    assert!(e.contains("missing field `profile`"), "{e}");
+
+    let pure = parse(&base);
+    assert!(
+        pure.data
+            .loader(SampleKind::Network1, 1)
+            .expect("pure")
+            .realism
+            .is_none()
+    );
+    let cfg = parse(&with("profile = \"p.toml\"\nev_jitter = 0.25"));
+    assert_eq!(cfg.data.realism.ev_jitter, 0.25);
+    let e = cfg
+        .data
+        .loader(SampleKind::Network1, 1)
+        .expect_err("no isos");
+    assert!(
+        e.to_string().contains("needs a non-empty `isos` list"),
+        "{e}"
+    );
+    let cfg = parse(&with(
+        "profile = \"p.toml\"\nisos = [100.0]\nsource = \"linear\"",
+    ));
+    let realism = cfg
+        .data
+        .loader(SampleKind::Network1, 1)
+        .expect("loader")
+        .realism;
+    assert_eq!(realism.as_ref(), Some(&cfg.data.realism));
+    // The resolved config (a run's identity on resume) reads back to the same value.
+    let text = toml::to_string(&cfg).expect("serialise");
+    assert_eq!(parse(&text), cfg, "{text}");
+}
+
 /// The defaults of every optional key (docs/training.md), pinned: a refactor of how serde fills
 /// them must not change a value any shipped or user config relies on.
 #[test]
@@ -308,11 +372,11 @@ fn omitted_keys_take_the_documented_defaults() {
     let d = &cfg.data;
     assert_eq!((d.generate.clone(), d.workers, d.augment), (None, 2, true));
     assert_eq!(
-        (d.noise, d.exposure, d.ev_jitter),
+        (d.realism.noise, d.realism.exposure, d.realism.ev_jitter),
         (NoiseModel::default(), 1.0, 0.5)
     );
     assert_eq!(
-        (d.metering, d.source, d.colour),
+        (d.realism.metering, d.realism.source, d.realism.colour),
         (Metering::default(), Source::Auto, true)
     );
     assert_eq!(d.target_sigma, 4.0);

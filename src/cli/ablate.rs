@@ -3,9 +3,8 @@
 //! result is a table shaped like the paper's. Rerunning skips finished cells and resumes the
 //! interrupted one.
 
-use crate::eval::ablate::{self, AblateConfig, AblateSummary, CellStatus};
+use crate::eval::ablate::{self, AblateConfig, AblateSummary};
 use anyhow::{Context, Result};
-use std::fmt::Write as _;
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug, Clone)]
@@ -29,41 +28,7 @@ pub fn execute(args: &Args) -> Result<(AblateConfig, AblateSummary)> {
     Ok((cfg, summary))
 }
 
-pub fn report(cfg: &AblateConfig, s: &AblateSummary) -> String {
-    let mut out = s.table.clone();
-    out.push('\n');
-    for c in &s.cells {
-        let what = match c.status {
-            CellStatus::Kept => "kept (finished before)".to_string(),
-            CellStatus::Ran {
-                resumed_at: Some(step),
-            } => format!("resumed at step {step}"),
-            CellStatus::Ran { resumed_at: None } => "ran".to_string(),
-        };
-        let _ = writeln!(out, "cell {:<32} {what:<24} {:.1} s", c.id, c.seconds);
-    }
-    let _ = write!(
-        out,
-        "{:.1} s; wrote {}/{{{}, {}{}}} and cells/<cell>/{}{{run, eval}}",
-        s.seconds,
-        cfg.out.display(),
-        ablate::TABLE_MD,
-        ablate::TABLE_CSV,
-        if cfg.seeds.is_empty() {
-            String::new()
-        } else {
-            format!(", {}", ablate::TABLE_SEEDS_CSV)
-        },
-        if cfg.seeds.is_empty() {
-            ""
-        } else {
-            "[seed<k>/]"
-        },
-    );
-    out
-}
-
 pub fn run(args: &Args) -> Result<String> {
     let (cfg, s) = execute(args)?;
-    Ok(report(&cfg, &s))
+    Ok(ablate::report(&cfg, &s))
 }

@@ -4,8 +4,8 @@
 //! `hdrsynth diagnose --brackets DIR [--profile P | --response R] --out OUT`: a bracket folder
 //! as scene bursts (src/data/bracket_captures.rs), plus OUT/brackets.{md,toml} and OUT/captures.
 
-use crate::cli::testset::{ResponseArg, parse_response, response_choice};
 use crate::data::bracket_captures::{self, BracketDiagnoseOptions};
+use crate::data::bracket_testset::{ResponseChoice, ResponseSpec};
 use crate::data::brackets::ScanOptions;
 use crate::sensor::captures::CaptureSet;
 use crate::sensor::diagnose::{self, DiagnoseOptions};
@@ -29,8 +29,8 @@ pub struct Args {
     #[arg(long)]
     pub profile: Option<PathBuf>,
     /// --brackets without --profile: srgb, linear, gamma:G, debevec (default) or robertson.
-    #[arg(long, value_parser = parse_response, conflicts_with = "profile", requires = "brackets")]
-    pub response: Option<ResponseArg>,
+    #[arg(long, conflicts_with = "profile", requires = "brackets")]
+    pub response: Option<ResponseSpec>,
     /// --brackets: declared EV steps in capture order, for frames without EXIF or sidecar.
     #[arg(
         long,
@@ -67,7 +67,7 @@ fn run_brackets(dir: &std::path::Path, args: &Args, diagnose: DiagnoseOptions) -
             evs: args.declared_evs.clone(),
             max_gap_s: args.max_gap,
         },
-        response: response_choice(args.profile.as_deref(), args.response.as_ref())?,
+        response: ResponseChoice::new(args.profile.as_deref(), args.response.as_ref())?,
         diagnose,
         ratio_tolerance_stops: args.ratio_tolerance,
     };

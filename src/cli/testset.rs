@@ -4,15 +4,13 @@
 //! bracket folders (`data::bracket_testset`, docs/your_device.md).
 
 use crate::data::align::MtbOptions;
-use crate::data::bracket_testset::{self, BracketOptions, ResponseChoice};
+use crate::data::bracket_testset::{self, BracketOptions, ResponseChoice, ResponseSpec};
 use crate::data::brackets::ScanOptions;
 use crate::data::testset::{self, TestsetOptions, TestsetSummary};
-use crate::sensor::crf::{DebevecOptions, RobertsonOptions};
 use crate::sensor::metering::Metering;
-use crate::sensor::profile::{Response, SensorProfile};
+use crate::sensor::profile::SensorProfile;
 use crate::sensor::realism::NoiseModel;
 use anyhow::{Context, Result};
-use std::fmt::Write as _;
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug, Clone)]
@@ -35,8 +33,8 @@ pub struct Args {
     /// --brackets: the frames' response when no profile is given: srgb, linear, gamma:G,
     /// debevec or robertson (estimated from the brackets as OpenCV's CalibrateDebevec /
     /// CalibrateRobertson).
-    #[arg(long, value_parser = parse_response, conflicts_with = "profile")]
-    pub response: Option<ResponseArg>,
+    #[arg(long, conflicts_with = "profile")]
+    pub response: Option<ResponseSpec>,
     /// --brackets: declared EV steps in capture order, for frames without EXIF or sidecar.
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     pub declared_evs: Option<Vec<f64>>,
@@ -78,43 +76,6 @@ pub struct Args {
     /// Resample each radiance map to WIDTHxHEIGHT first (e.g. 4032x3024).
     #[arg(long, value_parser = parse_size)]
     pub resize: Option<(usize, usize)>,
-}
-
-#[derive(Clone, Debug)]
-pub enum ResponseArg {
-    Curve(Response),
-    Debevec,
-    Robertson,
-}
-
-pub(crate) fn parse_response(s: &str) -> Result<ResponseArg, String> {
-    match s {
-        "debevec" => Ok(ResponseArg::Debevec),
-        "robertson" => Ok(ResponseArg::Robertson),
-        _ => s.parse::<Response>().map(ResponseArg::Curve).map_err(|e| {
-            format!("{e}, or an estimator: debevec (Debevec–Malik) or robertson (Robertson)")
-        }),
-    }
-}
-
-/// The linearisation of bracket frames from `--profile` / `--response` (default: Debevec).
-pub(crate) fn response_choice(
-    profile: Option<&std::path::Path>,
-    response: Option<&ResponseArg>,
-) -> Result<ResponseChoice> {
-    Ok(match (profile, response) {
-        (Some(p), _) => ResponseChoice::Profile {
-            name: p.display().to_string(),
-            response: load_profile(p)?.response,
-        },
-        (None, Some(ResponseArg::Curve(r))) => ResponseChoice::Declared(r.clone()),
-        (None, Some(ResponseArg::Robertson)) => {
-            ResponseChoice::Robertson(RobertsonOptions::default())
-        }
-        (None, Some(ResponseArg::Debevec)) | (None, None) => {
-            ResponseChoice::Debevec(DebevecOptions::default())
-        }
-    })
 }
 
 fn parse_size(s: &str) -> Result<(usize, usize), String> {
@@ -163,7 +124,7 @@ pub fn build(args: &Args) -> Result<TestsetSummary> {
 
 /// `--brackets`: the options of the bracket test set.
 pub fn bracket_options(args: &Args) -> Result<BracketOptions> {
-    let response = response_choice(args.profile.as_deref(), args.response.as_ref())?;
+    let response = ResponseChoice::new(args.profile.as_deref(), args.response.as_ref())?;
     Ok(BracketOptions {
         scan: ScanOptions {
             evs: args.declared_evs.clone(),
@@ -174,77 +135,12 @@ pub fn bracket_options(args: &Args) -> Result<BracketOptions> {
     })
 }
 
-fn run_brackets(dir: &std::path::Path, args: &Args) -> Result<String> {
-    let s = bracket_testset::build(dir, &bracket_options(args)?, &args.out)?;
-    let mut out = String::new();
-    for n in &s.notes {
-        let _ = writeln!(out, "note: {n}");
-    }
-    for b in &s.sets {
-        let stops: Vec<String> = b.frames.iter().map(|f| format!("{:.2}", f.stop)).collect();
-        let _ = writeln!(
-            out,
-            "{:<24} {}×{}  stops [{}]  exposure: {}  grouped: {}{}",
-            b.name,
-            b.width,
-            b.height,
-            stops.join(", "),
-            b.exposure_source,
-            b.grouping,
-            if b.shifts.is_empty() {
-                String::new()
-            } else {
-                format!("  MTB shifts {:?}", b.shifts)
-            }
-        );
-    }
-    let response = s
-        .sets
-        .first()
-        .map(|b| b.response.clone())
-        .unwrap_or_default();
-    let _ = write!(
-        out,
-        "{} set(s) in {} (Kalantari layout: 16-bit TIFFs = linear^(1/2.2), exposure.txt, \
-         HDRImg.hdr = triangle merge in the unit of the stop-0 frame); linearised with {response}",
-        s.sets.len(),
-        args.out.display()
-    );
-    Ok(out)
-}
-
 pub fn run(args: &Args) -> Result<String> {
     if let Some(dir) = &args.brackets {
-        return run_brackets(dir, args);
+        let s = bracket_testset::build(dir, &bracket_options(args)?, &args.out)?;
+        return Ok(s.report(&args.out));
     }
     let s = build(args)?;
-    let mut out = String::new();
-    for n in &s.notes {
-        let _ = writeln!(out, "note: {n}");
-    }
-    for b in &s.sets {
-        let _ = writeln!(
-            out,
-            "{:<28} {}×{}  key {:.4e}  EV0 over {:.1} % under {:.1} %{}",
-            b.name,
-            b.width,
-            b.height,
-            b.key,
-            100.0 * b.over_fraction,
-            100.0 * b.under_fraction,
-            if b.written { "" } else { "  (kept)" }
-        );
-    }
-    let _ = write!(
-        out,
-        "{} set(s) in {} (hdrsynth layout; real radiance through the '{}' sensor model, not a \
-         real bracketed capture)",
-        s.sets.len(),
-        args.out.display(),
-        args.profile
-            .as_deref()
-            .unwrap_or(std::path::Path::new(""))
-            .display()
-    );
-    Ok(out)
+    let profile = args.profile.as_deref().unwrap_or(std::path::Path::new(""));
+    Ok(s.report(&args.out, profile))
 }

@@ -24,8 +24,9 @@ use crate::data::ground_truth;
 use crate::error::{Error, Result};
 use crate::io::{BitDepth, Image, write_hdr, write_ldr};
 use crate::sensor::crf::{self, DebevecOptions, RobertsonOptions};
-use crate::sensor::profile::Response;
+use crate::sensor::profile::{Response, SensorProfile};
 use serde::Serialize;
+use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 /// γ of the written frames (the field's linearisation LDR^γ, Kalantari/Wu: 2.2).
@@ -50,6 +51,50 @@ pub enum ResponseChoice {
     /// Robertson et al. from the brackets (`--response robertson`), OpenCV's
     /// CalibrateRobertson; estimated and used like `Debevec`.
     Robertson(RobertsonOptions),
+}
+
+/// `--response`: a declared curve, or an estimator run on the brackets.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ResponseSpec {
+    Curve(Response),
+    Debevec,
+    Robertson,
+}
+
+impl std::str::FromStr for ResponseSpec {
+    type Err = String;
+
+    fn from_str(s: &str) -> std::result::Result<ResponseSpec, String> {
+        match s {
+            "debevec" => Ok(ResponseSpec::Debevec),
+            "robertson" => Ok(ResponseSpec::Robertson),
+            _ => s.parse::<Response>().map(ResponseSpec::Curve).map_err(|e| {
+                format!("{e}, or an estimator: debevec (Debevec–Malik) or robertson (Robertson)")
+            }),
+        }
+    }
+}
+
+impl ResponseChoice {
+    /// The linearisation of bracket frames from a sensor profile (its device response) or a
+    /// declared response; neither: Debevec.
+    pub fn new(profile: Option<&Path>, response: Option<&ResponseSpec>) -> Result<Self> {
+        Ok(match (profile, response) {
+            (Some(p), _) => ResponseChoice::Profile {
+                name: p.display().to_string(),
+                response: SensorProfile::load(p)
+                    .map_err(|e| Error::context(format!("loading profile {}", p.display()), e))?
+                    .response,
+            },
+            (None, Some(ResponseSpec::Curve(r))) => ResponseChoice::Declared(r.clone()),
+            (None, Some(ResponseSpec::Robertson)) => {
+                ResponseChoice::Robertson(RobertsonOptions::default())
+            }
+            (None, Some(ResponseSpec::Debevec)) | (None, None) => {
+                ResponseChoice::Debevec(DebevecOptions::default())
+            }
+        })
+    }
 }
 
 /// A resolved linearisation of LDR code values.
@@ -124,6 +169,48 @@ pub struct BuiltBracketSet {
 pub struct BracketSummary {
     pub sets: Vec<BuiltBracketSet>,
     pub notes: Vec<String>,
+}
+
+impl BracketSummary {
+    /// The command's report: notes, one line per set, and what was written to `out`.
+    pub fn report(&self, out: &Path) -> String {
+        let mut text = String::new();
+        for n in &self.notes {
+            let _ = writeln!(text, "note: {n}");
+        }
+        for b in &self.sets {
+            let stops: Vec<String> = b.frames.iter().map(|f| format!("{:.2}", f.stop)).collect();
+            let _ = writeln!(
+                text,
+                "{:<24} {}×{}  stops [{}]  exposure: {}  grouped: {}{}",
+                b.name,
+                b.width,
+                b.height,
+                stops.join(", "),
+                b.exposure_source,
+                b.grouping,
+                if b.shifts.is_empty() {
+                    String::new()
+                } else {
+                    format!("  MTB shifts {:?}", b.shifts)
+                }
+            );
+        }
+        let response = self
+            .sets
+            .first()
+            .map(|b| b.response.clone())
+            .unwrap_or_default();
+        let _ = write!(
+            text,
+            "{} set(s) in {} (Kalantari layout: 16-bit TIFFs = linear^(1/2.2), exposure.txt, \
+             HDRImg.hdr = triangle merge in the unit of the stop-0 frame); linearised with \
+             {response}",
+            self.sets.len(),
+            out.display()
+        );
+        text
+    }
 }
 
 /// Indices of the shortest, middle and longest frame of an ascending bracket.

@@ -59,6 +59,25 @@ fn yes() -> bool {
 }
 
 impl GenerateConfig {
+    /// A config with every optional key at its default (a config file's `seed`, `count`,
+    /// `width`, `height` and `evs` alone).
+    pub fn new(seed: u64, count: usize, (width, height): (usize, usize), evs: Vec<f32>) -> Self {
+        GenerateConfig {
+            seed,
+            count,
+            width,
+            height,
+            evs,
+            tone_curve: ToneCurve::default(),
+            bit_depth: default_bits(),
+            exr_precision: ExrPrecision::default(),
+            write_linear: yes(),
+            scene: SceneConfig::default(),
+            camera: CameraConfig::default(),
+            source: None,
+        }
+    }
+
     pub fn load(path: &Path) -> Result<GenerateConfig> {
         let mut cfg: GenerateConfig = load_toml(path)?;
         cfg.source = Some(path.to_path_buf());

@@ -69,8 +69,11 @@ impl std::fmt::Display for Source {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RealismConfig {
+    /// A sensor profile TOML; in a training config's `[data]`, "pure" for no realism.
     pub profile: PathBuf,
-    /// ISO drawn uniformly per sample from this list (one entry = fixed ISO).
+    /// ISO drawn uniformly per sample from this list (one entry = fixed ISO); the loader
+    /// refuses an empty one. Optional in the file for `[data]`'s "pure" profile.
+    #[serde(default)]
     pub isos: Vec<f64>,
     #[serde(default)]
     pub noise: NoiseModel,
@@ -90,6 +93,22 @@ pub struct RealismConfig {
     /// Apply the profile's colour transform (false for the colour ablation).
     #[serde(default = "yes")]
     pub colour: bool,
+}
+
+impl RealismConfig {
+    /// `profile` at `isos`, every other key at its default.
+    pub fn new(profile: PathBuf, isos: Vec<f64>) -> Self {
+        RealismConfig {
+            profile,
+            isos,
+            noise: NoiseModel::default(),
+            exposure: one(),
+            metering: Metering::default(),
+            ev_jitter: half(),
+            source: Source::default(),
+            colour: yes(),
+        }
+    }
 }
 
 fn one() -> f64 {

@@ -119,6 +119,40 @@ pub struct TestsetSummary {
     pub notes: Vec<String>,
 }
 
+impl TestsetSummary {
+    /// The command's report: notes, one line per set, and what was written to `out` through
+    /// which profile.
+    pub fn report(&self, out: &Path, profile: &Path) -> String {
+        use std::fmt::Write as _;
+        let mut text = String::new();
+        for n in &self.notes {
+            let _ = writeln!(text, "note: {n}");
+        }
+        for b in &self.sets {
+            let _ = writeln!(
+                text,
+                "{:<28} {}×{}  key {:.4e}  EV0 over {:.1} % under {:.1} %{}",
+                b.name,
+                b.width,
+                b.height,
+                b.key,
+                100.0 * b.over_fraction,
+                100.0 * b.under_fraction,
+                if b.written { "" } else { "  (kept)" }
+            );
+        }
+        let _ = write!(
+            text,
+            "{} set(s) in {} (hdrsynth layout; real radiance through the '{}' sensor model, not \
+             a real bracketed capture)",
+            self.sets.len(),
+            out.display(),
+            profile.display()
+        );
+        text
+    }
+}
+
 /// The radiance files of `input`: the file itself, or every .exr/.hdr directly in the folder,
 /// sorted by name.
 pub fn radiance_files(input: &Path) -> Result<Vec<PathBuf>> {

@@ -1061,3 +1061,38 @@ impl std::fmt::Display for Signed<'_> {
         }
     }
 }
+
+/// The command's report: the table, then what each cell did and where the results are.
+pub fn report(cfg: &AblateConfig, s: &AblateSummary) -> String {
+    let mut out = s.table.clone();
+    out.push('\n');
+    for c in &s.cells {
+        let what = match c.status {
+            CellStatus::Kept => "kept (finished before)".to_string(),
+            CellStatus::Ran {
+                resumed_at: Some(step),
+            } => format!("resumed at step {step}"),
+            CellStatus::Ran { resumed_at: None } => "ran".to_string(),
+        };
+        let _ = writeln!(out, "cell {:<32} {what:<24} {:.1} s", c.id, c.seconds);
+    }
+    let _ = write!(
+        out,
+        "{:.1} s; wrote {}/{{{}, {}{}}} and cells/<cell>/{}{{run, eval}}",
+        s.seconds,
+        cfg.out.display(),
+        TABLE_MD,
+        TABLE_CSV,
+        if cfg.seeds.is_empty() {
+            String::new()
+        } else {
+            format!(", {}", TABLE_SEEDS_CSV)
+        },
+        if cfg.seeds.is_empty() {
+            ""
+        } else {
+            "[seed<k>/]"
+        },
+    );
+    out
+}

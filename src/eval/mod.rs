@@ -6,5 +6,6 @@ pub mod engine;
 pub mod evaluate;
 pub mod infer;
 pub mod metrics;
+pub mod quickstart;
 pub mod report;
 pub mod tiling;

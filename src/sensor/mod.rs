@@ -9,6 +9,7 @@ pub mod dng;
 pub mod effects;
 pub mod metering;
 pub mod noise;
+pub mod noise_profile;
 pub mod profile;
 pub mod realism;
 pub mod response;

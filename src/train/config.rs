@@ -2,13 +2,11 @@
 //! relative to the working directory. See docs/training.md for every key.
 
 use crate::config::load_toml;
-use crate::data::loader::{LoaderConfig, RealismConfig, SampleKind, Source};
+use crate::data::loader::{LoaderConfig, RealismConfig, SampleKind};
 use crate::error::{Error, Result};
 use crate::models::ModelConfig;
-use crate::sensor::metering::Metering;
-use crate::sensor::realism::NoiseModel;
 use crate::train::loss::Network1Reading;
-use serde::{Deserialize, Serialize};
+use serde::{Deserialize, Serialize, de};
 use std::path::{Path, PathBuf};
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -69,90 +67,194 @@ fn default_log_every() -> u64 {
     10
 }
 
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+/// `[data]`: the training stream. Its keys are this struct's own and, written in `[data]`
+/// itself, the loader's sensor realism (`RealismConfig`: `profile` — a sensor profile TOML, or
+/// "pure": no realism, the paper's Net_P —, `isos`, `noise`, `exposure`, `metering`,
+/// `ev_jitter`, `source`, `colour`). Deserialised by hand (below) rather than with
+/// `#[serde(flatten)]`, which loses toml's key spans: an unknown or mistyped key is reported at
+/// its own line, with the valid keys.
+#[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct DataConfig {
     /// Training dataset folder in any known layout.
     pub dataset: PathBuf,
     /// When `dataset` does not exist yet: generate it first with this `generate` config.
-    #[serde(default)]
     pub generate: Option<PathBuf>,
     pub patch: usize,
     pub batch_size: usize,
-    #[serde(default = "default_workers")]
+    /// Default 2.
     pub workers: usize,
-    #[serde(default = "yes")]
+    /// Default true.
     pub augment: bool,
-    /// A sensor profile TOML, or "pure" (no realism: the paper's Net_P).
-    pub profile: String,
-    /// ISOs drawn per sample (with a profile).
-    #[serde(default)]
-    pub isos: Vec<f64>,
-    #[serde(default)]
-    pub noise: NoiseModel,
-    /// Extra factor on the metered exposure (1 = the auto-exposure rule's choice).
-    #[serde(default = "one")]
-    pub exposure: f64,
-    /// The auto-exposure rule (src/sensor/metering.rs, shared with `testset`).
-    #[serde(default)]
-    pub metering: Metering,
-    /// Per-sample exposure jitter in ± stops around the metered exposure.
-    #[serde(default = "half")]
-    pub ev_jitter: f64,
-    /// Realism's starting frames: auto | linear | display.
-    #[serde(default)]
-    pub source: Source,
-    /// Apply the profile's colour transform.
-    #[serde(default = "yes")]
-    pub colour: bool,
+    /// Between `augment` and `target_sigma`, so the serialised keys keep their order (a run's
+    /// identity on resume is its resolved config's text).
+    #[serde(flatten)]
+    pub realism: RealismConfig,
     /// Network-1: σ (pixels) of the Gaussian smoothing of the Mertens weights behind the class
     /// targets (`LoaderConfig::target_sigma`); 0 = the paper's per-pixel targets.
-    #[serde(default = "default_target_sigma")]
     pub target_sigma: f32,
 }
 
 /// Network-1's default target smoothing, chosen by measurement (docs/network1.md).
 pub const DEFAULT_TARGET_SIGMA: f32 = 4.0;
+const DEFAULT_WORKERS: usize = 2;
 
-fn default_target_sigma() -> f32 {
-    DEFAULT_TARGET_SIGMA
+/// Every key `[data]` accepts, in the order the error message lists them (the serialised
+/// order): its own around the realism keys, which come from `RealismConfig`'s derive.
+fn data_keys() -> &'static [&'static str] {
+    static KEYS: std::sync::LazyLock<Vec<&'static str>> = std::sync::LazyLock::new(|| {
+        let before = [
+            "dataset",
+            "generate",
+            "patch",
+            "batch_size",
+            "workers",
+            "augment",
+        ];
+        let realism = crate::config::struct_fields::<RealismConfig>();
+        [&before[..], realism, &["target_sigma"]].concat()
+    });
+    &KEYS
 }
 
-fn default_workers() -> usize {
-    2
+impl<'de> Deserialize<'de> for DataConfig {
+    fn deserialize<D: de::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        d.deserialize_map(DataVisitor)
+    }
 }
-fn yes() -> bool {
-    true
+
+struct DataVisitor;
+
+/// `[data]`'s own values, filled as the keys stream past.
+#[derive(Default)]
+struct Own {
+    dataset: Option<PathBuf>,
+    generate: Option<PathBuf>,
+    patch: Option<usize>,
+    batch_size: Option<usize>,
+    workers: Option<usize>,
+    augment: Option<bool>,
+    target_sigma: Option<f32>,
 }
-fn one() -> f64 {
-    1.0
+
+impl<'de> de::Visitor<'de> for DataVisitor {
+    type Value = DataConfig;
+
+    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str("the [data] table")
+    }
+
+    fn visit_map<A: de::MapAccess<'de>>(
+        self,
+        mut map: A,
+    ) -> std::result::Result<DataConfig, A::Error> {
+        let mut own = Own::default();
+        // The realism keys go to `RealismConfig`'s own derive, value by value, so that toml
+        // still knows which key a type error belongs to.
+        let realism = RealismConfig::deserialize(de::value::MapAccessDeserializer::new(Split {
+            map: &mut map,
+            own: &mut own,
+        }))?;
+        let missing = de::Error::missing_field;
+        Ok(DataConfig {
+            dataset: own.dataset.ok_or_else(|| missing("dataset"))?,
+            generate: own.generate,
+            patch: own.patch.ok_or_else(|| missing("patch"))?,
+            batch_size: own.batch_size.ok_or_else(|| missing("batch_size"))?,
+            workers: own.workers.unwrap_or(DEFAULT_WORKERS),
+            augment: own.augment.unwrap_or(true),
+            realism,
+            target_sigma: own.target_sigma.unwrap_or(DEFAULT_TARGET_SIGMA),
+        })
+    }
 }
-fn half() -> f64 {
-    0.5
+
+/// The `[data]` map as `RealismConfig` sees it: `DataConfig`'s own keys are taken out on the way.
+struct Split<'a, A> {
+    map: &'a mut A,
+    own: &'a mut Own,
+}
+
+impl<'de, A: de::MapAccess<'de>> de::MapAccess<'de> for Split<'_, A> {
+    type Error = A::Error;
+
+    fn next_key_seed<K: de::DeserializeSeed<'de>>(
+        &mut self,
+        seed: K,
+    ) -> std::result::Result<Option<K::Value>, A::Error> {
+        loop {
+            let Some(key) = self.map.next_key_seed(KnownKey)? else {
+                return Ok(None);
+            };
+            let o = &mut *self.own;
+            match key.as_str() {
+                "dataset" => o.dataset = Some(self.map.next_value()?),
+                "generate" => o.generate = Some(self.map.next_value()?),
+                "patch" => o.patch = Some(self.map.next_value()?),
+                "batch_size" => o.batch_size = Some(self.map.next_value()?),
+                "workers" => o.workers = Some(self.map.next_value()?),
+                "augment" => o.augment = Some(self.map.next_value()?),
+                "target_sigma" => o.target_sigma = Some(self.map.next_value()?),
+                _ => {
+                    return seed
+                        .deserialize(de::IntoDeserializer::into_deserializer(key))
+                        .map(Some);
+                }
+            }
+        }
+    }
+
+    fn next_value_seed<V: de::DeserializeSeed<'de>>(
+        &mut self,
+        seed: V,
+    ) -> std::result::Result<V::Value, A::Error> {
+        self.map.next_value_seed(seed)
+    }
+}
+
+/// A `[data]` key, refused while toml still reads it (so the error carries the key's line) when
+/// neither `DataConfig` nor `RealismConfig` has it.
+struct KnownKey;
+
+impl<'de> de::DeserializeSeed<'de> for KnownKey {
+    type Value = String;
+
+    fn deserialize<D: de::Deserializer<'de>>(self, d: D) -> std::result::Result<String, D::Error> {
+        let key = String::deserialize(d)?;
+        if data_keys().contains(&key.as_str()) {
+            Ok(key)
+        } else {
+            Err(de::Error::unknown_field(&key, data_keys()))
+        }
+    }
 }
 
 impl DataConfig {
+    /// `[data]` with every optional key at its default.
+    pub fn new(dataset: PathBuf, patch: usize, batch_size: usize, realism: RealismConfig) -> Self {
+        DataConfig {
+            dataset,
+            generate: None,
+            patch,
+            batch_size,
+            workers: DEFAULT_WORKERS,
+            augment: true,
+            realism,
+            target_sigma: DEFAULT_TARGET_SIGMA,
+        }
+    }
+
     /// The loader config of this data section (training: augmentation as configured).
     pub fn loader(&self, kind: SampleKind, seed: u64) -> Result<LoaderConfig> {
-        let realism = if self.profile == "pure" {
+        let realism = if self.realism.profile == Path::new("pure") {
             None
         } else {
-            if self.isos.is_empty() {
+            if self.realism.isos.is_empty() {
                 return Err(Error::Invalid(format!(
                     "data: profile '{}' needs a non-empty `isos` list",
-                    self.profile
+                    self.realism.profile.display()
                 )));
             }
-            Some(RealismConfig {
-                profile: PathBuf::from(&self.profile),
-                isos: self.isos.clone(),
-                noise: self.noise,
-                exposure: self.exposure,
-                metering: self.metering,
-                ev_jitter: self.ev_jitter,
-                source: self.source,
-                colour: self.colour,
-            })
+            Some(self.realism.clone())
         };
         Ok(LoaderConfig {
             dataset: self.dataset.clone(),
