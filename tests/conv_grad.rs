@@ -1,7 +1,8 @@
-//! The networks' convolution (`models::conv`, issue 18): on flex its weight gradient is an
-//! im2col + GEMM of our own; it must equal a hand-computed case, Burn's own conv2d gradients
-//! (burn-backend's default weight gradient, the reference it replaces) on the networks' kinds
-//! of layers, and be bit-for-bit repeatable.
+//! The networks' convolution (`models::conv`, issue 18): on flex its forward pass, input
+//! gradient and weight gradient are im2col tiles + GEMM of our own; they must equal a
+//! hand-computed case, Burn's own conv2d and its gradients (flex's transposed convolution for
+//! dx, burn-backend's default weight gradient: the references they replace) on the networks'
+//! kinds of layers, and be bit-for-bit repeatable.
 #![cfg(feature = "flex")]
 
 mod common;
@@ -78,15 +79,21 @@ fn weight_gradient_by_hand() {
 fn equals_burns_conv2d_on_the_networks_layer_kinds() {
     // (x shape, c_out, kernel, stride, padding (top, bottom), (left, right), dilation)
     type Case = ([usize; 4], usize, usize, usize, [(usize, usize); 2], usize);
-    let cases: [Case; 6] = [
+    let cases: [Case; 9] = [
         // Network-1's 3×3 block conv and 5×5 head (padding k/2).
         ([2, 6, 16, 16], 8, 3, 1, [(1, 1), (1, 1)], 1),
         ([2, 8, 16, 12], 20, 5, 1, [(2, 2), (2, 2)], 1),
-        // Network-2's stride-2 convs on reflect-padded input (no padding of their own).
+        // The largest batch, and c_out ≫ c_in as in the head.
+        ([8, 4, 12, 10], 6, 3, 1, [(1, 1), (1, 1)], 1),
+        ([3, 2, 10, 10], 32, 5, 1, [(2, 2), (2, 2)], 1),
+        // Network-2's stride-2 convs on reflect-padded input (no padding of their own); an even
+        // size leaves the last input row and column outside every window (dx = 0 there).
         ([2, 6, 17, 17], 8, 5, 2, [(0, 0), (0, 0)], 1),
+        ([2, 5, 18, 16], 7, 5, 2, [(2, 2), (2, 2)], 1),
         // Asymmetric padding, dilation.
         ([1, 3, 11, 9], 4, 3, 1, [(0, 2), (1, 0)], 2),
-        // Big enough that the im2col is tiled over output rows (1600 rows × 128 columns).
+        // Big enough that the im2col is tiled over output rows (1600 rows × 128 columns), so
+        // the input gradient's rows take sums from two tiles.
         ([1, 64, 40, 128], 2, 5, 1, [(2, 2), (2, 2)], 1),
         ([3, 4, 9, 7], 5, 1, 1, [(0, 0), (0, 0)], 1),
     ];
@@ -121,6 +128,10 @@ fn repeatable_bit_for_bit() {
     let x = tensor([2, 8, 24, 24], 1);
     let w = tensor([16, 8, 5, 5], 2);
     let options = ConvOptions::new([1, 1], [2, 2], [1, 1], 1);
+    let a = grads(true, &x, &w, &options);
+    let b = grads(true, &x, &w, &options);
+    assert_eq!(a, b);
+    let options = ConvOptions::new([2, 2], [0, 0], [1, 1], 1);
     let a = grads(true, &x, &w, &options);
     let b = grads(true, &x, &w, &options);
     assert_eq!(a, b);

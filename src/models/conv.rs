@@ -8,14 +8,16 @@
 //! Here, on flex, it is the usual lowering instead: dW[co, (ci, i, j)] = Σ_b Σ_p dY_b[co, p] ·
 //! col_b[(ci, i, j), p], one GEMM per batch item and tile of output rows (M = c_out,
 //! N = c_in·kh·kw, K = the tile). The forward pass uses the same im2col tiles (Y_b = W · col,
-//! written straight into the NCHW output, no NHWC round trip); the input gradient is flex's own
-//! transposed convolution. Sums run in a fixed order (tiles and batch items in sequence, the
+//! written straight into the NCHW output, no NHWC round trip), and the input gradient runs them
+//! backwards: col = Wᵀ · dY_b per tile, then col2im adds each column row into dX (flex's own
+//! transposed convolution did the GEMM for the whole image and a scalar col2im). Sums run in a
+//! fixed order (tiles and batch items in sequence, kernel offsets in order within a tile, the
 //! GEMM splits its output, never its K), so results are bit-for-bit repeatable.
 //!
 //! It is a Burn backend extension (`#[backend_extension]`) with a hand-written autodiff step;
 //! other backends (tch, wgpu, cuda, ndarray) run Burn's conv2d unchanged. The kernels take flex
-//! tensors and slices only, so they could be offered upstream as flex's `conv2d` and
-//! `conv2d_weight_backward`.
+//! tensors and slices only, so they could be offered upstream as flex's `conv2d`,
+//! `conv2d_x_backward` and `conv2d_weight_backward`.
 
 use burn::nn::PaddingConfig2d;
 use burn::nn::conv::Conv2d;
@@ -81,10 +83,11 @@ pub(crate) mod flex {
     use burn::tensor::{DType, Shape, Tensor, TensorData};
     use rayon::prelude::*;
 
-    /// Conv2d without bias by [`forward`], whose autodiff step uses [`weight_grad`].
+    /// Conv2d without bias by [`forward`], whose autodiff step uses [`input_grad`] and
+    /// [`weight_grad`].
     #[backend_extension(Flex, Autodiff)]
     pub trait FlexConv: burn::backend::Backend {
-        fn conv2d_fast_wgrad(
+        fn conv2d_im2col(
             x: FloatTensor<Self>,
             weight: FloatTensor<Self>,
             options: ConvOptions<2>,
@@ -92,7 +95,7 @@ pub(crate) mod flex {
     }
 
     impl FlexConv for Flex {
-        fn conv2d_fast_wgrad(
+        fn conv2d_im2col(
             x: FloatTensor<Self>,
             weight: FloatTensor<Self>,
             options: ConvOptions<2>,
@@ -102,9 +105,9 @@ pub(crate) mod flex {
     }
 
     #[derive(Debug)]
-    struct Conv2dFastWgrad;
+    struct Conv2dIm2col;
 
-    impl Backward<Flex, 2> for Conv2dFastWgrad {
+    impl Backward<Flex, 2> for Conv2dIm2col {
         type State = (NodeId, NodeId, ConvOptions<2>);
 
         fn backward(
@@ -119,12 +122,7 @@ pub(crate) mod flex {
             let x = checkpointer.retrieve_node_output::<FloatTensor<Flex>>(x_state);
             let weight = checkpointer.retrieve_node_output::<FloatTensor<Flex>>(weight_state);
             if let Some(node) = node_x {
-                let g = Flex::conv2d_x_backward(
-                    x.clone(),
-                    weight.clone(),
-                    grad.clone(),
-                    options.clone(),
-                );
+                let g = input_grad(x.clone(), weight.clone(), grad.clone(), options.clone());
                 grads.register::<Flex>(node.id, g);
             }
             if let Some(node) = node_weight {
@@ -134,12 +132,12 @@ pub(crate) mod flex {
     }
 
     impl<C: CheckpointStrategy> FlexConv for Autodiff<Flex, C> {
-        fn conv2d_fast_wgrad(
+        fn conv2d_im2col(
             x: FloatTensor<Self>,
             weight: FloatTensor<Self>,
             options: ConvOptions<2>,
         ) -> FloatTensor<Self> {
-            match Conv2dFastWgrad
+            match Conv2dIm2col
                 .prepare::<C>([x.node(), weight.node()])
                 .compute_bound()
                 .stateful()
@@ -162,7 +160,7 @@ pub(crate) mod flex {
     }
 
     pub(super) fn conv2d(x: Tensor<4>, weight: Tensor<4>, options: ConvOptions<2>) -> Tensor<4> {
-        Tensor::from_dispatch(<Dispatch as FlexConv>::conv2d_fast_wgrad(
+        Tensor::from_dispatch(<Dispatch as FlexConv>::conv2d_im2col(
             x.into_dispatch(),
             weight.into_dispatch(),
             options,
@@ -237,6 +235,36 @@ pub(crate) mod flex {
         )
     }
 
+    /// dL/dx of `conv2d(x, weight)` (no groups) from the output gradient `dy`, by GEMM + col2im
+    /// per tile. Falls back to flex's own input gradient for other dtypes and grouped
+    /// convolutions.
+    pub fn input_grad(
+        x: FloatTensor<Flex>,
+        weight: FloatTensor<Flex>,
+        dy: FloatTensor<Flex>,
+        options: ConvOptions<2>,
+    ) -> FloatTensor<Flex> {
+        if weight.dtype() != DType::F32 || dy.dtype() != DType::F32 || options.groups != 1 {
+            return Flex::conv2d_x_backward(x, weight, dy, options);
+        }
+        let xs: [usize; 4] = x.shape().dims();
+        let ws: [usize; 4] = weight.shape().dims();
+        let ys: [usize; 4] = dy.shape().dims();
+        let (weight, dy) = (weight.to_contiguous(), dy.to_contiguous());
+        let dx = input_grad_f32(
+            dy.storage::<f32>(),
+            ys,
+            weight.storage::<f32>(),
+            ws,
+            [xs[2], xs[3]],
+            &options,
+        );
+        Flex::float_from_data(
+            TensorData::new(dx, Shape::from(xs.to_vec())),
+            &Default::default(),
+        )
+    }
+
     /// One tile of the im2col matrix of one image `xb` ([C_in, H, W]): output rows oh0.. (as many
     /// as `col` holds, `col.len() / (C_in·kh·kw·wo)`), each of `wo` columns:
     /// col[(ci, i, j), (oh, ow)] = x[ci, oh·sh + i·dh − pt, ow·sw + j·dw − pl], or 0 outside x.
@@ -284,6 +312,57 @@ pub(crate) mod flex {
                 }
             }
         });
+    }
+
+    /// The inverse of [`im2col`] for one image: adds the tile `col` (output rows oh0.., as many
+    /// as it holds) into `dxb` ([C_in, H, W]) at the positions im2col read them from. Each input
+    /// channel is one task, and within it the kernel offsets and rows run in order, so the sum
+    /// order is fixed.
+    fn col2im(
+        col: &[f32],
+        [kh, kw]: [usize; 2],
+        options: &ConvOptions<2>,
+        [h, w]: [usize; 2],
+        wo: usize,
+        oh0: usize,
+        dxb: &mut [f32],
+    ) {
+        let [sh, sw] = options.stride;
+        let [dh, dw] = options.dilation;
+        let [pt, pl] = options.padding_begin();
+        let t = col.len() / (dxb.len() / (h * w) * kh * kw);
+        dxb.par_chunks_mut(h * w)
+            .enumerate()
+            .for_each(|(ci, plane)| {
+                for ij in 0..kh * kw {
+                    let (i, j) = (ij / kw, ij % kw);
+                    let row = &col[((ci * kh * kw) + ij) * t..][..t];
+                    for (lo, src) in row.chunks(wo).enumerate() {
+                        let ih = ((oh0 + lo) * sh + i * dh) as isize - pt as isize;
+                        if ih < 0 || ih >= h as isize {
+                            continue;
+                        }
+                        let dst = &mut plane[ih as usize * w..(ih as usize + 1) * w];
+                        let off = (j * dw) as isize - pl as isize;
+                        if sw == 1 {
+                            // The columns lo..hi land on one contiguous run of the input row.
+                            let lo = (-off).clamp(0, wo as isize) as usize;
+                            let hi = (w as isize - off).clamp(lo as isize, wo as isize) as usize;
+                            let d0 = (lo as isize + off) as usize;
+                            for (d, s) in dst[d0..d0 + hi - lo].iter_mut().zip(&src[lo..hi]) {
+                                *d += s;
+                            }
+                            continue;
+                        }
+                        for (ow, s) in src.iter().enumerate() {
+                            let iw = (ow * sw) as isize + off;
+                            if iw >= 0 && iw < w as isize {
+                                dst[iw as usize] += s;
+                            }
+                        }
+                    }
+                }
+            });
     }
 
     /// Output rows per im2col tile: whole rows, about [`TILE_BYTES`].
@@ -407,5 +486,64 @@ pub(crate) mod flex {
             }
         }
         dw_out
+    }
+
+    /// The kernel of [`input_grad`] on row-major slices: `dy` is [B, C_out, H_out, W_out], `wt`
+    /// is [C_out, C_in, kh, kw], `[h, w]` is x's plane; returns dX as [B, C_in, H, W]:
+    /// col = Wᵀ · dY_b per tile of output rows (M = c_in·kh·kw, N = the tile, K = c_out), then
+    /// [`col2im`].
+    pub fn input_grad_f32(
+        dy: &[f32],
+        ys: [usize; 4],
+        wt: &[f32],
+        ws: [usize; 4],
+        [h, w]: [usize; 2],
+        options: &ConvOptions<2>,
+    ) -> Vec<f32> {
+        let [batch, cout, ho, wo] = ys;
+        let [_, cin, kh, kw] = ws;
+        let rows = cin * kh * kw;
+        let p_all = ho * wo;
+        let mut dx = vec![0.0f32; batch * cin * h * w];
+        if rows == 0 || p_all == 0 || cout == 0 || h * w == 0 {
+            return dx;
+        }
+        let tile_rows = tile_rows(rows, wo, ho);
+        let mut col = vec![0.0f32; rows * tile_rows * wo];
+        for b in 0..batch {
+            let yb = &dy[b * cout * p_all..(b + 1) * cout * p_all];
+            let dxb = &mut dx[b * cin * h * w..(b + 1) * cin * h * w];
+            for oh0 in (0..ho).step_by(tile_rows) {
+                let t = tile_rows.min(ho - oh0) * wo;
+                let col = &mut col[..rows * t];
+                // col[r, p] = Σ_co W[co, r] · dY[co, oh0·wo + p].
+                // SAFETY: all strides and extents index inside `col`, `wt` and `yb`.
+                unsafe {
+                    gemm::gemm(
+                        rows,
+                        t,
+                        cout,
+                        col.as_mut_ptr(),
+                        1,
+                        t as isize,
+                        false,
+                        wt.as_ptr(),
+                        rows as isize,
+                        1,
+                        yb.as_ptr().add(oh0 * wo),
+                        1,
+                        p_all as isize,
+                        0.0,
+                        1.0,
+                        false,
+                        false,
+                        false,
+                        gemm::Parallelism::Rayon(0),
+                    );
+                }
+                col2im(col, [kh, kw], options, [h, w], wo, oh0, dxb);
+            }
+        }
+        dx
     }
 }
