@@ -370,6 +370,23 @@ pub(crate) mod flex {
         (TILE_BYTES / 4 / rows.max(1) / wo.max(1)).clamp(1, ho.max(1))
     }
 
+    /// Calls `f(b, oh0, col)` for each batch item `b` and tile of output rows starting at `oh0`,
+    /// in a fixed order, with `col` sized [rows, tile rows · wo] from one reused buffer.
+    fn for_each_tile(
+        [batch, ho, wo]: [usize; 3],
+        rows: usize,
+        mut f: impl FnMut(usize, usize, &mut [f32]),
+    ) {
+        let tile_rows = tile_rows(rows, wo, ho);
+        let mut col = vec![0.0f32; rows * tile_rows * wo];
+        for b in 0..batch {
+            for oh0 in (0..ho).step_by(tile_rows) {
+                let t = tile_rows.min(ho - oh0) * wo;
+                f(b, oh0, &mut col[..rows * t]);
+            }
+        }
+    }
+
     /// The forward convolution (no bias, one group) on row-major slices by the same im2col
     /// tiles: Y_b[co, tile] = W[co, (ci, i, j)] · col; `x` is [B, C_in, H, W], `w` is
     /// [C_out, C_in, kh, kw]; returns Y as [B, C_out, H_out, W_out].
@@ -389,41 +406,36 @@ pub(crate) mod flex {
         if rows == 0 || p_all == 0 || cout == 0 {
             return y;
         }
-        let tile_rows = tile_rows(rows, wo, ho);
-        let mut col = vec![0.0f32; rows * tile_rows * wo];
-        for b in 0..batch {
+        for_each_tile([batch, ho, wo], rows, |b, oh0, col| {
             let xb = &x[b * cin * h * w..(b + 1) * cin * h * w];
             let yb = &mut y[b * cout * p_all..(b + 1) * cout * p_all];
-            for oh0 in (0..ho).step_by(tile_rows) {
-                let t = tile_rows.min(ho - oh0) * wo;
-                let col = &mut col[..rows * t];
-                im2col(xb, [cin, h, w], [kh, kw], options, wo, oh0, col);
-                // SAFETY: all strides and extents index inside `yb`, `wt` and `col`.
-                unsafe {
-                    gemm::gemm(
-                        cout,
-                        t,
-                        rows,
-                        yb.as_mut_ptr().add(oh0 * wo),
-                        1,
-                        p_all as isize,
-                        false,
-                        wt.as_ptr(),
-                        1,
-                        rows as isize,
-                        col.as_ptr(),
-                        1,
-                        t as isize,
-                        0.0,
-                        1.0,
-                        false,
-                        false,
-                        false,
-                        gemm::Parallelism::Rayon(0),
-                    );
-                }
+            let t = col.len() / rows;
+            im2col(xb, [cin, h, w], [kh, kw], options, wo, oh0, col);
+            // SAFETY: all strides and extents index inside `yb`, `wt` and `col`.
+            unsafe {
+                gemm::gemm(
+                    cout,
+                    t,
+                    rows,
+                    yb.as_mut_ptr().add(oh0 * wo),
+                    1,
+                    p_all as isize,
+                    false,
+                    wt.as_ptr(),
+                    1,
+                    rows as isize,
+                    col.as_ptr(),
+                    1,
+                    t as isize,
+                    0.0,
+                    1.0,
+                    false,
+                    false,
+                    false,
+                    gemm::Parallelism::Rayon(0),
+                );
             }
-        }
+        });
         y
     }
 
@@ -446,45 +458,39 @@ pub(crate) mod flex {
         if rows == 0 || p_all == 0 || cout == 0 {
             return dw_out;
         }
-        let tile_rows = tile_rows(rows, wo, ho);
-        let mut col = vec![0.0f32; rows * tile_rows * wo];
         let mut first = true;
-        for b in 0..batch {
+        for_each_tile([batch, ho, wo], rows, |b, oh0, col| {
             let xb = &x[b * cin * h * w..(b + 1) * cin * h * w];
             let yb = &dy[b * cout * p_all..(b + 1) * cout * p_all];
-            for oh0 in (0..ho).step_by(tile_rows) {
-                let nrows = tile_rows.min(ho - oh0);
-                let t = nrows * wo;
-                let col = &mut col[..rows * t];
-                im2col(xb, [cin, h, w], k, options, wo, oh0, col);
-                // dW[co, r] (+)= Σ_p dY[co, oh0·wo + p] · col[r, p]: M = c_out, N = rows, K = t.
-                // SAFETY: all strides and extents index inside `dw_out`, `yb` and `col`.
-                unsafe {
-                    gemm::gemm(
-                        cout,
-                        rows,
-                        t,
-                        dw_out.as_mut_ptr(),
-                        1,
-                        rows as isize,
-                        !first,
-                        yb.as_ptr().add(oh0 * wo),
-                        1,
-                        p_all as isize,
-                        col.as_ptr(),
-                        t as isize,
-                        1,
-                        1.0,
-                        1.0,
-                        false,
-                        false,
-                        false,
-                        gemm::Parallelism::Rayon(0),
-                    );
-                }
-                first = false;
+            let t = col.len() / rows;
+            im2col(xb, [cin, h, w], k, options, wo, oh0, col);
+            // dW[co, r] (+)= Σ_p dY[co, oh0·wo + p] · col[r, p]: M = c_out, N = rows, K = t.
+            // SAFETY: all strides and extents index inside `dw_out`, `yb` and `col`.
+            unsafe {
+                gemm::gemm(
+                    cout,
+                    rows,
+                    t,
+                    dw_out.as_mut_ptr(),
+                    1,
+                    rows as isize,
+                    !first,
+                    yb.as_ptr().add(oh0 * wo),
+                    1,
+                    p_all as isize,
+                    col.as_ptr(),
+                    t as isize,
+                    1,
+                    1.0,
+                    1.0,
+                    false,
+                    false,
+                    false,
+                    gemm::Parallelism::Rayon(0),
+                );
             }
-        }
+            first = false;
+        });
         dw_out
     }
 
@@ -508,42 +514,37 @@ pub(crate) mod flex {
         if rows == 0 || p_all == 0 || cout == 0 || h * w == 0 {
             return dx;
         }
-        let tile_rows = tile_rows(rows, wo, ho);
-        let mut col = vec![0.0f32; rows * tile_rows * wo];
-        for b in 0..batch {
+        for_each_tile([batch, ho, wo], rows, |b, oh0, col| {
             let yb = &dy[b * cout * p_all..(b + 1) * cout * p_all];
             let dxb = &mut dx[b * cin * h * w..(b + 1) * cin * h * w];
-            for oh0 in (0..ho).step_by(tile_rows) {
-                let t = tile_rows.min(ho - oh0) * wo;
-                let col = &mut col[..rows * t];
-                // col[r, p] = Σ_co W[co, r] · dY[co, oh0·wo + p].
-                // SAFETY: all strides and extents index inside `col`, `wt` and `yb`.
-                unsafe {
-                    gemm::gemm(
-                        rows,
-                        t,
-                        cout,
-                        col.as_mut_ptr(),
-                        1,
-                        t as isize,
-                        false,
-                        wt.as_ptr(),
-                        rows as isize,
-                        1,
-                        yb.as_ptr().add(oh0 * wo),
-                        1,
-                        p_all as isize,
-                        0.0,
-                        1.0,
-                        false,
-                        false,
-                        false,
-                        gemm::Parallelism::Rayon(0),
-                    );
-                }
-                col2im(col, [kh, kw], options, [h, w], wo, oh0, dxb);
+            let t = col.len() / rows;
+            // col[r, p] = Σ_co W[co, r] · dY[co, oh0·wo + p].
+            // SAFETY: all strides and extents index inside `col`, `wt` and `yb`.
+            unsafe {
+                gemm::gemm(
+                    rows,
+                    t,
+                    cout,
+                    col.as_mut_ptr(),
+                    1,
+                    t as isize,
+                    false,
+                    wt.as_ptr(),
+                    rows as isize,
+                    1,
+                    yb.as_ptr().add(oh0 * wo),
+                    1,
+                    p_all as isize,
+                    0.0,
+                    1.0,
+                    false,
+                    false,
+                    false,
+                    gemm::Parallelism::Rayon(0),
+                );
             }
-        }
+            col2im(col, [kh, kw], options, [h, w], wo, oh0, dxb);
+        });
         dx
     }
 }
