@@ -370,6 +370,49 @@ pub(crate) mod flex {
         (TILE_BYTES / 4 / rows.max(1) / wo.max(1)).clamp(1, ho.max(1))
     }
 
+    /// dst[m×n] = lhs[m×k] · rhs[k×n] (plus dst when `accumulate`), each matrix given by its
+    /// (column, row) strides; rayon-parallel, no conjugation.
+    ///
+    /// # Safety
+    /// Every stride and extent must index inside the three buffers.
+    #[allow(clippy::too_many_arguments)]
+    unsafe fn matmul(
+        [m, n, k]: [usize; 3],
+        dst: *mut f32,
+        [dst_cs, dst_rs]: [isize; 2],
+        accumulate: bool,
+        lhs: *const f32,
+        [lhs_cs, lhs_rs]: [isize; 2],
+        rhs: *const f32,
+        [rhs_cs, rhs_rs]: [isize; 2],
+    ) {
+        // SAFETY: forwarded from the caller. alpha (the weight on dst) is 1 when accumulating
+        // and ignored by gemm otherwise.
+        unsafe {
+            gemm::gemm(
+                m,
+                n,
+                k,
+                dst,
+                dst_cs,
+                dst_rs,
+                accumulate,
+                lhs,
+                lhs_cs,
+                lhs_rs,
+                rhs,
+                rhs_cs,
+                rhs_rs,
+                1.0,
+                1.0,
+                false,
+                false,
+                false,
+                gemm::Parallelism::Rayon(0),
+            )
+        }
+    }
+
     /// Calls `f(b, oh0, col)` for each batch item `b` and tile of output rows starting at `oh0`,
     /// in a fixed order, with `col` sized [rows, tile rows · wo] from one reused buffer.
     fn for_each_tile(
@@ -413,26 +456,15 @@ pub(crate) mod flex {
             im2col(xb, [cin, h, w], [kh, kw], options, wo, oh0, col);
             // SAFETY: all strides and extents index inside `yb`, `wt` and `col`.
             unsafe {
-                gemm::gemm(
-                    cout,
-                    t,
-                    rows,
+                matmul(
+                    [cout, t, rows],
                     yb.as_mut_ptr().add(oh0 * wo),
-                    1,
-                    p_all as isize,
+                    [1, p_all as isize],
                     false,
                     wt.as_ptr(),
-                    1,
-                    rows as isize,
+                    [1, rows as isize],
                     col.as_ptr(),
-                    1,
-                    t as isize,
-                    0.0,
-                    1.0,
-                    false,
-                    false,
-                    false,
-                    gemm::Parallelism::Rayon(0),
+                    [1, t as isize],
                 );
             }
         });
@@ -467,26 +499,15 @@ pub(crate) mod flex {
             // dW[co, r] (+)= Σ_p dY[co, oh0·wo + p] · col[r, p]: M = c_out, N = rows, K = t.
             // SAFETY: all strides and extents index inside `dw_out`, `yb` and `col`.
             unsafe {
-                gemm::gemm(
-                    cout,
-                    rows,
-                    t,
+                matmul(
+                    [cout, rows, t],
                     dw_out.as_mut_ptr(),
-                    1,
-                    rows as isize,
+                    [1, rows as isize],
                     !first,
                     yb.as_ptr().add(oh0 * wo),
-                    1,
-                    p_all as isize,
+                    [1, p_all as isize],
                     col.as_ptr(),
-                    t as isize,
-                    1,
-                    1.0,
-                    1.0,
-                    false,
-                    false,
-                    false,
-                    gemm::Parallelism::Rayon(0),
+                    [t as isize, 1],
                 );
             }
             first = false;
@@ -521,26 +542,15 @@ pub(crate) mod flex {
             // col[r, p] = Σ_co W[co, r] · dY[co, oh0·wo + p].
             // SAFETY: all strides and extents index inside `col`, `wt` and `yb`.
             unsafe {
-                gemm::gemm(
-                    rows,
-                    t,
-                    cout,
+                matmul(
+                    [rows, t, cout],
                     col.as_mut_ptr(),
-                    1,
-                    t as isize,
+                    [1, t as isize],
                     false,
                     wt.as_ptr(),
-                    rows as isize,
-                    1,
+                    [rows as isize, 1],
                     yb.as_ptr().add(oh0 * wo),
-                    1,
-                    p_all as isize,
-                    0.0,
-                    1.0,
-                    false,
-                    false,
-                    false,
-                    gemm::Parallelism::Rayon(0),
+                    [1, p_all as isize],
                 );
             }
             col2im(col, [kh, kw], options, [h, w], wo, oh0, dxb);
