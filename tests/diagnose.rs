@@ -473,6 +473,51 @@ fn worked_example_four_hidden_effects() {
     assert!(d.final_gap() <= d.threshold && d.unexplained.is_empty());
 }
 
+/// The base model's T from the chart burst of a camera whose RGB is M · reference: neutral
+/// white balance scales the rows by g_c = n_G / n_c (n: M's mean response over the neutral
+/// patches 20–23), which makes every balanced channel's neutral mean n_G; the exposure scale
+/// n_ref / n_G (n_ref: the reference's neutral mean over patches and channels) puts them on
+/// the reference. The fit is exact on exact patches, so T = (n_ref / n_G) · diag(g) · M up to
+/// the burst's noise (about 1e-3 here). To write this capture set for `hdrsynth diagnose`, set
+/// `HDRSYNTH_CHART_EXAMPLE_DIR=/tmp/chart` when running this test.
+#[test]
+fn base_model_fits_t_from_a_coloured_chart() {
+    let mut t = Truth::new(96, 64, 4, 17);
+    t.scenes = false;
+    t.chart_matrix = [[0.9, 0.25, 0.05], [0.1, 1.0, 0.2], [0.0, 0.15, 0.7]];
+    if let Ok(dir) = std::env::var("HDRSYNTH_CHART_EXAMPLE_DIR") {
+        t.write(Path::new(&dir));
+    }
+    let (d, _) = run(&t, "chart");
+    let got = d.profile.colour.expect("a chart burst gives T").matrix;
+    let reference = hdrsynth::sensor::colour::chart::reference_linear_srgb();
+    let m = t.chart_matrix;
+    let neutral = 19..23;
+    let n = |c: usize| -> f64 {
+        neutral
+            .clone()
+            .map(|i| (0..3).map(|k| m[c][k] * reference[i][k]).sum::<f64>())
+            .sum::<f64>()
+            / 4.0
+    };
+    let n_ref = neutral
+        .clone()
+        .map(|i| reference[i].iter().sum::<f64>())
+        .sum::<f64>()
+        / 12.0;
+    let g = [n(1) / n(0), 1.0, n(1) / n(2)];
+    for i in 0..3 {
+        for j in 0..3 {
+            let want = n_ref / n(1) * g[i] * m[i][j];
+            assert!(
+                (got[i][j] - want).abs() < 5e-3,
+                "T[{i}][{j}] {} vs {want}: {got:?}",
+                got[i][j]
+            );
+        }
+    }
+}
+
 /// A one-ISO profile (black 64, white 4095) with the given `[[effects]]` tables.
 fn effect_profile(effects: &str) -> SensorProfile {
     let text = format!(

@@ -53,6 +53,8 @@ pub struct Truth {
     pub flat_levels: Vec<f64>,
     /// Write the three-exposure scene (false: darks, flats and the chart only).
     pub scenes: bool,
+    /// Camera RGB of the chart burst = M · reference linear sRGB (identity unless set).
+    pub chart_matrix: [[f64; 3]; 3],
     pub seed: u64,
 }
 
@@ -83,6 +85,7 @@ impl Truth {
             shoulder: 0.0,
             flat_levels: vec![0.2, 0.55],
             scenes: true,
+            chart_matrix: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
             seed,
         }
     }
@@ -256,7 +259,7 @@ impl Truth {
 
     /// Write the capture set: per ISO a dark burst and flats at `flat_levels` (20 % and 55 % of
     /// the range unless set);
-    /// a chart burst (ColorChecker reference × 0.5 of the range, T = identity); one scene at
+    /// a chart burst (`chart_matrix` · ColorChecker reference × 0.5 of the range); one scene at
     /// exposures 16, 4 and 1 ms (2 frames each). Returns the number of hot values planted.
     pub fn write(&self, dir: &Path) -> usize {
         let (w, h) = (self.width, self.height);
@@ -309,7 +312,10 @@ impl Truth {
                 // Nearest cell of the 6×4 grid.
                 let i = ((y * 4 / h) * 6 + x * 6 / w).min(23);
                 for c in 0..3 {
-                    chart[(y * w + x) * 3 + c] = reference[i][c] * 0.5 * r;
+                    let v: f64 = (0..3)
+                        .map(|k| self.chart_matrix[c][k] * reference[i][k])
+                        .sum();
+                    chart[(y * w + x) * 3 + c] = v * 0.5 * r;
                 }
             }
         }
