@@ -5,10 +5,10 @@
 
 use hdrsynth::io::{Image, write_exr};
 use hdrsynth::rng::Rng;
-use hdrsynth::sensor::colour::calibrate::{CalibrateOptions, SyntheticChart, WhiteBalance, run};
+use hdrsynth::sensor::colour::calibrate::{CalibrateOptions, SyntheticChart, run};
 use hdrsynth::sensor::colour::chart::{self, COLORCHECKER24, ChartRegion, Homography, Illuminant};
 use hdrsynth::sensor::colour::cie;
-use hdrsynth::sensor::colour::fit::{self, Model};
+use hdrsynth::sensor::colour::fit::{self, Model, WhiteBalance};
 use hdrsynth::sensor::dng::{read_dng, read_dng_info, read_dng_mosaic};
 use hdrsynth::sensor::profile::{
     Levels, NoiseAtIso, PROFILE_FORMAT, ProfileKind, Provenance, Response, SensorProfile,
@@ -385,6 +385,103 @@ fn leave_one_out_exceeds_in_sample_on_noisy_data() {
         "{} {}",
         e.after.max,
         e.loo.max
+    );
+}
+
+/// The chart fit shared by `calibrate colour` and `diagnose`, on exact patches whose answer is
+/// known by hand.
+#[test]
+fn chart_fit_recovers_a_known_matrix_and_white_balance() {
+    let reference = chart::reference_linear_srgb();
+    let mul = |m: &[[f64; 3]; 3], p: [f64; 3]| -> [f64; 3] {
+        std::array::from_fn(|i| (0..3).map(|k| m[i][k] * p[k]).sum())
+    };
+    let close = |a: f64, b: f64, what: &str| assert!((a - b).abs() < 1e-12, "{what}: {a} vs {b}");
+
+    // No white balance: real = 0.4 · M · reference, synthetic = 1.5 · reference. Every column of
+    // M sums to 1, so M keeps each patch's channel sum and the exposure scale is exactly
+    // 1.5 / 0.4; the common scale is 1 / 1.5; T = M.
+    let m = [[0.7, 0.2, 0.1], [0.2, 0.6, 0.3], [0.1, 0.2, 0.6]];
+    let real: Vec<[f64; 3]> = reference
+        .iter()
+        .map(|&p| mul(&m, p).map(|v| 0.4 * v))
+        .collect();
+    let synthetic: Vec<[f64; 3]> = reference.iter().map(|p| p.map(|v| 1.5 * v)).collect();
+    let f = fit::fit_chart(&real, &synthetic, WhiteBalance::None, false).unwrap();
+    assert_eq!(f.white_balance_gains, [1.0; 3]);
+    close(f.exposure_scale, 1.5 / 0.4, "exposure scale");
+    close(f.chart_scale, 1.0 / 1.5, "chart scale");
+    assert!(f.root_polynomial.is_none());
+    let t = f.t();
+    for i in 0..3 {
+        for j in 0..3 {
+            close(t[i][j], m[i][j], &format!("T[{i}][{j}]"));
+        }
+    }
+    for (i, p) in f.synthetic.iter().enumerate() {
+        for c in 0..3 {
+            close(
+                p[c],
+                reference[i][c],
+                "synthetic patch on the reference scale",
+            );
+        }
+    }
+
+    // Neutral white balance: a synthetic chart whose neutral patches 20–23 are exactly grey (the
+    // reference's channel mean), and a camera that differs from it only by channel gains d and
+    // exposure 0.25. The gains are d_G / d_c, the balanced patches 0.25 · d_G · synthetic, the
+    // exposure scale 1 / (0.25 · d_G), the common scale 1 (the grey neutrals keep the
+    // reference's mean), T = identity and the root-polynomial is [I | 0].
+    let synthetic: Vec<[f64; 3]> = reference
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            if (19..23).contains(&i) {
+                [p.iter().sum::<f64>() / 3.0; 3]
+            } else {
+                *p
+            }
+        })
+        .collect();
+    let d = [0.5, 0.8, 0.25];
+    let real: Vec<[f64; 3]> = synthetic
+        .iter()
+        .map(|p| std::array::from_fn(|c| 0.25 * d[c] * p[c]))
+        .collect();
+    let f = fit::fit_chart(&real, &synthetic, WhiteBalance::Neutral, true).unwrap();
+    let g = f.white_balance_gains;
+    close(g[0], 0.8 / 0.5, "gain R");
+    close(g[1], 1.0, "gain G");
+    close(g[2], 0.8 / 0.25, "gain B");
+    close(f.exposure_scale, 1.0 / (0.25 * 0.8), "exposure scale");
+    close(f.chart_scale, 1.0, "chart scale");
+    let t = f.t();
+    let rp = match &f.root_polynomial.as_ref().unwrap().fitted {
+        fit::Fitted::RootPolynomial(rp) => *rp,
+        other => panic!("{other:?}"),
+    };
+    for i in 0..3 {
+        for j in 0..3 {
+            let want = if i == j { 1.0 } else { 0.0 };
+            close(t[i][j], want, &format!("T[{i}][{j}]"));
+            close(rp[i][j], want, &format!("RP[{i}][{j}]"));
+            close(rp[i][j + 3], 0.0, &format!("RP[{i}][{}]", j + 3));
+        }
+    }
+
+    // A black chart: white balance is refused; without it, the neutral-mean check names both.
+    let black = vec![[0.0; 3]; 24];
+    let e = fit::fit_chart(&black, &reference, WhiteBalance::Neutral, false).unwrap_err();
+    assert!(
+        matches!(e, fit::ChartFitError::WhiteBalance(_)) && e.to_string().contains("non-positive"),
+        "{e}"
+    );
+    let e = fit::fit_chart(&black, &reference, WhiteBalance::None, false).unwrap_err();
+    assert!(
+        e.to_string()
+            .starts_with("the neutral patches 20–23 average 0.00000 (real) and 0.30720"),
+        "{e}"
     );
 }
 

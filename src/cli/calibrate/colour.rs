@@ -1,8 +1,9 @@
 //! `hdrsynth calibrate colour`: arguments → [`CalibrateOptions`] →
 //! `sensor::colour::calibrate::run` (the calibration and its steps: there and docs/colour.md).
 
-use crate::sensor::colour::calibrate::{self, CalibrateOptions, SyntheticChart, WhiteBalance};
+use crate::sensor::colour::calibrate::{self, CalibrateOptions, SyntheticChart};
 use crate::sensor::colour::chart::ChartRegion;
+use crate::sensor::colour::fit::WhiteBalance;
 use crate::sensor::profile::Response;
 use anyhow::{Result, bail};
 use std::fmt::Write as _;

@@ -13,33 +13,21 @@
 //!    values or normalised DN) is an error naming the patch and the file.
 //! 3. The synthetic patches: the rendered chart (reference linear sRGB × illuminant gains ×
 //!    exposure), or a synthetic image sampled the same way.
-//! 4. White balance `neutral` (default): real channels scaled by mean_G / mean_c over the neutral
-//!    patches 20–23, so their mean is neutral (device linear RGB is white-balanced camera RGB).
-//! 5. Exposure: the real patches are scaled by one factor so the mean of patches 20–23 (all
-//!    channels) equals the synthetic one; then both sets are scaled by one common factor so the
-//!    synthetic neutrals match their reference reflectance (ΔE00 is then on the chart's scale;
-//!    T does not depend on it).
-//! 6. Fit T by least squares (and the root-polynomial if asked), ΔE00 with the colours treated
-//!    as linear sRGB D65, Lab D50.
+//! 4–6. `fit::fit_chart` (shared with `diagnose`): white balance `neutral` (default: real
+//!    channels scaled by mean_G / mean_c over the neutral patches 20–23, so their mean is
+//!    neutral; device linear RGB is white-balanced camera RGB), exposure normalisation on
+//!    patches 20–23, T by least squares (and the root-polynomial if asked), ΔE00 with the
+//!    colours treated as linear sRGB D65, Lab D50.
 //! 7. Write the profile: an existing one keeps everything but `colour` and `provenance.colour`.
 
 use super::chart::{self, COLORCHECKER24, ChartRegion, Illuminant, PatchSample};
-use super::fit::{self, Evaluation, Fitted, Model};
+use super::fit::{self, ChartFit, ChartFitError, Fitted, WhiteBalance};
 use crate::error::{Error, Result};
 use crate::io::{Format, Image, read_image_info};
-use crate::linalg::Mat3;
 use crate::sensor::dng::{DngInfo, read_dng};
 use crate::sensor::profile::{Colour, Levels, Provenance, Response, SensorProfile};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum WhiteBalance {
-    /// Scale the real channels so the mean of neutral patches 20–23 is neutral.
-    Neutral,
-    /// Use the real colours as they are.
-    None,
-}
 
 /// The synthetic chart the real one is fitted to.
 #[derive(Clone, Debug, PartialEq)]
@@ -224,16 +212,9 @@ fn sample(input: &Input, region: &ChartRegion) -> Result<Vec<PatchSample>> {
 /// What a colour calibration found.
 #[derive(Clone, Debug)]
 pub struct Calibration {
-    /// Synthetic and real patch colours as fitted (after white balance and scaling).
-    pub synthetic: Vec<[f64; 3]>,
-    pub real: Vec<[f64; 3]>,
-    /// Per-patch standard deviation of the real samples, on the same scale as `real`.
+    pub fit: ChartFit,
+    /// Per-patch standard deviation of the real samples, on the same scale as `fit.real`.
     pub real_std: Vec<[f64; 3]>,
-    pub white_balance_gains: [f64; 3],
-    /// Scale applied to the white-balanced real patches to match the synthetic exposure.
-    pub exposure_scale: f64,
-    pub matrix: Evaluation,
-    pub root_polynomial: Option<Evaluation>,
 }
 
 /// Run the calibration without writing anything.
@@ -283,56 +264,19 @@ pub fn calibrate(opts: &CalibrateOptions) -> Result<(Calibration, InputsInfo)> {
 
     let raw: Vec<[f64; 3]> = real_samples.iter().map(|s| s.mean).collect();
     let synthetic: Vec<[f64; 3]> = synthetic_samples.iter().map(|s| s.mean).collect();
-    let gains = match opts.white_balance {
-        WhiteBalance::Neutral => chart::neutral_gains(&raw)
-            .map_err(|e| Error::Invalid(format!("{}: white balance: {e}", opts.real.display())))?,
-        WhiteBalance::None => [1.0; 3],
-    };
-    let balanced: Vec<[f64; 3]> = raw
-        .iter()
-        .map(|p| std::array::from_fn(|c| p[c] * gains[c]))
-        .collect();
-    let (nr, ns) = (
-        chart::neutral_mean(&balanced),
-        chart::neutral_mean(&synthetic),
-    );
-    if !(nr > 0.0 && ns > 0.0) {
-        return Err(Error::Invalid(format!(
-            "{}: the neutral patches 20–23 average {nr:.5} (real) and {ns:.5} (synthetic); both \
-             must be > 0 (chart located correctly? black level right?)",
-            opts.real.display()
-        )));
-    }
-    let k = ns / nr;
-    // Common scale putting the synthetic neutrals on their reference reflectance.
-    let s = chart::neutral_mean(&chart::reference_linear_srgb()) / ns;
-    let scale = |v: &[f64; 3], f: f64| -> [f64; 3] { std::array::from_fn(|c| v[c] * f) };
-    let real_fit: Vec<[f64; 3]> = balanced.iter().map(|p| scale(p, k * s)).collect();
-    let syn_fit: Vec<[f64; 3]> = synthetic.iter().map(|p| scale(p, s)).collect();
+    let fit = fit::fit_chart(&raw, &synthetic, opts.white_balance, opts.root_polynomial).map_err(
+        |e| match e {
+            ChartFitError::Fit(e) => e,
+            e => Error::Invalid(format!("{}: {e}", opts.real.display())),
+        },
+    )?;
+    let (g, k, s) = (fit.white_balance_gains, fit.exposure_scale, fit.chart_scale);
     let real_std: Vec<[f64; 3]> = real_samples
         .iter()
-        .map(|p| std::array::from_fn(|c| p.std[c] * gains[c] * k * s))
+        .map(|p| std::array::from_fn(|c| p.std[c] * g[c] * k * s))
         .collect();
-    let matrix = fit::fit_and_evaluate(Model::Matrix, &syn_fit, &real_fit)?;
-    let root_polynomial = if opts.root_polynomial {
-        Some(fit::fit_and_evaluate(
-            Model::RootPolynomial,
-            &syn_fit,
-            &real_fit,
-        )?)
-    } else {
-        None
-    };
     Ok((
-        Calibration {
-            synthetic: syn_fit,
-            real: real_fit,
-            real_std,
-            white_balance_gains: gains,
-            exposure_scale: k,
-            matrix,
-            root_polynomial,
-        },
+        Calibration { fit, real_std },
         InputsInfo {
             real_what: real.what.clone(),
             real_response: real.response.clone(),
@@ -364,7 +308,8 @@ fn fmt_matrix<const N: usize>(m: &[[f64; N]; 3]) -> String {
 }
 
 /// The report table and summary.
-pub fn report(c: &Calibration, inputs: &InputsInfo) -> String {
+pub fn report(cal: &Calibration, inputs: &InputsInfo) -> String {
+    let c = &cal.fit;
     let mut r = String::new();
     let _ = writeln!(r, "real:      {}", inputs.real_what);
     let _ = writeln!(r, "           chart at {}", inputs.real_region);
@@ -387,7 +332,7 @@ pub fn report(c: &Calibration, inputs: &InputsInfo) -> String {
     }
     let _ = writeln!(r);
     for (i, p) in COLORCHECKER24.iter().enumerate() {
-        let (s, q, sd) = (c.synthetic[i], c.real[i], c.real_std[i]);
+        let (s, q, sd) = (c.synthetic[i], c.real[i], cal.real_std[i]);
         let _ = write!(
             r,
             "{:>2} {:<22} {:>26} {:>26} {:>8.5} {:>7.3} {:>7.3} {:>7.3}",
@@ -471,11 +416,8 @@ pub fn run(opts: &CalibrateOptions) -> Result<String> {
     let (cal, inputs) = calibrate(opts)?;
     let (mut profile, exists) =
         SensorProfile::load_or_create(&opts.out, || new_profile(opts, &inputs))?;
-    let t: Mat3 = match &cal.matrix.fitted {
-        Fitted::Matrix(t) => *t,
-        Fitted::RootPolynomial(_) => unreachable!("matrix evaluation holds a matrix"),
-    };
-    let rp = cal.root_polynomial.as_ref().map(|e| match &e.fitted {
+    let t = cal.fit.t();
+    let rp = cal.fit.root_polynomial.as_ref().map(|e| match &e.fitted {
         Fitted::RootPolynomial(m) => *m,
         Fitted::Matrix(_) => unreachable!("root-polynomial evaluation holds a 3×6 matrix"),
     });
@@ -484,7 +426,7 @@ pub fn run(opts: &CalibrateOptions) -> Result<String> {
         root_polynomial: rp,
         use_root_polynomial: rp.is_some(),
     });
-    let m = &cal.matrix;
+    let m = &cal.fit.matrix;
     let mut prov = format!(
         "ColorChecker24 fit by `{}` on {}. Real: {} ({}), chart at {}. Synthetic: {}. White \
          balance: {}. 3×3 T least squares (real = T · synthetic): ΔE00 mean {:.3} (max {:.3}) \
@@ -498,7 +440,7 @@ pub fn run(opts: &CalibrateOptions) -> Result<String> {
         inputs.synthetic_what,
         match opts.white_balance {
             WhiteBalance::Neutral => {
-                let g = cal.white_balance_gains;
+                let g = cal.fit.white_balance_gains;
                 format!(
                     "neutral patches 20–23 (gains {:.4}, {:.4}, {:.4})",
                     g[0], g[1], g[2]
@@ -513,7 +455,7 @@ pub fn run(opts: &CalibrateOptions) -> Result<String> {
         m.loo.mean,
         m.loo.max
     );
-    if let Some(e) = &cal.root_polynomial {
+    if let Some(e) = &cal.fit.root_polynomial {
         let _ = write!(
             prov,
             " Root-polynomial degree 2 (used): ΔE00 mean {:.3} (max {:.3}), leave-one-patch-out \

@@ -1,8 +1,10 @@
 //! Fitting the colour correction: T (3×3, the paper's Eq. 1, real = T · synthetic) and the
-//! root-polynomial by least squares, ΔE00 before, after and leave-one-patch-out, applying a fit
-//! to images, and T from a published camera matrix.
+//! root-polynomial by least squares, ΔE00 before, after and leave-one-patch-out, the chart fit
+//! that `calibrate colour` and `diagnose` share (patch means → white balance → exposure → T),
+//! applying a fit to images, and T from a published camera matrix.
 #![allow(clippy::needless_range_loop)]
 
+use super::chart;
 use super::cie::{SRGB_TO_XYZ, delta_e_linear_srgb};
 use crate::error::{Error, Result};
 use crate::io::Image;
@@ -182,6 +184,112 @@ pub fn fit_and_evaluate(
         after: delta_e_sets(&corrected, real),
         loo: leave_one_out(model, synthetic, real)?,
         fitted,
+    })
+}
+
+/// White balance of the real patches before a chart fit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum WhiteBalance {
+    /// Scale the real channels so the mean of neutral patches 20–23 is neutral.
+    Neutral,
+    /// Use the real colours as they are.
+    None,
+}
+
+/// A chart fit: the patch colours as fitted and the corrections fitted to them.
+#[derive(Clone, Debug)]
+pub struct ChartFit {
+    /// Synthetic and real patch colours as fitted (after white balance and scaling).
+    pub synthetic: Vec<[f64; 3]>,
+    pub real: Vec<[f64; 3]>,
+    pub white_balance_gains: [f64; 3],
+    /// Scale applied to the white-balanced real patches to match the synthetic exposure.
+    pub exposure_scale: f64,
+    /// Scale applied to both sets so the synthetic neutrals match their reference reflectance.
+    pub chart_scale: f64,
+    /// T (3×3).
+    pub matrix: Evaluation,
+    /// The root-polynomial, when asked for.
+    pub root_polynomial: Option<Evaluation>,
+}
+
+impl ChartFit {
+    /// T (real = T · synthetic).
+    pub fn t(&self) -> Mat3 {
+        match &self.matrix.fitted {
+            Fitted::Matrix(t) => *t,
+            Fitted::RootPolynomial(_) => unreachable!("matrix evaluation holds a matrix"),
+        }
+    }
+}
+
+/// Why a chart fit failed; the caller says which capture it was.
+#[derive(Debug, thiserror::Error)]
+pub enum ChartFitError {
+    /// `chart::neutral_gains` refused the real patches.
+    #[error("white balance: {0}")]
+    WhiteBalance(Error),
+    #[error(
+        "the neutral patches 20–23 average {real:.5} (real) and {synthetic:.5} (synthetic); \
+         both must be > 0 (chart located correctly? black level right?)"
+    )]
+    NeutralMean { real: f64, synthetic: f64 },
+    #[error(transparent)]
+    Fit(#[from] Error),
+}
+
+/// Fit T (and the root-polynomial if asked) from the 24 patch means of a real chart and of the
+/// synthetic one it should match. The real patches are white-balanced (`white_balance`), then
+/// scaled by one factor so the mean of patches 20–23 (all channels) equals the synthetic one;
+/// then both sets are scaled by one common factor so the synthetic neutrals match their
+/// reference reflectance (ΔE00 is then on the chart's scale; T does not depend on it).
+pub fn fit_chart(
+    real: &[[f64; 3]],
+    synthetic: &[[f64; 3]],
+    white_balance: WhiteBalance,
+    root_polynomial: bool,
+) -> Result<ChartFit, ChartFitError> {
+    let gains = match white_balance {
+        WhiteBalance::Neutral => chart::neutral_gains(real).map_err(ChartFitError::WhiteBalance)?,
+        WhiteBalance::None => [1.0; 3],
+    };
+    let balanced: Vec<[f64; 3]> = real
+        .iter()
+        .map(|p| std::array::from_fn(|c| p[c] * gains[c]))
+        .collect();
+    let (nr, ns) = (
+        chart::neutral_mean(&balanced),
+        chart::neutral_mean(synthetic),
+    );
+    if !(nr > 0.0 && ns > 0.0) {
+        return Err(ChartFitError::NeutralMean {
+            real: nr,
+            synthetic: ns,
+        });
+    }
+    let k = ns / nr;
+    let s = chart::neutral_mean(&chart::reference_linear_srgb()) / ns;
+    let scale = |v: &[f64; 3], f: f64| -> [f64; 3] { std::array::from_fn(|c| v[c] * f) };
+    let real_fit: Vec<[f64; 3]> = balanced.iter().map(|p| scale(p, k * s)).collect();
+    let syn_fit: Vec<[f64; 3]> = synthetic.iter().map(|p| scale(p, s)).collect();
+    let matrix = fit_and_evaluate(Model::Matrix, &syn_fit, &real_fit)?;
+    let root_polynomial = if root_polynomial {
+        Some(fit_and_evaluate(
+            Model::RootPolynomial,
+            &syn_fit,
+            &real_fit,
+        )?)
+    } else {
+        None
+    };
+    Ok(ChartFit {
+        synthetic: syn_fit,
+        real: real_fit,
+        white_balance_gains: gains,
+        exposure_scale: k,
+        chart_scale: s,
+        matrix,
+        root_polynomial,
     })
 }
 

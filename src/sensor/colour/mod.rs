@@ -21,8 +21,9 @@
 //! Where: `chart` (the ColorChecker24 reference, white balance on its neutral patches, the
 //! rendered chart, locating and sampling the chart in an image), `cie` (linear sRGB → XYZ → Lab,
 //! Bradford, CIEDE2000), `fit` (T and the root-polynomial by least squares, ΔE00 reports with
-//! leave-one-patch-out, T from a published camera matrix), `calibrate` (`calibrate colour`: a
-//! chart capture → T, written into a sensor profile).
+//! leave-one-patch-out, `fit_chart`: chart patch means → white balance → exposure → T, shared by
+//! `calibrate colour` and `diagnose`, T from a published camera matrix), `calibrate`
+//! (`calibrate colour`: a chart capture → T, written into a sensor profile).
 
 pub mod calibrate;
 pub mod chart;

@@ -4,7 +4,7 @@
 //! 1. Base model: the given profile, or (none given) the paper's model fitted from the
 //!    captures: one (a, b) per ISO shared by the channels (mean of the per-channel photon-
 //!    transfer fits of src/sensor/noise/), the declared black and white levels, T from the
-//!    chart burst; no extra effects.
+//!    chart burst (`colour::fit::fit_chart`, as `calibrate colour`); no extra effects.
 //! 2. Parametric bootstrap: K replicates of the whole protocol (same bursts, ISOs, exposures,
 //!    frame counts and sizes) simulated with `Realism::to_dn`; targets: dark = nothing, flat =
 //!    the measured level (per channel, linearised by the model), scene = the radiance measured
@@ -28,6 +28,8 @@ use crate::error::{Error, Result};
 use crate::io::Image;
 use crate::rng::hash;
 use crate::sensor::captures::{BurstKind, CaptureSet};
+use crate::sensor::colour::chart::reference_linear_srgb;
+use crate::sensor::colour::fit::{ChartFitError, WhiteBalance, fit_chart};
 use crate::sensor::effects::summary::{Accumulator, BurstInfo};
 use crate::sensor::effects::{self, FitCtx, Plan, Protocol, Stat, Summary};
 use crate::sensor::noise::{self, CalibrateOptions, NoiseCalibration};
@@ -303,18 +305,16 @@ pub fn base_profile(
             chart.mean.iter().map(|&v| (v - black) as f32).collect(),
         );
         let raw = crate::sensor::captures::chart_patch_means(&img);
-        let gains = crate::sensor::colour::chart::neutral_gains(&raw)?;
-        let balanced: Vec<[f64; 3]> = raw
-            .iter()
-            .map(|p| std::array::from_fn(|c| p[c] * gains[c]))
-            .collect();
-        let reference = crate::sensor::colour::chart::reference_linear_srgb();
-        let s = crate::sensor::colour::chart::neutral_mean(&reference)
-            / crate::sensor::colour::chart::neutral_mean(&balanced);
-        let real: Vec<[f64; 3]> = balanced.iter().map(|p| p.map(|v| v * s)).collect();
-        let t = crate::sensor::colour::fit::fit_matrix(&reference, &real)?;
+        // No synthetic capture here: the burst is fitted to the reference chart itself. A
+        // refused white balance reads as `neutral_gains` words it (it names white balance).
+        let fit = fit_chart(&raw, &reference_linear_srgb(), WhiteBalance::Neutral, false).map_err(
+            |e| match e {
+                ChartFitError::WhiteBalance(e) | ChartFitError::Fit(e) => e,
+                e => Error::Invalid(e.to_string()),
+            },
+        )?;
         p.colour = Some(Colour {
-            matrix: t,
+            matrix: fit.t(),
             root_polynomial: None,
             use_root_polynomial: false,
         });
