@@ -13,12 +13,12 @@
 //!    values or normalised DN) is an error naming the patch and the file.
 //! 3. The synthetic patches: the rendered chart (reference linear sRGB × illuminant gains ×
 //!    exposure), or a synthetic image sampled the same way.
-//! 4–6. `fit::fit_chart` (shared with `diagnose`): white balance `neutral` (default: real
+//! 4. `fit::fit_chart` (shared with `diagnose`): white balance `neutral` (default: real
 //!    channels scaled by mean_G / mean_c over the neutral patches 20–23, so their mean is
 //!    neutral; device linear RGB is white-balanced camera RGB), exposure normalisation on
 //!    patches 20–23, T by least squares (and the root-polynomial if asked), ΔE00 with the
 //!    colours treated as linear sRGB D65, Lab D50.
-//! 7. Write the profile: an existing one keeps everything but `colour` and `provenance.colour`.
+//! 5. Write the profile: an existing one keeps everything but `colour` and `provenance.colour`.
 
 use super::chart::{self, COLORCHECKER24, ChartRegion, Illuminant, PatchSample};
 use super::fit::{self, ChartFit, ChartFitError, Fitted, WhiteBalance};
