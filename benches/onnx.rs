@@ -35,6 +35,8 @@ fn best(reps: usize, mut f: impl FnMut()) -> f64 {
 }
 
 fn main() {
+    // As the binary does (src/main.rs): keep freed activations in the heap.
+    hdrsynth::device::retain_freed_memory();
     let reps: usize = std::env::var("HDRSYNTH_BENCH_REPS")
         .ok()
         .and_then(|v| v.parse().ok())

@@ -87,6 +87,8 @@ fn bench_task<T: Task>(c: &mut Criterion, name: &str, task: &T, batch: &[Sample]
 }
 
 fn bench(c: &mut Criterion) {
+    // As the binary does (src/main.rs): keep freed activations in the heap.
+    hdrsynth::device::retain_freed_memory();
     let alpha = ClassWeights::new(
         &std::array::from_fn(|i| 1 + i as u64),
         MertensWeights::OPENCV_DEFAULT,

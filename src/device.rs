@@ -102,3 +102,41 @@ mod tests {
         assert!(device_from_name("tpu").is_err());
     }
 }
+
+/// Keep freed memory in the process heap instead of returning it to the OS. glibc hands every
+/// block over its mmap threshold (at most 32 MiB, e.g. Network-1's 4×256×128² class map) back
+/// to the OS on free, so each training step page-faults its large activations in again: 12–15 %
+/// of a CPU step went to the kernel clearing pages (BENCHMARKS.md). Process-wide, so it is called
+/// by the binary and the benches, never by library code. Returns whether the setting took
+/// (false off glibc, where nothing is changed).
+pub fn retain_freed_memory() -> bool {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    {
+        // SAFETY: mallopt only changes allocator parameters; it is called before any thread
+        // that allocates concurrently is started by us, and glibc serialises it anyway.
+        unsafe {
+            libc::mallopt(libc::M_MMAP_MAX, 0) == 1
+                && libc::mallopt(libc::M_TRIM_THRESHOLD, i32::MAX) == 1
+        }
+    }
+    #[cfg(not(all(target_os = "linux", target_env = "gnu")))]
+    {
+        false
+    }
+}
+
+#[cfg(all(test, target_os = "linux", target_env = "gnu"))]
+mod tests {
+    /// A 64 MiB block (over glibc's largest mmap threshold) must come from the heap once the
+    /// setting is on: mallinfo2 counts no mmapped block while it is alive.
+    #[test]
+    fn large_blocks_stay_in_the_heap() {
+        assert!(super::retain_freed_memory());
+        let block = vec![1u8; 64 << 20];
+        // SAFETY: mallinfo2 only reads allocator statistics.
+        let info = unsafe { libc::mallinfo2() };
+        assert_eq!(info.hblks, 0, "{} mmapped blocks", info.hblks);
+        assert!(info.arena + info.hblkhd >= block.len(), "block not counted");
+        drop(block);
+    }
+}

@@ -85,6 +85,7 @@ enum DatasetCommand {
 }
 
 fn main() -> Result<()> {
+    hdrsynth::device::retain_freed_memory();
     let cli = Cli::parse();
     match cli.command {
         Command::Generate { config, out } => {
