@@ -14,8 +14,8 @@ use hdrsynth::sensor::captures::{
 };
 use hdrsynth::sensor::darktable::{self, ImportRequest, NegativeRule, Query};
 use hdrsynth::sensor::noise::plot::ptc_plot_size;
+use hdrsynth::sensor::noise::profile::{NoiseProfileOptions, calibrate_noise_profile};
 use hdrsynth::sensor::noise::{CalibrateOptions, NoiseCalibration, calibrate};
-use hdrsynth::sensor::noise_profile::{NoiseProfileOptions, calibrate_noise_profile};
 use hdrsynth::sensor::profile::{Levels, ProfileKind, SensorProfile};
 use std::path::{Path, PathBuf};
 
