@@ -20,14 +20,21 @@ pub fn det3(m: &Mat3) -> f64 {
         + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
 }
 
-/// 3×3 inverse by cofactors; None when the determinant is not finite, 0, or tiny for the
-/// matrix's scale (|det| ≤ 1e-14 · max|m|³, so the test means the same at any unit).
-pub fn inverse3(m: &Mat3) -> Option<Mat3> {
+/// The determinant of `m`, or None when `m` is singular for every 3×3 solve here: the
+/// determinant is not finite, 0, or tiny for the matrix's scale (|det| ≤ 1e-14 · max|m|³, so
+/// the test means the same at any unit).
+fn regular_det(m: &Mat3) -> Option<f64> {
     let det = det3(m);
     let scale = m.iter().flatten().fold(0.0f64, |a, v| a.max(v.abs()));
     if !det.is_finite() || det.abs() <= 1e-300 || det.abs() <= 1e-14 * scale.powi(3) {
         return None;
     }
+    Some(det)
+}
+
+/// 3×3 inverse by cofactors; None when `m` is singular ([`regular_det`]).
+pub fn inverse3(m: &Mat3) -> Option<Mat3> {
+    let det = regular_det(m)?;
     let c =
         |r0: usize, r1: usize, c0: usize, c1: usize| m[r0][c0] * m[r1][c1] - m[r0][c1] * m[r1][c0];
     Some([
@@ -53,12 +60,9 @@ pub fn mat_vec(m: &Mat3, v: [f64; 3]) -> [f64; 3] {
     std::array::from_fn(|i| m[i][0] * v[0] + m[i][1] * v[1] + m[i][2] * v[2])
 }
 
-/// m · x = v by Cramer's rule; None when the determinant is not finite or below 1e-15.
+/// m · x = v by Cramer's rule; None when `m` is singular by [`inverse3`]'s rule.
 pub fn solve3(m: Mat3, v: [f64; 3]) -> Option<[f64; 3]> {
-    let d = det3(&m);
-    if d.abs() < 1e-15 || !d.is_finite() {
-        return None;
-    }
+    let d = regular_det(&m)?;
     let mut out = [0.0; 3];
     for (k, o) in out.iter_mut().enumerate() {
         let mut mk = m;
@@ -220,5 +224,32 @@ mod tests {
         let p = mul3(&m, &inverse3(&m).unwrap());
         let identity = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
         assert!(close(&p, &identity, 1e-12), "{p:?}");
+    }
+
+    /// solve3 refuses exactly what inverse3 refuses: a small-unit system (det 1e-18, below the
+    /// old absolute cut-off 1e-15) is solved, rank 2 is not at any scale.
+    #[test]
+    fn solve3_shares_the_singularity_rule_of_inverse3() {
+        let small: Mat3 = [[1e-6, 0.0, 0.0], [0.0, 2e-6, 0.0], [0.0, 0.0, 5e-7]];
+        let x = solve3(small, [1e-6, 1e-6, 1e-6]).unwrap();
+        for (got, want) in x.iter().zip([1.0, 0.5, 2.0]) {
+            assert!((got - want).abs() <= 1e-12, "{x:?}");
+        }
+        for s in [1e-6, 1.0, 1e6] {
+            let m: Mat3 = [
+                [s, 2.0 * s, 3.0 * s],
+                [2.0 * s, 4.0 * s, 6.0 * s],
+                [0.0, s, s],
+            ];
+            assert!(solve3(m, [1.0, 2.0, 3.0]).is_none(), "{s}");
+            assert_eq!(solve3(m, [1.0; 3]).is_none(), inverse3(&m).is_none());
+        }
+        let m: Mat3 = [[2.0, 1.0, 0.5], [0.3, 1.7, 0.2], [0.1, -0.4, 1.1]];
+        let v = [0.7, -1.2, 3.4];
+        let (x, y) = (solve3(m, v).unwrap(), mat_vec(&inverse3(&m).unwrap(), v));
+        assert!(
+            x.iter().zip(y).all(|(a, b)| (a - b).abs() <= 1e-12),
+            "{x:?} {y:?}"
+        );
     }
 }

@@ -359,15 +359,14 @@ fn cli_report_and_profile_flow_into_the_realism_operator() {
     t.row_sigma = 1.5;
     t.write(&tmp.join("captures"));
     let out = tmp.join("diag");
-    let args = hdrsynth::cli::diagnose::Args {
-        captures: Some(tmp.join("captures")),
-        out: out.clone(),
+    let opts = DiagnoseOptions {
         replicates: 12,
         seed: 3,
         ..Default::default()
     };
-    let summary = hdrsynth::cli::diagnose::run(&args).expect("diagnose");
-    eprintln!("{summary}");
+    let d = hdrsynth::sensor::diagnose::diagnose_folder(&tmp.join("captures"), None, &opts, &out)
+        .expect("diagnose");
+    eprintln!("{}", d.summary());
     for f in [
         "profile.toml",
         "report.md",

@@ -7,17 +7,16 @@
 //! (ISO, channel, parameter) estimates within 5 % of the truth, and at least 80 % of them
 //! within 3 reported standard errors.
 
-use hdrsynth::cli::profile::{self as profile_cli, ImportArgs, ProfileCommand};
 use hdrsynth::io::{Image, read_image_info};
 use hdrsynth::sensor::captures::{
     Burst, BurstKind, CaptureManifest, CaptureSet, MANIFEST_NAME, SensorInfo, chart_patch_rects,
     write_capture_set,
 };
-use hdrsynth::sensor::darktable::NegativeRule;
+use hdrsynth::sensor::darktable::{self, ImportRequest, NegativeRule, Query};
 use hdrsynth::sensor::noise::plot::ptc_plot_size;
+use hdrsynth::sensor::noise::profile::{NoiseProfileOptions, calibrate_noise_profile};
 use hdrsynth::sensor::noise::{CalibrateOptions, NoiseCalibration, calibrate};
-use hdrsynth::sensor::noise_profile::{NoiseProfileOptions, calibrate_noise_profile};
-use hdrsynth::sensor::profile::{ProfileKind, SensorProfile};
+use hdrsynth::sensor::profile::{Levels, ProfileKind, SensorProfile};
 use std::path::{Path, PathBuf};
 
 const W: f64 = 4095.0;
@@ -611,26 +610,30 @@ fn csv_rows(csv: &Path, maker: &str, model: &str) -> Vec<(f64, [f64; 3], [f64; 3
         .collect()
 }
 
-fn import_args(csv: &Path, maker: &str, model: &str, out: &Path) -> ImportArgs {
-    ImportArgs {
+fn import_args(csv: &Path, maker: &str, model: &str, out: &Path) -> ImportRequest {
+    ImportRequest {
         csv: csv.to_path_buf(),
-        maker: maker.into(),
-        model: model.into(),
-        profile_name: None,
-        set: None,
-        black: 2048.0,
-        white: 15000.0,
-        bits: 14,
+        query: Query {
+            maker: maker.into(),
+            model: model.into(),
+            profile_name: None,
+            set: None,
+        },
+        levels: Levels {
+            black_level: 2048.0,
+            white_level: 15000.0,
+            bit_depth: 14,
+        },
         levels_source: "test levels".into(),
+        rule: NegativeRule::Floor,
         out: out.to_path_buf(),
         name: None,
         kind: ProfileKind::Measured,
-        negative: NegativeRule::Floor,
     }
 }
 
-fn import(args: &ImportArgs) -> anyhow::Result<String> {
-    profile_cli::run(&ProfileCommand::ImportDarktable(args.clone()))
+fn import(req: &ImportRequest) -> hdrsynth::error::Result<String> {
+    darktable::import(req).map(|done| done.report(req))
 }
 
 #[test]
@@ -647,7 +650,7 @@ fn darktable_import_reproduces_the_csv() {
         assert!(err.contains(n), "'{err}' lacks '{n}'");
     }
     assert!(!out.exists());
-    args.set = Some(3);
+    args.query.set = Some(3);
     assert!(
         import(&args)
             .unwrap_err()
@@ -657,8 +660,8 @@ fn darktable_import_reproduces_the_csv() {
     assert!(!out.exists());
     // Set 1 has negative b (ISO 200–3200) and a negative a_B at 12800: copied verbatim on
     // request.
-    args.set = Some(1);
-    args.negative = NegativeRule::Verbatim;
+    args.query.set = Some(1);
+    args.rule = NegativeRule::Verbatim;
     import(&args).expect("verbatim import");
     let rows = csv_rows(&csv, "Canon", "EOS 550D");
     let verbatim = SensorProfile::load(&out).unwrap();
@@ -672,7 +675,7 @@ fn darktable_import_reproduces_the_csv() {
     assert!(verbatim.provenance.noise.contains("kept verbatim"));
     std::fs::remove_file(&out).unwrap();
     // With --negative zero they become 0.
-    args.negative = NegativeRule::Zero;
+    args.rule = NegativeRule::Zero;
     let report = import(&args).unwrap();
     println!("{report}");
     let mut first: Vec<_> = Vec::new();
@@ -737,7 +740,7 @@ fn darktable_import_reproduces_the_csv() {
     // output cannot fall as the gain rises); the negative a_B at ISO 12800 stays; the rest is
     // copied exactly.
     std::fs::remove_file(&out).unwrap();
-    args.negative = NegativeRule::Floor;
+    args.rule = NegativeRule::Floor;
     import(&args).unwrap();
     let p = SensorProfile::load(&out).unwrap();
     let b100 = first[0].2;
@@ -768,8 +771,8 @@ fn darktable_import_reproduces_the_csv() {
     // Nikon D40: two sets, no negative values: every number copied exactly (set 2 here).
     let out = tmp.path().join("d40.toml");
     let mut args = import_args(&csv, "Nikon", "D40", &out);
-    args.set = Some(2);
-    args.profile_name = Some("nikon d40".into());
+    args.query.set = Some(2);
+    args.query.profile_name = Some("nikon d40".into());
     import(&args).unwrap();
     let rows = csv_rows(&csv, "Nikon", "D40");
     let mut second: Vec<_> = Vec::new();
@@ -804,10 +807,10 @@ fn darktable_import_reproduces_the_csv() {
 
     // Updating an existing profile keeps its name and colour; replaces noise and levels.
     let mut args = import_args(&csv, "Nikon", "D40", &out);
-    args.set = Some(1);
-    args.black = 0.0;
-    args.white = 4095.0;
-    args.bits = 12;
+    args.query.set = Some(1);
+    args.levels.black_level = 0.0;
+    args.levels.white_level = 4095.0;
+    args.levels.bit_depth = 12;
     args.levels_source = "second".into();
     let mut renamed = p.clone();
     renamed.name = "my D40".into();

@@ -62,14 +62,8 @@ fn onnx(_: &OnnxArgs) -> Result<String> {
 
 #[cfg(feature = "onnx")]
 fn onnx(args: &OnnxArgs) -> Result<String> {
-    use crate::onnx::export::{self, ExportOptions, InputSize};
-    use crate::onnx::runtime::OnnxModel;
-    use crate::onnx::verify::{self, Loaded};
-    use anyhow::{Context, bail};
-    use std::fmt::Write;
-
-    let device = crate::device::device_from_name("flex")?;
-    let (dir, state, loaded) = verify::load_checkpoint(&args.checkpoint, &device)?;
+    use crate::onnx::export::{ExportOptions, InputSize};
+    use crate::onnx::verify::{VerifyOptions, export_checkpoint};
     let size = match (args.height, args.width) {
         (Some(height), Some(width)) => InputSize::Static { height, width },
         _ => InputSize::Dynamic,
@@ -78,103 +72,14 @@ fn onnx(args: &OnnxArgs) -> Result<String> {
         size,
         blend_weight: !args.no_blend_weight,
     };
-    let model = loaded.to_onnx(&opts)?;
-    export::save(&model, &args.out)?;
-    let graph = model.graph.as_ref().expect("built with a graph");
-    let (kind, frames) = match &loaded {
-        Loaded::Network1(_) => (
-            "Network-1",
-            ["desk_2exp_ev-3.png", "desk_2exp_ev+0.png"].as_slice(),
-        ),
-        Loaded::Network2(_) => (
-            "Network-2",
-            [
-                "desk_3exp_ev-2.png",
-                "desk_3exp_ev+0.png",
-                "desk_3exp_ev+2.png",
-            ]
-            .as_slice(),
-        ),
-    };
-    let mut report = format!(
-        "{kind} ({}, step {}) → {}: opset {}, {} nodes, {} initializers, {} bytes, inputs {}, \
-         {}",
-        dir.display(),
-        state.step,
-        args.out.display(),
-        export::OPSET,
-        graph.node.len(),
-        graph.initializer.len(),
-        std::fs::metadata(&args.out).map(|m| m.len()).unwrap_or(0),
-        graph
-            .input
-            .iter()
-            .filter_map(|v| v.name.clone())
-            .collect::<Vec<_>>()
-            .join(", "),
-        match size {
-            InputSize::Static { height, width } => format!("static {height}×{width}"),
-            InputSize::Dynamic => format!(
-                "dynamic (H, W multiples of {}, at least {})",
-                loaded.size_multiple(),
-                loaded.min_size()
-            ),
-        }
-    );
-    if !args.verify {
-        return Ok(report);
-    }
-    let mut onnx = OnnxModel::load(&args.out, None)?;
-    let paths: Vec<PathBuf> = if args.verify_frames.is_empty() {
-        let shared = PathBuf::from("../shared/data/oracles");
-        frames.iter().map(|f| shared.join(f)).collect()
-    } else {
-        args.verify_frames.clone()
-    };
-    let images = if paths.iter().all(|p| p.is_file()) {
-        Some(verify::read_images(&paths).context("reading the --verify frames")?)
-    } else if !args.verify_frames.is_empty() {
-        bail!("--verify-frames: not every file exists: {paths:?}");
-    } else {
-        None
-    };
-    let label = paths
-        .iter()
-        .filter_map(|p| p.file_name().map(|f| f.to_string_lossy().into_owned()))
-        .collect::<Vec<_>>()
-        .join(" + ");
-    let checks = verify::verify(
-        &loaded,
-        &mut onnx,
-        size,
-        images.as_deref().map(|i| (i, label.as_str())),
-        &device,
-    )?;
-    writeln!(report).ok();
-    for c in &checks {
-        writeln!(report, "  {c}").ok();
-    }
-    if images.is_none() {
-        writeln!(
-            report,
-            "  real images: skipped ({} not found; pass --verify-frames)",
-            paths[0].display()
-        )
-        .ok();
-    }
-    let worst = checks.iter().map(|c| c.max_abs_diff).fold(0.0f32, f32::max);
-    if worst.is_nan() || worst > args.tolerance {
-        bail!(
-            "{report}ONNX Runtime differs from Burn by {worst:.3e} > tolerance {:.0e}",
-            args.tolerance
-        );
-    }
-    write!(
-        report,
-        "verified in ONNX Runtime ({}): max abs difference {worst:.3e} ≤ {:.0e}",
-        crate::onnx::runtime::dylib_path()?.display(),
-        args.tolerance
-    )
-    .ok();
-    Ok(report)
+    let verify = args.verify.then(|| VerifyOptions {
+        frames: args.verify_frames.clone(),
+        tolerance: args.tolerance,
+    });
+    Ok(export_checkpoint(
+        &args.checkpoint,
+        &args.out,
+        &opts,
+        verify.as_ref(),
+    )?)
 }

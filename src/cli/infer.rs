@@ -9,15 +9,16 @@
 //! `hdr.exr` (linear, 1 = the reference exposure's white) and `hdr_mulaw.png` (μ-law preview
 //! of the network's [0, 1] range).
 
-use crate::data::layout::{self, SetInfo};
+use crate::data::layout::find_set;
 use crate::device::device_from_name;
 use crate::eval::blend::fuse;
 use crate::eval::engine::{LoadedNetwork, Network};
-use crate::eval::infer::{NetworkOptions, network2_frames};
-use crate::eval::metrics::mu_law;
-use crate::io::{BitDepth, ExrPrecision, Image, read_image, write_exr, write_ldr};
+use crate::eval::infer::{
+    NetworkOptions, network1_frames, network2_frames, write_network1, write_network2,
+};
+use crate::io::{Image, read_image};
 use anyhow::{Context, Result, bail};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 #[derive(clap::Args, Debug, Clone)]
@@ -45,82 +46,13 @@ pub struct Args {
     pub backend: String,
 }
 
-/// The set in folder `dir`: a set of the dataset that contains it, or a dataset of one set.
-pub fn find_set(dir: &Path) -> Result<SetInfo> {
-    let want = dir
-        .canonicalize()
-        .with_context(|| format!("set folder {}", dir.display()))?;
-    if let Some(parent) = want.parent()
-        && let Ok(info) = layout::detect(parent)
-        && let Some(set) = info
-            .sets
-            .into_iter()
-            .find(|s| s.dir.canonicalize().is_ok_and(|d| d == want))
-    {
-        return Ok(set);
-    }
-    let info = layout::detect(&want)?;
-    match <[SetInfo; 1]>::try_from(info.sets) {
-        Ok([set]) => Ok(set),
-        Err(sets) => bail!(
-            "{}: not a set folder (a dataset of {} sets); pass one set's folder",
-            dir.display(),
-            sets.len()
-        ),
-    }
-}
-
-/// Network-1's (EV−3, EV0) frames from `--set` or `--inputs`.
-fn network1_frames(args: &Args, set: Option<&SetInfo>) -> Result<(Image, Image)> {
-    Ok(match (set, args.inputs.as_slice()) {
-        (Some(set), _) => {
-            let (lo, hi) = set.network1_pair()?;
-            let frames = if set.static_frames.is_empty() {
-                &set.dynamic_frames
-            } else {
-                &set.static_frames
-            };
-            (read_image(&frames[lo])?, read_image(&frames[hi])?)
-        }
-        (None, [low, high]) => {
-            let read = |p: &PathBuf| -> Result<Image> {
-                read_image(p).with_context(|| format!("reading input {}", p.display()))
-            };
-            (read(low)?, read(high)?)
-        }
-        _ => bail!("Network-1 needs --inputs LOW HIGH (the EV−3 and EV0 frames) or --set"),
-    })
-}
-
-/// Network-1's outputs: linear.exr, tonemapped.exr/.png, blend_weight.png.
-fn write_network1(out: &Path, w: &[f32], linear: &Image, toned: &Image) -> Result<()> {
-    write_exr(&out.join("linear.exr"), linear, ExrPrecision::Float)?;
-    write_exr(&out.join("tonemapped.exr"), toned, ExrPrecision::Float)?;
-    write_ldr(&out.join("tonemapped.png"), toned, BitDepth::Eight)?;
-    let grey = Image::from_vec(
-        linear.width,
-        linear.height,
-        w.iter().flat_map(|&v| [v, v, v]).collect(),
-    );
-    write_ldr(&out.join("blend_weight.png"), &grey, BitDepth::Eight)?;
-    Ok(())
-}
-
-/// Network-2's outputs: hdr.exr and its μ-law preview in the network's [0, 1] range.
-fn write_network2(out: &Path, hdr: &Image, hdr_input_scale: f32) -> Result<()> {
-    write_exr(&out.join("hdr.exr"), hdr, ExrPrecision::Float)?;
-    let preview = hdr.map(|v| mu_law((v * hdr_input_scale).clamp(0.0, 1.0) as f64) as f32);
-    write_ldr(&out.join("hdr_mulaw.png"), &preview, BitDepth::Eight)?;
-    Ok(())
-}
-
 pub fn run(args: &Args) -> Result<String> {
     // One writer per output (two infers would mix their files). A folder the lock creates is
     // removed again if the command fails before writing.
     let _lock = crate::io::guard::OutputLock::acquire(&args.out, "infer")?;
     let began = Instant::now();
     let net = match (&args.onnx, &args.checkpoint) {
-        (Some(onnx), _) => from_onnx_file(onnx, &args.network)?,
+        (Some(onnx), _) => LoadedNetwork::from_onnx_file(onnx, &args.network)?,
         (None, Some(checkpoint)) => {
             let device = device_from_name(&args.backend)?;
             LoadedNetwork::from_checkpoint(checkpoint, &args.network, &device)?
@@ -130,7 +62,16 @@ pub fn run(args: &Args) -> Result<String> {
     let set = args.set.as_deref().map(find_set).transpose()?;
     let what = match net.network {
         Network::Network1 => {
-            let (low, high) = network1_frames(args, set.as_ref())?;
+            let (low, high) = match (&set, args.inputs.as_slice()) {
+                (Some(set), _) => network1_frames(set)?,
+                (None, [low, high]) => {
+                    let read = |p: &PathBuf| -> Result<Image> {
+                        read_image(p).with_context(|| format!("reading input {}", p.display()))
+                    };
+                    (read(low)?, read(high)?)
+                }
+                _ => bail!("Network-1 needs --inputs LOW HIGH (the EV−3 and EV0 frames) or --set"),
+            };
             let w = net.network1_weight(&low, &high, args.network.weight)?;
             let (linear, toned) = fuse(&low, &high, &w, args.network.tone_k)?;
             write_network1(&args.out, &w, &linear, &toned)?;
@@ -160,17 +101,4 @@ pub fn run(args: &Args) -> Result<String> {
         began.elapsed().as_secs_f64(),
         net.describe()
     ))
-}
-
-#[cfg(feature = "onnx")]
-fn from_onnx_file(path: &Path, opts: &NetworkOptions) -> Result<LoadedNetwork> {
-    Ok(LoadedNetwork::from_onnx_file(path, opts)?)
-}
-
-#[cfg(not(feature = "onnx"))]
-fn from_onnx_file(_: &Path, _: &NetworkOptions) -> Result<LoadedNetwork> {
-    bail!(
-        "--onnx: this hdrsynth was built without ONNX support: rebuild with \
-         `cargo build --release --features onnx` (docs/onnx.md)"
-    )
 }

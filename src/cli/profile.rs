@@ -3,6 +3,7 @@
 //! `colour-from-matrix` sets T from a published XYZ→camera matrix (DNG ColorMatrix);
 //! `noise-table` prints the noise σ in output codes per ISO.
 
+use crate::sensor::colour::{calibrate, parse_floats};
 use crate::sensor::darktable::{self, ImportRequest, NegativeRule, Query};
 use crate::sensor::profile::{Levels, ProfileKind, SensorProfile};
 use std::path::PathBuf;
@@ -94,102 +95,53 @@ pub struct ImportArgs {
 
 pub fn run(cmd: &ProfileCommand) -> anyhow::Result<String> {
     match cmd {
-        ProfileCommand::ImportDarktable(args) => import_darktable(args),
-        ProfileCommand::ColourFromMatrix(args) => colour_from_matrix(args),
+        ProfileCommand::ImportDarktable(args) => {
+            let req = args.request();
+            Ok(darktable::import(&req)?.report(&req))
+        }
+        ProfileCommand::ColourFromMatrix(args) => {
+            let t =
+                calibrate::colour_from_matrix(&args.matrix, args.scale, &args.source, &args.out)?;
+            let mut report = format!(
+                "updated {} (colour and provenance.colour)\nT (real = T · synthetic):\n",
+                args.out.display()
+            );
+            for row in &t {
+                report.push_str(&format!(
+                    "  [{:>9.5}, {:>9.5}, {:>9.5}]\n",
+                    row[0], row[1], row[2]
+                ));
+            }
+            Ok(report)
+        }
         ProfileCommand::NoiseTable(args) => {
-            let fractions =
-                crate::sensor::colour::parse_floats(&args.at, args.at.split(',').count(), "--at")?;
+            let fractions = parse_floats(&args.at, args.at.split(',').count(), "--at")?;
             let p = SensorProfile::load(&args.profile)?;
             Ok(p.noise_table_markdown(&fractions)?)
         }
     }
 }
 
-fn colour_from_matrix(args: &MatrixArgs) -> anyhow::Result<String> {
-    if args.source.trim().is_empty() {
-        anyhow::bail!("--source must say where the matrix comes from");
-    }
-    let v = crate::sensor::colour::parse_floats(&args.matrix, 9, "--matrix")?;
-    let cam_xyz: [[f64; 3]; 3] =
-        std::array::from_fn(|r| std::array::from_fn(|c| v[r * 3 + c] / args.scale));
-    let t = crate::sensor::colour::fit::t_from_camera_xyz(&cam_xyz)?;
-    let mut p = SensorProfile::load(&args.out)?;
-    p.colour = Some(crate::sensor::profile::Colour {
-        matrix: t,
-        root_polynomial: None,
-        use_root_polynomial: false,
-    });
-    p.provenance.colour = format!(
-        "{}; XYZ→camera matrix [{}]/{} converted by `hdrsynth profile colour-from-matrix`: \
-         T = rownorm(M · sRGB→XYZ(D65)), rows scaled to sum 1 (dcraw's cam_rgb normalisation)",
-        args.source.trim(),
-        args.matrix,
-        args.scale
-    );
-    p.save(&args.out)?;
-    let mut report = format!(
-        "updated {} (colour and provenance.colour)\nT (real = T · synthetic):\n",
-        args.out.display()
-    );
-    for row in &t {
-        report.push_str(&format!(
-            "  [{:>9.5}, {:>9.5}, {:>9.5}]\n",
-            row[0], row[1], row[2]
-        ));
-    }
-    Ok(report)
-}
-
-fn import_darktable(args: &ImportArgs) -> anyhow::Result<String> {
-    let req = ImportRequest {
-        csv: args.csv.clone(),
-        query: Query {
-            maker: args.maker.clone(),
-            model: args.model.clone(),
-            profile_name: args.profile_name.clone(),
-            set: args.set,
-        },
-        levels: Levels {
-            black_level: args.black,
-            white_level: args.white,
-            bit_depth: args.bits,
-        },
-        levels_source: args.levels_source.clone(),
-        rule: args.negative,
-        out: args.out.clone(),
-        name: args.name.clone(),
-        kind: args.kind,
-    };
-    let done = darktable::import(&req)?;
-    let (profile, sel) = (&done.profile, &done.selection);
-    let mut report = format!(
-        "{} {} ({}) from {}: {} ISO(s) {}–{}{}\n",
-        if done.created { "created" } else { "updated" },
-        args.out.display(),
-        profile.kind,
-        args.csv.display(),
-        profile.noise.len(),
-        profile.noise.first().map_or(0.0, |n| n.iso),
-        profile.noise.last().map_or(0.0, |n| n.iso),
-        if sel.sets > 1 {
-            format!(" (set {} of {})", sel.set, sel.sets)
-        } else {
-            String::new()
+impl ImportArgs {
+    fn request(&self) -> ImportRequest {
+        ImportRequest {
+            csv: self.csv.clone(),
+            query: Query {
+                maker: self.maker.clone(),
+                model: self.model.clone(),
+                profile_name: self.profile_name.clone(),
+                set: self.set,
+            },
+            levels: Levels {
+                black_level: self.black,
+                white_level: self.white,
+                bit_depth: self.bits,
+            },
+            levels_source: self.levels_source.clone(),
+            rule: self.negative,
+            out: self.out.clone(),
+            name: self.name.clone(),
+            kind: self.kind,
         }
-    );
-    report.push_str(&format!(
-        "{:>7} {:>12} {:>12} {:>12} {:>12} {:>12} {:>12}\n",
-        "ISO", "a_R", "a_G", "a_B", "b_R", "b_G", "b_B"
-    ));
-    for n in &profile.noise {
-        report.push_str(&format!(
-            "{:>7} {:>12.4e} {:>12.4e} {:>12.4e} {:>12.4e} {:>12.4e} {:>12.4e}\n",
-            n.iso, n.a[0], n.a[1], n.a[2], n.b[0], n.b[1], n.b[2]
-        ));
     }
-    let rule = format!("{:?}", args.negative).to_lowercase();
-    for c in &done.notes {
-        report.push_str(&format!("negative ({rule}): {c}\n"));
-    }
-    Ok(report)
 }

@@ -333,6 +333,39 @@ struct Record<'a> {
 }
 
 impl BracketDiagnosis {
+    /// The command's summary: linearisation, notes, the ratio check, the workflow's summary
+    /// and what it did not test.
+    pub fn summary(&self) -> String {
+        use std::fmt::Write as _;
+        let mut s = String::new();
+        let _ = writeln!(s, "linearised with {}", self.linearisation);
+        for n in self.notes.iter().chain(&self.ratios.notes) {
+            let _ = writeln!(s, "note: {n}");
+        }
+        let _ = writeln!(
+            s,
+            "exposure ratios: {} pair(s), common exponent {:.4}",
+            self.ratios.pairs.len(),
+            self.ratios.exponent
+        );
+        for p in self.ratios.named() {
+            let _ = writeln!(
+                s,
+                "  named: {} against {}: {:+.3} stops measured vs {:+.3} EXIF (off by {:+.3}); left out",
+                p.frame.display(),
+                p.reference.display(),
+                p.measured_stops,
+                p.exif_stops,
+                p.residual_stops
+            );
+        }
+        s.push_str(&self.diagnosis.summary());
+        for k in &self.diagnosis.skipped {
+            let _ = writeln!(s, "  not tested: {k}");
+        }
+        s
+    }
+
     pub fn report_md(&self) -> String {
         use std::fmt::Write as _;
         let mut s = String::from("# Bracket folder as scene bursts\n\n");

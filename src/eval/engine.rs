@@ -112,6 +112,15 @@ impl LoadedNetwork {
         })
     }
 
+    #[cfg(not(feature = "onnx"))]
+    pub fn from_onnx_file(_: &Path, _: &NetworkOptions) -> Result<Self> {
+        Err(Error::Invalid(
+            "--onnx: this hdrsynth was built without ONNX support: rebuild with \
+             `cargo build --release --features onnx` (docs/onnx.md)"
+                .into(),
+        ))
+    }
+
     /// Which engine runs it.
     pub fn engine(&self) -> &'static str {
         match self.runner {

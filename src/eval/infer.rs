@@ -7,10 +7,12 @@ use crate::data::layout::SetInfo;
 use crate::error::{Error, Result};
 use crate::eval::blend::{BlendWeight, DEFAULT_TONE_K, fuse, weight_from_logits};
 use crate::eval::engine::Engine;
+use crate::eval::metrics::mu_law;
 use crate::eval::tiling::{Planar, Tiling, run_tiled};
-use crate::io::Image;
+use crate::io::{BitDepth, ExrPrecision, Image, read_image, write_exr, write_ldr};
 use crate::models::{BlendUNet, BlendUNetConfig, WuConfig, WuNet};
 use burn::tensor::{Device, Tensor, TensorData};
+use std::path::Path;
 
 /// Default core tile side for full-resolution inference (a multiple of 16).
 pub const DEFAULT_TILE: usize = 384;
@@ -147,6 +149,39 @@ pub fn network2_tiling(cfg: &WuConfig) -> Tiling {
         overlap: cfg.receptive_radius(),
         multiple: cfg.size_multiple(),
     }
+}
+
+/// A set's Network-1 inputs ([`SetInfo::network1_pair`]), from its static frames where it
+/// has them.
+pub fn network1_frames(set: &SetInfo) -> Result<(Image, Image)> {
+    let (lo, hi) = set.network1_pair()?;
+    let frames = if set.static_frames.is_empty() {
+        &set.dynamic_frames
+    } else {
+        &set.static_frames
+    };
+    Ok((read_image(&frames[lo])?, read_image(&frames[hi])?))
+}
+
+/// Network-1's outputs in `out`: linear.exr (the fused frame before the tone curve),
+/// tonemapped.exr/.png (after it) and blend_weight.png (the long exposure's weight `w`).
+pub fn write_network1(out: &Path, w: &[f32], linear: &Image, toned: &Image) -> Result<()> {
+    write_exr(&out.join("linear.exr"), linear, ExrPrecision::Float)?;
+    write_exr(&out.join("tonemapped.exr"), toned, ExrPrecision::Float)?;
+    write_ldr(&out.join("tonemapped.png"), toned, BitDepth::Eight)?;
+    let grey = Image::from_vec(
+        linear.width,
+        linear.height,
+        w.iter().flat_map(|&v| [v, v, v]).collect(),
+    );
+    write_ldr(&out.join("blend_weight.png"), &grey, BitDepth::Eight)
+}
+
+/// Network-2's outputs in `out`: hdr.exr and its μ-law preview in the network's [0, 1] range.
+pub fn write_network2(out: &Path, hdr: &Image, hdr_input_scale: f32) -> Result<()> {
+    write_exr(&out.join("hdr.exr"), hdr, ExrPrecision::Float)?;
+    let preview = hdr.map(|v| mu_law((v * hdr_input_scale).clamp(0.0, 1.0) as f64) as f32);
+    write_ldr(&out.join("hdr_mulaw.png"), &preview, BitDepth::Eight)
 }
 
 /// A set's three Network-2 inputs (shortest, reference, longest exposure) and their exposure

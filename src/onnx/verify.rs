@@ -304,3 +304,126 @@ pub fn verify(
 pub fn read_images(paths: &[PathBuf]) -> Result<Vec<Image>> {
     paths.iter().map(|p| read_image(p)).collect()
 }
+
+/// `--verify`: the real frames (empty: the desk oracle frames of ../shared/data when present)
+/// and the largest absolute difference accepted.
+#[derive(Clone, Debug)]
+pub struct VerifyOptions {
+    pub frames: Vec<PathBuf>,
+    pub tolerance: f32,
+}
+
+/// `hdrsynth export onnx`: the network of `checkpoint` (a checkpoint or run folder) written to
+/// `out` as ONNX; with `verify`, the file run in ONNX Runtime and compared with Burn. Returns
+/// the report; a difference over the tolerance is an error that carries the report.
+pub fn export_checkpoint(
+    checkpoint: &Path,
+    out: &Path,
+    opts: &ExportOptions,
+    verify: Option<&VerifyOptions>,
+) -> Result<String> {
+    use std::fmt::Write;
+    let device = crate::device::device_from_name("flex")?;
+    let (dir, state, loaded) = load_checkpoint(checkpoint, &device)?;
+    let model = loaded.to_onnx(opts)?;
+    export::save(&model, out)?;
+    let graph = model.graph.as_ref().expect("built with a graph");
+    let (kind, frames) = match &loaded {
+        Loaded::Network1(_) => (
+            "Network-1",
+            ["desk_2exp_ev-3.png", "desk_2exp_ev+0.png"].as_slice(),
+        ),
+        Loaded::Network2(_) => (
+            "Network-2",
+            [
+                "desk_3exp_ev-2.png",
+                "desk_3exp_ev+0.png",
+                "desk_3exp_ev+2.png",
+            ]
+            .as_slice(),
+        ),
+    };
+    let mut report = format!(
+        "{kind} ({}, step {}) → {}: opset {}, {} nodes, {} initializers, {} bytes, inputs {}, \
+         {}",
+        dir.display(),
+        state.step,
+        out.display(),
+        export::OPSET,
+        graph.node.len(),
+        graph.initializer.len(),
+        std::fs::metadata(out).map(|m| m.len()).unwrap_or(0),
+        graph
+            .input
+            .iter()
+            .filter_map(|v| v.name.clone())
+            .collect::<Vec<_>>()
+            .join(", "),
+        match opts.size {
+            InputSize::Static { height, width } => format!("static {height}×{width}"),
+            InputSize::Dynamic => format!(
+                "dynamic (H, W multiples of {}, at least {})",
+                loaded.size_multiple(),
+                loaded.min_size()
+            ),
+        }
+    );
+    let Some(v) = verify else {
+        return Ok(report);
+    };
+    let mut onnx = OnnxModel::load(out, None)?;
+    let paths: Vec<PathBuf> = if v.frames.is_empty() {
+        let shared = PathBuf::from("../shared/data/oracles");
+        frames.iter().map(|f| shared.join(f)).collect()
+    } else {
+        v.frames.clone()
+    };
+    let images = if paths.iter().all(|p| p.is_file()) {
+        Some(read_images(&paths).map_err(|e| Error::context("reading the --verify frames", e))?)
+    } else if !v.frames.is_empty() {
+        return Err(Error::Invalid(format!(
+            "--verify-frames: not every file exists: {paths:?}"
+        )));
+    } else {
+        None
+    };
+    let label = paths
+        .iter()
+        .filter_map(|p| p.file_name().map(|f| f.to_string_lossy().into_owned()))
+        .collect::<Vec<_>>()
+        .join(" + ");
+    let checks = self::verify(
+        &loaded,
+        &mut onnx,
+        opts.size,
+        images.as_deref().map(|i| (i, label.as_str())),
+        &device,
+    )?;
+    writeln!(report).ok();
+    for c in &checks {
+        writeln!(report, "  {c}").ok();
+    }
+    if images.is_none() {
+        writeln!(
+            report,
+            "  real images: skipped ({} not found; pass --verify-frames)",
+            paths[0].display()
+        )
+        .ok();
+    }
+    let worst = checks.iter().map(|c| c.max_abs_diff).fold(0.0f32, f32::max);
+    if worst.is_nan() || worst > v.tolerance {
+        return Err(Error::Invalid(format!(
+            "{report}ONNX Runtime differs from Burn by {worst:.3e} > tolerance {:.0e}",
+            v.tolerance
+        )));
+    }
+    write!(
+        report,
+        "verified in ONNX Runtime ({}): max abs difference {worst:.3e} ≤ {:.0e}",
+        super::runtime::dylib_path()?.display(),
+        v.tolerance
+    )
+    .ok();
+    Ok(report)
+}

@@ -557,6 +557,44 @@ pub fn import(req: &ImportRequest) -> Result<ImportOutcome> {
     })
 }
 
+impl ImportOutcome {
+    /// The command's report: what was written from where, the noise per ISO, and every note
+    /// on a negative value.
+    pub fn report(&self, req: &ImportRequest) -> String {
+        let (profile, sel) = (&self.profile, &self.selection);
+        let mut report = format!(
+            "{} {} ({}) from {}: {} ISO(s) {}–{}{}\n",
+            if self.created { "created" } else { "updated" },
+            req.out.display(),
+            profile.kind,
+            req.csv.display(),
+            profile.noise.len(),
+            profile.noise.first().map_or(0.0, |n| n.iso),
+            profile.noise.last().map_or(0.0, |n| n.iso),
+            if sel.sets > 1 {
+                format!(" (set {} of {})", sel.set, sel.sets)
+            } else {
+                String::new()
+            }
+        );
+        report.push_str(&format!(
+            "{:>7} {:>12} {:>12} {:>12} {:>12} {:>12} {:>12}\n",
+            "ISO", "a_R", "a_G", "a_B", "b_R", "b_G", "b_B"
+        ));
+        for n in &profile.noise {
+            report.push_str(&format!(
+                "{:>7} {:>12.4e} {:>12.4e} {:>12.4e} {:>12.4e} {:>12.4e} {:>12.4e}\n",
+                n.iso, n.a[0], n.a[1], n.a[2], n.b[0], n.b[1], n.b[2]
+            ));
+        }
+        let rule = format!("{:?}", req.rule).to_lowercase();
+        for c in &self.notes {
+            report.push_str(&format!("negative ({rule}): {c}\n"));
+        }
+        report
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

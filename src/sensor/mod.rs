@@ -9,7 +9,6 @@ pub mod dng;
 pub mod effects;
 pub mod metering;
 pub mod noise;
-pub mod noise_profile;
 pub mod profile;
 pub mod realism;
 pub mod response;

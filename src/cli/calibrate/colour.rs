@@ -113,11 +113,9 @@ impl Args {
                 .map(|r| r.parse::<Response>().map_err(anyhow::Error::msg))
                 .transpose()
         };
-        let region = |s: &Option<String>| -> Result<ChartRegion> {
-            Ok(match s {
-                Some(s) => ChartRegion::parse_corners(s)?,
-                None => ChartRegion::FullFrame,
-            })
+        let region = |s: &Option<String>| {
+            s.as_deref()
+                .map_or(Ok(ChartRegion::FullFrame), ChartRegion::parse_corners)
         };
         let synthetic = if self.synthetic.eq_ignore_ascii_case("render") {
             if self.synthetic_corners.is_some() || self.synthetic_response.is_some() {

@@ -1,7 +1,7 @@
 //! `hdrsynth calibrate noise CAPTURES --out PROFILE`: the noise calibration written into a
-//! sensor profile (`sensor::noise_profile`, docs/noise.md).
+//! sensor profile (`sensor::noise::profile`, docs/noise.md).
 
-use crate::sensor::noise_profile::{NoiseProfileOptions, calibrate_noise_profile};
+use crate::sensor::noise::profile::{NoiseProfileOptions, calibrate_noise_profile};
 use std::path::PathBuf;
 
 #[derive(clap::Args, Clone, Debug)]

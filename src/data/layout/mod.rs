@@ -156,6 +156,33 @@ const LAYOUT_HINTS: &str = "Kalantari: three 16-bit .tif + exposure.txt + HDRImg
      Wu: input_{1,2,3}_aligned.{tif,png} + input_exp.txt + ref_hdr_aligned*.hdr; \
      paper Dataset-1: input_1..4.png + hdr_gt.png; hdrsynth: dataset.toml";
 
+/// The set in folder `dir`: a set of the dataset that contains it, or a dataset of one set.
+pub fn find_set(dir: &Path) -> Result<SetInfo> {
+    let want = dir
+        .canonicalize()
+        .map_err(|e| Error::context(format!("set folder {}", dir.display()), e))?;
+    if let Some(parent) = want.parent()
+        && let Ok(info) = detect(parent)
+        && let Some(set) = info
+            .sets
+            .into_iter()
+            .find(|s| s.dir.canonicalize().is_ok_and(|d| d == want))
+    {
+        return Ok(set);
+    }
+    let info = detect(&want)?;
+    match <[SetInfo; 1]>::try_from(info.sets) {
+        Ok([set]) => Ok(set),
+        Err(sets) => Err(Error::layout(
+            dir,
+            format!(
+                "not a set folder (a dataset of {} sets); pass one set's folder",
+                sets.len()
+            ),
+        )),
+    }
+}
+
 /// Detect the layout of `root` and describe its sets.
 ///
 /// Order: hdrsynth's own layout (root/dataset.toml); else `root` itself as one set; else each

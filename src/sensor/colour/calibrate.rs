@@ -572,3 +572,30 @@ fn new_profile(opts: &CalibrateOptions, inputs: &InputsInfo) -> Result<SensorPro
         },
     ))
 }
+/// `hdrsynth profile colour-from-matrix`: set the existing profile `out`'s T from a published
+/// XYZ→camera matrix (`matrix`: nine numbers, row-major, as published, each divided by
+/// `scale`; [`fit::t_from_camera_xyz`]), recording `source` and the numbers as provenance.
+pub fn colour_from_matrix(matrix: &str, scale: f64, source: &str, out: &Path) -> Result<Mat3> {
+    if source.trim().is_empty() {
+        return Err(Error::Invalid(
+            "--source must say where the matrix comes from".into(),
+        ));
+    }
+    let v = super::parse_floats(matrix, 9, "--matrix")?;
+    let cam_xyz: Mat3 = std::array::from_fn(|r| std::array::from_fn(|c| v[r * 3 + c] / scale));
+    let t = fit::t_from_camera_xyz(&cam_xyz)?;
+    let mut p = SensorProfile::load(out)?;
+    p.colour = Some(Colour {
+        matrix: t,
+        root_polynomial: None,
+        use_root_polynomial: false,
+    });
+    p.provenance.colour = format!(
+        "{}; XYZ→camera matrix [{matrix}]/{scale} converted by `hdrsynth profile \
+         colour-from-matrix`: T = rownorm(M · sRGB→XYZ(D65)), rows scaled to sum 1 (dcraw's \
+         cam_rgb normalisation)",
+        source.trim(),
+    );
+    p.save(out)?;
+    Ok(t)
+}

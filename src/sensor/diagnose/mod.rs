@@ -38,6 +38,7 @@ use bootstrap::{Context, evaluate, statistics};
 use plots::radial_profile;
 use rayon::prelude::*;
 use report::evidence;
+use std::path::Path;
 
 pub const REPORT_FORMAT: &str = "hdrsynth-diagnosis/1";
 
@@ -622,6 +623,26 @@ pub fn diagnose(
         calibration,
         radial,
     })
+}
+
+/// `hdrsynth diagnose CAPTURES [--profile P] --out DIR`: load the capture set (a folder with
+/// captures.toml, or the manifest) and the starting profile, run the workflow and write its
+/// files to `out` under the output lock.
+pub fn diagnose_folder(
+    captures: &Path,
+    profile: Option<&Path>,
+    opts: &DiagnoseOptions,
+    out: &Path,
+) -> Result<Diagnosis> {
+    // One writer per output, refused before the (long) analysis rather than after it.
+    let _lock = crate::io::guard::OutputLock::acquire(out, "diagnose")?;
+    let set = CaptureSet::load(captures)?;
+    let profile = profile.map(SensorProfile::load).transpose()?;
+    let d = diagnose(&set, profile, opts)
+        .map_err(|e| Error::context(format!("diagnosing {}", captures.display()), e))?;
+    d.write(out)
+        .map_err(|e| Error::context(format!("writing the diagnosis to {}", out.display()), e))?;
+    Ok(d)
 }
 
 impl Diagnosis {

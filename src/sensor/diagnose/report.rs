@@ -83,6 +83,34 @@ fn round2(v: f64) -> f64 {
 }
 
 impl Diagnosis {
+    /// The command's summary: the gap before and after, each step, what is unexplained.
+    pub fn summary(&self) -> String {
+        let mut s = String::new();
+        let _ = writeln!(
+            s,
+            "gap {:.2} → {:.2} (threshold {:.2}), {} step(s):",
+            self.initial_gap(),
+            self.final_gap(),
+            self.threshold,
+            self.steps.len()
+        );
+        for st in &self.steps {
+            let _ = writeln!(
+                s,
+                "  + {} {{{}}}: {:.2} → {:.2} ({})",
+                st.effect,
+                st.params.to_string().trim().replace('\n', ", "),
+                st.gap_before,
+                st.gap_after,
+                st.evidence
+            );
+        }
+        for u in &self.unexplained {
+            let _ = writeln!(s, "  unexplained: {u}");
+        }
+        s
+    }
+
     /// report.json (`hdrsynth-diagnosis/1`).
     pub fn report_json(&self) -> String {
         let mut s = String::from("{\n");

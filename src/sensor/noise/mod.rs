@@ -23,11 +23,13 @@
 //!
 //! Layout (EMVA 1288's data → statistics → results → report): `bursts` streams the frames of a
 //! burst into per-pixel temporal statistics, `calibrate` bins them and fits the line, `report`
-//! and `plot` present a [`NoiseCalibration`].
+//! and `plot` present a [`NoiseCalibration`], `profile` writes it into a sensor profile
+//! (`hdrsynth calibrate noise`).
 
 pub mod bursts;
 pub mod calibrate;
 pub mod plot;
+pub mod profile;
 mod report;
 
 use crate::error::Result;

@@ -3,9 +3,9 @@
 //! it into a SensorProfile, with a photon-transfer-curve plot. Nothing is written when anything
 //! fails.
 
+use super::{self as noise, CalibrateOptions, LevelSource};
 use crate::error::{Error, Result};
 use crate::sensor::captures::{BurstKind, CaptureSet};
-use crate::sensor::noise::{self, CalibrateOptions, LevelSource};
 use crate::sensor::profile::{Levels, SensorProfile};
 use std::path::{Path, PathBuf};
 
