@@ -24,6 +24,7 @@ use super::chart::{self, COLORCHECKER24, ChartRegion, Illuminant, PatchSample};
 use super::fit::{self, ChartFit, ChartFitError, Fitted, WhiteBalance};
 use crate::error::{Error, Result};
 use crate::io::{Format, Image, read_image_info};
+use crate::linalg::Mat3;
 use crate::sensor::dng::{DngInfo, read_dng};
 use crate::sensor::profile::{Colour, Levels, Provenance, Response, SensorProfile};
 use std::fmt::Write as _;
