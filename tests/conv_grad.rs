@@ -136,3 +136,22 @@ fn repeatable_bit_for_bit() {
     let b = grads(true, &x, &w, &options);
     assert_eq!(a, b);
 }
+
+/// The same bits on 1, 2 and 4 threads: with batch 3, one thread runs every item's GEMMs
+/// (split across threads only on 4) — the split must never change a result.
+#[test]
+fn same_bits_on_any_thread_count() {
+    let x = tensor([3, 8, 24, 24], 3);
+    let w = tensor([16, 8, 5, 5], 4);
+    let options = ConvOptions::new([1, 1], [2, 2], [1, 1], 1);
+    let on = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("pool")
+            .install(|| grads(true, &x, &w, &options))
+    };
+    let one = on(1);
+    assert_eq!(one, on(2), "2 threads");
+    assert_eq!(one, on(4), "4 threads");
+}

@@ -371,7 +371,8 @@ pub(crate) mod flex {
     }
 
     /// dst[m×n] = lhs[m×k] · rhs[k×n] (plus dst when `accumulate`), each matrix given by its
-    /// (column, row) strides; rayon-parallel, no conjugation.
+    /// (column, row) strides, no conjugation; on the rayon pool when `parallel`, else on the
+    /// calling thread.
     ///
     /// # Safety
     /// Every stride and extent must index inside the three buffers.
@@ -385,7 +386,13 @@ pub(crate) mod flex {
         [lhs_cs, lhs_rs]: [isize; 2],
         rhs: *const f32,
         [rhs_cs, rhs_rs]: [isize; 2],
+        parallel: bool,
     ) {
+        let parallelism = if parallel {
+            gemm::Parallelism::Rayon(0)
+        } else {
+            gemm::Parallelism::None
+        };
         // SAFETY: forwarded from the caller. alpha (the weight on dst) is 1 when accumulating
         // and ignored by gemm otherwise.
         unsafe {
@@ -408,25 +415,75 @@ pub(crate) mod flex {
                 false,
                 false,
                 false,
-                gemm::Parallelism::Rayon(0),
+                parallelism,
             )
         }
     }
 
-    /// Calls `f(b, oh0, col)` for each batch item `b` and tile of output rows starting at `oh0`,
-    /// in a fixed order, with `col` sized [rows, tile rows · wo] from one reused buffer.
-    fn for_each_tile(
-        [batch, ho, wo]: [usize; 3],
-        rows: usize,
-        mut f: impl FnMut(usize, usize, &mut [f32]),
-    ) {
+    /// The (batch item, first output row) of every im2col tile in a fixed order, and the
+    /// largest tile's length (tile rows · wo).
+    fn tiles([batch, ho, wo]: [usize; 3], rows: usize) -> (Vec<(usize, usize)>, usize) {
         let tile_rows = tile_rows(rows, wo, ho);
-        let mut col = vec![0.0f32; rows * tile_rows * wo];
-        for b in 0..batch {
-            for oh0 in (0..ho).step_by(tile_rows) {
-                let t = tile_rows.min(ho - oh0) * wo;
-                f(b, oh0, &mut col[..rows * t]);
-            }
+        let items = (0..batch)
+            .flat_map(|b| (0..ho).step_by(tile_rows).map(move |oh0| (b, oh0)))
+            .collect();
+        (items, tile_rows * wo)
+    }
+
+    /// Rows of a tile starting at output row `oh0`, times wo.
+    fn tile_len(oh0: usize, [ho, wo]: [usize; 2], max_len: usize) -> usize {
+        max_len.min((ho - oh0) * wo)
+    }
+
+    /// Splits `items` into one contiguous run per rayon thread (fewer if there are fewer items)
+    /// and calls `f(run, parallel, col)` on the runs concurrently, each with its own buffer of
+    /// `col_len`; returns their results in run order. With several runs each GEMM runs on its
+    /// own thread (`parallel` false): one GEMM per thread beats splitting every GEMM across
+    /// threads for the narrow layers and the long-K weight gradient (BENCHMARKS.md). Only for
+    /// outputs whose every element one GEMM computes whole: gemm's result does not depend on
+    /// its parallelism, so neither the split nor the thread count changes a bit.
+    fn par_runs<I: Sync, T: Send>(
+        items: &[I],
+        col_len: usize,
+        f: impl Fn(&[I], bool, &mut [f32]) -> T + Sync,
+    ) -> Vec<T> {
+        let n = rayon::current_num_threads().clamp(1, items.len().max(1));
+        let per = items.len().div_ceil(n);
+        if n == 1 {
+            return vec![f(items, true, &mut vec![0.0f32; col_len])];
+        }
+        items
+            .par_chunks(per)
+            .map(|run| f(run, false, &mut vec![0.0f32; col_len]))
+            .collect()
+    }
+
+    /// Calls `f(b, parallel, col)` for every batch item concurrently, each with its own buffer
+    /// of `col_len`; returns the results in item order. Each item's GEMMs run on its own thread
+    /// (`parallel` false) unless there are more threads than items. The items do not depend on
+    /// the thread count, so neither do the results.
+    fn par_items<T: Send>(
+        batch: usize,
+        col_len: usize,
+        f: impl Fn(usize, bool, &mut [f32]) -> T + Sync,
+    ) -> Vec<T> {
+        let parallel = rayon::current_num_threads() > batch;
+        (0..batch)
+            .into_par_iter()
+            .map(|b| f(b, parallel, &mut vec![0.0f32; col_len]))
+            .collect()
+    }
+
+    /// A pointer to an output that runs write in disjoint places.
+    #[derive(Clone, Copy)]
+    struct Shared(*mut f32);
+    // SAFETY: every user writes through it only at positions no other run touches.
+    unsafe impl Send for Shared {}
+    unsafe impl Sync for Shared {}
+    impl Shared {
+        /// Through a method, so closures capture the whole (Sync) wrapper, not its field.
+        fn at(self, offset: usize) -> *mut f32 {
+            self.0.wrapping_add(offset)
         }
     }
 
@@ -449,23 +506,29 @@ pub(crate) mod flex {
         if rows == 0 || p_all == 0 || cout == 0 {
             return y;
         }
-        for_each_tile([batch, ho, wo], rows, |b, oh0, col| {
-            let xb = &x[b * cin * h * w..(b + 1) * cin * h * w];
-            let yb = &mut y[b * cout * p_all..(b + 1) * cout * p_all];
-            let t = col.len() / rows;
-            im2col(xb, [cin, h, w], [kh, kw], options, wo, oh0, col);
-            // SAFETY: all strides and extents index inside `yb`, `wt` and `col`.
-            unsafe {
-                matmul(
-                    [cout, t, rows],
-                    yb.as_mut_ptr().add(oh0 * wo),
-                    [1, p_all as isize],
-                    false,
-                    wt.as_ptr(),
-                    [1, rows as isize],
-                    col.as_ptr(),
-                    [1, t as isize],
-                );
+        let (items, col_len) = tiles([batch, ho, wo], rows);
+        let out = Shared(y.as_mut_ptr());
+        par_runs(&items, rows * col_len, |run, parallel, col| {
+            for &(b, oh0) in run {
+                let xb = &x[b * cin * h * w..(b + 1) * cin * h * w];
+                let t = tile_len(oh0, [ho, wo], col_len);
+                let col = &mut col[..rows * t];
+                im2col(xb, [cin, h, w], [kh, kw], options, wo, oh0, col);
+                // SAFETY: all strides and extents index inside y's item b, `wt` and `col`;
+                // each (b, oh0) is one run's, so no two runs write the same element of y.
+                unsafe {
+                    matmul(
+                        [cout, t, rows],
+                        out.at(b * cout * p_all + oh0 * wo),
+                        [1, p_all as isize],
+                        false,
+                        wt.as_ptr(),
+                        [1, rows as isize],
+                        col.as_ptr(),
+                        [1, t as isize],
+                        parallel,
+                    );
+                }
             }
         });
         y
@@ -486,32 +549,46 @@ pub(crate) mod flex {
         let [kh, kw] = k;
         let rows = cin * kh * kw;
         let p_all = ho * wo;
-        let mut dw_out = vec![0.0f32; cout * rows];
         if rows == 0 || p_all == 0 || cout == 0 {
-            return dw_out;
+            return vec![0.0f32; cout * rows];
         }
-        let mut first = true;
-        for_each_tile([batch, ho, wo], rows, |b, oh0, col| {
+        let tile_rows = tile_rows(rows, wo, ho);
+        let col_len = tile_rows * wo;
+        // Each batch item sums its tiles into its own dW (K split by item: a GEMM per thread);
+        // the items' sums are added in item order.
+        let parts = par_items(batch, rows * col_len, |b, parallel, col| {
             let xb = &x[b * cin * h * w..(b + 1) * cin * h * w];
             let yb = &dy[b * cout * p_all..(b + 1) * cout * p_all];
-            let t = col.len() / rows;
-            im2col(xb, [cin, h, w], k, options, wo, oh0, col);
-            // dW[co, r] (+)= Σ_p dY[co, oh0·wo + p] · col[r, p]: M = c_out, N = rows, K = t.
-            // SAFETY: all strides and extents index inside `dw_out`, `yb` and `col`.
-            unsafe {
-                matmul(
-                    [cout, rows, t],
-                    dw_out.as_mut_ptr(),
-                    [1, rows as isize],
-                    !first,
-                    yb.as_ptr().add(oh0 * wo),
-                    [1, p_all as isize],
-                    col.as_ptr(),
-                    [t as isize, 1],
-                );
+            let mut dw = vec![0.0f32; cout * rows];
+            for oh0 in (0..ho).step_by(tile_rows) {
+                let t = tile_len(oh0, [ho, wo], col_len);
+                let col = &mut col[..rows * t];
+                im2col(xb, [cin, h, w], k, options, wo, oh0, col);
+                // dW[co, r] (+)= Σ_p dY[co, oh0·wo + p] · col[r, p]: M = c_out, N = rows, K = t.
+                // SAFETY: all strides and extents index inside `dw`, `yb` and `col`.
+                unsafe {
+                    matmul(
+                        [cout, rows, t],
+                        dw.as_mut_ptr(),
+                        [1, rows as isize],
+                        oh0 > 0,
+                        yb.as_ptr().add(oh0 * wo),
+                        [1, p_all as isize],
+                        col.as_ptr(),
+                        [t as isize, 1],
+                        parallel,
+                    );
+                }
             }
-            first = false;
+            dw
         });
+        let mut parts = parts.into_iter();
+        let mut dw_out = parts.next().unwrap_or_else(|| vec![0.0f32; cout * rows]);
+        for part in parts {
+            for (d, p) in dw_out.iter_mut().zip(&part) {
+                *d += p;
+            }
+        }
         dw_out
     }
 
@@ -535,25 +612,36 @@ pub(crate) mod flex {
         if rows == 0 || p_all == 0 || cout == 0 || h * w == 0 {
             return dx;
         }
-        for_each_tile([batch, ho, wo], rows, |b, oh0, col| {
+        let tile_rows = tile_rows(rows, wo, ho);
+        let col_len = tile_rows * wo;
+        let out = Shared(dx.as_mut_ptr());
+        // By batch item (the tiles of one item overlap in dx); within an item the tiles go in
+        // order, so each element's sum order is fixed.
+        par_items(batch, rows * col_len, |b, parallel, col| {
             let yb = &dy[b * cout * p_all..(b + 1) * cout * p_all];
-            let dxb = &mut dx[b * cin * h * w..(b + 1) * cin * h * w];
-            let t = col.len() / rows;
-            // col[r, p] = Σ_co W[co, r] · dY[co, oh0·wo + p].
-            // SAFETY: all strides and extents index inside `col`, `wt` and `yb`.
-            unsafe {
-                matmul(
-                    [rows, t, cout],
-                    col.as_mut_ptr(),
-                    [1, t as isize],
-                    false,
-                    wt.as_ptr(),
-                    [rows as isize, 1],
-                    yb.as_ptr().add(oh0 * wo),
-                    [1, p_all as isize],
-                );
+            // SAFETY: item b's slice of dx is written by this item only.
+            let dxb =
+                unsafe { std::slice::from_raw_parts_mut(out.at(b * cin * h * w), cin * h * w) };
+            for oh0 in (0..ho).step_by(tile_rows) {
+                let t = tile_len(oh0, [ho, wo], col_len);
+                let col = &mut col[..rows * t];
+                // col[r, p] = Σ_co W[co, r] · dY[co, oh0·wo + p].
+                // SAFETY: all strides and extents index inside `col`, `wt` and `yb`.
+                unsafe {
+                    matmul(
+                        [rows, t, cout],
+                        col.as_mut_ptr(),
+                        [1, t as isize],
+                        false,
+                        wt.as_ptr(),
+                        [rows as isize, 1],
+                        yb.as_ptr().add(oh0 * wo),
+                        [1, p_all as isize],
+                        parallel,
+                    );
+                }
+                col2im(col, [kh, kw], options, [h, w], wo, oh0, dxb);
             }
-            col2im(col, [kh, kw], options, [h, w], wo, oh0, dxb);
         });
         dx
     }
