@@ -30,137 +30,14 @@ fn shared(rel: &str) -> Option<PathBuf> {
     }
 }
 
-// --- a minimal JSON reader for oracles.json (no JSON crate in the dependencies) ---------------
+// --- oracles.json through serde_json, with accessors that panic naming what is missing -------
 
-#[derive(Debug, Clone)]
-enum Json {
-    Null,
-    Bool,
-    Num(f64),
-    Str(String),
-    Arr(Vec<Json>),
-    Obj(Vec<(String, Json)>),
-}
+use serde_json::Value;
 
-impl Json {
-    fn parse(s: &str) -> Json {
-        let b = s.as_bytes();
-        let mut i = 0;
-        Self::value(b, &mut i)
-    }
-    fn ws(b: &[u8], i: &mut usize) {
-        while *i < b.len() && b[*i].is_ascii_whitespace() {
-            *i += 1;
-        }
-    }
-    fn value(b: &[u8], i: &mut usize) -> Json {
-        Self::ws(b, i);
-        match b[*i] {
-            b'{' => {
-                *i += 1;
-                let mut items = Vec::new();
-                loop {
-                    Self::ws(b, i);
-                    if b[*i] == b'}' {
-                        *i += 1;
-                        break;
-                    }
-                    let Json::Str(k) = Self::value(b, i) else {
-                        panic!("object key")
-                    };
-                    Self::ws(b, i);
-                    assert_eq!(b[*i], b':');
-                    *i += 1;
-                    items.push((k, Self::value(b, i)));
-                    Self::ws(b, i);
-                    if b[*i] == b',' {
-                        *i += 1;
-                    }
-                }
-                Json::Obj(items)
-            }
-            b'[' => {
-                *i += 1;
-                let mut items = Vec::new();
-                loop {
-                    Self::ws(b, i);
-                    if b[*i] == b']' {
-                        *i += 1;
-                        break;
-                    }
-                    items.push(Self::value(b, i));
-                    Self::ws(b, i);
-                    if b[*i] == b',' {
-                        *i += 1;
-                    }
-                }
-                Json::Arr(items)
-            }
-            b'"' => {
-                *i += 1;
-                let mut s = Vec::new();
-                while b[*i] != b'"' {
-                    if b[*i] == b'\\' {
-                        *i += 1;
-                    }
-                    s.push(b[*i]);
-                    *i += 1;
-                }
-                *i += 1;
-                Json::Str(String::from_utf8_lossy(&s).into_owned())
-            }
-            b't' => {
-                *i += 4;
-                Json::Bool
-            }
-            b'f' => {
-                *i += 5;
-                Json::Bool
-            }
-            b'n' => {
-                *i += 4;
-                Json::Null
-            }
-            _ => {
-                let start = *i;
-                while *i < b.len()
-                    && (b[*i] == b'-'
-                        || b[*i] == b'+'
-                        || b[*i] == b'.'
-                        || b[*i] == b'e'
-                        || b[*i] == b'E'
-                        || b[*i].is_ascii_digit())
-                {
-                    *i += 1;
-                }
-                Json::Num(std::str::from_utf8(&b[start..*i]).unwrap().parse().unwrap())
-            }
-        }
-    }
-    fn get(&self, key: &str) -> &Json {
-        match self {
-            Json::Obj(items) => {
-                &items
-                    .iter()
-                    .find(|(k, _)| k == key)
-                    .unwrap_or_else(|| panic!("no key {key}"))
-                    .1
-            }
-            _ => panic!("not an object"),
-        }
-    }
-    fn arr(&self) -> &[Json] {
-        match self {
-            Json::Arr(a) => a,
-            _ => panic!("not an array"),
-        }
-    }
-    fn num(&self) -> f64 {
-        match self {
-            Json::Num(v) => *v,
-            _ => panic!("not a number"),
-        }
-    }
+trait Oracle {
+    fn key(&self, key: &str) -> &Value;
+    fn arr(&self) -> &[Value];
+    fn num(&self) -> f64;
     fn vec3(&self) -> [f64; 3] {
         let a = self.arr();
         assert_eq!(a.len(), 3);
@@ -177,9 +54,21 @@ impl Json {
     }
 }
 
-fn oracles() -> Option<Json> {
+impl Oracle for Value {
+    fn key(&self, key: &str) -> &Value {
+        self.get(key).unwrap_or_else(|| panic!("no key {key}"))
+    }
+    fn arr(&self) -> &[Value] {
+        self.as_array().expect("not an array")
+    }
+    fn num(&self) -> f64 {
+        self.as_f64().expect("not a number")
+    }
+}
+
+fn oracles() -> Option<Value> {
     let p = shared("oracles/oracles.json")?;
-    Some(Json::parse(&std::fs::read_to_string(p).unwrap()))
+    Some(serde_json::from_str(&std::fs::read_to_string(p).unwrap()).expect("oracles.json"))
 }
 
 // --- oracles -------------------------------------------------------------------------------------
@@ -187,13 +76,13 @@ fn oracles() -> Option<Json> {
 #[test]
 fn delta_e_2000_matches_colour_science_on_40_pairs() {
     let Some(o) = oracles() else { return };
-    let pairs = o.get("delta_e_2000").arr();
+    let pairs = o.key("delta_e_2000").arr();
     assert_eq!(pairs.len(), 40);
     for (k, p) in pairs.iter().enumerate() {
         let (l1, l2, want) = (
-            p.get("lab1").vec3(),
-            p.get("lab2").vec3(),
-            p.get("de00").num(),
+            p.key("lab1").vec3(),
+            p.key("lab2").vec3(),
+            p.key("de00").num(),
         );
         let got = cie::delta_e_2000(l1, l2);
         assert!((got - want).abs() < 1e-6, "pair {k}: {got} vs {want}");
@@ -220,15 +109,15 @@ fn delta_e_2000_edge_cases() {
 #[test]
 fn least_squares_and_root_polynomial_match_colour_science() {
     let Some(o) = oracles() else { return };
-    let cc = o.get("colour_correction");
-    let syn = cc.get("synthetic_rgb").rows3();
-    let real = cc.get("real_rgb").rows3();
+    let cc = o.key("colour_correction");
+    let syn = cc.key("synthetic_rgb").rows3();
+    let real = cc.key("real_rgb").rows3();
     assert_eq!(syn.len(), 24);
     assert!(
         syn.iter().flatten().any(|v| *v < 0.0),
         "the oracle has a negative synthetic value"
     );
-    let want_t = cc.get("T_least_squares_3x3").matrix();
+    let want_t = cc.key("T_least_squares_3x3").matrix();
     let t = fit::fit_matrix(&syn, &real).unwrap();
     for i in 0..3 {
         for j in 0..3 {
@@ -240,7 +129,7 @@ fn least_squares_and_root_polynomial_match_colour_science() {
             );
         }
     }
-    let want_rp = cc.get("root_polynomial_degree2_matrix").matrix();
+    let want_rp = cc.key("root_polynomial_degree2_matrix").matrix();
     let rp = fit::fit_root_polynomial(&syn, &real).unwrap();
     for i in 0..3 {
         for j in 0..6 {

@@ -23,24 +23,6 @@ fn oracle_dir() -> Option<PathBuf> {
     }
 }
 
-/// Pulls `"key": number` out of the JSON text after `from` (no JSON crate in the dependencies).
-fn json_number(text: &str, from: usize, key: &str) -> f64 {
-    let pat = format!("\"{key}\":");
-    let at = from + text[from..].find(&pat).expect("key") + pat.len();
-    let rest = text[at..].trim_start();
-    let end = rest
-        .find(|c: char| !(c.is_ascii_digit() || "+-.eE".contains(c)))
-        .unwrap_or(rest.len());
-    rest[..end].parse().expect("number")
-}
-
-fn json_string(text: &str, from: usize, key: &str) -> String {
-    let pat = format!("\"{key}\":");
-    let at = from + text[from..].find(&pat).expect("key") + pat.len();
-    let rest = text[at..].trim_start().strip_prefix('"').expect("string");
-    rest[..rest.find('"').unwrap()].to_string()
-}
-
 const CASES: [&str; 6] = [
     "desk_noise",
     "desk_gain",
@@ -65,19 +47,21 @@ const PU21_REF: [(&str, f64, f64); 6] = [
 fn oracle_cases_match_skimage_to_1e6() {
     let Some(dir) = oracle_dir() else { return };
     let text = std::fs::read_to_string(dir.join("oracles.json")).unwrap();
-    let metrics_at = text.find("\"metrics\"").expect("metrics key");
+    let oracles: serde_json::Value = serde_json::from_str(&text).expect("oracles.json");
     let mut worst = [0.0f64; 6];
     for (case, (pu_name, pu_psnr, pu_ssim)) in CASES.iter().zip(PU21_REF) {
         assert_eq!(*case, pu_name);
-        let at = metrics_at + text[metrics_at..].find(&format!("\"{case}\"")).expect(case);
-        let gt = read_image(&dir.join(json_string(&text, at, "gt"))).unwrap();
-        let pred = read_image(&dir.join(json_string(&text, at, "pred"))).unwrap();
+        let o = &oracles["metrics"]["cases"][*case];
+        let number = |key: &str| o[key].as_f64().unwrap_or_else(|| panic!("{case}.{key}"));
+        let file = |key: &str| dir.join(o[key].as_str().unwrap_or_else(|| panic!("{case}.{key}")));
+        let gt = read_image(&file("gt")).unwrap();
+        let pred = read_image(&file("pred")).unwrap();
         let s = score(&gt, &pred, &MetricOptions::default()).unwrap();
         let want = [
-            json_number(&text, at, "psnr_l"),
-            json_number(&text, at, "psnr_t"),
-            json_number(&text, at, "ssim_l"),
-            json_number(&text, at, "ssim_t"),
+            number("psnr_l"),
+            number("psnr_t"),
+            number("ssim_l"),
+            number("ssim_t"),
             pu_psnr,
             pu_ssim,
         ];
