@@ -435,27 +435,25 @@ pub(crate) mod flex {
         max_len.min((ho - oh0) * wo)
     }
 
-    /// Splits `items` into one contiguous run per rayon thread (fewer if there are fewer items)
-    /// and calls `f(run, parallel, col)` on the runs concurrently, each with its own buffer of
-    /// `col_len`; returns their results in run order. With several runs each GEMM runs on its
+    /// Splits the tiles `items` into one contiguous run per rayon thread (fewer if there are
+    /// fewer tiles) and calls `f(run, parallel, col)` on the runs concurrently, each with its
+    /// own buffer of `col_len`. With several runs each GEMM runs on its
     /// own thread (`parallel` false): one GEMM per thread beats splitting every GEMM across
     /// threads for the narrow layers and the long-K weight gradient (BENCHMARKS.md). Only for
     /// outputs whose every element one GEMM computes whole: gemm's result does not depend on
     /// its parallelism, so neither the split nor the thread count changes a bit.
-    fn par_runs<I: Sync, T: Send>(
-        items: &[I],
+    fn par_runs(
+        items: &[(usize, usize)],
         col_len: usize,
-        f: impl Fn(&[I], bool, &mut [f32]) -> T + Sync,
-    ) -> Vec<T> {
+        f: impl Fn(&[(usize, usize)], bool, &mut [f32]) + Sync,
+    ) {
         let n = rayon::current_num_threads().clamp(1, items.len().max(1));
-        let per = items.len().div_ceil(n);
         if n == 1 {
-            return vec![f(items, true, &mut vec![0.0f32; col_len])];
+            return f(items, true, &mut vec![0.0f32; col_len]);
         }
         items
-            .par_chunks(per)
-            .map(|run| f(run, false, &mut vec![0.0f32; col_len]))
-            .collect()
+            .par_chunks(items.len().div_ceil(n))
+            .for_each(|run| f(run, false, &mut vec![0.0f32; col_len]));
     }
 
     /// Calls `f(b, parallel, col)` for every batch item concurrently, each with its own buffer
@@ -582,14 +580,14 @@ pub(crate) mod flex {
             }
             dw
         });
-        let mut parts = parts.into_iter();
-        let mut dw_out = parts.next().unwrap_or_else(|| vec![0.0f32; cout * rows]);
-        for part in parts {
-            for (d, p) in dw_out.iter_mut().zip(&part) {
-                *d += p;
-            }
-        }
-        dw_out
+        let sum = |mut acc: Vec<f32>, part: Vec<f32>| {
+            acc.iter_mut().zip(&part).for_each(|(d, p)| *d += p);
+            acc
+        };
+        parts
+            .into_iter()
+            .reduce(sum)
+            .unwrap_or_else(|| vec![0.0f32; cout * rows])
     }
 
     /// The kernel of [`input_grad`] on row-major slices: `dy` is [B, C_out, H_out, W_out], `wt`
