@@ -15,8 +15,10 @@ use burn::nn::pool::MaxPool2dConfig;
 use burn::nn::{BatchNormConfig, Relu};
 use burn::tensor::module::{conv_transpose2d, conv2d};
 use burn::tensor::ops::{ConvOptions, ConvTransposeOptions};
-use burn::tensor::{Device, Tensor, TensorData};
+use burn::tensor::{Device, Int, Tensor, TensorData};
 use hdrsynth::models::conv::conv2d_op;
+use hdrsynth::train::config::DEFAULT_LABEL_SIGMA;
+use hdrsynth::train::loss::{Network1Reading, network1_loss};
 use std::time::Instant;
 
 const BATCH: usize = 4;
@@ -56,6 +58,8 @@ struct Conv {
 }
 
 fn main() {
+    // As the binary does (src/main.rs): keep freed activations in the heap.
+    hdrsynth::device::retain_freed_memory();
     let backend = std::env::var("HDRSYNTH_BENCH_BACKEND").unwrap_or_else(|_| "flex".into());
     let reps: usize = std::env::var("HDRSYNTH_BENCH_REPS")
         .ok()
@@ -139,7 +143,9 @@ fn main() {
     println!("| op | in→out | size | × | forward | input grad | weight grad | total × count |");
     println!("|---|---|---|---|---|---|---|---|");
     let mut sum = [0.0f64; 3];
-    for c in &convs {
+    // `HDRSYNTH_BENCH_ONLY=other`: skip the convolutions.
+    let skip_convs = std::env::var("HDRSYNTH_BENCH_ONLY").is_ok_and(|v| v == "other");
+    for c in convs.iter().filter(|_| !skip_convs) {
         let x = tensor([BATCH, c.cin, c.size, c.size], 1, &dev);
         let wshape = if c.transposed {
             [c.cin, c.cout, c.k, c.k]
@@ -233,6 +239,46 @@ fn main() {
         let grads = xg.clone().sum().backward();
         sync(xg.grad(&grads).expect("grad"));
     });
+    // Network-1's loss on its logits (4 × 256 × 128²): softmax over the classes, then Eq. 4.
+    let logits = tensor([BATCH, 256, 128, 128], 4, &dev);
+    let target = Tensor::<3, Int>::from_data(
+        TensorData::new(
+            (0..BATCH * 128 * 128)
+                .map(|i| ((i * 37) % 256) as i64)
+                .collect::<Vec<_>>(),
+            [BATCH, 128, 128],
+        ),
+        &dev,
+    );
+    let alpha = Tensor::<1>::ones([256], &dev);
+    let loss_f = time(reps, || {
+        let l = network1_loss(
+            Network1Reading::Literal,
+            logits.clone(),
+            target.clone(),
+            alpha.clone(),
+            DEFAULT_LABEL_SIGMA,
+        );
+        let _ = l.into_data();
+    });
+    let loss_fb = |reading| {
+        time(reps, || {
+            let zg = logits.clone().require_grad();
+            let l = network1_loss(
+                reading,
+                zg.clone(),
+                target.clone(),
+                alpha.clone(),
+                DEFAULT_LABEL_SIGMA,
+            );
+            let grads = l.backward();
+            sync(zg.grad(&grads).expect("grad"));
+        })
+    };
+    let (literal_fb, soft_fb) = (
+        loss_fb(Network1Reading::Literal),
+        loss_fb(Network1Reading::Soft),
+    );
     println!(
         "\nOther ops at 32×128² (batch {BATCH}); `+ backward` includes a sum and its backward"
     );
@@ -243,5 +289,7 @@ fn main() {
     println!("| max-pool 2×2 | | {pool_fb:.4} |");
     println!("| cat (skip, 2 × 32 ch) | | {cat_fb:.4} |");
     println!("| sum alone (the backward's seed) | | {sum_fb:.4} |");
+    println!("| softmax + Eq. 4 loss on 256×128² logits | {loss_f:.4} | {literal_fb:.4} |");
+    println!("| soft cross-entropy on 256×128² logits (trainer's default) | | {soft_fb:.4} |");
     let _ = bn.num_params();
 }
