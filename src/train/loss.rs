@@ -159,7 +159,8 @@ pub fn soft_cross_entropy(
 }
 
 /// The Network-1 training loss of `logits` [B, C, H, W] in the chosen reading (`label_sigma`
-/// is used by [`Network1Reading::Soft`] only).
+/// is used by [`Network1Reading::Soft`] only). On flex it is one fused operation
+/// (`fused_loss`), elsewhere the composition below.
 pub fn network1_loss(
     reading: Network1Reading,
     logits: Tensor<4>,
@@ -167,6 +168,18 @@ pub fn network1_loss(
     alpha: Tensor<1>,
     label_sigma: f32,
 ) -> Tensor<1> {
+    #[cfg(feature = "flex")]
+    if let Some(per_pixel) = super::fused_loss::class_loss(
+        &logits,
+        &target,
+        &alpha,
+        super::fused_loss::ClassLoss {
+            reading,
+            sigma: label_sigma,
+        },
+    ) {
+        return per_pixel.mean();
+    }
     match reading {
         Network1Reading::Literal => weighted_l1(softmax(logits, 1), target, alpha),
         Network1Reading::Ordinal => ordinal_l1(softmax(logits, 1), target, alpha),

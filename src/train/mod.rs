@@ -10,6 +10,8 @@
 
 pub mod checkpoint;
 pub mod config;
+#[cfg(feature = "flex")]
+pub mod fused_loss;
 pub mod loss;
 pub mod task;
 
@@ -21,7 +23,6 @@ use crate::io::atomic::write_atomic;
 use crate::models::{BlendUNet, ModelConfig};
 use burn::module::{Module, ModuleVisitor, Param};
 use burn::optim::{AdamConfig, GradientsAccumulator, GradientsParams, ModuleOptimizer};
-use burn::tensor::activation::softmax;
 use burn::tensor::{Bool, Device, Int, Tensor};
 use checkpoint::CheckpointState;
 use config::TrainConfig;
@@ -32,9 +33,9 @@ use std::sync::{Arc, Mutex};
 use std::time::Instant;
 use task::{CHECKPOINT_ALPHA_FILE, Network1, Network2, Task};
 
-/// One bare Network-1 optimisation step: forward, softmax, [`loss::weighted_l1`] (paper Eq. 4 as
-/// written), backward, optimiser update. `input`, `target` and `alpha` must be on the model's
-/// (autodiff) device. Returns the updated model and the step's loss (detached, before the
+/// One bare Network-1 optimisation step: forward, softmax, paper Eq. 4 as written
+/// ([`loss::network1_loss`], literal reading), backward, optimiser update. `input`, `target`
+/// and `alpha` must be on the model's (autodiff) device. Returns the updated model and the step's loss (detached, before the
 /// update). For use outside the trainer (docs/network1.md); the trainer and the step benchmark
 /// run [`train_step`], which reads the loss as `[loss] reading` says ([`Task::loss`]) and skips
 /// the update on a non-finite loss.
@@ -46,8 +47,13 @@ pub fn network1_step(
     target: Tensor<3, Int>,
     alpha: Tensor<1>,
 ) -> (BlendUNet, Tensor<1>) {
-    let probs = softmax(model.forward(input), 1);
-    let loss = loss::weighted_l1(probs, target, alpha);
+    let loss = loss::network1_loss(
+        loss::Network1Reading::Literal,
+        model.forward(input),
+        target,
+        alpha,
+        0.0,
+    );
     let grads = GradientsParams::from_grads(loss.backward(), &model);
     let model = optim.step(lr, model, grads);
     (model, loss.detach())
