@@ -4,7 +4,7 @@
 //! max-pool, concatenation) at their largest shape. The backward costs are the differences.
 //! Plain timings (median of `HDRSYNTH_BENCH_REPS`, default 3, after one warm-up), on the backend
 //! named by `HDRSYNTH_BENCH_BACKEND` (default flex); the convolutions go through the networks'
-//! `models::conv::conv2d_op`, or Burn's `conv2d` with `HDRSYNTH_BENCH_CONV=burn`:
+//! `models::conv::{conv2d_op, conv_transpose2d_op}`, or Burn's with `HDRSYNTH_BENCH_CONV=burn`:
 //!     cargo bench --bench train_ops
 
 #[path = "../tests/common/mod.rs"]
@@ -16,7 +16,7 @@ use burn::nn::{BatchNormConfig, Relu};
 use burn::tensor::module::{conv_transpose2d, conv2d};
 use burn::tensor::ops::{ConvOptions, ConvTransposeOptions};
 use burn::tensor::{Device, Int, Tensor, TensorData};
-use hdrsynth::models::conv::conv2d_op;
+use hdrsynth::models::conv::{conv_transpose2d_op, conv2d_op};
 use hdrsynth::train::config::DEFAULT_LABEL_SIGMA;
 use hdrsynth::train::loss::{Network1Reading, network1_loss};
 use std::time::Instant;
@@ -155,12 +155,12 @@ fn main() {
         let wt = tensor(wshape, 2, &dev);
         let run = |x: Tensor<4>, wt: Tensor<4>| -> Tensor<4> {
             if c.transposed {
-                conv_transpose2d(
-                    x,
-                    wt,
-                    None,
-                    ConvTransposeOptions::new([2, 2], [0, 0], [0, 0], [1, 1], 1),
-                )
+                let options = ConvTransposeOptions::new([2, 2], [0, 0], [0, 0], [1, 1], 1);
+                if burn_conv {
+                    conv_transpose2d(x, wt, None, options)
+                } else {
+                    conv_transpose2d_op(x, wt, None, options)
+                }
             } else {
                 let options = ConvOptions::new([1, 1], [c.k / 2, c.k / 2], [1, 1], 1);
                 if burn_conv {

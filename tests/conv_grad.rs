@@ -7,10 +7,10 @@
 
 mod common;
 
-use burn::tensor::module::conv2d;
-use burn::tensor::ops::ConvOptions;
+use burn::tensor::module::{conv_transpose2d, conv2d};
+use burn::tensor::ops::{ConvOptions, ConvTransposeOptions};
 use burn::tensor::{Device, Tensor, TensorData};
-use hdrsynth::models::conv::conv2d_op;
+use hdrsynth::models::conv::{conv_transpose2d_op, conv2d_op};
 
 fn dev() -> Device {
     hdrsynth::device::device_from_name("flex")
@@ -53,6 +53,111 @@ fn grads(ours: bool, x: &Tensor<4>, w: &Tensor<4>, options: &ConvOptions<2>) -> 
             .try_to_vec::<f32>()
             .expect("f32"),
     ]
+}
+
+/// As [`grads`], for a transposed convolution (weight [C_in, C_out, kh, kw]).
+fn transposed_grads(
+    ours: bool,
+    x: &Tensor<4>,
+    w: &Tensor<4>,
+    options: &ConvTransposeOptions<2>,
+) -> [Vec<f32>; 4] {
+    let (x, w) = (x.clone().require_grad(), w.clone().require_grad());
+    let cout = w.dims()[1];
+    let b = Tensor::<1>::from_data(TensorData::new(common::values(cout, 9), [cout]), &dev())
+        .require_grad();
+    let y = if ours {
+        conv_transpose2d_op(x.clone(), w.clone(), Some(b.clone()), options.clone())
+    } else {
+        conv_transpose2d(x.clone(), w.clone(), Some(b.clone()), options.clone())
+    };
+    let r = tensor(y.dims(), 7);
+    let g = (y.clone() * r).sum().backward();
+    [
+        vec(y),
+        vec(x.grad(&g).expect("dx")),
+        vec(w.grad(&g).expect("dw")),
+        b.grad(&g)
+            .expect("db")
+            .into_data()
+            .try_to_vec::<f32>()
+            .expect("f32"),
+    ]
+}
+
+/// max |a − b| over each of the four results, against 1e-5 of the largest |b|.
+fn assert_close(case: &str, ours: &[Vec<f32>; 4], burn: &[Vec<f32>; 4]) {
+    for (name, a, b) in ["y", "dx", "dw", "db"]
+        .iter()
+        .zip(ours)
+        .zip(burn)
+        .map(|((n, a), b)| (n, a, b))
+    {
+        assert_eq!(a.len(), b.len(), "{case} {name}: length");
+        let scale = b.iter().fold(1.0f32, |m, v| m.max(v.abs()));
+        let err = a
+            .iter()
+            .zip(b)
+            .fold(0.0f32, |m, (p, q)| m.max((p - q).abs()));
+        assert!(
+            err <= 1e-5 * scale,
+            "{case} {name}: max |ours − Burn| = {err} (scale {scale})"
+        );
+    }
+}
+
+#[test]
+fn transposed_by_hand() {
+    // A 2×2 stride-2 transposed convolution copies w, scaled by each input pixel, into that
+    // pixel's 2×2 block of the output: y = x ⊗ w. For L = Σ y, dL/dx = Σ w = 1111 at every
+    // pixel and dL/dW = Σ x = 10 at every tap.
+    let x = Tensor::<4>::from_data(
+        TensorData::new(vec![1.0f32, 2.0, 3.0, 4.0], [1, 1, 2, 2]),
+        &dev(),
+    )
+    .require_grad();
+    let w = Tensor::<4>::from_data(
+        TensorData::new(vec![1.0f32, 10.0, 100.0, 1000.0], [1, 1, 2, 2]),
+        &dev(),
+    )
+    .require_grad();
+    let options = ConvTransposeOptions::new([2, 2], [0, 0], [0, 0], [1, 1], 1);
+    let y = conv_transpose2d_op(x.clone(), w.clone(), None, options);
+    #[rustfmt::skip]
+    let want = vec![
+        1.0, 10.0, 2.0, 20.0,
+        100.0, 1000.0, 200.0, 2000.0,
+        3.0, 30.0, 4.0, 40.0,
+        300.0, 3000.0, 400.0, 4000.0,
+    ];
+    assert_eq!(vec(y.clone()), want);
+    let g = y.sum().backward();
+    assert_eq!(vec(x.grad(&g).expect("dx")), vec![1111.0; 4]);
+    assert_eq!(vec(w.grad(&g).expect("dw")), vec![10.0; 4]);
+}
+
+#[test]
+fn transposed_equals_burns_on_the_networks_layer_kinds() {
+    // (x shape, c_out, kernel, stride, padding, padding_out)
+    type Case = ([usize; 4], usize, usize, usize, usize, usize);
+    let cases: [Case; 5] = [
+        // Network-1's 2×2 stride-2 up-sampling.
+        ([2, 8, 6, 7], 4, 2, 2, 0, 0),
+        ([4, 16, 8, 8], 8, 2, 2, 0, 0),
+        // Network-2's 5×5 stride-2 deconvolution, TensorFlow and PyTorch alignments.
+        ([2, 6, 9, 8], 5, 5, 2, 1, 0),
+        ([2, 6, 9, 8], 5, 5, 2, 2, 1),
+        // Stride 1, and big enough that the tiles split the rows.
+        ([1, 3, 40, 128], 64, 3, 1, 1, 0),
+    ];
+    for (i, (xs, cout, k, s, p, op)) in cases.into_iter().enumerate() {
+        let x = tensor(xs, 300 + i as u64);
+        let w = tensor([xs[1], cout, k, k], 400 + i as u64);
+        let options = ConvTransposeOptions::new([s, s], [p, p], [op, op], [1, 1], 1);
+        let ours = transposed_grads(true, &x, &w, &options);
+        let burn = transposed_grads(false, &x, &w, &options);
+        assert_close(&format!("transposed case {i}"), &ours, &burn);
+    }
 }
 
 #[test]
@@ -103,23 +208,7 @@ fn equals_burns_conv2d_on_the_networks_layer_kinds() {
         let options = ConvOptions::new_with_padding([s, s], pad, [d, d], 1);
         let ours = grads(true, &x, &w, &options);
         let burn = grads(false, &x, &w, &options);
-        for (name, a, b) in ["y", "dx", "dw", "db"]
-            .iter()
-            .zip(&ours)
-            .zip(&burn)
-            .map(|((n, a), b)| (n, a, b))
-        {
-            assert_eq!(a.len(), b.len(), "case {i} {name}: length");
-            let scale = b.iter().fold(1.0f32, |m, v| m.max(v.abs()));
-            let err = a
-                .iter()
-                .zip(b)
-                .fold(0.0f32, |m, (p, q)| m.max((p - q).abs()));
-            assert!(
-                err <= 1e-5 * scale,
-                "case {i} {name}: max |ours − Burn| = {err} (scale {scale})"
-            );
-        }
+        assert_close(&format!("case {i}"), &ours, &burn);
     }
 }
 

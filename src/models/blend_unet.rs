@@ -24,7 +24,7 @@
 //! on an autodiff device, and the running statistics otherwise; call `model.valid()` for
 //! inference on an autodiff device.
 
-use super::conv::conv2d;
+use super::conv::{conv_transpose2d, conv2d};
 use crate::error::{Error, Result};
 use burn::module::Module;
 use burn::nn::conv::{Conv2d, Conv2dConfig, ConvTranspose2d, ConvTranspose2dConfig};
@@ -217,7 +217,7 @@ pub struct UpBlock {
 
 impl UpBlock {
     fn forward(&self, x: Tensor<4>, skip: Tensor<4>) -> Tensor<4> {
-        let x = self.up.forward(x);
+        let x = conv_transpose2d(&self.up, x);
         self.block.forward(Tensor::cat(vec![skip, x], 1))
     }
 }

@@ -20,9 +20,9 @@
 //! `conv2d_x_backward` and `conv2d_weight_backward`.
 
 use burn::nn::PaddingConfig2d;
-use burn::nn::conv::Conv2d;
+use burn::nn::conv::{Conv2d, ConvTranspose2d};
 use burn::tensor::Tensor;
-use burn::tensor::ops::ConvOptions;
+use burn::tensor::ops::{ConvOptions, ConvTransposeOptions};
 
 /// `conv.forward(x)`, through the kernels above when `x` lives on flex.
 pub fn conv2d(conv: &Conv2d, x: Tensor<4>) -> Tensor<4> {
@@ -44,6 +44,50 @@ pub fn conv2d(conv: &Conv2d, x: Tensor<4>) -> Tensor<4> {
         conv.bias.as_ref().map(|b| b.val()),
         options,
     )
+}
+
+/// `conv.forward(x)` for a transposed convolution, through the kernels above when `x` lives on
+/// flex.
+pub fn conv_transpose2d(conv: &ConvTranspose2d, x: Tensor<4>) -> Tensor<4> {
+    conv_transpose2d_op(
+        x,
+        conv.weight.val(),
+        conv.bias.as_ref().map(|b| b.val()),
+        ConvTransposeOptions::new(
+            conv.stride,
+            conv.padding,
+            conv.padding_out,
+            conv.dilation,
+            conv.groups,
+        ),
+    )
+}
+
+/// `burn::tensor::module::conv_transpose2d`, through the kernels above when `x` lives on flex
+/// and the convolution has one group. A transposed convolution is a convolution's input
+/// gradient, so it runs the same kernels with the roles swapped: forward = [`flex::input_grad`]'s
+/// kernel, input gradient = the convolution's forward, weight gradient = the convolution's
+/// weight gradient with x and dy exchanged (flex's own did the weight gradient as a
+/// convolution as large as the image, 34 ms for Network-1's 64→32 up-sampling where this takes
+/// about 2).
+pub fn conv_transpose2d_op(
+    x: Tensor<4>,
+    weight: Tensor<4>,
+    bias: Option<Tensor<1>>,
+    options: ConvTransposeOptions<2>,
+) -> Tensor<4> {
+    #[cfg(feature = "flex")]
+    if options.groups == 1 && crate::device::is_flex(&x.device()) {
+        let y = flex::conv_transpose2d(x, weight, options);
+        return match bias {
+            Some(b) => {
+                let c = b.dims()[0];
+                y + b.reshape([1, c, 1, 1])
+            }
+            None => y,
+        };
+    }
+    burn::tensor::module::conv_transpose2d(x, weight, bias, options)
 }
 
 /// `burn::tensor::module::conv2d`, through the kernels above when `x` lives on flex and the
@@ -79,7 +123,7 @@ pub(crate) mod flex {
     use burn::backend::ops::{FloatTensorOps, ModuleOps};
     use burn::backend::tensor::FloatTensor;
     use burn::backend::{Dispatch, Flex, TensorMetadata, backend_extension};
-    use burn::tensor::ops::ConvOptions;
+    use burn::tensor::ops::{ConvOptions, ConvTransposeOptions};
     use burn::tensor::{DType, Shape, Tensor, TensorData};
     use rayon::prelude::*;
 
@@ -92,6 +136,12 @@ pub(crate) mod flex {
             weight: FloatTensor<Self>,
             options: ConvOptions<2>,
         ) -> FloatTensor<Self>;
+
+        fn conv_transpose2d_im2col(
+            x: FloatTensor<Self>,
+            weight: FloatTensor<Self>,
+            options: ConvTransposeOptions<2>,
+        ) -> FloatTensor<Self>;
     }
 
     impl FlexConv for Flex {
@@ -101,6 +151,43 @@ pub(crate) mod flex {
             options: ConvOptions<2>,
         ) -> FloatTensor<Self> {
             forward(x, weight, options)
+        }
+
+        fn conv_transpose2d_im2col(
+            x: FloatTensor<Self>,
+            weight: FloatTensor<Self>,
+            options: ConvTransposeOptions<2>,
+        ) -> FloatTensor<Self> {
+            transpose_forward(x, weight, options)
+        }
+    }
+
+    #[derive(Debug)]
+    struct ConvTransposeIm2col;
+
+    impl Backward<Flex, 2> for ConvTransposeIm2col {
+        type State = (NodeId, NodeId, ConvTransposeOptions<2>);
+
+        fn backward(
+            self,
+            ops: Ops<Self::State, 2>,
+            grads: &mut Gradients,
+            checkpointer: &mut Checkpointer,
+        ) {
+            let [node_x, node_weight] = ops.parents;
+            let grad = grads.consume::<Flex>(&ops.node);
+            let (x_state, weight_state, options) = ops.state;
+            let x = checkpointer.retrieve_node_output::<FloatTensor<Flex>>(x_state);
+            let weight = checkpointer.retrieve_node_output::<FloatTensor<Flex>>(weight_state);
+            if let Some(node) = node_x {
+                let g =
+                    transpose_input_grad(x.clone(), weight.clone(), grad.clone(), options.clone());
+                grads.register::<Flex>(node.id, g);
+            }
+            if let Some(node) = node_weight {
+                let g = transpose_weight_grad(x, weight, grad, options);
+                grads.register::<Flex>(node.id, g);
+            }
         }
     }
 
@@ -157,6 +244,32 @@ pub(crate) mod flex {
                 )),
             }
         }
+
+        fn conv_transpose2d_im2col(
+            x: FloatTensor<Self>,
+            weight: FloatTensor<Self>,
+            options: ConvTransposeOptions<2>,
+        ) -> FloatTensor<Self> {
+            match ConvTransposeIm2col
+                .prepare::<C>([x.node(), weight.node()])
+                .compute_bound()
+                .stateful()
+            {
+                OpsKind::Tracked(mut prep) => {
+                    let x_state = prep.checkpoint(&x);
+                    let weight_state = prep.checkpoint(&weight);
+                    prep.finish(
+                        (x_state, weight_state, options.clone()),
+                        transpose_forward(x.into_primitive(), weight.into_primitive(), options),
+                    )
+                }
+                OpsKind::UnTracked(prep) => prep.finish(transpose_forward(
+                    x.into_primitive(),
+                    weight.into_primitive(),
+                    options,
+                )),
+            }
+        }
     }
 
     pub(super) fn conv2d(x: Tensor<4>, weight: Tensor<4>, options: ConvOptions<2>) -> Tensor<4> {
@@ -165,6 +278,118 @@ pub(crate) mod flex {
             weight.into_dispatch(),
             options,
         ))
+    }
+
+    pub(super) fn conv_transpose2d(
+        x: Tensor<4>,
+        weight: Tensor<4>,
+        options: ConvTransposeOptions<2>,
+    ) -> Tensor<4> {
+        Tensor::from_dispatch(<Dispatch as FlexConv>::conv_transpose2d_im2col(
+            x.into_dispatch(),
+            weight.into_dispatch(),
+            options,
+        ))
+    }
+
+    /// The convolution whose input gradient the transposed convolution `options` is: same
+    /// stride, padding and dilation, from the transposed output's plane to its input's.
+    fn transposed(options: &ConvTransposeOptions<2>) -> ConvOptions<2> {
+        ConvOptions::new(options.stride, options.padding, options.dilation, 1)
+    }
+
+    fn all_f32(tensors: &[&FloatTensor<Flex>]) -> bool {
+        tensors.iter().all(|t| t.dtype() == DType::F32)
+    }
+
+    /// `Flex::conv_transpose2d(x, weight, None, options)`: x [B, C_in, H, W], weight
+    /// [C_in, C_out, kh, kw] → [B, C_out, H_out, W_out] by [`input_grad_f32`] (x as the
+    /// output gradient of the convolution [`transposed`]); flex's own for other dtypes and
+    /// grouped convolutions.
+    pub fn transpose_forward(
+        x: FloatTensor<Flex>,
+        weight: FloatTensor<Flex>,
+        options: ConvTransposeOptions<2>,
+    ) -> FloatTensor<Flex> {
+        if !all_f32(&[&x, &weight]) || options.groups != 1 {
+            return Flex::conv_transpose2d(x, weight, None, options);
+        }
+        let xs: [usize; 4] = x.shape().dims();
+        let ws: [usize; 4] = weight.shape().dims();
+        let out = |i: usize| {
+            ((xs[2 + i].max(1) - 1) * options.stride[i]
+                + options.dilation[i] * (ws[2 + i].max(1) - 1)
+                + options.padding_out[i]
+                + 1)
+            .saturating_sub(2 * options.padding[i])
+        };
+        let (ho, wo) = (out(0), out(1));
+        let (x, weight) = (x.to_contiguous(), weight.to_contiguous());
+        let y = input_grad_f32(
+            x.storage::<f32>(),
+            xs,
+            weight.storage::<f32>(),
+            ws,
+            [ho, wo],
+            &transposed(&options),
+        );
+        Flex::float_from_data(
+            TensorData::new(y, Shape::from(vec![xs[0], ws[1], ho, wo])),
+            &Default::default(),
+        )
+    }
+
+    /// dL/dx of [`transpose_forward`]: the convolution [`transposed`] of the output gradient.
+    fn transpose_input_grad(
+        x: FloatTensor<Flex>,
+        weight: FloatTensor<Flex>,
+        dy: FloatTensor<Flex>,
+        options: ConvTransposeOptions<2>,
+    ) -> FloatTensor<Flex> {
+        if !all_f32(&[&weight, &dy]) || options.groups != 1 {
+            return Flex::conv_transpose2d_x_backward(weight, dy, options);
+        }
+        let xs: [usize; 4] = x.shape().dims();
+        let (weight, dy) = (weight.to_contiguous(), dy.to_contiguous());
+        let dx = forward_f32(
+            dy.storage::<f32>(),
+            dy.shape().dims(),
+            weight.storage::<f32>(),
+            weight.shape().dims(),
+            [xs[2], xs[3]],
+            &transposed(&options),
+        );
+        Flex::float_from_data(
+            TensorData::new(dx, Shape::from(xs.to_vec())),
+            &Default::default(),
+        )
+    }
+
+    /// dL/dW of [`transpose_forward`]: the weight gradient of the convolution [`transposed`]
+    /// with the output gradient as its input and x as its output gradient.
+    fn transpose_weight_grad(
+        x: FloatTensor<Flex>,
+        weight: FloatTensor<Flex>,
+        dy: FloatTensor<Flex>,
+        options: ConvTransposeOptions<2>,
+    ) -> FloatTensor<Flex> {
+        if !all_f32(&[&x, &dy]) || options.groups != 1 {
+            return Flex::conv_transpose2d_weight_backward(x, weight, dy, options);
+        }
+        let ws: [usize; 4] = weight.shape().dims();
+        let (x, dy) = (x.to_contiguous(), dy.to_contiguous());
+        let dw = weight_grad_f32(
+            dy.storage::<f32>(),
+            dy.shape().dims(),
+            x.storage::<f32>(),
+            x.shape().dims(),
+            [ws[2], ws[3]],
+            &transposed(&options),
+        );
+        Flex::float_from_data(
+            TensorData::new(dw, Shape::from(ws.to_vec())),
+            &Default::default(),
+        )
     }
 
     /// `Flex::conv2d(x, weight, None, options)` by [`forward_f32`]; flex's own for other dtypes

@@ -27,7 +27,7 @@
 //! 0.9, Burn momentum 0.1) when the input lives on an autodiff device, the running statistics
 //! otherwise; call `model.valid()` for inference on an autodiff device.
 
-use super::conv::conv2d;
+use super::conv::{conv_transpose2d, conv2d};
 use crate::error::{Error, Result};
 use burn::module::Module;
 use burn::nn::conv::{Conv2d, Conv2dConfig, ConvTranspose2d, ConvTranspose2dConfig};
@@ -412,7 +412,7 @@ pub fn deconv_same(
     alignment: DeconvAlignment,
 ) -> Tensor<4> {
     let [b, _, h, w] = x.dims();
-    let y = deconv.forward(x);
+    let y = conv_transpose2d(deconv, x);
     match alignment {
         DeconvAlignment::Tensorflow => {
             let c = y.dims()[1];
