@@ -10,6 +10,8 @@
 pub mod blend_unet;
 pub mod conv;
 pub mod import;
+#[cfg(feature = "flex")]
+mod par;
 pub mod wu;
 
 use crate::data::loader::SampleKind;
