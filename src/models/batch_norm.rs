@@ -286,6 +286,30 @@ pub(crate) mod flex {
         (1.0 / (var as f64 + epsilon).sqrt()) as f32
     }
 
+    /// Runs `f(c, planes)` for every channel c on the rayon pool, `planes` being channel c's B
+    /// planes of a new [B, C, P] output; returns the output and the two values per channel that
+    /// `f` returns.
+    fn per_channel(
+        [batch, channels, p]: [usize; 3],
+        f: impl Fn(usize, Vec<&mut [f32]>) -> (f32, f32) + Sync,
+    ) -> (Vec<f32>, Vec<f32>, Vec<f32>) {
+        let mut out = vec![0.0f32; batch * channels * p];
+        let shared = Shared(out.as_mut_ptr());
+        let (a, b) = (0..channels)
+            .into_par_iter()
+            .map(|c| {
+                let planes = (0..batch)
+                    // SAFETY: channel c's plane of item b, handed to this task only.
+                    .map(|b| unsafe {
+                        std::slice::from_raw_parts_mut(shared.at((b * channels + c) * p), p)
+                    })
+                    .collect();
+                f(c, planes)
+            })
+            .unzip();
+        (out, a, b)
+    }
+
     /// The kernel of [`forward`] on row-major slices: `x` is [B, C, P], `gamma` and `beta` [C];
     /// returns (y [B, C, P], mean [C], biased variance [C]).
     pub fn forward_f32(
@@ -295,36 +319,25 @@ pub(crate) mod flex {
         beta: &[f32],
         epsilon: f64,
     ) -> (Vec<f32>, Vec<f32>, Vec<f32>) {
-        let [batch, channels, p] = dims;
-        let n = (batch * p) as f64;
-        let mut y = vec![0.0f32; x.len()];
-        let out = Shared(y.as_mut_ptr());
-        let (mean, var): (Vec<f32>, Vec<f32>) = (0..channels)
-            .into_par_iter()
-            .map(|c| {
-                let mean = planes(x, dims, c)
-                    .map(|v| sum2(v, v, |u, _| u as f64))
-                    .sum::<f64>()
-                    / n;
-                let var = planes(x, dims, c)
-                    .map(|v| sum2(v, v, |u, _| (u as f64 - mean).powi(2)))
-                    .sum::<f64>()
-                    / n;
-                let (mean, var) = (mean as f32, var as f32);
-                let scale = inv_std(var, epsilon) * gamma[c];
-                for (b, v) in planes(x, dims, c).enumerate() {
-                    // SAFETY: channel c's plane of item b, written by this task only.
-                    let dst = unsafe {
-                        std::slice::from_raw_parts_mut(out.at((b * channels + c) * p), p)
-                    };
-                    for (d, &u) in dst.iter_mut().zip(v) {
-                        *d = (u - mean) * scale + beta[c];
-                    }
+        let n = (dims[0] * dims[2]) as f64;
+        per_channel(dims, |c, out| {
+            let mean = planes(x, dims, c)
+                .map(|v| sum2(v, v, |u, _| u as f64))
+                .sum::<f64>()
+                / n;
+            let var = planes(x, dims, c)
+                .map(|v| sum2(v, v, |u, _| (u as f64 - mean).powi(2)))
+                .sum::<f64>()
+                / n;
+            let (mean, var) = (mean as f32, var as f32);
+            let scale = inv_std(var, epsilon) * gamma[c];
+            for (dst, v) in out.into_iter().zip(planes(x, dims, c)) {
+                for (d, &u) in dst.iter_mut().zip(v) {
+                    *d = (u - mean) * scale + beta[c];
                 }
-                (mean, var)
-            })
-            .unzip();
-        (y, mean, var)
+            }
+            (mean, var)
+        })
     }
 
     /// The kernel of [`backward`] on row-major slices: `x` and `dy` are [B, C, P], `gamma`,
@@ -338,33 +351,22 @@ pub(crate) mod flex {
         epsilon: f64,
         dy: &[f32],
     ) -> (Vec<f32>, Vec<f32>, Vec<f32>) {
-        let [batch, channels, p] = dims;
-        let n = (batch * p) as f64;
-        let mut dx = vec![0.0f32; x.len()];
-        let out = Shared(dx.as_mut_ptr());
-        let (dgamma, dbeta): (Vec<f32>, Vec<f32>) = (0..channels)
-            .into_par_iter()
-            .map(|c| {
-                let (m, is) = (mean[c], inv_std(var[c], epsilon));
-                let pairs = || planes(x, dims, c).zip(planes(dy, dims, c));
-                let dbeta: f64 = pairs().map(|(_, g)| sum2(g, g, |u, _| u as f64)).sum();
-                let dgamma: f64 = pairs()
-                    .map(|(v, g)| sum2(v, g, |u, w| w as f64 * ((u - m) * is) as f64))
-                    .sum();
-                let scale = gamma[c] * is;
-                let (shift, slope) = ((dbeta / n) as f32, (dgamma / n) as f32);
-                for (b, (v, g)) in pairs().enumerate() {
-                    // SAFETY: channel c's plane of item b, written by this task only.
-                    let dst = unsafe {
-                        std::slice::from_raw_parts_mut(out.at((b * channels + c) * p), p)
-                    };
-                    for ((d, &u), &w) in dst.iter_mut().zip(v).zip(g) {
-                        *d = scale * (w - shift - (u - m) * is * slope);
-                    }
+        let n = (dims[0] * dims[2]) as f64;
+        per_channel(dims, |c, out| {
+            let (m, is) = (mean[c], inv_std(var[c], epsilon));
+            let pairs = || planes(x, dims, c).zip(planes(dy, dims, c));
+            let dbeta: f64 = pairs().map(|(_, g)| sum2(g, g, |u, _| u as f64)).sum();
+            let dgamma: f64 = pairs()
+                .map(|(v, g)| sum2(v, g, |u, w| w as f64 * ((u - m) * is) as f64))
+                .sum();
+            let scale = gamma[c] * is;
+            let (shift, slope) = ((dbeta / n) as f32, (dgamma / n) as f32);
+            for (dst, (v, g)) in out.into_iter().zip(pairs()) {
+                for ((d, &u), &w) in dst.iter_mut().zip(v).zip(g) {
+                    *d = scale * (w - shift - (u - m) * is * slope);
                 }
-                (dgamma as f32, dbeta as f32)
-            })
-            .unzip();
-        (dx, dgamma, dbeta)
+            }
+            (dgamma as f32, dbeta as f32)
+        })
     }
 }
