@@ -28,20 +28,16 @@ pub fn batch_norm<const D: usize>(norm: &BatchNorm, x: Tensor<D>) -> Tensor<D> {
             let (y, mean, var) =
                 flex::batch_norm_train(x, norm.gamma.val(), norm.beta.val(), norm.epsilon);
             // As `BatchNorm::forward_train`.
-            let running_mean = norm
-                .running_mean
-                .value_sync()
-                .to_device(&device)
-                .mul_scalar(1.0 - norm.momentum)
-                .add(mean.detach().mul_scalar(norm.momentum));
-            let running_var = norm
-                .running_var
-                .value_sync()
-                .to_device(&device)
-                .mul_scalar(1.0 - norm.momentum)
-                .add(var.detach().mul_scalar(norm.momentum));
-            norm.running_mean.update(running_mean.detach());
-            norm.running_var.update(running_var.detach());
+            let update = |state: &burn::module::RunningState<Tensor<1>>, batch: Tensor<1>| {
+                let running = state
+                    .value_sync()
+                    .to_device(&device)
+                    .mul_scalar(1.0 - norm.momentum)
+                    .add(batch.detach().mul_scalar(norm.momentum));
+                state.update(running.detach());
+            };
+            update(&norm.running_mean, mean);
+            update(&norm.running_var, var);
             return y;
         }
     }
