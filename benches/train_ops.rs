@@ -4,7 +4,8 @@
 //! max-pool, concatenation) at their largest shape. The backward costs are the differences.
 //! Plain timings (median of `HDRSYNTH_BENCH_REPS`, default 3, after one warm-up), on the backend
 //! named by `HDRSYNTH_BENCH_BACKEND` (default flex); the convolutions go through the networks'
-//! `models::conv::{conv2d_op, conv_transpose2d_op}`, or Burn's with `HDRSYNTH_BENCH_CONV=burn`:
+//! `models::conv::{conv2d_op, conv_transpose2d_op}`, or Burn's with `HDRSYNTH_BENCH_CONV=burn`;
+//! BatchNorm through the networks' `models::batch_norm::batch_norm`:
 //!     cargo bench --bench train_ops
 
 #[path = "../tests/common/mod.rs"]
@@ -16,6 +17,7 @@ use burn::nn::{BatchNormConfig, Relu};
 use burn::tensor::module::{conv_transpose2d, conv2d};
 use burn::tensor::ops::{ConvOptions, ConvTransposeOptions};
 use burn::tensor::{Device, Int, Tensor, TensorData};
+use hdrsynth::models::batch_norm::batch_norm;
 use hdrsynth::models::conv::{conv_transpose2d_op, conv2d_op};
 use hdrsynth::train::config::DEFAULT_LABEL_SIGMA;
 use hdrsynth::train::loss::{Network1Reading, network1_loss};
@@ -210,10 +212,10 @@ fn main() {
     // each at every level, ≈ 4/3 of the level-0 cost per encoder/decoder pair.
     let x = tensor([BATCH, 32, 128, 128], 3, &dev);
     let bn = BatchNormConfig::new(32).init(&dev);
-    let bn_f = time(reps, || sync(bn.forward(x.clone())));
+    let bn_f = time(reps, || sync(batch_norm(&bn, x.clone())));
     let bn_fb = time(reps, || {
         let xg = x.clone().require_grad();
-        let grads = bn.forward(xg.clone()).sum().backward();
+        let grads = batch_norm(&bn, xg.clone()).sum().backward();
         sync(xg.grad(&grads).expect("grad"));
     });
     let relu = Relu::new();

@@ -24,6 +24,7 @@
 //! on an autodiff device, and the running statistics otherwise; call `model.valid()` for
 //! inference on an autodiff device.
 
+use super::batch_norm::batch_norm;
 use super::conv::{conv_transpose2d, conv2d};
 use crate::error::{Error, Result};
 use burn::module::Module;
@@ -197,12 +198,12 @@ impl ConvBlock {
     fn forward(&self, x: Tensor<4>) -> Tensor<4> {
         let mut x = conv2d(&self.conv1, x);
         if let Some(n) = &self.norm1 {
-            x = n.forward(x);
+            x = batch_norm(n, x);
         }
         x = self.relu.forward(x);
         x = conv2d(&self.conv2, x);
         if let Some(n) = &self.norm2 {
-            x = n.forward(x);
+            x = batch_norm(n, x);
         }
         self.relu.forward(x)
     }

@@ -127,6 +127,8 @@ pub(crate) mod flex {
     use burn::tensor::{DType, Shape, Tensor, TensorData};
     use rayon::prelude::*;
 
+    use crate::models::par::Shared;
+
     /// Conv2d without bias by [`forward`], whose autodiff step uses [`input_grad`] and
     /// [`weight_grad`].
     #[backend_extension(Flex, Autodiff)]
@@ -695,19 +697,6 @@ pub(crate) mod flex {
             .into_par_iter()
             .map(|b| f(b, parallel, &mut vec![0.0f32; col_len]))
             .collect()
-    }
-
-    /// A pointer to an output that runs write in disjoint places.
-    #[derive(Clone, Copy)]
-    struct Shared(*mut f32);
-    // SAFETY: every user writes through it only at positions no other run touches.
-    unsafe impl Send for Shared {}
-    unsafe impl Sync for Shared {}
-    impl Shared {
-        /// Through a method, so closures capture the whole (Sync) wrapper, not its field.
-        fn at(self, offset: usize) -> *mut f32 {
-            self.0.wrapping_add(offset)
-        }
     }
 
     /// The forward convolution (no bias, one group) on row-major slices by the same im2col

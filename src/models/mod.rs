@@ -5,11 +5,15 @@
 //! - [`wu`]: Network-2, Wu et al. (ECCV 2018), three exposures → linear HDR; [`import`] moves
 //!   weights to and from PyTorch-style SafeTensors files.
 //! - [`conv`]: the layers' 2D convolution, with a faster weight gradient on flex.
+//! - [`batch_norm`]: the layers' BatchNorm, fused and parallel on flex in training mode.
 //! - [`ModelConfig`]: either network's config, tagged by `kind` (training configs, checkpoints).
 
+pub mod batch_norm;
 pub mod blend_unet;
 pub mod conv;
 pub mod import;
+#[cfg(feature = "flex")]
+pub(crate) mod par;
 pub mod wu;
 
 use crate::data::loader::SampleKind;

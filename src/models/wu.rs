@@ -27,6 +27,7 @@
 //! 0.9, Burn momentum 0.1) when the input lives on an autodiff device, the running statistics
 //! otherwise; call `model.valid()` for inference on an autodiff device.
 
+use super::batch_norm::batch_norm;
 use super::conv::{conv_transpose2d, conv2d};
 use crate::error::{Error, Result};
 use burn::module::Module;
@@ -442,9 +443,10 @@ impl ExposureEncoder {
     /// (e1, e2) of one frame's 6 channels: e1 is the decoder's last skip, e2 the merger's input.
     fn forward(&self, x: Tensor<4>) -> (Tensor<4>, Tensor<4>) {
         let e1 = conv_same(&self.conv1, x);
-        let e2 = self
-            .bn2
-            .forward(conv_same(&self.conv2, leaky_relu(e1.clone(), LEAK)));
+        let e2 = batch_norm(
+            &self.bn2,
+            conv_same(&self.conv2, leaky_relu(e1.clone(), LEAK)),
+        );
         (e1, e2)
     }
 }
@@ -465,7 +467,7 @@ impl DownBlock {
     }
 
     fn forward(&self, x: Tensor<4>) -> Tensor<4> {
-        self.bn.forward(conv_same(&self.conv, leaky_relu(x, LEAK)))
+        batch_norm(&self.bn, conv_same(&self.conv, leaky_relu(x, LEAK)))
     }
 }
 
@@ -489,8 +491,8 @@ impl ResBlock {
     }
 
     fn forward(&self, x: Tensor<4>) -> Tensor<4> {
-        let y = relu(self.bn1.forward(conv_same(&self.conv1, x.clone())));
-        x + self.bn2.forward(conv_same(&self.conv2, y))
+        let y = relu(batch_norm(&self.bn1, conv_same(&self.conv1, x.clone())));
+        x + batch_norm(&self.bn2, conv_same(&self.conv2, y))
     }
 }
 
@@ -521,8 +523,7 @@ impl UpBlock {
     }
 
     fn forward(&self, x: Tensor<4>) -> Tensor<4> {
-        self.bn
-            .forward(deconv_same(&self.deconv, relu(x), self.alignment))
+        batch_norm(&self.bn, deconv_same(&self.deconv, relu(x), self.alignment))
     }
 }
 

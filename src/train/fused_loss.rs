@@ -20,6 +20,7 @@
 //! (`loss.rs`), which the tests compare this with.
 
 use super::loss::Network1Reading;
+use crate::models::par::Shared;
 use burn::backend::autodiff::Autodiff;
 use burn::backend::autodiff::NodeId;
 use burn::backend::autodiff::checkpoint::base::Checkpointer;
@@ -216,23 +217,6 @@ fn blocks(batch: usize, pixels: usize) -> Vec<(usize, usize, usize)> {
         .collect()
 }
 
-/// A pointer to an output that tasks write in disjoint places.
-#[derive(Clone, Copy)]
-struct Out(*mut f32);
-// SAFETY: every task writes only its own block's elements.
-unsafe impl Send for Out {}
-unsafe impl Sync for Out {}
-impl Out {
-    /// `n` elements from `offset`.
-    ///
-    /// # Safety
-    /// The range is inside the buffer, and no other task touches it.
-    #[allow(clippy::mut_from_ref)]
-    unsafe fn slice(&self, offset: usize, n: usize) -> &mut [f32] {
-        unsafe { std::slice::from_raw_parts_mut(self.0.add(offset), n) }
-    }
-}
-
 fn targets(target: IntTensor<Flex>, classes: usize) -> Option<Vec<u32>> {
     let target = target.to_contiguous();
     let in_range = |v: i64| (0..classes as i64).contains(&v).then_some(v as u32);
@@ -274,9 +258,9 @@ fn forward(
         vec![0.0f32; b * p_all],
     );
     let (o, l, a) = (
-        Out(out.as_mut_ptr()),
-        Out(lse.as_mut_ptr()),
-        Out(aux.as_mut_ptr()),
+        Shared(out.as_mut_ptr()),
+        Shared(lse.as_mut_ptr()),
+        Shared(aux.as_mut_ptr()),
     );
     blocks(b, p_all).into_par_iter().for_each(|(bi, p0, n)| {
         let col = |k: usize| &z[(bi * c + k) * p_all + p0..][..n];
@@ -358,7 +342,7 @@ fn backward(
     let q = (loss.reading == Network1Reading::Soft).then(|| soft_labels(c, loss.sigma));
     let level = |k: usize| k as f32 / (c - 1).max(1) as f32;
     let mut dz = vec![0.0f32; b * c * p_all];
-    let d = Out(dz.as_mut_ptr());
+    let d = Shared(dz.as_mut_ptr());
     blocks(b, p_all).into_par_iter().for_each(|(bi, p0, n)| {
         let at = bi * p_all + p0;
         let (t, lse, aux) = (
