@@ -30,17 +30,18 @@ fn vec(t: Tensor<4>) -> Vec<f32> {
     t.into_data().try_to_vec::<f32>().expect("f32")
 }
 
-/// (output, dL/dx, dL/dW, dL/db) of Σ (y ⊙ r) for a fixed r, through `ours` or Burn's conv2d.
-fn grads(ours: bool, x: &Tensor<4>, w: &Tensor<4>, options: &ConvOptions<2>) -> [Vec<f32>; 4] {
+/// (output, dL/dx, dL/dW, dL/db) of Σ (y ⊙ r) for a fixed r, y = `op(x, w, bias)` with a bias
+/// of `cout` channels.
+fn grads_of(
+    x: &Tensor<4>,
+    w: &Tensor<4>,
+    cout: usize,
+    op: impl Fn(Tensor<4>, Tensor<4>, Tensor<1>) -> Tensor<4>,
+) -> [Vec<f32>; 4] {
     let (x, w) = (x.clone().require_grad(), w.clone().require_grad());
-    let cout = w.dims()[0];
     let b = Tensor::<1>::from_data(TensorData::new(common::values(cout, 9), [cout]), &dev())
         .require_grad();
-    let y = if ours {
-        conv2d_op(x.clone(), w.clone(), Some(b.clone()), options.clone())
-    } else {
-        conv2d(x.clone(), w.clone(), Some(b.clone()), options.clone())
-    };
+    let y = op(x.clone(), w.clone(), b.clone());
     let r = tensor(y.dims(), 7);
     let g = (y.clone() * r).sum().backward();
     [
@@ -55,34 +56,31 @@ fn grads(ours: bool, x: &Tensor<4>, w: &Tensor<4>, options: &ConvOptions<2>) -> 
     ]
 }
 
-/// As [`grads`], for a transposed convolution (weight [C_in, C_out, kh, kw]).
+/// [`grads_of`] the convolution: ours (`conv2d_op`) or Burn's conv2d.
+fn grads(ours: bool, x: &Tensor<4>, w: &Tensor<4>, options: &ConvOptions<2>) -> [Vec<f32>; 4] {
+    grads_of(x, w, w.dims()[0], |x, w, b| {
+        if ours {
+            conv2d_op(x, w, Some(b), options.clone())
+        } else {
+            conv2d(x, w, Some(b), options.clone())
+        }
+    })
+}
+
+/// [`grads_of`] a transposed convolution (weight [C_in, C_out, kh, kw]), ours or Burn's.
 fn transposed_grads(
     ours: bool,
     x: &Tensor<4>,
     w: &Tensor<4>,
     options: &ConvTransposeOptions<2>,
 ) -> [Vec<f32>; 4] {
-    let (x, w) = (x.clone().require_grad(), w.clone().require_grad());
-    let cout = w.dims()[1];
-    let b = Tensor::<1>::from_data(TensorData::new(common::values(cout, 9), [cout]), &dev())
-        .require_grad();
-    let y = if ours {
-        conv_transpose2d_op(x.clone(), w.clone(), Some(b.clone()), options.clone())
-    } else {
-        conv_transpose2d(x.clone(), w.clone(), Some(b.clone()), options.clone())
-    };
-    let r = tensor(y.dims(), 7);
-    let g = (y.clone() * r).sum().backward();
-    [
-        vec(y),
-        vec(x.grad(&g).expect("dx")),
-        vec(w.grad(&g).expect("dw")),
-        b.grad(&g)
-            .expect("db")
-            .into_data()
-            .try_to_vec::<f32>()
-            .expect("f32"),
-    ]
+    grads_of(x, w, w.dims()[1], |x, w, b| {
+        if ours {
+            conv_transpose2d_op(x, w, Some(b), options.clone())
+        } else {
+            conv_transpose2d(x, w, Some(b), options.clone())
+        }
+    })
 }
 
 /// max |a − b| over each of the four results, against 1e-5 of the largest |b|.

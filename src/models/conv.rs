@@ -78,14 +78,7 @@ pub fn conv_transpose2d_op(
 ) -> Tensor<4> {
     #[cfg(feature = "flex")]
     if options.groups == 1 && crate::device::is_flex(&x.device()) {
-        let y = flex::conv_transpose2d(x, weight, options);
-        return match bias {
-            Some(b) => {
-                let c = b.dims()[0];
-                y + b.reshape([1, c, 1, 1])
-            }
-            None => y,
-        };
+        return with_bias(flex::conv_transpose2d(x, weight, options), bias);
     }
     burn::tensor::module::conv_transpose2d(x, weight, bias, options)
 }
@@ -100,16 +93,21 @@ pub fn conv2d_op(
 ) -> Tensor<4> {
     #[cfg(feature = "flex")]
     if options.groups == 1 && crate::device::is_flex(&x.device()) {
-        let y = flex::conv2d(x, weight, options);
-        return match bias {
-            Some(b) => {
-                let c = b.dims()[0];
-                y + b.reshape([1, c, 1, 1])
-            }
-            None => y,
-        };
+        return with_bias(flex::conv2d(x, weight, options), bias);
     }
     burn::tensor::module::conv2d(x, weight, bias, options)
+}
+
+/// y + bias per output channel.
+#[cfg(feature = "flex")]
+fn with_bias(y: Tensor<4>, bias: Option<Tensor<1>>) -> Tensor<4> {
+    match bias {
+        Some(b) => {
+            let c = b.dims()[0];
+            y + b.reshape([1, c, 1, 1])
+        }
+        None => y,
+    }
 }
 
 #[cfg(feature = "flex")]
@@ -164,87 +162,13 @@ pub(crate) mod flex {
         }
     }
 
-    #[derive(Debug)]
-    struct ConvTransposeIm2col;
-
-    impl Backward<Flex, 2> for ConvTransposeIm2col {
-        type State = (NodeId, NodeId, ConvTransposeOptions<2>);
-
-        fn backward(
-            self,
-            ops: Ops<Self::State, 2>,
-            grads: &mut Gradients,
-            checkpointer: &mut Checkpointer,
-        ) {
-            let [node_x, node_weight] = ops.parents;
-            let grad = grads.consume::<Flex>(&ops.node);
-            let (x_state, weight_state, options) = ops.state;
-            let x = checkpointer.retrieve_node_output::<FloatTensor<Flex>>(x_state);
-            let weight = checkpointer.retrieve_node_output::<FloatTensor<Flex>>(weight_state);
-            if let Some(node) = node_x {
-                let g =
-                    transpose_input_grad(x.clone(), weight.clone(), grad.clone(), options.clone());
-                grads.register::<Flex>(node.id, g);
-            }
-            if let Some(node) = node_weight {
-                let g = transpose_weight_grad(x, weight, grad, options);
-                grads.register::<Flex>(node.id, g);
-            }
-        }
-    }
-
-    #[derive(Debug)]
-    struct Conv2dIm2col;
-
-    impl Backward<Flex, 2> for Conv2dIm2col {
-        type State = (NodeId, NodeId, ConvOptions<2>);
-
-        fn backward(
-            self,
-            ops: Ops<Self::State, 2>,
-            grads: &mut Gradients,
-            checkpointer: &mut Checkpointer,
-        ) {
-            let [node_x, node_weight] = ops.parents;
-            let grad = grads.consume::<Flex>(&ops.node);
-            let (x_state, weight_state, options) = ops.state;
-            let x = checkpointer.retrieve_node_output::<FloatTensor<Flex>>(x_state);
-            let weight = checkpointer.retrieve_node_output::<FloatTensor<Flex>>(weight_state);
-            if let Some(node) = node_x {
-                let g = input_grad(x.clone(), weight.clone(), grad.clone(), options.clone());
-                grads.register::<Flex>(node.id, g);
-            }
-            if let Some(node) = node_weight {
-                grads.register::<Flex>(node.id, weight_grad(x, weight, grad, options));
-            }
-        }
-    }
-
     impl<C: CheckpointStrategy> FlexConv for Autodiff<Flex, C> {
         fn conv2d_im2col(
             x: FloatTensor<Self>,
             weight: FloatTensor<Self>,
             options: ConvOptions<2>,
         ) -> FloatTensor<Self> {
-            match Conv2dIm2col
-                .prepare::<C>([x.node(), weight.node()])
-                .compute_bound()
-                .stateful()
-            {
-                OpsKind::Tracked(mut prep) => {
-                    let x_state = prep.checkpoint(&x);
-                    let weight_state = prep.checkpoint(&weight);
-                    prep.finish(
-                        (x_state, weight_state, options.clone()),
-                        forward(x.into_primitive(), weight.into_primitive(), options),
-                    )
-                }
-                OpsKind::UnTracked(prep) => prep.finish(forward(
-                    x.into_primitive(),
-                    weight.into_primitive(),
-                    options,
-                )),
-            }
+            tracked::<C>(x, weight, Kind::Conv(options))
         }
 
         fn conv_transpose2d_im2col(
@@ -252,24 +176,97 @@ pub(crate) mod flex {
             weight: FloatTensor<Self>,
             options: ConvTransposeOptions<2>,
         ) -> FloatTensor<Self> {
-            match ConvTransposeIm2col
-                .prepare::<C>([x.node(), weight.node()])
-                .compute_bound()
-                .stateful()
-            {
-                OpsKind::Tracked(mut prep) => {
-                    let x_state = prep.checkpoint(&x);
-                    let weight_state = prep.checkpoint(&weight);
-                    prep.finish(
-                        (x_state, weight_state, options.clone()),
-                        transpose_forward(x.into_primitive(), weight.into_primitive(), options),
-                    )
-                }
-                OpsKind::UnTracked(prep) => prep.finish(transpose_forward(
-                    x.into_primitive(),
-                    weight.into_primitive(),
-                    options,
-                )),
+            tracked::<C>(x, weight, Kind::Transposed(options))
+        }
+    }
+
+    /// Which convolution an autodiff step runs and differentiates.
+    #[derive(Clone, Debug)]
+    enum Kind {
+        Conv(ConvOptions<2>),
+        Transposed(ConvTransposeOptions<2>),
+    }
+
+    impl Kind {
+        fn forward(&self, x: FloatTensor<Flex>, weight: FloatTensor<Flex>) -> FloatTensor<Flex> {
+            match self {
+                Kind::Conv(o) => forward(x, weight, o.clone()),
+                Kind::Transposed(o) => transpose_forward(x, weight, o.clone()),
+            }
+        }
+
+        fn input_grad(
+            &self,
+            x: FloatTensor<Flex>,
+            weight: FloatTensor<Flex>,
+            dy: FloatTensor<Flex>,
+        ) -> FloatTensor<Flex> {
+            match self {
+                Kind::Conv(o) => input_grad(x, weight, dy, o.clone()),
+                Kind::Transposed(o) => transpose_input_grad(x, weight, dy, o.clone()),
+            }
+        }
+
+        fn weight_grad(
+            &self,
+            x: FloatTensor<Flex>,
+            weight: FloatTensor<Flex>,
+            dy: FloatTensor<Flex>,
+        ) -> FloatTensor<Flex> {
+            match self {
+                Kind::Conv(o) => weight_grad(x, weight, dy, o.clone()),
+                Kind::Transposed(o) => transpose_weight_grad(x, weight, dy, o.clone()),
+            }
+        }
+    }
+
+    #[derive(Debug)]
+    struct Im2colConv;
+
+    impl Backward<Flex, 2> for Im2colConv {
+        type State = (NodeId, NodeId, Kind);
+
+        fn backward(
+            self,
+            ops: Ops<Self::State, 2>,
+            grads: &mut Gradients,
+            checkpointer: &mut Checkpointer,
+        ) {
+            let [node_x, node_weight] = ops.parents;
+            let grad = grads.consume::<Flex>(&ops.node);
+            let (x_state, weight_state, kind) = ops.state;
+            let x = checkpointer.retrieve_node_output::<FloatTensor<Flex>>(x_state);
+            let weight = checkpointer.retrieve_node_output::<FloatTensor<Flex>>(weight_state);
+            if let Some(node) = node_x {
+                let g = kind.input_grad(x.clone(), weight.clone(), grad.clone());
+                grads.register::<Flex>(node.id, g);
+            }
+            if let Some(node) = node_weight {
+                grads.register::<Flex>(node.id, kind.weight_grad(x, weight, grad));
+            }
+        }
+    }
+
+    /// `kind`'s forward on an autodiff device, recording [`Im2colConv`]'s step when x or the
+    /// weight is tracked.
+    fn tracked<C: CheckpointStrategy>(
+        x: FloatTensor<Autodiff<Flex, C>>,
+        weight: FloatTensor<Autodiff<Flex, C>>,
+        kind: Kind,
+    ) -> FloatTensor<Autodiff<Flex, C>> {
+        match Im2colConv
+            .prepare::<C>([x.node(), weight.node()])
+            .compute_bound()
+            .stateful()
+        {
+            OpsKind::Tracked(mut prep) => {
+                let x_state = prep.checkpoint(&x);
+                let weight_state = prep.checkpoint(&weight);
+                let y = kind.forward(x.into_primitive(), weight.into_primitive());
+                prep.finish((x_state, weight_state, kind), y)
+            }
+            OpsKind::UnTracked(prep) => {
+                prep.finish(kind.forward(x.into_primitive(), weight.into_primitive()))
             }
         }
     }
