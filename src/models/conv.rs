@@ -122,7 +122,7 @@ pub(crate) mod flex {
     use burn::backend::tensor::FloatTensor;
     use burn::backend::{Dispatch, Flex, TensorMetadata, backend_extension};
     use burn::tensor::ops::{ConvOptions, ConvTransposeOptions};
-    use burn::tensor::{DType, Shape, Tensor, TensorData};
+    use burn::tensor::{DType, Tensor, TensorData};
     use rayon::prelude::*;
 
     use crate::models::par::Shared;
@@ -297,6 +297,11 @@ pub(crate) mod flex {
         ConvOptions::new(options.stride, options.padding, options.dilation, 1)
     }
 
+    /// A flex tensor of `shape` holding `data`.
+    fn flex_tensor(data: Vec<f32>, shape: [usize; 4]) -> FloatTensor<Flex> {
+        Flex::float_from_data(TensorData::new(data, shape), &Default::default())
+    }
+
     fn all_f32(tensors: &[&FloatTensor<Flex>]) -> bool {
         tensors.iter().all(|t| t.dtype() == DType::F32)
     }
@@ -332,10 +337,7 @@ pub(crate) mod flex {
             [ho, wo],
             &transposed(&options),
         );
-        Flex::float_from_data(
-            TensorData::new(y, Shape::from(vec![xs[0], ws[1], ho, wo])),
-            &Default::default(),
-        )
+        flex_tensor(y, [xs[0], ws[1], ho, wo])
     }
 
     /// dL/dx of [`transpose_forward`]: the convolution [`transposed`] of the output gradient.
@@ -358,10 +360,7 @@ pub(crate) mod flex {
             [xs[2], xs[3]],
             &transposed(&options),
         );
-        Flex::float_from_data(
-            TensorData::new(dx, Shape::from(xs.to_vec())),
-            &Default::default(),
-        )
+        flex_tensor(dx, xs)
     }
 
     /// dL/dW of [`transpose_forward`]: the weight gradient of the convolution [`transposed`]
@@ -385,10 +384,7 @@ pub(crate) mod flex {
             [ws[2], ws[3]],
             &transposed(&options),
         );
-        Flex::float_from_data(
-            TensorData::new(dw, Shape::from(ws.to_vec())),
-            &Default::default(),
-        )
+        flex_tensor(dw, ws)
     }
 
     /// `Flex::conv2d(x, weight, None, options)` by [`forward_f32`]; flex's own for other dtypes
@@ -418,10 +414,7 @@ pub(crate) mod flex {
             [ho, wo],
             &options,
         );
-        Flex::float_from_data(
-            TensorData::new(y, Shape::from(vec![xs[0], ws[0], ho, wo])),
-            &Default::default(),
-        )
+        flex_tensor(y, [xs[0], ws[0], ho, wo])
     }
 
     /// Bytes of one im2col tile (c_in·kh·kw rows × tile columns): small enough to stay in L2/L3
@@ -453,10 +446,7 @@ pub(crate) mod flex {
             [ws[2], ws[3]],
             &options,
         );
-        Flex::float_from_data(
-            TensorData::new(out, Shape::from(ws.to_vec())),
-            &Default::default(),
-        )
+        flex_tensor(out, ws)
     }
 
     /// dL/dx of `conv2d(x, weight)` (no groups) from the output gradient `dy`, by GEMM + col2im
@@ -483,10 +473,7 @@ pub(crate) mod flex {
             [xs[2], xs[3]],
             &options,
         );
-        Flex::float_from_data(
-            TensorData::new(dx, Shape::from(xs.to_vec())),
-            &Default::default(),
-        )
+        flex_tensor(dx, xs)
     }
 
     /// One tile of the im2col matrix of one image `xb` ([C_in, H, W]): output rows oh0.. (as many
