@@ -52,13 +52,13 @@ pub(crate) mod flex {
     use burn::backend::autodiff::checkpoint::strategy::CheckpointStrategy;
     use burn::backend::autodiff::grads::Gradients;
     use burn::backend::autodiff::ops::{Backward, Ops, OpsKind};
-    use burn::backend::ops::{FloatTensorOps, ModuleOps};
+    use burn::backend::ops::ModuleOps;
     use burn::backend::tensor::FloatTensor;
     use burn::backend::{AutodiffBackend, Dispatch, Flex, TensorMetadata, backend_extension};
-    use burn::tensor::{DType, Shape, Tensor, TensorData};
+    use burn::tensor::{DType, Shape, Tensor};
     use rayon::prelude::*;
 
-    use crate::models::par::Shared;
+    use crate::models::par::{Shared, flex_tensor};
 
     /// Batch normalisation with the batch's own statistics: (output, mean, biased variance), as
     /// `ModuleOps::batch_norm_train`, by [`forward`]; its autodiff step uses [`backward`].
@@ -177,11 +177,6 @@ pub(crate) mod flex {
         [dims[0], dims[1], dims[2..].iter().product()]
     }
 
-    /// An f32 tensor of `shape` on flex.
-    fn tensor(values: Vec<f32>, shape: Shape) -> FloatTensor<Flex> {
-        Flex::float_from_data(TensorData::new(values, shape), &Default::default())
-    }
-
     /// `Flex::batch_norm_train(x, gamma, beta, epsilon)` by [`forward_f32`]; flex's own for
     /// other dtypes.
     pub fn forward(
@@ -209,7 +204,11 @@ pub(crate) mod flex {
             epsilon,
         );
         let c = Shape::new([dims[1]]);
-        (tensor(y, shape), tensor(mean, c.clone()), tensor(var, c))
+        (
+            flex_tensor(y, shape),
+            flex_tensor(mean, c.clone()),
+            flex_tensor(var, c),
+        )
     }
 
     /// (dx, dγ, dβ) of [`forward`] from the output gradient `dy`, given the mean and variance
@@ -243,9 +242,9 @@ pub(crate) mod flex {
         );
         let c = Shape::new([dims[1]]);
         (
-            tensor(dx, shape),
-            tensor(dgamma, c.clone()),
-            tensor(dbeta, c),
+            flex_tensor(dx, shape),
+            flex_tensor(dgamma, c.clone()),
+            flex_tensor(dbeta, c),
         )
     }
 
@@ -296,9 +295,7 @@ pub(crate) mod flex {
             .map(|c| {
                 let planes = (0..batch)
                     // SAFETY: channel c's plane of item b, handed to this task only.
-                    .map(|b| unsafe {
-                        std::slice::from_raw_parts_mut(shared.at((b * channels + c) * p), p)
-                    })
+                    .map(|b| unsafe { shared.slice((b * channels + c) * p, p) })
                     .collect();
                 f(c, planes)
             })

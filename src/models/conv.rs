@@ -118,14 +118,14 @@ pub(crate) mod flex {
     use burn::backend::autodiff::checkpoint::strategy::CheckpointStrategy;
     use burn::backend::autodiff::grads::Gradients;
     use burn::backend::autodiff::ops::{Backward, Ops, OpsKind};
-    use burn::backend::ops::{FloatTensorOps, ModuleOps};
+    use burn::backend::ops::ModuleOps;
     use burn::backend::tensor::FloatTensor;
     use burn::backend::{Dispatch, Flex, TensorMetadata, backend_extension};
     use burn::tensor::ops::{ConvOptions, ConvTransposeOptions};
-    use burn::tensor::{DType, Tensor, TensorData};
+    use burn::tensor::{DType, Tensor};
     use rayon::prelude::*;
 
-    use crate::models::par::Shared;
+    use crate::models::par::{Shared, flex_tensor};
 
     /// Conv2d without bias by [`forward`], whose autodiff step uses [`input_grad`] and
     /// [`weight_grad`].
@@ -295,11 +295,6 @@ pub(crate) mod flex {
     /// stride, padding and dilation, from the transposed output's plane to its input's.
     fn transposed(options: &ConvTransposeOptions<2>) -> ConvOptions<2> {
         ConvOptions::new(options.stride, options.padding, options.dilation, 1)
-    }
-
-    /// A flex tensor of `shape` holding `data`.
-    fn flex_tensor(data: Vec<f32>, shape: [usize; 4]) -> FloatTensor<Flex> {
-        Flex::float_from_data(TensorData::new(data, shape), &Default::default())
     }
 
     fn all_f32(tensors: &[&FloatTensor<Flex>]) -> bool {
@@ -816,8 +811,7 @@ pub(crate) mod flex {
         par_items(batch, rows * col_len, |b, parallel, col| {
             let yb = &dy[b * cout * p_all..(b + 1) * cout * p_all];
             // SAFETY: item b's slice of dx is written by this item only.
-            let dxb =
-                unsafe { std::slice::from_raw_parts_mut(out.at(b * cin * h * w), cin * h * w) };
+            let dxb = unsafe { out.slice(b * cin * h * w, cin * h * w) };
             for oh0 in (0..ho).step_by(tile_rows) {
                 let t = tile_len(oh0, [ho, wo], col_len);
                 let col = &mut col[..rows * t];

@@ -4,7 +4,7 @@
 //! - [`blend_unet`]: Network-1, the U-Net that predicts a 256-class blend map from (EV−3, EV0).
 //! - [`wu`]: Network-2, Wu et al. (ECCV 2018), three exposures → linear HDR; [`import`] moves
 //!   weights to and from PyTorch-style SafeTensors files.
-//! - [`conv`]: the layers' 2D convolution, with a faster weight gradient on flex.
+//! - [`conv`]: the layers' 2D convolutions and transposed convolutions, im2col + GEMM on flex.
 //! - [`batch_norm`]: the layers' BatchNorm, fused and parallel on flex in training mode.
 //! - [`ModelConfig`]: either network's config, tagged by `kind` (training configs, checkpoints).
 

@@ -1,4 +1,10 @@
-//! What the flex kernels (`conv`, `batch_norm`, `train::fused_loss`) share to write one output from parallel tasks.
+//! What the flex kernels (`conv`, `batch_norm`, `train::fused_loss`) share: the pointer their
+//! parallel tasks write one output through, and the tensor the output becomes.
+
+use burn::backend::Flex;
+use burn::backend::ops::FloatTensorOps;
+use burn::backend::tensor::FloatTensor;
+use burn::tensor::{Shape, TensorData};
 
 /// A pointer to an output that parallel tasks write in disjoint places.
 #[derive(Clone, Copy)]
@@ -21,4 +27,9 @@ impl Shared {
         // SAFETY: forwarded from the caller.
         unsafe { std::slice::from_raw_parts_mut(self.0.add(offset), n) }
     }
+}
+
+/// A flex tensor of `shape` holding `data`.
+pub(crate) fn flex_tensor(data: Vec<f32>, shape: impl Into<Shape>) -> FloatTensor<Flex> {
+    Flex::float_from_data(TensorData::new(data, shape), &Default::default())
 }

@@ -20,17 +20,16 @@
 //! (`loss.rs`), which the tests compare this with.
 
 use super::loss::Network1Reading;
-use crate::models::par::Shared;
+use crate::models::par::{Shared, flex_tensor};
 use burn::backend::autodiff::Autodiff;
 use burn::backend::autodiff::NodeId;
 use burn::backend::autodiff::checkpoint::base::Checkpointer;
 use burn::backend::autodiff::checkpoint::strategy::CheckpointStrategy;
 use burn::backend::autodiff::grads::Gradients;
 use burn::backend::autodiff::ops::{Backward, Ops, OpsKind};
-use burn::backend::ops::FloatTensorOps;
 use burn::backend::tensor::{FloatTensor, IntTensor};
 use burn::backend::{Dispatch, Flex, TensorMetadata, backend_extension};
-use burn::tensor::{DType, Int, Shape, Tensor, TensorData};
+use burn::tensor::{DType, Int, Tensor};
 use rayon::prelude::*;
 use std::sync::Arc;
 
@@ -72,6 +71,8 @@ struct Saved {
     alpha: Arc<[f32]>,
     lse: Arc<[f32]>,
     aux: Arc<[f32]>,
+    /// The soft reading's labels ([`soft_labels`]), computed once per step.
+    q: Option<Arc<[f32]>>,
 }
 
 #[derive(Debug)]
@@ -250,7 +251,8 @@ fn forward(
     let alpha: Arc<[f32]> = alpha.to_contiguous().storage::<f32>().into();
     let logits = logits.to_contiguous();
     let z = logits.storage::<f32>();
-    let q = (loss.reading == Network1Reading::Soft).then(|| soft_labels(c, loss.sigma));
+    let q: Option<Arc<[f32]>> =
+        (loss.reading == Network1Reading::Soft).then(|| soft_labels(c, loss.sigma).into());
     let level = |k: usize| k as f32 / (c - 1).max(1) as f32;
     let (mut out, mut lse, mut aux) = (
         vec![0.0f32; b * p_all],
@@ -273,23 +275,23 @@ fn forward(
         }
         let (mut s, mut acc) = ([0.0f32; BLOCK], [0.0f32; BLOCK]);
         for k in 0..c {
+            if loss.reading == Network1Reading::Ordinal {
+                let lv = level(k);
+                for (((s, acc), &m), &v) in s.iter_mut().zip(&mut acc).zip(&m).zip(col(k)) {
+                    let e = exp(v - m);
+                    *s += e;
+                    *acc += e * lv;
+                }
+                continue;
+            }
             for ((s, &m), &v) in s.iter_mut().zip(&m).zip(col(k)) {
                 *s += exp(v - m);
             }
-            match loss.reading {
-                Network1Reading::Ordinal => {
-                    let lv = level(k);
-                    for ((acc, &m), &v) in acc.iter_mut().zip(&m).zip(col(k)) {
-                        *acc += exp(v - m) * lv;
-                    }
+            if let Some(q) = &q {
+                let qk = &q[k * c..(k + 1) * c];
+                for ((acc, &ti), &v) in acc.iter_mut().zip(t).zip(col(k)) {
+                    *acc += qk[ti as usize] * v;
                 }
-                Network1Reading::Soft => {
-                    let qk = &q.as_ref().expect("soft labels")[k * c..(k + 1) * c];
-                    for ((acc, &ti), &v) in acc.iter_mut().zip(t).zip(col(k)) {
-                        *acc += qk[ti as usize] * v;
-                    }
-                }
-                _ => {}
             }
         }
         // SAFETY: block (bi, p0, n) is this task's alone, inside the [B·H·W] outputs.
@@ -320,12 +322,9 @@ fn forward(
         alpha,
         lse: lse.into(),
         aux: aux.into(),
+        q,
     };
-    let out = Flex::float_from_data(
-        TensorData::new(out, Shape::from(vec![b, h, w])),
-        &Default::default(),
-    );
-    (out, saved)
+    (flex_tensor(out, [b, h, w]), saved)
 }
 
 /// dL/dlogits [B, C, H, W] from the per-pixel gradient `grad` [B, H, W].
@@ -339,7 +338,6 @@ fn backward(
     let p_all = h * w;
     let (logits, grad) = (logits.to_contiguous(), grad.to_contiguous());
     let (z, g) = (logits.storage::<f32>(), grad.storage::<f32>());
-    let q = (loss.reading == Network1Reading::Soft).then(|| soft_labels(c, loss.sigma));
     let level = |k: usize| k as f32 / (c - 1).max(1) as f32;
     let mut dz = vec![0.0f32; b * c * p_all];
     let d = Shared(dz.as_mut_ptr());
@@ -383,7 +381,7 @@ fn backward(
                     }
                 }
                 Network1Reading::Soft => {
-                    let qk = &q.as_ref().expect("soft labels")[k * c..(k + 1) * c];
+                    let qk = &saved.q.as_ref().expect("soft labels")[k * c..(k + 1) * c];
                     for j in 0..n {
                         out[j] = f[j] * (exp(zk[j] - lse[j]) - qk[t[j] as usize]);
                     }
@@ -408,8 +406,5 @@ fn backward(
             }
         }
     });
-    Flex::float_from_data(
-        TensorData::new(dz, Shape::from(vec![b, c, h, w])),
-        &Default::default(),
-    )
+    flex_tensor(dz, [b, c, h, w])
 }
