@@ -69,6 +69,10 @@ fn main() {
         .unwrap_or(3);
     // `HDRSYNTH_BENCH_CONV=burn`: Burn's conv2d instead of the networks' (src/models/conv.rs).
     let burn_conv = std::env::var("HDRSYNTH_BENCH_CONV").is_ok_and(|v| v == "burn");
+    // `HDRSYNTH_BENCH_CONV=im2col`: the networks' convolutions without Winograd.
+    if std::env::var("HDRSYNTH_BENCH_CONV").is_ok_and(|v| v == "im2col") {
+        hdrsynth::models::conv::set_winograd(false);
+    }
     let dev = hdrsynth::device::device_from_name(&backend)
         .expect("backend")
         .autodiff();
@@ -138,6 +142,19 @@ fn main() {
         count: 1,
     });
 
+    // Network-2's residual-block convolution (3×3 256→256 on 32² crops' 1/8 plane; the block
+    // pads by reflection itself, so the convolution has none of its own: the bench's padding 1
+    // on a 32² input gives the same 32² output).
+    convs.push(Conv {
+        name: "Network-2 residual 3×3",
+        cin: 256,
+        cout: 256,
+        k: 3,
+        size: 32,
+        transposed: false,
+        count: 0,
+    });
+
     println!(
         "Network-1 ops on {backend} ({} conv2d), batch {BATCH}, median of {reps} (seconds per op call)",
         if burn_conv { "Burn's" } else { "the networks'" }
@@ -145,9 +162,13 @@ fn main() {
     println!("| op | in→out | size | × | forward | input grad | weight grad | total × count |");
     println!("|---|---|---|---|---|---|---|---|");
     let mut sum = [0.0f64; 3];
-    // `HDRSYNTH_BENCH_ONLY=other`: skip the convolutions.
-    let skip_convs = std::env::var("HDRSYNTH_BENCH_ONLY").is_ok_and(|v| v == "other");
-    for c in convs.iter().filter(|_| !skip_convs) {
+    // `HDRSYNTH_BENCH_ONLY=other`: skip the convolutions; `=NAME`: only the convolutions whose
+    // name contains NAME (and the other ops).
+    let only = std::env::var("HDRSYNTH_BENCH_ONLY").unwrap_or_default();
+    for c in convs
+        .iter()
+        .filter(|c| only != "other" && c.name.contains(only.as_str()))
+    {
         let x = tensor([BATCH, c.cin, c.size, c.size], 1, &dev);
         let wshape = if c.transposed {
             [c.cin, c.cout, c.k, c.k]

@@ -182,7 +182,7 @@ fn weight_gradient_by_hand() {
 fn equals_burns_conv2d_on_the_networks_layer_kinds() {
     // (x shape, c_out, kernel, stride, padding (top, bottom), (left, right), dilation)
     type Case = ([usize; 4], usize, usize, usize, [(usize, usize); 2], usize);
-    let cases: [Case; 9] = [
+    let cases: [Case; 14] = [
         // Network-1's 3×3 block conv and 5×5 head (padding k/2).
         ([2, 6, 16, 16], 8, 3, 1, [(1, 1), (1, 1)], 1),
         ([2, 8, 16, 12], 20, 5, 1, [(2, 2), (2, 2)], 1),
@@ -199,6 +199,15 @@ fn equals_burns_conv2d_on_the_networks_layer_kinds() {
         // the input gradient's rows take sums from two tiles.
         ([1, 64, 40, 128], 2, 5, 1, [(2, 2), (2, 2)], 1),
         ([3, 4, 9, 7], 5, 1, 1, [(0, 0), (0, 0)], 1),
+        // Winograd (≥ 16 channels, ≥ 128 tiles): F(4, 3) and F(2, 5) with padding k/2,
+        // Network-2's residual conv (reflect-padded input, no padding of its own), asymmetric
+        // padding, and a task's batch of tiles spanning two batch items (48 tile rows in blocks
+        // of 38).
+        ([4, 16, 32, 32], 16, 3, 1, [(1, 1), (1, 1)], 1),
+        ([2, 16, 24, 24], 32, 5, 1, [(2, 2), (2, 2)], 1),
+        ([2, 16, 34, 34], 24, 3, 1, [(0, 0), (0, 0)], 1),
+        ([4, 16, 30, 30], 16, 3, 1, [(0, 2), (1, 0)], 1),
+        ([2, 16, 96, 96], 16, 3, 1, [(1, 1), (1, 1)], 1),
     ];
     for (i, (xs, cout, k, s, pad, d)) in cases.into_iter().enumerate() {
         let x = tensor(xs, 100 + i as u64);
@@ -241,4 +250,18 @@ fn same_bits_on_any_thread_count() {
     let one = on(1);
     assert_eq!(one, on(2), "2 threads");
     assert_eq!(one, on(4), "4 threads");
+    // Winograd: two batches of tiles (see above), split across threads or not.
+    let x = tensor([2, 16, 96, 96], 5);
+    let w = tensor([16, 16, 3, 3], 6);
+    let options = ConvOptions::new([1, 1], [1, 1], [1, 1], 1);
+    let on = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("pool")
+            .install(|| grads(true, &x, &w, &options))
+    };
+    let one = on(1);
+    assert_eq!(one, on(2), "Winograd, 2 threads");
+    assert_eq!(one, on(3), "Winograd, 3 threads");
 }

@@ -24,6 +24,14 @@ use burn::nn::conv::{Conv2d, ConvTranspose2d};
 use burn::tensor::Tensor;
 use burn::tensor::ops::{ConvOptions, ConvTransposeOptions};
 
+/// Whether flex's stride-1 3×3 and 5×5 convolutions use Winograd (`models::winograd`, the
+/// default) or im2col; for benchmarks that compare the two in one process. Results differ in
+/// rounding only.
+#[cfg(feature = "flex")]
+pub fn set_winograd(on: bool) {
+    flex::WINOGRAD.store(on, std::sync::atomic::Ordering::Relaxed);
+}
+
 /// `conv.forward(x)`, through the kernels above when `x` lives on flex.
 pub fn conv2d(conv: &Conv2d, x: Tensor<4>) -> Tensor<4> {
     let ((top, bottom), (left, right)) = match conv.padding {
@@ -125,7 +133,8 @@ pub(crate) mod flex {
     use burn::tensor::{DType, Tensor};
     use rayon::prelude::*;
 
-    use crate::models::par::{Shared, flex_tensor};
+    use crate::models::par::{Shared, flex_tensor, matmul};
+    use crate::models::winograd::{self, Winograd};
 
     /// Conv2d without bias by [`forward`], whose autodiff step uses [`input_grad`] and
     /// [`weight_grad`].
@@ -576,54 +585,37 @@ pub(crate) mod flex {
         (TILE_BYTES / 4 / rows.max(1) / wo.max(1)).clamp(1, ho.max(1))
     }
 
-    /// dst[m×n] = lhs[m×k] · rhs[k×n] (plus dst when `accumulate`), each matrix given by its
-    /// (column, row) strides, no conjugation; on the rayon pool when `parallel`, else on the
-    /// calling thread.
-    ///
-    /// # Safety
-    /// Every stride and extent must index inside the three buffers.
-    #[allow(clippy::too_many_arguments)]
-    unsafe fn matmul(
-        [m, n, k]: [usize; 3],
-        dst: *mut f32,
-        [dst_cs, dst_rs]: [isize; 2],
-        accumulate: bool,
-        lhs: *const f32,
-        [lhs_cs, lhs_rs]: [isize; 2],
-        rhs: *const f32,
-        [rhs_cs, rhs_rs]: [isize; 2],
-        parallel: bool,
-    ) {
-        let parallelism = if parallel {
-            gemm::Parallelism::Rayon(0)
-        } else {
-            gemm::Parallelism::None
-        };
-        // SAFETY: forwarded from the caller. alpha (the weight on dst) is 1 when accumulating
-        // and ignored by gemm otherwise.
-        unsafe {
-            gemm::gemm(
-                m,
-                n,
-                k,
-                dst,
-                dst_cs,
-                dst_rs,
-                accumulate,
-                lhs,
-                lhs_cs,
-                lhs_rs,
-                rhs,
-                rhs_cs,
-                rhs_rs,
-                1.0,
-                1.0,
-                false,
-                false,
-                false,
-                parallelism,
-            )
-        }
+    /// Channels below which a layer stays on im2col: Winograd's GEMMs have K = c_in, too short
+    /// to pay for the transforms.
+    const WINOGRAD_MIN_CHANNELS: usize = 16;
+    /// Output tiles (batch × tile rows × tile columns) below which a layer stays on im2col: the
+    /// filter transform (c_out·c_in·α² values) then costs as much as the GEMMs it saves
+    /// (Network-1's 8² and 16² levels at batch 4 are faster on im2col, `cargo bench --bench
+    /// train_ops`; its 32² level and up, and Network-2's residual blocks, on Winograd).
+    const WINOGRAD_MIN_TILES: usize = 128;
+
+    /// [`super::set_winograd`]'s switch.
+    pub(super) static WINOGRAD: std::sync::atomic::AtomicBool =
+        std::sync::atomic::AtomicBool::new(true);
+
+    /// The Winograd transform for a c_in → c_out convolution with this kernel and `options`
+    /// onto `batch` planes of `out`: stride 1, no dilation, a square kernel
+    /// [`Winograd::for_kernel`] covers, and enough channels and tiles.
+    fn winograd_for(
+        [cin, cout]: [usize; 2],
+        [kh, kw]: [usize; 2],
+        options: &ConvOptions<2>,
+        batch: usize,
+        out: [usize; 2],
+    ) -> Option<Winograd> {
+        let plain = options.stride == [1, 1]
+            && options.dilation == [1, 1]
+            && kh == kw
+            && WINOGRAD.load(std::sync::atomic::Ordering::Relaxed);
+        let kind = Winograd::for_kernel(kh).filter(|_| plain)?;
+        let m = kind.matrices().m;
+        let tiles = batch * out[0].div_ceil(m) * out[1].div_ceil(m);
+        (cin.min(cout) >= WINOGRAD_MIN_CHANNELS && tiles >= WINOGRAD_MIN_TILES).then_some(kind)
     }
 
     /// The (batch item, first output row) of every im2col tile in a fixed order, and the
@@ -689,6 +681,10 @@ pub(crate) mod flex {
         [ho, wo]: [usize; 2],
         options: &ConvOptions<2>,
     ) -> Vec<f32> {
+        if let Some(kind) = winograd_for([ws[1], ws[0]], [ws[2], ws[3]], options, xs[0], [ho, wo]) {
+            let pad = options.padding_begin();
+            return winograd::conv2d_f32(x, xs, wt, ws, [ho, wo], pad, kind);
+        }
         let [batch, cin, h, w] = xs;
         let [cout, _, kh, kw] = ws;
         let rows = cin * kh * kw;
@@ -797,6 +793,26 @@ pub(crate) mod flex {
     ) -> Vec<f32> {
         let [batch, cout, ho, wo] = ys;
         let [_, cin, kh, kw] = ws;
+        let [pt, pl] = options.padding_begin();
+        if let Some(kind) = winograd_for([cout, cin], [kh, kw], options, batch, [h, w])
+            .filter(|_| pt < kh && pl < kw)
+        {
+            // dX is the stride-1 correlation of dY with the kernels turned 180° and their
+            // channels swapped, padded by k − 1 − p.
+            let flipped: Vec<f32> = (0..cin * cout * kh * kw)
+                .map(|n| {
+                    let (ci, co, i, j) = (
+                        n / (cout * kh * kw),
+                        n / (kh * kw) % cout,
+                        n / kw % kh,
+                        n % kw,
+                    );
+                    wt[((co * cin + ci) * kh + kh - 1 - i) * kw + kw - 1 - j]
+                })
+                .collect();
+            let pad = [kh - 1 - pt, kw - 1 - pl];
+            return winograd::conv2d_f32(dy, ys, &flipped, [cin, cout, kh, kw], [h, w], pad, kind);
+        }
         let rows = cin * kh * kw;
         let p_all = ho * wo;
         let mut dx = vec![0.0f32; batch * cin * h * w];

@@ -1,5 +1,6 @@
-//! What the flex kernels (`conv`, `batch_norm`, `train::fused_loss`) share: the pointer their
-//! parallel tasks write one output through, and the tensor the output becomes.
+//! What the flex kernels (`conv`, `winograd`, `batch_norm`, `train::fused_loss`) share: the
+//! pointer their parallel tasks write one output through, the tensor the output becomes, and
+//! the GEMM call.
 
 use burn::backend::Flex;
 use burn::backend::ops::FloatTensorOps;
@@ -32,4 +33,76 @@ impl Shared {
 /// A flex tensor of `shape` holding `data`.
 pub(crate) fn flex_tensor(data: Vec<f32>, shape: impl Into<Shape>) -> FloatTensor<Flex> {
     Flex::float_from_data(TensorData::new(data, shape), &Default::default())
+}
+
+/// dst[m×n] = lhs[m×k] · rhs[k×n] (plus dst when `accumulate`), each matrix given by its
+/// (column, row) strides, no conjugation; on the rayon pool when `parallel`, else on the
+/// calling thread.
+///
+/// # Safety
+/// Every stride and extent must index inside the three buffers.
+#[allow(clippy::too_many_arguments)]
+pub(crate) unsafe fn matmul(
+    [m, n, k]: [usize; 3],
+    dst: *mut f32,
+    [dst_cs, dst_rs]: [isize; 2],
+    accumulate: bool,
+    lhs: *const f32,
+    [lhs_cs, lhs_rs]: [isize; 2],
+    rhs: *const f32,
+    [rhs_cs, rhs_rs]: [isize; 2],
+    parallel: bool,
+) {
+    let parallelism = if parallel {
+        gemm::Parallelism::Rayon(0)
+    } else {
+        gemm::Parallelism::None
+    };
+    // SAFETY: forwarded from the caller. alpha (the weight on dst) is 1 when accumulating
+    // and ignored by gemm otherwise.
+    unsafe {
+        gemm::gemm(
+            m,
+            n,
+            k,
+            dst,
+            dst_cs,
+            dst_rs,
+            accumulate,
+            lhs,
+            lhs_cs,
+            lhs_rs,
+            rhs,
+            rhs_cs,
+            rhs_rs,
+            1.0,
+            1.0,
+            false,
+            false,
+            false,
+            parallelism,
+        )
+    }
+}
+
+/// `f()`, compiled for AVX2 where the CPU has it: the kernels' fixed-size array loops then run
+/// 8 lanes per instruction instead of SSE2's 4. The bits are the same either way (Rust never
+/// contracts a·b + c into an FMA), so results do not depend on the machine's vector width.
+/// `f` and what it calls must be `#[inline(always)]` (or small enough to inline) to be compiled
+/// inside the AVX2 function.
+#[inline(always)]
+pub(crate) fn with_avx2<R>(f: impl FnOnce() -> R) -> R {
+    #[cfg(target_arch = "x86_64")]
+    {
+        #[target_feature(enable = "avx2")]
+        fn inner<R>(f: impl FnOnce() -> R) -> R {
+            f()
+        }
+        static AVX2: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+        if *AVX2.get_or_init(|| std::is_x86_feature_detected!("avx2")) {
+            // SAFETY: the CPU has AVX2 (checked above).
+            return unsafe { inner(f) };
+        }
+    }
+    f()
 }

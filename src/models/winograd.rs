@@ -1,0 +1,577 @@
+//! Winograd minimal filtering F(m×m, r×r) for the networks' stride-1 convolutions on flex
+//! (issue 18): each m×m block of outputs from an α×α input patch (α = m + r − 1) by α² products
+//! instead of m²·r², so Network-1's 5×5 head by F(2×2, 5×5) needs 9 multiplies per output
+//! instead of 25 and a 3×3 layer by F(4×4, 3×3) 2.25 instead of 9 (Lavin & Gray, "Fast
+//! Algorithms for Convolutional Neural Networks", CVPR 2016). Per batch of tiles:
+//! V = Bᵀ·d·B per (input channel, tile), U = G·g·Gᵀ per filter, then one GEMM per frequency ξ
+//! (M_ξ = U_ξ · V_ξ, K = input channels), and Y = Aᵀ·M·A per (output channel, tile).
+//!
+//! The matrices come from Cook–Toom's construction on points p₀… and ∞, evaluated at compile
+//! time ([`cook_toom`], f64 then rounded once): a correlation is the transpose of a polynomial
+//! product evaluated at those points, so with Vₙ the α×n Vandermonde matrix (row j = 1, pⱼ, …,
+//! pⱼⁿ⁻¹; the ∞ row picks the leading coefficient), Aᵀ = V_mᵀ, G = V_r and Bᵀ = (V_α⁻¹)ᵀ. As
+//! constants, the transforms' unrolled loops skip every zero entry. Rounding differs from the
+//! direct convolution's (the transforms add and subtract before the products): a few 1e-7 of the
+//! output's scale for F(2, 3), up to about 1e-5 for α = 6 (tests/winograd.rs, against an f64
+//! convolution). Sums run in a fixed order and every batch of tiles is computed whole by one
+//! task, so results do not depend on the thread count.
+
+// The transforms are small matrix products, clearest with indices.
+#![allow(clippy::needless_range_loop)]
+
+use crate::models::par::{Shared, matmul, with_avx2};
+use rayon::prelude::*;
+
+/// Most points any transform here uses (α ≤ 8).
+const MAX_ALPHA: usize = 8;
+/// Tiles (or, for the filters, input channels) transformed together: the lanes of the
+/// transforms' vector loops.
+const LANES: usize = 8;
+/// Bytes of one task's transformed inputs and products (V and M for a batch of tiles).
+const BLOCK_BYTES: usize = 4 << 20;
+
+/// The three matrices of F(m, r), row-major in the top-left corner of 8×8 arrays.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Matrices {
+    pub m: usize,
+    pub r: usize,
+    pub alpha: usize,
+    /// Aᵀ, m × α.
+    pub at: [[f32; MAX_ALPHA]; MAX_ALPHA],
+    /// Bᵀ, α × α.
+    pub bt: [[f32; MAX_ALPHA]; MAX_ALPHA],
+    /// G, α × r.
+    pub g: [[f32; MAX_ALPHA]; MAX_ALPHA],
+}
+
+/// Cook–Toom's F(m, r) on the finite points `points` (α − 1 distinct values) and ∞. Row j of Bᵀ
+/// (column j of V_α⁻¹) is scaled to a smallest nonzero entry of 1 and G's row j takes the factor
+/// back: on 0, ±1, ±1/2 that makes Bᵀ Lavin & Gray's integer matrix, so the input transform
+/// multiplies exactly.
+pub const fn cook_toom(m: usize, r: usize, points: &[f64]) -> Matrices {
+    let alpha = m + r - 1;
+    assert!(m > 0 && r > 0 && alpha <= MAX_ALPHA && points.len() == alpha - 1);
+    // [V_α | I], Gauss–Jordan with partial pivoting → [I | V_α⁻¹].
+    let mut aug = [[0.0f64; 2 * MAX_ALPHA]; MAX_ALPHA];
+    let mut j = 0;
+    while j < alpha {
+        let mut i = 0;
+        while i < alpha {
+            aug[j][i] = vander(points, j, i, alpha);
+            i += 1;
+        }
+        aug[j][MAX_ALPHA + j] = 1.0;
+        j += 1;
+    }
+    let mut c = 0;
+    while c < alpha {
+        let mut p = c;
+        let mut i = c + 1;
+        while i < alpha {
+            if aug[i][c].abs() > aug[p][c].abs() {
+                p = i;
+            }
+            i += 1;
+        }
+        assert!(aug[p][c] != 0.0, "Cook–Toom points must be distinct");
+        let row = aug[p];
+        aug[p] = aug[c];
+        aug[c] = row;
+        let pivot = aug[c][c];
+        let mut k = 0;
+        while k < 2 * MAX_ALPHA {
+            aug[c][k] /= pivot;
+            k += 1;
+        }
+        let mut i = 0;
+        while i < alpha {
+            let f = aug[i][c];
+            if i != c && f != 0.0 {
+                let mut k = 0;
+                while k < 2 * MAX_ALPHA {
+                    aug[i][k] -= f * aug[c][k];
+                    k += 1;
+                }
+            }
+            i += 1;
+        }
+        c += 1;
+    }
+    let mut out = Matrices {
+        m,
+        r,
+        alpha,
+        at: [[0.0; MAX_ALPHA]; MAX_ALPHA],
+        bt: [[0.0; MAX_ALPHA]; MAX_ALPHA],
+        g: [[0.0; MAX_ALPHA]; MAX_ALPHA],
+    };
+    let mut j = 0;
+    while j < alpha {
+        // Column j of V_α⁻¹, its round-off (≈ 1e-16 on these small rationals) snapped to 0.
+        let mut col = [0.0f64; MAX_ALPHA];
+        let mut scale = f64::INFINITY;
+        let mut i = 0;
+        while i < alpha {
+            let v = aug[i][MAX_ALPHA + j];
+            col[i] = if v.abs() < 1e-9 { 0.0 } else { v };
+            if col[i] != 0.0 && col[i].abs() < scale {
+                scale = col[i].abs();
+            }
+            i += 1;
+        }
+        let mut i = 0;
+        while i < alpha {
+            out.bt[j][i] = (col[i] / scale) as f32;
+            i += 1;
+        }
+        let mut k = 0;
+        while k < r {
+            out.g[j][k] = (vander(points, j, k, r) * scale) as f32;
+            k += 1;
+        }
+        let mut i = 0;
+        while i < m {
+            out.at[i][j] = vander(points, j, i, m) as f32;
+            i += 1;
+        }
+        j += 1;
+    }
+    out
+}
+
+/// Entry (j, i) of the α×n Vandermonde matrix: pⱼ^i, or for the last row (∞) 1 at i = n − 1.
+const fn vander(points: &[f64], j: usize, i: usize, n: usize) -> f64 {
+    if j == points.len() {
+        return if i == n - 1 { 1.0 } else { 0.0 };
+    }
+    let mut v = 1.0;
+    let mut e = 0;
+    while e < i {
+        v *= points[j];
+        e += 1;
+    }
+    v
+}
+
+/// The points of every transform here: 0, ±1, ±1/2 (and ∞).
+const POINTS: [f64; 5] = [0.0, 1.0, -1.0, 0.5, -0.5];
+
+/// The Winograd transforms the convolutions use.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Winograd {
+    /// F(2×2, 3×3) on 0, ±1 (α = 4): the most accurate; for tests and comparisons.
+    F2x3,
+    /// F(4×4, 3×3) on 0, ±1, ±1/2 (α = 6): the 3×3 layers.
+    F4x3,
+    /// F(2×2, 5×5) on 0, ±1, ±1/2 (α = 6): Network-1's 5×5 head.
+    F2x5,
+}
+
+impl Winograd {
+    /// The transform the convolutions use for an r×r kernel, if any.
+    pub fn for_kernel(r: usize) -> Option<Winograd> {
+        match r {
+            3 => Some(Winograd::F4x3),
+            5 => Some(Winograd::F2x5),
+            _ => None,
+        }
+    }
+
+    /// Its matrices.
+    pub fn matrices(self) -> Matrices {
+        match self {
+            Winograd::F2x3 => F2x3::MAT,
+            Winograd::F4x3 => F4x3::MAT,
+            Winograd::F2x5 => F2x5::MAT,
+        }
+    }
+}
+
+/// A transform with its matrices as compile-time constants, so the kernels' loops unroll and
+/// fold every 0 and 1.
+trait Kind {
+    const MAT: Matrices;
+}
+struct F2x3;
+struct F4x3;
+struct F2x5;
+impl Kind for F2x3 {
+    const MAT: Matrices = cook_toom(2, 3, &[0.0, 1.0, -1.0]);
+}
+impl Kind for F4x3 {
+    const MAT: Matrices = cook_toom(4, 3, &POINTS);
+}
+impl Kind for F2x5 {
+    const MAT: Matrices = cook_toom(2, 5, &POINTS);
+}
+
+/// The stride-1, dilation-1 convolution (no bias, one group) of `x` ([B, C_in, H, W]) by `wt`
+/// ([C_out, C_in, r, r]) with zero padding `[top, left]` (bottom and right follow from the
+/// output size `[ho, wo]`), by `kind`; returns Y as [B, C_out, ho, wo].
+pub fn conv2d_f32(
+    x: &[f32],
+    xs: [usize; 4],
+    wt: &[f32],
+    ws: [usize; 4],
+    out: [usize; 2],
+    pad: [usize; 2],
+    kind: Winograd,
+) -> Vec<f32> {
+    let r = kind.matrices().r;
+    assert!(
+        ws[2] == r && ws[3] == r,
+        "kernel {}×{} for r = {r}",
+        ws[2],
+        ws[3]
+    );
+    assert_eq!(xs[1], ws[1], "input channels of x and the kernels");
+    match kind {
+        Winograd::F2x3 => conv2d_impl::<F2x3>(x, xs, wt, ws, out, pad),
+        Winograd::F4x3 => conv2d_impl::<F4x3>(x, xs, wt, ws, out, pad),
+        Winograd::F2x5 => conv2d_impl::<F2x5>(x, xs, wt, ws, out, pad),
+    }
+}
+
+fn conv2d_impl<K: Kind>(
+    x: &[f32],
+    [batch, cin, h, w]: [usize; 4],
+    wt: &[f32],
+    [cout, ..]: [usize; 4],
+    [ho, wo]: [usize; 2],
+    [pt, pl]: [usize; 2],
+) -> Vec<f32> {
+    let (a, m) = (K::MAT.alpha, K::MAT.m);
+    let mut y = vec![0.0f32; batch * cout * ho * wo];
+    if batch * cin * cout * ho * wo == 0 {
+        return y;
+    }
+    let u = filter_transform::<K>(wt, cout, cin);
+    let (th, tw) = (ho.div_ceil(m), wo.div_ceil(m));
+    // A task's block: a run of tile rows over the whole batch (item b's rows are b·th..), its
+    // V and M within BLOCK_BYTES; the deep layers' few tiles per item batch across items.
+    let rows = (BLOCK_BYTES / 4 / ((cin + cout) * a * a * tw)).clamp(1, batch * th);
+    let blocks: Vec<usize> = (0..batch * th).step_by(rows).collect();
+    let nt_max = rows * tw;
+    // One input channel's padded rows for one item's part of a block: tile columns rounded up
+    // to LANES, so every lane reads inside the buffer.
+    let wp = tw.next_multiple_of(LANES) * m + a - m;
+    let hp = rows.min(th) * m + a - m;
+    let out = Shared(y.as_mut_ptr());
+    let threads = rayon::current_num_threads().clamp(1, blocks.len());
+    let run = |run: &[usize], parallel: bool| {
+        let mut v = vec![0.0f32; a * a * cin * nt_max];
+        let mut mm = vec![0.0f32; a * a * cout * nt_max];
+        let mut padded = vec![0.0f32; hp * wp];
+        for &g0 in run {
+            let g1 = (g0 + rows).min(batch * th);
+            let nt = (g1 - g0) * tw;
+            // The block's parts by batch item: (item, first tile row, end, first tile index).
+            let parts = (g0 / th..g1.div_ceil(th)).map(|b| {
+                let (r0, r1) = (g0.max(b * th) - b * th, g1.min((b + 1) * th) - b * th);
+                (b, r0, r1, (b * th + r0 - g0) * tw)
+            });
+            for (b, r0, r1, t0) in parts.clone() {
+                for ci in 0..cin {
+                    let plane = &x[(b * cin + ci) * h * w..][..h * w];
+                    let padded = &mut padded[..((r1 - r0) * m + a - m) * wp];
+                    pad_rows(plane, [h, w], [r0 * m, pt, pl], wp, padded);
+                    with_avx2(
+                        #[inline(always)]
+                        || input_transform::<K>(padded, wp, [r1 - r0, tw], ci, nt, t0, &mut v),
+                    );
+                }
+            }
+            for xi in 0..a * a {
+                // M_ξ[co, t] = Σ_ci U_ξ[co, ci] · V_ξ[ci, t] (V and M hold each channel's α²
+                // frequencies together, so a transform reads or writes one contiguous run).
+                // SAFETY: the extents index inside mm's, u's and v's ξ blocks.
+                unsafe {
+                    matmul(
+                        [cout, nt, cin],
+                        mm.as_mut_ptr().add(xi * nt),
+                        [1, (a * a * nt) as isize],
+                        false,
+                        u.as_ptr().add(xi * cout * cin),
+                        [1, cin as isize],
+                        v.as_ptr().add(xi * nt),
+                        [1, (a * a * nt) as isize],
+                        parallel,
+                    );
+                }
+            }
+            for (b, r0, r1, t0) in parts {
+                for co in 0..cout {
+                    // SAFETY: item b's channel co; its tile rows r0..r1 belong to this block only.
+                    let plane = unsafe { out.slice((b * cout + co) * ho * wo, ho * wo) };
+                    with_avx2(
+                        #[inline(always)]
+                        || output_transform::<K>(&mm, [ho, wo], [r0, r1, tw], co, nt, t0, plane),
+                    );
+                }
+            }
+        }
+    };
+    if threads == 1 {
+        run(&blocks, true);
+    } else {
+        blocks
+            .par_chunks(blocks.len().div_ceil(threads))
+            .for_each(|r| run(r, false));
+    }
+    y
+}
+
+/// G·g·Gᵀ for every (c_out, c_in) filter of `wt` ([C_out, C_in, r, r]), as U[ξ][c_out][c_in];
+/// `LANES` input channels at a time.
+fn filter_transform<K: Kind>(wt: &[f32], cout: usize, cin: usize) -> Vec<f32> {
+    let (a, r) = (K::MAT.alpha, K::MAT.r);
+    let gm = &K::MAT.g;
+    let mut u = vec![0.0f32; a * a * cout * cin];
+    let out = Shared(u.as_mut_ptr());
+    (0..cout).into_par_iter().for_each(|co| {
+        with_avx2(
+            #[inline(always)]
+            || {
+                let mut g = [[[0.0f32; LANES]; MAX_ALPHA]; MAX_ALPHA];
+                let mut tmp = [[[0.0f32; LANES]; MAX_ALPHA]; MAX_ALPHA];
+                for ci0 in (0..cin).step_by(LANES) {
+                    let lanes = LANES.min(cin - ci0);
+                    let base = (co * cin + ci0) * r * r;
+                    for (k, gk) in g.iter_mut().enumerate().take(r) {
+                        for (l, gkl) in gk.iter_mut().enumerate().take(r) {
+                            for (c, e) in gkl.iter_mut().enumerate() {
+                                *e = if c < lanes {
+                                    wt[base + c * r * r + k * r + l]
+                                } else {
+                                    0.0
+                                };
+                            }
+                        }
+                    }
+                    // tmp = G·g (α × r), then U = tmp·Gᵀ (α × α).
+                    for i in 0..a {
+                        for l in 0..r {
+                            let mut acc = [0.0f32; LANES];
+                            for k in 0..r {
+                                let c = gm[i][k];
+                                if c != 0.0 {
+                                    for (e, v) in acc.iter_mut().zip(&g[k][l]) {
+                                        *e += c * v;
+                                    }
+                                }
+                            }
+                            tmp[i][l] = acc;
+                        }
+                    }
+                    for i in 0..a {
+                        for j in 0..a {
+                            let mut acc = [0.0f32; LANES];
+                            for l in 0..r {
+                                let c = gm[j][l];
+                                if c != 0.0 {
+                                    for (e, v) in acc.iter_mut().zip(&tmp[i][l]) {
+                                        *e += v * c;
+                                    }
+                                }
+                            }
+                            // SAFETY: (ξ, co, ci0..) is inside u, and only this co's task writes it.
+                            let dst =
+                                unsafe { out.slice(((i * a + j) * cout + co) * cin + ci0, lanes) };
+                            store(dst, &acc, lanes);
+                        }
+                    }
+                }
+            },
+        )
+    });
+    u
+}
+
+/// Copies the plane's rows y0 − pt … (as many as `padded` holds, `wp` wide, from column −pl)
+/// into `padded`, zero outside the plane.
+fn pad_rows(
+    plane: &[f32],
+    [h, w]: [usize; 2],
+    [y0, pt, pl]: [usize; 3],
+    wp: usize,
+    padded: &mut [f32],
+) {
+    for (r, dst) in padded.chunks_exact_mut(wp).enumerate() {
+        let iy = (y0 + r) as isize - pt as isize;
+        if iy < 0 || iy >= h as isize {
+            dst.fill(0.0);
+            continue;
+        }
+        let src = &plane[iy as usize * w..][..w];
+        // dst[c] = src[c − pl] where that is inside the row.
+        let lo = pl.min(wp);
+        let hi = (pl + w).min(wp);
+        dst[..lo].fill(0.0);
+        dst[lo..hi].copy_from_slice(&src[..hi - lo]);
+        dst[hi..].fill(0.0);
+    }
+}
+
+/// V[ci][ξ][t0 + t] = (Bᵀ·d·B)_ξ for `tile_rows` × `tw` tiles, d the α×α patch of `padded` (the
+/// tile rows' input rows, `wp` wide) at (ty·m, tx·m). `LANES` tiles of one row at a time, so the
+/// inner loops run across tiles.
+#[inline(always)]
+fn input_transform<K: Kind>(
+    padded: &[f32],
+    wp: usize,
+    [tile_rows, tw]: [usize; 2],
+    ci: usize,
+    nt: usize,
+    t0: usize,
+    v: &mut [f32],
+) {
+    let (a, m) = (K::MAT.alpha, K::MAT.m);
+    let bt = &K::MAT.bt;
+    let mut d = [[[0.0f32; LANES]; MAX_ALPHA]; MAX_ALPHA];
+    let mut tmp = [[[0.0f32; LANES]; MAX_ALPHA]; MAX_ALPHA];
+    let vc = &mut v[ci * a * a * nt..][..a * a * nt];
+    for ty in 0..tile_rows {
+        for tx0 in (0..tw).step_by(LANES) {
+            let lanes = LANES.min(tw - tx0);
+            let base = ty * m * wp + tx0 * m;
+            for (uu, du) in d.iter_mut().enumerate().take(a) {
+                let row = &padded[base + uu * wp..][..(LANES - 1) * m + a];
+                for (c, dc) in du.iter_mut().enumerate().take(a) {
+                    for (l, e) in dc.iter_mut().enumerate() {
+                        *e = row[l * m + c];
+                    }
+                }
+            }
+            // tmp = Bᵀ·d, then V = tmp·B.
+            for i in 0..a {
+                for c in 0..a {
+                    let mut acc = [0.0f32; LANES];
+                    for uu in 0..a {
+                        let k = bt[i][uu];
+                        if k != 0.0 {
+                            for (e, dv) in acc.iter_mut().zip(&d[uu][c]) {
+                                *e += k * dv;
+                            }
+                        }
+                    }
+                    tmp[i][c] = acc;
+                }
+            }
+            let t = t0 + ty * tw + tx0;
+            for i in 0..a {
+                for j in 0..a {
+                    let mut acc = [0.0f32; LANES];
+                    for c in 0..a {
+                        let k = bt[j][c];
+                        if k != 0.0 {
+                            for (e, tv) in acc.iter_mut().zip(&tmp[i][c]) {
+                                *e += tv * k;
+                            }
+                        }
+                    }
+                    store(&mut vc[(i * a + j) * nt + t..], &acc, lanes);
+                }
+            }
+        }
+    }
+}
+
+/// Y = Aᵀ·M·A for channel co's tiles of tile rows r0..r1 (from tile t0 of the block), written
+/// into its output plane (the parts inside [ho, wo]).
+#[inline(always)]
+fn output_transform<K: Kind>(
+    mm: &[f32],
+    [ho, wo]: [usize; 2],
+    [r0, r1, tw]: [usize; 3],
+    co: usize,
+    nt: usize,
+    t0: usize,
+    plane: &mut [f32],
+) {
+    let (a, m) = (K::MAT.alpha, K::MAT.m);
+    let at = &K::MAT.at;
+    let mc = &mm[co * a * a * nt..][..a * a * nt];
+    let mut p = [[[0.0f32; LANES]; MAX_ALPHA]; MAX_ALPHA];
+    let mut tmp = [[[0.0f32; LANES]; MAX_ALPHA]; MAX_ALPHA];
+    for ty in r0..r1 {
+        for tx0 in (0..tw).step_by(LANES) {
+            let lanes = LANES.min(tw - tx0);
+            let t = t0 + (ty - r0) * tw + tx0;
+            for i in 0..a {
+                for j in 0..a {
+                    load(&mut p[i][j], &mc[(i * a + j) * nt + t..], lanes);
+                }
+            }
+            // tmp = Aᵀ·P (m × α), then Y = tmp·A (m × m).
+            for uu in 0..m {
+                for j in 0..a {
+                    let mut acc = [0.0f32; LANES];
+                    for i in 0..a {
+                        let k = at[uu][i];
+                        if k != 0.0 {
+                            for (e, pv) in acc.iter_mut().zip(&p[i][j]) {
+                                *e += k * pv;
+                            }
+                        }
+                    }
+                    tmp[uu][j] = acc;
+                }
+            }
+            let full = lanes == LANES && (ty + 1) * m <= ho && (tx0 + LANES) * m <= wo;
+            for uu in 0..m {
+                let oy = ty * m + uu;
+                if oy >= ho {
+                    break;
+                }
+                let row = &mut plane[oy * wo..][..wo];
+                for vv in 0..m {
+                    let mut acc = [0.0f32; LANES];
+                    for j in 0..a {
+                        let k = at[vv][j];
+                        if k != 0.0 {
+                            for (e, tv) in acc.iter_mut().zip(&tmp[uu][j]) {
+                                *e += tv * k;
+                            }
+                        }
+                    }
+                    if full {
+                        let row = &mut row[tx0 * m + vv..][..(LANES - 1) * m + 1];
+                        for (l, &e) in acc.iter().enumerate() {
+                            row[l * m] = e;
+                        }
+                    } else {
+                        for (l, &e) in acc.iter().enumerate().take(lanes) {
+                            let ox = (tx0 + l) * m + vv;
+                            if ox < wo {
+                                row[ox] = e;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// dst[..lanes] = src[..lanes]; a fixed-size copy for whole groups (a `copy_from_slice` of a
+/// run-time length is a call to memmove).
+#[inline(always)]
+fn store(dst: &mut [f32], src: &[f32; LANES], lanes: usize) {
+    if lanes == LANES {
+        let dst: &mut [f32; LANES] = (&mut dst[..LANES]).try_into().expect("LANES elements");
+        *dst = *src;
+    } else {
+        dst[..lanes].copy_from_slice(&src[..lanes]);
+    }
+}
+
+/// dst = src[..lanes], the rest 0 (see [`store`]).
+#[inline(always)]
+fn load(dst: &mut [f32; LANES], src: &[f32], lanes: usize) {
+    if lanes == LANES {
+        *dst = src[..LANES].try_into().expect("LANES elements");
+    } else {
+        *dst = [0.0; LANES];
+        dst[..lanes].copy_from_slice(&src[..lanes]);
+    }
+}
