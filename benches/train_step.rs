@@ -5,7 +5,8 @@
 //! - Network-1: batch 4 of 6×128×128 (Eq. 4 loss);
 //! - Network-2: batch 4 of 18×256×256 (μ-law L2), the authors' patch size.
 //!
-//! Throughput is reported in samples/s.
+//! Throughput is reported in samples/s. `HDRSYNTH_BENCH_CONV=im2col` turns flex's Winograd
+//! convolutions off (`models::conv::set_winograd`), to compare the two in one build.
 
 #[path = "../tests/common/mod.rs"]
 mod common;
@@ -89,6 +90,10 @@ fn bench_task<T: Task>(c: &mut Criterion, name: &str, task: &T, batch: &[Sample]
 fn bench(c: &mut Criterion) {
     // As the binary does (src/main.rs): keep freed activations in the heap.
     hdrsynth::device::retain_freed_memory();
+    #[cfg(feature = "flex")]
+    if std::env::var("HDRSYNTH_BENCH_CONV").is_ok_and(|v| v == "im2col") {
+        hdrsynth::models::conv::set_winograd(false);
+    }
     let alpha = ClassWeights::new(
         &std::array::from_fn(|i| 1 + i as u64),
         MertensWeights::OPENCV_DEFAULT,
