@@ -237,31 +237,24 @@ fn repeatable_bit_for_bit() {
 /// (split across threads only on 4) — the split must never change a result.
 #[test]
 fn same_bits_on_any_thread_count() {
-    let x = tensor([3, 8, 24, 24], 3);
-    let w = tensor([16, 8, 5, 5], 4);
-    let options = ConvOptions::new([1, 1], [2, 2], [1, 1], 1);
-    let on = |threads: usize| {
+    let on = |threads: usize, x: &Tensor<4>, w: &Tensor<4>, options: &ConvOptions<2>| {
         rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()
             .expect("pool")
-            .install(|| grads(true, &x, &w, &options))
+            .install(|| grads(true, x, w, options))
     };
-    let one = on(1);
-    assert_eq!(one, on(2), "2 threads");
-    assert_eq!(one, on(4), "4 threads");
+    let x = tensor([3, 8, 24, 24], 3);
+    let w = tensor([16, 8, 5, 5], 4);
+    let options = ConvOptions::new([1, 1], [2, 2], [1, 1], 1);
+    let one = on(1, &x, &w, &options);
+    assert_eq!(one, on(2, &x, &w, &options), "2 threads");
+    assert_eq!(one, on(4, &x, &w, &options), "4 threads");
     // Winograd: two batches of tiles (see above), split across threads or not.
     let x = tensor([2, 16, 96, 96], 5);
     let w = tensor([16, 16, 3, 3], 6);
     let options = ConvOptions::new([1, 1], [1, 1], [1, 1], 1);
-    let on = |threads: usize| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .expect("pool")
-            .install(|| grads(true, &x, &w, &options))
-    };
-    let one = on(1);
-    assert_eq!(one, on(2), "Winograd, 2 threads");
-    assert_eq!(one, on(3), "Winograd, 3 threads");
+    let one = on(1, &x, &w, &options);
+    assert_eq!(one, on(2, &x, &w, &options), "Winograd, 2 threads");
+    assert_eq!(one, on(3, &x, &w, &options), "Winograd, 3 threads");
 }
