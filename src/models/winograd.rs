@@ -349,20 +349,7 @@ fn filter_transform<K: Kind>(wt: &[f32], cout: usize, cin: usize) -> Vec<f32> {
                         }
                     }
                     // tmp = G·g (α × r), then U = tmp·Gᵀ (α × α).
-                    for i in 0..a {
-                        for l in 0..r {
-                            let mut acc = [0.0f32; LANES];
-                            for k in 0..r {
-                                let c = gm[i][k];
-                                if c != 0.0 {
-                                    for (e, v) in acc.iter_mut().zip(&g[k][l]) {
-                                        *e += c * v;
-                                    }
-                                }
-                            }
-                            tmp[i][l] = acc;
-                        }
-                    }
+                    left_mul(gm, [a, r, r], &g, &mut tmp);
                     for i in 0..a {
                         for j in 0..a {
                             let mut acc = [0.0f32; LANES];
@@ -443,20 +430,7 @@ fn input_transform<K: Kind>(
                 }
             }
             // tmp = Bᵀ·d, then V = tmp·B.
-            for i in 0..a {
-                for c in 0..a {
-                    let mut acc = [0.0f32; LANES];
-                    for uu in 0..a {
-                        let k = bt[i][uu];
-                        if k != 0.0 {
-                            for (e, dv) in acc.iter_mut().zip(&d[uu][c]) {
-                                *e += k * dv;
-                            }
-                        }
-                    }
-                    tmp[i][c] = acc;
-                }
-            }
+            left_mul(bt, [a, a, a], &d, &mut tmp);
             let t = t0 + ty * tw + tx0;
             for i in 0..a {
                 for j in 0..a {
@@ -503,20 +477,7 @@ fn output_transform<K: Kind>(
                 }
             }
             // tmp = Aᵀ·P (m × α), then Y = tmp·A (m × m).
-            for uu in 0..m {
-                for j in 0..a {
-                    let mut acc = [0.0f32; LANES];
-                    for i in 0..a {
-                        let k = at[uu][i];
-                        if k != 0.0 {
-                            for (e, pv) in acc.iter_mut().zip(&p[i][j]) {
-                                *e += k * pv;
-                            }
-                        }
-                    }
-                    tmp[uu][j] = acc;
-                }
-            }
+            left_mul(at, [m, a, a], &p, &mut tmp);
             let full = lanes == LANES && (ty + 1) * m <= ho && (tx0 + LANES) * m <= wo;
             for uu in 0..m {
                 let oy = ty * m + uu;
@@ -549,6 +510,35 @@ fn output_transform<K: Kind>(
                     }
                 }
             }
+        }
+    }
+}
+
+/// `LANES` small matrices side by side: the lane-wise α×α (at most) blocks the transforms work on.
+type Lanes = [[[f32; LANES]; MAX_ALPHA]; MAX_ALPHA];
+
+/// out[i][c] = Σ_k mat[i][k]·src[k][c] (i < rows, k < inner, c < cols) in every lane, k in
+/// order: the left half of each transform. Inlined with `mat` a constant, the loops unroll and
+/// skip its zero entries.
+#[inline(always)]
+fn left_mul(
+    mat: &[[f32; MAX_ALPHA]; MAX_ALPHA],
+    [rows, inner, cols]: [usize; 3],
+    src: &Lanes,
+    out: &mut Lanes,
+) {
+    for i in 0..rows {
+        for c in 0..cols {
+            let mut acc = [0.0f32; LANES];
+            for k in 0..inner {
+                let coef = mat[i][k];
+                if coef != 0.0 {
+                    for (e, v) in acc.iter_mut().zip(&src[k][c]) {
+                        *e += coef * v;
+                    }
+                }
+            }
+            out[i][c] = acc;
         }
     }
 }
