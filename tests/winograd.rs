@@ -4,7 +4,7 @@
 // Matrix entries by index, as the papers write them.
 #![allow(clippy::needless_range_loop)]
 
-use hdrsynth::models::winograd::{Winograd, conv2d_f32, cook_toom};
+use hdrsynth::models::winograd::{Winograd, conv2d_f32, cook_toom, weight_grad_f32};
 
 /// Deterministic values in [−1, 1).
 fn values(n: usize, seed: u64) -> Vec<f32> {
@@ -163,4 +163,84 @@ fn alpha6_input_transform_is_integer() {
         cook_toom(4, 3, &[0.0, 1.0, -1.0, 0.5, -0.5]),
         Winograd::F4x3.matrices()
     );
+}
+
+/// dL/dW of the stride-1 correlation with zero padding [top, left] in f64, by its definition:
+/// dW[co, ci, i, j] = Σ_(b, oy, ox) dY[b, co, oy, ox] · x[b, ci, oy + i − pt, ox + j − pl].
+fn direct_weight_grad(
+    x: &[f32],
+    [b, cin, h, w]: [usize; 4],
+    dy: &[f32],
+    [_, cout, ho, wo]: [usize; 4],
+    k: usize,
+    [pt, pl]: [usize; 2],
+) -> Vec<f64> {
+    let mut dw = vec![0.0f64; cout * cin * k * k];
+    for co in 0..cout {
+        for ci in 0..cin {
+            for i in 0..k {
+                for j in 0..k {
+                    let mut s = 0.0f64;
+                    for bi in 0..b {
+                        for oy in 0..ho {
+                            for ox in 0..wo {
+                                let (iy, ix) = (oy + i, ox + j);
+                                if iy < pt || ix < pl || iy - pt >= h || ix - pl >= w {
+                                    continue;
+                                }
+                                s += f64::from(dy[((bi * cout + co) * ho + oy) * wo + ox])
+                                    * f64::from(x[((bi * cin + ci) * h + iy - pt) * w + ix - pl]);
+                            }
+                        }
+                    }
+                    dw[((co * cin + ci) * k + i) * k + j] = s;
+                }
+            }
+        }
+    }
+    dw
+}
+
+/// The weight gradient (F(r, m) by the transposed matrices) on the networks' shape kinds, partial
+/// tiles, several batch items and input channels not a multiple of the 8 lanes: within 1e-5 of
+/// the gradient's scale of the f64 sum (F(2, 3): 1e-6), and exact for F(2, 3) on small integers.
+#[test]
+fn weight_gradient_agrees_with_the_direct_sum() {
+    type Case = (Winograd, [usize; 4], usize, [usize; 2], usize);
+    let cases: [Case; 5] = [
+        // (kind, [b, cin, h, w], cout, [ho, wo], pad)
+        (Winograd::F4x3, [2, 16, 13, 11], 24, [13, 11], 1),
+        (Winograd::F4x3, [3, 20, 34, 30], 12, [32, 28], 0),
+        (Winograd::F2x5, [2, 8, 17, 12], 40, [17, 12], 2),
+        (Winograd::F2x3, [1, 16, 9, 10], 16, [9, 10], 1),
+        (Winograd::F4x3, [1, 3, 5, 4], 2, [5, 4], 1),
+    ];
+    for (n, (kind, xs, cout, [ho, wo], pad)) in cases.into_iter().enumerate() {
+        let r = kind.matrices().r;
+        let ys = [xs[0], cout, ho, wo];
+        let x = values(xs.iter().product(), 30 + n as u64);
+        let dy = values(ys.iter().product(), 40 + n as u64);
+        let dw = weight_grad_f32(&x, xs, &dy, ys, [pad, pad], kind);
+        let d = direct_weight_grad(&x, xs, &dy, ys, r, [pad, pad]);
+        assert_eq!(dw.len(), d.len());
+        let scale = d.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        let err = dw
+            .iter()
+            .zip(&d)
+            .fold(0.0f64, |a, (p, q)| a.max((f64::from(*p) - q).abs()));
+        let tol = if kind == Winograd::F2x3 { 1e-6 } else { 1e-5 };
+        assert!(
+            err <= tol * scale,
+            "case {n} {kind:?}: max error {err:e} against scale {scale:e}"
+        );
+    }
+    // F(2, 3)'s matrices hold 0, ±1 and ±1/2: small integers stay exact.
+    let (xs, ys) = ([2, 3, 7, 9], [2, 5, 7, 9]);
+    let x: Vec<f32> = values(378, 5).iter().map(|v| (v * 8.0).round()).collect();
+    let dy: Vec<f32> = values(630, 6).iter().map(|v| (v * 4.0).round()).collect();
+    let dw = weight_grad_f32(&x, xs, &dy, ys, [1, 1], Winograd::F2x3);
+    let d = direct_weight_grad(&x, xs, &dy, ys, 3, [1, 1]);
+    for (i, (a, b)) in dw.iter().zip(&d).enumerate() {
+        assert_eq!(f64::from(*a), *b, "dW {i}");
+    }
 }

@@ -12,7 +12,9 @@
 //! backwards: col = Wᵀ · dY_b per tile, then col2im adds each column row into dX (flex's own
 //! transposed convolution did the GEMM for the whole image and a scalar col2im). Sums run in a
 //! fixed order (tiles and batch items in sequence, kernel offsets in order within a tile, the
-//! GEMM splits its output, never its K), so results are bit-for-bit repeatable.
+//! GEMM splits its output, never its K), so results are bit-for-bit repeatable. Stride-1 3×3
+//! and 5×5 layers with enough channels and tiles ([`flex`]'s `winograd_for`) run all three
+//! passes by Winograd instead (`models::winograd`).
 //!
 //! It is a Burn backend extension (`#[backend_extension]`) with a hand-written autodiff step;
 //! other backends (tch, wgpu, cuda, ndarray) run Burn's conv2d unchanged. The kernels take flex
@@ -740,6 +742,10 @@ pub(crate) mod flex {
         let [batch, cin, h, w] = xs;
         let [_, cout, ho, wo] = ys;
         let [kh, kw] = k;
+        if let Some(kind) = winograd_for([cin, cout], k, options, batch, [ho, wo]) {
+            let pad = options.padding_begin();
+            return winograd::weight_grad_f32(x, xs, dy, ys, pad, kind);
+        }
         let rows = cin * kh * kw;
         let p_all = ho * wo;
         if rows == 0 || p_all == 0 || cout == 0 {

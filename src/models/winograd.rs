@@ -4,7 +4,9 @@
 //! instead of 25 and a 3×3 layer by F(4×4, 3×3) 2.25 instead of 9 (Lavin & Gray, "Fast
 //! Algorithms for Convolutional Neural Networks", CVPR 2016). Per batch of tiles:
 //! V = Bᵀ·d·B per (input channel, tile), U = G·g·Gᵀ per filter, then one GEMM per frequency ξ
-//! (M_ξ = U_ξ · V_ξ, K = input channels), and Y = Aᵀ·M·A per (output channel, tile).
+//! (M_ξ = U_ξ · V_ξ, K = input channels), and Y = Aᵀ·M·A per (output channel, tile). The
+//! weight gradient ([`weight_grad_f32`]) reuses the input transform and turns the output
+//! gradient's tiles into the same α×α frequencies, so its GEMMs run over the tiles (K = tiles).
 //!
 //! The matrices come from Cook–Toom's construction on points p₀… and ∞, evaluated at compile
 //! time ([`cook_toom`], f64 then rounded once): a correlation is the transpose of a polynomial
@@ -191,6 +193,24 @@ impl Winograd {
 /// fold every 0 and 1.
 trait Kind {
     const MAT: Matrices;
+    /// A = (Aᵀ)ᵀ, α × m: the output gradient's transform in [`weight_grad_f32`].
+    const A: [[f32; MAX_ALPHA]; MAX_ALPHA] = transpose(Self::MAT.at);
+    /// Gᵀ, r × α: the weight gradient's output transform.
+    const GT: [[f32; MAX_ALPHA]; MAX_ALPHA] = transpose(Self::MAT.g);
+}
+
+const fn transpose(a: [[f32; MAX_ALPHA]; MAX_ALPHA]) -> [[f32; MAX_ALPHA]; MAX_ALPHA] {
+    let mut t = [[0.0f32; MAX_ALPHA]; MAX_ALPHA];
+    let mut i = 0;
+    while i < MAX_ALPHA {
+        let mut j = 0;
+        while j < MAX_ALPHA {
+            t[j][i] = a[i][j];
+            j += 1;
+        }
+        i += 1;
+    }
+    t
 }
 struct F2x3;
 struct F4x3;
@@ -319,6 +339,202 @@ fn conv2d_impl<K: Kind>(
             .for_each(|r| run(r, false));
     }
     y
+}
+
+/// dL/dW of the convolution [`conv2d_f32`] computes with the same `pad` and `kind`, from its
+/// input `x` ([B, C_in, H, W]) and output gradient `dy` ([B, C_out, ho, wo]); returns dW as
+/// [C_out, C_in, r, r].
+///
+/// Over one m×m output tile, dW is the correlation of the tile's α×α input patch d with the
+/// tile's gradient: F(r, m) on the same points. Σ_u w_u·y_u = Σ_ξ (A·w)_ξ (G·g)_ξ (Bᵀ·d)_ξ is
+/// symmetric in the output weights w and the filter g, so F(r, m)'s matrices are F(m, r)'s with
+/// A and G swapped: dW = Gᵀ·[Σ_tiles (A·dy·Aᵀ) ⊙ (Bᵀ·d·B)]·G. The sum over tiles is one GEMM per
+/// frequency ξ with K = tiles (M = c_out, N = c_in). Each batch item sums its own tiles and the
+/// items' sums are added in item order, so the result does not depend on the thread count.
+pub fn weight_grad_f32(
+    x: &[f32],
+    xs: [usize; 4],
+    dy: &[f32],
+    ys: [usize; 4],
+    pad: [usize; 2],
+    kind: Winograd,
+) -> Vec<f32> {
+    assert_eq!(xs[0], ys[0], "batch of x and dy");
+    match kind {
+        Winograd::F2x3 => weight_grad_impl::<F2x3>(x, xs, dy, ys, pad),
+        Winograd::F4x3 => weight_grad_impl::<F4x3>(x, xs, dy, ys, pad),
+        Winograd::F2x5 => weight_grad_impl::<F2x5>(x, xs, dy, ys, pad),
+    }
+}
+
+fn weight_grad_impl<K: Kind>(
+    x: &[f32],
+    [batch, cin, h, w]: [usize; 4],
+    dy: &[f32],
+    [_, cout, ho, wo]: [usize; 4],
+    [pt, pl]: [usize; 2],
+) -> Vec<f32> {
+    let (a, m, r) = (K::MAT.alpha, K::MAT.m, K::MAT.r);
+    if batch * cin * cout * ho * wo == 0 {
+        return vec![0.0f32; cout * cin * r * r];
+    }
+    let (th, tw) = (ho.div_ceil(m), wo.div_ceil(m));
+    // A block: a run of one item's tile rows, its V and Ŷ within BLOCK_BYTES.
+    let rows = (BLOCK_BYTES / 4 / ((cin + cout) * a * a * tw)).clamp(1, th);
+    let nt_max = rows * tw;
+    // Padded rows, tile columns rounded up to LANES as in the forward pass: x's with the
+    // convolution's padding, dy's with zeros past the output.
+    let wp = tw.next_multiple_of(LANES) * m + a - m;
+    let wq = tw.next_multiple_of(LANES) * m;
+    let parallel = rayon::current_num_threads() > batch;
+    let parts: Vec<Vec<f32>> = (0..batch)
+        .into_par_iter()
+        .map(|b| {
+            let mut v = vec![0.0f32; a * a * cin * nt_max];
+            let mut yh = vec![0.0f32; a * a * cout * nt_max];
+            let mut padded = vec![0.0f32; (rows * m + a - m) * wp];
+            let mut dpad = vec![0.0f32; rows * m * wq];
+            let mut sum = vec![0.0f32; a * a * cout * cin];
+            for r0 in (0..th).step_by(rows) {
+                let r1 = (r0 + rows).min(th);
+                let nt = (r1 - r0) * tw;
+                let padded = &mut padded[..((r1 - r0) * m + a - m) * wp];
+                for ci in 0..cin {
+                    let plane = &x[(b * cin + ci) * h * w..][..h * w];
+                    pad_rows(plane, [h, w], [r0 * m, pt, pl], wp, padded);
+                    with_avx2(
+                        #[inline(always)]
+                        || input_transform::<K>(padded, wp, [r1 - r0, tw], ci, nt, 0, &mut v),
+                    );
+                }
+                let dpad = &mut dpad[..(r1 - r0) * m * wq];
+                for co in 0..cout {
+                    let plane = &dy[(b * cout + co) * ho * wo..][..ho * wo];
+                    pad_rows(plane, [ho, wo], [r0 * m, 0, 0], wq, dpad);
+                    with_avx2(
+                        #[inline(always)]
+                        || grad_transform::<K>(dpad, wq, [r1 - r0, tw], co, nt, &mut yh),
+                    );
+                }
+                for xi in 0..a * a {
+                    // S_ξ[co, ci] (+)= Σ_t Ŷ_ξ[co, t] · V_ξ[ci, t].
+                    // SAFETY: the extents index inside sum's, yh's and v's ξ blocks.
+                    unsafe {
+                        matmul(
+                            [cout, cin, nt],
+                            sum.as_mut_ptr().add(xi * cout * cin),
+                            [1, cin as isize],
+                            r0 > 0,
+                            yh.as_ptr().add(xi * nt),
+                            [1, (a * a * nt) as isize],
+                            v.as_ptr().add(xi * nt),
+                            [(a * a * nt) as isize, 1],
+                            parallel,
+                        );
+                    }
+                }
+            }
+            sum
+        })
+        .collect();
+    let mut parts = parts.into_iter();
+    let mut sum = parts.next().expect("batch > 0");
+    for part in parts {
+        sum.iter_mut().zip(&part).for_each(|(s, p)| *s += p);
+    }
+    // dW = Gᵀ·S·G per (c_out, c_in), `LANES` input channels at a time.
+    let gm = &K::MAT.g;
+    let mut dw = vec![0.0f32; cout * cin * r * r];
+    dw.par_chunks_mut(cin * r * r)
+        .enumerate()
+        .for_each(|(co, dwc)| {
+            with_avx2(
+                #[inline(always)]
+                || {
+                    let mut p = [[[0.0f32; LANES]; MAX_ALPHA]; MAX_ALPHA];
+                    let mut tmp = [[[0.0f32; LANES]; MAX_ALPHA]; MAX_ALPHA];
+                    for ci0 in (0..cin).step_by(LANES) {
+                        let lanes = LANES.min(cin - ci0);
+                        for i in 0..a {
+                            for j in 0..a {
+                                load(
+                                    &mut p[i][j],
+                                    &sum[((i * a + j) * cout + co) * cin + ci0..],
+                                    lanes,
+                                );
+                            }
+                        }
+                        left_mul(&K::GT, [r, a, a], &p, &mut tmp);
+                        for k in 0..r {
+                            for l in 0..r {
+                                let mut acc = [0.0f32; LANES];
+                                for j in 0..a {
+                                    let c = gm[j][l];
+                                    if c != 0.0 {
+                                        for (e, t) in acc.iter_mut().zip(&tmp[k][j]) {
+                                            *e += t * c;
+                                        }
+                                    }
+                                }
+                                for (c, &e) in acc.iter().enumerate().take(lanes) {
+                                    dwc[(ci0 + c) * r * r + k * r + l] = e;
+                                }
+                            }
+                        }
+                    }
+                },
+            )
+        });
+    dw
+}
+
+/// Ŷ[co][ξ][t] = (A·e·Aᵀ)_ξ for `tile_rows` × `tw` tiles, e the m×m block of `dpad` (the tile
+/// rows' output-gradient rows, `wq` wide) at (ty·m, tx·m); `LANES` tiles of one row at a time.
+#[inline(always)]
+fn grad_transform<K: Kind>(
+    dpad: &[f32],
+    wq: usize,
+    [tile_rows, tw]: [usize; 2],
+    co: usize,
+    nt: usize,
+    yh: &mut [f32],
+) {
+    let (a, m) = (K::MAT.alpha, K::MAT.m);
+    let am = &K::A;
+    let mut e = [[[0.0f32; LANES]; MAX_ALPHA]; MAX_ALPHA];
+    let mut tmp = [[[0.0f32; LANES]; MAX_ALPHA]; MAX_ALPHA];
+    let yc = &mut yh[co * a * a * nt..][..a * a * nt];
+    for ty in 0..tile_rows {
+        for tx0 in (0..tw).step_by(LANES) {
+            let lanes = LANES.min(tw - tx0);
+            let base = ty * m * wq + tx0 * m;
+            for (uu, eu) in e.iter_mut().enumerate().take(m) {
+                let row = &dpad[base + uu * wq..][..LANES * m];
+                for (c, ec) in eu.iter_mut().enumerate().take(m) {
+                    for (l, v) in ec.iter_mut().enumerate() {
+                        *v = row[l * m + c];
+                    }
+                }
+            }
+            // tmp = A·e (α × m), then Ŷ = tmp·Aᵀ (α × α).
+            left_mul(am, [a, m, m], &e, &mut tmp);
+            let t = ty * tw + tx0;
+            for i in 0..a {
+                for j in 0..a {
+                    let mut acc = [0.0f32; LANES];
+                    for c in 0..m {
+                        let k = am[j][c];
+                        if k != 0.0 {
+                            for (v, tv) in acc.iter_mut().zip(&tmp[i][c]) {
+                                *v += tv * k;
+                            }
+                        }
+                    }
+                    store(&mut yc[(i * a + j) * nt + t..], &acc, lanes);
+                }
+            }
+        }
+    }
 }
 
 /// G·g·Gᵀ for every (c_out, c_in) filter of `wt` ([C_out, C_in, r, r]), as U[ξ][c_out][c_in];
