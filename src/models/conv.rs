@@ -13,7 +13,7 @@
 //! transposed convolution did the GEMM for the whole image and a scalar col2im). Sums run in a
 //! fixed order (tiles and batch items in sequence, kernel offsets in order within a tile, the
 //! GEMM splits its output, never its K), so results are bit-for-bit repeatable. Stride-1 3×3
-//! and 5×5 layers with enough channels and tiles ([`flex`]'s `winograd_for`) run all three
+//! and 5×5 layers with enough channels and tiles (`flex::winograd_for`) run all three
 //! passes by Winograd instead (`models::winograd`).
 //!
 //! It is a Burn backend extension (`#[backend_extension]`) with a hand-written autodiff step;
