@@ -10,8 +10,9 @@ use burn::store::{BurnToPyTorchAdapter, ModuleSnapshot};
 use burn::tensor::{Device, Tensor, TensorData};
 use hdrsynth::data::loader::{Sample, Target};
 use hdrsynth::models::import::expected_tensors;
+use hdrsynth::models::pad::reflect_pad;
 use hdrsynth::models::wu::{
-    self, DeconvAlignment, WuConfig, WuNet, WuVariant, conv_same, reflect_pad, same_padding,
+    self, DeconvAlignment, WuConfig, WuNet, WuVariant, conv_same, same_padding,
 };
 use hdrsynth::train::loss::{MU, mu_law, mu_law_l2, network2_batch};
 use std::path::Path;

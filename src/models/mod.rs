@@ -5,6 +5,7 @@
 //! - [`wu`]: Network-2, Wu et al. (ECCV 2018), three exposures → linear HDR; [`import`] moves
 //!   weights to and from PyTorch-style SafeTensors files.
 //! - [`conv`]: the layers' 2D convolutions and transposed convolutions, im2col + GEMM on flex.
+//! - [`pad`]: reflection padding (Network-2's convolutions), one fused op on flex.
 //! - `winograd` (flex): Winograd F(m×m, r×r) for the stride-1 3×3 and 5×5 convolutions.
 //! - [`batch_norm`]: the layers' BatchNorm, fused and parallel on flex in training mode.
 //! - [`ModelConfig`]: either network's config, tagged by `kind` (training configs, checkpoints).
@@ -13,6 +14,7 @@ pub mod batch_norm;
 pub mod blend_unet;
 pub mod conv;
 pub mod import;
+pub mod pad;
 #[cfg(feature = "flex")]
 pub(crate) mod par;
 #[cfg(feature = "flex")]

@@ -29,13 +29,13 @@
 
 use super::batch_norm::batch_norm;
 use super::conv::{conv_transpose2d, conv2d};
+use super::pad::reflect_pad;
 use crate::error::{Error, Result};
 use burn::module::Module;
 use burn::nn::conv::{Conv2d, Conv2dConfig, ConvTranspose2d, ConvTranspose2dConfig};
 use burn::nn::{BatchNorm, BatchNormConfig, Initializer, PaddingConfig2d};
 use burn::tensor::activation::{leaky_relu, relu, tanh};
-use burn::tensor::ops::PadMode;
-use burn::tensor::{Device, Int, Tensor, TensorData};
+use burn::tensor::{Device, Tensor, TensorData};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -348,51 +348,6 @@ pub fn same_padding(size: usize, kernel: usize, stride: usize) -> (usize, usize)
         kernel.saturating_sub(size % stride)
     };
     (total / 2, total - total / 2)
-}
-
-/// Reflection padding of the last two axes (the edge sample is not repeated: TensorFlow's
-/// `REFLECT`, PyTorch's `ReflectionPad2d`). Where a pad reaches as far as the axis is long
-/// (which TensorFlow rejects) the reflection continues periodically (period 2(n − 1)); an axis
-/// of length 1 is replicated.
-pub fn reflect_pad(
-    x: Tensor<4>,
-    (top, bottom): (usize, usize),
-    (left, right): (usize, usize),
-) -> Tensor<4> {
-    let [_, _, h, w] = x.dims();
-    if top + bottom + left + right == 0 {
-        return x;
-    }
-    if top < h && bottom < h && left < w && right < w {
-        return x.pad([(top, bottom), (left, right)], PadMode::Reflect);
-    }
-    let device = x.device();
-    let x = if top + bottom > 0 {
-        x.select(2, reflect_indices(h, top, bottom, &device))
-    } else {
-        x
-    };
-    if left + right > 0 {
-        x.select(3, reflect_indices(w, left, right, &device))
-    } else {
-        x
-    }
-}
-
-fn reflect_indices(n: usize, before: usize, after: usize, device: &Device) -> Tensor<1, Int> {
-    let len = n + before + after;
-    let idx: Vec<i64> = if n == 1 {
-        vec![0; len]
-    } else {
-        let period = 2 * (n as i64 - 1);
-        (0..len)
-            .map(|j| {
-                let m = (j as i64 - before as i64).rem_euclid(period);
-                if m < n as i64 { m } else { period - m }
-            })
-            .collect()
-    };
-    Tensor::from_data(TensorData::new(idx, [len]), device)
 }
 
 /// `ops.conv2d(padding='REFLECT')`: reflection padding sized as TensorFlow's 'SAME' (see
