@@ -56,6 +56,8 @@ struct Conv {
     k: usize,
     size: usize,
     transposed: bool,
+    /// 1, or 2 for Network-2's 5×5 layers.
+    stride: usize,
     count: usize,
 }
 
@@ -86,6 +88,7 @@ fn main() {
         k: 3,
         size: 128,
         transposed: false,
+        stride: 1,
         count: 1,
     }];
     for l in 0..5 {
@@ -98,6 +101,7 @@ fn main() {
                 k: 3,
                 size,
                 transposed: false,
+                stride: 1,
                 count: 1,
             });
         }
@@ -109,6 +113,7 @@ fn main() {
             k: 3,
             size,
             transposed: false,
+            stride: 1,
             count: if l < 4 { 2 } else { 1 },
         });
         if l < 4 {
@@ -119,6 +124,7 @@ fn main() {
                 k: 3,
                 size,
                 transposed: false,
+                stride: 1,
                 count: 1,
             });
             convs.push(Conv {
@@ -128,6 +134,7 @@ fn main() {
                 k: 2,
                 size: size / 2,
                 transposed: true,
+                stride: 2,
                 count: 1,
             });
         }
@@ -139,6 +146,7 @@ fn main() {
         k: 5,
         size: 128,
         transposed: false,
+        stride: 1,
         count: 1,
     });
 
@@ -152,8 +160,32 @@ fn main() {
         k: 3,
         size: 32,
         transposed: false,
+        stride: 1,
         count: 0,
     });
+
+    // Network-2's 5×5 stride-2 layers (ResNet, b = 64, batch 4 of 256² crops; 'SAME'
+    // padding, input size given): the encoders' two convs (× 3 encoders), the merger's
+    // down-sampling, the decoder's three deconvolutions.
+    for (name, cin, cout, size, transposed) in [
+        ("Network-2 encoder conv1 5×5 s2", 6, 64, 256, false),
+        ("Network-2 encoder conv2 5×5 s2", 64, 128, 128, false),
+        ("Network-2 merger down 5×5 s2", 384, 256, 64, false),
+        ("Network-2 deconv1 5×5 s2", 512, 128, 32, true),
+        ("Network-2 deconv2 5×5 s2", 512, 64, 64, true),
+        ("Network-2 deconv3 5×5 s2", 256, 64, 128, true),
+    ] {
+        convs.push(Conv {
+            name,
+            cin,
+            cout,
+            k: 5,
+            size,
+            transposed,
+            stride: 2,
+            count: 0,
+        });
+    }
 
     println!(
         "Network-1 ops on {backend} ({} conv2d), batch {BATCH}, median of {reps} (seconds per op call)",
@@ -178,14 +210,17 @@ fn main() {
         let wt = tensor(wshape, 2, &dev);
         let run = |x: Tensor<4>, wt: Tensor<4>| -> Tensor<4> {
             if c.transposed {
-                let options = ConvTransposeOptions::new([2, 2], [0, 0], [0, 0], [1, 1], 1);
+                // Output 2× the input: padding 2 and output padding 1 for the 5×5 kernel.
+                let (p, op) = if c.k == 5 { (2, 1) } else { (0, 0) };
+                let options = ConvTransposeOptions::new([2, 2], [p, p], [op, op], [1, 1], 1);
                 if burn_conv {
                     conv_transpose2d(x, wt, None, options)
                 } else {
                     conv_transpose2d_op(x, wt, None, options)
                 }
             } else {
-                let options = ConvOptions::new([1, 1], [c.k / 2, c.k / 2], [1, 1], 1);
+                let (s, p) = (c.stride, c.k / 2);
+                let options = ConvOptions::new([s, s], [p, p], [1, 1], 1);
                 if burn_conv {
                     conv2d(x, wt, None, options)
                 } else {

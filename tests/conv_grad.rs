@@ -138,7 +138,7 @@ fn transposed_by_hand() {
 fn transposed_equals_burns_on_the_networks_layer_kinds() {
     // (x shape, c_out, kernel, stride, padding, padding_out)
     type Case = ([usize; 4], usize, usize, usize, usize, usize);
-    let cases: [Case; 5] = [
+    let cases: [Case; 7] = [
         // Network-1's 2×2 stride-2 up-sampling.
         ([2, 8, 6, 7], 4, 2, 2, 0, 0),
         ([4, 16, 8, 8], 8, 2, 2, 0, 0),
@@ -147,6 +147,10 @@ fn transposed_equals_burns_on_the_networks_layer_kinds() {
         ([2, 6, 9, 8], 5, 5, 2, 2, 1),
         // Stride 1, and big enough that the tiles split the rows.
         ([1, 3, 40, 128], 64, 3, 1, 1, 0),
+        // Network-2's deconvolution big enough for the polyphase Winograd path, both
+        // alignments.
+        ([2, 16, 32, 32], 4, 5, 2, 1, 0),
+        ([2, 16, 32, 31], 8, 5, 2, 2, 1),
     ];
     for (i, (xs, cout, k, s, p, op)) in cases.into_iter().enumerate() {
         let x = tensor(xs, 300 + i as u64);
@@ -182,7 +186,7 @@ fn weight_gradient_by_hand() {
 fn equals_burns_conv2d_on_the_networks_layer_kinds() {
     // (x shape, c_out, kernel, stride, padding (top, bottom), (left, right), dilation)
     type Case = ([usize; 4], usize, usize, usize, [(usize, usize); 2], usize);
-    let cases: [Case; 14] = [
+    let cases: [Case; 16] = [
         // Network-1's 3×3 block conv and 5×5 head (padding k/2).
         ([2, 6, 16, 16], 8, 3, 1, [(1, 1), (1, 1)], 1),
         ([2, 8, 16, 12], 20, 5, 1, [(2, 2), (2, 2)], 1),
@@ -208,6 +212,11 @@ fn equals_burns_conv2d_on_the_networks_layer_kinds() {
         ([2, 16, 34, 34], 24, 3, 1, [(0, 0), (0, 0)], 1),
         ([4, 16, 30, 30], 16, 3, 1, [(0, 2), (1, 0)], 1),
         ([2, 16, 96, 96], 16, 3, 1, [(1, 1), (1, 1)], 1),
+        // Polyphase (stride 2 as a stride-1 3×3 layer over 4·c_in phase channels, by
+        // Winograd): Network-2's 5×5 stride-2 conv on reflect-padded input, and odd sizes with
+        // asymmetric padding (phases of unequal length, a last input row no window reaches).
+        ([2, 4, 66, 66], 16, 5, 2, [(0, 0), (0, 0)], 1),
+        ([2, 6, 67, 65], 16, 5, 2, [(1, 2), (2, 1)], 1),
     ];
     for (i, (xs, cout, k, s, pad, d)) in cases.into_iter().enumerate() {
         let x = tensor(xs, 100 + i as u64);

@@ -596,6 +596,13 @@ pub(crate) mod flex {
     /// train_ops`; its 32² level and up, and Network-2's residual blocks, on Winograd).
     const WINOGRAD_MIN_TILES: usize = 128;
 
+    /// Tiles per Winograd block below which a layer stays on im2col: wide layers (c_in + c_out
+    /// channels) fit few tiles in a block, and GEMMs that narrow re-pack the transformed filters
+    /// for every block (Network-2's merger down-sampling, 384 → 256 by polyphase: 16 tiles, its
+    /// input gradient 0.205 s against im2col's 0.101; its first deconvolution 24 tiles and
+    /// slower too; its second 32 tiles and faster, `cargo bench --bench train_ops`).
+    const WINOGRAD_MIN_BLOCK_TILES: usize = 32;
+
     /// [`super::set_winograd`]'s switch.
     pub(super) static WINOGRAD: std::sync::atomic::AtomicBool =
         std::sync::atomic::AtomicBool::new(true);
@@ -622,8 +629,154 @@ pub(crate) mod flex {
         // that transform outweighs the GEMMs it saves (Network-1's head's input gradient,
         // 256 → 32: 0.143 s against im2col's 0.104 s, `cargo bench --bench train_ops`).
         let narrowing_5x5 = kind == Winograd::F2x5 && cin > cout;
-        (cin.min(cout) >= WINOGRAD_MIN_CHANNELS && tiles >= WINOGRAD_MIN_TILES && !narrowing_5x5)
+        let block_tiles = winograd::block_tiles(kind, cin + cout, out[1]);
+        (cin.min(cout) >= WINOGRAD_MIN_CHANNELS
+            && tiles >= WINOGRAD_MIN_TILES
+            && block_tiles >= WINOGRAD_MIN_BLOCK_TILES
+            && !narrowing_5x5)
             .then_some(kind)
+    }
+
+    /// A stride-2 convolution as a stride-1 one (polyphase): with the four phases of x
+    /// x_(py,px)[u, v] = x[2u + py − pt, 2v + px − pl] stacked as 4·c_in channels and the kernel
+    /// split the same way, W'[(py, px), i, j] = W[2i + py, 2j + px] (zero past the kernel), the
+    /// convolution is the stride-1 ⌈k/2⌉×⌈k/2⌉ one without padding over the phase planes:
+    /// y[oy, ox] = Σ W'[(py, px), i, j]·x_(py,px)[oy + i, ox + j]. A 5×5 stride-2 layer becomes a
+    /// 3×3 layer Winograd covers: F(4×4, 3×3) on 4·c_in channels takes 9 multiplies per output
+    /// and input channel against im2col's 25, and all three passes follow (the input gradient
+    /// gathers the phases back, the weight gradient drops the padded taps).
+    #[derive(Clone, Copy)]
+    struct Polyphase {
+        /// c_in, the original kernel size k and the phase kernel's ⌈k/2⌉.
+        cin: usize,
+        k: usize,
+        kp: usize,
+        /// The convolution's padding at the top and the left.
+        pad: [usize; 2],
+        /// The phase planes: the output plane grown by kp − 1.
+        plane: [usize; 2],
+    }
+
+    /// The stride-1 options of [`Polyphase`]'s convolution: no padding.
+    fn valid() -> ConvOptions<2> {
+        ConvOptions::new([1, 1], [0, 0], [1, 1], 1)
+    }
+
+    /// The polyphase form of a stride-2 c_in → c_out convolution onto `out`, where its
+    /// stride-1 convolution runs by Winograd (otherwise im2col's fewer multiplies on the
+    /// original kernel win).
+    fn polyphase_for(
+        [cin, cout]: [usize; 2],
+        [kh, kw]: [usize; 2],
+        options: &ConvOptions<2>,
+        batch: usize,
+        out: [usize; 2],
+    ) -> Option<Polyphase> {
+        if options.stride != [2, 2] || options.dilation != [1, 1] || kh != kw {
+            return None;
+        }
+        let kp = kh.div_ceil(2);
+        winograd_for([4 * cin, cout], [kp, kp], &valid(), batch, out)?;
+        Some(Polyphase {
+            cin,
+            k: kh,
+            kp,
+            pad: options.padding_begin(),
+            plane: [out[0] + kp - 1, out[1] + kp - 1],
+        })
+    }
+
+    impl Polyphase {
+        /// The phases of `x` ([B, C_in, H, W]) as [B, 4·C_in, U, V], zero outside x.
+        fn split_input(self, x: &[f32], [b, cin, h, w]: [usize; 4]) -> Vec<f32> {
+            let [u, v] = self.plane;
+            let [pt, pl] = self.pad;
+            let mut xp = vec![0.0f32; b * 4 * cin * u * v];
+            xp.par_chunks_mut(u * v).enumerate().for_each(|(n, dst)| {
+                let (bi, p, c) = (n / (4 * cin), n / cin % 4, n % cin);
+                let (py, px) = (p / 2, p % 2);
+                let plane = &x[(bi * cin + c) * h * w..][..h * w];
+                for (uu, row) in dst.chunks_exact_mut(v).enumerate() {
+                    let iy = (2 * uu + py).wrapping_sub(pt);
+                    if iy >= h {
+                        continue;
+                    }
+                    let src = &plane[iy * w..][..w];
+                    for (vv, e) in row.iter_mut().enumerate() {
+                        let ix = (2 * vv + px).wrapping_sub(pl);
+                        if ix < w {
+                            *e = src[ix];
+                        }
+                    }
+                }
+            });
+            xp
+        }
+
+        /// dL/dx ([B, C_in, H, W]) from the phases' gradient `dxp`: each element of x is in
+        /// exactly one phase; the phases' padding is dropped.
+        fn join_input_grad(self, dxp: &[f32], [b, cin, h, w]: [usize; 4]) -> Vec<f32> {
+            let [u, v] = self.plane;
+            let [pt, pl] = self.pad;
+            let mut dx = vec![0.0f32; b * cin * h * w];
+            dx.par_chunks_mut(h * w).enumerate().for_each(|(n, plane)| {
+                let (bi, c) = (n / cin, n % cin);
+                for (iy, row) in plane.chunks_exact_mut(w).enumerate() {
+                    let (uu, py) = ((iy + pt) / 2, (iy + pt) % 2);
+                    if uu >= u {
+                        continue;
+                    }
+                    for (ix, e) in row.iter_mut().enumerate() {
+                        let (vv, px) = ((ix + pl) / 2, (ix + pl) % 2);
+                        if vv < v {
+                            let ch = (bi * 4 + py * 2 + px) * cin + c;
+                            *e = dxp[(ch * u + uu) * v + vv];
+                        }
+                    }
+                }
+            });
+            dx
+        }
+
+        /// W' ([C_out, 4·C_in, kp, kp]) of `wt` ([C_out, C_in, k, k]).
+        fn split_weights(self, wt: &[f32], cout: usize) -> Vec<f32> {
+            let (cin, k, kp) = (self.cin, self.k, self.kp);
+            let mut wp = vec![0.0f32; cout * 4 * cin * kp * kp];
+            for co in 0..cout {
+                for p in 0..4 {
+                    for c in 0..cin {
+                        for i in 0..kp {
+                            for j in 0..kp {
+                                let (ki, kj) = (2 * i + p / 2, 2 * j + p % 2);
+                                if ki < k && kj < k {
+                                    wp[(((co * 4 + p) * cin + c) * kp + i) * kp + j] =
+                                        wt[((co * cin + c) * k + ki) * k + kj];
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+            wp
+        }
+
+        /// dL/dW ([C_out, C_in, k, k]) from W''s gradient: the padded taps are dropped.
+        fn join_weight_grad(self, dwp: &[f32], cout: usize) -> Vec<f32> {
+            let (cin, k, kp) = (self.cin, self.k, self.kp);
+            let mut dw = vec![0.0f32; cout * cin * k * k];
+            for co in 0..cout {
+                for c in 0..cin {
+                    for ki in 0..k {
+                        for kj in 0..k {
+                            let p = (ki % 2) * 2 + kj % 2;
+                            dw[((co * cin + c) * k + ki) * k + kj] =
+                                dwp[(((co * 4 + p) * cin + c) * kp + ki / 2) * kp + kj / 2];
+                        }
+                    }
+                }
+            }
+            dw
+        }
     }
 
     /// The (batch item, first output row) of every im2col tile in a fixed order, and the
@@ -693,6 +846,12 @@ pub(crate) mod flex {
             let pad = options.padding_begin();
             return winograd::conv2d_f32(x, xs, wt, ws, [ho, wo], pad, kind);
         }
+        if let Some(pp) = polyphase_for([ws[1], ws[0]], [ws[2], ws[3]], options, xs[0], [ho, wo]) {
+            let (xp, wp) = (pp.split_input(x, xs), pp.split_weights(wt, ws[0]));
+            let [u, v] = pp.plane;
+            let (xps, wps) = ([xs[0], 4 * xs[1], u, v], [ws[0], 4 * ws[1], pp.kp, pp.kp]);
+            return forward_f32(&xp, xps, &wp, wps, [ho, wo], &valid());
+        }
         let [batch, cin, h, w] = xs;
         let [cout, _, kh, kw] = ws;
         let rows = cin * kh * kw;
@@ -745,6 +904,12 @@ pub(crate) mod flex {
         if let Some(kind) = winograd_for([cin, cout], k, options, batch, [ho, wo]) {
             let pad = options.padding_begin();
             return winograd::weight_grad_f32(x, xs, dy, ys, pad, kind);
+        }
+        if let Some(pp) = polyphase_for([cin, cout], k, options, batch, [ho, wo]) {
+            let [u, v] = pp.plane;
+            let xp = pp.split_input(x, xs);
+            let dwp = weight_grad_f32(&xp, [batch, 4 * cin, u, v], dy, ys, [pp.kp; 2], &valid());
+            return pp.join_weight_grad(&dwp, cout);
         }
         let rows = cin * kh * kw;
         let p_all = ho * wo;
@@ -824,6 +989,13 @@ pub(crate) mod flex {
                 .collect();
             let pad = [kh - 1 - pt, kw - 1 - pl];
             return winograd::conv2d_f32(dy, ys, &flipped, [cin, cout, kh, kw], [h, w], pad, kind);
+        }
+        if let Some(pp) = polyphase_for([cin, cout], [kh, kw], options, batch, [ho, wo]) {
+            let [u, v] = pp.plane;
+            let wp = pp.split_weights(wt, cout);
+            let wps = [cout, 4 * cin, pp.kp, pp.kp];
+            let dxp = input_grad_f32(dy, ys, &wp, wps, [u, v], &valid());
+            return pp.join_input_grad(&dxp, [batch, cin, h, w]);
         }
         let rows = cin * kh * kw;
         let p_all = ho * wo;

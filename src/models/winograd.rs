@@ -225,6 +225,20 @@ impl Kind for F2x5 {
     const MAT: Matrices = cook_toom(2, 5, &POINTS);
 }
 
+/// Tile rows of `tw` tiles each per block: the transformed inputs and products of `channels`
+/// (c_in + c_out) channels within [`BLOCK_BYTES`], at least one row.
+fn block_rows(alpha: usize, channels: usize, tw: usize) -> usize {
+    (BLOCK_BYTES / 4 / (channels * alpha * alpha * tw).max(1)).max(1)
+}
+
+/// Tiles per block (the GEMMs' N in the forward pass, their K in the weight gradient) for a
+/// layer of `channels` = c_in + c_out channels and output rows `out_w` wide.
+pub fn block_tiles(kind: Winograd, channels: usize, out_w: usize) -> usize {
+    let mat = kind.matrices();
+    let tw = out_w.div_ceil(mat.m);
+    block_rows(mat.alpha, channels, tw) * tw
+}
+
 /// The stride-1, dilation-1 convolution (no bias, one group) of `x` ([B, C_in, H, W]) by `wt`
 /// ([C_out, C_in, r, r]) with zero padding `[top, left]` (bottom and right follow from the
 /// output size `[ho, wo]`), by `kind`; returns Y as [B, C_out, ho, wo].
@@ -267,9 +281,9 @@ fn conv2d_impl<K: Kind>(
     }
     let u = filter_transform::<K>(wt, cout, cin);
     let (th, tw) = (ho.div_ceil(m), wo.div_ceil(m));
-    // A task's block: a run of tile rows over the whole batch (item b's rows are b·th..), its
-    // V and M within BLOCK_BYTES; the deep layers' few tiles per item batch across items.
-    let rows = (BLOCK_BYTES / 4 / ((cin + cout) * a * a * tw)).clamp(1, batch * th);
+    // A task's block: a run of tile rows over the whole batch (item b's rows are b·th..); the
+    // deep layers' few tiles per item batch across items.
+    let rows = block_rows(a, cin + cout, tw).min(batch * th);
     let blocks: Vec<usize> = (0..batch * th).step_by(rows).collect();
     let nt_max = rows * tw;
     // One input channel's padded rows for one item's part of a block: tile columns rounded up
@@ -379,8 +393,8 @@ fn weight_grad_impl<K: Kind>(
         return vec![0.0f32; cout * cin * r * r];
     }
     let (th, tw) = (ho.div_ceil(m), wo.div_ceil(m));
-    // A block: a run of one item's tile rows, its V and Ŷ within BLOCK_BYTES.
-    let rows = (BLOCK_BYTES / 4 / ((cin + cout) * a * a * tw)).clamp(1, th);
+    // A block: a run of one item's tile rows.
+    let rows = block_rows(a, cin + cout, tw).min(th);
     let nt_max = rows * tw;
     // Padded rows, tile columns rounded up to LANES as in the forward pass: x's with the
     // convolution's padding, dy's with zeros past the output.
