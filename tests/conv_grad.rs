@@ -186,7 +186,7 @@ fn weight_gradient_by_hand() {
 fn equals_burns_conv2d_on_the_networks_layer_kinds() {
     // (x shape, c_out, kernel, stride, padding (top, bottom), (left, right), dilation)
     type Case = ([usize; 4], usize, usize, usize, [(usize, usize); 2], usize);
-    let cases: [Case; 16] = [
+    let cases: [Case; 17] = [
         // Network-1's 3×3 block conv and 5×5 head (padding k/2).
         ([2, 6, 16, 16], 8, 3, 1, [(1, 1), (1, 1)], 1),
         ([2, 8, 16, 12], 20, 5, 1, [(2, 2), (2, 2)], 1),
@@ -203,12 +203,14 @@ fn equals_burns_conv2d_on_the_networks_layer_kinds() {
         // the input gradient's rows take sums from two tiles.
         ([1, 64, 40, 128], 2, 5, 1, [(2, 2), (2, 2)], 1),
         ([3, 4, 9, 7], 5, 1, 1, [(0, 0), (0, 0)], 1),
-        // Winograd (≥ 16 channels, ≥ 128 tiles): F(4, 3) and F(2, 5) with padding k/2,
+        // Winograd (≥ 16 channels, ≥ 128 tiles): F(4, 3) and F(4, 5) with padding k/2 (F(4, 5)
+        // also with c_in > c_out, the head's input gradient),
         // Network-2's residual conv (reflect-padded input, no padding of its own), asymmetric
         // padding, and a task's batch of tiles spanning two batch items (48 tile rows in blocks
         // of 38).
         ([4, 16, 32, 32], 16, 3, 1, [(1, 1), (1, 1)], 1),
-        ([2, 16, 24, 24], 32, 5, 1, [(2, 2), (2, 2)], 1),
+        ([2, 16, 48, 48], 32, 5, 1, [(2, 2), (2, 2)], 1),
+        ([2, 32, 44, 48], 16, 5, 1, [(2, 2), (2, 2)], 1),
         ([2, 16, 34, 34], 24, 3, 1, [(0, 0), (0, 0)], 1),
         ([4, 16, 30, 30], 16, 3, 1, [(0, 2), (1, 0)], 1),
         ([2, 16, 96, 96], 16, 3, 1, [(1, 1), (1, 1)], 1),

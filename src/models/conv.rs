@@ -624,16 +624,10 @@ pub(crate) mod flex {
         let kind = Winograd::for_kernel(kh).filter(|_| plain)?;
         let m = kind.matrices().m;
         let tiles = batch * out[0].div_ceil(m) * out[1].div_ceil(m);
-        // F(2×2, 5×5) turns each 2×2 output block's input into 36 values per input channel (9
-        // per output pixel, against F(4×4, 3×3)'s 2.25): with more input than output channels
-        // that transform outweighs the GEMMs it saves (Network-1's head's input gradient,
-        // 256 → 32: 0.143 s against im2col's 0.104 s, `cargo bench --bench train_ops`).
-        let narrowing_5x5 = kind == Winograd::F2x5 && cin > cout;
         let block_tiles = winograd::block_tiles(kind, cin + cout, out[1]);
         (cin.min(cout) >= WINOGRAD_MIN_CHANNELS
             && tiles >= WINOGRAD_MIN_TILES
-            && block_tiles >= WINOGRAD_MIN_BLOCK_TILES
-            && !narrowing_5x5)
+            && block_tiles >= WINOGRAD_MIN_BLOCK_TILES)
             .then_some(kind)
     }
 
