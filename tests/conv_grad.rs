@@ -9,26 +9,9 @@ mod common;
 
 use burn::tensor::module::{conv_transpose2d, conv2d};
 use burn::tensor::ops::{ConvOptions, ConvTransposeOptions};
-use burn::tensor::{Device, Tensor, TensorData};
+use burn::tensor::{Tensor, TensorData};
+use common::{centred_tensor, flex_autodiff, to_vec};
 use hdrsynth::models::conv::{conv_transpose2d_op, conv2d_op};
-
-fn dev() -> Device {
-    hdrsynth::device::device_from_name("flex")
-        .expect("flex")
-        .autodiff()
-}
-
-fn tensor(shape: [usize; 4], seed: u64) -> Tensor<4> {
-    let v = common::values(shape.iter().product(), seed)
-        .into_iter()
-        .map(|v| v - 0.5)
-        .collect::<Vec<_>>();
-    Tensor::from_data(TensorData::new(v, shape), &dev())
-}
-
-fn vec(t: Tensor<4>) -> Vec<f32> {
-    t.into_data().try_to_vec::<f32>().expect("f32")
-}
 
 /// (output, dL/dx, dL/dW, dL/db) of Σ (y ⊙ r) for a fixed r, y = `op(x, w, bias)` with a bias
 /// of `cout` channels.
@@ -39,15 +22,18 @@ fn grads_of(
     op: impl Fn(Tensor<4>, Tensor<4>, Tensor<1>) -> Tensor<4>,
 ) -> [Vec<f32>; 4] {
     let (x, w) = (x.clone().require_grad(), w.clone().require_grad());
-    let b = Tensor::<1>::from_data(TensorData::new(common::values(cout, 9), [cout]), &dev())
-        .require_grad();
+    let b = Tensor::<1>::from_data(
+        TensorData::new(common::values(cout, 9), [cout]),
+        &flex_autodiff(),
+    )
+    .require_grad();
     let y = op(x.clone(), w.clone(), b.clone());
-    let r = tensor(y.dims(), 7);
+    let r = centred_tensor(y.dims(), 7);
     let g = (y.clone() * r).sum().backward();
     [
-        vec(y),
-        vec(x.grad(&g).expect("dx")),
-        vec(w.grad(&g).expect("dw")),
+        to_vec(y),
+        to_vec(x.grad(&g).expect("dx")),
+        to_vec(w.grad(&g).expect("dw")),
         b.grad(&g)
             .expect("db")
             .into_data()
@@ -111,12 +97,12 @@ fn transposed_by_hand() {
     // pixel and dL/dW = Σ x = 10 at every tap.
     let x = Tensor::<4>::from_data(
         TensorData::new(vec![1.0f32, 2.0, 3.0, 4.0], [1, 1, 2, 2]),
-        &dev(),
+        &flex_autodiff(),
     )
     .require_grad();
     let w = Tensor::<4>::from_data(
         TensorData::new(vec![1.0f32, 10.0, 100.0, 1000.0], [1, 1, 2, 2]),
-        &dev(),
+        &flex_autodiff(),
     )
     .require_grad();
     let options = ConvTransposeOptions::new([2, 2], [0, 0], [0, 0], [1, 1], 1);
@@ -128,10 +114,10 @@ fn transposed_by_hand() {
         3.0, 30.0, 4.0, 40.0,
         300.0, 3000.0, 400.0, 4000.0,
     ];
-    assert_eq!(vec(y.clone()), want);
+    assert_eq!(to_vec(y.clone()), want);
     let g = y.sum().backward();
-    assert_eq!(vec(x.grad(&g).expect("dx")), vec![1111.0; 4]);
-    assert_eq!(vec(w.grad(&g).expect("dw")), vec![10.0; 4]);
+    assert_eq!(to_vec(x.grad(&g).expect("dx")), vec![1111.0; 4]);
+    assert_eq!(to_vec(w.grad(&g).expect("dw")), vec![10.0; 4]);
 }
 
 #[test]
@@ -153,8 +139,8 @@ fn transposed_equals_burns_on_the_networks_layer_kinds() {
         ([2, 16, 32, 31], 8, 5, 2, 2, 1),
     ];
     for (i, (xs, cout, k, s, p, op)) in cases.into_iter().enumerate() {
-        let x = tensor(xs, 300 + i as u64);
-        let w = tensor([xs[1], cout, k, k], 400 + i as u64);
+        let x = centred_tensor(xs, 300 + i as u64);
+        let w = centred_tensor([xs[1], cout, k, k], 400 + i as u64);
         let options = ConvTransposeOptions::new([s, s], [p, p], [op, op], [1, 1], 1);
         let ours = transposed_grads(true, &x, &w, &options);
         let burn = transposed_grads(false, &x, &w, &options);
@@ -168,10 +154,13 @@ fn weight_gradient_by_hand() {
     // 2×2 window of x at offset (i, j): 1+2+4+5, 2+3+5+6, 4+5+7+8, 5+6+8+9.
     let x = Tensor::<4>::from_data(
         TensorData::new((1..=9).map(|v| v as f32).collect(), [1, 1, 3, 3]),
-        &dev(),
+        &flex_autodiff(),
     );
-    let w = Tensor::<4>::from_data(TensorData::new(vec![0.0f32; 4], [1, 1, 2, 2]), &dev())
-        .require_grad();
+    let w = Tensor::<4>::from_data(
+        TensorData::new(vec![0.0f32; 4], [1, 1, 2, 2]),
+        &flex_autodiff(),
+    )
+    .require_grad();
     let y = conv2d_op(
         x,
         w.clone(),
@@ -179,7 +168,10 @@ fn weight_gradient_by_hand() {
         ConvOptions::new([1, 1], [0, 0], [1, 1], 1),
     );
     let g = y.sum().backward();
-    assert_eq!(vec(w.grad(&g).expect("dw")), vec![12.0, 16.0, 24.0, 28.0]);
+    assert_eq!(
+        to_vec(w.grad(&g).expect("dw")),
+        vec![12.0, 16.0, 24.0, 28.0]
+    );
 }
 
 #[test]
@@ -221,8 +213,8 @@ fn equals_burns_conv2d_on_the_networks_layer_kinds() {
         ([2, 6, 67, 65], 16, 5, 2, [(1, 2), (2, 1)], 1),
     ];
     for (i, (xs, cout, k, s, pad, d)) in cases.into_iter().enumerate() {
-        let x = tensor(xs, 100 + i as u64);
-        let w = tensor([cout, xs[1], k, k], 200 + i as u64);
+        let x = centred_tensor(xs, 100 + i as u64);
+        let w = centred_tensor([cout, xs[1], k, k], 200 + i as u64);
         let options = ConvOptions::new_with_padding([s, s], pad, [d, d], 1);
         let ours = grads(true, &x, &w, &options);
         let burn = grads(false, &x, &w, &options);
@@ -232,8 +224,8 @@ fn equals_burns_conv2d_on_the_networks_layer_kinds() {
 
 #[test]
 fn repeatable_bit_for_bit() {
-    let x = tensor([2, 8, 24, 24], 1);
-    let w = tensor([16, 8, 5, 5], 2);
+    let x = centred_tensor([2, 8, 24, 24], 1);
+    let w = centred_tensor([16, 8, 5, 5], 2);
     let options = ConvOptions::new([1, 1], [2, 2], [1, 1], 1);
     let a = grads(true, &x, &w, &options);
     let b = grads(true, &x, &w, &options);
@@ -255,15 +247,15 @@ fn same_bits_on_any_thread_count() {
             .expect("pool")
             .install(|| grads(true, x, w, options))
     };
-    let x = tensor([3, 8, 24, 24], 3);
-    let w = tensor([16, 8, 5, 5], 4);
+    let x = centred_tensor([3, 8, 24, 24], 3);
+    let w = centred_tensor([16, 8, 5, 5], 4);
     let options = ConvOptions::new([1, 1], [2, 2], [1, 1], 1);
     let one = on(1, &x, &w, &options);
     assert_eq!(one, on(2, &x, &w, &options), "2 threads");
     assert_eq!(one, on(4, &x, &w, &options), "4 threads");
     // Winograd: two batches of tiles (see above), split across threads or not.
-    let x = tensor([2, 16, 96, 96], 5);
-    let w = tensor([16, 16, 3, 3], 6);
+    let x = centred_tensor([2, 16, 96, 96], 5);
+    let w = centred_tensor([16, 16, 3, 3], 6);
     let options = ConvOptions::new([1, 1], [1, 1], [1, 1], 1);
     let one = on(1, &x, &w, &options);
     assert_eq!(one, on(2, &x, &w, &options), "Winograd, 2 threads");

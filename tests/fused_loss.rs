@@ -7,22 +7,13 @@
 mod common;
 
 use burn::tensor::activation::softmax;
-use burn::tensor::{Device, Int, Tensor, TensorData};
+use burn::tensor::{Int, Tensor, TensorData};
+use common::{flex_autodiff, to_vec};
 use hdrsynth::train::fused_loss::{ClassLoss, class_loss, exp};
 use hdrsynth::train::loss::{
     Network1Reading, network1_loss, ordinal_l1, soft_cross_entropy, weighted_cross_entropy,
     weighted_l1,
 };
-
-fn dev() -> Device {
-    hdrsynth::device::device_from_name("flex")
-        .expect("flex")
-        .autodiff()
-}
-
-fn vec<const D: usize>(t: Tensor<D>) -> Vec<f32> {
-    t.into_data().try_to_vec::<f32>().expect("f32")
-}
 
 /// (loss, dL/dlogits) of the fused loss, or of Burn's composition with `composed`.
 fn loss_and_grad(
@@ -47,14 +38,14 @@ fn loss_and_grad(
     let grads = loss.clone().backward();
     (
         loss.into_scalar::<f32>(),
-        vec(z.grad(&grads).expect("dlogits")),
+        to_vec(z.grad(&grads).expect("dlogits")),
     )
 }
 
 #[test]
 fn two_classes_by_hand() {
     // One pixel, logits (0, ln 3): p = (1/4, 3/4); target 1, α = (1, 2), so α_t = 2.
-    let d = dev();
+    let d = flex_autodiff();
     let z = Tensor::<4>::from_data(TensorData::new(vec![0.0f32, 3f32.ln()], [1, 2, 1, 1]), &d);
     let t = Tensor::<3, Int>::from_data(TensorData::new(vec![1i32], [1, 1, 1]), &d);
     let a = Tensor::<1>::from_data(TensorData::new(vec![1.0f32, 2.0], [2]), &d);
@@ -80,7 +71,7 @@ fn two_classes_by_hand() {
 
 #[test]
 fn equals_the_composed_loss_in_every_reading() {
-    let d = dev();
+    let d = flex_autodiff();
     let (b, c, h, w) = (2, 256, 5, 7);
     // Logits spread over ±8 so the softmax is far from uniform; targets over all classes,
     // including 0 and 255.
@@ -140,7 +131,7 @@ fn exp_is_within_two_ulp() {
 
 #[test]
 fn same_bits_on_any_thread_count() {
-    let d = dev();
+    let d = flex_autodiff();
     let (b, c, h, w) = (3, 256, 9, 17);
     let z = Tensor::<4>::from_data(
         TensorData::new(common::values(b * c * h * w, 8), [b, c, h, w]),

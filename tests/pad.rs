@@ -5,35 +5,18 @@
 
 mod common;
 
+use burn::tensor::Tensor;
 use burn::tensor::ops::PadMode;
-use burn::tensor::{Device, Tensor, TensorData};
+use common::{centred_tensor, flex_autodiff, to_vec};
 use hdrsynth::models::pad::reflect_pad;
-
-fn dev() -> Device {
-    hdrsynth::device::device_from_name("flex")
-        .expect("flex")
-        .autodiff()
-}
-
-fn tensor(shape: [usize; 4], seed: u64) -> Tensor<4> {
-    let v = common::values(shape.iter().product(), seed)
-        .into_iter()
-        .map(|v| v - 0.5)
-        .collect::<Vec<_>>();
-    Tensor::from_data(TensorData::new(v, shape), &dev())
-}
-
-fn vec<const D: usize>(t: Tensor<D>) -> Vec<f32> {
-    t.into_data().try_to_vec::<f32>().expect("f32")
-}
 
 /// (padded, dL/dx) of L = Σ pad(x) ⊙ r for a fixed r.
 fn padded_and_grad(x: &Tensor<4>, pad: impl Fn(Tensor<4>) -> Tensor<4>) -> (Vec<f32>, Vec<f32>) {
     let x = x.clone().require_grad();
     let y = pad(x.clone());
-    let r = tensor(y.dims(), 99);
+    let r = centred_tensor(y.dims(), 99);
     let g = (y.clone() * r).sum().backward();
-    (vec(y), vec(x.grad(&g).expect("dx")))
+    (to_vec(y), to_vec(x.grad(&g).expect("dx")))
 }
 
 /// Network-2's paddings ('SAME' 5×5 stride 2 on even and odd sizes, 3×3 stride 1) and
@@ -49,7 +32,7 @@ fn equals_burns_reflection_padding_and_its_gradient() {
         ([3, 2, 4, 4], [3, 0, 0, 1]),
     ];
     for (i, (shape, [t, b, l, r])) in cases.into_iter().enumerate() {
-        let x = tensor(shape, 10 + i as u64);
+        let x = centred_tensor(shape, 10 + i as u64);
         let (ours, ours_dx) = padded_and_grad(&x, |x| reflect_pad(x, (t, b), (l, r)));
         let (burn, burn_dx) = padded_and_grad(&x, |x| x.pad([(t, b), (l, r)], PadMode::Reflect));
         assert_eq!(ours, burn, "case {i}: padded values");
@@ -67,22 +50,22 @@ fn equals_burns_reflection_padding_and_its_gradient() {
 /// an axis of length 1 sends every padded row's gradient to its one row.
 #[test]
 fn periodic_and_replicated_gradients_by_hand() {
-    let x = Tensor::<4>::from_floats([[[[10.0, 20.0]]]], &dev()).require_grad();
+    let x = Tensor::<4>::from_floats([[[[10.0, 20.0]]]], &flex_autodiff()).require_grad();
     let y = reflect_pad(x.clone(), (0, 0), (3, 3));
     assert_eq!(
-        vec(y.clone()),
+        to_vec(y.clone()),
         vec![20.0, 10.0, 20.0, 10.0, 20.0, 10.0, 20.0, 10.0]
     );
-    let r = Tensor::<1>::from_floats([1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0], &dev())
+    let r = Tensor::<1>::from_floats([1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0], &flex_autodiff())
         .reshape([1, 1, 1, 8]);
     let g = (y * r).sum().backward();
-    assert_eq!(vec(x.grad(&g).expect("dx")), vec![20.0, 16.0]);
+    assert_eq!(to_vec(x.grad(&g).expect("dx")), vec![20.0, 16.0]);
 
-    let x = Tensor::<4>::from_floats([[[[1.0, 2.0]]]], &dev()).require_grad();
+    let x = Tensor::<4>::from_floats([[[[1.0, 2.0]]]], &flex_autodiff()).require_grad();
     let y = reflect_pad(x.clone(), (1, 2), (0, 0));
     assert_eq!(y.dims(), [1, 1, 4, 2]);
-    let r = Tensor::<1>::from_floats([1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0], &dev())
+    let r = Tensor::<1>::from_floats([1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0], &flex_autodiff())
         .reshape([1, 1, 4, 2]);
     let g = (y * r).sum().backward();
-    assert_eq!(vec(x.grad(&g).expect("dx")), vec![16.0, 20.0]);
+    assert_eq!(to_vec(x.grad(&g).expect("dx")), vec![16.0, 20.0]);
 }

@@ -2,6 +2,7 @@
 //! binary uses every helper).
 #![allow(dead_code)]
 
+use burn::tensor::{Device, Tensor, TensorData};
 use hdrsynth::config::parse_toml;
 use hdrsynth::data::generate::GenerateConfig;
 use std::path::Path;
@@ -110,4 +111,25 @@ pub fn crc32(bytes: &[u8]) -> u32 {
         }
     }
     !c
+}
+
+/// Flex with autodiff: where the flex kernels' tests compare against Burn's own ops.
+pub fn flex_autodiff() -> Device {
+    hdrsynth::device::device_from_name("flex")
+        .expect("flex")
+        .autodiff()
+}
+
+/// A tensor of `shape` on [`flex_autodiff`] with values in [−0.5, 0.5) from [`values`].
+pub fn centred_tensor(shape: [usize; 4], seed: u64) -> Tensor<4> {
+    let v = values(shape.iter().product(), seed)
+        .into_iter()
+        .map(|v| v - 0.5)
+        .collect::<Vec<_>>();
+    Tensor::from_data(TensorData::new(v, shape), &flex_autodiff())
+}
+
+/// A float tensor's values.
+pub fn to_vec<const D: usize>(t: Tensor<D>) -> Vec<f32> {
+    t.into_data().try_to_vec::<f32>().expect("f32")
 }
