@@ -469,7 +469,6 @@ fn weight_grad_impl<K: Kind>(
         sum.iter_mut().zip(&part).for_each(|(s, p)| *s += p);
     }
     // dW = Gᵀ·S·G per (c_out, c_in), `LANES` input channels at a time.
-    let gm = &K::MAT.g;
     let mut dw = vec![0.0f32; cout * cin * r * r];
     dw.par_chunks_mut(cin * r * r)
         .enumerate()
@@ -493,15 +492,7 @@ fn weight_grad_impl<K: Kind>(
                         left_mul(&K::GT, [r, a, a], &p, &mut tmp);
                         for k in 0..r {
                             for l in 0..r {
-                                let mut acc = [0.0f32; LANES];
-                                for j in 0..a {
-                                    let c = gm[j][l];
-                                    if c != 0.0 {
-                                        for (e, t) in acc.iter_mut().zip(&tmp[k][j]) {
-                                            *e += t * c;
-                                        }
-                                    }
-                                }
+                                let acc = right_mul(&tmp[k], &K::GT[l], a);
                                 for (c, &e) in acc.iter().enumerate().take(lanes) {
                                     dwc[(ci0 + c) * r * r + k * r + l] = e;
                                 }
@@ -547,15 +538,7 @@ fn grad_transform<K: Kind>(
             let t = ty * tw + tx0;
             for i in 0..a {
                 for j in 0..a {
-                    let mut acc = [0.0f32; LANES];
-                    for c in 0..m {
-                        let k = am[j][c];
-                        if k != 0.0 {
-                            for (v, tv) in acc.iter_mut().zip(&tmp[i][c]) {
-                                *v += tv * k;
-                            }
-                        }
-                    }
+                    let acc = right_mul(&tmp[i], &am[j], m);
                     store(&mut yc[(i * a + j) * nt + t..], &acc, lanes);
                 }
             }
@@ -594,15 +577,7 @@ fn filter_transform<K: Kind>(wt: &[f32], cout: usize, cin: usize) -> Vec<f32> {
                     left_mul(gm, [a, r, r], &g, &mut tmp);
                     for i in 0..a {
                         for j in 0..a {
-                            let mut acc = [0.0f32; LANES];
-                            for l in 0..r {
-                                let c = gm[j][l];
-                                if c != 0.0 {
-                                    for (e, v) in acc.iter_mut().zip(&tmp[i][l]) {
-                                        *e += v * c;
-                                    }
-                                }
-                            }
+                            let acc = right_mul(&tmp[i], &gm[j], r);
                             // SAFETY: (ξ, co, ci0..) is inside u, and only this co's task writes it.
                             let dst =
                                 unsafe { out.slice(((i * a + j) * cout + co) * cin + ci0, lanes) };
@@ -676,15 +651,7 @@ fn input_transform<K: Kind>(
             let t = t0 + ty * tw + tx0;
             for i in 0..a {
                 for j in 0..a {
-                    let mut acc = [0.0f32; LANES];
-                    for c in 0..a {
-                        let k = bt[j][c];
-                        if k != 0.0 {
-                            for (e, tv) in acc.iter_mut().zip(&tmp[i][c]) {
-                                *e += tv * k;
-                            }
-                        }
-                    }
+                    let acc = right_mul(&tmp[i], &bt[j], a);
                     store(&mut vc[(i * a + j) * nt + t..], &acc, lanes);
                 }
             }
@@ -728,15 +695,7 @@ fn output_transform<K: Kind>(
                 }
                 let row = &mut plane[oy * wo..][..wo];
                 for vv in 0..m {
-                    let mut acc = [0.0f32; LANES];
-                    for j in 0..a {
-                        let k = at[vv][j];
-                        if k != 0.0 {
-                            for (e, tv) in acc.iter_mut().zip(&tmp[uu][j]) {
-                                *e += tv * k;
-                            }
-                        }
-                    }
+                    let acc = right_mul(&tmp[uu], &at[vv], a);
                     if full {
                         let row = &mut row[tx0 * m + vv..][..(LANES - 1) * m + 1];
                         for (l, &e) in acc.iter().enumerate() {
@@ -783,6 +742,27 @@ fn left_mul(
             out[i][c] = acc;
         }
     }
+}
+
+/// Σ_k row[k]·coefs[k] (k < inner, in order) in every lane: one entry of the right half of a
+/// transform, tmp·Mᵀ with `coefs` a row of M. Inlined with `coefs` a constant, the loop unrolls
+/// and skips its zero entries.
+#[inline(always)]
+fn right_mul(
+    row: &[[f32; LANES]; MAX_ALPHA],
+    coefs: &[f32; MAX_ALPHA],
+    inner: usize,
+) -> [f32; LANES] {
+    let mut acc = [0.0f32; LANES];
+    for k in 0..inner {
+        let c = coefs[k];
+        if c != 0.0 {
+            for (e, v) in acc.iter_mut().zip(&row[k]) {
+                *e += v * c;
+            }
+        }
+    }
+    acc
 }
 
 /// dst[..lanes] = src[..lanes]; a fixed-size copy for whole groups (a `copy_from_slice` of a
