@@ -187,6 +187,19 @@ fn main() {
         });
     }
 
+    // Network-2's output convolution (5×5 64→3 at full resolution, stride 1; the network pads
+    // by reflection itself, the bench's zero padding 2 keeps the size).
+    convs.push(Conv {
+        name: "Network-2 output 5×5",
+        cin: 64,
+        cout: 3,
+        k: 5,
+        size: 256,
+        transposed: false,
+        stride: 1,
+        count: 0,
+    });
+
     println!(
         "Network-1 ops on {backend} ({} conv2d), batch {BATCH}, median of {reps} (seconds per op call)",
         if burn_conv { "Burn's" } else { "the networks'" }

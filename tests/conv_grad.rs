@@ -2,7 +2,8 @@
 //! gradient and weight gradient are im2col tiles + GEMM of our own; they must equal a
 //! hand-computed case, Burn's own conv2d and its gradients (flex's transposed convolution for
 //! dx, burn-backend's default weight gradient: the references they replace) on the networks'
-//! kinds of layers, and be bit-for-bit repeatable.
+//! kinds of layers, and be bit-for-bit repeatable. Layers with few channels on one side take
+//! `models::direct` instead, stride-1 layers with many `models::winograd`.
 #![cfg(feature = "flex")]
 
 mod common;
@@ -178,7 +179,7 @@ fn weight_gradient_by_hand() {
 fn equals_burns_conv2d_on_the_networks_layer_kinds() {
     // (x shape, c_out, kernel, stride, padding (top, bottom), (left, right), dilation)
     type Case = ([usize; 4], usize, usize, usize, [(usize, usize); 2], usize);
-    let cases: [Case; 17] = [
+    let cases: [Case; 20] = [
         // Network-1's 3×3 block conv and 5×5 head (padding k/2).
         ([2, 6, 16, 16], 8, 3, 1, [(1, 1), (1, 1)], 1),
         ([2, 8, 16, 12], 20, 5, 1, [(2, 2), (2, 2)], 1),
@@ -211,6 +212,13 @@ fn equals_burns_conv2d_on_the_networks_layer_kinds() {
         // asymmetric padding (phases of unequal length, a last input row no window reaches).
         ([2, 4, 66, 66], 16, 5, 2, [(0, 0), (0, 0)], 1),
         ([2, 6, 67, 65], 16, 5, 2, [(1, 2), (2, 1)], 1),
+        // Direct (≤ 4 channels on one side, models::direct): Network-2's output layer (5×5,
+        // 64 → 3 on reflect-padded input, rows of two whole 16-pixel chunks), zero padding with
+        // a partial last chunk, and few input channels onto two output blocks (4 + 2) with
+        // asymmetric padding (the input gradient then has 3 output channels).
+        ([2, 64, 20, 36], 3, 5, 1, [(0, 0), (0, 0)], 1),
+        ([2, 8, 13, 21], 3, 5, 1, [(2, 2), (2, 2)], 1),
+        ([1, 3, 9, 40], 6, 3, 1, [(0, 2), (1, 0)], 1),
     ];
     for (i, (xs, cout, k, s, pad, d)) in cases.into_iter().enumerate() {
         let x = centred_tensor(xs, 100 + i as u64);
@@ -260,4 +268,12 @@ fn same_bits_on_any_thread_count() {
     let one = on(1, &x, &w, &options);
     assert_eq!(one, on(2, &x, &w, &options), "Winograd, 2 threads");
     assert_eq!(one, on(3, &x, &w, &options), "Winograd, 3 threads");
+    // Direct: tasks by output rows (forward, input gradient) and input channel (weight
+    // gradient).
+    let x = centred_tensor([2, 32, 40, 40], 7);
+    let w = centred_tensor([3, 32, 5, 5], 8);
+    let options = ConvOptions::new([1, 1], [2, 2], [1, 1], 1);
+    let one = on(1, &x, &w, &options);
+    assert_eq!(one, on(2, &x, &w, &options), "direct, 2 threads");
+    assert_eq!(one, on(3, &x, &w, &options), "direct, 3 threads");
 }

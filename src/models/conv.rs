@@ -135,6 +135,7 @@ pub(crate) mod flex {
     use burn::tensor::{DType, Tensor};
     use rayon::prelude::*;
 
+    use crate::models::direct;
     use crate::models::par::{Shared, flex_tensor, matmul};
     use crate::models::winograd::{self, Winograd};
 
@@ -603,6 +604,29 @@ pub(crate) mod flex {
     /// slower too; its second 32 tiles and faster, `cargo bench --bench train_ops`).
     const WINOGRAD_MIN_BLOCK_TILES: usize = 32;
 
+    /// Whether a c_in → c_out convolution runs by [`direct`]: stride 1, no dilation, and at
+    /// most [`direct::MAX_BLOCK`] channels on one side (Network-2's output layer, 64 → 3), where
+    /// im2col's GEMM has M or N of a few channels.
+    fn direct_for([cin, cout]: [usize; 2], options: &ConvOptions<2>) -> bool {
+        options.stride == [1, 1] && options.dilation == [1, 1] && cin.min(cout) <= direct::MAX_BLOCK
+    }
+
+    /// The kernels of the input gradient's correlation: `wt` ([C_out, C_in, kh, kw]) turned
+    /// 180° with its channels swapped, as [C_in, C_out, kh, kw].
+    fn flipped(wt: &[f32], [cout, cin, kh, kw]: [usize; 4]) -> Vec<f32> {
+        (0..cin * cout * kh * kw)
+            .map(|n| {
+                let (ci, co, i, j) = (
+                    n / (cout * kh * kw),
+                    n / (kh * kw) % cout,
+                    n / kw % kh,
+                    n % kw,
+                );
+                wt[((co * cin + ci) * kh + kh - 1 - i) * kw + kw - 1 - j]
+            })
+            .collect()
+    }
+
     /// [`super::set_winograd`]'s switch.
     pub(super) static WINOGRAD: std::sync::atomic::AtomicBool =
         std::sync::atomic::AtomicBool::new(true);
@@ -836,6 +860,9 @@ pub(crate) mod flex {
         [ho, wo]: [usize; 2],
         options: &ConvOptions<2>,
     ) -> Vec<f32> {
+        if direct_for([ws[1], ws[0]], options) {
+            return direct::conv2d_f32(x, xs, wt, ws, [ho, wo], options.padding_begin());
+        }
         if let Some(kind) = winograd_for([ws[1], ws[0]], [ws[2], ws[3]], options, xs[0], [ho, wo]) {
             let pad = options.padding_begin();
             return winograd::conv2d_f32(x, xs, wt, ws, [ho, wo], pad, kind);
@@ -895,6 +922,9 @@ pub(crate) mod flex {
         let [batch, cin, h, w] = xs;
         let [_, cout, ho, wo] = ys;
         let [kh, kw] = k;
+        if direct_for([cin, cout], options) {
+            return direct::weight_grad_f32(x, xs, dy, ys, k, options.padding_begin());
+        }
         if let Some(kind) = winograd_for([cin, cout], k, options, batch, [ho, wo]) {
             let pad = options.padding_begin();
             return winograd::weight_grad_f32(x, xs, dy, ys, pad, kind);
@@ -965,24 +995,19 @@ pub(crate) mod flex {
         let [batch, cout, ho, wo] = ys;
         let [_, cin, kh, kw] = ws;
         let [pt, pl] = options.padding_begin();
-        if let Some(kind) = winograd_for([cout, cin], [kh, kw], options, batch, [h, w])
-            .filter(|_| pt < kh && pl < kw)
+        // dX is the stride-1 correlation of dY with the kernels turned 180° and their channels
+        // swapped, padded by k − 1 − p.
+        let reach = pt < kh && pl < kw;
+        let pad = [kh.wrapping_sub(1 + pt), kw.wrapping_sub(1 + pl)];
+        if reach && direct_for([cout, cin], options) {
+            let wf = flipped(wt, ws);
+            return direct::conv2d_f32(dy, ys, &wf, [cin, cout, kh, kw], [h, w], pad);
+        }
+        if let Some(kind) =
+            winograd_for([cout, cin], [kh, kw], options, batch, [h, w]).filter(|_| reach)
         {
-            // dX is the stride-1 correlation of dY with the kernels turned 180° and their
-            // channels swapped, padded by k − 1 − p.
-            let flipped: Vec<f32> = (0..cin * cout * kh * kw)
-                .map(|n| {
-                    let (ci, co, i, j) = (
-                        n / (cout * kh * kw),
-                        n / (kh * kw) % cout,
-                        n / kw % kh,
-                        n % kw,
-                    );
-                    wt[((co * cin + ci) * kh + kh - 1 - i) * kw + kw - 1 - j]
-                })
-                .collect();
-            let pad = [kh - 1 - pt, kw - 1 - pl];
-            return winograd::conv2d_f32(dy, ys, &flipped, [cin, cout, kh, kw], [h, w], pad, kind);
+            let wf = flipped(wt, ws);
+            return winograd::conv2d_f32(dy, ys, &wf, [cin, cout, kh, kw], [h, w], pad, kind);
         }
         if let Some(pp) = polyphase_for([cin, cout], [kh, kw], options, batch, [ho, wo]) {
             let [u, v] = pp.plane;

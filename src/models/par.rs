@@ -1,6 +1,6 @@
-//! What the flex kernels (`conv`, `winograd`, `batch_norm`, `train::fused_loss`) share: the
-//! pointer their parallel tasks write one output through, the tensor the output becomes, and
-//! the GEMM call.
+//! What the flex kernels (`conv`, `winograd`, `direct`, `batch_norm`, `train::fused_loss`)
+//! share: the pointer their parallel tasks write one output through, the tensor the output
+//! becomes, the GEMM call, AVX2 compilation and zero-padded row copies.
 
 use burn::backend::Flex;
 use burn::backend::ops::FloatTensorOps;
@@ -105,4 +105,29 @@ pub(crate) fn with_avx2<R>(f: impl FnOnce() -> R) -> R {
         }
     }
     f()
+}
+
+/// Copies the plane's rows y0 − pt … (as many as `padded` holds, `wp` wide, from column −pl)
+/// into `padded`, zero outside the plane.
+pub(crate) fn pad_rows(
+    plane: &[f32],
+    [h, w]: [usize; 2],
+    [y0, pt, pl]: [usize; 3],
+    wp: usize,
+    padded: &mut [f32],
+) {
+    for (r, dst) in padded.chunks_exact_mut(wp).enumerate() {
+        let iy = (y0 + r) as isize - pt as isize;
+        if iy < 0 || iy >= h as isize {
+            dst.fill(0.0);
+            continue;
+        }
+        let src = &plane[iy as usize * w..][..w];
+        // dst[c] = src[c − pl] where that is inside the row.
+        let lo = pl.min(wp);
+        let hi = (pl + w).min(wp);
+        dst[..lo].fill(0.0);
+        dst[lo..hi].copy_from_slice(&src[..hi - lo]);
+        dst[hi..].fill(0.0);
+    }
 }

@@ -21,7 +21,7 @@
 // The transforms are small matrix products, clearest with indices.
 #![allow(clippy::needless_range_loop)]
 
-use crate::models::par::{Shared, matmul, with_avx2};
+use crate::models::par::{Shared, matmul, pad_rows, with_avx2};
 use rayon::prelude::*;
 
 /// Most points any transform here uses (α ≤ 8).
@@ -589,31 +589,6 @@ fn filter_transform<K: Kind>(wt: &[f32], cout: usize, cin: usize) -> Vec<f32> {
         )
     });
     u
-}
-
-/// Copies the plane's rows y0 − pt … (as many as `padded` holds, `wp` wide, from column −pl)
-/// into `padded`, zero outside the plane.
-fn pad_rows(
-    plane: &[f32],
-    [h, w]: [usize; 2],
-    [y0, pt, pl]: [usize; 3],
-    wp: usize,
-    padded: &mut [f32],
-) {
-    for (r, dst) in padded.chunks_exact_mut(wp).enumerate() {
-        let iy = (y0 + r) as isize - pt as isize;
-        if iy < 0 || iy >= h as isize {
-            dst.fill(0.0);
-            continue;
-        }
-        let src = &plane[iy as usize * w..][..w];
-        // dst[c] = src[c − pl] where that is inside the row.
-        let lo = pl.min(wp);
-        let hi = (pl + w).min(wp);
-        dst[..lo].fill(0.0);
-        dst[lo..hi].copy_from_slice(&src[..hi - lo]);
-        dst[hi..].fill(0.0);
-    }
 }
 
 /// V[ci][ξ][t0 + t] = (Bᵀ·d·B)_ξ for `tile_rows` × `tw` tiles, d the α×α patch of `padded` (the
