@@ -6,11 +6,13 @@
 //!   weights to and from PyTorch-style SafeTensors files.
 //! - [`conv`]: the layers' 2D convolutions and transposed convolutions, im2col + GEMM on flex.
 //! - [`pad`]: reflection padding (Network-2's convolutions), one fused op on flex.
+//! - [`activation`]: leaky ReLU (Network-2's encoders), one fused op on flex.
 //! - `winograd` (flex): Winograd F(m×m, r×r) for the stride-1 3×3 and 5×5 convolutions.
 //! - `direct` (flex): direct convolution for thin stride-1 layers (≤ 4 channels on one side).
 //! - [`batch_norm`]: the layers' BatchNorm, fused and parallel on flex in training mode.
 //! - [`ModelConfig`]: either network's config, tagged by `kind` (training configs, checkpoints).
 
+pub mod activation;
 pub mod batch_norm;
 pub mod blend_unet;
 pub mod conv;
