@@ -26,6 +26,7 @@
 
 use super::batch_norm::batch_norm;
 use super::conv::{conv_transpose2d, conv2d};
+use super::pool::max_pool2d;
 use crate::error::{Error, Result};
 use burn::module::Module;
 use burn::nn::conv::{Conv2d, Conv2dConfig, ConvTranspose2d, ConvTranspose2dConfig};
@@ -277,7 +278,7 @@ impl BlendUNet {
         let mut x = self.encoder[0].forward(x);
         for block in &self.encoder[1..] {
             skips.push(x.clone());
-            x = block.forward(self.pool.forward(x));
+            x = block.forward(max_pool2d(&self.pool, x));
         }
         for up in self.decoder.iter().rev() {
             let skip = skips.pop().expect("one skip per decoder level");

@@ -7,6 +7,7 @@
 //! - [`conv`]: the layers' 2D convolutions and transposed convolutions, im2col + GEMM on flex.
 //! - [`pad`]: reflection padding (Network-2's convolutions), one fused op on flex.
 //! - [`activation`]: leaky ReLU (Network-2's encoders), one fused op on flex.
+//! - [`pool`]: Network-1's 2×2 max-pool, one fused op on flex.
 //! - `winograd` (flex): Winograd F(m×m, r×r) for the stride-1 3×3 and 5×5 convolutions.
 //! - `direct` (flex): direct convolution for thin stride-1 layers (≤ 4 channels on one side).
 //! - [`batch_norm`]: the layers' BatchNorm, fused and parallel on flex in training mode.
@@ -22,6 +23,7 @@ pub mod import;
 pub mod pad;
 #[cfg(feature = "flex")]
 pub(crate) mod par;
+pub mod pool;
 #[cfg(feature = "flex")]
 pub mod winograd;
 pub mod wu;

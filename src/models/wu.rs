@@ -27,6 +27,7 @@
 //! 0.9, Burn momentum 0.1) when the input lives on an autodiff device, the running statistics
 //! otherwise; call `model.valid()` for inference on an autodiff device.
 
+use super::activation::leaky_relu;
 use super::batch_norm::batch_norm;
 use super::conv::{conv_transpose2d, conv2d};
 use super::pad::reflect_pad;
@@ -34,7 +35,6 @@ use crate::error::{Error, Result};
 use burn::module::Module;
 use burn::nn::conv::{Conv2d, Conv2dConfig, ConvTranspose2d, ConvTranspose2dConfig};
 use burn::nn::{BatchNorm, BatchNormConfig, Initializer, PaddingConfig2d};
-use super::activation::leaky_relu;
 use burn::tensor::activation::{relu, tanh};
 use burn::tensor::{Device, Tensor, TensorData};
 use serde::{Deserialize, Serialize};
