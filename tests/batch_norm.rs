@@ -10,7 +10,7 @@ mod common;
 use burn::module::{Param, RunningState};
 use burn::nn::{BatchNorm, BatchNormConfig};
 use burn::tensor::{Device, Tensor, TensorData};
-use hdrsynth::models::batch_norm::batch_norm;
+use hdrsynth::models::batch_norm::{batch_norm, batch_norm_relu};
 
 fn flex() -> Device {
     hdrsynth::device::device_from_name("flex").expect("flex")
@@ -45,12 +45,25 @@ fn norm(
 /// [y, running mean, running var, dL/dx, dL/dγ, dL/dβ] of L = Σ (y ⊙ w), through `ours` or
 /// `BatchNorm::forward`.
 fn run(ours: bool, n: &BatchNorm, x: &Tensor<4>, w: &Tensor<4>) -> [Vec<f32>; 6] {
+    run_with(
+        n,
+        x,
+        w,
+        |n, x| {
+            if ours { batch_norm(n, x) } else { n.forward(x) }
+        },
+    )
+}
+
+/// [`run`] through `f`.
+fn run_with(
+    n: &BatchNorm,
+    x: &Tensor<4>,
+    w: &Tensor<4>,
+    f: impl Fn(&BatchNorm, Tensor<4>) -> Tensor<4>,
+) -> [Vec<f32>; 6] {
     let x = x.clone().require_grad();
-    let y = if ours {
-        batch_norm(n, x.clone())
-    } else {
-        n.forward(x.clone())
-    };
+    let y = f(n, x.clone());
     let g = (y.clone() * w.clone()).sum().backward();
     [
         vec(y),
@@ -94,6 +107,34 @@ fn equals_burns_batch_norm_in_training() {
             );
         }
     }
+}
+
+/// The ReLU fused into the kernels gives the same bits as Burn's ReLU after them, forward and
+/// backward (γ of both signs, so some channels are mostly cut and some mostly passed).
+#[test]
+fn fused_relu_equals_relu_after_batch_norm() {
+    let dev = flex().autodiff();
+    let shape = [2, 6, 5, 11];
+    let len = shape.iter().product();
+    let x = tensor(common::values(len, 11), shape, &dev) - 0.4;
+    let w = tensor(common::values(len, 12), shape, &dev) - 0.5;
+    let gamma: Vec<f32> = common::values(6, 13)
+        .iter()
+        .map(|v| v * 2.0 - 1.0)
+        .collect();
+    let beta: Vec<f32> = common::values(6, 14).iter().map(|v| v - 0.5).collect();
+    let n = || norm(gamma.clone(), beta.clone(), 1e-5, 0.1, &dev);
+    let fused = run_with(&n(), &x, &w, batch_norm_relu);
+    let composed = run_with(&n(), &x, &w, |n, x| {
+        burn::tensor::activation::relu(batch_norm(n, x))
+    });
+    assert_eq!(fused, composed);
+    // The ReLU cut something and passed something.
+    let zeros = fused[0].iter().filter(|v| **v == 0.0).count();
+    assert!(
+        zeros > len / 5 && zeros < len * 4 / 5,
+        "{zeros} of {len} cut"
+    );
 }
 
 #[test]

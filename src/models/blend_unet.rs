@@ -24,7 +24,7 @@
 //! on an autodiff device, and the running statistics otherwise; call `model.valid()` for
 //! inference on an autodiff device.
 
-use super::batch_norm::batch_norm;
+use super::batch_norm::batch_norm_relu;
 use super::conv::{conv_transpose2d, conv2d};
 use super::pool::max_pool2d;
 use crate::error::{Error, Result};
@@ -197,16 +197,16 @@ impl ConvBlock {
     }
 
     fn forward(&self, x: Tensor<4>) -> Tensor<4> {
-        let mut x = conv2d(&self.conv1, x);
-        if let Some(n) = &self.norm1 {
-            x = batch_norm(n, x);
+        let x = self.norm_relu(&self.norm1, conv2d(&self.conv1, x));
+        self.norm_relu(&self.norm2, conv2d(&self.conv2, x))
+    }
+
+    /// relu(BN(x)), or relu(x) without BatchNorm.
+    fn norm_relu(&self, norm: &Option<BatchNorm>, x: Tensor<4>) -> Tensor<4> {
+        match norm {
+            Some(n) => batch_norm_relu(n, x),
+            None => self.relu.forward(x),
         }
-        x = self.relu.forward(x);
-        x = conv2d(&self.conv2, x);
-        if let Some(n) = &self.norm2 {
-            x = batch_norm(n, x);
-        }
-        self.relu.forward(x)
     }
 }
 

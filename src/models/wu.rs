@@ -28,7 +28,7 @@
 //! otherwise; call `model.valid()` for inference on an autodiff device.
 
 use super::activation::leaky_relu;
-use super::batch_norm::batch_norm;
+use super::batch_norm::{batch_norm, batch_norm_relu};
 use super::conv::{conv_transpose2d, conv2d};
 use super::pad::reflect_pad;
 use crate::error::{Error, Result};
@@ -447,7 +447,7 @@ impl ResBlock {
     }
 
     fn forward(&self, x: Tensor<4>) -> Tensor<4> {
-        let y = relu(batch_norm(&self.bn1, conv_same(&self.conv1, x.clone())));
+        let y = batch_norm_relu(&self.bn1, conv_same(&self.conv1, x.clone()));
         x + batch_norm(&self.bn2, conv_same(&self.conv2, y))
     }
 }
