@@ -14,7 +14,8 @@
 //! fixed order (tiles and batch items in sequence, kernel offsets in order within a tile, the
 //! GEMM splits its output, never its K), so results are bit-for-bit repeatable. Stride-1 3×3
 //! and 5×5 layers with enough channels and tiles (`flex::winograd_for`) run all three
-//! passes by Winograd instead (`models::winograd`).
+//! passes by Winograd instead (`models::winograd`), and stride-1 layers with at most 4 channels
+//! on one side (`flex::direct_for`) by a direct convolution (`models::direct`).
 //!
 //! It is a Burn backend extension (`#[backend_extension]`) with a hand-written autodiff step;
 //! other backends (tch, wgpu, cuda, ndarray) run Burn's conv2d unchanged. The kernels take flex
