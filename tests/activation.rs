@@ -6,17 +6,8 @@
 mod common;
 
 use burn::tensor::{Tensor, activation};
-use common::{centred_tensor, flex_autodiff, to_vec};
+use common::{centred_tensor, flex_autodiff, to_vec, value_and_grad};
 use hdrsynth::models::activation::leaky_relu;
-
-/// (y, dL/dx) of L = Σ f(x) ⊙ r for a fixed r.
-fn value_and_grad(x: &Tensor<4>, f: impl Fn(Tensor<4>) -> Tensor<4>) -> (Vec<f32>, Vec<f32>) {
-    let x = x.clone().require_grad();
-    let y = f(x.clone());
-    let r = centred_tensor(y.dims(), 98);
-    let g = (y.clone() * r).sum().backward();
-    (to_vec(y), to_vec(x.grad(&g).expect("dx")))
-}
 
 #[test]
 fn equals_burns_leaky_relu_and_its_gradient() {
@@ -24,8 +15,8 @@ fn equals_burns_leaky_relu_and_its_gradient() {
     let x = centred_tensor([2, 3, 130, 140], 5);
     let x = x.clone().mask_fill(x.clone().abs().lower_elem(1e-3), 0.0);
     for slope in [0.2, 0.0, 1.5] {
-        let ours = value_and_grad(&x, |x| leaky_relu(x, slope));
-        let burn = value_and_grad(&x, |x| activation::leaky_relu(x, slope));
+        let ours = value_and_grad(&x, 98, |x| leaky_relu(x, slope));
+        let burn = value_and_grad(&x, 98, |x| activation::leaky_relu(x, slope));
         assert_eq!(ours, burn, "slope {slope}");
     }
 }

@@ -7,17 +7,8 @@ mod common;
 
 use burn::tensor::Tensor;
 use burn::tensor::ops::PadMode;
-use common::{centred_tensor, flex_autodiff, to_vec};
+use common::{centred_tensor, flex_autodiff, to_vec, value_and_grad};
 use hdrsynth::models::pad::reflect_pad;
-
-/// (padded, dL/dx) of L = Σ pad(x) ⊙ r for a fixed r.
-fn padded_and_grad(x: &Tensor<4>, pad: impl Fn(Tensor<4>) -> Tensor<4>) -> (Vec<f32>, Vec<f32>) {
-    let x = x.clone().require_grad();
-    let y = pad(x.clone());
-    let r = centred_tensor(y.dims(), 99);
-    let g = (y.clone() * r).sum().backward();
-    (to_vec(y), to_vec(x.grad(&g).expect("dx")))
-}
 
 /// Network-2's paddings ('SAME' 5×5 stride 2 on even and odd sizes, 3×3 stride 1) and
 /// asymmetric ones: the same values as Burn's reflection padding, and a gradient within float
@@ -33,8 +24,8 @@ fn equals_burns_reflection_padding_and_its_gradient() {
     ];
     for (i, (shape, [t, b, l, r])) in cases.into_iter().enumerate() {
         let x = centred_tensor(shape, 10 + i as u64);
-        let (ours, ours_dx) = padded_and_grad(&x, |x| reflect_pad(x, (t, b), (l, r)));
-        let (burn, burn_dx) = padded_and_grad(&x, |x| x.pad([(t, b), (l, r)], PadMode::Reflect));
+        let (ours, ours_dx) = value_and_grad(&x, 99, |x| reflect_pad(x, (t, b), (l, r)));
+        let (burn, burn_dx) = value_and_grad(&x, 99, |x| x.pad([(t, b), (l, r)], PadMode::Reflect));
         assert_eq!(ours, burn, "case {i}: padded values");
         for (j, (a, e)) in ours_dx.iter().zip(&burn_dx).enumerate() {
             assert!(

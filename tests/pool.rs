@@ -7,17 +7,8 @@ mod common;
 
 use burn::nn::pool::MaxPool2dConfig;
 use burn::tensor::Tensor;
-use common::{centred_tensor, flex_autodiff, to_vec};
+use common::{centred_tensor, flex_autodiff, to_vec, value_and_grad};
 use hdrsynth::models::pool::max_pool2d;
-
-/// (y, dL/dx) of L = Σ f(x) ⊙ r for a fixed r.
-fn value_and_grad(x: &Tensor<4>, f: impl Fn(Tensor<4>) -> Tensor<4>) -> (Vec<f32>, Vec<f32>) {
-    let x = x.clone().require_grad();
-    let y = f(x.clone());
-    let r = centred_tensor(y.dims(), 97);
-    let g = (y.clone() * r).sum().backward();
-    (to_vec(y), to_vec(x.grad(&g).expect("dx")))
-}
 
 #[test]
 fn equals_burns_max_pool_and_its_gradient() {
@@ -29,8 +20,8 @@ fn equals_burns_max_pool_and_its_gradient() {
         let x = centred_tensor(shape, 30 + i as u64);
         // After a ReLU most windows tie at 0: the gradient must go where flex's goes.
         for x in [x.clone(), x.clone().clamp_min(0.0)] {
-            let ours = value_and_grad(&x, |x| max_pool2d(&pool, x));
-            let burn = value_and_grad(&x, |x| pool.forward(x));
+            let ours = value_and_grad(&x, 97, |x| max_pool2d(&pool, x));
+            let burn = value_and_grad(&x, 97, |x| pool.forward(x));
             assert_eq!(ours, burn, "case {i}");
         }
     }

@@ -133,3 +133,17 @@ pub fn centred_tensor(shape: [usize; 4], seed: u64) -> Tensor<4> {
 pub fn to_vec<const D: usize>(t: Tensor<D>) -> Vec<f32> {
     t.into_data().try_to_vec::<f32>().expect("f32")
 }
+
+/// (f(x), dL/dx) of L = Σ f(x) ⊙ r, r a fixed [`centred_tensor`] of f(x)'s shape from `r_seed`:
+/// an op's output and gradient, to compare with another implementation's.
+pub fn value_and_grad(
+    x: &Tensor<4>,
+    r_seed: u64,
+    f: impl Fn(Tensor<4>) -> Tensor<4>,
+) -> (Vec<f32>, Vec<f32>) {
+    let x = x.clone().require_grad();
+    let y = f(x.clone());
+    let r = centred_tensor(y.dims(), r_seed);
+    let g = (y.clone() * r).sum().backward();
+    (to_vec(y), to_vec(x.grad(&g).expect("dx")))
+}
