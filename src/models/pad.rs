@@ -82,7 +82,7 @@ mod flex {
     use rayon::prelude::*;
 
     use super::source_indices;
-    use crate::models::par::flex_tensor;
+    use crate::models::par::{flex_tensor, unary_backward};
 
     /// Pads as [`super::reflect_pad`] by [`forward`]; its autodiff step runs [`backward`].
     #[backend_extension(Flex, Autodiff)]
@@ -110,12 +110,7 @@ mod flex {
             grads: &mut Gradients,
             _checkpointer: &mut Checkpointer,
         ) {
-            let [node_x] = ops.parents;
-            let grad = grads.consume::<Flex>(&ops.node);
-            if let Some(node) = node_x {
-                let (xs, pad) = ops.state;
-                grads.register::<Flex>(node.id, backward(grad, xs, pad));
-            }
+            unary_backward(ops, grads, |grad, (xs, pad)| backward(grad, xs, pad));
         }
     }
 

@@ -3,6 +3,8 @@
 //! becomes, the GEMM call, AVX2 compilation and zero-padded row copies.
 
 use burn::backend::Flex;
+use burn::backend::autodiff::grads::Gradients;
+use burn::backend::autodiff::ops::Ops;
 use burn::backend::ops::FloatTensorOps;
 use burn::backend::tensor::FloatTensor;
 use burn::tensor::{Shape, TensorData};
@@ -129,5 +131,19 @@ pub(crate) fn pad_rows(
         dst[..lo].fill(0.0);
         dst[lo..hi].copy_from_slice(&src[..hi - lo]);
         dst[hi..].fill(0.0);
+    }
+}
+
+/// The autodiff step of a flex op with one input and no checkpointed tensors (`models::pad`,
+/// `models::pool`): registers dL/dx = `dx(dL/dy, state)` where x is tracked.
+pub(crate) fn unary_backward<S>(
+    ops: Ops<S, 1>,
+    grads: &mut Gradients,
+    dx: impl FnOnce(FloatTensor<Flex>, S) -> FloatTensor<Flex>,
+) {
+    let [node_x] = ops.parents;
+    let grad = grads.consume::<Flex>(&ops.node);
+    if let Some(node) = node_x {
+        grads.register::<Flex>(node.id, dx(grad, ops.state));
     }
 }

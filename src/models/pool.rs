@@ -41,7 +41,7 @@ mod flex {
     use rayon::prelude::*;
     use std::sync::Arc;
 
-    use crate::models::par::flex_tensor;
+    use crate::models::par::{flex_tensor, unary_backward};
 
     /// 2×2 stride-2 max-pool by [`forward`]; its autodiff step runs [`backward`].
     #[backend_extension(Flex, Autodiff)]
@@ -68,12 +68,9 @@ mod flex {
             grads: &mut Gradients,
             _checkpointer: &mut Checkpointer,
         ) {
-            let [node_x] = ops.parents;
-            let grad = grads.consume::<Flex>(&ops.node);
-            if let Some(node) = node_x {
-                let (xs, winners) = ops.state;
-                grads.register::<Flex>(node.id, backward(grad, xs, &winners));
-            }
+            unary_backward(ops, grads, |grad, (xs, winners)| {
+                backward(grad, xs, &winners)
+            });
         }
     }
 
