@@ -1075,6 +1075,70 @@ fn hand_held_sets_are_aligned_by_mtb_and_cropped() {
 }
 
 #[test]
+fn hand_held_ground_truth_from_all_frames_aligns_and_crops_every_frame() {
+    use hdrsynth::data::align::MtbOptions;
+    let tmp = tempfile::tempdir().expect("tmp");
+    let d = tmp.path().join("handheld4");
+    std::fs::create_dir_all(&d).expect("mkdir");
+    let (w, h) = (160usize, 128usize);
+    let scene = |x: i64, y: i64| -> f64 {
+        let (bx, by) = (x.div_euclid(8), y.div_euclid(8));
+        let k = (bx * 73_856_093) ^ (by * 19_349_663);
+        (-6.0 + 6.0 * (k.rem_euclid(1000)) as f64 / 1000.0).exp2()
+    };
+    // Four frames, 2 stops apart; the inputs are the last three, the first (shortest) frame
+    // moved 3 px left and 2 px down and enters only the ground truth.
+    for (name, t, (dx, dy)) in [
+        ("a.jpg", 0.0625, (-3i64, 2i64)),
+        ("s.jpg", 0.25, (-1, 2)),
+        ("m.jpg", 1.0, (0, 0)),
+        ("l.jpg", 4.0, (2, -1)),
+    ] {
+        let mut rgb = Vec::with_capacity(w * h * 3);
+        for y in 0..h as i64 {
+            for x in 0..w as i64 {
+                let v = (srgb(scene(x - dx, y - dy) * t * 4.0) * 255.0).round() as u8;
+                rgb.extend([v, v, v]);
+            }
+        }
+        write_jpeg(&d.join(name), w as u32, h as u32, &rgb, None);
+    }
+    std::fs::write(
+        d.join("list.txt"),
+        "a.jpg 16\ns.jpg 4\nm.jpg 1\nl.jpg 0.25\n",
+    )
+    .expect("list");
+    let opts = BracketOptions {
+        align: Some(MtbOptions {
+            max_bits: 4,
+            exclude: 4,
+        }),
+        ..srgb_opts(InputChoice::Indices([1, 2, 3]), GtFrames::All)
+    };
+    let beside = tempfile::tempdir().expect("tmp");
+    let built =
+        bracket_testset::build(tmp.path(), &opts, &beside.path().join("out")).expect("build");
+    let b = &built.sets[0];
+    // The inputs' shifts as with three frames; the extra frame's undoes its motion too.
+    assert_eq!(b.shifts, vec![[1, -2], [0, 0], [-2, 1]]);
+    let gt_shifts: Vec<Option<[i32; 2]>> = b.ground_truth.iter().map(|g| g.shift).collect();
+    assert_eq!(
+        gt_shifts,
+        vec![Some([3, -2]), Some([1, -2]), Some([0, 0]), Some([-2, 1])]
+    );
+    // Common region of all four: x from 3 to 158, y from 1 to 126 (hand-computed).
+    assert_eq!((b.width, b.height), (155, 125));
+    let (tw, th, _) = read_u16_tiff(&beside.path().join("out/handheld4/frame_1.tif"));
+    assert_eq!((tw, th), (155, 125));
+    let gt = read_rgbe(&beside.path().join("out/handheld4/HDRImg.hdr"));
+    assert_eq!(gt.len(), 155 * 125 * 3);
+    assert_eq!(
+        exposure_txt(&beside.path().join("out/handheld4")),
+        "0\n2\n4\n"
+    );
+}
+
+#[test]
 fn mtb_keeps_a_textureless_frame_in_place_against_itself() {
     use hdrsynth::data::align::{self, MtbOptions};
     // A flat frame: every pixel sits within the exclusion range of the median, so every
