@@ -203,16 +203,6 @@ impl std::str::FromStr for InputChoice {
     }
 }
 
-impl InputChoice {
-    pub fn label(&self) -> String {
-        match self {
-            InputChoice::Spread => "shortest, middle and longest".to_string(),
-            InputChoice::Auto => "auto".to_string(),
-            InputChoice::Indices([i, j, k]) => format!("--inputs {i},{j},{k}"),
-        }
-    }
-}
-
 /// Which frames the ground truth is merged from (`--gt-frames`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum GtFrames {
