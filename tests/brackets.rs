@@ -1075,6 +1075,70 @@ fn hand_held_sets_are_aligned_by_mtb_and_cropped() {
 }
 
 #[test]
+fn hand_held_ground_truth_from_all_frames_aligns_and_crops_every_frame() {
+    use hdrsynth::data::align::MtbOptions;
+    let tmp = tempfile::tempdir().expect("tmp");
+    let d = tmp.path().join("handheld4");
+    std::fs::create_dir_all(&d).expect("mkdir");
+    let (w, h) = (160usize, 128usize);
+    let scene = |x: i64, y: i64| -> f64 {
+        let (bx, by) = (x.div_euclid(8), y.div_euclid(8));
+        let k = (bx * 73_856_093) ^ (by * 19_349_663);
+        (-6.0 + 6.0 * (k.rem_euclid(1000)) as f64 / 1000.0).exp2()
+    };
+    // Four frames, 2 stops apart; the inputs are the last three, the first (shortest) frame
+    // moved 3 px left and 2 px down and enters only the ground truth.
+    for (name, t, (dx, dy)) in [
+        ("a.jpg", 0.0625, (-3i64, 2i64)),
+        ("s.jpg", 0.25, (-1, 2)),
+        ("m.jpg", 1.0, (0, 0)),
+        ("l.jpg", 4.0, (2, -1)),
+    ] {
+        let mut rgb = Vec::with_capacity(w * h * 3);
+        for y in 0..h as i64 {
+            for x in 0..w as i64 {
+                let v = (srgb(scene(x - dx, y - dy) * t * 4.0) * 255.0).round() as u8;
+                rgb.extend([v, v, v]);
+            }
+        }
+        write_jpeg(&d.join(name), w as u32, h as u32, &rgb, None);
+    }
+    std::fs::write(
+        d.join("list.txt"),
+        "a.jpg 16\ns.jpg 4\nm.jpg 1\nl.jpg 0.25\n",
+    )
+    .expect("list");
+    let opts = BracketOptions {
+        align: Some(MtbOptions {
+            max_bits: 4,
+            exclude: 4,
+        }),
+        ..srgb_opts(InputChoice::Indices([1, 2, 3]), GtFrames::All)
+    };
+    let beside = tempfile::tempdir().expect("tmp");
+    let built =
+        bracket_testset::build(tmp.path(), &opts, &beside.path().join("out")).expect("build");
+    let b = &built.sets[0];
+    // The inputs' shifts as with three frames; the extra frame's undoes its motion too.
+    assert_eq!(b.shifts, vec![[1, -2], [0, 0], [-2, 1]]);
+    let gt_shifts: Vec<Option<[i32; 2]>> = b.ground_truth.iter().map(|g| g.shift).collect();
+    assert_eq!(
+        gt_shifts,
+        vec![Some([3, -2]), Some([1, -2]), Some([0, 0]), Some([-2, 1])]
+    );
+    // Common region of all four: x from 3 to 158, y from 1 to 126 (hand-computed).
+    assert_eq!((b.width, b.height), (155, 125));
+    let (tw, th, _) = read_u16_tiff(&beside.path().join("out/handheld4/frame_1.tif"));
+    assert_eq!((tw, th), (155, 125));
+    let gt = read_rgbe(&beside.path().join("out/handheld4/HDRImg.hdr"));
+    assert_eq!(gt.len(), 155 * 125 * 3);
+    assert_eq!(
+        exposure_txt(&beside.path().join("out/handheld4")),
+        "0\n2\n4\n"
+    );
+}
+
+#[test]
 fn mtb_keeps_a_textureless_frame_in_place_against_itself() {
     use hdrsynth::data::align::{self, MtbOptions};
     // A flat frame: every pixel sits within the exclusion range of the median, so every
@@ -1759,7 +1823,7 @@ fn ground_truth_from_all_frames_recovers_what_the_inputs_clip_or_lose_in_the_dar
     assert_eq!(b6.sets[0].ground_truth.len(), 6);
     assert!(b6.sets[0].dropped.is_empty());
     assert!(
-        b6.sets[0].gt_merge.contains("hat"),
+        b6.sets[0].gt_merge.contains("· t"),
         "{}",
         b6.sets[0].gt_merge
     );
@@ -1794,8 +1858,56 @@ fn ground_truth_from_all_frames_recovers_what_the_inputs_clip_or_lose_in_the_dar
          {d3e:.4} vs {d6e:.4}, well exposed {m3e:.4} vs {m6e:.4}"
     );
     assert!(b3e > 0.3 && b6e < 0.01, "clipped: {b3e} vs {b6e}");
-    assert!(d3e > 0.2 && d6e < d3e / 4.0, "dark: {d3e} vs {d6e}");
+    assert!(
+        d3e > 0.2 && d6e < d3e / 4.0 && d6e < 0.05,
+        "dark: {d3e} vs {d6e}"
+    );
     assert!(m3e < 0.02 && m6e < 0.02, "well exposed: {m3e} vs {m6e}");
+}
+
+#[test]
+fn a_short_frames_black_floor_does_not_lift_the_dark_regions_of_the_merge() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let dir = tmp.path().join("floor");
+    std::fs::create_dir_all(&dir).expect("mkdir");
+    // Stops 0, 2, 4, 6, 8; the two shortest frames never go below code 8 (a black floor: flare
+    // or an offset). Scene: log radiance −13 … −9 over 40 columns, codes 8 (the floor) in
+    // both short frames, mid codes in the stop-8 frame.
+    let stops = [0.0f64, 2.0, 4.0, 6.0, 8.0];
+    let scene = |x: usize| (-13.0 + 4.0 * x as f64 / 39.0).exp2();
+    for (i, s) in stops.iter().enumerate() {
+        let mut img = image::RgbImage::new(40, 2);
+        for y in 0..2 {
+            for x in 0..40 {
+                let mut v = (srgb(scene(x) * s.exp2()) * 255.0).round() as u8;
+                if i < 2 {
+                    v = v.max(8);
+                }
+                img.put_pixel(x as u32, y, image::Rgb([v, v, v]));
+            }
+        }
+        img.save(dir.join(format!("f{i}.png"))).expect("png");
+    }
+    std::fs::write(dir.join("exposure.txt"), "0\n2\n4\n6\n8\n").expect("exposure.txt");
+    let beside = tempfile::tempdir().expect("tmp");
+    let out = beside.path().join("out");
+    bracket_testset::build(
+        tmp.path(),
+        &srgb_opts(InputChoice::Indices([2, 3, 4]), GtFrames::All),
+        &out,
+    )
+    .expect("build");
+    let gt = read_rgbe(&out.join("floor/HDRImg.hdr"));
+    // The floor, code 8, reads as 0.0024 of white: over the stop-0 frame's time (1/16 of the
+    // shortest input's) that is 0.039, up to 80× the truth L · 2^4 here. Weighted by its hat
+    // alone (0.063) against the stop-8 frame's (≤ 1), it would more than double the dark end;
+    // weighted also by its time (1/16 against 16) it moves it by about 1 %.
+    let mut worst: f64 = 0.0;
+    for x in 0..40 {
+        let truth = scene(x) * 16.0;
+        worst = worst.max(((gt[x * 3 + 1] - truth) / truth).abs());
+    }
+    assert!(worst < 0.05, "largest relative error {worst}");
 }
 
 #[test]
@@ -1824,28 +1936,40 @@ fn ground_truth_from_all_frames_of_a_three_frame_set_is_the_inputs_merge() {
 
 #[test]
 fn the_hat_merge_matches_hand_values() {
-    use hdrsynth::data::bracket_testset::hat_merge;
+    use hdrsynth::data::bracket_testset::{code_weight, hat_merge};
     use hdrsynth::io::Image;
     let px = |v: [f32; 3]| Image::from_vec(1, 1, v.to_vec());
-    // γ 1: values 0.25 and 0.75 both weigh 0.5: (0.5 · 0.25/1 + 0.5 · 0.75/4) / 1 = 0.21875.
-    // Clipped everywhere (1, 1): the shortest's white over its time, 1/0.5 = 2.
-    // Black everywhere: the longest frame's 0.
-    let a = px([0.25, 1.0, 0.0]);
-    let b = px([0.75, 1.0, 0.0]);
-    let h = hat_merge(&[a.clone(), b.clone()], &[0.5, 4.0], 1.0).expect("merge");
-    assert_eq!(
-        h.data,
-        vec![(0.5 * 0.25 / 0.5 + 0.5 * 0.75 / 4.0) as f32, 2.0, 0.0]
-    );
-    // γ 2.2: v = 0.5 weighs 1, v = 0.9 weighs 0.2: (0.5^2.2/1 + 0.2 · 0.9^2.2/2) / 1.2.
-    let h = hat_merge(&[px([0.5; 3]), px([0.9; 3])], &[1.0, 2.0], 2.2).expect("merge");
-    let want = (0.5f64.powf(2.2) + 0.2 * 0.9f64.powf(2.2) / 2.0) / 1.2;
+    // Weights: the hat of the code, 0 at codes ≤ 5 and ≥ 250 (of 255).
+    assert_eq!(code_weight(0.5), 1.0);
+    assert_eq!(code_weight(250.0 / 255.0), 0.0);
+    assert_eq!(code_weight(5.0 / 255.0), 0.0);
+    assert!((code_weight(249.0 / 255.0) - 12.0 / 255.0).abs() < 1e-6);
+    assert!((code_weight(6.0 / 255.0) - 12.0 / 255.0).abs() < 1e-6);
+    // γ 1, times 0.5 and 4. Channel 0: codes 0.25 and 0.75 (hat 0.5 each), so w = 0.5 · 0.5
+    // and 0.5 · 4: H = (0.25 · 0.25/0.5 + 2 · 0.75/4) / 2.25 = 0.5 / 2.25. Channel 1: clipped
+    // in both: the shortest's white over its time, 1/0.5 = 2. Channel 2: dark in both (codes 0
+    // and 0.01 · 255 = 2.55): the longest frame not clipped, 0.01/4.
+    let v = [px([0.25, 1.0, 0.0]), px([0.75, 1.0, 0.01])];
+    let h = hat_merge(&v, &v, &[0.5, 4.0], 1.0).expect("merge");
+    assert!((h.data[0] as f64 - 0.5 / 2.25).abs() < 1e-7, "{:?}", h.data);
+    assert_eq!(h.data[1], 2.0);
+    assert!((h.data[2] - 0.0025).abs() < 1e-9, "{:?}", h.data);
+    // γ 2.2, codes apart from the written values: codes 0.5 and 0.9 weigh 1 · 1 and 0.2 · 2;
+    // values 0.5 and 0.9: H = (0.5^2.2 / 1 + 0.4 · 0.9^2.2 / 2) / 1.4.
+    let h = hat_merge(
+        &[px([0.5; 3]), px([0.9; 3])],
+        &[px([0.5; 3]), px([0.9; 3])],
+        &[1.0, 2.0],
+        2.2,
+    )
+    .expect("merge");
+    let want = (0.5f64.powf(2.2) + 0.4 * 0.9f64.powf(2.2) / 2.0) / 1.4;
     assert!(
         (h.data[0] as f64 - want).abs() < 1e-6,
         "{} vs {want}",
         h.data[0]
     );
-    assert!(hat_merge(&[a, b], &[1.0], 1.0).is_err());
+    assert!(hat_merge(&v, &v, &[1.0], 1.0).is_err());
 }
 
 #[test]
@@ -1957,31 +2081,55 @@ fn canon_550d_room_builds_with_auto_inputs_and_the_ground_truth_from_all_frames(
         "{positive}"
     );
     // In eval's unit (1 = the reference's white, factor 2^s_reference) the ground truth agrees
-    // with the reference frame where that frame is well exposed (linear 0.3 … 0.9).
+    // with the reference where that frame is well exposed (its JPEG codes 16–249, clear of the
+    // estimated response's toe and shoulder), and is at or above its white where it clipped.
     let (_, _, reference) = read_u16_tiff(&set.join("frame_2.tif"));
+    let ref_src = frames[1]["source"].as_str().expect("source");
+    let ref_codes = image::open(ref_src).expect("jpeg").to_rgb8().into_raw();
     let scale = expo[1].exp2();
-    let mut ratios: Vec<f64> = reference
-        .iter()
-        .zip(&gt)
-        .filter_map(|(r, g)| {
-            let l = r.powf(2.2);
-            (0.3..0.9).contains(&l).then(|| g * scale / l)
-        })
-        .collect();
-    assert!(ratios.len() > 1000, "{}", ratios.len());
+    let (mut ratios, mut clipped) = (Vec::new(), Vec::new());
+    for ((r, g), &z) in reference.iter().zip(&gt).zip(&ref_codes) {
+        match z {
+            16..=249 => ratios.push(g * scale / r.powf(2.2)),
+            255 => clipped.push(g * scale),
+            _ => {}
+        }
+    }
+    assert!(
+        ratios.len() > 100_000 && clipped.len() > 1000,
+        "{} {}",
+        ratios.len(),
+        clipped.len()
+    );
     ratios.sort_by(f64::total_cmp);
-    let median = ratios[ratios.len() / 2];
+    clipped.sort_by(f64::total_cmp);
+    let q = |v: &[f64], p: usize| v[v.len() * p / 100];
+    let median = q(&ratios, 50);
     eprintln!(
         "inputs {inputs:?}, exposure.txt {expo:?}, reference clipped/dark {:.4}, GT dynamic \
-         range {:.2} stops, GT/reference median {median:.4} (p10 {:.4}, p90 {:.4})",
+         range {:.2} stops; GT / reference where it is well exposed: median {median:.4} (p10 \
+         {:.4}, p90 {:.4}); GT where it clipped, × its white: median {:.3}",
         rec["reference_clipped_or_dark"]
             .as_float()
             .expect("fraction"),
         rec["gt_dynamic_range_stops"].as_float().expect("range"),
-        ratios[ratios.len() / 10],
-        ratios[ratios.len() * 9 / 10]
+        q(&ratios, 10),
+        q(&ratios, 90),
+        q(&clipped, 50)
     );
-    assert!((median - 1.0).abs() < 0.1, "GT / reference median {median}");
+    assert!(
+        (median - 1.0).abs() < 0.05,
+        "GT / reference median {median}"
+    );
+    assert!(
+        q(&ratios, 10) > 0.75 && q(&ratios, 90) < 1.33,
+        "GT / reference spread"
+    );
+    assert!(
+        q(&clipped, 50) > 1.0,
+        "GT where the reference clipped: {}",
+        q(&clipped, 50)
+    );
     // The window is brighter than the reference's white: the merge holds more than it.
     let max = gt.iter().copied().fold(0.0, f64::max) * scale;
     assert!(

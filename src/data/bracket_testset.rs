@@ -18,7 +18,8 @@
 //! - `HDRImg.hdr` ([`GtFrames`]): from the three inputs, the triangle merge
 //!   ([`ground_truth::triangle_merge`], Kalantari's weights from the reference's TIFF value);
 //!   from every frame of the set (`--gt-frames all`, when the set has more than the inputs),
-//!   the classical hat-weighted merge [`hat_merge`] — each frame weighted by its own value. In
+//!   the weighted merge [`hat_merge`] — each frame weighted by the hat of its own code value and
+//!   its exposure time. In
 //!   the field's unit either way: a frame at stop 0 (the shortest input) has white 1;
 //!   `hdrsynth eval` converts it to its own unit (1 = the reference's white);
 //! - `brackets.toml`: where every frame came from, its exposure, which frames are the inputs
@@ -202,24 +203,14 @@ impl std::str::FromStr for InputChoice {
     }
 }
 
-impl InputChoice {
-    pub fn label(&self) -> String {
-        match self {
-            InputChoice::Spread => "shortest, middle and longest".to_string(),
-            InputChoice::Auto => "auto".to_string(),
-            InputChoice::Indices([i, j, k]) => format!("--inputs {i},{j},{k}"),
-        }
-    }
-}
-
 /// Which frames the ground truth is merged from (`--gt-frames`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum GtFrames {
     /// The three inputs, Kalantari's triangle merge (no `--gt-frames`).
     #[default]
     Inputs,
-    /// Every frame of the set: [`hat_merge`] (the triangle merge when the set holds only the
-    /// three inputs: there is nothing to add).
+    /// Every frame of the set: [`hat_merge`] (the triangle merge, exactly as `Inputs`, when the
+    /// set holds only the three inputs: there is nothing to add).
     All,
 }
 
@@ -318,7 +309,10 @@ pub fn auto_inputs(
         .copied()
         .ok_or_else(|| Error::Invalid("--inputs auto: no triple of frames".to_string()))?;
     let how = format!(
-        "auto: steps {:.2}, {:.2} stops (largest deviation from 2 stops {d:.2}; candidates          within {:.2} of the best {best:.2}); reference {} of the candidates' references {}          with the fewest pixels clipped (a channel ≥ {CLIPPED_CODE}/255) or dark (all ≤          {DARK_CODE}/255): {:.2} %",
+        "auto: steps {:.2}, {:.2} stops (largest deviation from 2 stops {d:.2}; candidates \
+         within {:.2} of the best {best:.2}); reference {} of the candidates' references {} \
+         with the fewest pixels clipped (a channel ≥ {CLIPPED_CODE}/255) or dark (all ≤ \
+         {DARK_CODE}/255): {:.2} %",
         stops[idx[1]] - stops[idx[0]],
         stops[idx[2]] - stops[idx[1]],
         AUTO_STEP_TOLERANCE,
@@ -337,21 +331,42 @@ pub fn auto_inputs(
     })
 }
 
-/// The classical multi-exposure merge over any number of frames (Debevec & Malik 1997, Eq. 6,
-/// in the linear domain): per pixel and channel H = Σ w(v_i) · v_i^γ / t_i / Σ w(v_i), where v_i
-/// is frame i's value (linear^(1/γ), as the frames are written) and w Kalantari's middle-frame
-/// triangle applied to each frame's OWN value, w(v) = v/½ below ½, (1 − v)/½ above: mid values
-/// stand clear of both the quantisation floor and clipping, and no frame is preferred for
-/// being an input. Where every weight is 0 (all frames at 0 or 1): the shortest frame's value
-/// when it is clipped (white is a lower bound), else the longest frame's.
-pub fn hat_merge(frames: &[Image], times: &[f64], gamma: f32) -> Result<Image> {
+/// The weight [`hat_merge`] gives a frame's code value `z` (as stored, in [0, 1]): the hat
+/// 1 − |2z − 1|, zero where the code is clipped (≥ [`CLIPPED_CODE`]/255) or dark
+/// (≤ [`DARK_CODE`]/255) — the metering rule's thresholds, per channel.
+pub fn code_weight(z: f32) -> f64 {
+    let c = z * 255.0;
+    if c >= CLIPPED_CODE - 1e-3 || c <= DARK_CODE + 1e-3 {
+        0.0
+    } else {
+        1.0 - (2.0 * f64::from(z) - 1.0).abs()
+    }
+}
+
+/// The multi-exposure weighted average over any number of frames (Debevec & Malik 1997, Eq. 6,
+/// in the linear domain, with the exposure-time factor of Robertson et al. 2003):
+/// per pixel and channel H = Σ w_i · L_i / t_i / Σ w_i, L_i = v_i^γ, where `frames` hold the
+/// values v_i as written (linear^(1/γ)), `codes` each frame's code values as stored (aligned
+/// and cropped like `frames`), and w_i = [`code_weight`](z_i) · t_i:
+/// - the hat of the frame's OWN code trusts each frame where it recorded mid values, and no
+///   frame for being an input;
+/// - zero at clipped and dark codes: there an estimated response is set by its smoothness
+///   term alone and a JPEG clips channel by channel;
+/// - · t_i: photon noise makes the variance of L_i / t_i fall as 1/t_i, and a short frame's
+///   error near its black floor is multiplied by 1/t_i — without it a frame 7 stops short
+///   pulls dark regions up by its floor.
+///
+/// Where every weight is 0: the shortest frame's L/t when it is clipped there (white is a
+/// lower bound), else the longest frame's that is not clipped.
+pub fn hat_merge(frames: &[Image], codes: &[Image], times: &[f64], gamma: f32) -> Result<Image> {
     let Some(first) = frames.first() else {
         return Err(Error::Invalid("hat merge: no frames".to_string()));
     };
-    if frames.len() != times.len() {
+    if frames.len() != times.len() || frames.len() != codes.len() {
         return Err(Error::Invalid(format!(
-            "hat merge: {} frames but {} exposure times",
+            "hat merge: {} frames, {} code images and {} exposure times",
             frames.len(),
+            codes.len(),
             times.len()
         )));
     }
@@ -361,38 +376,43 @@ pub fn hat_merge(frames: &[Image], times: &[f64], gamma: f32) -> Result<Image> {
         )));
     }
     let (w, h) = (first.width, first.height);
-    if let Some(f) = frames.iter().find(|f| (f.width, f.height) != (w, h)) {
+    if let Some(f) = frames
+        .iter()
+        .chain(codes)
+        .find(|f| (f.width, f.height) != (w, h))
+    {
         return Err(Error::Invalid(format!(
-            "hat merge: frames differ in size ({}×{} and {w}×{h})",
+            "hat merge: images differ in size ({}×{} and {w}×{h})",
             f.width, f.height
         )));
     }
     let g = f64::from(gamma);
-    let shortest = (0..times.len())
-        .min_by(|&a, &b| times[a].total_cmp(&times[b]))
-        .unwrap_or(0);
-    let longest = (0..times.len())
-        .max_by(|&a, &b| times[a].total_cmp(&times[b]))
-        .unwrap_or(0);
+    // Frames from the shortest exposure to the longest.
+    let mut order: Vec<usize> = (0..times.len()).collect();
+    order.sort_by(|&a, &b| times[a].total_cmp(&times[b]));
+    let hdr = |i: usize, k: usize| f64::from(frames[i].data[k]).clamp(0.0, 1.0).powf(g) / times[i];
+    let clipped = |i: usize, k: usize| codes[i].data[k] * 255.0 >= CLIPPED_CODE - 1e-3;
     let data = (0..first.data.len())
         .into_par_iter()
         .map(|k| {
             let (mut num, mut den) = (0.0f64, 0.0f64);
-            for (f, &t) in frames.iter().zip(times) {
-                let v = f64::from(f.data[k]).clamp(0.0, 1.0);
-                let wt = if v < 0.5 { v / 0.5 } else { (1.0 - v) / 0.5 };
-                num += wt * v.powf(g) / t;
+            for i in 0..frames.len() {
+                let wt = code_weight(codes[i].data[k]) * times[i];
+                num += wt * hdr(i, k);
                 den += wt;
             }
             if den > 0.0 {
                 (num / den) as f32
+            } else if clipped(order[0], k) {
+                hdr(order[0], k) as f32
             } else {
-                let i = if frames[shortest].data[k] >= 0.5 {
-                    shortest
-                } else {
-                    longest
-                };
-                (f64::from(frames[i].data[k]).clamp(0.0, 1.0).powf(g) / times[i]) as f32
+                let i = order
+                    .iter()
+                    .rev()
+                    .copied()
+                    .find(|&i| !clipped(i, k))
+                    .unwrap_or(order[0]);
+                hdr(i, k) as f32
             }
         })
         .collect();
@@ -496,11 +516,10 @@ impl BracketSummary {
                 .collect();
             let _ = writeln!(
                 text,
-                "{:<24} inputs {} ({}); reference clipped or dark {:.2} %; ground truth from {} \
+                "{:<24} inputs {}; reference clipped or dark {:.2} %; ground truth from {} \
                  frame(s), {:.1} stops (P0.1–P99.9)",
                 "",
                 names.join(", "),
-                b.selection,
                 100.0 * b.reference_clipped_or_dark,
                 b.ground_truth.len(),
                 b.gt_dynamic_range_stops
@@ -812,14 +831,20 @@ fn build_sets(
             .collect();
         // Each frame: decode → (metering, for the reference) → linear → written code
         // linear^(1/γ) on 16 bits. Only the written codes are kept.
+        // The hat merge weighs each frame by its code values as stored: kept, aligned alike.
+        let hat = gt_idx != idx;
         let inv_g = 1.0 / FIELD_GAMMA;
         let mut codes: Vec<Image> = Vec::with_capacity(gt_idx.len());
+        let mut stored: Vec<Image> = Vec::new();
         let mut reference_bad = 0.0;
         for &i in &gt_idx {
             let f = &set.frames[i];
             let code = code_frame(f)?;
             if i == idx[1] {
                 reference_bad = clipped_or_dark(&code);
+            }
+            if hat {
+                stored.push(code.clone());
             }
             let linear = linearise(f, code, lin);
             codes.push(linear.map(|v| (v.clamp(0.0, 1.0).powf(inv_g) * 65535.0).round() / 65535.0));
@@ -846,6 +871,9 @@ fn build_sets(
                 .map(|c| align::mtb_shift(&codes[ref_pos], c, mtb))
                 .collect();
             codes = align::apply_shifts(&codes, &s);
+            if hat {
+                stored = align::apply_shifts(&stored, &s);
+            }
             if codes[ref_pos].width == 0 || codes[ref_pos].height == 0 {
                 return Err(Error::layout(
                     &reference.path,
@@ -856,7 +884,7 @@ fn build_sets(
         }
         let (w, h) = (codes[ref_pos].width, codes[ref_pos].height);
         let pos = idx.map(|i| gt_idx.iter().position(|&g| g == i).unwrap_or(0));
-        let (hdr, gt_merge) = if gt_idx == idx {
+        let (hdr, gt_merge) = if !hat {
             let times = pos.map(|p| stops[p].exp2() as f32);
             (
                 ground_truth::triangle_merge(&pos.map(|p| codes[p].clone()), times, FIELD_GAMMA)?,
@@ -867,10 +895,11 @@ fn build_sets(
         } else {
             let times: Vec<f64> = stops.iter().map(|s| s.exp2()).collect();
             (
-                hat_merge(&codes, &times, FIELD_GAMMA)?,
+                hat_merge(&codes, &stored, &times, FIELD_GAMMA)?,
                 format!(
-                    "hat-weighted merge of all {} frames (each weighted by its own value, \
-                     w(v) = 1 − |2v − 1|)",
+                    "weighted merge of all {} frames: w = (1 − |2z − 1|) · t per frame and \
+                     channel from its own code z, 0 where z ≤ {DARK_CODE}/255 or ≥ \
+                     {CLIPPED_CODE}/255",
                     gt_idx.len()
                 ),
             )
