@@ -30,6 +30,10 @@ pub struct Args {
     /// calibrated profile.
     #[arg(long)]
     pub target: Option<PathBuf>,
+    /// Also score every network on held-out-simulator renderings of the test scenes (another
+    /// response, Poisson-Gaussian noise, another metering rule): docs/protocol.md.
+    #[arg(long)]
+    pub heldout: bool,
     /// No progress output.
     #[arg(long)]
     pub quiet: bool,
@@ -43,6 +47,7 @@ pub fn run(args: &Args) -> Result<String> {
         radiance: args.radiance.clone(),
         brackets: args.brackets.clone(),
         target: args.target.clone(),
+        heldout: args.heldout,
         progress: !args.quiet,
     })?)
 }

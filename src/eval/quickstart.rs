@@ -20,6 +20,7 @@ use crate::error::{Error, Result};
 use crate::eval::ablate::{self, AblateConfig, Axis, AxisKind, DiffEntry, EvalSpec, TestsetSpec};
 use crate::eval::evaluate::{self, EvalOptions, TriangleMerge};
 use crate::models::{ModelConfig, WuConfig, WuVariant};
+use crate::sensor::metering::Metering;
 use crate::sensor::profile::Response;
 use crate::sensor::profile::SensorProfile;
 use crate::sensor::realism::NoiseModel;
@@ -57,6 +58,9 @@ pub struct Options {
     pub brackets: Option<PathBuf>,
     /// The target device's sensor profile; default the shipped composite phone.
     pub target: Option<PathBuf>,
+    /// Also score every network on the held-out-simulator renderings of the primary scenes
+    /// (docs/protocol.md, full protocol part 1).
+    pub heldout: bool,
     pub progress: bool,
 }
 
@@ -271,6 +275,89 @@ fn data_set(profile: &Path, isos: Option<&[u32]>, extra: &[(&str, toml::Value)])
 
 /// The reference row of the primary comparison.
 const REFERENCE: &str = "net_r";
+
+/// The held-out simulators: the primary scenes rendered through variants of the target model
+/// that are not the training simulator (docs/protocol.md, full protocol part 1): (name, label,
+/// the profile's response replaced, noise model, metering).
+struct Heldout {
+    name: &'static str,
+    label: &'static str,
+    response: Option<Response>,
+    noise: NoiseModel,
+    metering: Option<Metering>,
+}
+
+const HELDOUT: [Heldout; 4] = [
+    Heldout {
+        name: "heldout_gamma22",
+        label: "held-out simulator: the target's response replaced by γ 2.2",
+        response: Some(Response::Gamma { gamma: 2.2 }),
+        noise: NoiseModel::Gaussian,
+        metering: None,
+    },
+    Heldout {
+        name: "heldout_filmic",
+        label: "held-out simulator: the target's response replaced by the filmic curve",
+        response: Some(Response::Filmic),
+        noise: NoiseModel::Gaussian,
+        metering: None,
+    },
+    Heldout {
+        name: "heldout_poisson",
+        label: "held-out simulator: Poisson shot noise plus Gaussian read noise",
+        response: None,
+        noise: NoiseModel::PoissonGaussian,
+        metering: None,
+    },
+    Heldout {
+        name: "heldout_metering",
+        label: "held-out simulator: another metering rule (mid grey 0.18, 5 % clipped)",
+        response: None,
+        noise: NoiseModel::Gaussian,
+        metering: Some(Metering {
+            mid_grey: 0.18,
+            max_clipped: 0.05,
+        }),
+    },
+];
+
+/// The held-out test sets' specs, writing each variant's profile beside the target's.
+fn heldout_testsets(
+    out: &Path,
+    scenes: &Path,
+    target: &SensorProfile,
+    sensors: &Path,
+) -> Result<Vec<TestsetSpec>> {
+    HELDOUT
+        .iter()
+        .map(|h| {
+            let mut profile = target.clone();
+            if let Some(r) = &h.response {
+                profile.response = r.clone();
+            }
+            let path = sensors.join(format!("{}.toml", h.name));
+            write_config(&path, &profile)?;
+            let mut options = crate::data::testset::TestsetOptions {
+                isos: isos(&TARGET_ISOS),
+                evs: vec![-2.0, 0.0, 2.0],
+                noise: h.noise,
+                ..Default::default()
+            };
+            if let Some(m) = h.metering {
+                options.metering = m;
+            }
+            Ok(TestsetSpec {
+                name: Some(h.name.into()),
+                label: Some(h.label.into()),
+                dir: out.join(format!("data/testset_{}", h.name)),
+                radiance: Some(scenes.to_path_buf()),
+                profile: Some(path),
+                options,
+                noise_per_seed: false,
+            })
+        })
+        .collect()
+}
 
 /// Where the test sets come from.
 struct TestSources {
@@ -729,6 +816,11 @@ pub fn run(opts: &Options) -> Result<String> {
         real_radiance: real_radiance.as_ref().ok().cloned(),
         real_capture: real_capture_dir.as_ref().ok().cloned(),
     };
+    let heldout = if opts.heldout {
+        heldout_testsets(out, &sources.scenes, &target_profile, &sensors)?
+    } else {
+        Vec::new()
+    };
     let base_path = configs.join("finetune.toml");
     write_config(
         &base_path,
@@ -748,10 +840,9 @@ pub fn run(opts: &Options) -> Result<String> {
         ),
     )?;
     let exp_path = configs.join("experiment.toml");
-    write_config(
-        &exp_path,
-        &experiment_config(&s, out, &base_path, &sources, &target),
-    )?;
+    let mut exp_cfg = experiment_config(&s, out, &base_path, &sources, &target);
+    exp_cfg.also.extend(heldout);
+    write_config(&exp_path, &exp_cfg)?;
 
     stage(
         progress,
@@ -824,7 +915,12 @@ pub fn run(opts: &Options) -> Result<String> {
         }
     }
     let seeds_mean = |t: &ablate::Table, row: &str| t.entry(row, "psnr_t").map(|e| e.mean);
-    for (t, what) in tables.iter().skip(1).map(|t| {
+    let descriptive = tables.iter().skip(1).filter(|t| {
+        !t.testset
+            .as_deref()
+            .is_some_and(|n| n.starts_with("heldout_"))
+    });
+    for (t, what) in descriptive.map(|t| {
         (
             t,
             match t.testset.as_deref() {
@@ -844,6 +940,47 @@ pub fn run(opts: &Options) -> Result<String> {
             "- Descriptive, {what} (PSNR-T, mean over seeds; too few scenes for a test): {}.",
             cells.join(", ")
         );
+    }
+    let matrix: Vec<&ablate::Table> = std::iter::once(primary)
+        .chain(tables.iter().filter(|t| {
+            t.testset
+                .as_deref()
+                .is_some_and(|n| n.starts_with("heldout_"))
+        }))
+        .collect();
+    if matrix.len() > 1 {
+        let _ = write!(
+            report,
+            "\n### Held-out-simulator matrix (PSNR-T, mean over seeds; last column Net_S − Net_R)\n\n\
+             | test rendering |"
+        );
+        for r in &exp.rows {
+            let _ = write!(report, " {} |", r.name);
+        }
+        let _ = write!(report, " Net_S − Net_R |\n|---|");
+        for _ in 0..=exp.rows.len() {
+            let _ = write!(report, "---|");
+        }
+        report.push('\n');
+        for t in matrix {
+            let _ = write!(
+                report,
+                "| {} |",
+                t.testset
+                    .as_deref()
+                    .unwrap_or("primary (the training simulator)")
+            );
+            for r in &exp.rows {
+                let v = seeds_mean(t, &r.name).map_or("–".into(), |v| format!("{v:.2}"));
+                let _ = write!(report, " {v} |");
+            }
+            let d = t
+                .entry("net_s", "psnr_t")
+                .and_then(|e| e.diff.as_ref())
+                .map_or("–".into(), describe_diff);
+            let _ = writeln!(report, " {d} |");
+        }
+        report.push('\n');
     }
     if let Err(why) = &real_radiance {
         let _ = writeln!(report, "- No real-radiance table: {why}.");
@@ -955,6 +1092,48 @@ mod tests {
             let also: Vec<_> = exp.also.iter().filter_map(|t| t.name.as_deref()).collect();
             assert_eq!(also, ["real_radiance", "real_capture"]);
         }
+    }
+
+    /// Each held-out rendering differs from the target model in one part only.
+    #[test]
+    fn each_heldout_simulator_changes_one_part_of_the_target_model() {
+        let tmp = tempfile::tempdir().expect("tmp");
+        let (_, _, target) = target_profile(None).expect("target");
+        let specs = heldout_testsets(tmp.path(), Path::new("/scenes"), &target, tmp.path())
+            .expect("heldout");
+        let base = crate::data::testset::TestsetOptions {
+            isos: isos(&TARGET_ISOS),
+            evs: vec![-2.0, 0.0, 2.0],
+            ..Default::default()
+        };
+        let mut changed = Vec::new();
+        for t in &specs {
+            let p = SensorProfile::load(t.profile.as_ref().expect("profile")).expect("load");
+            let mut what = Vec::new();
+            if p.response != target.response {
+                what.push(format!("{:?}", p.response));
+            }
+            if p.colour != target.colour || p.noise != target.noise || p.levels != target.levels {
+                what.push("colour/noise/levels".into());
+            }
+            if t.options.noise != base.noise {
+                what.push(format!("{:?}", t.options.noise));
+            }
+            if t.options.metering != base.metering {
+                what.push("metering".into());
+            }
+            assert_eq!(t.options.isos, base.isos);
+            changed.push(what.join(" + "));
+        }
+        assert_eq!(
+            changed,
+            [
+                "Gamma { gamma: 2.2 }",
+                "Filmic",
+                "PoissonGaussian",
+                "metering"
+            ]
+        );
     }
 
     fn diff(mean: f64, lo: f64, hi: f64, wilcoxon: f64, tost: f64, signs: usize) -> DiffEntry {
