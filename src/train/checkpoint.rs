@@ -242,22 +242,22 @@ pub fn model_from_bytes<M: Module>(model: M, bytes: Vec<u8>, path: &Path) -> Res
     // float parameter is (found by tests/fuzz.rs: one byte "F32" → "U32" in the header), and
     // the record's dtypes are not public to check first; a crafted checkpoint must give an
     // error naming the file, not take the process down.
-    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+    without_panic(path, "the record does not fit the model", || {
         model.try_load_record(record)
-    })) {
-        Ok(loaded) => loaded.map_err(|e| Error::decode(path, e)),
-        Err(panic) => {
-            let why = panic
-                .downcast_ref::<String>()
-                .map(String::as_str)
-                .or_else(|| panic.downcast_ref::<&str>().copied())
-                .unwrap_or("unknown");
-            Err(Error::decode(
-                path,
-                format!("corrupt checkpoint: the record does not fit the model ({why})"),
-            ))
-        }
-    }
+    })?
+    .map_err(|e| Error::decode(path, e))
+}
+
+/// `f()`, a Burn record load, with a panic inside it turned into an error naming `path`.
+fn without_panic<T>(path: &Path, what: &str, f: impl FnOnce() -> T) -> Result<T> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)).map_err(|panic| {
+        let why = panic
+            .downcast_ref::<String>()
+            .map(String::as_str)
+            .or_else(|| panic.downcast_ref::<&str>().copied())
+            .unwrap_or("unknown");
+        Error::decode(path, format!("corrupt checkpoint: {what} ({why})"))
+    })
 }
 
 /// The bytes [`save`] writes to `model.bpk` (`path` names it in errors): the same weights
@@ -366,9 +366,21 @@ pub fn canonical_optimizer(bytes: burn::tensor::Bytes, path: &Path) -> Result<Ve
 
 /// Restore the optimizer state saved with the checkpoint.
 pub fn load_optimizer(optim: ModuleOptimizer, dir: &Path) -> Result<ModuleOptimizer> {
-    let path = dir.join(OPTIMIZER_FILE);
-    let bytes = Bytes::from_bytes_vec(read_verified(dir, OPTIMIZER_FILE)?);
-    optim.from_bytes(bytes).map_err(|e| Error::decode(&path, e))
+    let bytes = read_verified(dir, OPTIMIZER_FILE)?;
+    optimizer_from_bytes(optim, bytes, &dir.join(OPTIMIZER_FILE))
+}
+
+/// [`load_optimizer`] of an `optimizer.bpk` held in memory (`path` names it in errors).
+pub fn optimizer_from_bytes(
+    optim: ModuleOptimizer,
+    bytes: Vec<u8>,
+    path: &Path,
+) -> Result<ModuleOptimizer> {
+    // Burn 0.22's `load_record` panics on a state tensor without a parameter id.
+    without_panic(path, "not an optimizer state", || {
+        optim.from_bytes(Bytes::from_bytes_vec(bytes))
+    })?
+    .map_err(|e| Error::decode(path, e))
 }
 
 /// Lower-case hex SHA-256 of `bytes`.
