@@ -956,3 +956,32 @@ fn fuzz_checkpoint_files_against_their_checksums() {
         }
     });
 }
+
+/// Found by `fuzz_checkpoint_optimizer_record`: Burn 0.22 panics on an optimizer state tensor
+/// without a parameter id ("Optimizer record tensors should carry a parameter id") and on a
+/// state of rank 17; either must be an error naming the file.
+#[test]
+fn an_optimizer_state_without_a_parameter_id_is_an_error() {
+    use burn::optim::AdamConfig;
+    use hdrsynth::train::checkpoint::optimizer_from_bytes;
+    let t = burn_pack::Tensor::new(
+        "1.momentum.moment_1".into(),
+        burn::tensor::DType::F32,
+        [2usize],
+        None,
+        burn::tensor::Bytes::from_bytes_vec(vec![0u8; 8]),
+    );
+    let bytes = burn_pack::Writer::new(vec![t])
+        .into_bytes()
+        .unwrap()
+        .to_vec();
+    let path = Path::new("run/step-00000001/optimizer.bpk");
+    let e = optimizer_from_bytes(AdamConfig::new().init(), bytes, path)
+        .map(|_| ())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("optimizer.bpk") && e.contains("corrupt checkpoint"),
+        "{e}"
+    );
+}
