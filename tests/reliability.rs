@@ -1787,6 +1787,26 @@ fn type_errors_in_configs_name_the_key() {
     .unwrap_err()
     .to_string();
     assert!(e.contains("g.toml:2") && e.contains("'count'"), "{e}");
+    // A 2×2 colour matrix in a profile, `seeds = "1"` in an ablation config.
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs");
+    let profile = std::fs::read_to_string(root.join("sensors/canon_eos_550d.toml")).unwrap();
+    let line = profile
+        .lines()
+        .find(|l| l.starts_with("matrix = "))
+        .unwrap();
+    let text = profile.replace(line, "matrix = [[1.0, 0.0], [0.0, 1.0]]");
+    let e = parse_toml::<SensorProfile>(&text, Path::new("p.toml"))
+        .map(|_| ())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("p.toml:") && e.contains("'colour.matrix"), "{e}");
+    let ablate = std::fs::read_to_string(root.join("experiments/exp1_network1.toml")).unwrap();
+    let text = ablate.replace("seeds = [1, 2, 3]", "seeds = \"1\"");
+    let e = hdrsynth::eval::ablate::AblateConfig::parse(&text, Path::new("a.toml"))
+        .map(|_| ())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("a.toml:") && e.contains("'seeds'"), "{e}");
 }
 
 // ---------------------------------------------------------------------------------------------
