@@ -80,7 +80,8 @@ fn table(path: &Path) -> BTreeMap<(String, String, String), (f64, Option<f64>)> 
         lines.next(),
         Some(
             "row,column,metric,n,mean,ci_lo,ci_hi,diff_vs_reference,diff_ci_lo,diff_ci_hi,\
-             n_seeds,n_scenes,seeds_positive,diff_n_seeds"
+             n_seeds,n_scenes,seeds_positive,diff_n_seeds,diff_t_lo,diff_t_hi,diff_t_p,\
+             diff_wilcoxon_p,diff_tost_margin,diff_tost_p"
         )
     );
     lines
@@ -537,6 +538,161 @@ fn seeds_are_paired_counted_and_written_per_seed() {
             &[("row", "net_o"), ("seed", seed), ("metric", "psnr_t")],
         );
         assert_eq!(num(r, "mean"), 25.0, "Net_O serves every seed");
+    }
+}
+
+/// With ≥ 10 scenes the Δ gets the paired tests over scenes, each scene's Δ the mean over the
+/// seeds; with fewer, means only (no interval, no test, no "*").
+#[test]
+fn paired_tests_use_the_scene_means_over_seeds_and_need_ten_scenes() {
+    let rows = "[[rows]]\nname = \"a\"\n[[rows]]\nname = \"b\"\n";
+    let tmp = tempfile::tempdir().expect("tmp");
+    let cfg = grid_config(tmp.path(), "seeds = [1, 2]", rows);
+    // 12 scenes at two ISOs. b − a on scene j is (j − 5.5) + 1 in seed 1 and (j − 5.5) + 1 ± 0.25
+    // in seed 2 by ISO, so the scene means over ISOs and seeds are d_j = j − 4.5.
+    for seed in [1u64, 2] {
+        let (mut a, mut b) = (Vec::new(), Vec::new());
+        let names: Vec<(String, String)> = (0..12)
+            .map(|j| (format!("s{j:02}_iso100"), format!("s{j:02}_iso800")))
+            .collect();
+        for (j, (lo, hi)) in names.iter().enumerate() {
+            let d = j as f64 - 4.5;
+            let wobble = if seed == 2 { 0.25 } else { 0.0 };
+            a.push((lo.as_str(), 20.0 + j as f64));
+            a.push((hi.as_str(), 18.0 + j as f64));
+            b.push((lo.as_str(), 20.0 + j as f64 + d + wobble));
+            b.push((hi.as_str(), 18.0 + j as f64 + d - wobble));
+        }
+        write_scores(&cfg.unit_dir(0, None, Some(seed)).join("eval"), &a);
+        write_scores(&cfg.unit_dir(1, None, Some(seed)).join("eval"), &b);
+    }
+    let md = ablate::write_table(&cfg).expect("table");
+    let t = csv_rows(&tmp.path().join("grid/table.csv"));
+    let b = find_row(&t, &[("row", "b"), ("metric", "psnr_t")]);
+    assert_eq!(b["n_scenes"], "12");
+    // Hand-computed: mean 1, sd √13 (Σ (j − 5.5)² = 143 over 11), se √13 / √12, and Student's
+    // t quantile t_{0.975, 11} = 2.200985160082949.
+    let se = 13f64.sqrt() / 12f64.sqrt();
+    let q = 2.200985160082949;
+    assert!((num(b, "diff_vs_reference") - 1.0).abs() < 1e-12);
+    assert!((num(b, "diff_t_lo") - (1.0 - q * se)).abs() < 1e-9, "{b:?}");
+    assert!((num(b, "diff_t_hi") - (1.0 + q * se)).abs() < 1e-9, "{b:?}");
+    assert_eq!(num(b, "diff_tost_margin"), 0.2);
+    let p = num(b, "diff_wilcoxon_p");
+    assert!(p > 0.05 && p < 1.0, "{p}");
+    assert!(md.contains("Wilcoxon"), "{md}");
+
+    // Three scenes: means only.
+    let tmp = tempfile::tempdir().expect("tmp");
+    let cfg = grid_config(
+        tmp.path(),
+        "",
+        "[[rows]]\nname = \"a\"\ntrain = false\n[[rows]]\nname = \"b\"\ntrain = false\n",
+    );
+    write_scores(
+        &cfg.cell_dir(0, None).join("eval"),
+        &[("x_iso100", 1.0), ("y_iso100", 2.0), ("z_iso100", 3.0)],
+    );
+    write_scores(
+        &cfg.cell_dir(1, None).join("eval"),
+        &[("x_iso100", 5.0), ("y_iso100", 6.0), ("z_iso100", 8.0)],
+    );
+    let md = ablate::write_table(&cfg).expect("table");
+    let t = csv_rows(&tmp.path().join("grid/table.csv"));
+    let b = find_row(&t, &[("row", "b"), ("metric", "psnr_t")]);
+    assert_eq!(
+        (b["diff_t_lo"].as_str(), b["diff_wilcoxon_p"].as_str()),
+        ("", "")
+    );
+    assert!(
+        md.contains("means only") && md.contains("| b | +4.33 |"),
+        "{md}"
+    );
+    assert!(
+        md.contains("| b | 6.33 |"),
+        "a mean without an interval:\n{md}"
+    );
+}
+
+/// Per-seed pretraining replaces the base's `[init]` per seed and makes cells that do not train
+/// run per seed; per-seed test noise gives each seed its own test set folder; an `also` test set
+/// gets its own eval folder and table.
+#[test]
+fn per_seed_pretraining_and_test_noise_resolve_per_seed() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let root = tmp.path();
+    let base = root.join("base.toml");
+    std::fs::write(
+        &base,
+        train_toml(
+            Path::new("unused"),
+            &root.join("data"),
+            2,
+            Some(Path::new("/pre/one")),
+        ),
+    )
+    .expect("base");
+    let canon = SensorProfile::shipped_dir().join("canon_eos_550d.toml");
+    let path = root.join("grid.toml");
+    let text = format!(
+        "title = \"t\"\nout = {:?}\nbase = {base:?}\nseeds = [1, 2]\n\
+         pretrained_per_seed = \"/pre/seed{{seed}}\"\n\
+         [testset]\ndir = \"ts\"\nradiance = \"rad\"\nprofile = {canon:?}\nnoise_per_seed = true\n\
+         [[also]]\nname = \"real\"\ndir = \"real_ts\"\n\
+         [[rows]]\nname = \"net_o\"\ntrain = false\n[[rows]]\nname = \"net_s\"\n",
+        root.join("grid")
+    );
+    std::fs::write(&path, &text).expect("grid");
+    let cfg = AblateConfig::load(&path).expect("config");
+    assert_eq!(
+        cfg.cell_seeds(0, None),
+        [Some(1), Some(2)],
+        "Net_O per seed"
+    );
+    let inits: Vec<String> = ablate::train_configs(&cfg, &path)
+        .expect("plans")
+        .iter()
+        .map(|c| {
+            c.init
+                .as_ref()
+                .and_then(|i| i.checkpoint.clone())
+                .expect("init")
+                .display()
+                .to_string()
+        })
+        .collect();
+    assert_eq!(inits, ["/pre/seed1", "/pre/seed2"]);
+    assert_eq!(cfg.testset.dir_for(Some(2)), Path::new("ts/seed2"));
+    assert_eq!(cfg.also[0].dir_for(Some(2)), Path::new("real_ts"));
+
+    // The `also` table reads eval_real/.
+    for seed in [1u64, 2] {
+        for (r, v) in [(0, 10.0), (1, 12.0)] {
+            write_scores(
+                &cfg.unit_dir(r, None, Some(seed)).join("eval_real"),
+                &[("room", v + seed as f64)],
+            );
+        }
+    }
+    let md = ablate::write_table(&cfg).expect("tables");
+    let t = csv_rows(&root.join("grid/table_real.csv"));
+    let s = find_row(&t, &[("row", "net_s"), ("metric", "psnr_t")]);
+    assert_eq!((num(s, "mean"), num(s, "diff_vs_reference")), (13.5, 2.0));
+    assert!(md.contains("— real"), "{md}");
+
+    // Refused: per-seed noise without radiance, per-seed pretraining without {seed}, an `also`
+    // without a name.
+    for (bad, what) in [
+        (
+            text.replace(&format!("radiance = \"rad\"\nprofile = {canon:?}\n"), ""),
+            "noise_per_seed",
+        ),
+        (text.replace("seed{seed}", "fixed"), "pretrained_per_seed"),
+        (text.replace("name = \"real\"\n", ""), "name"),
+    ] {
+        std::fs::write(&path, &bad).expect("bad");
+        let msg = AblateConfig::load(&path).expect_err(what).to_string();
+        assert!(msg.contains(what), "{what}: {msg}");
     }
 }
 

@@ -27,6 +27,8 @@ struct Tags {
     subsec: Option<String>,
     /// TIFF/EXIF Orientation (tag 274, IFD0).
     orientation: Option<u16>,
+    /// ShutterSpeedValue, APEX Tv (SRATIONAL).
+    shutter_apex: Option<(i32, i32)>,
 }
 
 /// One IFD entry: tag, TIFF type, count, value bytes (little-endian).
@@ -77,6 +79,9 @@ fn exif_app1(t: &Tags) -> Vec<u8> {
         let mut b = s.as_bytes().to_vec();
         b.push(0);
         exif.push((0x9003, 2, b.len() as u32, b));
+    }
+    if let Some((n, d)) = t.shutter_apex {
+        exif.push((0x9201, 10, 1, [n.to_le_bytes(), d.to_le_bytes()].concat()));
     }
     if let Some((n, d)) = t.bias {
         exif.push((0x9204, 10, 1, [n.to_le_bytes(), d.to_le_bytes()].concat()));
@@ -388,6 +393,7 @@ fn a_corrupt_jpeg_is_an_error_naming_it_not_a_panic() {
         scan: ScanOptions::default(),
         response: ResponseChoice::Declared(Response::Srgb),
         align: None,
+        ..BracketOptions::default()
     };
     let beside = tempfile::tempdir().expect("tmp"); // outputs inside the input are refused
     let err = bracket_testset::build(tmp.path(), &opts, &beside.path().join("out"))
@@ -436,6 +442,7 @@ fn the_ground_truth_is_the_triangle_merge_of_the_written_frames() {
         scan: ScanOptions::default(),
         response: ResponseChoice::Declared(Response::Srgb),
         align: None,
+        ..BracketOptions::default()
     };
     // An output inside the bracket folder is refused before anything is written (a rerun
     // would scan its Kalantari sets as brackets; issue 16 item 3).
@@ -553,6 +560,7 @@ fn the_bracket_test_set_reads_as_kalantari_and_eval_scores_it() {
         scan: ScanOptions::default(),
         response: ResponseChoice::Declared(Response::Srgb),
         align: None,
+        ..BracketOptions::default()
     };
     bracket_testset::build(tmp.path(), &opts, &out).expect("build");
     let info = layout::detect(&out).expect("detect");
@@ -984,6 +992,7 @@ fn dng_brackets_are_linear_raw_with_exif_exposures() {
         // Ignored for DNG frames: they are linear.
         response: ResponseChoice::Declared(Response::Srgb),
         align: None,
+        ..BracketOptions::default()
     };
     let beside = tempfile::tempdir().expect("tmp"); // outputs inside the input are refused
     let built =
@@ -1051,6 +1060,7 @@ fn hand_held_sets_are_aligned_by_mtb_and_cropped() {
             max_bits: 4,
             exclude: 4,
         }),
+        ..BracketOptions::default()
     };
     let beside = tempfile::tempdir().expect("tmp"); // outputs inside the input are refused
     let built =
@@ -1062,6 +1072,70 @@ fn hand_held_sets_are_aligned_by_mtb_and_cropped() {
     assert_eq!((b.width, b.height), (157, 125));
     let (tw, th, _) = read_u16_tiff(&beside.path().join("out/handheld/frame_1.tif"));
     assert_eq!((tw, th), (157, 125));
+}
+
+#[test]
+fn hand_held_ground_truth_from_all_frames_aligns_and_crops_every_frame() {
+    use hdrsynth::data::align::MtbOptions;
+    let tmp = tempfile::tempdir().expect("tmp");
+    let d = tmp.path().join("handheld4");
+    std::fs::create_dir_all(&d).expect("mkdir");
+    let (w, h) = (160usize, 128usize);
+    let scene = |x: i64, y: i64| -> f64 {
+        let (bx, by) = (x.div_euclid(8), y.div_euclid(8));
+        let k = (bx * 73_856_093) ^ (by * 19_349_663);
+        (-6.0 + 6.0 * (k.rem_euclid(1000)) as f64 / 1000.0).exp2()
+    };
+    // Four frames, 2 stops apart; the inputs are the last three, the first (shortest) frame
+    // moved 3 px left and 2 px down and enters only the ground truth.
+    for (name, t, (dx, dy)) in [
+        ("a.jpg", 0.0625, (-3i64, 2i64)),
+        ("s.jpg", 0.25, (-1, 2)),
+        ("m.jpg", 1.0, (0, 0)),
+        ("l.jpg", 4.0, (2, -1)),
+    ] {
+        let mut rgb = Vec::with_capacity(w * h * 3);
+        for y in 0..h as i64 {
+            for x in 0..w as i64 {
+                let v = (srgb(scene(x - dx, y - dy) * t * 4.0) * 255.0).round() as u8;
+                rgb.extend([v, v, v]);
+            }
+        }
+        write_jpeg(&d.join(name), w as u32, h as u32, &rgb, None);
+    }
+    std::fs::write(
+        d.join("list.txt"),
+        "a.jpg 16\ns.jpg 4\nm.jpg 1\nl.jpg 0.25\n",
+    )
+    .expect("list");
+    let opts = BracketOptions {
+        align: Some(MtbOptions {
+            max_bits: 4,
+            exclude: 4,
+        }),
+        ..srgb_opts(InputChoice::Indices([1, 2, 3]), GtFrames::All)
+    };
+    let beside = tempfile::tempdir().expect("tmp");
+    let built =
+        bracket_testset::build(tmp.path(), &opts, &beside.path().join("out")).expect("build");
+    let b = &built.sets[0];
+    // The inputs' shifts as with three frames; the extra frame's undoes its motion too.
+    assert_eq!(b.shifts, vec![[1, -2], [0, 0], [-2, 1]]);
+    let gt_shifts: Vec<Option<[i32; 2]>> = b.ground_truth.iter().map(|g| g.shift).collect();
+    assert_eq!(
+        gt_shifts,
+        vec![Some([3, -2]), Some([1, -2]), Some([0, 0]), Some([-2, 1])]
+    );
+    // Common region of all four: x from 3 to 158, y from 1 to 126 (hand-computed).
+    assert_eq!((b.width, b.height), (155, 125));
+    let (tw, th, _) = read_u16_tiff(&beside.path().join("out/handheld4/frame_1.tif"));
+    assert_eq!((tw, th), (155, 125));
+    let gt = read_rgbe(&beside.path().join("out/handheld4/HDRImg.hdr"));
+    assert_eq!(gt.len(), 155 * 125 * 3);
+    assert_eq!(
+        exposure_txt(&beside.path().join("out/handheld4")),
+        "0\n2\n4\n"
+    );
 }
 
 #[test]
@@ -1452,6 +1526,7 @@ fn testset_with_robertson_records_the_estimator_and_writes_its_curve() {
         scan: ScanOptions::default(),
         response: ResponseChoice::Robertson(RobertsonOptions::default()),
         align: None,
+        ..BracketOptions::default()
     };
     let beside = tempfile::tempdir().expect("tmp"); // outputs inside the input are refused
     let out = beside.path().join("out");
@@ -1470,4 +1545,595 @@ fn testset_with_robertson_records_the_estimator_and_writes_its_curve() {
         assert!((rows[128][c] - 1.0).abs() < 1e-12, "{:?}", rows[128]);
     }
     assert!(!out.join("crf_debevec.csv").exists());
+}
+
+// ---------------------------------------------------------------------------------------------
+// Choosing the inputs (`--inputs`) and the ground truth's frames (`--gt-frames`). The truth is
+// this test's own camera: a known radiance, exposure = radiance · 2^stop clipped at 1, encoded
+// by hand (IEC 61966-2-1 sRGB, 8 bits).
+
+use hdrsynth::data::bracket_testset::{GtFrames, InputChoice};
+
+/// A bracket of 8-bit sRGB PNGs `f0.png`, `f1.png`, … (ascending exposure) of the linear
+/// `scene` at `stops`, with Kalantari's exposure.txt sidecar (log2 stops in file-name order).
+fn png_bracket(dir: &Path, w: usize, h: usize, scene: &dyn Fn(usize, usize) -> f64, stops: &[f64]) {
+    std::fs::create_dir_all(dir).expect("mkdir");
+    for (i, s) in stops.iter().enumerate() {
+        let mut img = image::RgbImage::new(w as u32, h as u32);
+        for y in 0..h {
+            for x in 0..w {
+                let v = (srgb(scene(x, y) * s.exp2()) * 255.0).round() as u8;
+                img.put_pixel(x as u32, y as u32, image::Rgb([v, v, v]));
+            }
+        }
+        img.save(dir.join(format!("f{i}.png"))).expect("png");
+    }
+    let text: String = stops.iter().map(|s| format!("{s}\n")).collect();
+    std::fs::write(dir.join("exposure.txt"), text).expect("exposure.txt");
+}
+
+fn srgb_opts(inputs: InputChoice, gt_frames: GtFrames) -> BracketOptions {
+    BracketOptions {
+        response: ResponseChoice::Declared(Response::Srgb),
+        inputs,
+        gt_frames,
+        ..BracketOptions::default()
+    }
+}
+
+fn exposure_txt(set: &Path) -> String {
+    std::fs::read_to_string(set.join("exposure.txt")).expect("exposure.txt")
+}
+
+fn file_names(paths: &[PathBuf]) -> Vec<String> {
+    paths
+        .iter()
+        .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
+        .collect()
+}
+
+#[test]
+fn the_default_options_keep_the_shortest_middle_and_longest_and_their_merge() {
+    let o = BracketOptions::default();
+    assert_eq!(o.inputs, InputChoice::Spread);
+    assert_eq!(o.gt_frames, GtFrames::Inputs);
+    assert_eq!(o.align, None);
+    assert_eq!("auto".parse::<InputChoice>(), Ok(InputChoice::Auto));
+    assert_eq!(
+        " 1, 2 ,3".parse::<InputChoice>(),
+        Ok(InputChoice::Indices([1, 2, 3]))
+    );
+    for bad in ["1,2", "1,2,3,4", "a,b,c", "-1,0,1", ""] {
+        let e = bad.parse::<InputChoice>().expect_err(bad);
+        assert!(e.contains("I,J,K"), "{bad}: {e}");
+    }
+    assert_eq!("all".parse::<GtFrames>(), Ok(GtFrames::All));
+    assert_eq!("inputs".parse::<GtFrames>(), Ok(GtFrames::Inputs));
+    assert!("every".parse::<GtFrames>().is_err());
+}
+
+#[test]
+fn inputs_by_index_write_those_frames_with_their_exif_stops() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let d = tmp.path().join("six");
+    std::fs::create_dir_all(&d).expect("mkdir");
+    // Six frames, 1/4000 … 1/2 s (ExposureTime only: the times as written).
+    let dens = [4000u32, 1000, 125, 30, 8, 2];
+    for (i, den) in dens.iter().enumerate() {
+        let t = tags((1, *den), 100, "2026:11:24 10:00:00", &format!("{i}"));
+        bracket_jpeg(&d.join(format!("IMG_{i}.jpg")), 1.0 / *den as f64, Some(&t));
+    }
+    let beside = tempfile::tempdir().expect("tmp");
+    let out = beside.path().join("out");
+    let opts = srgb_opts(InputChoice::Indices([1, 2, 3]), GtFrames::Inputs);
+    let built = bracket_testset::build(tmp.path(), &opts, &out).expect("build");
+    let b = &built.sets[0];
+    assert_eq!(b.inputs, vec![1, 2, 3]);
+    let sources: Vec<PathBuf> = b.frames.iter().map(|f| f.source.clone()).collect();
+    assert_eq!(
+        file_names(&sources),
+        ["IMG_1.jpg", "IMG_2.jpg", "IMG_3.jpg"]
+    );
+    // 1/1000 → 1/125 is 3 stops, 1/125 → 1/30 is log2(125/30) = 2.058894 (6 decimals).
+    assert_eq!(exposure_txt(&out.join("six")), "0\n3\n5.058894\n");
+    assert_eq!(
+        file_names(&b.dropped),
+        ["IMG_0.jpg", "IMG_4.jpg", "IMG_5.jpg"]
+    );
+    assert_eq!(b.ground_truth.len(), 3);
+    // The written frames are those JPEGs, linearised by hand and re-encoded as L^(1/2.2).
+    let srgb_decode = |v: f64| {
+        if v <= 0.04045 {
+            v / 12.92
+        } else {
+            ((v + 0.055) / 1.055).powf(2.4)
+        }
+    };
+    for (name, src) in ["frame_1.tif", "frame_2.tif", "frame_3.tif"].iter().zip([
+        "IMG_1.jpg",
+        "IMG_2.jpg",
+        "IMG_3.jpg",
+    ]) {
+        let (_, _, got) = read_u16_tiff(&out.join("six").join(name));
+        let jpeg = image::open(d.join(src)).expect("jpeg").to_rgb8().into_raw();
+        for (g, c) in got.iter().zip(jpeg) {
+            let want = srgb_decode(c as f64 / 255.0).powf(1.0 / 2.2);
+            assert!(
+                (g - want).abs() <= 1.0 / 65535.0 + 1e-9,
+                "{name}: {g} vs {want}"
+            );
+        }
+    }
+    // brackets.toml records the inputs and the ground truth's frames.
+    let rec = std::fs::read_to_string(out.join("six/brackets.toml")).expect("record");
+    assert!(
+        rec.contains("inputs = [\n    1,\n    2,\n    3,\n]") || rec.contains("inputs = [1, 2, 3]"),
+        "{rec}"
+    );
+    assert!(rec.contains("[[ground_truth]]"), "{rec}");
+}
+
+#[test]
+fn shutter_speed_value_gives_the_exact_time_behind_a_marked_label() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    // A camera: labels 1/125, 1/30, 1/8 for 2^−7, 2^−5, 2^−3 s (Tv 7, 5, 3).
+    let cam = tmp.path().join("camera");
+    // A phone: measured times 1/121 and 1/30 s, its Tv computed from them.
+    let phone = tmp.path().join("phone");
+    // A label whose Tv is 2 stops away: not the same time, the label is kept.
+    let odd = tmp.path().join("odd");
+    for d in [&cam, &phone, &odd] {
+        std::fs::create_dir_all(d).expect("mkdir");
+    }
+    for (i, (den, tv)) in [(125u32, 7), (30, 5), (8, 3)].iter().enumerate() {
+        let mut t = tags((1, *den), 100, "2026:11:24 10:00:00", &format!("{i}"));
+        t.shutter_apex = Some((*tv, 1));
+        bracket_jpeg(&cam.join(format!("c{i}.jpg")), 1.0 / *den as f64, Some(&t));
+        let mut t = tags((1, *den), 100, "2026:11:24 10:00:00", &format!("{i}"));
+        t.shutter_apex = Some((if i == 0 { 9 } else { *tv }, 1));
+        bracket_jpeg(&odd.join(format!("o{i}.jpg")), 1.0 / *den as f64, Some(&t));
+    }
+    // log2(121) = 6.918863 → Tv 6918863/1000000; log2(30) = 4.906891.
+    for (i, (den, tv)) in [(121u32, 6_918_863), (30, 4_906_891)].iter().enumerate() {
+        let mut t = tags((1, *den), 100, "2026:11:24 10:00:00", &format!("{i}"));
+        t.shutter_apex = Some((*tv, 1_000_000));
+        bracket_jpeg(
+            &phone.join(format!("p{i}.jpg")),
+            1.0 / *den as f64,
+            Some(&t),
+        );
+    }
+    let s = scan(tmp.path());
+    let by_name = |n: &str| s.sets.iter().find(|x| x.name == n).expect(n);
+    assert_close(&stops_rel(by_name("camera")), &[0.0, 2.0, 4.0], 1e-12);
+    assert!(
+        by_name("camera")
+            .exposure_source
+            .contains("ShutterSpeedValue"),
+        "{}",
+        by_name("camera").exposure_source
+    );
+    // 1/121 is no marked label: the measured times stand, log2(121/30) = 2.011972.
+    assert_close(
+        &stops_rel(by_name("phone")),
+        &[0.0, (121.0f64 / 30.0).log2()],
+        1e-12,
+    );
+    assert!(
+        !by_name("phone")
+            .exposure_source
+            .contains("ShutterSpeedValue")
+    );
+    // Tv 9 for "1/125" is 2.03 stops off: the labels stand for every frame of the folder.
+    assert_close(
+        &stops_rel(by_name("odd")),
+        &[0.0, (125.0f64 / 30.0).log2(), (125.0f64 / 8.0).log2()],
+        1e-12,
+    );
+}
+
+/// Three grey bands of known radiance over 40 columns: 20 columns at 2^−12, 10 at 2^−3.5,
+/// 10 at 2^−5. A pixel's 8-bit sRGB code at stop s is dark (≤ 5) where 2^(e+s) < 0.00167 and
+/// clipped (≥ 250) where 2^(e+s) ≥ 0.955 (hand values of the sRGB encoding).
+fn band_scene(x: usize, _y: usize) -> f64 {
+    match x {
+        0..20 => (-12.0f64).exp2(),
+        20..30 => (-3.5f64).exp2(),
+        _ => (-5.0f64).exp2(),
+    }
+}
+
+#[test]
+fn auto_picks_two_stop_steps_and_the_least_clipped_or_dark_reference() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    // Stops 0, 1, 2, 3, 4, 6. Exact 2-stop triples: (0, 2, 4) = frames 0, 2, 4 and (2, 4, 6) =
+    // frames 2, 4, 5; every other triple is a stop or more off. Hand-computed codes: the
+    // 2^−12 band is dark up to stop 2 (code 3 at stop 2, 6 at stop 3); the 2^−3.5 band clips
+    // from stop 4 (code 219 at stop 3); the 2^−5 band clips at stop 6 (188 at stop 4). So
+    // frame 2 (stop 2) is 50 % dark, frame 4 (stop 4) 25 % clipped: auto takes (2, 4, 5).
+    // Frame 3 (stop 3, 0 %) is the best exposed frame but the reference of no 2-stop triple;
+    // the default takes (0, 3, 5).
+    png_bracket(
+        &tmp.path().join("bands"),
+        40,
+        8,
+        &band_scene,
+        &[0.0, 1.0, 2.0, 3.0, 4.0, 6.0],
+    );
+    let beside = tempfile::tempdir().expect("tmp");
+    let out = beside.path().join("out");
+    let built = bracket_testset::build(
+        tmp.path(),
+        &srgb_opts(InputChoice::Auto, GtFrames::Inputs),
+        &out,
+    )
+    .expect("build");
+    let b = &built.sets[0];
+    assert_eq!(b.inputs, vec![2, 4, 5]);
+    assert_eq!(b.reference_clipped_or_dark, 0.25);
+    assert!(b.selection.contains("auto"), "{}", b.selection);
+    assert_eq!(exposure_txt(&out.join("bands")), "0\n2\n4\n");
+    let report = built.report(&out);
+    assert!(report.contains("4:f4.png"), "{report}");
+
+    let spread = bracket_testset::build(
+        tmp.path(),
+        &srgb_opts(InputChoice::Spread, GtFrames::Inputs),
+        &beside.path().join("spread"),
+    )
+    .expect("build");
+    assert_eq!(spread.sets[0].inputs, vec![0, 3, 5]);
+    assert_eq!(spread.sets[0].reference_clipped_or_dark, 0.0);
+
+    // The rule alone, on the stops of a 3-stop bracket: no 2-stop triple exists; (0, 1, 2)
+    // and (1, 2, 3) are both 1 stop off, and the metering decides between references 1 and 2.
+    let stops = [0.0, 3.0, 6.0, 9.0];
+    let sel = bracket_testset::auto_inputs(&stops, |j| Ok([0.9, 0.4, 0.1, 0.9][j])).expect("auto");
+    assert_eq!(sel.indices, [1, 2, 3]);
+    assert_eq!(sel.metered, vec![(1, 0.4), (2, 0.1)]);
+    let sel = bracket_testset::auto_inputs(&stops, |j| Ok([0.9, 0.1, 0.4, 0.9][j])).expect("auto");
+    assert_eq!(sel.indices, [0, 1, 2]);
+}
+
+/// A log ramp over 80 columns, 2^−19 … 2^−0.2: the brightest quarter clips even in a stop-2
+/// frame, the darkest columns are a few codes in a stop-6 frame.
+fn ramp_scene(x: usize, _y: usize) -> f64 {
+    (-19.0 + 18.8 * x as f64 / 79.0).exp2()
+}
+
+#[test]
+fn ground_truth_from_all_frames_recovers_what_the_inputs_clip_or_lose_in_the_dark() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let stops = [0.0, 2.0, 4.0, 6.0, 8.0, 10.0];
+    png_bracket(&tmp.path().join("ramp"), 80, 4, &ramp_scene, &stops);
+    let beside = tempfile::tempdir().expect("tmp");
+    let build = |gt: GtFrames, name: &str| {
+        let out = beside.path().join(name);
+        let b = bracket_testset::build(
+            tmp.path(),
+            &srgb_opts(InputChoice::Indices([1, 2, 3]), gt),
+            &out,
+        )
+        .expect("build");
+        (b, read_rgbe(&out.join("ramp/HDRImg.hdr")))
+    };
+    let (b3, gt3) = build(GtFrames::Inputs, "three");
+    let (b6, gt6) = build(GtFrames::All, "all");
+    assert_eq!(b3.sets[0].ground_truth.len(), 3);
+    assert_eq!(b6.sets[0].ground_truth.len(), 6);
+    assert!(b6.sets[0].dropped.is_empty());
+    assert!(
+        b6.sets[0].gt_merge.contains("· t"),
+        "{}",
+        b6.sets[0].gt_merge
+    );
+    let shortest = &b6.sets[0].ground_truth[0];
+    assert!(!shortest.input && shortest.stop == -2.0, "{shortest:?}");
+    // The inputs and exposure.txt are the same either way.
+    assert_eq!(exposure_txt(&beside.path().join("all/ramp")), "0\n2\n4\n");
+    // The truth in the field's unit: the shortest input (stop 2) has white 1, so H = L · 2^2.
+    let err = |gt: &[f64], cols: std::ops::Range<usize>| -> f64 {
+        let (mut sum, mut n) = (0.0, 0);
+        for y in 0..4 {
+            for x in cols.clone() {
+                let truth = ramp_scene(x, y) * 4.0;
+                sum += ((gt[(y * 80 + x) * 3 + 1] - truth) / truth).abs();
+                n += 1;
+            }
+        }
+        sum / n as f64
+    };
+    // Clipped in every input: log radiance ≥ −2.07 (columns 72…79).
+    let bright = 72..80;
+    // A few codes at most in the longest input (stop 6): log radiance ≤ −15.3 (columns 0…15),
+    // yet at least 6 codes in the stop-10 frame: log radiance ≥ −19.
+    let dark = 0..16;
+    // Well exposed in the inputs' reference (stop 4): codes 30…230.
+    let mid = 40..56;
+    let (b3e, b6e) = (err(&gt3, bright.clone()), err(&gt6, bright));
+    let (d3e, d6e) = (err(&gt3, dark.clone()), err(&gt6, dark));
+    let (m3e, m6e) = (err(&gt3, mid.clone()), err(&gt6, mid));
+    eprintln!(
+        "mean relative error, three inputs vs all frames: clipped {b3e:.4} vs {b6e:.4}, dark \
+         {d3e:.4} vs {d6e:.4}, well exposed {m3e:.4} vs {m6e:.4}"
+    );
+    assert!(b3e > 0.3 && b6e < 0.01, "clipped: {b3e} vs {b6e}");
+    assert!(
+        d3e > 0.2 && d6e < d3e / 4.0 && d6e < 0.05,
+        "dark: {d3e} vs {d6e}"
+    );
+    assert!(m3e < 0.02 && m6e < 0.02, "well exposed: {m3e} vs {m6e}");
+}
+
+#[test]
+fn a_short_frames_black_floor_does_not_lift_the_dark_regions_of_the_merge() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let dir = tmp.path().join("floor");
+    std::fs::create_dir_all(&dir).expect("mkdir");
+    // Stops 0, 2, 4, 6, 8; the two shortest frames never go below code 8 (a black floor: flare
+    // or an offset). Scene: log radiance −13 … −9 over 40 columns, codes 8 (the floor) in
+    // both short frames, mid codes in the stop-8 frame.
+    let stops = [0.0f64, 2.0, 4.0, 6.0, 8.0];
+    let scene = |x: usize| (-13.0 + 4.0 * x as f64 / 39.0).exp2();
+    for (i, s) in stops.iter().enumerate() {
+        let mut img = image::RgbImage::new(40, 2);
+        for y in 0..2 {
+            for x in 0..40 {
+                let mut v = (srgb(scene(x) * s.exp2()) * 255.0).round() as u8;
+                if i < 2 {
+                    v = v.max(8);
+                }
+                img.put_pixel(x as u32, y, image::Rgb([v, v, v]));
+            }
+        }
+        img.save(dir.join(format!("f{i}.png"))).expect("png");
+    }
+    std::fs::write(dir.join("exposure.txt"), "0\n2\n4\n6\n8\n").expect("exposure.txt");
+    let beside = tempfile::tempdir().expect("tmp");
+    let out = beside.path().join("out");
+    bracket_testset::build(
+        tmp.path(),
+        &srgb_opts(InputChoice::Indices([2, 3, 4]), GtFrames::All),
+        &out,
+    )
+    .expect("build");
+    let gt = read_rgbe(&out.join("floor/HDRImg.hdr"));
+    // The floor, code 8, reads as 0.0024 of white: over the stop-0 frame's time (1/16 of the
+    // shortest input's) that is 0.039, up to 80× the truth L · 2^4 here. Weighted by its hat
+    // alone (0.063) against the stop-8 frame's (≤ 1), it would more than double the dark end;
+    // weighted also by its time (1/16 against 16) it moves it by about 1 %.
+    let mut worst: f64 = 0.0;
+    for x in 0..40 {
+        let truth = scene(x) * 16.0;
+        worst = worst.max(((gt[x * 3 + 1] - truth) / truth).abs());
+    }
+    assert!(worst < 0.05, "largest relative error {worst}");
+}
+
+#[test]
+fn ground_truth_from_all_frames_of_a_three_frame_set_is_the_inputs_merge() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    bracket_folder(tmp.path());
+    let beside = tempfile::tempdir().expect("tmp");
+    let bytes = |gt: GtFrames, name: &str| {
+        let out = beside.path().join(name);
+        bracket_testset::build(tmp.path(), &srgb_opts(InputChoice::Auto, gt), &out).expect("build");
+        [
+            "HDRImg.hdr",
+            "frame_1.tif",
+            "frame_2.tif",
+            "frame_3.tif",
+            "exposure.txt",
+            "brackets.toml",
+        ]
+        .map(|f| std::fs::read(out.join("scene1").join(f)).expect(f))
+    };
+    assert_eq!(
+        bytes(GtFrames::Inputs, "inputs"),
+        bytes(GtFrames::All, "all")
+    );
+}
+
+#[test]
+fn the_hat_merge_matches_hand_values() {
+    use hdrsynth::data::bracket_testset::{code_weight, hat_merge};
+    use hdrsynth::io::Image;
+    let px = |v: [f32; 3]| Image::from_vec(1, 1, v.to_vec());
+    // Weights: the hat of the code, 0 at codes ≤ 5 and ≥ 250 (of 255).
+    assert_eq!(code_weight(0.5), 1.0);
+    assert_eq!(code_weight(250.0 / 255.0), 0.0);
+    assert_eq!(code_weight(5.0 / 255.0), 0.0);
+    assert!((code_weight(249.0 / 255.0) - 12.0 / 255.0).abs() < 1e-6);
+    assert!((code_weight(6.0 / 255.0) - 12.0 / 255.0).abs() < 1e-6);
+    // γ 1, times 0.5 and 4. Channel 0: codes 0.25 and 0.75 (hat 0.5 each), so w = 0.5 · 0.5
+    // and 0.5 · 4: H = (0.25 · 0.25/0.5 + 2 · 0.75/4) / 2.25 = 0.5 / 2.25. Channel 1: clipped
+    // in both: the shortest's white over its time, 1/0.5 = 2. Channel 2: dark in both (codes 0
+    // and 0.01 · 255 = 2.55): the longest frame not clipped, 0.01/4.
+    let v = [px([0.25, 1.0, 0.0]), px([0.75, 1.0, 0.01])];
+    let h = hat_merge(&v, &v, &[0.5, 4.0], 1.0).expect("merge");
+    assert!((h.data[0] as f64 - 0.5 / 2.25).abs() < 1e-7, "{:?}", h.data);
+    assert_eq!(h.data[1], 2.0);
+    assert!((h.data[2] - 0.0025).abs() < 1e-9, "{:?}", h.data);
+    // γ 2.2, codes apart from the written values: codes 0.5 and 0.9 weigh 1 · 1 and 0.2 · 2;
+    // values 0.5 and 0.9: H = (0.5^2.2 / 1 + 0.4 · 0.9^2.2 / 2) / 1.4.
+    let h = hat_merge(
+        &[px([0.5; 3]), px([0.9; 3])],
+        &[px([0.5; 3]), px([0.9; 3])],
+        &[1.0, 2.0],
+        2.2,
+    )
+    .expect("merge");
+    let want = (0.5f64.powf(2.2) + 0.4 * 0.9f64.powf(2.2) / 2.0) / 1.4;
+    assert!(
+        (h.data[0] as f64 - want).abs() < 1e-6,
+        "{} vs {want}",
+        h.data[0]
+    );
+    assert!(hat_merge(&v, &v, &[1.0], 1.0).is_err());
+}
+
+#[test]
+fn bad_input_indices_are_refused_naming_the_folder_and_nothing_is_written() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let dir = tmp.path().join("five");
+    png_bracket(&dir, 8, 4, &|_, _| 0.01, &[0.0, 2.0, 4.0, 6.0, 8.0]);
+    let beside = tempfile::tempdir().expect("tmp");
+    for (idx, what) in [
+        ([0, 5, 9], "out of range"),
+        ([0, 2, 5], "out of range"),
+        ([2, 1, 3], "ascending"),
+        ([3, 2, 1], "ascending"),
+        ([1, 1, 3], "repeats"),
+        ([1, 3, 3], "repeats"),
+    ] {
+        let out = beside.path().join(format!("{idx:?}"));
+        let e = bracket_testset::build(
+            tmp.path(),
+            &srgb_opts(InputChoice::Indices(idx), GtFrames::All),
+            &out,
+        )
+        .expect_err("bad --inputs")
+        .to_string();
+        assert!(e.contains(what), "{idx:?}: {e}");
+        assert!(e.contains(&dir.display().to_string()), "{idx:?}: {e}");
+        assert!(e.contains("4 f4.png"), "lists the frames: {e}");
+        assert!(!out.join("five").exists(), "{idx:?}: a set was written");
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// A real 7-exposure bracket (Canon EOS 550D JPEGs, ../shared/data/real_brackets/canon_550d_room,
+// its PROVENANCE.md): the test set with auto inputs and the ground truth from all frames.
+
+#[test]
+#[ignore = "needs ../shared/data"]
+fn canon_550d_room_builds_with_auto_inputs_and_the_ground_truth_from_all_frames() {
+    use std::process::Command;
+    let src =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/real_brackets/canon_550d_room");
+    assert!(
+        src.join("stack_room_exp_0.jpg").is_file(),
+        "{} is missing: this test needs ../shared/data",
+        src.display()
+    );
+    let tmp = tempfile::tempdir().expect("tmp");
+    let out = tmp.path().join("canon");
+    let start = std::time::Instant::now();
+    // The frames were taken 15–22 s apart: one set needs --max-gap above that.
+    let o = Command::new(env!("CARGO_BIN_EXE_hdrsynth"))
+        .args(["testset", "--brackets"])
+        .arg(&src)
+        .arg("--out")
+        .arg(&out)
+        .args([
+            "--inputs",
+            "auto",
+            "--gt-frames",
+            "all",
+            "--response",
+            "debevec",
+        ])
+        .args(["--max-gap", "60"])
+        .output()
+        .expect("run");
+    let text = String::from_utf8_lossy(&o.stdout).to_string() + &String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{text}");
+    eprintln!("{text}\nelapsed {:.2} s", start.elapsed().as_secs_f64());
+    let set = out.join("set_001");
+    let rec: toml::Value =
+        toml::from_str(&std::fs::read_to_string(set.join("brackets.toml")).expect("record"))
+            .expect("toml");
+    let inputs: Vec<usize> = rec["inputs"]
+        .as_array()
+        .expect("inputs")
+        .iter()
+        .map(|v| v.as_integer().expect("index") as usize)
+        .collect();
+    assert_eq!(rec["ground_truth"].as_array().expect("gt").len(), 7);
+    // The chosen frames are printed, with their index and file.
+    let frames = rec["frames"].as_array().expect("frames");
+    for (i, f) in inputs.iter().zip(frames) {
+        let src = f["source"].as_str().expect("source");
+        let name = Path::new(src).file_name().unwrap().to_string_lossy();
+        assert!(
+            text.contains(&format!("{i}:{name}")),
+            "{i}:{name} not in {text}"
+        );
+    }
+    // Steps near 2 stops (APEX Tv from EXIF: exact 2-stop steps where they exist).
+    let expo: Vec<f64> = exposure_txt(&set)
+        .split_whitespace()
+        .map(|s| s.parse().expect("stop"))
+        .collect();
+    assert_eq!(expo[0], 0.0);
+    for w in expo.windows(2) {
+        assert!((w[1] - w[0] - 2.0).abs() <= 1.0 / 3.0, "{expo:?}");
+    }
+    // Ground truth: finite and non-negative everywhere, positive on almost every pixel.
+    let gt = read_rgbe(&set.join("HDRImg.hdr"));
+    assert!(gt.iter().all(|v| v.is_finite() && *v >= 0.0));
+    let positive = gt
+        .chunks_exact(3)
+        .filter(|p| p.iter().all(|v| *v > 0.0))
+        .count();
+    assert!(
+        positive as f64 >= 0.999 * (gt.len() / 3) as f64,
+        "{positive}"
+    );
+    // In eval's unit (1 = the reference's white, factor 2^s_reference) the ground truth agrees
+    // with the reference where that frame is well exposed (its JPEG codes 16–249, clear of the
+    // estimated response's toe and shoulder), and is at or above its white where it clipped.
+    let (_, _, reference) = read_u16_tiff(&set.join("frame_2.tif"));
+    let ref_src = frames[1]["source"].as_str().expect("source");
+    let ref_codes = image::open(ref_src).expect("jpeg").to_rgb8().into_raw();
+    let scale = expo[1].exp2();
+    let (mut ratios, mut clipped) = (Vec::new(), Vec::new());
+    for ((r, g), &z) in reference.iter().zip(&gt).zip(&ref_codes) {
+        match z {
+            16..=249 => ratios.push(g * scale / r.powf(2.2)),
+            255 => clipped.push(g * scale),
+            _ => {}
+        }
+    }
+    assert!(
+        ratios.len() > 100_000 && clipped.len() > 1000,
+        "{} {}",
+        ratios.len(),
+        clipped.len()
+    );
+    ratios.sort_by(f64::total_cmp);
+    clipped.sort_by(f64::total_cmp);
+    let q = |v: &[f64], p: usize| v[v.len() * p / 100];
+    let median = q(&ratios, 50);
+    eprintln!(
+        "inputs {inputs:?}, exposure.txt {expo:?}, reference clipped/dark {:.4}, GT dynamic \
+         range {:.2} stops; GT / reference where it is well exposed: median {median:.4} (p10 \
+         {:.4}, p90 {:.4}); GT where it clipped, × its white: median {:.3}",
+        rec["reference_clipped_or_dark"]
+            .as_float()
+            .expect("fraction"),
+        rec["gt_dynamic_range_stops"].as_float().expect("range"),
+        q(&ratios, 10),
+        q(&ratios, 90),
+        q(&clipped, 50)
+    );
+    assert!(
+        (median - 1.0).abs() < 0.05,
+        "GT / reference median {median}"
+    );
+    assert!(
+        q(&ratios, 10) > 0.75 && q(&ratios, 90) < 1.33,
+        "GT / reference spread"
+    );
+    assert!(
+        q(&clipped, 50) > 1.0,
+        "GT where the reference clipped: {}",
+        q(&clipped, 50)
+    );
+    // The window is brighter than the reference's white: the merge holds more than it.
+    let max = gt.iter().copied().fold(0.0, f64::max) * scale;
+    assert!(
+        max > 2.0,
+        "brightest ground truth {max} × the reference's white"
+    );
 }

@@ -480,6 +480,90 @@ fn a_testset_from_a_linear_exr_reads_back_with_the_radiance_in_device_space() {
     assert!(err.to_string().contains("different recipe"), "{err}");
 }
 
+/// The ground truth holds what the bracket can: clipped per channel at the shortest frame's
+/// white, 2^−EV_min in EV0 units (4 for EV −2/0/+2, 8 for EV −3/0, 1 when no frame is shorter);
+/// below it, radiance · k as before.
+#[test]
+fn the_ground_truth_is_clipped_at_the_shortest_frames_white() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let src = tmp.path().join("sun.exr");
+    // A dim grey field with a 4×4 "sun" 2^12 brighter (1 % of the pixels: below the metering's
+    // 2 % highlight allowance, so the key comes from the grey).
+    let radiance = Image::from_fn(40, 40, |x, y| {
+        let v = if x < 4 && y < 4 { 0.1 * 4096.0 } else { 0.1 };
+        [v, v, v]
+    });
+    write_exr(&src, &radiance, ExrPrecision::Float).expect("write");
+    for (evs, white) in [
+        (vec![-2.0, 0.0, 2.0], 4.0f32),
+        (vec![-3.0, 0.0], 8.0),
+        (vec![0.0, 2.0], 1.0),
+    ] {
+        let out = tmp.path().join(format!("ts{white}"));
+        let opts = TestsetOptions {
+            isos: vec![100.0],
+            evs,
+            noise: NoiseModel::None,
+            colour: false,
+            ..TestsetOptions::default()
+        };
+        let built = testset::build(&src, &canon(), &opts, &out).expect("build");
+        let k = built.sets[0].key;
+        // Log-average of 1 % at 0.1·4096 and 99 % at 0.1: the grey sits at 0.128·(…)/0.1.
+        let log_avg = (0.01 * (409.6f64).ln() + 0.99 * (0.1f64).ln()).exp();
+        assert!(
+            ((k as f64) - 0.128 / log_avg).abs() < 1e-5 * k as f64,
+            "key {k}"
+        );
+        let info = layout::detect(&out).expect("detect");
+        let gt = read_image(&info.sets[0].ground_truth.as_ref().expect("gt").path).expect("gt");
+        assert_eq!(gt.get(0, 0), [white; 3], "the sun is clipped at {white}");
+        let grey = 0.1 * k;
+        assert!(
+            (gt.get(20, 20)[1] - grey).abs() < 1e-6 * grey,
+            "below it: radiance · k"
+        );
+    }
+}
+
+/// The noise ceiling's merge: with the true device response and noise-free frames it recovers
+/// the ground truth (up to 8-bit quantisation); noisy frames at ISO 3200 score lower.
+#[test]
+fn the_triangle_merge_with_the_true_response_recovers_the_ground_truth() {
+    use hdrsynth::eval::evaluate::{self, TriangleMerge};
+    let tmp = tempfile::tempdir().expect("tmp");
+    let src = tmp.path().join("ramp.exr");
+    write_exr(&src, &radiance_map(64, 32), ExrPrecision::Float).expect("write");
+    let out = tmp.path().join("ts");
+    let profile = canon();
+    let opts = TestsetOptions {
+        isos: vec![3200.0],
+        evs: vec![-2.0, 0.0, 2.0],
+        ..TestsetOptions::default()
+    };
+    testset::build(&src, &profile, &opts, &out).expect("build");
+    let score = |clean: bool| {
+        let m = TriangleMerge {
+            response: profile.response.clone(),
+            clean,
+        };
+        let dir = tmp.path().join(format!("eval_{clean}"));
+        let s = evaluate::evaluate(&out, &m, &dir, &EvalOptions::default()).expect("eval");
+        s.rows[0].scores
+    };
+    let (clean, noisy) = (score(true), score(false));
+    // 8-bit sRGB codes: the relative step near code c is ≈ 2.4 / (255 c^…): a few % in the
+    // shadows; in the linear domain the error is tiny next to the ground truth's peak of ~1.
+    assert!(clean.psnr_l > 45.0, "clean merge PSNR-L {}", clean.psnr_l);
+    assert!(clean.psnr_t > 30.0, "clean merge PSNR-T {}", clean.psnr_t);
+    assert!(
+        noisy.psnr_t < clean.psnr_t - 1.0,
+        "noise costs the merge: {} vs {}",
+        noisy.psnr_t,
+        clean.psnr_t
+    );
+}
+
 #[test]
 fn a_testset_from_real_radiance_has_noise_colour_and_scores_through_eval() {
     let Some(shared) = shared_data() else { return };

@@ -506,6 +506,7 @@ fn a_bracket_testset_refuses_a_locked_output() {
         scan: Default::default(),
         response: ResponseChoice::Declared(Response::Srgb),
         align: None,
+        ..BracketOptions::default()
     };
     let out = dir.path().join("ts");
     let (held, before) = locked_output(&out);

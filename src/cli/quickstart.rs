@@ -1,5 +1,5 @@
-//! `hdrsynth quickstart`: the paper's central claim once, on embedded defaults, in about ten
-//! minutes on two CPU cores (README, docs/quickstart.md). What it runs is `eval::quickstart`.
+//! `hdrsynth quickstart`: the main job, the primary comparison of docs/protocol.md on embedded
+//! defaults (README, docs/quickstart.md). What it runs is `eval::quickstart`.
 
 use crate::eval::quickstart::{self, Options, Preset};
 use anyhow::Result;
@@ -16,10 +16,15 @@ pub struct Args {
     /// cpu preset, cuda for the gpu preset.
     #[arg(long)]
     pub backend: Option<String>,
-    /// Folder of real HDR radiance maps (.exr/.hdr) for the test set; default
-    /// ../shared/data/real_hdr when it exists, else scenes generated here.
+    /// Folder of real HDR radiance maps (.exr/.hdr) for the descriptive real-radiance table;
+    /// default ../shared/data/real_hdr when it exists.
     #[arg(long)]
     pub radiance: Option<PathBuf>,
+    /// A real bracket folder (JPEG/PNG/TIFF/DNG with EXIF exposures, ≥ 3 frames) for the
+    /// descriptive real-capture table; default ../shared/data/real_brackets/canon_550d_room
+    /// when it exists.
+    #[arg(long)]
+    pub brackets: Option<PathBuf>,
     /// The target device's sensor profile (TOML) for Net_S and the test set; default the
     /// shipped composite phone (configs/sensors/composite_phone.toml). E.g. your own phone's
     /// calibrated profile.
@@ -36,6 +41,7 @@ pub fn run(args: &Args) -> Result<String> {
         preset: args.preset,
         backend: args.backend.clone(),
         radiance: args.radiance.clone(),
+        brackets: args.brackets.clone(),
         target: args.target.clone(),
         progress: !args.quiet,
     })?)

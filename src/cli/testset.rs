@@ -4,7 +4,9 @@
 //! bracket folders (`data::bracket_testset`, docs/your_device.md).
 
 use crate::data::align::MtbOptions;
-use crate::data::bracket_testset::{self, BracketOptions, ResponseChoice, ResponseSpec};
+use crate::data::bracket_testset::{
+    self, BracketOptions, GtFrames, InputChoice, ResponseChoice, ResponseSpec,
+};
 use crate::data::brackets::ScanOptions;
 use crate::data::testset::{self, TestsetOptions, TestsetSummary};
 use crate::sensor::metering::Metering;
@@ -44,6 +46,14 @@ pub struct Args {
     /// --brackets: largest gap between capture times within one set, seconds.
     #[arg(long, default_value_t = ScanOptions::default().max_gap_s)]
     pub max_gap: f64,
+    /// --brackets: the three inputs per set: auto (2-stop steps, the reference with the fewest
+    /// clipped/dark pixels) or I,J,K (0-based, shortest exposure first). Default: the shortest,
+    /// middle and longest.
+    #[arg(long)]
+    pub inputs: Option<InputChoice>,
+    /// --brackets: ground truth from the inputs (Kalantari's merge) or all frames of the set.
+    #[arg(long, default_value = "inputs")]
+    pub gt_frames: GtFrames,
     /// Output folder (hdrsynth layout; an interrupted run resumes).
     #[arg(long)]
     pub out: PathBuf,
@@ -132,6 +142,8 @@ pub fn bracket_options(args: &Args) -> Result<BracketOptions> {
         },
         response,
         align: args.align.then(MtbOptions::default),
+        inputs: args.inputs.clone().unwrap_or_default(),
+        gt_frames: args.gt_frames,
     })
 }
 

@@ -3,20 +3,28 @@
 //! the paper made testset-2's: the linear triangular merge of the static frames
 //! (docs/your_device.md).
 //!
-//! Per set, three frames are used: the shortest, the one nearest the middle and the longest
-//! exposure (others are reported as dropped). Each frame is linearised (1 = its clipping white)
-//! with the response chosen by [`ResponseChoice`] (DNG: linear after black/white levels, white
-//! balanced by AsShotNeutral), optionally aligned to the middle frame, and written as the
-//! field expects a Kalantari frame: a 16-bit TIFF holding linear^(1/γ), γ = 2.2, so that the
-//! field's own linearisation LDR^γ recovers the linear frame. Then:
-//! - `exposure.txt`: log2 stops s_i relative to the shortest frame ("0 2 4" for EV −2/0/+2),
-//!   the field's reading t_i = 2^s_i (HDR-Transformer's `read_expo_times`);
-//! - `HDRImg.hdr`: the triangle merge ([`ground_truth::triangle_merge`], Kalantari's weights
-//!   from the middle frame's TIFF value) of the written (quantised) frames, Σ w·L_i^γ / t_i /
-//!   Σ w — in the field's unit, a frame at stop 0 (the shortest) has white 1; `hdrsynth eval`
-//!   converts it to its own unit (1 = the middle frame's white);
-//! - `brackets.toml`: where every frame came from, its exposure, the response used and the
-//!   alignment shifts.
+//! Per set, three frames are the network's inputs ([`InputChoice`]): by default the shortest,
+//! the one nearest the middle and the longest exposure; `--inputs I,J,K` names them;
+//! `--inputs auto` picks steps as near 2 stops as the bracket allows and, among those, the
+//! reference (middle input) with the fewest clipped or dark pixels ([`auto_inputs`]). Each frame
+//! is linearised (1 = its clipping white) with the response chosen by [`ResponseChoice`] (DNG:
+//! linear after black/white levels, white balanced by AsShotNeutral), optionally aligned to the
+//! reference, and written as the field expects a Kalantari frame: a 16-bit TIFF holding
+//! linear^(1/γ), γ = 2.2, so that the field's own linearisation LDR^γ recovers the linear frame.
+//! Then:
+//! - `exposure.txt`: log2 stops s_i relative to the shortest input, as EXIF (or the sidecar)
+//!   gives them ("0 2 4" for EV −2/0/+2, "0 3 5" for a 3- then a 2-stop step), the field's
+//!   reading t_i = 2^s_i (HDR-Transformer's `read_expo_times`);
+//! - `HDRImg.hdr` ([`GtFrames`]): from the three inputs, the triangle merge
+//!   ([`ground_truth::triangle_merge`], Kalantari's weights from the reference's TIFF value);
+//!   from every frame of the set (`--gt-frames all`, when the set has more than the inputs),
+//!   the weighted merge [`hat_merge`] — each frame weighted by the hat of its own code value and
+//!   its exposure time. In
+//!   the field's unit either way: a frame at stop 0 (the shortest input) has white 1;
+//!   `hdrsynth eval` converts it to its own unit (1 = the reference's white);
+//! - `brackets.toml`: where every frame came from, its exposure, which frames are the inputs
+//!   and how they were chosen, which formed the ground truth, the response and the alignment
+//!   shifts.
 
 use crate::data::align::{self, MtbOptions};
 use crate::data::brackets::{self, BracketFrame, BracketScan, FrameKind, ScanOptions};
@@ -25,6 +33,7 @@ use crate::error::{Error, Result};
 use crate::io::{BitDepth, Image, write_hdr, write_ldr};
 use crate::sensor::crf::{self, DebevecOptions, RobertsonOptions};
 use crate::sensor::profile::{Response, SensorProfile};
+use rayon::prelude::*;
 use serde::Serialize;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -133,19 +142,305 @@ impl ResponseChoice {
 pub struct BracketOptions {
     pub scan: ScanOptions,
     pub response: ResponseChoice,
-    /// Hand-held sets: align every frame to the middle one by MTB ([`crate::data::align`]) and
-    /// crop to the region all frames cover. None: tripod sets, used as captured.
+    /// Hand-held sets: align every frame to the reference (the middle input) by MTB
+    /// ([`crate::data::align`]) and crop to the region all merged frames cover. None: tripod
+    /// sets, used as captured.
     pub align: Option<MtbOptions>,
+    /// Which three frames of each set are written as the inputs (`--inputs`).
+    pub inputs: InputChoice,
+    /// Which frames the ground truth is merged from (`--gt-frames`).
+    pub gt_frames: GtFrames,
+}
+
+impl Default for BracketOptions {
+    /// The command without flags: Debevec from the brackets, no alignment, the shortest,
+    /// middle and longest frame, the ground truth from those three.
+    fn default() -> Self {
+        BracketOptions {
+            scan: ScanOptions::default(),
+            response: ResponseChoice::Debevec(DebevecOptions::default()),
+            align: None,
+            inputs: InputChoice::default(),
+            gt_frames: GtFrames::default(),
+        }
+    }
+}
+
+/// Which three frames of a set are the network's inputs (`--inputs`). Indices count the set's
+/// frames sorted by exposure, shortest first, from 0.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub enum InputChoice {
+    /// The shortest, the middle (index n/2 of n) and the longest frame (no `--inputs`).
+    #[default]
+    Spread,
+    /// `--inputs auto`: [`auto_inputs`].
+    Auto,
+    /// `--inputs I,J,K`: three distinct frames in ascending exposure.
+    Indices([usize; 3]),
+}
+
+impl std::str::FromStr for InputChoice {
+    type Err = String;
+
+    fn from_str(s: &str) -> std::result::Result<InputChoice, String> {
+        if s.trim() == "auto" {
+            return Ok(InputChoice::Auto);
+        }
+        let err = || {
+            format!(
+                "'{s}': expected auto or three 0-based frame indices I,J,K (the set's frames \
+                 sorted by exposure, shortest first), e.g. 1,2,3"
+            )
+        };
+        let v: Vec<usize> = s
+            .split(',')
+            .map(|t| t.trim().parse::<usize>().map_err(|_| err()))
+            .collect::<std::result::Result<_, _>>()?;
+        match v[..] {
+            [i, j, k] => Ok(InputChoice::Indices([i, j, k])),
+            _ => Err(err()),
+        }
+    }
+}
+
+/// Which frames the ground truth is merged from (`--gt-frames`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum GtFrames {
+    /// The three inputs, Kalantari's triangle merge (no `--gt-frames`).
+    #[default]
+    Inputs,
+    /// Every frame of the set: [`hat_merge`] (the triangle merge, exactly as `Inputs`, when the
+    /// set holds only the three inputs: there is nothing to add).
+    All,
+}
+
+impl std::str::FromStr for GtFrames {
+    type Err = String;
+
+    fn from_str(s: &str) -> std::result::Result<GtFrames, String> {
+        match s.trim() {
+            "inputs" => Ok(GtFrames::Inputs),
+            "all" => Ok(GtFrames::All),
+            _ => Err(format!(
+                "'{s}': expected inputs (the three input frames) or all (every frame of the set)"
+            )),
+        }
+    }
+}
+
+/// The metering rule's thresholds, 8-bit code values: a pixel is clipped where any channel is
+/// at or above [`CLIPPED_CODE`], dark where every channel is at or below [`DARK_CODE`].
+pub const CLIPPED_CODE: f32 = 250.0;
+pub const DARK_CODE: f32 = 5.0;
+
+/// Fraction of the pixels of `code` (a frame's values in [0, 1] as stored — JPEG/PNG/TIFF code
+/// / maximum code; DNG: linear after levels and white balance) that are clipped or dark
+/// ([`CLIPPED_CODE`], [`DARK_CODE`]).
+pub fn clipped_or_dark(code: &Image) -> f64 {
+    // A thousandth of a code absorbs the decoders' rounding of v / 255.
+    let (hi, lo) = (CLIPPED_CODE - 1e-3, DARK_CODE + 1e-3);
+    let bad = code
+        .data
+        .par_chunks_exact(3)
+        .filter(|p| p.iter().any(|&v| v * 255.0 >= hi) || p.iter().all(|&v| v * 255.0 <= lo))
+        .count();
+    bad as f64 / code.pixel_count().max(1) as f64
+}
+
+/// How the inputs of one set were chosen.
+#[derive(Clone, Debug, PartialEq)]
+pub struct InputSelection {
+    pub indices: [usize; 3],
+    /// In words, for the record and the report.
+    pub how: String,
+    /// [`clipped_or_dark`] of every reference considered (`auto` only): (index, fraction).
+    pub metered: Vec<(usize, f64)>,
+}
+
+/// Steps within this many stops of the best achievable spacing are equally acceptable to
+/// `auto`: EXIF times are marked in third stops.
+pub const AUTO_STEP_TOLERANCE: f64 = 1.0 / 3.0;
+
+/// `--inputs auto` on a set with exposure stops `stops` (ascending): of all triples i < j < k,
+/// those whose larger deviation of a step from 2 stops, max(|s_j − s_i − 2|, |s_k − s_j − 2|),
+/// is within [`AUTO_STEP_TOLERANCE`] of the smallest achievable are candidates (the network's
+/// EV −2/0/+2 as nearly as the bracket allows); of these the one whose middle frame (the
+/// reference) has the smallest `metered(j)` — [`clipped_or_dark`] — wins, ties going to the
+/// smaller deviation, then the shorter frames. A metering rule computed from the frames alone.
+pub fn auto_inputs(
+    stops: &[f64],
+    mut metered: impl FnMut(usize) -> Result<f64>,
+) -> Result<InputSelection> {
+    let n = stops.len();
+    let mut triples = Vec::new();
+    for i in 0..n {
+        for j in i + 1..n {
+            for k in j + 1..n {
+                let d = (stops[j] - stops[i] - 2.0)
+                    .abs()
+                    .max((stops[k] - stops[j] - 2.0).abs());
+                triples.push(([i, j, k], d));
+            }
+        }
+    }
+    let best = triples.iter().map(|t| t.1).fold(f64::INFINITY, f64::min);
+    if !best.is_finite() {
+        return Err(Error::Invalid(format!(
+            "--inputs auto needs at least three frames, the set has {n}"
+        )));
+    }
+    triples.retain(|t| t.1 <= best + AUTO_STEP_TOLERANCE + 1e-9);
+    let mut fractions: Vec<(usize, f64)> = Vec::new();
+    for (t, _) in &triples {
+        if !fractions.iter().any(|f| f.0 == t[1]) {
+            fractions.push((t[1], metered(t[1])?));
+        }
+    }
+    fractions.sort_by_key(|f| f.0);
+    let bad = |j: usize| fractions.iter().find(|f| f.0 == j).map_or(1.0, |f| f.1);
+    let (idx, d) = triples
+        .iter()
+        .min_by(|a, b| {
+            bad(a.0[1])
+                .total_cmp(&bad(b.0[1]))
+                .then(a.1.total_cmp(&b.1))
+                .then(a.0.cmp(&b.0))
+        })
+        .copied()
+        .ok_or_else(|| Error::Invalid("--inputs auto: no triple of frames".to_string()))?;
+    let how = format!(
+        "auto: steps {:.2}, {:.2} stops (largest deviation from 2 stops {d:.2}; candidates \
+         within {:.2} of the best {best:.2}); reference {} of the candidates' references {} \
+         with the fewest pixels clipped (a channel ≥ {CLIPPED_CODE}/255) or dark (all ≤ \
+         {DARK_CODE}/255): {:.2} %",
+        stops[idx[1]] - stops[idx[0]],
+        stops[idx[2]] - stops[idx[1]],
+        AUTO_STEP_TOLERANCE,
+        idx[1],
+        fractions
+            .iter()
+            .map(|(j, f)| format!("{j} ({:.2} %)", 100.0 * f))
+            .collect::<Vec<_>>()
+            .join(", "),
+        100.0 * bad(idx[1])
+    );
+    Ok(InputSelection {
+        indices: idx,
+        how,
+        metered: fractions,
+    })
+}
+
+/// The weight [`hat_merge`] gives a frame's code value `z` (as stored, in [0, 1]): the hat
+/// 1 − |2z − 1|, zero where the code is clipped (≥ [`CLIPPED_CODE`]/255) or dark
+/// (≤ [`DARK_CODE`]/255) — the metering rule's thresholds, per channel.
+pub fn code_weight(z: f32) -> f64 {
+    let c = z * 255.0;
+    if c >= CLIPPED_CODE - 1e-3 || c <= DARK_CODE + 1e-3 {
+        0.0
+    } else {
+        1.0 - (2.0 * f64::from(z) - 1.0).abs()
+    }
+}
+
+/// The multi-exposure weighted average over any number of frames (Debevec & Malik 1997, Eq. 6,
+/// in the linear domain, with the exposure-time factor of Robertson et al. 2003):
+/// per pixel and channel H = Σ w_i · L_i / t_i / Σ w_i, L_i = v_i^γ, where `frames` hold the
+/// values v_i as written (linear^(1/γ)), `codes` each frame's code values as stored (aligned
+/// and cropped like `frames`), and w_i = [`code_weight`](z_i) · t_i:
+/// - the hat of the frame's OWN code trusts each frame where it recorded mid values, and no
+///   frame for being an input;
+/// - zero at clipped and dark codes: there an estimated response is set by its smoothness
+///   term alone and a JPEG clips channel by channel;
+/// - · t_i: photon noise makes the variance of L_i / t_i fall as 1/t_i, and a short frame's
+///   error near its black floor is multiplied by 1/t_i — without it a frame 7 stops short
+///   pulls dark regions up by its floor.
+///
+/// Where every weight is 0: the shortest frame's L/t when it is clipped there (white is a
+/// lower bound), else the longest frame's that is not clipped.
+pub fn hat_merge(frames: &[Image], codes: &[Image], times: &[f64], gamma: f32) -> Result<Image> {
+    let Some(first) = frames.first() else {
+        return Err(Error::Invalid("hat merge: no frames".to_string()));
+    };
+    if frames.len() != times.len() || frames.len() != codes.len() {
+        return Err(Error::Invalid(format!(
+            "hat merge: {} frames, {} code images and {} exposure times",
+            frames.len(),
+            codes.len(),
+            times.len()
+        )));
+    }
+    if times.iter().any(|t| !(t.is_finite() && *t > 0.0)) {
+        return Err(Error::Invalid(format!(
+            "hat merge: exposure times {times:?} must be finite and positive"
+        )));
+    }
+    let (w, h) = (first.width, first.height);
+    if let Some(f) = frames
+        .iter()
+        .chain(codes)
+        .find(|f| (f.width, f.height) != (w, h))
+    {
+        return Err(Error::Invalid(format!(
+            "hat merge: images differ in size ({}×{} and {w}×{h})",
+            f.width, f.height
+        )));
+    }
+    let g = f64::from(gamma);
+    // Frames from the shortest exposure to the longest.
+    let mut order: Vec<usize> = (0..times.len()).collect();
+    order.sort_by(|&a, &b| times[a].total_cmp(&times[b]));
+    let hdr = |i: usize, k: usize| f64::from(frames[i].data[k]).clamp(0.0, 1.0).powf(g) / times[i];
+    let clipped = |i: usize, k: usize| codes[i].data[k] * 255.0 >= CLIPPED_CODE - 1e-3;
+    let data = (0..first.data.len())
+        .into_par_iter()
+        .map(|k| {
+            let (mut num, mut den) = (0.0f64, 0.0f64);
+            for i in 0..frames.len() {
+                let wt = code_weight(codes[i].data[k]) * times[i];
+                num += wt * hdr(i, k);
+                den += wt;
+            }
+            if den > 0.0 {
+                (num / den) as f32
+            } else if clipped(order[0], k) {
+                hdr(order[0], k) as f32
+            } else {
+                let i = order
+                    .iter()
+                    .rev()
+                    .copied()
+                    .find(|&i| !clipped(i, k))
+                    .unwrap_or(order[0]);
+                hdr(i, k) as f32
+            }
+        })
+        .collect();
+    Ok(Image::from_vec(w, h, data))
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct RecordFrame {
     pub source: PathBuf,
     pub written: String,
-    /// log2 stop as written to exposure.txt (relative to the shortest frame).
+    /// log2 stop as written to exposure.txt (relative to the shortest input).
     pub stop: f64,
     pub exposure_time_s: Option<f64>,
     pub iso: Option<f64>,
+}
+
+/// One frame merged into the ground truth.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct GtRecordFrame {
+    pub source: PathBuf,
+    /// Index among the set's frames (ascending exposure, from 0).
+    pub index: usize,
+    /// log2 stop relative to the shortest input (negative for a shorter frame).
+    pub stop: f64,
+    /// Written as one of the three inputs.
+    pub input: bool,
+    /// MTB shift (dx, dy) applied; absent when not aligned.
+    pub shift: Option<[i32; 2]>,
 }
 
 /// One written set (also `OUT/<set>/brackets.toml`).
@@ -157,10 +452,22 @@ pub struct BuiltBracketSet {
     pub grouping: String,
     pub exposure_source: String,
     pub response: String,
+    /// Indices of the three written frames among the set's frames (ascending exposure, from 0).
+    pub inputs: Vec<usize>,
+    /// How the inputs were chosen (`--inputs`).
+    pub selection: String,
+    /// [`clipped_or_dark`] of the reference (the middle input), in its code values.
+    pub reference_clipped_or_dark: f64,
+    /// The ground truth's merge and weights (`--gt-frames`).
+    pub gt_merge: String,
+    /// log2 of the ratio of the 99.9th and 0.1st percentiles of the ground truth's luminance.
+    pub gt_dynamic_range_stops: f64,
     pub frames: Vec<RecordFrame>,
-    /// Frames of the bracket not used (the set had more than three).
+    /// The frames merged into HDRImg.hdr.
+    pub ground_truth: Vec<GtRecordFrame>,
+    /// Frames of the bracket used neither as inputs nor in the ground truth.
     pub dropped: Vec<PathBuf>,
-    /// MTB shifts (dx, dy) applied to the three frames (the middle one's is 0); empty when not
+    /// MTB shifts (dx, dy) applied to the three inputs (the reference's is 0); empty when not
     /// aligned.
     pub shifts: Vec<[i32; 2]>,
 }
@@ -195,6 +502,28 @@ impl BracketSummary {
                     format!("  MTB shifts {:?}", b.shifts)
                 }
             );
+            let names: Vec<String> = b
+                .frames
+                .iter()
+                .zip(&b.inputs)
+                .map(|(f, i)| {
+                    let name = f.source.file_name().map_or_else(
+                        || f.source.display().to_string(),
+                        |n| n.to_string_lossy().into_owned(),
+                    );
+                    format!("{i}:{name}")
+                })
+                .collect();
+            let _ = writeln!(
+                text,
+                "{:<24} inputs {}; reference clipped or dark {:.2} %; ground truth from {} \
+                 frame(s), {:.1} stops (P0.1–P99.9)",
+                "",
+                names.join(", "),
+                100.0 * b.reference_clipped_or_dark,
+                b.ground_truth.len(),
+                b.gt_dynamic_range_stops
+            );
         }
         let response = self
             .sets
@@ -204,8 +533,7 @@ impl BracketSummary {
         let _ = write!(
             text,
             "{} set(s) in {} (Kalantari layout: 16-bit TIFFs = linear^(1/2.2), exposure.txt, \
-             HDRImg.hdr = triangle merge in the unit of the stop-0 frame); linearised with \
-             {response}",
+             HDRImg.hdr = merge in the unit of the stop-0 frame); linearised with {response}",
             self.sets.len(),
             out.display()
         );
@@ -213,13 +541,14 @@ impl BracketSummary {
     }
 }
 
-/// Indices of the shortest, middle and longest frame of an ascending bracket.
-fn pick_three(n: usize) -> [usize; 3] {
-    [0, n / 2, n - 1]
-}
-
 /// One frame, linear in [0, 1] with 1 = its clipping white.
 pub fn linear_frame(frame: &BracketFrame, lin: &Linearise) -> Result<Image> {
+    Ok(linearise(frame, code_frame(frame)?, lin))
+}
+
+/// One frame's values as stored, upright: LDR code / maximum code; DNG linear after its levels
+/// and white balance.
+pub fn code_frame(frame: &BracketFrame) -> Result<Image> {
     match frame.kind {
         FrameKind::Dng => {
             let dng = crate::sensor::dng::read_dng(&frame.path)?;
@@ -241,29 +570,34 @@ pub fn linear_frame(frame: &BracketFrame, lin: &Linearise) -> Result<Image> {
             }
             brackets::orient(img, frame)
         }
-        FrameKind::Ldr => {
-            let img = brackets::read_frame_image(frame)?;
-            match lin {
-                Linearise::Curve(r) => {
-                    // 16-bit codes make a per-pixel inverse costly for LUT curves: tabulate it.
-                    let table: Vec<f32> = (0..=65535)
-                        .map(|k| r.invert(f64::from(k) / 65535.0) as f32)
-                        .collect();
-                    Ok(img.map(|v| table[(v.clamp(0.0, 1.0) * 65535.0).round() as usize]))
-                }
-                Linearise::Table(t) => {
-                    let mut img = img;
-                    for p in img.data.chunks_exact_mut(3) {
-                        for (c, v) in p.iter_mut().enumerate() {
-                            let z = v.clamp(0.0, 1.0) as f64 * 255.0;
-                            let i = (z.floor() as usize).min(254);
-                            let f = z - i as f64;
-                            *v = (t[c][i] + (t[c][i + 1] - t[c][i]) * f) as f32;
-                        }
-                    }
-                    Ok(img)
+        FrameKind::Ldr => brackets::read_frame_image(frame),
+    }
+}
+
+/// `code` ([`code_frame`] of `frame`) made linear: DNG values are already.
+fn linearise(frame: &BracketFrame, code: Image, lin: &Linearise) -> Image {
+    if frame.kind == FrameKind::Dng {
+        return code;
+    }
+    match lin {
+        Linearise::Curve(r) => {
+            // 16-bit codes make a per-pixel inverse costly for LUT curves: tabulate it.
+            let table: Vec<f32> = (0..=65535)
+                .map(|k| r.invert(f64::from(k) / 65535.0) as f32)
+                .collect();
+            code.map(|v| table[(v.clamp(0.0, 1.0) * 65535.0).round() as usize])
+        }
+        Linearise::Table(t) => {
+            let mut img = code;
+            for p in img.data.chunks_exact_mut(3) {
+                for (c, v) in p.iter_mut().enumerate() {
+                    let z = v.clamp(0.0, 1.0) as f64 * 255.0;
+                    let i = (z.floor() as usize).min(254);
+                    let f = z - i as f64;
+                    *v = (t[c][i] + (t[c][i + 1] - t[c][i]) * f) as f32;
                 }
             }
+            img
         }
     }
 }
@@ -347,6 +681,107 @@ pub fn build(dir: &Path, opts: &BracketOptions, out: &Path) -> Result<BracketSum
     build_sets(&sets, &lin, opts, out, notes)
 }
 
+/// The folder a set's frames lie in, for errors about the set.
+fn set_folder(set: &brackets::BracketSet) -> &Path {
+    set.frames[0].path.parent().unwrap_or(&set.frames[0].path)
+}
+
+/// The inputs of `set` under `choice`, checked against the set: errors name the set's folder.
+pub fn select_inputs(set: &brackets::BracketSet, choice: &InputChoice) -> Result<InputSelection> {
+    let n = set.frames.len();
+    let folder = set_folder(set);
+    if n < 3 {
+        return Err(Error::layout(
+            folder,
+            format!(
+                "set '{}' has {n} frames ({}); a Kalantari-layout test set needs three exposures",
+                set.name,
+                set.frames
+                    .iter()
+                    .map(|f| f.path.display().to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        ));
+    }
+    let listing = || {
+        set.frames
+            .iter()
+            .enumerate()
+            .map(|(i, f)| {
+                let name = f.path.file_name().map_or_else(
+                    || f.path.display().to_string(),
+                    |n| n.to_string_lossy().into_owned(),
+                );
+                format!("{i} {name}")
+            })
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    match choice {
+        InputChoice::Spread => Ok(InputSelection {
+            indices: [0, n / 2, n - 1],
+            how: "the shortest, middle and longest exposure".to_string(),
+            metered: Vec::new(),
+        }),
+        InputChoice::Indices(idx) => {
+            let [i, j, k] = *idx;
+            if i == j || j == k || i == k {
+                return Err(Error::layout(
+                    folder,
+                    format!(
+                        "set '{}': --inputs {i},{j},{k} repeats a frame; give three distinct \
+                         frames (0-based, shortest exposure first: {})",
+                        set.name,
+                        listing()
+                    ),
+                ));
+            }
+            if !(i < j && j < k) {
+                return Err(Error::layout(
+                    folder,
+                    format!(
+                        "set '{}': --inputs {i},{j},{k} is not in ascending exposure; give the \
+                         shortest input first (0-based: {})",
+                        set.name,
+                        listing()
+                    ),
+                ));
+            }
+            if k >= n {
+                return Err(Error::layout(
+                    folder,
+                    format!(
+                        "set '{}': --inputs {i},{j},{k}: index {k} is out of range, the set has \
+                         {n} frames (0–{}: {})",
+                        set.name,
+                        n - 1,
+                        listing()
+                    ),
+                ));
+            }
+            Ok(InputSelection {
+                indices: *idx,
+                how: format!("--inputs {i},{j},{k}"),
+                metered: Vec::new(),
+            })
+        }
+        InputChoice::Auto => {
+            let stops: Vec<f64> = set.frames.iter().map(|f| f.stop).collect();
+            // Decoding errors name the file; fewer than three frames was refused above.
+            auto_inputs(&stops, |j| {
+                Ok(clipped_or_dark(&code_frame(&set.frames[j])?))
+            })
+        }
+    }
+}
+
+/// A stop rounded as exposure.txt writes it, so the merge uses exactly what the field's code
+/// will read back.
+fn written_stop(s: f64) -> f64 {
+    format!("{s:.6}").parse().unwrap_or(0.0)
+}
+
 fn build_sets(
     sets: &[brackets::BracketSet],
     lin: &Linearise,
@@ -354,104 +789,131 @@ fn build_sets(
     out: &Path,
     mut notes: Vec<String>,
 ) -> Result<BracketSummary> {
+    // Every set's inputs first: a bad --inputs leaves nothing written.
+    let selections = sets
+        .iter()
+        .map(|set| select_inputs(set, &opts.inputs))
+        .collect::<Result<Vec<_>>>()?;
     let mut built = Vec::with_capacity(sets.len());
-    for set in sets {
-        let idx = pick_three(set.frames.len());
-        if set.frames.len() < 3 {
-            return Err(Error::layout(
-                &set.frames[0].path,
-                format!(
-                    "set '{}' has {} frames ({}); a Kalantari-layout test set needs three \
-                     exposures",
-                    set.name,
-                    set.frames.len(),
-                    set.frames
-                        .iter()
-                        .map(|f| f.path.display().to_string())
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                ),
-            ));
-        }
+    for (set, sel) in sets.iter().zip(&selections) {
+        let n = set.frames.len();
+        let idx = sel.indices;
+        let gt_idx: Vec<usize> = match opts.gt_frames {
+            GtFrames::Inputs => idx.to_vec(),
+            GtFrames::All => (0..n).collect(),
+        };
         let chosen: Vec<&BracketFrame> = idx.iter().map(|&i| &set.frames[i]).collect();
-        let dropped: Vec<PathBuf> = (0..set.frames.len())
-            .filter(|i| !idx.contains(i))
+        let dropped: Vec<PathBuf> = (0..n)
+            .filter(|i| !gt_idx.contains(i))
             .map(|i| set.frames[i].path.clone())
             .collect();
-        if !dropped.is_empty() {
+        if n > 3 || opts.inputs != InputChoice::Spread {
             notes.push(format!(
-                "set '{}': {} frames; used the shortest, middle and longest, dropped {}",
+                "set '{}': {n} frames; inputs {:?} ({}); ground truth from {} frame(s){}",
                 set.name,
-                set.frames.len(),
-                dropped.len()
+                idx,
+                sel.how,
+                gt_idx.len(),
+                if dropped.is_empty() {
+                    String::new()
+                } else {
+                    format!(", dropped {}", dropped.len())
+                }
             ));
         }
-        let linear = chosen
+        // Position of the reference among the merged frames.
+        let ref_pos = gt_idx.iter().position(|&i| i == idx[1]).unwrap_or(0);
+        let reference = &set.frames[idx[1]];
+        // Stops relative to the shortest input, rounded as written.
+        let stops: Vec<f64> = gt_idx
             .iter()
-            .map(|f| linear_frame(f, lin))
-            .collect::<Result<Vec<Image>>>()?;
-        let (w, h) = (linear[1].width, linear[1].height);
-        for (f, img) in chosen.iter().zip(&linear) {
+            .map(|&i| written_stop(set.frames[i].stop - chosen[0].stop))
+            .collect();
+        // Each frame: decode → (metering, for the reference) → linear → written code
+        // linear^(1/γ) on 16 bits. Only the written codes are kept.
+        // The hat merge weighs each frame by its code values as stored: kept, aligned alike.
+        let hat = gt_idx != idx;
+        let inv_g = 1.0 / FIELD_GAMMA;
+        let mut codes: Vec<Image> = Vec::with_capacity(gt_idx.len());
+        let mut stored: Vec<Image> = Vec::new();
+        let mut reference_bad = 0.0;
+        for &i in &gt_idx {
+            let f = &set.frames[i];
+            let code = code_frame(f)?;
+            if i == idx[1] {
+                reference_bad = clipped_or_dark(&code);
+            }
+            if hat {
+                stored.push(code.clone());
+            }
+            let linear = linearise(f, code, lin);
+            codes.push(linear.map(|v| (v.clamp(0.0, 1.0).powf(inv_g) * 65535.0).round() / 65535.0));
+        }
+        let (w, h) = (codes[ref_pos].width, codes[ref_pos].height);
+        for (&i, img) in gt_idx.iter().zip(&codes) {
             if (img.width, img.height) != (w, h) {
                 return Err(Error::layout(
-                    &f.path,
+                    &set.frames[i].path,
                     format!(
-                        "{}×{}, but the set's middle frame {} is {w}×{h}",
+                        "{}×{}, but the set's reference frame {} is {w}×{h}",
                         img.width,
                         img.height,
-                        chosen[1].path.display()
+                        reference.path.display()
                     ),
                 ));
             }
         }
-        // Stops relative to the shortest frame, rounded as written so the merge uses exactly
-        // what the field's code will read back.
-        let stops: Vec<f64> = chosen
-            .iter()
-            .map(|f| {
-                format!("{:.6}", f.stop - chosen[0].stop)
-                    .parse()
-                    .unwrap_or(0.0)
-            })
-            .collect();
-        let inv_g = 1.0 / FIELD_GAMMA;
-        let mut codes: Vec<Image> = linear
-            .iter()
-            .map(|img| img.map(|v| (v.clamp(0.0, 1.0).powf(inv_g) * 65535.0).round() / 65535.0))
-            .collect();
-        let mut shifts = Vec::new();
+        let mut gt_shifts: Vec<Option<[i32; 2]>> = vec![None; gt_idx.len()];
         if let Some(mtb) = opts.align {
             // MTB on the γ-encoded frames: its median thresholds need no response.
             let s: Vec<(i32, i32)> = codes
                 .iter()
-                .map(|c| align::mtb_shift(&codes[1], c, mtb))
+                .map(|c| align::mtb_shift(&codes[ref_pos], c, mtb))
                 .collect();
             codes = align::apply_shifts(&codes, &s);
-            if codes[1].width == 0 || codes[1].height == 0 {
+            if hat {
+                stored = align::apply_shifts(&stored, &s);
+            }
+            if codes[ref_pos].width == 0 || codes[ref_pos].height == 0 {
                 return Err(Error::layout(
-                    &chosen[1].path,
+                    &reference.path,
                     format!("set '{}': MTB shifts {s:?} leave no common area", set.name),
                 ));
             }
-            shifts = s.iter().map(|&(x, y)| [x, y]).collect();
+            gt_shifts = s.iter().map(|&(x, y)| Some([x, y])).collect();
         }
-        let (w, h) = (codes[1].width, codes[1].height);
-        let times = [0, 1, 2].map(|i| stops[i].exp2() as f32);
-        let hdr = ground_truth::triangle_merge(
-            &[codes[0].clone(), codes[1].clone(), codes[2].clone()],
-            times,
-            FIELD_GAMMA,
-        )?;
+        let (w, h) = (codes[ref_pos].width, codes[ref_pos].height);
+        let pos = idx.map(|i| gt_idx.iter().position(|&g| g == i).unwrap_or(0));
+        let (hdr, gt_merge) = if !hat {
+            let times = pos.map(|p| stops[p].exp2() as f32);
+            (
+                ground_truth::triangle_merge(&pos.map(|p| codes[p].clone()), times, FIELD_GAMMA)?,
+                "Kalantari's triangle merge of the three inputs (weights from the reference's \
+                 value)"
+                    .to_string(),
+            )
+        } else {
+            let times: Vec<f64> = stops.iter().map(|s| s.exp2()).collect();
+            (
+                hat_merge(&codes, &stored, &times, FIELD_GAMMA)?,
+                format!(
+                    "weighted merge of all {} frames: w = (1 − |2z − 1|) · t per frame and \
+                     channel from its own code z, 0 where z ≤ {DARK_CODE}/255 or ≥ \
+                     {CLIPPED_CODE}/255",
+                    gt_idx.len()
+                ),
+            )
+        };
 
         let set_dir = out.join(&set.name);
         std::fs::create_dir_all(&set_dir).map_err(|e| Error::io(&set_dir, e))?;
-        for (img, name) in codes.iter().zip(FRAME_NAMES) {
-            write_ldr(&set_dir.join(name), img, BitDepth::Sixteen)?;
+        for (&p, name) in pos.iter().zip(FRAME_NAMES) {
+            write_ldr(&set_dir.join(name), &codes[p], BitDepth::Sixteen)?;
         }
         let expo = set_dir.join(crate::data::layout::kalantari::EXPOSURE_FILE);
-        let text = stops
+        let text = pos
             .iter()
-            .map(|s| format!("{s}"))
+            .map(|&p| format!("{}", stops[p]))
             .collect::<Vec<_>>()
             .join("\n")
             + "\n";
@@ -463,25 +925,46 @@ fn build_sets(
             height: h,
             grouping: set.grouping.clone(),
             exposure_source: set.exposure_source.clone(),
-            response: if chosen.iter().all(|f| f.kind == FrameKind::Dng) {
+            response: if gt_idx.iter().all(|&i| set.frames[i].kind == FrameKind::Dng) {
                 "linear raw (DNG black/white levels)".to_string()
             } else {
                 opts.response.describe()
             },
+            inputs: idx.to_vec(),
+            selection: sel.how.clone(),
+            reference_clipped_or_dark: reference_bad,
+            gt_merge,
+            gt_dynamic_range_stops: crate::io::dynamic_range_stops(&hdr, 0.1, 99.9).unwrap_or(0.0),
             frames: chosen
                 .iter()
                 .zip(FRAME_NAMES)
-                .zip(&stops)
-                .map(|((f, name), &stop)| RecordFrame {
+                .zip(pos)
+                .map(|((f, name), p)| RecordFrame {
                     source: f.path.clone(),
                     written: name.to_string(),
-                    stop,
+                    stop: stops[p],
                     exposure_time_s: f.exif.exposure_time,
                     iso: f.exif.iso,
                 })
                 .collect(),
+            ground_truth: gt_idx
+                .iter()
+                .zip(&stops)
+                .zip(&gt_shifts)
+                .map(|((&i, &stop), &shift)| GtRecordFrame {
+                    source: set.frames[i].path.clone(),
+                    index: i,
+                    stop,
+                    input: idx.contains(&i),
+                    shift,
+                })
+                .collect(),
             dropped,
-            shifts,
+            shifts: if opts.align.is_some() {
+                pos.iter().filter_map(|&p| gt_shifts[p]).collect()
+            } else {
+                Vec::new()
+            },
         };
         let toml =
             toml::to_string_pretty(&record).map_err(|e| Error::encode(set_dir.join(RECORD), e))?;

@@ -65,6 +65,8 @@ pub enum FrameKind {
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct ExifExposure {
     pub exposure_time: Option<f64>,
+    /// ShutterSpeedValue, APEX Tv (time = 2^−Tv s).
+    pub shutter_speed_apex: Option<f64>,
     pub iso: Option<f64>,
     pub f_number: Option<f64>,
     pub bias_ev: Option<f64>,
@@ -196,6 +198,7 @@ pub fn read_exif(path: &Path) -> Result<ExifExposure> {
     Ok(ExifExposure {
         orientation,
         exposure_time: real(Tag::ExposureTime).filter(|&t| t > 0.0),
+        shutter_speed_apex: real(Tag::ShutterSpeedValue),
         iso: real(Tag::PhotographicSensitivity).filter(|&s| s > 0.0),
         f_number: real(Tag::FNumber).filter(|&n| n > 0.0),
         bias_ev: real(Tag::ExposureBiasValue),
@@ -314,6 +317,91 @@ fn file_name(p: &Path) -> String {
         .unwrap_or_default()
 }
 
+/// Marked shutter speeds of the cameras' third- and half-stop scales, seconds: labels that stand
+/// for powers of two and their thirds or halves (1/125 for 2^−7).
+const MARKED_TIMES: [f64; 67] = [
+    30.0,
+    25.0,
+    20.0,
+    15.0,
+    13.0,
+    10.0,
+    8.0,
+    6.0,
+    5.0,
+    4.0,
+    3.2,
+    3.0,
+    2.5,
+    2.0,
+    1.6,
+    1.5,
+    1.3,
+    1.0,
+    0.8,
+    0.7,
+    0.6,
+    0.5,
+    0.4,
+    0.35,
+    0.3,
+    1.0 / 4.0,
+    1.0 / 5.0,
+    1.0 / 6.0,
+    1.0 / 8.0,
+    1.0 / 10.0,
+    1.0 / 13.0,
+    1.0 / 15.0,
+    1.0 / 20.0,
+    1.0 / 25.0,
+    1.0 / 30.0,
+    1.0 / 40.0,
+    1.0 / 45.0,
+    1.0 / 50.0,
+    1.0 / 60.0,
+    1.0 / 80.0,
+    1.0 / 90.0,
+    1.0 / 100.0,
+    1.0 / 125.0,
+    1.0 / 160.0,
+    1.0 / 180.0,
+    1.0 / 200.0,
+    1.0 / 250.0,
+    1.0 / 320.0,
+    1.0 / 350.0,
+    1.0 / 400.0,
+    1.0 / 500.0,
+    1.0 / 640.0,
+    1.0 / 750.0,
+    1.0 / 800.0,
+    1.0 / 1000.0,
+    1.0 / 1250.0,
+    1.0 / 1500.0,
+    1.0 / 1600.0,
+    1.0 / 2000.0,
+    1.0 / 2500.0,
+    1.0 / 3000.0,
+    1.0 / 3200.0,
+    1.0 / 4000.0,
+    1.0 / 5000.0,
+    1.0 / 6000.0,
+    1.0 / 6400.0,
+    1.0 / 8000.0,
+];
+
+/// The exact time behind a frame's EXIF ExposureTime: 2^−Tv where the ExposureTime is a marked
+/// shutter speed (a label, within 0.5 % of [`MARKED_TIMES`]) and ShutterSpeedValue Tv lies within
+/// 1/6 stop of it (the largest label rounding, 1/30 for 1/32, is 0.09 stops); else None.
+/// A device that writes a measured time (a phone's 1/121 s) keeps it: it is not a label.
+pub fn exact_time(e: &ExifExposure) -> Option<f64> {
+    let t = e.exposure_time?;
+    let tv = e.shutter_speed_apex?;
+    let apex = (-tv).exp2();
+    let marked = MARKED_TIMES.iter().any(|&m| (t / m - 1.0).abs() < 0.005);
+    (marked && apex.is_finite() && apex > 0.0 && (apex / t).log2().abs() <= 1.0 / 6.0)
+        .then_some(apex)
+}
+
 /// Stops of a folder's frames from EXIF (see the module doc), or the files that lack them.
 fn exif_stops(
     frames: &[(PathBuf, ExifExposure)],
@@ -322,10 +410,16 @@ fn exif_stops(
     if all(|e| e.exposure_time.is_some()) {
         let iso = all(|e| e.iso.is_some());
         let fnum = all(|e| e.f_number.is_some());
+        // All frames or none: one folder's stops never mix labels with exact times.
+        let apex = all(|e| exact_time(e).is_some());
         let stops = frames
             .iter()
             .map(|(_, e)| {
-                let mut h = e.exposure_time.unwrap_or(1.0);
+                let mut h = if apex {
+                    exact_time(e).unwrap_or(1.0)
+                } else {
+                    e.exposure_time.unwrap_or(1.0)
+                };
                 if iso {
                     h *= e.iso.unwrap_or(100.0) / 100.0;
                 }
@@ -335,7 +429,11 @@ fn exif_stops(
                 h.log2()
             })
             .collect();
-        let mut what = "EXIF ExposureTime".to_string();
+        let mut what = if apex {
+            "EXIF ShutterSpeedValue (APEX 2^−Tv behind the marked ExposureTime)".to_string()
+        } else {
+            "EXIF ExposureTime".to_string()
+        };
         if iso {
             what.push_str(" × ISO/100");
         }

@@ -508,13 +508,23 @@ impl ClassWeights {
 /// merged = Σ w·H / Σ w (the weights sum to 1 for I in [0, 1]; where Σ w ≤ 0, i.e. I outside
 /// [0, 1], the middle frame's H is used). Computed in f64. Errors on differing sizes.
 pub fn triangle_merge(frames: &[Image; 3], times: [f32; 3], gamma: f32) -> Result<Image> {
+    let g = gamma as f64;
+    triangle_merge_with(frames, times, |v| v.powf(g))
+}
+
+/// [`triangle_merge`] with any linearisation of the code values (a device's inverse response
+/// instead of L^γ); the weights come from the middle frame's code value as there.
+pub fn triangle_merge_with(
+    frames: &[Image; 3],
+    times: [f32; 3],
+    linear: impl Fn(f64) -> f64 + Sync,
+) -> Result<Image> {
     let (w, h) = check_frames("triangle merge", &[&frames[0], &frames[1], &frames[2]])?;
     if times.iter().any(|t| !(t.is_finite() && *t > 0.0)) {
         return Err(Error::Invalid(format!(
             "triangle merge: exposure times {times:?} must be finite and positive"
         )));
     }
-    let g = gamma as f64;
     let t = times.map(|t| t as f64);
     let data = frames[0]
         .data
@@ -524,9 +534,9 @@ pub fn triangle_merge(frames: &[Image; 3], times: [f32; 3], gamma: f32) -> Resul
         .map(|((&l0, &l1), &l2)| {
             let i = l1 as f64;
             let hdr = [
-                (l0 as f64).powf(g) / t[0],
-                i.powf(g) / t[1],
-                (l2 as f64).powf(g) / t[2],
+                linear(l0 as f64) / t[0],
+                linear(i) / t[1],
+                linear(l2 as f64) / t[2],
             ];
             let wt = [
                 (i - 0.5).max(0.0) / 0.5,

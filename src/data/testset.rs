@@ -13,7 +13,11 @@
 //! - `static/clean_<ev>.png` is the same frame with `NoiseModel::None` (Network-1's
 //!   reference weights come from it);
 //! - `hdr_gt.exr` is the radiance in the device's linear space at EV0, `T · radiance · k`
-//!   ([`Realism::device_linear`], 1 = sensor white), the Network-2 loader's target convention.
+//!   ([`Realism::device_linear`], 1 = sensor white), the Network-2 loader's target convention,
+//!   clipped per channel at the shortest frame's white (2^−EV_min): what a merge of the bracket
+//!   can know, as in a real bracket's merged ground truth. Radiance above it is clipped in every
+//!   frame; a ground truth holding it would score every method on values no input carries (and
+//!   the Network-2 loader clips its targets at the same point).
 //!
 //! The scene is static: the dynamic frames are copies of the static ones and every motion mask
 //! is 0. This is real scene radiance through a measured sensor model, not a real bracketed
@@ -38,7 +42,9 @@ use std::path::{Path, PathBuf};
 
 /// The recipe, written to `OUT/testset.toml` (read by nothing else; provenance and resume).
 pub const RECIPE: &str = "testset.toml";
-pub const RECIPE_FORMAT: &str = "hdrsynth-testset/1";
+/// Version 2: the ground truth is clipped at the shortest frame's white (version 1 was not), so
+/// a version-1 test set is refused rather than silently mixed with version-2 sets.
+pub const RECIPE_FORMAT: &str = "hdrsynth-testset/2";
 
 /// Every key is optional in TOML (missing keys take the defaults below).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -537,7 +543,9 @@ fn write_set(
             depth,
         )?;
     }
-    let gt = realism(0.0)?.device_linear(radiance);
+    let mut gt = realism(0.0)?.device_linear(radiance);
+    let white = ground_truth_white(&opts.evs);
+    gt.data.iter_mut().for_each(|v| *v = v.min(white));
     write_exr(&dir.join("hdr_gt.exr"), &gt, ExrPrecision::Float)?;
     drop(gt);
     let meta = SetMeta {
@@ -582,6 +590,13 @@ fn write_set(
         under_fraction: under,
         written: true,
     })
+}
+
+/// The ground truth's clipping point in EV0 units: the shortest frame's white, 2^−EV_min (1 when
+/// no frame is shorter than the reference).
+pub fn ground_truth_white(evs: &[f32]) -> f32 {
+    let shortest = evs.iter().copied().fold(0.0f32, f32::min);
+    (-shortest).exp2()
 }
 
 /// Fractions of pixels over- and under-exposed as the scene engine counts them: largest

@@ -23,7 +23,7 @@ use crate::eval::evaluate::{self, EvalOptions, NetworkOptions, from_checkpoint};
 use crate::eval::report::{self, METRICS};
 use crate::io::atomic::write_atomic;
 use crate::sensor::profile::SensorProfile;
-use crate::stats::bootstrap_crossed;
+use crate::stats::{self, bootstrap_crossed};
 use crate::train::config::TrainConfig;
 use crate::train::{self, TrainOptions, checkpoint};
 use serde::{Deserialize, Serialize};
@@ -49,7 +49,17 @@ pub struct AblateConfig {
     /// the base config's seed.
     #[serde(default)]
     pub seeds: Vec<u64>,
+    /// Per-seed pretrained networks: the path of seed k's pretrained checkpoint (a run folder
+    /// or one of its checkpoints) with `{seed}` standing for k. It replaces the base config's
+    /// `[init] checkpoint` in seed k's cells, so the seeds vary pretraining as well as
+    /// fine-tuning; cells that do not train are then evaluated once per seed.
+    #[serde(default)]
+    pub pretrained_per_seed: Option<String>,
     pub testset: TestsetSpec,
+    /// More test sets every cell is also scored on, each with its own table
+    /// (`table_<name>.md`/`.csv`); each needs a `name`.
+    #[serde(default)]
+    pub also: Vec<TestsetSpec>,
     #[serde(default)]
     pub eval: EvalSpec,
     /// First axis of the grid (table rows).
@@ -62,6 +72,13 @@ pub struct AblateConfig {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TestsetSpec {
+    /// Folder-safe id of an extra test set (`also`): its eval folder is `eval_<name>/` and its
+    /// table `table_<name>.md`. The primary test set has none.
+    #[serde(default)]
+    pub name: Option<String>,
+    /// Shown above its table; default: the folder.
+    #[serde(default)]
+    pub label: Option<String>,
     /// The test set folder (any known layout).
     pub dir: PathBuf,
     /// Build `dir` from real radiance through `profile` first (`hdrsynth testset`); sets
@@ -72,6 +89,70 @@ pub struct TestsetSpec {
     pub profile: Option<PathBuf>,
     #[serde(default)]
     pub options: TestsetOptions,
+    /// Redraw the test noise per seed: seed k's test set is `dir/seed<k>`, built from
+    /// `radiance` through `profile` with noise seed k, and every cell is scored per seed on its
+    /// seed's test set (needs `seeds`, `radiance` and `profile`).
+    #[serde(default)]
+    pub noise_per_seed: bool,
+}
+
+impl TestsetSpec {
+    /// The folder of the test set seed `seed`'s runs are scored on.
+    pub fn dir_for(&self, seed: Option<u64>) -> PathBuf {
+        match seed {
+            Some(k) if self.noise_per_seed => self.dir.join(format!("seed{k}")),
+            _ => self.dir.clone(),
+        }
+    }
+
+    /// The cell's eval folder for this test set.
+    fn eval_dir(&self) -> String {
+        match &self.name {
+            None => EVAL_DIR.to_string(),
+            Some(n) => format!("{EVAL_DIR}_{n}"),
+        }
+    }
+
+    /// The table's file name with this test set's suffix (`table.md` → `table_<name>.md`).
+    fn table_file(&self, file: &str) -> String {
+        match &self.name {
+            None => file.to_string(),
+            Some(n) => match file.rsplit_once('.') {
+                Some((stem, ext)) => format!("{stem}_{n}.{ext}"),
+                None => format!("{file}_{n}"),
+            },
+        }
+    }
+
+    /// Build the test set (once, or per seed) when it is made from radiance.
+    fn build(&self, seeds: &[u64], progress: bool) -> Result<()> {
+        let (Some(radiance), Some(profile)) = (&self.radiance, &self.profile) else {
+            return Ok(());
+        };
+        let p = SensorProfile::load(profile)?;
+        let runs: Vec<Option<u64>> = if self.noise_per_seed {
+            seeds.iter().map(|&k| Some(k)).collect()
+        } else {
+            vec![None]
+        };
+        for seed in runs {
+            let dir = self.dir_for(seed);
+            let mut options = self.options.clone();
+            if let Some(k) = seed {
+                options.seed = k;
+            }
+            if progress {
+                eprintln!(
+                    "test set: {} from {} through {}",
+                    dir.display(),
+                    radiance.display(),
+                    profile.display()
+                );
+            }
+            testset::build(radiance, &p, &options, &dir)?;
+        }
+        Ok(())
+    }
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -88,6 +169,10 @@ pub struct EvalSpec {
     /// The cell the paired differences are taken against (`row` or `row__column`); default:
     /// the first cell.
     pub reference: Option<String>,
+    /// Equivalence margins of the TOST on paired differences: ± this many dB for PSNR, ± this
+    /// much for SSIM (docs/protocol.md).
+    pub margin_psnr: f64,
+    pub margin_ssim: f64,
 }
 
 impl Default for EvalSpec {
@@ -99,6 +184,8 @@ impl Default for EvalSpec {
             backend: None,
             tile: None,
             reference: None,
+            margin_psnr: 0.2,
+            margin_ssim: 0.005,
         }
     }
 }
@@ -214,6 +301,14 @@ impl AblateConfig {
         if !(self.eval.level > 0.0 && self.eval.level < 1.0) {
             return Err(format!("eval.level {} must be in (0, 1)", self.eval.level));
         }
+        for (key, m) in [
+            ("margin_psnr", self.eval.margin_psnr),
+            ("margin_ssim", self.eval.margin_ssim),
+        ] {
+            if !(m > 0.0 && m.is_finite()) {
+                return Err(format!("eval.{key} {m} must be a positive number"));
+            }
+        }
         if let Some(r) = &self.eval.reference
             && !self
                 .cells()
@@ -222,12 +317,55 @@ impl AblateConfig {
         {
             return Err(format!("eval.reference '{r}' is not a cell of the grid"));
         }
-        if self.testset.radiance.is_some() != self.testset.profile.is_some() {
-            return Err(
-                "testset: give both `radiance` and `profile` (to build it) or neither".into(),
-            );
+        if let Some(p) = &self.pretrained_per_seed
+            && (self.seeds.is_empty() || !p.contains("{seed}"))
+        {
+            return Err(format!(
+                "pretrained_per_seed '{p}' needs `seeds` and '{{seed}}' in the path"
+            ));
+        }
+        let mut names = std::collections::BTreeSet::new();
+        for (i, t) in std::iter::once(&self.testset).chain(&self.also).enumerate() {
+            let what = match (i, &t.name) {
+                (0, _) => "testset".to_string(),
+                (_, Some(n)) => format!("also '{n}'"),
+                (_, None) => return Err("every [[also]] test set needs a `name`".into()),
+            };
+            if i == 0 && t.name.is_some() {
+                return Err("testset: the primary test set has no `name`".into());
+            }
+            if let Some(n) = &t.name
+                && (n.is_empty()
+                    || !n.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
+                    || !names.insert(n))
+            {
+                return Err(format!(
+                    "{what}: names are letters, digits and '_', each used once"
+                ));
+            }
+            if t.radiance.is_some() != t.profile.is_some() {
+                return Err(format!(
+                    "{what}: give both `radiance` and `profile` (to build it) or neither"
+                ));
+            }
+            if t.noise_per_seed && (self.seeds.is_empty() || t.radiance.is_none()) {
+                return Err(format!(
+                    "{what}: noise_per_seed needs `seeds` and a test set built from `radiance`"
+                ));
+            }
         }
         Ok(())
+    }
+
+    /// Every test set: the primary, then `also`.
+    pub fn testsets(&self) -> impl Iterator<Item = &TestsetSpec> {
+        std::iter::once(&self.testset).chain(&self.also)
+    }
+
+    /// Whether a cell that does not train still runs per seed: its checkpoint (per-seed
+    /// pretraining) or its test set (per-seed noise) depends on the seed.
+    fn seeded_eval(&self) -> bool {
+        self.pretrained_per_seed.is_some() || self.testsets().any(|t| t.noise_per_seed)
     }
 
     /// The cells, row-major.
@@ -264,7 +402,7 @@ impl AblateConfig {
     /// The seeds a cell runs at: `None` = once (no `seeds`, or a cell that does not train and
     /// therefore does not depend on the seed: it is evaluated once and serves every seed).
     pub fn cell_seeds(&self, r: usize, c: Option<usize>) -> Vec<Option<u64>> {
-        if self.seeds.is_empty() || !self.cell_trains(r, c) {
+        if self.seeds.is_empty() || !(self.cell_trains(r, c) || self.seeded_eval()) {
             vec![None]
         } else {
             self.seeds.iter().map(|&s| Some(s)).collect()
@@ -285,6 +423,10 @@ impl AblateConfig {
 #[serde(deny_unknown_fields)]
 struct CellPlan {
     testset: PathBuf,
+    /// The `also` test sets, in order. Not part of the cell's identity: an extra test set
+    /// added later is scored without retraining (each has its own `eval_<name>/`).
+    #[serde(skip)]
+    also: Vec<PathBuf>,
     /// The checkpoint evaluated (the cell's own run folder when it trains).
     checkpoint: PathBuf,
     /// The training config, when the cell fine-tunes.
@@ -325,34 +467,23 @@ pub const TABLE_CSV: &str = "table.csv";
 pub const TABLE_SEEDS_CSV: &str = "table_seeds.csv";
 const CELL_PLAN: &str = "cell.toml";
 const EVAL_DIR: &str = "eval";
-const EVAL_PARTIAL: &str = "eval.partial";
 
 /// Run every unfinished cell of `cfg`, then write the table. `config_path` names the config in
 /// errors.
 pub fn run(cfg: &AblateConfig, config_path: &Path, progress: bool) -> Result<AblateSummary> {
     let began = Instant::now();
     let base = load_base(cfg)?;
-    if let (Some(radiance), Some(profile)) = (&cfg.testset.radiance, &cfg.testset.profile) {
-        let p = SensorProfile::load(profile)?;
-        if progress {
-            eprintln!(
-                "test set: {} from {} through {}",
-                cfg.testset.dir.display(),
-                radiance.display(),
-                profile.display()
-            );
+    for t in cfg.testsets() {
+        t.build(&cfg.seeds, progress)?;
+        if !t.dir.is_dir() {
+            return Err(Error::config(
+                config_path,
+                format!(
+                    "test set {} does not exist (give `radiance` and `profile` to build it)",
+                    t.dir.display()
+                ),
+            ));
         }
-        testset::build(radiance, &p, &cfg.testset.options, &cfg.testset.dir)?;
-    }
-    if !cfg.testset.dir.is_dir() {
-        return Err(Error::config(
-            config_path,
-            format!(
-                "testset.dir {} does not exist (give testset.radiance and testset.profile to \
-                 build it)",
-                cfg.testset.dir.display()
-            ),
-        ));
     }
     // One ablation per output folder: two would train and evaluate the same cells at once.
     let _lock = crate::io::guard::OutputLock::acquire(&cfg.out, "ablate")?;
@@ -419,8 +550,20 @@ fn plan_cell(
         .collect();
     let id = cfg.cell_id(r, c);
     let cell_err = |m: String| Error::config(config_path, format!("cell '{id}': {m}"));
+    let mut base = base.clone();
+    if let (Some(path), Some(k)) = (&cfg.pretrained_per_seed, seed) {
+        let init = base
+            .entry("init")
+            .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+        if let toml::Value::Table(t) = init {
+            t.insert(
+                "checkpoint".into(),
+                toml::Value::String(path.replace("{seed}", &k.to_string())),
+            );
+        }
+    }
     let mut merged = if axes.iter().any(|a| a.kind == AxisKind::Control) {
-        control_config(&cfg.base, base).map_err(|e| cell_err(format!("control: {e}")))?
+        control_config(&cfg.base, &base).map_err(|e| cell_err(format!("control: {e}")))?
     } else {
         base.clone()
     };
@@ -473,7 +616,8 @@ fn plan_cell(
             })?,
     };
     Ok(CellPlan {
-        testset: cfg.testset.dir.clone(),
+        testset: cfg.testset.dir_for(seed),
+        also: cfg.also.iter().map(|t| t.dir_for(seed)).collect(),
         checkpoint,
         backend: train_cfg.run.backend.clone(),
         train: trains.then_some(train_cfg),
@@ -545,7 +689,14 @@ fn run_cell(
             write_atomic(&plan_path, plan_text.as_bytes())?;
         }
     }
-    if dir.join(EVAL_DIR).join(evaluate::SUMMARY_CSV).is_file() {
+    // (test set folder, eval folder) pairs not scored yet.
+    let pending: Vec<(&Path, String)> = std::iter::once(&plan.testset)
+        .chain(&plan.also)
+        .zip(cfg.testsets().map(TestsetSpec::eval_dir))
+        .filter(|(_, e)| !dir.join(e).join(evaluate::SUMMARY_CSV).is_file())
+        .map(|(t, e)| (t.as_path(), e))
+        .collect();
+    if pending.is_empty() {
         if progress {
             eprintln!("  finished before: kept");
         }
@@ -585,10 +736,6 @@ fn run_cell(
         ..NetworkOptions::default()
     };
     let method = from_checkpoint(&plan.checkpoint, &net, &device)?;
-    let partial = dir.join(EVAL_PARTIAL);
-    if partial.exists() {
-        std::fs::remove_dir_all(&partial).map_err(|e| Error::io(&partial, e))?;
-    }
     let opts = EvalOptions {
         resamples: cfg.eval.resamples,
         seed: cfg.eval.seed,
@@ -596,9 +743,16 @@ fn run_cell(
         progress,
         ..EvalOptions::default()
     };
-    evaluate::evaluate(&plan.testset, method.as_ref(), &partial, &opts)?;
-    let done = dir.join(EVAL_DIR);
-    std::fs::rename(&partial, &done).map_err(|e| Error::io(&done, e))?;
+    for (testset, eval_dir) in pending {
+        // Scored into a partial folder, renamed when complete: a killed evaluation reruns.
+        let partial = dir.join(format!("{eval_dir}.partial"));
+        if partial.exists() {
+            std::fs::remove_dir_all(&partial).map_err(|e| Error::io(&partial, e))?;
+        }
+        evaluate::evaluate(testset, method.as_ref(), &partial, &opts)?;
+        let done = dir.join(&eval_dir);
+        std::fs::rename(&partial, &done).map_err(|e| Error::io(&done, e))?;
+    }
     Ok(CellStatus::Ran { resumed_at })
 }
 
@@ -699,6 +853,33 @@ struct Stat {
     hi: f64,
     /// Each seed's value: the mean over the scenes.
     per_seed: Vec<(Option<u64>, f64)>,
+    /// Each scene's value: the mean over the seeds (the unit of the paired tests).
+    per_scene: Vec<f64>,
+}
+
+/// Fewest scenes for an interval or a test: below it a table shows means only.
+pub const MIN_SCENES_FOR_TESTS: usize = 10;
+
+/// The paired tests of a difference over scenes (docs/protocol.md, "Statistics").
+struct Tests {
+    t: stats::PairedT,
+    wilcoxon: Option<stats::Wilcoxon>,
+    margin: f64,
+    tost: Option<stats::Tost>,
+}
+
+impl Stat {
+    fn tests(&self, level: f64, margin: f64) -> Option<Tests> {
+        if self.n_scenes < MIN_SCENES_FOR_TESTS {
+            return None;
+        }
+        Some(Tests {
+            t: stats::paired_t(&self.per_scene, level)?,
+            wilcoxon: stats::wilcoxon_signed_rank(&self.per_scene),
+            margin,
+            tost: stats::tost_paired(&self.per_scene, margin, 1.0 - level),
+        })
+    }
 }
 
 impl Stat {
@@ -766,6 +947,9 @@ fn crossed_stat(
             .zip(&matrix)
             .map(|((s, _), m)| (*s, m.iter().sum::<f64>() / m.len() as f64))
             .collect(),
+        per_scene: (0..common.len())
+            .map(|j| matrix.iter().map(|m| m[j]).sum::<f64>() / matrix.len() as f64)
+            .collect(),
     }
 }
 
@@ -793,9 +977,69 @@ fn pair_runs<'a>(
     }
 }
 
-/// Write `table.md` and `table.csv` (and, with `seeds`, `table_seeds.csv`) from the finished
-/// runs; returns the Markdown.
+/// Write every test set's tables from the finished runs: `table.md` and `table.csv` (and, with
+/// `seeds`, `table_seeds.csv`) for the primary test set, `table_<name>.*` for each of `also`;
+/// returns the Markdown of all, the primary first.
 pub fn write_table(cfg: &AblateConfig) -> Result<String> {
+    let tables = write_tables(cfg)?;
+    Ok(tables
+        .iter()
+        .map(|t| t.markdown.as_str())
+        .collect::<Vec<_>>()
+        .join("\n\n"))
+}
+
+/// [`write_table`], returning every test set's table with its values (the primary first).
+pub fn write_tables(cfg: &AblateConfig) -> Result<Vec<Table>> {
+    cfg.testsets().map(|t| write_table_for(cfg, t)).collect()
+}
+
+/// One test set's table: its Markdown and the values behind it.
+#[derive(Clone, Debug)]
+pub struct Table {
+    /// `None` for the primary test set, else the `also` test set's name.
+    pub testset: Option<String>,
+    pub markdown: String,
+    pub entries: Vec<TableEntry>,
+}
+
+impl Table {
+    pub fn entry(&self, row: &str, metric: &str) -> Option<&TableEntry> {
+        self.entries
+            .iter()
+            .find(|e| e.row == row && e.column.is_none() && e.metric == metric)
+    }
+}
+
+/// One cell's value of one metric: mean over seeds of the mean over scenes, and its paired
+/// difference to the reference cell.
+#[derive(Clone, Debug)]
+pub struct TableEntry {
+    pub row: String,
+    pub column: Option<String>,
+    pub metric: &'static str,
+    pub mean: f64,
+    pub n_scenes: usize,
+    pub n_seeds: usize,
+    pub diff: Option<DiffEntry>,
+}
+
+/// A paired difference to the reference cell (docs/protocol.md, "Statistics").
+#[derive(Clone, Debug)]
+pub struct DiffEntry {
+    pub mean: f64,
+    /// Seeds whose mean over scenes has the sign of `mean`, of `n_seeds`.
+    pub sign_holds: usize,
+    pub n_seeds: usize,
+    /// The tests over scenes; `None` with fewer than [`MIN_SCENES_FOR_TESTS`] scenes.
+    pub t: Option<stats::PairedT>,
+    pub wilcoxon_p: Option<f64>,
+    pub margin: f64,
+    pub tost_p: Option<f64>,
+}
+
+fn write_table_for(cfg: &AblateConfig, t: &TestsetSpec) -> Result<Table> {
+    let mut entries = Vec::new();
     let mut done = Vec::new();
     let (mut runs_done, mut runs_total) = (0, 0);
     for (r, c) in cfg.cells() {
@@ -804,7 +1048,7 @@ pub fn write_table(cfg: &AblateConfig) -> Result<String> {
             runs_total += 1;
             let path = cfg
                 .unit_dir(r, c, seed)
-                .join(EVAL_DIR)
+                .join(t.eval_dir())
                 .join(evaluate::PER_IMAGE);
             if path.is_file() {
                 runs.push((seed, read_per_image(&path)?));
@@ -820,7 +1064,8 @@ pub fn write_table(cfg: &AblateConfig) -> Result<String> {
         .flat_map(|d| d.runs.iter().flat_map(|(_, sets)| sets.keys()))
         .map(String::as_str)
         .collect();
-    let scenes = testset::scenes_of_sets(&cfg.testset.dir, set_names.iter().copied())?;
+    let testset_dir = t.dir_for(cfg.seeds.first().copied());
+    let scenes = testset::scenes_of_sets(&testset_dir, set_names.iter().copied())?;
     let n_scenes = scenes
         .values()
         .collect::<std::collections::BTreeSet<_>>()
@@ -838,7 +1083,8 @@ pub fn write_table(cfg: &AblateConfig) -> Result<String> {
 
     let mut csv = String::from(
         "row,column,metric,n,mean,ci_lo,ci_hi,diff_vs_reference,diff_ci_lo,diff_ci_hi,\
-         n_seeds,n_scenes,seeds_positive,diff_n_seeds\n",
+         n_seeds,n_scenes,seeds_positive,diff_n_seeds,diff_t_lo,diff_t_hi,diff_t_p,\
+         diff_wilcoxon_p,diff_tost_margin,diff_tost_p\n",
     );
     let mut seeds_csv = String::from("row,column,seed,metric,n_scenes,mean,diff_vs_reference\n");
     // (metric, r, c) → "mean [lo, hi]" and paired difference.
@@ -872,10 +1118,42 @@ pub fn write_table(cfg: &AblateConfig) -> Result<String> {
                         .collect();
                     crossed_stat(cfg, &rows, &scenes)
                 });
+            let margin = if metric.starts_with("ssim") {
+                cfg.eval.margin_ssim
+            } else {
+                cfg.eval.margin_psnr
+            };
+            let tests = diff.as_ref().and_then(|x| x.tests(cfg.eval.level, margin));
             let opt = |f: &dyn Fn(&Stat) -> String| diff.as_ref().map(f).unwrap_or_default();
+            entries.push(TableEntry {
+                row: cfg.rows[d.r].name.clone(),
+                column: d.c.map(|c| cfg.columns[c].name.clone()),
+                metric,
+                mean: st.mean,
+                n_scenes: st.n_scenes,
+                n_seeds: st.n_seeds,
+                diff: diff.as_ref().map(|x| DiffEntry {
+                    mean: x.mean,
+                    sign_holds: x.sign_holds(),
+                    n_seeds: x.n_seeds,
+                    t: tests.as_ref().map(|ts| ts.t),
+                    wilcoxon_p: tests
+                        .as_ref()
+                        .and_then(|ts| ts.wilcoxon.as_ref().map(|w| w.p)),
+                    margin,
+                    tost_p: tests.as_ref().and_then(|ts| ts.tost.as_ref().map(|w| w.p)),
+                }),
+            });
+            let test = |f: &dyn Fn(&Tests) -> Option<f64>| {
+                tests
+                    .as_ref()
+                    .and_then(f)
+                    .map(|v| v.to_string())
+                    .unwrap_or_default()
+            };
             let _ = writeln!(
                 csv,
-                "{row_name},{col_name},{metric},{},{},{},{},{},{},{},{},{},{},{}",
+                "{row_name},{col_name},{metric},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
                 st.n_sets,
                 st.mean,
                 st.lo,
@@ -887,6 +1165,12 @@ pub fn write_table(cfg: &AblateConfig) -> Result<String> {
                 st.n_scenes,
                 opt(&|x| x.seeds_positive().to_string()),
                 opt(&|x| x.n_seeds.to_string()),
+                test(&|x| Some(x.t.ci_lower)),
+                test(&|x| Some(x.t.ci_upper)),
+                test(&|x| Some(x.t.p)),
+                test(&|x| x.wilcoxon.as_ref().map(|w| w.p)),
+                test(&|x| Some(x.margin)),
+                test(&|x| x.tost.as_ref().map(|w| w.p)),
             );
             if seeded {
                 // Every seed's number; a run that serves every seed is repeated for each.
@@ -907,59 +1191,122 @@ pub fn write_table(cfg: &AblateConfig) -> Result<String> {
                     );
                 }
             }
-            let mean_text = format!(
-                "{} [{}, {}]",
-                fmt(metric, st.mean),
-                fmt(metric, st.lo),
-                fmt(metric, st.hi)
-            );
-            let diff_text = match &diff {
-                Some(x) => format!(
-                    "{:+} [{:+}, {:+}]{}{}",
+            // With too few scenes for a test, means only: an interval over three scenes is
+            // about their [min, max] and would suggest a certainty it does not have.
+            let mean_text = if st.n_scenes >= MIN_SCENES_FOR_TESTS {
+                format!(
+                    "{} [{}, {}]",
+                    fmt(metric, st.mean),
+                    fmt(metric, st.lo),
+                    fmt(metric, st.hi)
+                )
+            } else {
+                fmt(metric, st.mean)
+            };
+            let seeds_text = |x: &Stat| {
+                if seeded {
+                    format!(" ({}/{})", x.sign_holds(), x.n_seeds)
+                } else {
+                    String::new()
+                }
+            };
+            let diff_text = match (&diff, &tests) {
+                (Some(x), Some(ts)) => format!(
+                    "{:+} [{:+}, {:+}]{} p {}{}{}",
                     Signed(metric, x.mean),
-                    Signed(metric, x.lo),
-                    Signed(metric, x.hi),
-                    if x.lo > 0.0 || x.hi < 0.0 { " *" } else { "" },
-                    if seeded {
-                        format!(" ({}/{})", x.sign_holds(), x.n_seeds)
+                    Signed(metric, ts.t.ci_lower),
+                    Signed(metric, ts.t.ci_upper),
+                    if ts.t.ci_lower > 0.0 || ts.t.ci_upper < 0.0 {
+                        " *"
                     } else {
-                        String::new()
-                    }
+                        ""
+                    },
+                    ts.wilcoxon
+                        .as_ref()
+                        .map_or("–".to_string(), |w| format_p(w.p)),
+                    if ts.tost.as_ref().is_some_and(|t| t.p < 1.0 - cfg.eval.level) {
+                        " ≈"
+                    } else {
+                        ""
+                    },
+                    seeds_text(x),
                 ),
-                None => "(reference)".into(),
+                (Some(x), None) => format!("{:+}{}", Signed(metric, x.mean), seeds_text(x)),
+                (None, _) => "(reference)".into(),
             };
             cell_text.insert((mi, d.r, d.c), (mean_text, diff_text));
         }
     }
 
     let mut md = format!(
-        "# {}\n\nTest set: `{}` ({} sets of {n_scenes} scenes; the sets of one scene are one \
-         cluster).",
+        "# {}{}\n\nTest set: `{}` ({} sets of {n_scenes} scenes; the sets of one scene are one \
+         cluster{}).",
         cfg.title,
-        cfg.testset.dir.display(),
+        t.label
+            .as_ref()
+            .or(t.name.as_ref())
+            .map(|l| format!(" — {l}"))
+            .unwrap_or_default(),
+        t.dir.display(),
         set_names.len(),
+        if t.noise_per_seed {
+            "; test noise redrawn per seed"
+        } else {
+            ""
+        },
     );
+    let tests_text = if n_scenes >= MIN_SCENES_FOR_TESTS {
+        format!(
+            " Δ [{pct:.0} % paired t interval over scenes, each scene's Δ the mean over seeds] \
+             p = Wilcoxon signed-rank p (two-sided); * = the t interval excludes 0; ≈ = \
+             equivalent within ±{} dB PSNR / ±{} SSIM (TOST, α = {:.2}).",
+            cfg.eval.margin_psnr,
+            cfg.eval.margin_ssim,
+            1.0 - cfg.eval.level
+        )
+    } else {
+        format!(
+            " With {n_scenes} scene(s) (fewer than {MIN_SCENES_FOR_TESTS}) the table shows \
+             means only: no interval and no test."
+        )
+    };
     if seeded {
         let list: Vec<String> = cfg.seeds.iter().map(u64::to_string).collect();
         let _ = write!(
             md,
-            " Training seeds: {} (every trained cell once per seed; a cell that does not train \
-             is evaluated once and serves every seed). Each value: mean over the seeds of the \
-             mean over the scenes [{pct:.0} % CI of a two-level bootstrap: seeds, then scenes; \
-             {} resamples]. Δ: difference to **{ref_label}** paired within seed, scene and set \
-             [{pct:.0} % CI, the same bootstrap]; * = the interval excludes 0; (k/n) = the \
-             seeds in which Δ has the sign of its mean. {runs_done} of {runs_total} runs \
+            " Seeds: {} ({}). Each value: mean over the seeds of the mean over the scenes{}. Δ: \
+             difference to **{ref_label}** paired within seed, scene and set; (k/n) = the seeds \
+             in which Δ has the sign of its mean.{tests_text} {runs_done} of {runs_total} runs \
              finished.\n\n",
             list.join(", "),
-            cfg.eval.resamples,
+            if cfg.pretrained_per_seed.is_some() {
+                "each seed has its own pretrained network and its own fine-tuning data stream"
+            } else {
+                "every trained cell once per seed; a cell that does not train is evaluated once \
+                 and serves every seed"
+            },
+            if n_scenes >= MIN_SCENES_FOR_TESTS {
+                format!(
+                    " [{pct:.0} % CI of a two-level bootstrap: seeds, then scenes; {} resamples]",
+                    cfg.eval.resamples
+                )
+            } else {
+                String::new()
+            },
         );
     } else {
         let _ = write!(
             md,
-            " Each value: mean over the scenes [{pct:.0} % bootstrap CI resampling scenes, {} \
-             resamples]. Δ: paired difference to **{ref_label}** over the same sets [{pct:.0} % \
-             CI]; * = the interval excludes 0. {runs_done} of {runs_total} cells finished.\n\n",
-            cfg.eval.resamples,
+            " Each value: mean over the scenes{}. Δ: paired difference to **{ref_label}** over \
+             the same sets.{tests_text} {runs_done} of {runs_total} cells finished.\n\n",
+            if n_scenes >= MIN_SCENES_FOR_TESTS {
+                format!(
+                    " [{pct:.0} % bootstrap CI resampling scenes, {} resamples]",
+                    cfg.eval.resamples
+                )
+            } else {
+                String::new()
+            },
         );
     }
     let missing = "(not run yet)".to_string();
@@ -1032,12 +1379,30 @@ pub fn write_table(cfg: &AblateConfig) -> Result<String> {
             md.push('\n');
         }
     }
-    write_atomic(&cfg.out.join(TABLE_MD), md.as_bytes())?;
-    write_atomic(&cfg.out.join(TABLE_CSV), csv.as_bytes())?;
+    write_atomic(&cfg.out.join(t.table_file(TABLE_MD)), md.as_bytes())?;
+    write_atomic(&cfg.out.join(t.table_file(TABLE_CSV)), csv.as_bytes())?;
     if seeded {
-        write_atomic(&cfg.out.join(TABLE_SEEDS_CSV), seeds_csv.as_bytes())?;
+        write_atomic(
+            &cfg.out.join(t.table_file(TABLE_SEEDS_CSV)),
+            seeds_csv.as_bytes(),
+        )?;
     }
-    Ok(md)
+    Ok(Table {
+        testset: t.name.clone(),
+        markdown: md,
+        entries,
+    })
+}
+
+/// A p value as tables print it: two decimals, three below 0.01, "< 0.001" below that.
+pub fn format_p(p: f64) -> String {
+    if p < 0.001 {
+        "< 0.001".into()
+    } else if p < 0.01 {
+        format!("{p:.3}")
+    } else {
+        format!("{p:.2}")
+    }
 }
 
 fn cell_label(cfg: &AblateConfig, r: usize, c: Option<usize>) -> String {

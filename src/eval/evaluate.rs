@@ -491,6 +491,62 @@ impl Method for Network2 {
 }
 
 // ---------------------------------------------------------------------------------------------
+// A classical merge that knows the device
+
+/// The paper's ground-truth merge ([`ground_truth::triangle_merge_with`], Kalantari's weights)
+/// of each set's three frames, linearised with the device's true response: the noise ceiling
+/// beside the networks (docs/protocol.md). With `clean`, the set's noise-free renderings
+/// (`static/clean_<ev>.png`, written by `hdrsynth testset`) instead of its noisy frames, so
+/// the two rows differ only by the test noise.
+pub struct TriangleMerge {
+    /// The device response the frames were rendered with: code = response(signal), signal 1
+    /// at the sensor's white.
+    pub response: crate::sensor::profile::Response,
+    pub clean: bool,
+}
+
+impl Method for TriangleMerge {
+    fn describe(&self, _opts: &EvalOptions) -> String {
+        format!(
+            "triangle merge of the {} frames, linearised with the true device response ({:?}); \
+             scored against each set's linear ground truth (T = μ-law, μ = 5000)",
+            if self.clean { "noise-free" } else { "noisy" },
+            self.response
+        )
+    }
+
+    fn missing(&self, set: &SetInfo) -> Option<String> {
+        (self.clean && set.clean_frames.len() != set.evs.len()).then(|| {
+            format!(
+                "{}/static/clean_<ev>.png (noise-free frames)",
+                set.dir.display()
+            )
+        })
+    }
+
+    fn run(&self, set: &SetInfo, _opts: &EvalOptions) -> Result<Outcome> {
+        let (mut frames, times) = infer::network2_frames(set)?;
+        if self.clean {
+            let picks = [0, set.reference, set.evs.len() - 1];
+            for (f, i) in frames.iter_mut().zip(picks) {
+                *f = layout::read_set_image(set, &set.clean_frames[i])?;
+            }
+        }
+        let response = self.response.clone();
+        let mut output = ground_truth::triangle_merge_with(&frames, times, |v| response.invert(v))?;
+        output.data.par_iter_mut().for_each(|v| *v = v.max(0.0));
+        let reference = layout::read_linear_ground_truth(set)?;
+        Ok(Outcome {
+            output,
+            reference,
+            scoring: Scoring::Hdr,
+            inputs: set_inputs(set),
+            notes: Vec::new(),
+        })
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
 // The evaluation loop
 
 /// The unit HDR outputs and ground truth are scored in. μ-law (μ = 5000) and PSNR with data

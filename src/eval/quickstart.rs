@@ -1,26 +1,29 @@
-//! The quickstart (`hdrsynth quickstart`): the paper's central claim once, on embedded defaults, in about ten
-//! minutes on two CPU cores (README, docs/experiments.md). Generate synthetic EV −2/0/+2 sets;
-//! pretrain a small Network-2 (Net_O) through a DSLR-class camera model (the Canon EOS 550D's
-//! colour, noise and levels with a gamma-2.2 response at ISO 100–200: the setting of
-//! Kalantari's Canon 5D data, from which the paper's Net_O came); fine-tune it for a
-//! phone-class target (the composite phone profile) on pure synthetic data (Net_P), on
-//! sensor-realistic data (Net_S) and, as a control, on its own pretraining data; once per seed;
-//! build a test set from real scene radiance (../shared/data/real_hdr, else generated scenes)
-//! through the phone model; evaluate every network and print the seed-aware Experiment-2 table.
+//! The main job (`hdrsynth quickstart`): the primary comparison of docs/protocol.md at CPU
+//! scale, on embedded defaults. Generate synthetic EV −2/0/+2 training sets; per seed, pretrain
+//! a small Network-2 (Net_O) through a DSLR-class camera model (the Canon EOS 550D's colour,
+//! noise and levels with a gamma-2.2 response at ISO 100–200) and fine-tune it for the target
+//! device (default: the composite phone profile) four ways — the full device model (Net_S), the
+//! device's response, levels and exposure rule only (Net_R, the fair pure baseline and the
+//! reference), the scene engine's display frames (Net_P) and, as a control, its own DSLR data;
+//! score every network on the primary test set (24 held-out scene-engine scenes through the
+//! target model, test noise redrawn per seed), on real radiance and on a real capture where
+//! they exist; print the tables with paired tests, the noise ceiling and the protocol's decision.
 //!
-//! Training scenes are generated (seed 2026); test scenes are real radiance (or, without it,
-//! generated with another seed, 77): nothing is tuned on the test scenes.
-//! Every stage resumes: rerunning the command after an interruption keeps what is finished.
-//! The configs it runs are written to OUT/configs/ so each stage can be rerun or changed by hand.
+//! Nothing is tuned on the test scenes (scene seed 7 is used for nothing else). Every stage
+//! resumes: rerunning the command after an interruption keeps what is finished. The configs it
+//! runs are written to OUT/configs/ so each stage can be rerun or changed by hand.
 
 use crate::config::parse_toml;
 use crate::data::generate::{GenerateConfig, generate};
 use crate::data::loader::RealismConfig;
 use crate::error::{Error, Result};
-use crate::eval::ablate::{self, AblateConfig, Axis, AxisKind, EvalSpec, TestsetSpec};
+use crate::eval::ablate::{self, AblateConfig, Axis, AxisKind, DiffEntry, EvalSpec, TestsetSpec};
+use crate::eval::evaluate::{self, EvalOptions, TriangleMerge};
 use crate::models::{ModelConfig, WuConfig, WuVariant};
+use crate::sensor::profile::Response;
 use crate::sensor::profile::SensorProfile;
 use crate::sensor::realism::NoiseModel;
+use crate::train;
 use crate::train::config::{
     DataConfig, InitConfig, LossConfig, OptimConfig, RunConfig, Schedule, ScheduleKind, TrainConfig,
 };
@@ -46,9 +49,12 @@ pub struct Options {
     pub preset: Preset,
     /// Compute device; default the preset's (flex for cpu, cuda for gpu).
     pub backend: Option<String>,
-    /// Real HDR radiance maps for the test set; default ../shared/data/real_hdr when it
-    /// exists, else scenes generated here.
+    /// Real HDR radiance maps for the descriptive real-radiance table; default
+    /// ../shared/data/real_hdr when it exists.
     pub radiance: Option<PathBuf>,
+    /// A real bracket folder for the real-capture table; default
+    /// ../shared/data/real_brackets/canon_550d_room when it exists.
+    pub brackets: Option<PathBuf>,
     /// The target device's sensor profile; default the shipped composite phone.
     pub target: Option<PathBuf>,
     pub progress: bool,
@@ -58,6 +64,8 @@ pub struct Options {
 struct Sizes {
     train_sets: usize,
     train_size: (usize, usize),
+    test_scenes: usize,
+    test_size: (usize, usize),
     base_width: usize,
     res_blocks: usize,
     patch: usize,
@@ -76,6 +84,8 @@ fn sizes(p: Preset) -> Sizes {
         Preset::Cpu => Sizes {
             train_sets: 40,
             train_size: (160, 128),
+            test_scenes: 24,
+            test_size: (192, 144),
             base_width: 8,
             res_blocks: 2,
             patch: 64,
@@ -91,6 +101,8 @@ fn sizes(p: Preset) -> Sizes {
         Preset::Gpu => Sizes {
             train_sets: 256,
             train_size: (512, 384),
+            test_scenes: 48,
+            test_size: (512, 384),
             base_width: 64,
             res_blocks: 9,
             patch: 256,
@@ -106,7 +118,13 @@ fn sizes(p: Preset) -> Sizes {
     }
 }
 
-/// Sensor profiles shipped with the binary, so the quickstart needs no files but its own.
+/// Seed of the training scenes, and of the primary test scenes (used for nothing else).
+const TRAIN_SCENE_SEED: u64 = 2026;
+const TEST_SCENE_SEED: u64 = 7;
+/// Test scenes need at least this range (stops); an EV −2/0/+2 bracket holds about 12.
+const TEST_MIN_DYNAMIC_RANGE: f32 = 10.0;
+
+/// Sensor profiles shipped with the binary, so the main job needs no files but its own.
 /// Net_O's camera: the Canon EOS 550D's measured colour, noise and levels with a gamma-2.2
 /// response (Kalantari's Canon 5D data assume that curve).
 const PRETRAIN_PROFILE: (&str, &str) = (
@@ -120,9 +138,9 @@ const TARGET_PROFILE: (&str, &str) = (
     include_str!("../../configs/sensors/composite_phone.toml"),
 );
 
-/// The target profile's file name, text and profile name: `target`, else the shipped
-/// composite phone.
-fn target_profile(target: Option<&Path>) -> Result<(String, String, String)> {
+/// The target profile's file name, text and profile: `target`, else the shipped composite
+/// phone.
+fn target_profile(target: Option<&Path>) -> Result<(String, String, SensorProfile)> {
     let (file, text) = match target {
         Some(p) => {
             let text = crate::io::guard::read_text(p)
@@ -137,13 +155,12 @@ fn target_profile(target: Option<&Path>) -> Result<(String, String, String)> {
     };
     let at = target.unwrap_or(Path::new(TARGET_PROFILE.0));
     let profile: SensorProfile = parse_toml(&text, at)?;
-    let name = profile.name.clone();
     let file = if file == PRETRAIN_PROFILE.0 {
         format!("target_{file}")
     } else {
         file
     };
-    Ok((file, text, name))
+    Ok((file, text, profile))
 }
 
 /// Pure synthetic EV −2/0/+2 sets with linear EXRs.
@@ -153,9 +170,19 @@ fn generate_config(s: &Sizes, seed: u64, count: usize, size: (usize, usize)) -> 
     cfg
 }
 
+/// The primary test scenes: the scene engine at another seed, static, with the dynamic range
+/// a bracket can hold (docs/protocol.md, "Data").
+fn test_scene_config(s: &Sizes) -> GenerateConfig {
+    let mut cfg = generate_config(s, TEST_SCENE_SEED, s.test_scenes, s.test_size);
+    cfg.scene.min_dynamic_range = TEST_MIN_DYNAMIC_RANGE;
+    cfg.scene.subjects = [0, 0];
+    cfg
+}
+
 /// What differs between the pretraining and the fine-tuning config.
 struct Stage<'a> {
     run: &'a Path,
+    seed: u64,
     /// A profile path or "pure".
     profile: &'a Path,
     isos: &'a [u32],
@@ -170,7 +197,7 @@ fn train_config(s: &Sizes, backend: &str, data: &Path, st: &Stage) -> TrainConfi
     TrainConfig {
         run: RunConfig {
             out: st.run.to_path_buf(),
-            seed: 2026,
+            seed: st.seed,
             steps: st.steps,
             backend: backend.to_string(),
             devices: Vec::new(),
@@ -205,7 +232,7 @@ fn train_config(s: &Sizes, backend: &str, data: &Path, st: &Stage) -> TrainConfi
     }
 }
 
-/// ISOs of the phone target (fine-tuning and test set) and of the DSLR (pretraining).
+/// ISOs of the target (fine-tuning and test set) and of the DSLR (pretraining).
 const TARGET_ISOS: [u32; 3] = [100, 800, 3200];
 const DSLR_ISOS: [u32; 2] = [100, 200];
 
@@ -225,8 +252,8 @@ fn row(name: &str, label: &str, set: toml::Table) -> Axis {
     }
 }
 
-/// `{ data = { profile = …, isos = … } }` as an ablation row's `set`.
-fn data_set(profile: &Path, isos: Option<&[u32]>) -> toml::Table {
+/// `{ data = { profile = …, isos = …, … } }` as an ablation row's `set`.
+fn data_set(profile: &Path, isos: Option<&[u32]>, extra: &[(&str, toml::Value)]) -> toml::Table {
     let mut data = toml::Table::new();
     data.insert(
         "profile".into(),
@@ -236,36 +263,90 @@ fn data_set(profile: &Path, isos: Option<&[u32]>) -> toml::Table {
         let list: Vec<toml::Value> = isos.iter().map(|&i| i64::from(i).into()).collect();
         data.insert("isos".into(), list.into());
     }
+    for (k, v) in extra {
+        data.insert((*k).into(), v.clone());
+    }
     toml::Table::from_iter([("data".to_string(), data.into())])
+}
+
+/// The reference row of the primary comparison.
+const REFERENCE: &str = "net_r";
+
+/// Where the test sets come from.
+struct TestSources {
+    /// Generated scenes' radiance (the primary test set).
+    scenes: PathBuf,
+    /// Real radiance maps, if any.
+    real_radiance: Option<PathBuf>,
+    /// A built real-capture test set, if any.
+    real_capture: Option<PathBuf>,
 }
 
 fn experiment_config(
     s: &Sizes,
     out: &Path,
     base: &Path,
-    testset: &Path,
-    radiance: &Path,
+    src: &TestSources,
     target: &Path,
 ) -> AblateConfig {
-    let mut testset = TestsetSpec {
-        dir: testset.to_path_buf(),
-        radiance: Some(radiance.to_path_buf()),
-        profile: Some(target.to_path_buf()),
-        options: Default::default(),
+    let mut options = crate::data::testset::TestsetOptions {
+        isos: isos(&TARGET_ISOS),
+        evs: vec![-2.0, 0.0, 2.0],
+        ..Default::default()
     };
-    testset.options.isos = isos(&TARGET_ISOS);
-    testset.options.evs = vec![-2.0, 0.0, 2.0];
+    let testset = TestsetSpec {
+        name: None,
+        label: None,
+        dir: out.join("data/testset"),
+        radiance: Some(src.scenes.clone()),
+        profile: Some(target.to_path_buf()),
+        options: options.clone(),
+        noise_per_seed: true,
+    };
+    let mut also = Vec::new();
+    if let Some(r) = &src.real_radiance {
+        options.seed = 0;
+        also.push(TestsetSpec {
+            name: Some("real_radiance".into()),
+            label: Some("real radiance through the target model (descriptive)".into()),
+            dir: out.join("data/testset_real_radiance"),
+            radiance: Some(r.clone()),
+            profile: Some(target.to_path_buf()),
+            options,
+            noise_per_seed: false,
+        });
+    }
+    if let Some(c) = &src.real_capture {
+        also.push(TestsetSpec {
+            name: Some("real_capture".into()),
+            label: Some("a real capture (descriptive)".into()),
+            dir: c.clone(),
+            radiance: None,
+            profile: None,
+            options: Default::default(),
+            noise_per_seed: false,
+        });
+    }
+    let target_row = |name: &str, label: &str, extra: &[(&str, toml::Value)]| {
+        row(name, label, data_set(target, Some(&TARGET_ISOS), extra))
+    };
     AblateConfig {
-        title: "Quickstart — Experiment 2 shape: Network-2 Net_O (pretrained through a DSLR) vs \
-                control vs Net_P vs Net_S for the target device"
+        title: "Main job — Network-2 for the target device: Net_S (full device model) vs Net_R \
+                (response, levels and exposure rule only), Net_P, Net_O and the control"
             .into(),
         out: out.join("experiment"),
         base: base.to_path_buf(),
         seeds: s.seeds.to_vec(),
+        pretrained_per_seed: Some(
+            out.join("pretrain/seed{seed}")
+                .to_string_lossy()
+                .into_owned(),
+        ),
         testset,
+        also,
         eval: EvalSpec {
             resamples: 2000,
-            reference: Some("net_p".into()),
+            reference: Some(REFERENCE.into()),
             ..EvalSpec::default()
         },
         rows: vec![
@@ -281,19 +362,24 @@ fn experiment_config(
                 kind: AxisKind::Control,
                 ..row(
                     "control",
-                    "Net_O trained on (its own DSLR data, same steps)",
+                    "control (Net_O trained on its own DSLR data, same steps)",
                     toml::Table::new(),
                 )
             },
-            row(
-                "net_p",
-                "Net_P (fine-tuned, pure synthetic)",
-                data_set(Path::new("pure"), None),
+            target_row(
+                REFERENCE,
+                "Net_R (target response, levels, exposure rule; no colour, no noise)",
+                &[("noise", "none".into()), ("colour", false.into())],
             ),
             row(
+                "net_p",
+                "Net_P (engine display frames, the paper's pure synthetic)",
+                data_set(Path::new("pure"), None, &[]),
+            ),
+            target_row(
                 "net_s",
-                "Net_S (fine-tuned, sensor-realistic target)",
-                data_set(target, Some(&TARGET_ISOS)),
+                "Net_S (full target model: colour, noise, levels, response)",
+                &[],
             ),
         ],
         columns: Vec::new(),
@@ -323,33 +409,12 @@ fn io_context(what: String) -> impl FnOnce(std::io::Error) -> Error {
     move |e| Error::context(what, e)
 }
 
-/// Real radiance for the test set: `opts.radiance`, ../shared/data/real_hdr, or generated
-/// scenes' linear ground truth (copied into one folder, as `testset` reads a folder of maps).
-fn radiance_source(opts: &Options, s: &Sizes, target: &str) -> Result<(PathBuf, String)> {
-    if let Some(r) = &opts.radiance {
-        if !r.exists() {
-            return Err(Error::Invalid(format!(
-                "--radiance {}: no such file or folder",
-                r.display()
-            )));
-        }
-        return Ok((r.clone(), format!("real radiance from {}", r.display())));
-    }
-    let shared = Path::new("../shared/data/real_hdr");
-    if shared.is_dir() {
-        return Ok((
-            shared.to_path_buf(),
-            format!(
-                "real scene radiance ({}: Carrots, Desk, MtTamNorth) through the target's \
-                 model ({target}); training scenes are generated",
-                shared.display()
-            ),
-        ));
-    }
-    let scenes = opts.out.join("data/scenes");
-    let cfg = generate_config(s, 77, 3, (s.train_size.0 * 2, s.train_size.1 * 2));
-    generate(&cfg, &scenes, opts.progress)?;
-    let dir = opts.out.join("data/radiance");
+/// The generated test scenes' linear radiance (`hdr_gt.exr` of each set), copied into one
+/// folder, as `testset` reads a folder of maps.
+fn test_scenes(opts: &Options, s: &Sizes) -> Result<PathBuf> {
+    let scenes = opts.out.join("data/test_scenes");
+    generate(&test_scene_config(s), &scenes, opts.progress)?;
+    let dir = opts.out.join("data/test_radiance");
     std::fs::create_dir_all(&dir).map_err(io_context(format!("creating {}", dir.display())))?;
     let entries =
         std::fs::read_dir(&scenes).map_err(io_context(format!("reading {}", scenes.display())))?;
@@ -366,97 +431,304 @@ fn radiance_source(opts: &Options, s: &Sizes, target: &str) -> Result<(PathBuf, 
                 .into_owned();
             let to = dir.join(format!("{name}.exr"));
             if !to.is_file() {
-                std::fs::copy(&gt, &to).map_err(io_context(format!(
+                let tmp = dir.join(format!(".{name}.exr.tmp"));
+                std::fs::copy(&gt, &tmp).map_err(io_context(format!(
                     "copying {} to {}",
                     gt.display(),
-                    to.display()
+                    tmp.display()
                 )))?;
+                std::fs::rename(&tmp, &to)
+                    .map_err(io_context(format!("renaming {}", tmp.display())))?;
             }
         }
     }
-    Ok((
-        dir,
-        format!(
-            "generated scenes' radiance (../shared/data/real_hdr is absent; scene seed 77, \
-             training seed 2026) through the target's model ({target})"
-        ),
-    ))
+    Ok(dir)
 }
 
-/// Run the quickstart (every stage resumes) and return its report: the Experiment-2 table.
+/// A flag's folder, else the shared data's default when it exists. Returns the folder or why
+/// there is none.
+fn optional_source(
+    flag: Option<&PathBuf>,
+    name: &str,
+    default: &str,
+) -> Result<std::result::Result<PathBuf, String>> {
+    if let Some(p) = flag {
+        return if p.exists() {
+            Ok(Ok(p.clone()))
+        } else {
+            Err(Error::Invalid(format!(
+                "--{name} {}: no such file or folder",
+                p.display()
+            )))
+        };
+    }
+    let d = Path::new(default);
+    Ok(if d.is_dir() {
+        Ok(d.to_path_buf())
+    } else {
+        Err(format!("{default} is absent; pass --{name} DIR"))
+    })
+}
+
+/// The real-capture test set: three frames two stops apart chosen by the frames' own metering,
+/// ground truth merged from every frame, linearised by a Debevec response estimated from the
+/// brackets (`hdrsynth testset --brackets --inputs auto --gt-frames all`).
+fn real_capture(brackets: &Path, out: &Path) -> Result<PathBuf> {
+    use crate::data::bracket_testset::{self, BracketOptions, GtFrames, InputChoice};
+    use crate::data::brackets::ScanOptions;
+    let dir = out.join("data/testset_real_capture");
+    if !dir.is_dir() {
+        // Built beside and renamed when complete, so an interrupted build is redone.
+        let partial = out.join("data/testset_real_capture.partial");
+        if partial.exists() {
+            std::fs::remove_dir_all(&partial).map_err(|e| Error::io(&partial, e))?;
+        }
+        let opts = BracketOptions {
+            // A tripod bracket may take minutes (the 550D's spans 101 s): frames group into a
+            // set until an exposure repeats or an hour passes.
+            scan: ScanOptions {
+                max_gap_s: 3600.0,
+                ..ScanOptions::default()
+            },
+            inputs: InputChoice::Auto,
+            gt_frames: GtFrames::All,
+            ..BracketOptions::default()
+        };
+        bracket_testset::build(brackets, &opts, &partial)?;
+        std::fs::rename(&partial, &dir).map_err(|e| Error::io(&dir, e))?;
+    }
+    Ok(dir)
+}
+
+/// The noise ceiling of the primary test set: the triangle merge with the true response, of
+/// the noisy frames and of the noise-free ones; mean over seeds of the mean over scenes of each
+/// metric (`report::METRICS` order of `metrics`).
+fn noise_ceiling(
+    cfg: &AblateConfig,
+    response: &Response,
+    out: &Path,
+    progress: bool,
+) -> Result<[(f64, f64); 4]> {
+    let mut sums = [(0.0, 0.0); 4];
+    for &k in &cfg.seeds {
+        let testset = cfg.testset.dir_for(Some(k));
+        let mut pair = [0.0f64; 8];
+        for (ci, clean) in [false, true].into_iter().enumerate() {
+            let method = TriangleMerge {
+                response: response.clone(),
+                clean,
+            };
+            let dir = out.join(format!("seed{k}/{}", if clean { "clean" } else { "noisy" }));
+            let partial = dir.with_extension("partial");
+            if partial.exists() {
+                std::fs::remove_dir_all(&partial).map_err(|e| Error::io(&partial, e))?;
+            }
+            let sum = evaluate::evaluate(
+                &testset,
+                &method,
+                &partial,
+                &EvalOptions {
+                    progress: false,
+                    ..EvalOptions::default()
+                },
+            )?;
+            if dir.exists() {
+                std::fs::remove_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
+            }
+            std::fs::rename(&partial, &dir).map_err(|e| Error::io(&dir, e))?;
+            for (mi, m) in ["psnr_t", "psnr_l", "ssim_t", "ssim_l"].iter().enumerate() {
+                let v = sum
+                    .summary
+                    .iter()
+                    .find(|x| x.metric == *m)
+                    .map_or(f64::NAN, |x| x.mean);
+                pair[ci * 4 + mi] = v;
+            }
+        }
+        for mi in 0..4 {
+            sums[mi].0 += pair[mi] / cfg.seeds.len() as f64;
+            sums[mi].1 += pair[4 + mi] / cfg.seeds.len() as f64;
+        }
+        if progress {
+            eprintln!(
+                "noise ceiling, seed {k}: triangle merge PSNR-T noisy {:.2} / noise-free {:.2}",
+                pair[0], pair[4]
+            );
+        }
+    }
+    Ok(sums)
+}
+
+/// The protocol's decision on the primary comparison (docs/protocol.md).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Decision {
+    Better,
+    Worse,
+    Equivalent,
+    Inconclusive,
+}
+
+impl Decision {
+    pub fn from_diff(d: &DiffEntry, alpha: f64) -> Decision {
+        let Some(t) = &d.t else {
+            return Decision::Inconclusive;
+        };
+        let p = d.wilcoxon_p.unwrap_or(1.0);
+        let all_seeds = d.sign_holds == d.n_seeds;
+        if t.ci_lower > 0.0 && p < alpha && all_seeds {
+            Decision::Better
+        } else if t.ci_upper < 0.0 && p < alpha && all_seeds {
+            Decision::Worse
+        } else if d.tost_p.is_some_and(|p| p < alpha) {
+            Decision::Equivalent
+        } else {
+            Decision::Inconclusive
+        }
+    }
+
+    fn text(self, margin: f64) -> String {
+        match self {
+            Decision::Better => "Net_S is better than Net_R".into(),
+            Decision::Worse => "Net_S is worse than Net_R".into(),
+            Decision::Equivalent => {
+                format!("no effect larger than {margin} dB: Net_S and Net_R are equivalent")
+            }
+            Decision::Inconclusive => "inconclusive at this size".into(),
+        }
+    }
+}
+
+/// A signed dB value with a typographic minus, as the tables print it.
+fn signed_db(v: f64) -> String {
+    format!("{}{:.2}", if v < 0.0 { "−" } else { "+" }, v.abs())
+}
+
+/// One comparison for the reading: "+x dB [lo, hi], Wilcoxon p …, TOST p …, sign in k/n seeds".
+fn describe_diff(d: &DiffEntry) -> String {
+    let mut text = format!("{} dB", signed_db(d.mean));
+    if let Some(t) = &d.t {
+        let _ = write!(
+            text,
+            " [{}, {}]",
+            signed_db(t.ci_lower),
+            signed_db(t.ci_upper)
+        );
+    }
+    if let Some(p) = d.wilcoxon_p {
+        let _ = write!(text, ", Wilcoxon p {}", ablate::format_p(p));
+    }
+    if let Some(p) = d.tost_p {
+        let _ = write!(text, ", TOST (±{} dB) p {}", d.margin, ablate::format_p(p));
+    }
+    let _ = write!(text, ", sign in {}/{} seeds", d.sign_holds, d.n_seeds);
+    text
+}
+
+/// Run the main job (every stage resumes) and return its report.
 pub fn run(opts: &Options) -> Result<String> {
     let began = Instant::now();
     let progress = opts.progress;
     let s = sizes(opts.preset);
     let backend = opts.backend.as_deref().unwrap_or(s.backend);
     let out = &opts.out;
-    // One quickstart per folder: a second would rewrite the configs the first is reading. The
+    // One main job per folder: a second would rewrite the configs the first is reading. The
     // commands it runs lock their own subfolders (data/…, pretrain, experiment).
     let _lock = crate::io::guard::OutputLock::acquire(out, "quickstart")?;
+    if out.join("pretrain").join(train::RUN_CONFIG).is_file() {
+        return Err(Error::Invalid(format!(
+            "{} holds a main job of an earlier protocol (one pretraining for every seed); \
+             choose another --out or delete it",
+            out.display()
+        )));
+    }
     let configs = out.join("configs");
     let sensors = configs.join("sensors");
     std::fs::create_dir_all(&sensors)
         .map_err(io_context(format!("creating {}", sensors.display())))?;
     let pre_profile = sensors.join(PRETRAIN_PROFILE.0);
-    let (target_file, target_text, target_name) = target_profile(opts.target.as_deref())?;
+    let (target_file, target_text, target_profile) = target_profile(opts.target.as_deref())?;
     let target = sensors.join(target_file);
     write(&pre_profile, PRETRAIN_PROFILE.1)?;
     write(&target, &target_text)?;
 
-    stage(progress, began, "1/4 synthetic training sets (EV −2/0/+2)");
+    stage(progress, began, "1/5 synthetic training sets (EV −2/0/+2)");
     let data = out.join("data/train");
     let gen_path = configs.join("train_data.toml");
     write_config(
         &gen_path,
-        &generate_config(&s, 2026, s.train_sets, s.train_size),
+        &generate_config(&s, TRAIN_SCENE_SEED, s.train_sets, s.train_size),
     )?;
     generate(&GenerateConfig::load(&gen_path)?, &data, progress)?;
 
     stage(
         progress,
         began,
-        "2/4 pretraining Network-2 (Net_O) through a DSLR model (550D, gamma 2.2, ISO 100–200)",
+        "2/5 pretraining Network-2 (Net_O) per seed through a DSLR model (550D, gamma 2.2, ISO \
+         100–200)",
     );
-    let pre_run = out.join("pretrain");
-    let pre_path = configs.join("pretrain.toml");
-    write_config(
-        &pre_path,
-        &train_config(
-            &s,
-            backend,
-            &data,
-            &Stage {
-                run: &pre_run,
-                profile: &pre_profile,
-                isos: &DSLR_ISOS,
-                steps: s.pretrain_steps,
-                lr: s.pretrain_lr,
-                init: None,
-            },
-        ),
-    )?;
-    let pre_cfg = TrainConfig::load(&pre_path)?;
-    let done = match checkpoint::latest(&pre_run)? {
-        Some(d) => Some(checkpoint::read_state(&d)?.step),
-        None => None,
-    };
-    if done.is_none_or(|step| step < s.pretrain_steps) {
-        crate::train::run(
-            &pre_cfg,
-            &TrainOptions {
-                resume: done.is_some(),
-                progress,
-            },
-        )
-        .map_err(|e| Error::context(format!("pretraining ({})", pre_path.display()), e))?;
+    for &k in s.seeds {
+        let pre_run = out.join(format!("pretrain/seed{k}"));
+        let pre_path = configs.join(format!("pretrain_seed{k}.toml"));
+        write_config(
+            &pre_path,
+            &train_config(
+                &s,
+                backend,
+                &data,
+                &Stage {
+                    run: &pre_run,
+                    seed: k,
+                    profile: &pre_profile,
+                    isos: &DSLR_ISOS,
+                    steps: s.pretrain_steps,
+                    lr: s.pretrain_lr,
+                    init: None,
+                },
+            ),
+        )?;
+        let pre_cfg = TrainConfig::load(&pre_path)?;
+        let done = match checkpoint::latest(&pre_run)? {
+            Some(d) => Some(checkpoint::read_state(&d)?.step),
+            None => None,
+        };
+        if done.is_none_or(|step| step < s.pretrain_steps) {
+            crate::train::run(
+                &pre_cfg,
+                &TrainOptions {
+                    resume: done.is_some(),
+                    progress,
+                },
+            )
+            .map_err(|e| Error::context(format!("pretraining ({})", pre_path.display()), e))?;
+        }
     }
 
     stage(
         progress,
         began,
-        "3/4 test set (real radiance; generated scenes without it)",
+        "3/5 test sets (held-out generated scenes; real radiance and a real capture where \
+         present)",
     );
-    let (radiance, test_note) = radiance_source(opts, &s, &target_name)?;
+    let real_radiance = optional_source(
+        opts.radiance.as_ref(),
+        "radiance",
+        "../shared/data/real_hdr",
+    )?;
+    let brackets = optional_source(
+        opts.brackets.as_ref(),
+        "brackets",
+        "../shared/data/real_brackets/canon_550d_room",
+    )?;
+    let real_capture_dir = match &brackets {
+        Ok(b) => Ok(real_capture(b, out)
+            .map_err(|e| Error::context(format!("the real capture {}", b.display()), e))?),
+        Err(why) => Err(why.clone()),
+    };
+    let sources = TestSources {
+        scenes: test_scenes(opts, &s)?,
+        real_radiance: real_radiance.as_ref().ok().cloned(),
+        real_capture: real_capture_dir.as_ref().ok().cloned(),
+    };
     let base_path = configs.join("finetune.toml");
     write_config(
         &base_path,
@@ -466,40 +738,123 @@ pub fn run(opts: &Options) -> Result<String> {
             &data,
             &Stage {
                 run: &out.join("unused"),
+                seed: 0,
                 profile: Path::new("pure"),
                 isos: &TARGET_ISOS,
                 steps: s.finetune_steps,
                 lr: s.finetune_lr,
-                init: Some(&pre_run),
+                init: Some(&out.join("pretrain/seed1")),
             },
         ),
     )?;
     let exp_path = configs.join("experiment.toml");
     write_config(
         &exp_path,
-        &experiment_config(
-            &s,
-            out,
-            &base_path,
-            &out.join("data/testset"),
-            &radiance,
-            &target,
-        ),
+        &experiment_config(&s, out, &base_path, &sources, &target),
     )?;
 
     stage(
         progress,
         began,
-        "4/4 per seed: control, Net_P and Net_S fine-tuned; all four evaluated (hdrsynth ablate)",
+        "4/5 per seed: control, Net_R, Net_P and Net_S fine-tuned; every network scored on every \
+         test set (hdrsynth ablate)",
     );
     let exp = AblateConfig::load(&exp_path)?;
     let summary = ablate::run(&exp, &exp_path, progress)
-        .map_err(|e| Error::context("the Experiment-2 grid", e))?;
+        .map_err(|e| Error::context("the main job's grid", e))?;
+
+    stage(progress, began, "5/5 noise ceiling and decision");
+    let mut device = target_profile.clone();
+    device.source_response = Response::Linear;
+    let ceiling = noise_ceiling(&exp, &device.response, &out.join("noise_ceiling"), progress)?;
+    let tables = ablate::write_tables(&exp)?;
+    let primary = &tables[0];
+
     let mut report = ablate::report(&exp, &summary);
+    let alpha = 1.0 - exp.eval.level;
     let _ = write!(
         report,
-        "\n\nTest set: {test_note}.\nTotal {:.1} s ({} preset, backend {backend}). Configs in {} \
-         (rerun a stage with `hdrsynth train --config …` or `hdrsynth ablate --config {}`).",
+        "\n\nNoise ceiling on the primary test set (triangle merge of each set's frames with \
+         the true device response; mean over seeds): PSNR-T {:.2} from the noisy frames, {:.2} \
+         from the noise-free frames (PSNR-L {:.2} / {:.2}).",
+        ceiling[0].0, ceiling[0].1, ceiling[1].0, ceiling[1].1
+    );
+    let _ = write!(report, "\n\n## Reading (docs/protocol.md)\n\n");
+    match primary
+        .entry("net_s", "psnr_t")
+        .and_then(|e| e.diff.as_ref())
+    {
+        Some(d) => {
+            let decision = Decision::from_diff(d, alpha);
+            // A difference can be both real and smaller than the margin: say both.
+            let decided = decision == Decision::Better || decision == Decision::Worse;
+            let _ = writeln!(
+                report,
+                "- Primary, Net_S − Net_R, PSNR-T over {} scenes: {} → **{}**{}.",
+                primary.entry("net_s", "psnr_t").map_or(0, |e| e.n_scenes),
+                describe_diff(d),
+                decision.text(d.margin),
+                if decided && d.tost_p.is_some_and(|p| p < alpha) {
+                    format!(
+                        ", by less than the {} dB margin (the TOST also declares equivalence)",
+                        d.margin
+                    )
+                } else {
+                    String::new()
+                }
+            );
+        }
+        None => {
+            let _ = writeln!(report, "- Primary: not every run has finished.");
+        }
+    }
+    for (name, what) in [
+        (
+            "net_o",
+            "Net_O − Net_R (what fine-tuning for the target's response buys)",
+        ),
+        ("control", "control − Net_R"),
+        (
+            "net_p",
+            "Net_P − Net_R (the engine's display curve instead of the target's)",
+        ),
+    ] {
+        if let Some(d) = primary.entry(name, "psnr_t").and_then(|e| e.diff.as_ref()) {
+            let _ = writeln!(report, "- Secondary, {what}: {}.", describe_diff(d));
+        }
+    }
+    let seeds_mean = |t: &ablate::Table, row: &str| t.entry(row, "psnr_t").map(|e| e.mean);
+    for (t, what) in tables.iter().skip(1).map(|t| {
+        (
+            t,
+            match t.testset.as_deref() {
+                Some("real_radiance") => "real radiance through the target model",
+                Some("real_capture") => "the real capture",
+                _ => "another test set",
+            },
+        )
+    }) {
+        let cells: Vec<String> = exp
+            .rows
+            .iter()
+            .filter_map(|r| seeds_mean(t, &r.name).map(|v| format!("{} {v:.2}", r.name)))
+            .collect();
+        let _ = writeln!(
+            report,
+            "- Descriptive, {what} (PSNR-T, mean over seeds; too few scenes for a test): {}.",
+            cells.join(", ")
+        );
+    }
+    if let Err(why) = &real_radiance {
+        let _ = writeln!(report, "- No real-radiance table: {why}.");
+    }
+    if let Err(why) = &real_capture_dir {
+        let _ = writeln!(report, "- No real-capture table: {why}.");
+    }
+    let _ = write!(
+        report,
+        "\nTotal {:.1} s ({} preset, backend {backend}). Configs in {} (rerun a stage with \
+         `hdrsynth train --config …` or `hdrsynth ablate --config {}`).",
         began.elapsed().as_secs_f64(),
         match opts.preset {
             Preset::Cpu => "cpu",
@@ -508,13 +863,14 @@ pub fn run(opts: &Options) -> Result<String> {
         configs.display(),
         exp_path.display()
     );
+    let report_path = out.join("report.md");
+    write(&report_path, &report)?;
     Ok(report)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sensor::profile::Response;
 
     /// The shipped DSLR profile is the 550D's with only its response replaced.
     #[test]
@@ -539,144 +895,112 @@ mod tests {
         parse_toml(&text, Path::new("written.toml")).expect(&text)
     }
 
-    /// The configs the quickstart writes read back to the values it built, and validate, for
-    /// both presets (the full run is too long for the test suite; its table and time are in
-    /// the README).
+    /// The configs the main job writes read back to the values it built and validate, for
+    /// both presets, and they are the protocol's (docs/protocol.md): five rows with Net_R the
+    /// reference, Net_R the target model without colour and noise, per-seed pretraining and
+    /// test noise, 24 held-out test scenes at another seed (the full run is too long for the
+    /// test suite; its output is in the README).
     #[test]
-    fn every_config_the_quickstart_writes_reads_back_and_validates() {
+    fn the_configs_follow_the_protocol_and_read_back() {
         let root = Path::new("/r");
-        let profile = root.join(TARGET_PROFILE.0);
+        let target = root.join(TARGET_PROFILE.0);
         for preset in [Preset::Cpu, Preset::Gpu] {
             let s = sizes(preset);
-            let gen_cfg = generate_config(&s, 1, s.train_sets, s.train_size);
+            let gen_cfg = generate_config(&s, TRAIN_SCENE_SEED, s.train_sets, s.train_size);
             assert_eq!(round_trip(&gen_cfg), gen_cfg);
             gen_cfg.validate().expect("valid generate config");
-            for st in stages(&s, &root.join("pre"), &root.join("ft"), &profile) {
+            let test_cfg = test_scene_config(&s);
+            test_cfg.validate().expect("valid test scene config");
+            assert_ne!(test_cfg.seed, gen_cfg.seed);
+            assert!(test_cfg.count >= 20, "the protocol needs ≥ 20 test scenes");
+            for seed in s.seeds {
+                let st = Stage {
+                    run: root,
+                    seed: *seed,
+                    profile: &target,
+                    isos: &DSLR_ISOS,
+                    steps: s.pretrain_steps,
+                    lr: s.pretrain_lr,
+                    init: None,
+                };
                 let cfg = train_config(&s, s.backend, &root.join("data"), &st);
                 assert_eq!(round_trip(&cfg), cfg);
                 cfg.validate().expect("valid train config");
-                assert_eq!(cfg.run.steps, st.steps);
+                assert_eq!(cfg.run.seed, *seed);
             }
-            let exp = experiment_config(&s, root, &root.join("ft.toml"), root, root, &profile);
+            let src = TestSources {
+                scenes: root.join("scenes"),
+                real_radiance: Some(root.join("hdr")),
+                real_capture: Some(root.join("capture")),
+            };
+            let exp = experiment_config(&s, root, &root.join("ft.toml"), &src, &target);
             assert_eq!(round_trip(&exp), exp);
-            assert_eq!(exp.eval.reference.as_deref(), Some("net_p"));
-            assert_eq!(exp.rows.len(), 4);
+            assert_eq!(exp.eval.reference.as_deref(), Some(REFERENCE));
+            let names: Vec<&str> = exp.rows.iter().map(|r| r.name.as_str()).collect();
+            assert_eq!(names, ["net_o", "control", "net_r", "net_p", "net_s"]);
+            let net_r = &exp.rows[2].set["data"];
+            assert_eq!(net_r["noise"].as_str(), Some("none"));
+            assert_eq!(net_r["colour"].as_bool(), Some(false));
+            assert_eq!(
+                net_r["profile"].as_str(),
+                exp.rows[4].set["data"]["profile"].as_str()
+            );
+            assert!(exp.rows[4].set["data"].get("noise").is_none());
+            assert!(exp.testset.noise_per_seed);
+            assert!(
+                exp.pretrained_per_seed
+                    .as_deref()
+                    .is_some_and(|p| p.contains("{seed}"))
+            );
+            let also: Vec<_> = exp.also.iter().filter_map(|t| t.name.as_deref()).collect();
+            assert_eq!(also, ["real_radiance", "real_capture"]);
         }
     }
 
-    /// The pretraining and fine-tuning stages as `run` builds them.
-    fn stages<'a>(s: &Sizes, pre: &'a Path, unused: &'a Path, profile: &'a Path) -> [Stage<'a>; 2] {
-        [
-            Stage {
-                run: pre,
-                profile,
-                isos: &DSLR_ISOS,
-                steps: s.pretrain_steps,
-                lr: s.pretrain_lr,
-                init: None,
-            },
-            Stage {
-                run: unused,
-                profile: Path::new("pure"),
-                isos: &TARGET_ISOS,
-                steps: s.finetune_steps,
-                lr: s.finetune_lr,
-                init: Some(pre),
-            },
-        ]
+    fn diff(mean: f64, lo: f64, hi: f64, wilcoxon: f64, tost: f64, signs: usize) -> DiffEntry {
+        DiffEntry {
+            mean,
+            sign_holds: signs,
+            n_seeds: 3,
+            t: Some(crate::stats::PairedT {
+                n: 24,
+                mean,
+                sd: 1.0,
+                se: 0.2,
+                t: mean / 0.2,
+                p: 0.5,
+                level: 0.95,
+                ci_lower: lo,
+                ci_upper: hi,
+            }),
+            wilcoxon_p: Some(wilcoxon),
+            margin: 0.2,
+            tost_p: Some(tost),
+        }
     }
 
-    /// The cpu preset's configs are the values of the files the quickstart wrote before it
-    /// built them as values (its `format!` text, kept here as the oracle), so its results and
-    /// a resumed run's identity are unchanged.
+    /// The decision rule of docs/protocol.md on hand-made cases.
     #[test]
-    fn the_cpu_configs_are_the_ones_written_before() {
-        let s = sizes(Preset::Cpu);
-        let root = Path::new("/r");
-        let dslr = root.join("configs/sensors").join(PRETRAIN_PROFILE.0);
-        let target = root.join("configs/sensors").join(TARGET_PROFILE.0);
-        let old_gen: GenerateConfig = parse_toml(
-            "# Pure synthetic EV −2/0/+2 sets with linear EXRs (hdrsynth generate).\n\
-             seed = 2026\ncount = 40\nwidth = 160\nheight = 128\nevs = [-2.0, 0.0, 2.0]\n\
-             write_linear = true\n[camera]\ncandidates = 8\n",
-            Path::new("train_data.toml"),
-        )
-        .expect("old generate config");
+    fn the_decision_follows_the_protocol() {
+        let d = |x: DiffEntry| Decision::from_diff(&x, 0.05);
+        assert_eq!(d(diff(0.5, 0.2, 0.8, 0.01, 0.9, 3)), Decision::Better);
+        // One seed against: not "better", and not equivalent either.
+        assert_eq!(d(diff(0.5, 0.2, 0.8, 0.01, 0.9, 2)), Decision::Inconclusive);
+        assert_eq!(d(diff(-0.5, -0.8, -0.2, 0.01, 0.9, 3)), Decision::Worse);
+        // The interval excludes 0 but Wilcoxon does not reject: not decided by the t alone.
+        assert_eq!(d(diff(0.5, 0.2, 0.8, 0.2, 0.9, 3)), Decision::Inconclusive);
         assert_eq!(
-            generate_config(&s, 2026, s.train_sets, s.train_size),
-            old_gen
+            d(diff(0.02, -0.1, 0.14, 0.6, 0.01, 2)),
+            Decision::Equivalent
         );
-        let old_train = |out: &str, profile: &str, isos: &str, steps, lr, min_lr, init: &str| {
-            let text = format!(
-                "[run]\nout = \"{out}\"\nseed = 2026\nsteps = {steps}\nbackend = \"flex\"\n\
-                 checkpoint_every = 100\nkeep_checkpoints = 2\nlog_every = 10\n\n\
-                 [model]\nkind = \"wu\"\nvariant = \"resnet\"\nbase_width = 8\n\
-                 res_blocks = 2\nhdr_input_scale = 0.25\n\n\
-                 [data]\ndataset = \"/r/data/train\"\npatch = 64\nbatch_size = 8\n\
-                 workers = 2\naugment = true\nprofile = \"{profile}\"\nisos = {isos}\n\
-                 noise = \"gaussian\"\n\n[optim]\nlr = {lr}\n\n[schedule]\n\
-                 kind = \"cosine\"\nwarmup_steps = {}\nmin_lr = {min_lr}\n{init}",
-                steps / 10
-            );
-            parse_toml::<TrainConfig>(&text, Path::new("train.toml")).expect(&text)
+        assert_eq!(
+            d(diff(0.02, -0.3, 0.34, 0.6, 0.3, 2)),
+            Decision::Inconclusive
+        );
+        let few = DiffEntry {
+            t: None,
+            ..diff(3.0, 2.0, 4.0, 0.001, 0.9, 3)
         };
-        let (pre_run, unused) = (root.join("pretrain"), root.join("unused"));
-        let [pre, ft] = stages(&s, &pre_run, &unused, &dslr);
-        let data = root.join("data/train");
-        assert_eq!(
-            train_config(&s, "flex", &data, &pre),
-            old_train(
-                "/r/pretrain",
-                "/r/configs/sensors/dslr_canon_550d_gamma22.toml",
-                "[100, 200]",
-                800,
-                "1e-3",
-                "2e-5",
-                ""
-            )
-        );
-        assert_eq!(
-            train_config(&s, "flex", &data, &ft),
-            old_train(
-                "/r/unused",
-                "pure",
-                "[100, 800, 3200]",
-                300,
-                "5e-4",
-                "1e-5",
-                "\n[init]\ncheckpoint = \"/r/pretrain\"\n"
-            )
-        );
-        let old_exp: AblateConfig = parse_toml(
-            "title = \"Quickstart — Experiment 2 shape: Network-2 Net_O (pretrained through a \
-             DSLR) vs control vs Net_P vs Net_S for the target device\"\n\
-             out = \"/r/experiment\"\nbase = \"/r/configs/finetune.toml\"\nseeds = [1, 2, 3]\n\n\
-             [testset]\ndir = \"/r/data/testset\"\nradiance = \"/rad\"\n\
-             profile = \"/r/configs/sensors/composite_phone.toml\"\n\
-             [testset.options]\nisos = [100, 800, 3200]\nevs = [-2.0, 0.0, 2.0]\n\n\
-             [eval]\nresamples = 2000\nreference = \"net_p\"\n\n\
-             [[rows]]\nname = \"net_o\"\n\
-             label = \"Net_O (pretrained through the DSLR, no fine-tuning)\"\ntrain = false\n\n\
-             [[rows]]\nname = \"control\"\n\
-             label = \"Net_O trained on (its own DSLR data, same steps)\"\nkind = \"control\"\n\n\
-             [[rows]]\nname = \"net_p\"\nlabel = \"Net_P (fine-tuned, pure synthetic)\"\n\
-             set = { data = { profile = \"pure\" } }\n\n\
-             [[rows]]\nname = \"net_s\"\nlabel = \"Net_S (fine-tuned, sensor-realistic target)\"\n\
-             set = { data = { profile = \"/r/configs/sensors/composite_phone.toml\", \
-             isos = [100, 800, 3200] } }\n",
-            Path::new("experiment.toml"),
-        )
-        .expect("old experiment config");
-        assert_eq!(
-            experiment_config(
-                &s,
-                root,
-                &root.join("configs/finetune.toml"),
-                &root.join("data/testset"),
-                Path::new("/rad"),
-                &target
-            ),
-            old_exp
-        );
+        assert_eq!(d(few), Decision::Inconclusive);
     }
 }
