@@ -5,7 +5,7 @@
 //! uncompressed Bayer DNG (linear after black/white levels, src/sensor/dng.rs).
 //!
 //! Exposure of each frame, first source that applies:
-//! 1. `--evs` declared by the user: EV steps in capture order, the same for every set;
+//! 1. `--declared-evs` given by the user: EV steps in capture order, the same for every set;
 //! 2. a sidecar in the frame's folder: OpenCV's `list.txt` ("name value" lines, value = 1 / the
 //!    exposure time in seconds, as OpenCV's `loadExposureSeq` reads it) or `exposure.txt` (log2
 //!    stops, one per image file in file-name order, Kalantari's convention);
@@ -132,6 +132,7 @@ fn list_dir(dir: &Path) -> Result<(Vec<PathBuf>, Vec<PathBuf>)> {
 /// Read the exposure tags of one file; a file without EXIF gives all `None`.
 pub fn read_exif(path: &Path) -> Result<ExifExposure> {
     use exif::{In, Tag, Value};
+    crate::io::guard::regular_file(path)?;
     let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
     let exif = match exif::Reader::new().read_from_container(&mut std::io::BufReader::new(file)) {
         Ok(x) => x,
@@ -148,6 +149,9 @@ pub fn read_exif(path: &Path) -> Result<ExifExposure> {
             Value::SRational(v) => v.first().map(|r| r.to_f64()),
             Value::Short(v) => v.first().map(|&x| f64::from(x)),
             Value::Long(v) => v.first().map(|&x| f64::from(x)),
+            // Some software writes RATIONAL tags as DOUBLE or FLOAT: the same number.
+            Value::Double(v) => v.first().copied(),
+            Value::Float(v) => v.first().map(|&x| f64::from(x)),
             _ => None,
         }?;
         v.is_finite().then_some(v)
@@ -238,7 +242,7 @@ fn days_from_civil(y: i64, m: u32, d: u32) -> i64 {
 fn sidecar_stops(dir: &Path, files: &[PathBuf]) -> Result<Option<(Vec<f64>, String)>> {
     let list = dir.join(LIST_TXT);
     if list.is_file() {
-        let text = std::fs::read_to_string(&list).map_err(|e| Error::io(&list, e))?;
+        let text = crate::io::guard::read_text(&list)?;
         let mut by_name = BTreeMap::new();
         for (n, line) in text.lines().enumerate() {
             let mut tok = line.split_whitespace();
@@ -501,7 +505,7 @@ pub fn scan(root: &Path, opts: &ScanOptions) -> Result<BracketScan> {
             format!(
                 "the exposure of {} frame(s) cannot be determined (no EXIF ExposureTime or \
                  ExposureBiasValue, no list.txt/exposure.txt sidecar; declare EV steps with \
-                 --evs): {}",
+                 --declared-evs): {}",
                 undetermined.len(),
                 undetermined.join(", ")
             ),

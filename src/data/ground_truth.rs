@@ -469,7 +469,7 @@ impl ClassWeights {
 
     /// Read and check: format, 256 counts and 256 finite positive α.
     pub fn load(path: &Path) -> Result<ClassWeights> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::io::guard::read_text(path)?;
         Self::parse(&text, path)
     }
 

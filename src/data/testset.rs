@@ -671,6 +671,7 @@ pub fn to_rec709_matrix(path: &Path) -> Result<Option<[[f32; 3]; 3]>> {
     if crate::io::Format::from_path(path)? != crate::io::Format::Exr {
         return Ok(None);
     }
+    crate::io::guard::regular_file(path)?;
     let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
     let mut reader = std::io::BufReader::new(file);
     // Unvalidated header read, as the image reader does (it accepts subsampled chroma).

@@ -238,7 +238,7 @@ impl Axis {
 
 impl AblateConfig {
     pub fn load(path: &Path) -> Result<AblateConfig> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::io::guard::read_text(path)?;
         Self::parse(&text, path)
     }
 
@@ -533,7 +533,7 @@ pub fn train_configs(cfg: &AblateConfig, config_path: &Path) -> Result<Vec<Train
 }
 
 fn load_base(cfg: &AblateConfig) -> Result<toml::Table> {
-    let text = std::fs::read_to_string(&cfg.base).map_err(|e| Error::io(&cfg.base, e))?;
+    let text = crate::io::guard::read_text(&cfg.base)?;
     crate::config::parse_toml(&text, &cfg.base)
 }
 
@@ -652,7 +652,7 @@ fn control_config(base_path: &Path, base: &toml::Table) -> Result<toml::Table> {
         init.clone()
     };
     let path = run.join(train::RUN_CONFIG);
-    let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+    let text = crate::io::guard::read_text(&path)?;
     let mut merged: toml::Table = crate::config::parse_toml(&text, &path)?;
     for key in ["run", "optim", "schedule", "init"] {
         match base.get(key) {
@@ -761,7 +761,7 @@ fn run_cell(
 
 /// Per-set metric values of a finished cell (`eval/per_image.csv`), by set name.
 fn read_per_image(path: &Path) -> Result<BTreeMap<String, [f64; 6]>> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::io::guard::read_text(path)?;
     let mut lines = text.lines();
     let header = split_csv(lines.next().unwrap_or_default());
     let want: Vec<&str> = std::iter::once("set").chain(METRICS).collect();

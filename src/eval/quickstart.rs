@@ -147,7 +147,7 @@ const TARGET_PROFILE: (&str, &str) = (
 fn target_profile(target: Option<&Path>) -> Result<(String, String, SensorProfile)> {
     let (file, text) = match target {
         Some(p) => {
-            let text = std::fs::read_to_string(p)
+            let text = crate::io::guard::read_text(p)
                 .map_err(|e| Error::context(format!("--target {}: cannot read", p.display()), e))?;
             let file = p
                 .file_name()

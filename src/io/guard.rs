@@ -1,7 +1,9 @@
 //! Guards around a command's output folder: one writer at a time ([`OutputLock`]), nothing
 //! half-written at the final path ([`Staged`]), no output inside the input
-//! ([`refuse_output_inside`]), and a folder walk that cannot loop through symlinks
-//! ([`images_under`]). docs/reliability.md lists which command uses which.
+//! ([`refuse_output_inside`]), a folder walk that cannot loop through symlinks
+//! ([`images_under`]), and single-file inputs that must be regular files ([`read_file`],
+//! [`read_text`]: a FIFO or a device would block or never end). docs/reliability.md lists
+//! which command uses which.
 
 use crate::error::{Error, Result};
 use std::collections::HashSet;
@@ -277,11 +279,72 @@ fn walk(
     for p in entries {
         if p.is_dir() {
             walk(&p, keep, seen, out)?;
-        } else if p.is_file() && keep(&p) {
+        } else if is_regular_file(&p) && keep(&p) {
             out.push(p);
         }
     }
     Ok(())
+}
+
+/// Whether `path` is (or links to) a regular file: the one test every input read makes before
+/// opening, and the folder walk's filter (a FIFO, socket or device in a folder is skipped).
+pub fn is_regular_file(path: &Path) -> bool {
+    std::fs::metadata(path).is_ok_and(|m| m.is_file())
+}
+
+/// Error when `path` exists and is not (a link to) a regular file, naming the path and what it
+/// is; a missing path passes, so the read that follows reports it as its caller words it.
+/// Checked before opening: opening a FIFO for reading blocks until a writer appears, and a
+/// character device may never end, so either would hang the command.
+pub fn regular_file(path: &Path) -> Result<()> {
+    let Ok(meta) = std::fs::metadata(path) else {
+        return Ok(());
+    };
+    if meta.is_file() {
+        return Ok(());
+    }
+    Err(Error::io(
+        path,
+        std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            format!(
+                "not a regular file but {}; give the path of a file",
+                file_kind(&meta.file_type())
+            ),
+        ),
+    ))
+}
+
+fn file_kind(t: &std::fs::FileType) -> &'static str {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if t.is_fifo() {
+            return "a FIFO (named pipe)";
+        }
+        if t.is_socket() {
+            return "a socket";
+        }
+        if t.is_char_device() {
+            return "a character device";
+        }
+        if t.is_block_device() {
+            return "a block device";
+        }
+    }
+    if t.is_dir() { "a folder" } else { "not a file" }
+}
+
+/// The bytes of the input file `path` ([`regular_file`] first); errors name the path.
+pub fn read_file(path: &Path) -> Result<Vec<u8>> {
+    regular_file(path)?;
+    std::fs::read(path).map_err(|e| Error::io(path, e))
+}
+
+/// The text of the input file `path` ([`regular_file`] first); errors name the path.
+pub fn read_text(path: &Path) -> Result<String> {
+    regular_file(path)?;
+    std::fs::read_to_string(path).map_err(|e| Error::io(path, e))
 }
 
 /// Whether a path has an image extension the readers know (exr, hdr, pic, png, tif, tiff).

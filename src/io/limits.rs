@@ -63,7 +63,18 @@ impl DecodeLimits {
     }
 
     /// Refuse a declared `width`×`height` image that exceeds these limits, naming `path`.
+    /// A side of 0 is refused too: such a file holds no pixel, and every later stage (crops,
+    /// tiles, statistics) needs at least one.
     pub fn check(&self, path: &Path, what: &str, width: u64, height: u64) -> Result<()> {
+        if width == 0 || height == 0 {
+            return Err(Error::decode(
+                path,
+                format!(
+                    "{what} declares {width}×{height} pixels: an image needs at least one pixel \
+                     per side"
+                ),
+            ));
+        }
         let bytes = width
             .saturating_mul(height)
             .saturating_mul(DECODED_BYTES_PER_PIXEL);

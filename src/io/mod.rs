@@ -33,6 +33,17 @@ pub enum Format {
 }
 
 impl Format {
+    /// The format's name as messages spell it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Format::Exr => "EXR",
+            Format::Hdr => "Radiance HDR",
+            Format::Png => "PNG",
+            Format::Tiff => "TIFF",
+            Format::Jpeg => "JPEG",
+        }
+    }
+
     pub fn from_path(path: &Path) -> Result<Format> {
         let ext = path
             .extension()
@@ -104,6 +115,7 @@ pub fn read_image(path: &Path) -> Result<Image> {
 
 pub fn read_image_info(path: &Path) -> Result<(Image, ReadInfo)> {
     let format = Format::from_path(path)?;
+    guard::regular_file(path)?;
     let bytes = match std::fs::read(path) {
         Ok(b) => b,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => {

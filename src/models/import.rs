@@ -56,6 +56,7 @@ fn list(keys: &[String]) -> String {
 /// Strict: a missing tensor, a tensor of another shape or a non-float dtype, or a tensor that
 /// matches no parameter is an error naming the key and the file; `model` is then not modified.
 pub fn import_weights<M: Module>(model: M, path: &Path) -> Result<M> {
+    crate::io::guard::regular_file(path)?;
     if !path.is_file() {
         return Err(Error::io(
             path,
@@ -82,7 +83,7 @@ pub fn import_weights<M: Module>(model: M, path: &Path) -> Result<M> {
             ));
         }
     }
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = crate::io::guard::read_file(path)?;
     import_weights_bytes(model, bytes, path)
 }
 

@@ -312,13 +312,21 @@ fn normal_init() -> Initializer {
 
 /// Burn's config initialises the bias with the weight's initialiser; TensorFlow's is 0.
 fn zero_bias(mut c: Conv2d) -> Conv2d {
-    c.bias = c.bias.map(|p| p.map(|t| t.zeros_like()));
+    c.bias = c.bias.map(|p| p.map(zeros_keeping_grad));
     c
 }
 
 fn zero_bias_t(mut c: ConvTranspose2d) -> ConvTranspose2d {
-    c.bias = c.bias.map(|p| p.map(|t| t.zeros_like()));
+    c.bias = c.bias.map(|p| p.map(zeros_keeping_grad));
     c
+}
+
+/// Zeros of `t`'s shape that keep its gradient flag: `zeros_like` makes a tensor without one,
+/// and a bias without it gets no gradient, so it would never train (until a checkpoint reload
+/// set the flag, making a resumed run differ from an uninterrupted one).
+fn zeros_keeping_grad<const D: usize>(t: Tensor<D>) -> Tensor<D> {
+    let grad = t.is_require_grad();
+    t.zeros_like().set_require_grad(grad)
 }
 
 /// k×k convolution with stride s and no padding of its own (see [`conv_same`]).

@@ -366,6 +366,7 @@ impl CaptureSet {
                 .to_path_buf();
             (dir, path.to_path_buf())
         };
+        crate::io::guard::regular_file(&manifest_path)?;
         let text = std::fs::read_to_string(&manifest_path).map_err(|e| {
             let e = if e.kind() == std::io::ErrorKind::NotFound {
                 std::io::Error::new(

@@ -59,7 +59,7 @@ pub fn profile_family(name: &str) -> &str {
 
 /// Read the whole CSV. Errors name the file and line.
 pub fn read_csv(path: &Path) -> Result<Vec<DarktableRow>> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::io::guard::read_text(path)?;
     parse_csv(&text, path)
 }
 

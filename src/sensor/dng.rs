@@ -128,7 +128,7 @@ pub struct Dng {
 
 /// Read a DNG, demosaic bilinearly, crop to the DefaultCrop.
 pub fn read_dng(path: &Path) -> Result<Dng> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = crate::io::guard::read_file(path)?;
     read_dng_bytes(&bytes, path)
 }
 
@@ -147,7 +147,7 @@ pub fn read_dng_bytes(bytes: &[u8], path: &Path) -> Result<Dng> {
 
 /// The tags only (the pixels are not decoded).
 pub fn read_dng_info(path: &Path) -> Result<DngInfo> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = crate::io::guard::read_file(path)?;
     let tiff = Tiff::parse(&bytes, path)?;
     let ifd = tiff.raw_ifd()?;
     info_from(&tiff, &ifd)
@@ -155,7 +155,7 @@ pub fn read_dng_info(path: &Path) -> Result<DngInfo> {
 
 /// Read the active area's normalised mosaic (before demosaicing and the DefaultCrop).
 pub fn read_dng_mosaic(path: &Path) -> Result<(Mosaic, DngInfo)> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = crate::io::guard::read_file(path)?;
     mosaic_from_bytes(&bytes, path)
 }
 

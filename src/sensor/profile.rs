@@ -396,22 +396,9 @@ impl SensorProfile {
             if c.matrix.iter().flatten().any(|v| !v.is_finite()) {
                 return Err("colour.matrix has non-finite entries".into());
             }
-            // A singular T maps distinct colours to one (an all-zero T gives black frames).
-            // Scale-free test: |det| against the product of the row norms (1 for orthogonal
-            // rows, 0 for dependent ones).
-            let det = crate::linalg::det3(&c.matrix);
-            let norms: f64 = c
-                .matrix
-                .iter()
-                .map(|r| r.iter().map(|v| v * v).sum::<f64>().sqrt())
-                .product();
-            if !(norms > 0.0 && det.abs() > 1e-6 * norms) {
-                return Err(format!(
-                    "colour.matrix {:?} is singular (determinant {det:.3e}): it would map \
-                     distinct colours to one; calibrate it again or remove [colour]",
-                    c.matrix
-                ));
-            }
+            check_colour_matrix(&c.matrix).map_err(|why| {
+                format!("colour.matrix {why}; calibrate it again or remove [colour]")
+            })?;
             if c.use_root_polynomial && c.root_polynomial.is_none() {
                 return Err(
                     "colour.use_root_polynomial = true but no root_polynomial matrix".into(),
@@ -512,4 +499,21 @@ impl SensorProfile {
     pub fn shipped_dir() -> PathBuf {
         Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/sensors")
     }
+}
+
+/// Error unless the colour matrix T is regular. A singular T maps distinct colours to one (an
+/// all-zero T gives black frames). Scale-free test: |det| against the product of the row norms
+/// (1 for orthogonal rows, 0 for dependent ones).
+pub fn check_colour_matrix(m: &[[f64; 3]; 3]) -> std::result::Result<(), String> {
+    let det = crate::linalg::det3(m);
+    let norms: f64 = m
+        .iter()
+        .map(|r| r.iter().map(|v| v * v).sum::<f64>().sqrt())
+        .product();
+    if !(norms > 0.0 && det.abs() > 1e-6 * norms) {
+        return Err(format!(
+            "{m:?} is singular (determinant {det:.3e}): it would map distinct colours to one"
+        ));
+    }
+    Ok(())
 }

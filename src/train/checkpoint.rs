@@ -6,11 +6,15 @@
 //!     optimizer.bpk      Adam moments and step counts (absent in an inference-only export)
 //!     state.toml         step, stream position, seed, model config (CheckpointState)
 //!     class_weights.toml Network-1's α
+//!     checksums.sha256   SHA-256 of every other file (`sha256sum -c` reads it)
 //! RUN/checkpoints/latest   the name of the newest complete checkpoint
 //! ```
 //!
 //! A checkpoint is written into `.tmp-step-…`, synced, then renamed; `latest` is replaced
 //! atomically afterwards. A run killed at any moment leaves the previous checkpoint intact.
+//! Every read of a checkpoint file ([`read_verified`]) checks it against `checksums.sha256`,
+//! so a damaged file is an error naming it, never weights used silently; a checkpoint without
+//! the file (written before checksums existed) loads with a warning.
 //! The data stream and the learning-rate schedule are pure functions of (seed, step), so the
 //! step is the whole random state: `rng_seed` and `samples` record it.
 
@@ -28,6 +32,7 @@ pub const FORMAT: &str = "hdrsynth-checkpoint/1";
 pub const MODEL_FILE: &str = "model.bpk";
 pub const OPTIMIZER_FILE: &str = "optimizer.bpk";
 pub const STATE_FILE: &str = "state.toml";
+pub const CHECKSUMS_FILE: &str = "checksums.sha256";
 const LATEST: &str = "latest";
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -94,13 +99,14 @@ pub fn save<M: Module>(
     write_file(&model_path, &bytes)?;
     if let Some(optim) = optim {
         let path = tmp.join(OPTIMIZER_FILE);
-        let bytes = optim.into_bytes().map_err(|e| Error::encode(&path, e))?;
+        let bytes = optimizer_to_bytes(optim, &path)?;
         write_file(&path, &bytes)?;
     }
     let path = tmp.join(STATE_FILE);
     let text = toml::to_string(state).map_err(|e| Error::encode(&path, e))?;
     write_file(&path, text.as_bytes())?;
     extra(&tmp)?;
+    write_checksums(&tmp)?;
     sync_dir(&tmp);
     if fin.exists() {
         std::fs::remove_dir_all(&fin).map_err(|e| Error::io(&fin, e))?;
@@ -176,7 +182,7 @@ pub fn clean_leftovers(run: &Path) -> Result<usize> {
 /// The newest complete checkpoint of a run, if any (`latest`, else the highest step folder).
 pub fn latest(run: &Path) -> Result<Option<PathBuf>> {
     let root = dir_of(run);
-    if let Ok(name) = std::fs::read_to_string(root.join(LATEST)) {
+    if let Ok(name) = crate::io::guard::read_text(&root.join(LATEST)) {
         let dir = root.join(name.trim());
         if dir.join(STATE_FILE).is_file() {
             return Ok(Some(dir));
@@ -206,7 +212,7 @@ pub fn resolve(path: &Path) -> Result<PathBuf> {
 
 pub fn read_state(dir: &Path) -> Result<CheckpointState> {
     let path = dir.join(STATE_FILE);
-    let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+    let text = read_verified_text(dir, STATE_FILE)?;
     parse_state(&text, &path)
 }
 
@@ -222,16 +228,10 @@ pub fn parse_state(text: &str, path: &Path) -> Result<CheckpointState> {
     Ok(state)
 }
 
-fn read_bytes(path: &Path) -> Result<Bytes> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    Ok(Bytes::from_bytes_vec(bytes))
-}
-
 /// Load the checkpoint's weights into `model` (built from the checkpoint's model config).
 pub fn load_model<M: Module>(model: M, dir: &Path) -> Result<M> {
-    let path = dir.join(MODEL_FILE);
-    let bytes = std::fs::read(&path).map_err(|e| Error::io(&path, e))?;
-    model_from_bytes(model, bytes, &path)
+    let bytes = read_verified(dir, MODEL_FILE)?;
+    model_from_bytes(model, bytes, &dir.join(MODEL_FILE))
 }
 
 /// [`load_model`] of a `model.bpk` held in memory (`path` names it in errors): the same path.
@@ -242,40 +242,268 @@ pub fn model_from_bytes<M: Module>(model: M, bytes: Vec<u8>, path: &Path) -> Res
     // float parameter is (found by tests/fuzz.rs: one byte "F32" → "U32" in the header), and
     // the record's dtypes are not public to check first; a crafted checkpoint must give an
     // error naming the file, not take the process down.
-    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+    without_panic(path, "the record does not fit the model", || {
         model.try_load_record(record)
-    })) {
-        Ok(loaded) => loaded.map_err(|e| Error::decode(path, e)),
-        Err(panic) => {
-            let why = panic
-                .downcast_ref::<String>()
-                .map(String::as_str)
-                .or_else(|| panic.downcast_ref::<&str>().copied())
-                .unwrap_or("unknown");
-            Err(Error::decode(
-                path,
-                format!("corrupt checkpoint: the record does not fit the model ({why})"),
-            ))
-        }
-    }
+    })?
+    .map_err(|e| Error::decode(path, e))
 }
 
-/// The bytes [`save`] writes to `model.bpk` (`path` names it in errors).
+/// `f()`, a Burn record load, with a panic inside it turned into an error naming `path`.
+fn without_panic<T>(path: &Path, what: &str, f: impl FnOnce() -> T) -> Result<T> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)).map_err(|panic| {
+        let why = panic
+            .downcast_ref::<String>()
+            .map(String::as_str)
+            .or_else(|| panic.downcast_ref::<&str>().copied())
+            .unwrap_or("unknown");
+        Error::decode(path, format!("corrupt checkpoint: {what} ({why})"))
+    })
+}
+
+/// The bytes [`save`] writes to `model.bpk` (`path` names it in errors): the same weights
+/// always give the same bytes ([`canonical_model`]).
 pub fn model_to_bytes<M: Module>(model: &M, path: &Path) -> Result<Vec<u8>> {
     // `valid()` first: BatchNorm's running statistics (Burn's RunningState) hold their newest
     // update in a per-thread buffer that recording does not read; valid() folds it in.
-    model
+    let bytes = model
         .valid()
         .into_record()
+        .into_bytes()
+        .map_err(|e| Error::encode(path, e))?;
+    canonical_model(bytes, path)
+}
+
+/// The bytes [`save`] writes to `optimizer.bpk` (`path` names it in errors): the same state
+/// always gives the same bytes ([`canonical_optimizer`]).
+pub fn optimizer_to_bytes(optim: &ModuleOptimizer, path: &Path) -> Result<Vec<u8>> {
+    let bytes = optim.into_bytes().map_err(|e| Error::encode(path, e))?;
+    canonical_optimizer(bytes, path)
+}
+
+/// The parameter id a checkpoint gives the parameter at module path `path` (FNV-1a, 64 bits).
+/// Burn draws parameter ids at random when a module is built, and both record files store
+/// them, so without this two identical runs write different bytes.
+pub fn param_id_of(path: &str) -> u64 {
+    path.bytes().fold(0xcbf2_9ce4_8422_2325, |h, b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
+    })
+}
+
+fn rewrite(
+    bytes: burn::tensor::Bytes,
+    path: &Path,
+    edit: impl FnOnce(
+        &mut Vec<burn_pack::Tensor>,
+        &mut std::collections::BTreeMap<String, burn_pack::Scalar>,
+        &mut std::collections::BTreeMap<String, String>,
+    ),
+) -> Result<Vec<u8>> {
+    let reader = burn_pack::Reader::from_bytes(bytes).map_err(|e| Error::encode(path, e))?;
+    let mut scalars = reader.scalars().clone();
+    let mut metadata = reader.metadata().clone();
+    let mut tensors = reader.into_tensors().map_err(|e| Error::encode(path, e))?;
+    edit(&mut tensors, &mut scalars, &mut metadata);
+    let mut writer = burn_pack::Writer::new(tensors);
+    for (k, v) in &scalars {
+        writer = writer.with_scalar(k, *v);
+    }
+    for (k, v) in &metadata {
+        writer = writer.with_metadata(k, v);
+    }
+    writer
         .into_bytes()
         .map(|b| b.to_vec())
         .map_err(|e| Error::encode(path, e))
 }
 
+/// A module record (burnpack) with every parameter id replaced by [`param_id_of`] its module
+/// path. Loading restores these ids, and [`canonical_optimizer`] keys the optimizer state by
+/// the same ones, so a resumed run finds its state.
+pub fn canonical_model(bytes: burn::tensor::Bytes, path: &Path) -> Result<Vec<u8>> {
+    rewrite(bytes, path, |tensors, _, _| {
+        for t in tensors {
+            t.param_id = Some(param_id_of(&t.name));
+        }
+    })
+}
+
+/// An optimizer record (burnpack) keyed by [`param_id_of`] each parameter's module path (which
+/// the record holds) instead of the run's random ids, its tensors in name order (Burn writes
+/// them in hash-map order).
+pub fn canonical_optimizer(bytes: burn::tensor::Bytes, path: &Path) -> Result<Vec<u8>> {
+    rewrite(bytes, path, |tensors, scalars, paths| {
+        // Old id (decimal) → new id, from the record's own id → module path entries.
+        let ids: std::collections::BTreeMap<String, String> = paths
+            .iter()
+            .map(|(id, p)| (id.clone(), param_id_of(p).to_string()))
+            .collect();
+        let rename = |name: &str| match name.split_once('.') {
+            Some((id, rest)) => match ids.get(id) {
+                Some(new) => format!("{new}.{rest}"),
+                None => name.to_string(),
+            },
+            None => name.to_string(),
+        };
+        for t in tensors.iter_mut() {
+            t.name = rename(&t.name);
+            t.param_id = t.param_id.map(|id| {
+                ids.get(&id.to_string())
+                    .and_then(|n| n.parse().ok())
+                    .unwrap_or(id)
+            });
+        }
+        tensors.sort_by(|a, b| a.name.cmp(&b.name));
+        *scalars = std::mem::take(scalars)
+            .into_iter()
+            .map(|(k, v)| (rename(&k), v))
+            .collect();
+        *paths = std::mem::take(paths)
+            .into_iter()
+            .map(|(id, p)| (ids.get(&id).cloned().unwrap_or(id), p))
+            .collect();
+    })
+}
+
 /// Restore the optimizer state saved with the checkpoint.
 pub fn load_optimizer(optim: ModuleOptimizer, dir: &Path) -> Result<ModuleOptimizer> {
-    let path = dir.join(OPTIMIZER_FILE);
-    optim
-        .from_bytes(read_bytes(&path)?)
-        .map_err(|e| Error::decode(&path, e))
+    let bytes = read_verified(dir, OPTIMIZER_FILE)?;
+    optimizer_from_bytes(optim, bytes, &dir.join(OPTIMIZER_FILE))
+}
+
+/// [`load_optimizer`] of an `optimizer.bpk` held in memory (`path` names it in errors).
+pub fn optimizer_from_bytes(
+    optim: ModuleOptimizer,
+    bytes: Vec<u8>,
+    path: &Path,
+) -> Result<ModuleOptimizer> {
+    // Burn 0.22's `load_record` panics on a state tensor without a parameter id.
+    without_panic(path, "not an optimizer state", || {
+        optim.from_bytes(Bytes::from_bytes_vec(bytes))
+    })?
+    .map_err(|e| Error::decode(path, e))
+}
+
+/// Lower-case hex SHA-256 of `bytes`.
+fn sha256_hex(bytes: &[u8]) -> String {
+    use sha2::{Digest, Sha256};
+    Sha256::digest(bytes)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
+}
+
+/// Write `checksums.sha256` into the checkpoint folder `dir`: one `HEX  NAME` line per file
+/// (every file but itself and dot-files, by name), the format `sha256sum -c` checks.
+fn write_checksums(dir: &Path) -> Result<()> {
+    let mut names = Vec::new();
+    for entry in std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))? {
+        let entry = entry.map_err(|e| Error::io(dir, e))?;
+        let name = entry.file_name().to_string_lossy().into_owned();
+        if name != CHECKSUMS_FILE && !name.starts_with('.') && entry.path().is_file() {
+            names.push(name);
+        }
+    }
+    names.sort();
+    let mut text = String::new();
+    for name in names {
+        let path = dir.join(&name);
+        let bytes = std::fs::read(&path).map_err(|e| Error::io(&path, e))?;
+        text.push_str(&format!("{}  {name}\n", sha256_hex(&bytes)));
+    }
+    write_file(&dir.join(CHECKSUMS_FILE), text.as_bytes())
+}
+
+/// The recorded checksums of a checkpoint folder, by file name; None when it has no
+/// `checksums.sha256` (a checkpoint written before checksums existed).
+fn recorded_checksums(dir: &Path) -> Result<Option<Vec<(String, String)>>> {
+    let path = dir.join(CHECKSUMS_FILE);
+    if !path.exists() {
+        return Ok(None);
+    }
+    let text = crate::io::guard::read_text(&path)?;
+    parse_checksums(&text, &path).map(Some)
+}
+
+/// `checksums.sha256` text: lines `HEX  NAME` (64 hex digits, two spaces, a plain file name).
+pub fn parse_checksums(text: &str, path: &Path) -> Result<Vec<(String, String)>> {
+    text.lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty())
+        .map(|(i, line)| {
+            let bad = || {
+                Error::decode(
+                    path,
+                    format!(
+                        "line {}: expected 64 hex digits, two spaces and a file name (the file \
+                         is damaged)",
+                        i + 1
+                    ),
+                )
+            };
+            let (hex, name) = line.split_once("  ").ok_or_else(bad)?;
+            let name = name.trim_end_matches('\r');
+            if hex.len() != 64
+                || !hex.bytes().all(|b| b.is_ascii_hexdigit())
+                || name.is_empty()
+                || name.contains(['/', '\\'])
+            {
+                return Err(bad());
+            }
+            Ok((name.to_string(), hex.to_ascii_lowercase()))
+        })
+        .collect()
+}
+
+/// Warn once per checkpoint folder and process that its files cannot be verified.
+fn warn_unverified(dir: &Path) {
+    static WARNED: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+    let mut warned = WARNED.lock().unwrap_or_else(|e| e.into_inner());
+    if !warned.iter().any(|d| d == dir) {
+        warned.push(dir.to_path_buf());
+        eprintln!(
+            "warning: {}: no {CHECKSUMS_FILE} (a checkpoint written before checksums): its \
+             files are loaded unverified",
+            dir.display()
+        );
+    }
+}
+
+/// Error unless `bytes`, the content of the file `name` of the checkpoint `dir`, match the
+/// checksum recorded for it; a checkpoint without checksums passes with a warning.
+pub fn verify(dir: &Path, name: &str, bytes: &[u8]) -> Result<()> {
+    let path = dir.join(name);
+    let Some(sums) = recorded_checksums(dir)? else {
+        warn_unverified(dir);
+        return Ok(());
+    };
+    let Some((_, want)) = sums.iter().find(|(n, _)| n == name) else {
+        return Err(Error::decode(
+            &path,
+            format!("not listed in {CHECKSUMS_FILE}: the checkpoint is incomplete or was altered"),
+        ));
+    };
+    let got = sha256_hex(bytes);
+    if &got != want {
+        return Err(Error::decode(
+            &path,
+            format!(
+                "checksum mismatch: the file's SHA-256 is {got} but {CHECKSUMS_FILE} records \
+                 {want}; the file is damaged (copy the checkpoint again, or use an earlier one)"
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// The bytes of the file `name` of the checkpoint `dir`, verified ([`verify`]).
+pub fn read_verified(dir: &Path, name: &str) -> Result<Vec<u8>> {
+    let bytes = crate::io::guard::read_file(&dir.join(name))?;
+    verify(dir, name, &bytes)?;
+    Ok(bytes)
+}
+
+/// [`read_verified`] of a text file.
+pub fn read_verified_text(dir: &Path, name: &str) -> Result<String> {
+    let path = dir.join(name);
+    String::from_utf8(read_verified(dir, name)?).map_err(|_| Error::decode(&path, "not UTF-8 text"))
 }

@@ -254,7 +254,10 @@ pub fn run(cfg: &TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
 
 /// Network-1's α as `loss.alpha` asks (see `config::LossConfig`); on resume, the checkpoint's.
 fn network1_alpha(cfg: &TrainConfig, opts: &TrainOptions, loader: &Loader) -> Result<ClassWeights> {
-    let from_checkpoint = |dir: &Path| ClassWeights::load(&dir.join(CHECKPOINT_ALPHA_FILE));
+    let from_checkpoint = |dir: &Path| {
+        let text = checkpoint::read_verified_text(dir, CHECKPOINT_ALPHA_FILE)?;
+        ClassWeights::parse(&text, &dir.join(CHECKPOINT_ALPHA_FILE))
+    };
     if opts.resume
         && let Some(dir) = checkpoint::latest(&cfg.run.out)?
     {
@@ -412,15 +415,8 @@ pub fn train<T: Task + Sync>(
             run.display()
         );
     }
-    // Which frames the run trains on (pure, linear EXRs, display frames) for whoever reads it.
-    let source = loader.describe_source();
-    write_atomic(
-        &run.join(DATA_SOURCE_FILE),
-        format!("{source}\n").as_bytes(),
-    )?;
-    if opts.progress {
-        eprintln!("training data: {source}");
-    }
+    // Everything that can refuse the run comes before the first write into the run folder, so
+    // a refused run leaves the folder as it was (a folder the lock created is removed again).
     let devices: Vec<Device> = if cfg.run.devices.is_empty() {
         vec![device_from_name(&cfg.run.backend)?.autodiff()]
     } else {
@@ -448,8 +444,20 @@ pub fn train<T: Task + Sync>(
             already_finished: true,
         });
     }
-    let log = Log::open(run, opts.resume.then_some(start))?;
     let validation = validation_set(task, cfg, &loader)?;
+    if !opts.resume {
+        write_atomic(&run.join(RUN_CONFIG), identity_of(cfg)?.as_bytes())?;
+    }
+    // Which frames the run trains on (pure, linear EXRs, display frames) for whoever reads it.
+    let source = loader.describe_source();
+    write_atomic(
+        &run.join(DATA_SOURCE_FILE),
+        format!("{source}\n").as_bytes(),
+    )?;
+    if opts.progress {
+        eprintln!("training data: {source}");
+    }
+    let log = Log::open(run, opts.resume.then_some(start))?;
     let session = Session {
         task,
         cfg,
@@ -463,7 +471,7 @@ pub fn train<T: Task + Sync>(
 }
 
 /// The model, the optimizer and the first step: from the latest checkpoint on `resume`, else
-/// freshly initialised (seeded, then `[init]` weights) with the run's config written.
+/// freshly initialised (seeded, then `[init]` weights; the caller writes the run's config).
 fn start_or_resume<T: Task>(
     task: &T,
     cfg: &TrainConfig,
@@ -484,8 +492,7 @@ fn start_or_resume<T: Task>(
         .init();
     match (existing, resume) {
         (Some(dir), true) => {
-            let saved = std::fs::read_to_string(run.join(RUN_CONFIG))
-                .map_err(|e| Error::io(run.join(RUN_CONFIG), e))?;
+            let saved = crate::io::guard::read_text(&run.join(RUN_CONFIG))?;
             if saved != identity {
                 return Err(Error::config(
                     run.join(RUN_CONFIG),
@@ -522,6 +529,15 @@ fn start_or_resume<T: Task>(
                 model = crate::models::import::import_weights(model, path)?;
             }
             if let Some(init) = cfg.init.as_ref().and_then(|i| i.checkpoint.as_ref()) {
+                let own = crate::io::guard::resolve(run)?;
+                if crate::io::guard::resolve(init)?.starts_with(&own) {
+                    return Err(Error::Invalid(format!(
+                        "init.checkpoint {} lies in this run's own output folder (run.out = {}): \
+                         fine-tuning starts from another run's checkpoint",
+                        init.display(),
+                        run.display()
+                    )));
+                }
                 let dir = checkpoint::resolve(init)?;
                 let state = checkpoint::read_state(&dir)?;
                 if state.model != task.model_config() {
@@ -536,7 +552,6 @@ fn start_or_resume<T: Task>(
                 }
                 model = checkpoint::load_model(model, &dir)?;
             }
-            write_atomic(&run.join(RUN_CONFIG), identity.as_bytes())?;
             Ok((model, optim, 0))
         }
     }

@@ -85,7 +85,7 @@ pub fn write_manifest(root: &Path, m: &Manifest) -> Result<()> {
 
 pub fn read_manifest(root: &Path) -> Result<Manifest> {
     let path = root.join(MANIFEST);
-    let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+    let text = crate::io::guard::read_text(&path)?;
     parse_manifest(&text, &path)
 }
 
@@ -175,7 +175,7 @@ pub fn write_set(
 
 pub fn read_set_meta(dir: &Path) -> Result<SetMeta> {
     let path = dir.join(SET_META);
-    let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+    let text = crate::io::guard::read_text(&path)?;
     parse_set_meta(&text, &path)
 }
 

@@ -589,6 +589,7 @@ fn is_image_name(lower: &str) -> bool {
 /// Read `expected` exposure values (log2 stops, whitespace separated) from a text file.
 /// `what` says what the values are for, used in the messages.
 pub(crate) fn read_stops(path: &Path, expected: usize, what: &str) -> Result<Vec<f32>> {
+    crate::io::guard::regular_file(path)?;
     let text = match std::fs::read_to_string(path) {
         Ok(t) => t,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
@@ -641,6 +642,7 @@ pub(crate) struct Header {
 
 pub(crate) fn read_header(path: &Path) -> Result<Header> {
     let format = Format::from_path(path)?;
+    crate::io::guard::regular_file(path)?;
     if format == Format::Exr {
         let img = crate::io::read_image(path)?;
         return Ok(Header {
@@ -675,6 +677,9 @@ pub(crate) fn read_header(path: &Path) -> Result<Header> {
         Err(e) => return Err(image_err(e)),
     };
     let (w, h) = decoder.dimensions();
+    // The decode limits before the size is trusted (as the set's size, say): a frame declaring
+    // 100000×100000 or 0×64 is blamed itself, not the frames that differ from it.
+    crate::io::limits::check(path, format.name(), w.into(), h.into())?;
     let ct = decoder.original_color_type();
     let bits = match format {
         Format::Png | Format::Tiff => {

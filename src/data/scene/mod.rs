@@ -488,15 +488,17 @@ pub fn ev_tag(ev: f32) -> String {
     }
 }
 
-/// Check a requested frame size against the engine's limits.
+/// Check a requested frame size (the config keys `width` and `height`) against the engine's
+/// limits.
 pub fn check_size(width: usize, height: usize, path: &Path) -> Result<()> {
     let (long, short) = (width.max(height), width.min(height));
     if short < 16 || long > MAX_LONG_SIDE || short > MAX_SHORT_SIDE {
         return Err(Error::config(
             path,
             format!(
-                "frame size {width}×{height} out of range: each side ≥ 16, at most \
-                 {MAX_LONG_SIDE}×{MAX_SHORT_SIDE} in either orientation"
+                "keys 'width' = {width}, 'height' = {height}: frame size {width}×{height} out of \
+                 range: each side ≥ 16, at most {MAX_LONG_SIDE}×{MAX_SHORT_SIDE} in either \
+                 orientation"
             ),
         ));
     }

@@ -207,7 +207,25 @@ fn sample(input: &Input, region: &ChartRegion) -> Result<Vec<PatchSample>> {
     if let Some((img, level)) = &input.clip {
         chart::sample_chart(img, region, Some(*level)).map_err(ctx)?;
     }
-    chart::sample_chart(&input.linear, region, None).map_err(ctx)
+    let samples = chart::sample_chart(&input.linear, region, None).map_err(ctx)?;
+    // A grey capture (a single-channel file, e.g. a Y-only EXR, read as R = G = B) makes every
+    // fit singular; say so about this input rather than about the profile written from it.
+    let grey = samples.iter().all(|s| {
+        let m = s.mean;
+        let tol = 1e-6 * m.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        (m[0] - m[1]).abs() <= tol && (m[1] - m[2]).abs() <= tol
+    });
+    if grey {
+        return Err(Error::unsupported(
+            &input.path,
+            format!(
+                "every chart patch ({region}) has R = G = B: the image holds no colour (a grey \
+                 or single-channel file, e.g. a Y-only EXR); a colour calibration needs a \
+                 colour capture"
+            ),
+        ));
+    }
+    Ok(samples)
 }
 
 /// What a colour calibration found.
@@ -271,6 +289,13 @@ pub fn calibrate(opts: &CalibrateOptions) -> Result<(Calibration, InputsInfo)> {
             e => Error::Invalid(format!("{}: {e}", opts.real.display())),
         },
     )?;
+    // The profile refuses a singular T; refuse it here, naming the capture it came from.
+    if let Err(why) = crate::sensor::profile::check_colour_matrix(&fit.t()) {
+        return Err(Error::Invalid(format!(
+            "{}: the chart fit gives an unusable colour matrix ({why})",
+            opts.real.display()
+        )));
+    }
     let (g, k, s) = (fit.white_balance_gains, fit.exposure_scale, fit.chart_scale);
     let real_std: Vec<[f64; 3]> = real_samples
         .iter()
