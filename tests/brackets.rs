@@ -344,7 +344,7 @@ fn frames_without_exposure_are_refused_by_name_unless_evs_are_declared() {
         .to_string();
     assert!(err.contains("b.jpg") && err.contains("c.jpg"), "{err}");
     assert!(!err.contains("a.jpg"), "{err}");
-    assert!(err.contains("--evs"), "{err}");
+    assert!(err.contains("--declared-evs"), "{err}");
     // Declared EV steps in capture (here: file-name) order.
     let opts = ScanOptions {
         evs: Some(vec![0.0, 2.0, -2.0]),

@@ -305,9 +305,15 @@ fn data_section_errors_name_the_key_line_and_the_valid_keys() {
         "{e}"
     );
     let e = err(&with("profile = \"pure\"\nev_jitter = \"x\""));
-    assert!(e.contains("train.toml:20: invalid type"), "{e}");
+    assert!(
+        e.contains("train.toml:20: key 'data.ev_jitter': invalid type"),
+        "{e}"
+    );
     let e = err(&base.replace("workers = 2", "workers = \"x\""));
-    assert!(e.contains("train.toml:18: invalid type"), "{e}");
+    assert!(
+        e.contains("train.toml:18: key 'data.workers': invalid type"),
+        "{e}"
+    );
     let e = err(&base.replace("patch = 32\n", ""));
     assert!(e.contains("missing field `patch`"), "{e}");
     let e = err(&with("isos = [100.0]"));
