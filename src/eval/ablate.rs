@@ -1270,6 +1270,14 @@ fn write_table_for(cfg: &AblateConfig, t: &TestsetSpec) -> Result<Table> {
              means only: no interval and no test."
         )
     };
+    // The means' intervals, only where there are scenes enough for one.
+    let ci_text = |what: &str| {
+        if n_scenes >= MIN_SCENES_FOR_TESTS {
+            format!(" [{pct:.0} % {what}; {} resamples]", cfg.eval.resamples)
+        } else {
+            String::new()
+        }
+    };
     if seeded {
         let list: Vec<String> = cfg.seeds.iter().map(u64::to_string).collect();
         let _ = write!(
@@ -1285,28 +1293,14 @@ fn write_table_for(cfg: &AblateConfig, t: &TestsetSpec) -> Result<Table> {
                 "every trained cell once per seed; a cell that does not train is evaluated once \
                  and serves every seed"
             },
-            if n_scenes >= MIN_SCENES_FOR_TESTS {
-                format!(
-                    " [{pct:.0} % CI of a two-level bootstrap: seeds, then scenes; {} resamples]",
-                    cfg.eval.resamples
-                )
-            } else {
-                String::new()
-            },
+            ci_text("CI of a two-level bootstrap: seeds, then scenes"),
         );
     } else {
         let _ = write!(
             md,
             " Each value: mean over the scenes{}. Δ: paired difference to **{ref_label}** over \
              the same sets.{tests_text} {runs_done} of {runs_total} cells finished.\n\n",
-            if n_scenes >= MIN_SCENES_FOR_TESTS {
-                format!(
-                    " [{pct:.0} % bootstrap CI resampling scenes, {} resamples]",
-                    cfg.eval.resamples
-                )
-            } else {
-                String::new()
-            },
+            ci_text("bootstrap CI resampling scenes"),
         );
     }
     let missing = "(not run yet)".to_string();
