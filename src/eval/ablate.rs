@@ -551,30 +551,24 @@ fn plan_cell(
     let id = cfg.cell_id(r, c);
     let cell_err = |m: String| Error::config(config_path, format!("cell '{id}': {m}"));
     let mut base = base.clone();
-    if let (Some(path), Some(k)) = (&cfg.pretrained_per_seed, seed) {
-        let init = base
-            .entry("init")
-            .or_insert_with(|| toml::Value::Table(toml::Table::new()));
-        if let toml::Value::Table(t) = init {
-            t.insert(
-                "checkpoint".into(),
-                toml::Value::String(path.replace("{seed}", &k.to_string())),
-            );
-        }
+    if let (Some(path), Some(k)) = (&cfg.pretrained_per_seed, seed)
+        && let Some(t) = section(&mut base, "init")
+    {
+        t.insert(
+            "checkpoint".into(),
+            toml::Value::String(path.replace("{seed}", &k.to_string())),
+        );
     }
     let mut merged = if axes.iter().any(|a| a.kind == AxisKind::Control) {
         control_config(&cfg.base, &base).map_err(|e| cell_err(format!("control: {e}")))?
     } else {
-        base.clone()
+        base
     };
     for a in &axes {
         merge_tables(&mut merged, &a.set);
     }
     let run_dir = cfg.unit_dir(r, c, seed).join("run");
-    let run = merged
-        .entry("run")
-        .or_insert_with(|| toml::Value::Table(toml::Table::new()));
-    if let toml::Value::Table(t) = run {
+    if let Some(t) = section(&mut merged, "run") {
         t.insert(
             "out".into(),
             toml::Value::String(run_dir.to_string_lossy().into_owned()),
@@ -622,6 +616,14 @@ fn plan_cell(
         backend: train_cfg.run.backend.clone(),
         train: trains.then_some(train_cfg),
     })
+}
+
+/// The table `[name]` of a config, created when missing (`None` when the key holds a value
+/// that is not a table: the config's own validation reports it).
+fn section<'a>(cfg: &'a mut toml::Table, name: &str) -> Option<&'a mut toml::Table> {
+    cfg.entry(name)
+        .or_insert_with(|| toml::Value::Table(toml::Table::new()))
+        .as_table_mut()
 }
 
 /// The training config of a control cell (`kind = "control"`): the config the pretrained
