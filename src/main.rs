@@ -41,8 +41,9 @@ enum Command {
     Eval(hdrsynth::cli::eval::Args),
     /// Build a static test set from real HDR radiance through a sensor profile.
     Testset(hdrsynth::cli::testset::Args),
-    /// The paper's claim once on embedded defaults (~7 min on 2 CPU cores): generate, pretrain
-    /// Network-2 through a DSLR, fine-tune pure vs sensor-realistic for a phone, 3 seeds, table.
+    /// The main job: docs/protocol.md's primary comparison on embedded defaults (Net_S against
+    /// the fair pure baseline Net_R, Net_P, Net_O, the control; 3 seeds; paired tests);
+    /// `--full` runs the whole protocol.
     Quickstart(hdrsynth::cli::quickstart::Args),
     /// Run an ablation grid (fine-tune per cell, evaluate, table like the paper's; resumable).
     Ablate(hdrsynth::cli::ablate::Args),

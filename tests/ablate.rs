@@ -81,7 +81,7 @@ fn table(path: &Path) -> BTreeMap<(String, String, String), (f64, Option<f64>)> 
         Some(
             "row,column,metric,n,mean,ci_lo,ci_hi,diff_vs_reference,diff_ci_lo,diff_ci_hi,\
              n_seeds,n_scenes,seeds_positive,diff_n_seeds,diff_t_lo,diff_t_hi,diff_t_p,\
-             diff_wilcoxon_p,diff_tost_margin,diff_tost_p"
+             diff_wilcoxon_p,diff_tost_margin,diff_tost_p,n_pretrain_seeds"
         )
     );
     lines
@@ -887,4 +887,79 @@ fn a_control_cell_without_a_pretrained_run_is_an_error_naming_the_file() {
         msg.contains("control") && msg.contains("not_a_run/config.toml"),
         "{msg}"
     );
+}
+
+/// Network-1's baselines run without a network: no run folder, no checkpoint; with noise-free
+/// test frames the Mertens weights of the "noisy" pair are the reference's own weights, so that
+/// cell's output is the reference (MSE 0), while the constant blend is not. A test set's own
+/// `reference` overrides the grid's.
+#[test]
+fn baseline_cells_score_without_a_network_and_a_test_set_can_name_its_own_reference() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let root = tmp.path();
+    radiance(&root.join("radiance"));
+    let base = root.join("base.toml");
+    std::fs::write(
+        &base,
+        train_toml(Path::new("unused"), &root.join("data"), 2, None),
+    )
+    .expect("base");
+    let canon = SensorProfile::shipped_dir().join("canon_eos_550d.toml");
+    let path = root.join("grid.toml");
+    let text = format!(
+        "title = \"baselines\"\nout = {:?}\nbase = {base:?}\n\
+         [testset]\ndir = {:?}\nradiance = {:?}\nprofile = {canon:?}\n\
+         [testset.options]\nisos = [100]\nevs = [-3.0, 0.0]\nnoise = \"none\"\n\
+         [[also]]\nname = \"again\"\ndir = {:?}\nreference = \"constant\"\n\
+         [eval]\nresamples = 100\nreference = \"mertens\"\n\
+         [[rows]]\nname = \"constant\"\nkind = \"constant\"\n\
+         [[rows]]\nname = \"mertens\"\nkind = \"mertens\"\n",
+        root.join("grid"),
+        root.join("testset"),
+        root.join("radiance"),
+        root.join("testset"),
+    );
+    std::fs::write(&path, &text).expect("grid");
+    let cfg = AblateConfig::load(&path).expect("config");
+    assert!(!cfg.cell_trains(0, None) && !cfg.cell_trains(1, None));
+    ablate::run(&cfg, &path, false).expect("grid");
+    for cell in ["constant", "mertens"] {
+        let dir = root.join("grid/cells").join(cell);
+        assert!(!dir.join("run").exists(), "{cell} trained");
+        let plan = std::fs::read_to_string(dir.join("cell.toml")).expect("cell.toml");
+        assert!(plan.contains(&format!("baseline = \"{cell}\"")), "{plan}");
+        assert!(!plan.contains("checkpoint"), "{plan}");
+    }
+    let mertens = summary_mean(&root.join("grid/cells/mertens"), "psnr_t");
+    let constant = summary_mean(&root.join("grid/cells/constant"), "psnr_t");
+    assert!(mertens > 100.0 || mertens.is_infinite(), "Mertens {mertens}");
+    assert!(constant.is_finite() && constant < 60.0, "constant {constant}");
+    // The primary table's reference is the grid's (mertens), the `also` table's its own.
+    let primary = csv_rows(&root.join("grid/table.csv"));
+    let again = csv_rows(&root.join("grid/table_again.csv"));
+    let diff = |t: &[BTreeMap<String, String>], row: &str| {
+        find_row(t, &[("row", row), ("metric", "ssim_t")])["diff_vs_reference"].clone()
+    };
+    assert_eq!(diff(&primary, "mertens"), "");
+    assert_ne!(diff(&primary, "constant"), "");
+    assert_eq!(diff(&again, "constant"), "");
+    assert_ne!(diff(&again, "mertens"), "");
+    let n_pre = find_row(&primary, &[("row", "constant"), ("metric", "psnr_t")])["n_pretrain_seeds"]
+        .clone();
+    assert_eq!(n_pre, "0", "a baseline has no pretraining");
+    // A baseline cannot name a checkpoint; a test set's reference must be a cell.
+    for (bad, what) in [
+        (
+            text.replace("kind = \"mertens\"\n", "kind = \"mertens\"\ncheckpoint = \"x\"\n"),
+            "baseline",
+        ),
+        (
+            text.replace("reference = \"constant\"", "reference = \"nope\""),
+            "nope",
+        ),
+    ] {
+        std::fs::write(&path, &bad).expect("bad");
+        let msg = AblateConfig::load(&path).expect_err(what).to_string();
+        assert!(msg.contains(what), "{what}: {msg}");
+    }
 }

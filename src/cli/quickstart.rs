@@ -34,13 +34,23 @@ pub struct Args {
     /// response, Poisson-Gaussian noise, another metering rule): docs/protocol.md.
     #[arg(long)]
     pub heldout: bool,
+    /// The full protocol (docs/protocol.md): the main job with the held-out matrix, then the
+    /// colour × fine-tuning-ISO grid with its ISO diagonal and the Network-1 grid with its
+    /// baselines and learning curves; report in OUT/protocol.md.
+    #[arg(long)]
+    pub full: bool,
     /// No progress output.
     #[arg(long)]
     pub quiet: bool,
 }
 
 pub fn run(args: &Args) -> Result<String> {
-    Ok(quickstart::run(&Options {
+    let run = if args.full {
+        crate::eval::protocol::run
+    } else {
+        quickstart::run
+    };
+    Ok(run(&Options {
         out: args.out.clone(),
         preset: args.preset,
         backend: args.backend.clone(),

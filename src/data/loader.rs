@@ -8,7 +8,8 @@
 //! configured list; skipped in "pure" mode, the paper's Net_P baseline) → target → the same
 //! flip/rot90 on inputs and target.
 //! - Network-1: frames (EV−3, EV0) of the static set, 8-bit quantised → 6×H×W input; target
-//!   the 256-class blend map computed from those (realistic) frames.
+//!   the 256-class blend map of the same crop rendered without the noise draw (or, with
+//!   `target_frames = "noisy"`, of the noisy frames themselves).
 //! - Network-2: frames (EV−2, 0, +2), the reference (EV0) from the static set and the others
 //!   from the dynamic set (paper §4.2); inputs as Wu et al.: per frame LDR in [0, 1] and
 //!   LDR^2.2 / t (t = 2^EV) → 18×H×W; target the set's linear HDR ground truth (hdrsynth's
@@ -147,6 +148,22 @@ pub struct LoaderConfig {
     /// default) gives the paper's per-pixel class maps.
     #[serde(default)]
     pub target_sigma: f32,
+    /// Network-1 only: which frames the Mertens weights behind the class targets come from.
+    #[serde(default)]
+    pub target_frames: TargetFrames,
+}
+
+/// Network-1's targets: the blend weights of the noise-free render of the sample's crop (what
+/// a network that sees through the noise should predict), or of the noisy frames it is given.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum TargetFrames {
+    /// The same crop, exposure, colour and quantisation, without the noise draw.
+    #[default]
+    Clean,
+    /// The noisy input frames themselves: noise inflates Mertens' contrast term, so the targets
+    /// carry noise-driven weights.
+    Noisy,
 }
 
 fn default_workers() -> usize {
@@ -189,6 +206,9 @@ pub struct Loader {
     /// One prepared operator per configured ISO. Its source is linear: the loader hands it
     /// linear frames already scaled by the sample's exposure.
     realism: Vec<(f64, Realism)>,
+    /// Per ISO, the same operator without noise: Network-1's clean targets (empty when the
+    /// targets come from the noisy frames, or the stream has no noise).
+    clean: Vec<Realism>,
     /// What realism starts from (Linear or Display once resolved; unused in pure mode).
     source: Source,
     /// Display code (16-bit index) → linear, 1 = the source response's clipping point.
@@ -307,6 +327,7 @@ impl Loader {
         }
         let white = reference_white(&info)?;
         let mut realism = Vec::new();
+        let mut clean = Vec::new();
         let mut source = Source::Display;
         let mut linearise = None;
         if let Some(r) = &cfg.realism {
@@ -361,6 +382,16 @@ impl Loader {
                     colour: r.colour,
                     output_bits: 8,
                 };
+                if cfg.kind == SampleKind::Network1
+                    && cfg.target_frames == TargetFrames::Clean
+                    && r.noise != NoiseModel::None
+                {
+                    let quiet = RealismOptions {
+                        noise: NoiseModel::None,
+                        ..opts.clone()
+                    };
+                    clean.push(Realism::new(&profile, &quiet)?);
+                }
                 realism.push((iso, Realism::new(&profile, &opts)?));
             }
         }
@@ -369,6 +400,7 @@ impl Loader {
             keys: info.sets.iter().map(|_| OnceLock::new()).collect(),
             sets: info.sets,
             realism,
+            clean,
             source,
             linearise,
             white,
@@ -476,8 +508,9 @@ impl Loader {
         } else {
             0
         };
-        let op =
-            (!self.realism.is_empty()).then(|| &self.realism[rng.int(0, self.realism.len() - 1)]);
+        let pick = (!self.realism.is_empty()).then(|| rng.int(0, self.realism.len() - 1));
+        let op = pick.map(|i| &self.realism[i]);
+        let clean_op = pick.and_then(|i| self.clean.get(i));
         // The sample's EV0 exposure: the metered key, the user's factor, a random jitter.
         let exposure = match &self.cfg.realism {
             Some(r) => {
@@ -488,13 +521,12 @@ impl Loader {
         };
         let noise_seed = hash(self.cfg.seed, &[0x0153, epoch, index as u64]);
         // One realism seed per frame, so frames of a sample get independent noise.
+        let exposed = |frame: &Path| -> Result<Image> {
+            Ok(crop(&self.linear_frame(set, frame)?, x0, y0, p).map(|v| v * exposure))
+        };
         let realistic = |frame: &Path, k: u64| -> Result<Image> {
             Ok(match op {
-                Some((_, r)) => {
-                    let lin =
-                        crop(&self.linear_frame(set, frame)?, x0, y0, p).map(|v| v * exposure);
-                    r.apply(&lin, hash(noise_seed, &[k]))
-                }
+                Some((_, r)) => r.apply(&exposed(frame)?, hash(noise_seed, &[k])),
                 // Pure mode still quantises to 8 bits, as the networks see 8-bit frames.
                 None => crop(&read_set_image(set, frame)?, x0, y0, p)
                     .map(|v| (v.clamp(0.0, 1.0) * 255.0).round() / 255.0),
@@ -508,9 +540,23 @@ impl Loader {
                 } else {
                     &set.static_frames
                 };
-                let low = realistic(&frames[idx[0]], 0)?;
-                let high = realistic(&frames[idx[1]], 1)?;
-                let classes = blend_classes_smoothed(&low, &high, self.cfg.target_sigma)?;
+                let sigma = self.cfg.target_sigma;
+                let (low, high, classes) = match (op, clean_op) {
+                    (Some((_, r)), Some(c)) => {
+                        let lin = [exposed(&frames[idx[0]])?, exposed(&frames[idx[1]])?];
+                        let classes =
+                            blend_classes_smoothed(&c.apply(&lin[0], 0), &c.apply(&lin[1], 0), sigma)?;
+                        let low = r.apply(&lin[0], hash(noise_seed, &[0]));
+                        let high = r.apply(&lin[1], hash(noise_seed, &[1]));
+                        (low, high, classes)
+                    }
+                    _ => {
+                        let low = realistic(&frames[idx[0]], 0)?;
+                        let high = realistic(&frames[idx[1]], 1)?;
+                        let classes = blend_classes_smoothed(&low, &high, sigma)?;
+                        (low, high, classes)
+                    }
+                };
                 let mut hwc = Vec::with_capacity(p * p * 6);
                 for (l, h) in low.data.chunks_exact(3).zip(high.data.chunks_exact(3)) {
                     hwc.extend_from_slice(l);

@@ -64,6 +64,7 @@ pub fn preview(args: &PreviewOptions) -> Result<String> {
         augment: false,
         realism: None,
         target_sigma: 0.0,
+        target_frames: Default::default(),
     };
     let mut real_cfg = base.clone();
     real_cfg.realism = Some(RealismConfig {

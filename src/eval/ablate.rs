@@ -94,6 +94,10 @@ pub struct TestsetSpec {
     /// seed's test set (needs `seeds`, `radiance` and `profile`).
     #[serde(default)]
     pub noise_per_seed: bool,
+    /// The reference cell of this test set's table, when it is not `eval.reference` (e.g. the
+    /// ISO-matched cell of a table scored at one ISO).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reference: Option<String>,
 }
 
 impl TestsetSpec {
@@ -213,7 +217,8 @@ pub struct Axis {
     /// `"finetune"` (default): the base config with `set` laid over it. `"control"`: the
     /// pretrained network trained on for the same number of steps on its OWN pretraining data
     /// (see `control_config`), separating "more steps and a learning-rate restart" from "a new
-    /// training domain".
+    /// training domain". `"constant"` and `"mertens"`: Network-1's classical baselines, no
+    /// network at all (`Baseline`).
     #[serde(default)]
     pub kind: AxisKind,
 }
@@ -224,6 +229,55 @@ pub enum AxisKind {
     #[default]
     Finetune,
     Control,
+    /// Network-1's pair fused with one blend weight, 0.5, everywhere.
+    Constant,
+    /// Network-1's pair fused with the Mertens weights of the noisy pair itself (OpenCV's
+    /// defaults): what the network's targets would be without a noise-free render.
+    Mertens,
+}
+
+/// A method scored without a network (a cell whose row or column has a baseline kind).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Baseline {
+    Constant,
+    Mertens,
+}
+
+/// The constant baseline's blend weight: no preference between the two frames, chosen a
+/// priori (a constant fitted on the test scenes would be tuned on them).
+pub const CONSTANT_BLEND_WEIGHT: f32 = 0.5;
+
+impl AxisKind {
+    fn baseline(self) -> Option<Baseline> {
+        match self {
+            AxisKind::Constant => Some(Baseline::Constant),
+            AxisKind::Mertens => Some(Baseline::Mertens),
+            AxisKind::Finetune | AxisKind::Control => None,
+        }
+    }
+}
+
+impl Baseline {
+    /// The method: Network-1's own fusion (Laplacian blend, tone curve) with these weights.
+    fn method(self) -> Box<dyn evaluate::Method> {
+        let tone_k = NetworkOptions::default().tone_k;
+        let (description, weights): (String, evaluate::BlendInference) = match self {
+            Baseline::Constant => (
+                format!("constant blend weight {CONSTANT_BLEND_WEIGHT} (no network)"),
+                Box::new(|low, _high| Ok(vec![CONSTANT_BLEND_WEIGHT; low.pixel_count()])),
+            ),
+            Baseline::Mertens => (
+                "Mertens weights of the noisy pair (no network)".into(),
+                Box::new(|low, high| crate::data::ground_truth::blend_weights_high(low, high)),
+            ),
+        };
+        Box::new(evaluate::Network1 {
+            description,
+            weights,
+            tone_k,
+        })
+    }
 }
 
 fn yes() -> bool {
@@ -271,6 +325,13 @@ impl AblateConfig {
                 if !seen.insert(&a.name) {
                     return Err(format!("[[{axis}]] name '{}' appears twice", a.name));
                 }
+                if a.kind.baseline().is_some() && a.checkpoint.is_some() {
+                    return Err(format!(
+                        "[[{axis}]] '{}': a baseline kind has no network; it cannot name a \
+                         checkpoint",
+                        a.name
+                    ));
+                }
                 if a.kind == AxisKind::Control && (!a.train || a.checkpoint.is_some()) {
                     return Err(format!(
                         "[[{axis}]] '{}': kind = \"control\" trains; it cannot also have \
@@ -309,13 +370,17 @@ impl AblateConfig {
                 return Err(format!("eval.{key} {m} must be a positive number"));
             }
         }
-        if let Some(r) = &self.eval.reference
-            && !self
-                .cells()
-                .iter()
-                .any(|&(row, col)| self.cell_id(row, col) == *r)
-        {
-            return Err(format!("eval.reference '{r}' is not a cell of the grid"));
+        let references = std::iter::once(("eval.reference", &self.eval.reference))
+            .chain(self.testsets().map(|t| ("a test set's reference", &t.reference)));
+        for (what, r) in references {
+            if let Some(r) = r
+                && !self
+                    .cells()
+                    .iter()
+                    .any(|&(row, col)| self.cell_id(row, col) == *r)
+            {
+                return Err(format!("{what} '{r}' is not a cell of the grid"));
+            }
         }
         if let Some(p) = &self.pretrained_per_seed
             && (self.seeds.is_empty() || !p.contains("{seed}"))
@@ -396,13 +461,24 @@ impl AblateConfig {
     pub fn cell_trains(&self, r: usize, c: Option<usize>) -> bool {
         std::iter::once(&self.rows[r])
             .chain(c.map(|c| &self.columns[c]))
-            .all(|a| a.train && a.checkpoint.is_none())
+            .all(|a| a.train && a.checkpoint.is_none() && a.kind.baseline().is_none())
+    }
+
+    /// The baseline a cell scores instead of a network, if any.
+    fn cell_baseline(&self, r: usize, c: Option<usize>) -> Option<Baseline> {
+        std::iter::once(&self.rows[r])
+            .chain(c.map(|c| &self.columns[c]))
+            .find_map(|a| a.kind.baseline())
     }
 
     /// The seeds a cell runs at: `None` = once (no `seeds`, or a cell that does not train and
     /// therefore does not depend on the seed: it is evaluated once and serves every seed).
     pub fn cell_seeds(&self, r: usize, c: Option<usize>) -> Vec<Option<u64>> {
-        if self.seeds.is_empty() || !(self.cell_trains(r, c) || self.seeded_eval()) {
+        let seeded = match self.cell_baseline(r, c) {
+            Some(_) => self.testsets().any(|t| t.noise_per_seed),
+            None => self.cell_trains(r, c) || self.seeded_eval(),
+        };
+        if self.seeds.is_empty() || !seeded {
             vec![None]
         } else {
             self.seeds.iter().map(|&s| Some(s)).collect()
@@ -427,8 +503,12 @@ struct CellPlan {
     /// added later is scored without retraining (each has its own `eval_<name>/`).
     #[serde(skip)]
     also: Vec<PathBuf>,
-    /// The checkpoint evaluated (the cell's own run folder when it trains).
-    checkpoint: PathBuf,
+    /// The checkpoint evaluated (the cell's own run folder when it trains); none for a
+    /// baseline.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    checkpoint: Option<PathBuf>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    baseline: Option<Baseline>,
     /// The training config, when the cell fine-tunes.
     #[serde(default)]
     train: Option<TrainConfig>,
@@ -594,10 +674,12 @@ fn plan_cell(
         ));
     }
     let trains = cfg.cell_trains(r, c);
+    let baseline = cfg.cell_baseline(r, c);
     let checkpoint = match (explicit.first(), trains) {
-        (Some(p), _) => (*p).clone(),
-        (None, true) => run_dir,
-        (None, false) => train_cfg
+        _ if baseline.is_some() => None,
+        (Some(p), _) => Some((*p).clone()),
+        (None, true) => Some(run_dir),
+        (None, false) => Some(train_cfg
             .init
             .as_ref()
             .and_then(|i| i.checkpoint.clone())
@@ -607,12 +689,13 @@ fn plan_cell(
                      give `checkpoint = ...`"
                         .into(),
                 )
-            })?,
+            })?),
     };
     Ok(CellPlan {
         testset: cfg.testset.dir_for(seed),
         also: cfg.also.iter().map(|t| t.dir_for(seed)).collect(),
         checkpoint,
+        baseline,
         backend: train_cfg.run.backend.clone(),
         train: trains.then_some(train_cfg),
     })
@@ -728,16 +811,26 @@ fn run_cell(
             )?;
         }
     }
-    if progress {
-        eprintln!("  evaluating {}", plan.checkpoint.display());
-    }
-    let backend = cfg.eval.backend.as_ref().unwrap_or(&plan.backend);
-    let device = device_from_name(backend)?;
-    let net = NetworkOptions {
-        tile: cfg.eval.tile,
-        ..NetworkOptions::default()
+    let method = match (&plan.checkpoint, plan.baseline) {
+        (_, Some(b)) => b.method(),
+        (Some(ckpt), None) => {
+            if progress {
+                eprintln!("  evaluating {}", ckpt.display());
+            }
+            let backend = cfg.eval.backend.as_ref().unwrap_or(&plan.backend);
+            let device = device_from_name(backend)?;
+            let net = NetworkOptions {
+                tile: cfg.eval.tile,
+                ..NetworkOptions::default()
+            };
+            from_checkpoint(ckpt, &net, &device)?
+        }
+        (None, None) => {
+            return Err(Error::Invalid(format!(
+                "cell '{id}' has neither a checkpoint nor a baseline"
+            )));
+        }
     };
-    let method = from_checkpoint(&plan.checkpoint, &net, &device)?;
     let opts = EvalOptions {
         resamples: cfg.eval.resamples,
         seed: cfg.eval.seed,
@@ -1073,10 +1166,11 @@ fn write_table_for(cfg: &AblateConfig, t: &TestsetSpec) -> Result<Table> {
         .collect::<std::collections::BTreeSet<_>>()
         .len();
     let find = |r: usize, c: Option<usize>| done.iter().find(|d| d.r == r && d.c == c);
+    let wanted = t.reference.as_ref().or(cfg.eval.reference.as_ref());
     let reference = cfg
         .cells()
         .into_iter()
-        .find(|&(r, c)| cfg.eval.reference.as_ref() == Some(&cfg.cell_id(r, c)))
+        .find(|&(r, c)| wanted == Some(&cfg.cell_id(r, c)))
         .unwrap_or(cfg.cells()[0]);
     let ref_scores = find(reference.0, reference.1);
     let ref_label = cell_label(cfg, reference.0, reference.1);
@@ -1086,7 +1180,7 @@ fn write_table_for(cfg: &AblateConfig, t: &TestsetSpec) -> Result<Table> {
     let mut csv = String::from(
         "row,column,metric,n,mean,ci_lo,ci_hi,diff_vs_reference,diff_ci_lo,diff_ci_hi,\
          n_seeds,n_scenes,seeds_positive,diff_n_seeds,diff_t_lo,diff_t_hi,diff_t_p,\
-         diff_wilcoxon_p,diff_tost_margin,diff_tost_p\n",
+         diff_wilcoxon_p,diff_tost_margin,diff_tost_p,n_pretrain_seeds\n",
     );
     let mut seeds_csv = String::from("row,column,seed,metric,n_scenes,mean,diff_vs_reference\n");
     // (metric, r, c) → "mean [lo, hi]" and paired difference.
@@ -1155,7 +1249,7 @@ fn write_table_for(cfg: &AblateConfig, t: &TestsetSpec) -> Result<Table> {
             };
             let _ = writeln!(
                 csv,
-                "{row_name},{col_name},{metric},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+                "{row_name},{col_name},{metric},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
                 st.n_sets,
                 st.mean,
                 st.lo,
@@ -1173,6 +1267,12 @@ fn write_table_for(cfg: &AblateConfig, t: &TestsetSpec) -> Result<Table> {
                 test(&|x| x.wilcoxon.as_ref().map(|w| w.p)),
                 test(&|x| Some(x.margin)),
                 test(&|x| x.tost.as_ref().map(|w| w.p)),
+                // Independent pretrainings behind the cell's numbers (0: no network).
+                match (cfg.cell_baseline(d.r, d.c), &cfg.pretrained_per_seed) {
+                    (Some(_), _) => 0,
+                    (None, Some(_)) => st.n_seeds,
+                    (None, None) => 1,
+                },
             );
             if seeded {
                 // Every seed's number; a run that serves every seed is repeated for each.

@@ -6,6 +6,7 @@ pub mod engine;
 pub mod evaluate;
 pub mod infer;
 pub mod metrics;
+pub mod protocol;
 pub mod quickstart;
 pub mod report;
 pub mod tiling;

@@ -65,25 +65,25 @@ pub struct Options {
 }
 
 /// The sizes of one preset.
-struct Sizes {
-    train_sets: usize,
-    train_size: (usize, usize),
-    test_scenes: usize,
-    test_size: (usize, usize),
-    base_width: usize,
-    res_blocks: usize,
-    patch: usize,
-    batch: usize,
-    pretrain_steps: u64,
-    finetune_steps: u64,
-    pretrain_lr: f64,
-    finetune_lr: f64,
-    checkpoint_every: u64,
-    seeds: &'static [u64],
-    backend: &'static str,
+pub(crate) struct Sizes {
+    pub(crate) train_sets: usize,
+    pub(crate) train_size: (usize, usize),
+    pub(crate) test_scenes: usize,
+    pub(crate) test_size: (usize, usize),
+    pub(crate) base_width: usize,
+    pub(crate) res_blocks: usize,
+    pub(crate) patch: usize,
+    pub(crate) batch: usize,
+    pub(crate) pretrain_steps: u64,
+    pub(crate) finetune_steps: u64,
+    pub(crate) pretrain_lr: f64,
+    pub(crate) finetune_lr: f64,
+    pub(crate) checkpoint_every: u64,
+    pub(crate) seeds: &'static [u64],
+    pub(crate) backend: &'static str,
 }
 
-fn sizes(p: Preset) -> Sizes {
+pub(crate) fn sizes(p: Preset) -> Sizes {
     match p {
         Preset::Cpu => Sizes {
             train_sets: 40,
@@ -123,15 +123,15 @@ fn sizes(p: Preset) -> Sizes {
 }
 
 /// Seed of the training scenes, and of the primary test scenes (used for nothing else).
-const TRAIN_SCENE_SEED: u64 = 2026;
-const TEST_SCENE_SEED: u64 = 7;
+pub(crate) const TRAIN_SCENE_SEED: u64 = 2026;
+pub(crate) const TEST_SCENE_SEED: u64 = 7;
 /// Test scenes need at least this range (stops); an EV −2/0/+2 bracket holds about 12.
 const TEST_MIN_DYNAMIC_RANGE: f32 = 10.0;
 
 /// Sensor profiles shipped with the binary, so the main job needs no files but its own.
 /// Net_O's camera: the Canon EOS 550D's measured colour, noise and levels with a gamma-2.2
 /// response (Kalantari's Canon 5D data assume that curve).
-const PRETRAIN_PROFILE: (&str, &str) = (
+pub(crate) const PRETRAIN_PROFILE: (&str, &str) = (
     "dslr_canon_550d_gamma22.toml",
     include_str!("../../configs/sensors/dslr_canon_550d_gamma22.toml"),
 );
@@ -144,7 +144,7 @@ const TARGET_PROFILE: (&str, &str) = (
 
 /// The target profile's file name, text and profile: `target`, else the shipped composite
 /// phone.
-fn target_profile(target: Option<&Path>) -> Result<(String, String, SensorProfile)> {
+pub(crate) fn target_profile(target: Option<&Path>) -> Result<(String, String, SensorProfile)> {
     let (file, text) = match target {
         Some(p) => {
             let text = crate::io::guard::read_text(p)
@@ -168,7 +168,7 @@ fn target_profile(target: Option<&Path>) -> Result<(String, String, SensorProfil
 }
 
 /// Pure synthetic EV −2/0/+2 sets with linear EXRs.
-fn generate_config(s: &Sizes, seed: u64, count: usize, size: (usize, usize)) -> GenerateConfig {
+pub(crate) fn generate_config(s: &Sizes, seed: u64, count: usize, size: (usize, usize)) -> GenerateConfig {
     let mut cfg = GenerateConfig::new(seed, count, size, vec![-2.0, 0.0, 2.0]);
     cfg.camera.candidates = if s.train_sets > 64 { 24 } else { 8 };
     cfg
@@ -184,18 +184,18 @@ fn test_scene_config(s: &Sizes) -> GenerateConfig {
 }
 
 /// What differs between the pretraining and the fine-tuning config.
-struct Stage<'a> {
-    run: &'a Path,
-    seed: u64,
+pub(crate) struct Stage<'a> {
+    pub(crate) run: &'a Path,
+    pub(crate) seed: u64,
     /// A profile path or "pure".
-    profile: &'a Path,
-    isos: &'a [u32],
-    steps: u64,
-    lr: f64,
-    init: Option<&'a Path>,
+    pub(crate) profile: &'a Path,
+    pub(crate) isos: &'a [u32],
+    pub(crate) steps: u64,
+    pub(crate) lr: f64,
+    pub(crate) init: Option<&'a Path>,
 }
 
-fn train_config(s: &Sizes, backend: &str, data: &Path, st: &Stage) -> TrainConfig {
+pub(crate) fn train_config(s: &Sizes, backend: &str, data: &Path, st: &Stage) -> TrainConfig {
     let mut realism = RealismConfig::new(st.profile.to_path_buf(), isos(st.isos));
     realism.noise = NoiseModel::Gaussian;
     TrainConfig {
@@ -237,15 +237,15 @@ fn train_config(s: &Sizes, backend: &str, data: &Path, st: &Stage) -> TrainConfi
 }
 
 /// ISOs of the target (fine-tuning and test set) and of the DSLR (pretraining).
-const TARGET_ISOS: [u32; 3] = [100, 800, 3200];
-const DSLR_ISOS: [u32; 2] = [100, 200];
+pub(crate) const TARGET_ISOS: [u32; 3] = [100, 800, 3200];
+pub(crate) const DSLR_ISOS: [u32; 2] = [100, 200];
 
-fn isos(list: &[u32]) -> Vec<f64> {
+pub(crate) fn isos(list: &[u32]) -> Vec<f64> {
     list.iter().map(|&i| f64::from(i)).collect()
 }
 
 /// An ablation row: its name, label and the `set` laid over the fine-tuning config.
-fn row(name: &str, label: &str, set: toml::Table) -> Axis {
+pub(crate) fn row(name: &str, label: &str, set: toml::Table) -> Axis {
     Axis {
         name: name.into(),
         label: Some(label.into()),
@@ -257,7 +257,7 @@ fn row(name: &str, label: &str, set: toml::Table) -> Axis {
 }
 
 /// `{ data = { profile = …, isos = …, … } }` as an ablation row's `set`.
-fn data_set(profile: &Path, isos: Option<&[u32]>, extra: &[(&str, toml::Value)]) -> toml::Table {
+pub(crate) fn data_set(profile: &Path, isos: Option<&[u32]>, extra: &[(&str, toml::Value)]) -> toml::Table {
     let mut data = toml::Table::new();
     data.insert(
         "profile".into(),
@@ -354,6 +354,7 @@ fn heldout_testsets(
                 profile: Some(path),
                 options,
                 noise_per_seed: false,
+                reference: None,
             })
         })
         .collect()
@@ -389,6 +390,7 @@ fn experiment_config(
         profile: Some(target.to_path_buf()),
         options: options.clone(),
         noise_per_seed: true,
+        reference: None,
     };
     let mut also = Vec::new();
     if let Some(r) = &src.real_radiance {
@@ -401,6 +403,7 @@ fn experiment_config(
             profile: Some(target.to_path_buf()),
             options,
             noise_per_seed: false,
+            reference: None,
         });
     }
     if let Some(c) = &src.real_capture {
@@ -412,6 +415,7 @@ fn experiment_config(
             profile: None,
             options: Default::default(),
             noise_per_seed: false,
+            reference: None,
         });
     }
     let target_row = |name: &str, label: &str, extra: &[(&str, toml::Value)]| {
@@ -473,20 +477,40 @@ fn experiment_config(
     }
 }
 
-fn write(path: &Path, text: &str) -> Result<()> {
+pub(crate) fn write(path: &Path, text: &str) -> Result<()> {
     crate::io::atomic::write_atomic(path, text.as_bytes())
         .map_err(|e| Error::context(format!("writing {}", path.display()), e))
 }
 
 /// Write a config as TOML: what the stage then loads, and what a user reruns by hand.
-fn write_config(path: &Path, cfg: &impl Serialize) -> Result<()> {
+pub(crate) fn write_config(path: &Path, cfg: &impl Serialize) -> Result<()> {
     write(
         path,
         &toml::to_string(cfg).map_err(|e| Error::encode(path, e))?,
     )
 }
 
-fn stage(progress: bool, began: Instant, what: &str) {
+/// Train the config at `path` to its `run.steps`: from scratch, resumed from its latest
+/// checkpoint, or not at all when it got there before.
+pub(crate) fn train_resumable(path: &Path, progress: bool) -> Result<()> {
+    let cfg = TrainConfig::load(path)?;
+    let done = match checkpoint::latest(&cfg.run.out)? {
+        Some(d) => Some(checkpoint::read_state(&d)?.step),
+        None => None,
+    };
+    if done.is_none_or(|step| step < cfg.run.steps) {
+        crate::train::run(
+            &cfg,
+            &TrainOptions {
+                resume: done.is_some(),
+                progress,
+            },
+        )?;
+    }
+    Ok(())
+}
+
+pub(crate) fn stage(progress: bool, began: Instant, what: &str) {
     if progress {
         eprintln!("[{:>6.1} s] {what}", began.elapsed().as_secs_f64());
     }
@@ -773,21 +797,8 @@ pub fn run(opts: &Options) -> Result<String> {
                 },
             ),
         )?;
-        let pre_cfg = TrainConfig::load(&pre_path)?;
-        let done = match checkpoint::latest(&pre_run)? {
-            Some(d) => Some(checkpoint::read_state(&d)?.step),
-            None => None,
-        };
-        if done.is_none_or(|step| step < s.pretrain_steps) {
-            crate::train::run(
-                &pre_cfg,
-                &TrainOptions {
-                    resume: done.is_some(),
-                    progress,
-                },
-            )
+        train_resumable(&pre_path, progress)
             .map_err(|e| Error::context(format!("pretraining ({})", pre_path.display()), e))?;
-        }
     }
 
     stage(

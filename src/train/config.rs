@@ -2,7 +2,7 @@
 //! relative to the working directory. See docs/training.md for every key.
 
 use crate::config::load_toml;
-use crate::data::loader::{LoaderConfig, RealismConfig, SampleKind};
+use crate::data::loader::{LoaderConfig, RealismConfig, SampleKind, TargetFrames};
 use crate::error::{Error, Result};
 use crate::models::ModelConfig;
 use crate::train::loss::Network1Reading;
@@ -92,6 +92,9 @@ pub struct DataConfig {
     /// Network-1: σ (pixels) of the Gaussian smoothing of the Mertens weights behind the class
     /// targets (`LoaderConfig::target_sigma`); 0 = the paper's per-pixel targets.
     pub target_sigma: f32,
+    /// Network-1: the frames behind the class targets, `clean` (default: the crop rendered
+    /// without the noise draw) or `noisy` (the input frames themselves).
+    pub target_frames: TargetFrames,
 }
 
 /// Network-1's default target smoothing, chosen by measurement (docs/network1.md).
@@ -111,7 +114,7 @@ fn data_keys() -> &'static [&'static str] {
             "augment",
         ];
         let realism = crate::config::struct_fields::<RealismConfig>();
-        [&before[..], realism, &["target_sigma"]].concat()
+        [&before[..], realism, &["target_sigma", "target_frames"]].concat()
     });
     &KEYS
 }
@@ -134,6 +137,7 @@ struct Own {
     workers: Option<usize>,
     augment: Option<bool>,
     target_sigma: Option<f32>,
+    target_frames: Option<TargetFrames>,
 }
 
 impl<'de> de::Visitor<'de> for DataVisitor {
@@ -164,6 +168,7 @@ impl<'de> de::Visitor<'de> for DataVisitor {
             augment: own.augment.unwrap_or(true),
             realism,
             target_sigma: own.target_sigma.unwrap_or(DEFAULT_TARGET_SIGMA),
+            target_frames: own.target_frames.unwrap_or_default(),
         })
     }
 }
@@ -194,6 +199,7 @@ impl<'de, A: de::MapAccess<'de>> de::MapAccess<'de> for Split<'_, A> {
                 "workers" => o.workers = Some(self.map.next_value()?),
                 "augment" => o.augment = Some(self.map.next_value()?),
                 "target_sigma" => o.target_sigma = Some(self.map.next_value()?),
+                "target_frames" => o.target_frames = Some(self.map.next_value()?),
                 _ => {
                     return seed
                         .deserialize(de::IntoDeserializer::into_deserializer(key))
@@ -240,6 +246,7 @@ impl DataConfig {
             augment: true,
             realism,
             target_sigma: DEFAULT_TARGET_SIGMA,
+            target_frames: TargetFrames::default(),
         }
     }
 
@@ -267,6 +274,7 @@ impl DataConfig {
             augment: self.augment,
             realism,
             target_sigma: self.target_sigma,
+            target_frames: self.target_frames,
         })
     }
 }

@@ -2,9 +2,10 @@
 //! loader samples, its validation scores, and what else a checkpoint must carry. Network-1 and
 //! Network-2 each implement [`Task`]; the loop in `train::run` is shared.
 
-use crate::data::ground_truth::{CLASSES, ClassWeights};
+use crate::data::ground_truth::{CLASSES, ClassWeights, blend_weights_high};
 use crate::data::loader::{Sample, Target};
 use crate::error::Result;
+use crate::io::Image;
 use crate::models::{BlendUNet, BlendUNetConfig, ModelConfig, WuConfig, WuNet};
 use crate::train::loss::{
     MU, Network1Reading, alpha_tensor, expected_weight, mu_law, mu_law_l2, network1_batch,
@@ -92,6 +93,35 @@ pub fn best_constant_weight_mae(samples: &[Sample]) -> Option<(f64, f64)> {
     Some((m, mae))
 }
 
+/// The blend-weight MAE of the Mertens weights of each sample's own input pair (the frames the
+/// network sees, noise included) against its targets: what Mertens fusion without a network
+/// would predict. `None` without Network-1 samples.
+pub fn mertens_weight_mae(samples: &[Sample]) -> Result<Option<f64>> {
+    let (mut sum, mut n) = (0.0, 0usize);
+    for s in samples {
+        let Target::Classes(classes) = &s.target else {
+            continue;
+        };
+        let plane = s.size * s.size;
+        // Channel-major input (low RGB, high RGB) back into two interleaved frames.
+        let frame = |k: usize| {
+            let mut img = Image::new(s.size, s.size);
+            for (i, px) in img.data.chunks_exact_mut(3).enumerate() {
+                for (c, v) in px.iter_mut().enumerate() {
+                    *v = s.input[(k * 3 + c) * plane + i];
+                }
+            }
+            img
+        };
+        let w = blend_weights_high(&frame(0), &frame(1))?;
+        for (&wi, &ci) in w.iter().zip(classes) {
+            sum += (wi as f64 - ci as f64 / 255.0).abs();
+            n += 1;
+        }
+    }
+    Ok((n > 0).then(|| sum / n as f64))
+}
+
 impl Task for Network1 {
     type Model = BlendUNet;
 
@@ -147,11 +177,15 @@ impl Task for Network1 {
 
     /// `weight_mae_const`: the blend-weight MAE of the best constant prediction (the median
     /// target weight of the validation set) — the score a network must beat to have learnt
-    /// anything from its input.
+    /// anything from its input; `weight_mae_mertens`: that of the Mertens weights of the noisy
+    /// input pair (`mertens_weight_mae`).
     fn validation_baseline(&self, samples: &[Sample]) -> Result<Vec<(&'static str, f64)>> {
-        Ok(best_constant_weight_mae(samples)
-            .map(|(_, mae)| vec![("weight_mae_const", mae)])
-            .unwrap_or_default())
+        let mut out: Vec<(&'static str, f64)> = best_constant_weight_mae(samples)
+            .map(|(_, mae)| ("weight_mae_const", mae))
+            .into_iter()
+            .collect();
+        out.extend(mertens_weight_mae(samples)?.map(|m| ("weight_mae_mertens", m)));
+        Ok(out)
     }
 
     fn save_extra(&self, dir: &Path) -> Result<()> {

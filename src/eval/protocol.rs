@@ -1,0 +1,507 @@
+//! `hdrsynth protocol`: the full protocol of docs/protocol.md at CPU scale, one resumable
+//! command. It runs the main job with its held-out-simulator matrix (`eval::quickstart`), then
+//! two more grids on the same test scenes, pretrainings and target device:
+//! - colour × fine-tuning ISO (the paper's Tables 3–4): Network-2 fine-tuned with the target's
+//!   colour transform or with identity colour, at each ISO alone; scored on the primary test set
+//!   and on one test set per ISO whose reference is the ISO-matched cell, so the
+//!   fine-tuning-ISO × test-ISO diagonal is tested;
+//! - Network-1 (the paper's Table 1): per seed, a blend-map U-Net pretrained through the DSLR
+//!   model and fine-tuned four ways, beside two baselines without a network (one constant blend
+//!   weight; the Mertens weights of the noisy pair), scored on EV −3/0 pairs of the test scenes
+//!   at three ISOs; its learning curves (held-out blend-weight MAE against the best constant)
+//!   come from the pretraining logs.
+//!
+//! Scene seeds: training 2026, test 7 (the main job's), Network-1 validation 2027; nothing is
+//! tuned on the test scenes.
+
+use crate::data::generate::{GenerateConfig, generate};
+use crate::error::{Error, Result};
+use crate::eval::ablate::{self, AblateConfig, Axis, AxisKind, EvalSpec, TestsetSpec};
+use crate::eval::quickstart::{
+    self, DSLR_ISOS, Options, PRETRAIN_PROFILE, Preset, Sizes, Stage, TARGET_ISOS,
+    TRAIN_SCENE_SEED, data_set, generate_config, row, stage, target_profile, train_config,
+    train_resumable, write, write_config,
+};
+use crate::models::{BlendUNetConfig, ModelConfig};
+use crate::train::config::{TrainConfig, ValidationConfig};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Scene seed of Network-1's validation pairs (learning curves only; used for nothing else).
+const NET1_VALIDATION_SEED: u64 = 2027;
+
+/// Network-1's sizes for a preset.
+struct Net1Sizes {
+    base_width: usize,
+    depth: usize,
+    patch: usize,
+    batch: usize,
+    pretrain_steps: u64,
+    finetune_steps: u64,
+    pretrain_lr: f64,
+    finetune_lr: f64,
+    validation_every: u64,
+    validation_patch: usize,
+}
+
+fn net1_sizes(p: Preset) -> Net1Sizes {
+    match p {
+        Preset::Cpu => Net1Sizes {
+            base_width: 8,
+            depth: 3,
+            patch: 64,
+            batch: 4,
+            pretrain_steps: 400,
+            finetune_steps: 200,
+            pretrain_lr: 2e-3,
+            finetune_lr: 1e-3,
+            validation_every: 50,
+            validation_patch: 128,
+        },
+        Preset::Gpu => Net1Sizes {
+            base_width: 32,
+            depth: 4,
+            patch: 256,
+            batch: 8,
+            pretrain_steps: 20000,
+            finetune_steps: 4000,
+            pretrain_lr: 1e-4,
+            finetune_lr: 5e-5,
+            validation_every: 1000,
+            validation_patch: 256,
+        },
+    }
+}
+
+/// Network-1's training config: the main job's stage with the blend-map U-Net, its sizes and
+/// validation on held-out pairs.
+fn net1_config(
+    s: &Sizes,
+    n: &Net1Sizes,
+    backend: &str,
+    data: &Path,
+    validation: &Path,
+    st: &Stage,
+) -> TrainConfig {
+    let mut cfg = train_config(s, backend, data, st);
+    cfg.model = ModelConfig::BlendUnet(BlendUNetConfig {
+        base_width: n.base_width,
+        depth: n.depth,
+        batch_norm: true,
+        classes: 256,
+    });
+    cfg.data.patch = n.patch;
+    cfg.data.batch_size = n.batch;
+    cfg.validation = Some(ValidationConfig {
+        dataset: validation.to_path_buf(),
+        generate: None,
+        every: n.validation_every,
+        samples: 16,
+        patch: Some(n.validation_patch),
+        target_sigma: 0.0,
+    });
+    cfg
+}
+
+/// Pure synthetic EV −3/0 pairs with linear EXRs (Network-1's frames).
+fn pair_config(s: &Sizes, seed: u64, count: usize) -> GenerateConfig {
+    let mut cfg = generate_config(s, seed, count, s.train_size);
+    cfg.evs = vec![-3.0, 0.0];
+    cfg
+}
+
+/// A test set of the main job's test scenes through the target model (noise per seed).
+fn scene_testset(
+    out: &Path,
+    name: Option<&str>,
+    target: &Path,
+    isos: &[u32],
+    evs: &[f32],
+) -> TestsetSpec {
+    TestsetSpec {
+        name: name.map(Into::into),
+        label: None,
+        dir: out.join(format!("data/testset{}", name.map_or(String::new(), |n| format!("_{n}")))),
+        radiance: Some(out.join("data/test_radiance")),
+        profile: Some(target.to_path_buf()),
+        options: crate::data::testset::TestsetOptions {
+            isos: quickstart::isos(isos),
+            evs: evs.to_vec(),
+            ..Default::default()
+        },
+        noise_per_seed: true,
+        reference: None,
+    }
+}
+
+fn iso_name(iso: u32) -> String {
+    format!("iso{iso}")
+}
+
+/// Colour × fine-tuning ISO for Network-2, with one test set per ISO.
+fn colour_iso_config(s: &Sizes, out: &Path, base: &Path, target: &Path) -> AblateConfig {
+    let also = TARGET_ISOS
+        .iter()
+        .map(|&iso| TestsetSpec {
+            label: Some(format!(
+                "test frames at ISO {iso} only; reference: the cell fine-tuned at ISO {iso}"
+            )),
+            reference: Some(format!("colour_t__{}", iso_name(iso))),
+            ..scene_testset(
+                out,
+                Some(&format!("test_{}", iso_name(iso))),
+                target,
+                &[iso],
+                &[-2.0, 0.0, 2.0],
+            )
+        })
+        .collect();
+    let colour = |name: &str, label: &str, on: bool| {
+        row(
+            name,
+            label,
+            data_set(target, None, &[("colour", on.into())]),
+        )
+    };
+    AblateConfig {
+        title: "Colour × fine-tuning ISO — Network-2 fine-tuned with the target's colour \
+                transform or identity colour, noise drawn at one ISO"
+            .into(),
+        out: out.join("colour_iso"),
+        base: base.to_path_buf(),
+        seeds: s.seeds.to_vec(),
+        pretrained_per_seed: Some(out.join("pretrain/seed{seed}").to_string_lossy().into_owned()),
+        testset: scene_testset(out, None, target, &TARGET_ISOS, &[-2.0, 0.0, 2.0]),
+        also,
+        eval: EvalSpec {
+            resamples: 2000,
+            reference: Some("colour_t__iso800".into()),
+            ..EvalSpec::default()
+        },
+        rows: vec![
+            colour("colour_t", "colour: the target's T", true),
+            colour("colour_identity", "colour: identity (noise, levels, response only)", false),
+        ],
+        columns: TARGET_ISOS
+            .iter()
+            .map(|&iso| {
+                let list = toml::Value::Array(vec![i64::from(iso).into()]);
+                let data = toml::Table::from_iter([("isos".to_string(), list)]);
+                Axis {
+                    name: iso_name(iso),
+                    label: Some(format!("fine-tuned at ISO {iso}")),
+                    set: toml::Table::from_iter([("data".to_string(), data.into())]),
+                    train: true,
+                    checkpoint: None,
+                    kind: AxisKind::Finetune,
+                }
+            })
+            .collect(),
+    }
+}
+
+/// Network-1's grid: four fine-tunings of the per-seed pretraining and two baselines, the
+/// constant the reference.
+fn network1_config(s: &Sizes, out: &Path, base: &Path, target: &Path) -> AblateConfig {
+    let baseline = |name: &str, label: &str, kind: AxisKind| Axis {
+        train: false,
+        kind,
+        ..row(name, label, toml::Table::new())
+    };
+    let target_row = |name: &str, label: &str, extra: &[(&str, toml::Value)]| {
+        row(name, label, data_set(target, Some(&TARGET_ISOS), extra))
+    };
+    AblateConfig {
+        title: "Network-1 — blend maps for the target device: Net_O, control, Net_R, Net_P, \
+                Net_S against a constant blend weight and the Mertens weights of the noisy pair"
+            .into(),
+        out: out.join("network1"),
+        base: base.to_path_buf(),
+        seeds: s.seeds.to_vec(),
+        pretrained_per_seed: Some(
+            out.join("network1_pretrain/seed{seed}")
+                .to_string_lossy()
+                .into_owned(),
+        ),
+        testset: TestsetSpec {
+            dir: out.join("data/testset_pairs"),
+            ..scene_testset(out, None, target, &TARGET_ISOS, &[-3.0, 0.0])
+        },
+        also: Vec::new(),
+        eval: EvalSpec {
+            resamples: 2000,
+            reference: Some("constant".into()),
+            ..EvalSpec::default()
+        },
+        rows: vec![
+            Axis {
+                train: false,
+                ..row(
+                    "net_o",
+                    "Net_O (pretrained through the DSLR, no fine-tuning)",
+                    toml::Table::new(),
+                )
+            },
+            Axis {
+                kind: AxisKind::Control,
+                ..row(
+                    "control",
+                    "control (Net_O trained on its own DSLR data, same steps)",
+                    toml::Table::new(),
+                )
+            },
+            target_row(
+                "net_r",
+                "Net_R (target response, levels, exposure rule; no colour, no noise)",
+                &[("noise", "none".into()), ("colour", false.into())],
+            ),
+            row(
+                "net_p",
+                "Net_P (engine display frames)",
+                data_set(Path::new("pure"), None, &[]),
+            ),
+            target_row("net_s", "Net_S (full target model)", &[]),
+            baseline(
+                "constant",
+                "constant blend weight 0.5 (no network)",
+                AxisKind::Constant,
+            ),
+            baseline(
+                "mertens",
+                "Mertens weights of the noisy pair (no network)",
+                AxisKind::Mertens,
+            ),
+        ],
+        columns: Vec::new(),
+    }
+}
+
+/// A run's validation lines: step, the network's blend-weight MAE, the best constant's and the
+/// noisy pair's Mertens weights'.
+struct CurvePoint {
+    step: u64,
+    mae: f64,
+    constant: f64,
+    mertens: Option<f64>,
+}
+
+fn learning_curve(run: &Path) -> Result<Vec<CurvePoint>> {
+    let path = run.join(crate::train::LOG_FILE);
+    let text = crate::io::guard::read_text(&path)?;
+    let mut curve = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        let v: serde_json::Value = serde_json::from_str(line)
+            .map_err(|e| Error::layout(&path, format!("line {}: {e}", i + 1)))?;
+        let (Some(step), Some(val)) = (v["step"].as_u64(), v.get("validation")) else {
+            continue;
+        };
+        if let (Some(mae), Some(constant)) = (
+            val["weight_mae"].as_f64(),
+            val["weight_mae_const"].as_f64(),
+        ) {
+            curve.push(CurvePoint {
+                step,
+                mae,
+                constant,
+                mertens: val["weight_mae_mertens"].as_f64(),
+            });
+        }
+    }
+    Ok(curve)
+}
+
+/// The learning-curve table of the runs `runs` (label, folder): MAE per validation step and
+/// the final MAE over the constant's.
+fn curves_table(runs: &[(String, PathBuf)]) -> Result<String> {
+    let mut out = String::new();
+    let curves: Vec<(&String, Vec<CurvePoint>)> = runs
+        .iter()
+        .map(|(l, r)| Ok((l, learning_curve(r)?)))
+        .collect::<Result<_>>()?;
+    let steps: Vec<u64> = curves
+        .first()
+        .map(|(_, c)| c.iter().map(|p| p.step).collect())
+        .unwrap_or_default();
+    let _ = write!(out, "| run | best constant | Mertens of the noisy pair |");
+    for st in &steps {
+        let _ = write!(out, " {st} |");
+    }
+    let _ = write!(out, " final / constant |\n|---|---|---|");
+    for _ in 0..=steps.len() {
+        out.push_str("---|");
+    }
+    out.push('\n');
+    for (label, c) in curves {
+        let constant = c.first().map_or(f64::NAN, |p| p.constant);
+        let mertens = c
+            .first()
+            .and_then(|p| p.mertens)
+            .map_or("–".into(), |m| format!("{m:.4}"));
+        let _ = write!(out, "| {label} | {constant:.4} | {mertens} |");
+        for st in &steps {
+            match c.iter().find(|p| p.step == *st) {
+                Some(p) => {
+                    let _ = write!(out, " {:.4} |", p.mae);
+                }
+                None => out.push_str(" – |"),
+            }
+        }
+        let ratio = c.last().map_or(f64::NAN, |p| p.mae / p.constant);
+        let _ = writeln!(out, " {ratio:.3} |");
+    }
+    Ok(out)
+}
+
+/// Run the full protocol into `opts.out` (the main job's folder: its data, pretrainings and
+/// test scenes are shared). Returns the report, also written to OUT/protocol.md.
+pub fn run(opts: &Options) -> Result<String> {
+    let began = Instant::now();
+    let progress = opts.progress;
+    let main = quickstart::run(&Options {
+        heldout: true,
+        ..opts.clone()
+    })?;
+    let s = quickstart::sizes(opts.preset);
+    let n1 = net1_sizes(opts.preset);
+    let backend = opts.backend.as_deref().unwrap_or(s.backend);
+    let out = &opts.out;
+    let _lock = crate::io::guard::OutputLock::acquire(&out.join("protocol"), "protocol")?;
+    let configs = out.join("configs");
+    let sensors = configs.join("sensors");
+    let pre_profile = sensors.join(PRETRAIN_PROFILE.0);
+    let target = sensors.join(target_profile(opts.target.as_deref())?.0);
+    let mut report = format!("# The full protocol (docs/protocol.md)\n\n## Main job\n\n{main}\n");
+
+    stage(progress, began, "colour × fine-tuning ISO (Network-2)");
+    let colour_path = configs.join("colour_iso.toml");
+    write_config(
+        &colour_path,
+        &colour_iso_config(&s, out, &configs.join("finetune.toml"), &target),
+    )?;
+    let colour = AblateConfig::load(&colour_path)?;
+    let summary = ablate::run(&colour, &colour_path, progress)
+        .map_err(|e| Error::context("the colour × ISO grid", e))?;
+    let _ = write!(
+        report,
+        "\n## Colour × fine-tuning ISO (Network-2)\n\n{}\n",
+        ablate::report(&colour, &summary)
+    );
+    let tables = ablate::write_tables(&colour)?;
+    let _ = writeln!(
+        report,
+        "\n### ISO diagonal (PSNR-T on each test ISO, mean over seeds; Δ to the ISO-matched \
+         cell of the same colour row is in each test set's table)\n"
+    );
+    let _ = writeln!(
+        report,
+        "| test ISO | {} |\n|---|{}",
+        TARGET_ISOS
+            .iter()
+            .map(|i| format!("fine-tuned at ISO {i} (colour T)"))
+            .collect::<Vec<_>>()
+            .join(" | "),
+        "---|".repeat(TARGET_ISOS.len())
+    );
+    for &test_iso in &TARGET_ISOS {
+        let name = format!("test_{}", iso_name(test_iso));
+        let Some(t) = tables.iter().find(|t| t.testset.as_deref() == Some(&name)) else {
+            continue;
+        };
+        let cells: Vec<String> = TARGET_ISOS
+            .iter()
+            .map(|&ft| {
+                t.entries
+                    .iter()
+                    .find(|e| {
+                        e.row == "colour_t"
+                            && e.column.as_deref() == Some(&iso_name(ft))
+                            && e.metric == "psnr_t"
+                    })
+                    .map_or("–".into(), |e| match &e.diff {
+                        Some(d) => format!("{:.2} (Δ {:+.2})", e.mean, d.mean),
+                        None => format!("**{:.2}**", e.mean),
+                    })
+            })
+            .collect();
+        let _ = writeln!(report, "| {test_iso} | {} |", cells.join(" | "));
+    }
+
+    stage(progress, began, "Network-1: data, per-seed pretraining, grid");
+    let pairs = out.join("data/train_pairs");
+    let pairs_val = out.join("data/validation_pairs");
+    let gen_train = configs.join("train_pairs.toml");
+    let gen_val = configs.join("validation_pairs.toml");
+    write_config(&gen_train, &pair_config(&s, TRAIN_SCENE_SEED, s.train_sets))?;
+    write_config(&gen_val, &pair_config(&s, NET1_VALIDATION_SEED, 16))?;
+    generate(&GenerateConfig::load(&gen_train)?, &pairs, progress)?;
+    generate(&GenerateConfig::load(&gen_val)?, &pairs_val, progress)?;
+    let mut curve_runs = Vec::new();
+    for &k in s.seeds {
+        let run = out.join(format!("network1_pretrain/seed{k}"));
+        let path = configs.join(format!("network1_pretrain_seed{k}.toml"));
+        let st = Stage {
+            run: &run,
+            seed: k,
+            profile: &pre_profile,
+            isos: &DSLR_ISOS,
+            steps: n1.pretrain_steps,
+            lr: n1.pretrain_lr,
+            init: None,
+        };
+        write_config(&path, &net1_config(&s, &n1, backend, &pairs, &pairs_val, &st))?;
+        train_resumable(&path, progress)
+            .map_err(|e| Error::context(format!("Network-1 pretraining ({})", path.display()), e))?;
+        curve_runs.push((format!("Net_O pretraining, seed {k}"), run));
+    }
+    let base1 = configs.join("network1_finetune.toml");
+    let unused = out.join("unused");
+    write_config(
+        &base1,
+        &net1_config(
+            &s,
+            &n1,
+            backend,
+            &pairs,
+            &pairs_val,
+            &Stage {
+                run: &unused,
+                seed: 0,
+                profile: Path::new("pure"),
+                isos: &TARGET_ISOS,
+                steps: n1.finetune_steps,
+                lr: n1.finetune_lr,
+                init: Some(&out.join("network1_pretrain/seed1")),
+            },
+        ),
+    )?;
+    let n1_path = configs.join("network1.toml");
+    write_config(&n1_path, &network1_config(&s, out, &base1, &target))?;
+    let net1 = AblateConfig::load(&n1_path)?;
+    let summary = ablate::run(&net1, &n1_path, progress)
+        .map_err(|e| Error::context("the Network-1 grid", e))?;
+    let _ = write!(
+        report,
+        "\n## Network-1\n\n{}\n",
+        ablate::report(&net1, &summary)
+    );
+    for &k in s.seeds {
+        let cell = net1.out.join(format!("cells/net_s/seed{k}/run"));
+        curve_runs.push((format!("Net_S fine-tuning, seed {k}"), cell));
+    }
+    let _ = write!(
+        report,
+        "\n### Network-1 learning curves (held-out blend-weight MAE on {} validation pairs of \
+         scene seed {NET1_VALIDATION_SEED}, clean targets, per-pixel; the best constant is the \
+         median target weight of the same pairs)\n\n{}",
+        16,
+        curves_table(&curve_runs)?
+    );
+    let _ = write!(
+        report,
+        "\nTotal {:.1} s with the main job (backend {backend}).\n",
+        began.elapsed().as_secs_f64()
+    );
+    write(&out.join("protocol.md"), &report)?;
+    Ok(report)
+}
