@@ -415,7 +415,7 @@ fn measure_network1_references_on_a_testset() {
         let score = |reference: &Image, out: &Image| {
             let opts = hdrsynth::eval::metrics::MetricOptions::default();
             let s =
-                hdrsynth::eval::metrics::score_pair(reference, out, &t(reference), &t(out), &opts)
+                hdrsynth::eval::metrics::score_pair(reference, out, &t(reference), &t(out), None, &opts)
                     .unwrap();
             format!("{:.2} / {:.2}", s.psnr_l, s.psnr_t)
         };
