@@ -200,14 +200,23 @@ fn predictions_equal_to_the_ground_truth_give_inf_psnr_and_ssim_1() {
     let (h, summary) = read_csv(&out.join("summary.csv"));
     assert_eq!(
         h,
-        ["metric", "n", "n_inf", "mean", "ci_lo", "ci_hi", "n_scenes", "n_absent"]
+        [
+            "metric", "n", "n_inf", "mean", "ci_lo", "ci_hi", "n_scenes", "n_absent"
+        ]
     );
     for r in &summary {
-        assert_eq!(r.len(), 8, "every summary row has n_scenes and n_absent: {r:?}");
+        assert_eq!(
+            r.len(),
+            8,
+            "every summary row has n_scenes and n_absent: {r:?}"
+        );
     }
     let de = summary.iter().find(|r| r[0] == "delta_e2000").expect("ΔE");
     assert_eq!((num(&de[1]) as usize, num(&de[3])), (sets.len(), 0.0));
-    let dark = summary.iter().find(|r| r[0] == "psnr_t_dark").expect("dark");
+    let dark = summary
+        .iter()
+        .find(|r| r[0] == "psnr_t_dark")
+        .expect("dark");
     let with_value = rows.iter().filter(|r| !r[11].is_empty()).count();
     assert!(with_value > 0, "the test set has dark pixels");
     assert_eq!(
@@ -282,7 +291,12 @@ fn predictions_scaled_by_1_1_give_the_hand_computed_psnr_l() {
         }
         if n as f64 >= 0.01 * mask.len() as f64 {
             let hand = 10.0 * (3.0 * n as f64 / sum).log10();
-            assert!((num(&row[11]) - hand).abs() < 1e-9, "{}: {} vs {hand}", row[0], row[11]);
+            assert!(
+                (num(&row[11]) - hand).abs() < 1e-9,
+                "{}: {} vs {hand}",
+                row[0],
+                row[11]
+            );
         }
         assert!(num(&row[10]) > 0.0 && num(&row[10]).is_finite());
     }
@@ -398,7 +412,12 @@ fn a_tiny_network1_checkpoint_is_evaluated_at_full_resolution() {
         assert!(row.scores.delta_e2000.is_finite() && row.scores.delta_e2000 > 0.0);
         let fraction = dark_fraction_of(&row.set);
         assert_eq!(row.scores.dark_fraction, Some(fraction));
-        assert_eq!(row.scores.psnr_t_dark.is_some(), fraction >= 0.01, "{}", row.set);
+        assert_eq!(
+            row.scores.psnr_t_dark.is_some(),
+            fraction >= 0.01,
+            "{}",
+            row.set
+        );
     }
     check_outputs(&out, &set_names());
     // The preview is T of the written L output.

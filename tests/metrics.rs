@@ -8,9 +8,9 @@ use hdrsynth::eval::metrics::{
     self, DARK_CODE, DarkMask, MU, MetricOptions, Pu21Scale, mu_law, psnr, pu21_encode, score,
     score_pair, ssim,
 };
-use hdrsynth::sensor::colour::cie;
 use hdrsynth::io::{Image, read_image};
 use hdrsynth::rng::Rng;
+use hdrsynth::sensor::colour::cie;
 use hdrsynth::stats::bootstrap_ci;
 use std::path::{Path, PathBuf};
 
@@ -153,7 +153,10 @@ fn display_lab_and_delta_e_match_colour_science() {
     let o = delta_e_reference();
     let white = vec3(&o["white_xyz"]);
     let mine = cie::srgb_white();
-    assert!((0..3).all(|c| (white[c] - mine[c]).abs() < 1e-12), "{mine:?}");
+    assert!(
+        (0..3).all(|c| (white[c] - mine[c]).abs() < 1e-12),
+        "{mine:?}"
+    );
     let pairs = o["display_pairs"].as_array().expect("display_pairs");
     assert!(pairs.len() >= 20);
     let (mut worst_lab, mut worst_de) = (0.0f64, 0.0f64);
@@ -212,7 +215,10 @@ fn delta_e2000_of_mu_law_images_matches_colour_science() {
     assert_eq!(s.delta_e2000, 0.0);
     let tinted = gt.map(|v| v * 0.9);
     let s = score(&gt, &tinted, None, &MetricOptions::default()).unwrap();
-    assert_eq!(s.delta_e2000, metrics::delta_e2000_mu(&gt, &tinted).unwrap());
+    assert_eq!(
+        s.delta_e2000,
+        metrics::delta_e2000_mu(&gt, &tinted).unwrap()
+    );
     assert!(s.delta_e2000 > 0.0);
 }
 
@@ -295,7 +301,10 @@ fn psnr_t_dark_is_absent_below_one_percent_of_dark_pixels() {
     let none = at(0);
     assert_eq!((none.psnr_t_dark, none.dark_fraction), (None, Some(0.0)));
     let three = at(3);
-    assert_eq!((three.psnr_t_dark, three.dark_fraction), (None, Some(0.0075)));
+    assert_eq!(
+        (three.psnr_t_dark, three.dark_fraction),
+        (None, Some(0.0075))
+    );
     let four = at(4);
     assert_eq!(four.dark_fraction, Some(0.01));
     assert!(four.psnr_t_dark.is_some_and(f64::is_finite), "{four:?}");

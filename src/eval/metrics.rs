@@ -314,7 +314,9 @@ pub fn psnr_mu_dark(gt: &Image, pred: &Image, dark: &DarkMask) -> Result<Option<
     dark.check(gt)?;
     check_mu_domain(gt, "ground truth")?;
     check_mu_domain(pred, "prediction")?;
-    Ok(masked_psnr_by(&gt.data, &pred.data, dark, |v| mu_law(v as f64)))
+    Ok(masked_psnr_by(&gt.data, &pred.data, dark, |v| {
+        mu_law(v as f64)
+    }))
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -62,7 +62,16 @@ pub const SUMMARY_METRICS: [&str; 8] = [
 /// A set's values of [`SUMMARY_METRICS`]; None where the metric is absent for the set.
 pub fn summary_values(s: &Scores) -> [Option<f64>; 8] {
     let m = metric_values(s).map(Some);
-    [m[0], m[1], m[2], m[3], m[4], m[5], Some(s.delta_e2000), s.psnr_t_dark]
+    [
+        m[0],
+        m[1],
+        m[2],
+        m[3],
+        m[4],
+        m[5],
+        Some(s.delta_e2000),
+        s.psnr_t_dark,
+    ]
 }
 
 /// One evaluated set (a row of `per_image.csv`).
@@ -248,8 +257,16 @@ pub fn scores_row(s: &Scores) -> String {
 }
 
 pub fn scores_header() -> String {
-    let names: Vec<String> = METRICS.iter().chain(&APPENDED).map(|m| md_name(m)).collect();
-    format!("| {} |\n|{}\n", names.join(" | "), "---|".repeat(names.len()))
+    let names: Vec<String> = METRICS
+        .iter()
+        .chain(&APPENDED)
+        .map(|m| md_name(m))
+        .collect();
+    format!(
+        "| {} |\n|{}\n",
+        names.join(" | "),
+        "---|".repeat(names.len())
+    )
 }
 
 pub fn write_text(path: &Path, text: &str) -> Result<()> {
