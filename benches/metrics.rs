@@ -1,9 +1,11 @@
 //! Metric cost: SSIM (field convention, RGB) and the full `score` (PSNR-L/T, SSIM-L/T, PU21
-//! PSNR/SSIM) at 1024×768 and at a 12 MP 4032×3024 frame, on the default rayon pool.
+//! PSNR/SSIM, ΔE2000, PSNR-T dark) at 1024×768 and at a 12 MP 4032×3024 frame, on the default
+//! rayon pool.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use hdrsynth::eval::metrics::{
-    MetricOptions, psnr, psnr_mu, pu21_psnr, pu21_ssim, score, ssim, ssim_mu,
+    DarkMask, MetricOptions, delta_e2000_mu, psnr, psnr_mu, psnr_mu_dark, pu21_psnr, pu21_ssim,
+    score, ssim, ssim_mu,
 };
 use hdrsynth::io::Image;
 use std::time::Duration;
@@ -28,12 +30,14 @@ fn bench(c: &mut Criterion) {
     g.sample_size(10).measurement_time(Duration::from_secs(10));
     for (w, h) in [(1024usize, 768usize), (4032, 3024)] {
         let (gt, pred) = pair(w, h);
+        // A darkened ground truth stands in for the reference frame: about a third is dark.
+        let dark = DarkMask::from_frame(&gt.map(|v| v * 0.15)).expect("mask");
         g.throughput(Throughput::Elements((w * h) as u64));
         g.bench_function(format!("ssim/{w}x{h}"), |b| {
             b.iter(|| ssim(&gt, &pred).expect("ssim"))
         });
         g.bench_function(format!("score/{w}x{h}"), |b| {
-            b.iter(|| score(&gt, &pred, &opts).expect("score"))
+            b.iter(|| score(&gt, &pred, Some(&dark), &opts).expect("score"))
         });
     }
     // Where `score`'s time goes, at the smaller size.
@@ -47,6 +51,13 @@ fn bench(c: &mut Criterion) {
     });
     g.bench_function("pu21_ssim/1024x768", |b| {
         b.iter(|| pu21_ssim(&gt, &pred, &opts))
+    });
+    g.bench_function("delta_e2000/1024x768", |b| {
+        b.iter(|| delta_e2000_mu(&gt, &pred))
+    });
+    let dark = DarkMask::from_frame(&gt.map(|v| v * 0.15)).expect("mask");
+    g.bench_function("psnr_t_dark/1024x768", |b| {
+        b.iter(|| psnr_mu_dark(&gt, &pred, &dark))
     });
     g.finish();
 }

@@ -414,9 +414,15 @@ fn measure_network1_references_on_a_testset() {
         let t = |img: &Image| img.map(|v| hdrsynth::eval::blend::tone_curve(v, 2.0));
         let score = |reference: &Image, out: &Image| {
             let opts = hdrsynth::eval::metrics::MetricOptions::default();
-            let s =
-                hdrsynth::eval::metrics::score_pair(reference, out, &t(reference), &t(out), &opts)
-                    .unwrap();
+            let s = hdrsynth::eval::metrics::score_pair(
+                reference,
+                out,
+                &t(reference),
+                &t(out),
+                None,
+                &opts,
+            )
+            .unwrap();
             format!("{:.2} / {:.2}", s.psnr_l, s.psnr_t)
         };
         println!(

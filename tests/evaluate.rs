@@ -83,6 +83,22 @@ fn gt_path(set: &str) -> PathBuf {
     dataset().join(set).join("hdr_gt.exr")
 }
 
+/// Per pixel, whether the set's reference (EV 0, static) frame has its largest channel below
+/// 0.1: the under-exposed region of PSNR-T dark.
+fn dark_pixels(set: &str) -> Vec<bool> {
+    let frame = read_image(&dataset().join(set).join("static/ev+0.png")).expect("frame");
+    frame
+        .data
+        .chunks_exact(3)
+        .map(|p| p.iter().all(|&v| v < 0.1))
+        .collect()
+}
+
+fn dark_fraction_of(set: &str) -> f64 {
+    let m = dark_pixels(set);
+    m.iter().filter(|d| **d).count() as f64 / m.len() as f64
+}
+
 /// Predictions = ground truth × `factor`, one EXR per set.
 fn predictions(dir: &Path, factor: f32) {
     std::fs::create_dir_all(dir).expect("mkdir");
@@ -157,7 +173,10 @@ fn predictions_equal_to_the_ground_truth_give_inf_psnr_and_ssim_1() {
             "pu21_ssim",
             "width",
             "height",
-            "seconds"
+            "seconds",
+            "delta_e2000",
+            "psnr_t_dark",
+            "dark_fraction"
         ]
     );
     for row in &rows {
@@ -168,16 +187,42 @@ fn predictions_equal_to_the_ground_truth_give_inf_psnr_and_ssim_1() {
         assert_eq!(row[5], "inf");
         assert!((num(&row[6]) - 1.0).abs() < 1e-12);
         assert_eq!((num(&row[7]), num(&row[8])), (64.0, 48.0));
+        assert_eq!(num(&row[10]), 0.0, "ΔE00 of identical images");
+        let fraction = dark_fraction_of(&row[0]);
+        assert_eq!(num(&row[12]), fraction, "{}", row[0]);
+        if fraction >= 0.01 {
+            assert_eq!(row[11], "inf");
+        } else {
+            assert_eq!(row[11], "", "{}: too few dark pixels for a value", row[0]);
+        }
     }
     // Summary: +inf values are counted and left out; all +inf gives an infinite mean.
     let (h, summary) = read_csv(&out.join("summary.csv"));
     assert_eq!(
         h,
-        ["metric", "n", "n_inf", "mean", "ci_lo", "ci_hi", "n_scenes"]
+        [
+            "metric", "n", "n_inf", "mean", "ci_lo", "ci_hi", "n_scenes", "n_absent"
+        ]
     );
     for r in &summary {
-        assert_eq!(r.len(), 7, "every summary row has n_scenes: {r:?}");
+        assert_eq!(
+            r.len(),
+            8,
+            "every summary row has n_scenes and n_absent: {r:?}"
+        );
     }
+    let de = summary.iter().find(|r| r[0] == "delta_e2000").expect("ΔE");
+    assert_eq!((num(&de[1]) as usize, num(&de[3])), (sets.len(), 0.0));
+    let dark = summary
+        .iter()
+        .find(|r| r[0] == "psnr_t_dark")
+        .expect("dark");
+    let with_value = rows.iter().filter(|r| !r[11].is_empty()).count();
+    assert!(with_value > 0, "the test set has dark pixels");
+    assert_eq!(
+        (num(&dark[1]) as usize, num(&dark[7]) as usize),
+        (with_value, sets.len() - with_value)
+    );
     let psnr_l = summary.iter().find(|r| r[0] == "psnr_l").expect("psnr_l");
     assert_eq!(num(&psnr_l[1]) as usize, sets.len());
     assert_eq!(num(&psnr_l[2]) as usize, sets.len());
@@ -233,10 +278,31 @@ fn predictions_scaled_by_1_1_give_the_hand_computed_psnr_l() {
         for v in &row[1..7] {
             assert!(num(v).is_finite(), "{}: {v}", row[0]);
         }
+        // PSNR-T over the pixels where the reference (EV 0) frame is dark, by hand.
+        let mask = dark_pixels(&row[0]);
+        let n = mask.iter().filter(|m| **m).count();
+        let (mut sum, pred) = (0.0, gt.map(|v| v * 1.1));
+        for (p, _) in mask.iter().enumerate().filter(|(_, m)| **m) {
+            for c in 0..3 {
+                let d = metrics::mu_law(pred.data[3 * p + c] as f64)
+                    - metrics::mu_law(gt.data[3 * p + c] as f64);
+                sum += d * d;
+            }
+        }
+        if n as f64 >= 0.01 * mask.len() as f64 {
+            let hand = 10.0 * (3.0 * n as f64 / sum).log10();
+            assert!(
+                (num(&row[11]) - hand).abs() < 1e-9,
+                "{}: {} vs {hand}",
+                row[0],
+                row[11]
+            );
+        }
+        assert!(num(&row[10]) > 0.0 && num(&row[10]).is_finite());
     }
     let (_, summary) = read_csv(&out.join("summary.csv"));
-    assert_eq!(summary.len(), 6);
-    for r in &summary {
+    assert_eq!(summary.len(), 8);
+    for r in summary.iter().filter(|r| num(&r[1]) > 0.0) {
         let (mean, lo, hi) = (num(&r[3]), num(&r[4]), num(&r[5]));
         assert!(lo <= mean && mean <= hi, "{}: {lo} {mean} {hi}", r[0]);
         assert_eq!(num(&r[2]), 0.0);
@@ -341,6 +407,17 @@ fn a_tiny_network1_checkpoint_is_evaluated_at_full_resolution() {
         ];
         assert!(v.iter().all(|x| x.is_finite()), "{}: {v:?}", row.set);
         assert!(row.scores.ssim_t > 0.0 && row.scores.ssim_t <= 1.0);
+        // Network-1's T images give ΔE00 and the dark region's PSNR; the mask is the pair's
+        // long (EV 0) frame's.
+        assert!(row.scores.delta_e2000.is_finite() && row.scores.delta_e2000 > 0.0);
+        let fraction = dark_fraction_of(&row.set);
+        assert_eq!(row.scores.dark_fraction, Some(fraction));
+        assert_eq!(
+            row.scores.psnr_t_dark.is_some(),
+            fraction >= 0.01,
+            "{}",
+            row.set
+        );
     }
     check_outputs(&out, &set_names());
     // The preview is T of the written L output.
@@ -349,7 +426,7 @@ fn a_tiny_network1_checkpoint_is_evaluated_at_full_resolution() {
     let t = read_image(&out.join(format!("{s}.png"))).expect("T");
     let want = hdrsynth::eval::blend::tone_curve(l.data[0], DEFAULT_TONE_K);
     assert!((t.data[0] - want).abs() <= 0.5 / 255.0 + 1e-6);
-    for summary in &r.summary {
+    for summary in r.summary.iter().filter(|m| m.n > 0) {
         assert!(summary.lo <= summary.mean && summary.mean <= summary.hi);
     }
 }

@@ -1,12 +1,16 @@
 //! Evaluation metrics against the field's Python convention (oracle values computed with
-//! scikit-image on shared/data/oracles), hand values, PU21 and the bootstrap.
+//! scikit-image on shared/data/oracles), hand values, PU21, ΔE2000 against colour-science and
+//! Sharma et al.'s published CIEDE2000 table (tests/data/delta_e_reference.json, written by
+//! tools/delta_e_reference.py), PSNR-T over the under-exposed pixels, and the bootstrap.
 
 use hdrsynth::error::Error;
 use hdrsynth::eval::metrics::{
-    self, MU, MetricOptions, Pu21Scale, mu_law, psnr, pu21_encode, score, score_pair, ssim,
+    self, DARK_CODE, DarkMask, MU, MetricOptions, Pu21Scale, mu_law, psnr, pu21_encode, score,
+    score_pair, ssim,
 };
 use hdrsynth::io::{Image, read_image};
 use hdrsynth::rng::Rng;
+use hdrsynth::sensor::colour::cie;
 use hdrsynth::stats::bootstrap_ci;
 use std::path::{Path, PathBuf};
 
@@ -56,7 +60,7 @@ fn oracle_cases_match_skimage_to_1e6() {
         let file = |key: &str| dir.join(o[key].as_str().unwrap_or_else(|| panic!("{case}.{key}")));
         let gt = read_image(&file("gt")).unwrap();
         let pred = read_image(&file("pred")).unwrap();
-        let s = score(&gt, &pred, &MetricOptions::default()).unwrap();
+        let s = score(&gt, &pred, None, &MetricOptions::default()).unwrap();
         let want = [
             number("psnr_l"),
             number("psnr_t"),
@@ -95,6 +99,233 @@ fn ramp(w: usize, h: usize) -> Image {
     })
 }
 
+// --- ΔE2000 ----------------------------------------------------------------------------------
+
+fn delta_e_reference() -> serde_json::Value {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/delta_e_reference.json");
+    serde_json::from_str(&std::fs::read_to_string(&p).expect("delta_e_reference.json"))
+        .expect("json")
+}
+
+fn vec3(v: &serde_json::Value) -> [f64; 3] {
+    let a = v.as_array().expect("array of 3");
+    assert_eq!(a.len(), 3);
+    std::array::from_fn(|i| a[i].as_f64().expect("number"))
+}
+
+fn num(v: &serde_json::Value) -> f64 {
+    v.as_f64().expect("number")
+}
+
+/// The 34 pairs of Sharma, Wu & Dalal (2005), Table 1: CIEDE2000 within the table's rounding
+/// (4 decimals) of the published values, and within 1e-6 of colour-science, either order.
+#[test]
+fn ciede2000_matches_sharmas_table_and_colour_science() {
+    let o = delta_e_reference();
+    let pairs = o["sharma"].as_array().expect("sharma");
+    assert_eq!(pairs.len(), 34);
+    let (mut worst_table, mut worst_cs) = (0.0f64, 0.0f64);
+    for (k, p) in pairs.iter().enumerate() {
+        let (l1, l2) = (vec3(&p["lab1"]), vec3(&p["lab2"]));
+        for got in [cie::delta_e_2000(l1, l2), cie::delta_e_2000(l2, l1)] {
+            let (table, cs) = (num(&p["published"]), num(&p["colour_science"]));
+            assert!(
+                (got - table).abs() <= 5e-5 + 1e-12,
+                "pair {}: {got} vs published {table}",
+                k + 1
+            );
+            assert!(
+                (got - cs).abs() <= 1e-6,
+                "pair {}: {got} vs colour-science {cs}",
+                k + 1
+            );
+            worst_table = worst_table.max((got - table).abs());
+            worst_cs = worst_cs.max((got - cs).abs());
+        }
+    }
+    println!("Sharma pairs: max |diff| published {worst_table:e}, colour-science {worst_cs:e}");
+}
+
+/// Display RGB read as sRGB (greys, saturated colours, values above 1, a small negative,
+/// random): Lab and ΔE00 within 1e-6 of colour-science's sRGB_to_XYZ → XYZ_to_Lab → delta_E.
+#[test]
+fn display_lab_and_delta_e_match_colour_science() {
+    let o = delta_e_reference();
+    let white = vec3(&o["white_xyz"]);
+    let mine = cie::srgb_white();
+    assert!(
+        (0..3).all(|c| (white[c] - mine[c]).abs() < 1e-12),
+        "{mine:?}"
+    );
+    let pairs = o["display_pairs"].as_array().expect("display_pairs");
+    assert!(pairs.len() >= 20);
+    let (mut worst_lab, mut worst_de) = (0.0f64, 0.0f64);
+    for (k, p) in pairs.iter().enumerate() {
+        let (a, b) = (
+            cie::display_srgb_to_lab(vec3(&p["rgb1"])),
+            cie::display_srgb_to_lab(vec3(&p["rgb2"])),
+        );
+        for (got, want) in [(a, vec3(&p["lab1"])), (b, vec3(&p["lab2"]))] {
+            for c in 0..3 {
+                let d = (got[c] - want[c]).abs();
+                assert!(d <= 1e-6, "pair {k}: Lab {got:?} vs {want:?}");
+                worst_lab = worst_lab.max(d);
+            }
+        }
+        let de = cie::delta_e_2000(a, b);
+        let want = num(&p["delta_e"]);
+        assert!((de - want).abs() <= 1e-6, "pair {k}: {de} vs {want}");
+        worst_de = worst_de.max((de - want).abs());
+    }
+    // Display greys are neutral, white is L* = 100.
+    let grey = cie::display_srgb_to_lab([0.5; 3]);
+    assert!(grey[1].abs() < 1e-9 && grey[2].abs() < 1e-9, "{grey:?}");
+    assert!((cie::display_srgb_to_lab([1.0; 3])[0] - 100.0).abs() < 1e-9);
+    println!("display pairs: max |diff| Lab {worst_lab:e}, ΔE00 {worst_de:e}");
+}
+
+/// The metric on images: mean over pixels of ΔE00 of the μ-law images (numpy's μ-law, then
+/// colour-science), through `delta_e2000_mu` and `score`.
+#[test]
+fn delta_e2000_of_mu_law_images_matches_colour_science() {
+    let o = delta_e_reference();
+    let cases = o["mu_law_images"].as_array().expect("mu_law_images");
+    assert_eq!(cases.len(), 2);
+    for (k, c) in cases.iter().enumerate() {
+        let (w, h) = (num(&c["width"]) as usize, num(&c["height"]) as usize);
+        let img = |key: &str| {
+            let v: Vec<f32> = c[key]
+                .as_array()
+                .expect("values")
+                .iter()
+                .map(|x| num(x) as f32)
+                .collect();
+            Image::from_vec(w, h, v)
+        };
+        let (gt, pred) = (img("gt"), img("pred"));
+        let want = num(&c["mean_delta_e"]);
+        let got = metrics::delta_e2000_mu(&gt, &pred).unwrap();
+        assert!((got - want).abs() <= 1e-6, "case {k}: {got} vs {want}");
+        println!("μ-law image {k}: ΔE00 {got} vs colour-science {want}");
+        assert_eq!(metrics::delta_e2000_mu(&gt, &gt).unwrap(), 0.0);
+    }
+    // Through `score` (needs 11×11 for SSIM): a grey ramp against itself tinted.
+    let gt = ramp(16, 12);
+    let s = score(&gt, &gt, None, &MetricOptions::default()).unwrap();
+    assert_eq!(s.delta_e2000, 0.0);
+    let tinted = gt.map(|v| v * 0.9);
+    let s = score(&gt, &tinted, None, &MetricOptions::default()).unwrap();
+    assert_eq!(
+        s.delta_e2000,
+        metrics::delta_e2000_mu(&gt, &tinted).unwrap()
+    );
+    assert!(s.delta_e2000 > 0.0);
+}
+
+// --- PSNR-T over the under-exposed pixels -------------------------------------------------------
+
+/// A 20×20 reference frame whose first `n_dark` pixels (row-major) are under-exposed, the
+/// others not: their largest channel is exactly DARK_CODE (not below it) or bright.
+fn frame_with_dark(n_dark: usize) -> Image {
+    Image::from_fn(20, 20, |x, y| {
+        let i = y * 20 + x;
+        if i < n_dark {
+            [0.05, 0.099, 0.0]
+        } else if i % 2 == 0 {
+            [0.0, DARK_CODE, 0.02]
+        } else {
+            [0.8, 0.6, 0.3]
+        }
+    })
+}
+
+/// Ground truth 0 everywhere; the prediction's masked pixels are (1, 0, 0) (μ-law T = (1, 0, 0)
+/// exactly), the others 1 in every channel, so including them would change the value.
+#[test]
+fn psnr_t_dark_is_the_hand_computed_psnr_over_the_masked_pixels() {
+    let n_dark = 40;
+    let dark = DarkMask::from_frame(&frame_with_dark(n_dark)).unwrap();
+    assert_eq!(dark.count(), n_dark);
+    assert_eq!(dark.fraction(), 0.1);
+    let gt = Image::new(20, 20);
+    let pred = Image::from_fn(20, 20, |x, y| {
+        if y * 20 + x < n_dark {
+            [1.0, 0.0, 0.0]
+        } else {
+            [1.0, 1.0, 1.0]
+        }
+    });
+    assert_eq!(mu_law(1.0), 1.0);
+    // PU21 scaled by value, not by the ground truth's maximum (0 here).
+    let opts = MetricOptions {
+        pu21_scale: Pu21Scale::UnitValue,
+        ..MetricOptions::default()
+    };
+    let s = score(&gt, &pred, Some(&dark), &opts).unwrap();
+    // Masked MSE over three channels: (1 + 0 + 0) / 3.
+    let hand = 10.0 * 3f64.log10();
+    let got = s.psnr_t_dark.expect("10 % of the pixels are dark");
+    assert!((got - hand).abs() < 1e-12, "{got} vs {hand}");
+    assert_eq!(s.dark_fraction, Some(0.1));
+    // The whole image: MSE (40 · 1 + 360 · 3) / 1200.
+    let whole = 10.0 * (1200.0f64 / (40.0 + 360.0 * 3.0)).log10();
+    assert!((s.psnr_t - whole).abs() < 1e-12, "{} vs {whole}", s.psnr_t);
+
+    // Network-1's path: PSNR of the given T images over the same pixels. Masked errors
+    // (0.125, 0, 0.25): MSE (1/64 + 1/16) / 3, PSNR = 10 log10(38.4).
+    let gt_t = Image::from_fn(20, 20, |_, _| [0.5; 3]);
+    let pred_t = Image::from_fn(20, 20, |x, y| {
+        if y * 20 + x < n_dark {
+            [0.625, 0.5, 0.75]
+        } else {
+            [0.0; 3]
+        }
+    });
+    let p = score_pair(&gt, &pred, &gt_t, &pred_t, Some(&dark), &opts).unwrap();
+    let got = p.psnr_t_dark.expect("dark");
+    assert!((got - 10.0 * 38.4f64.log10()).abs() < 1e-12, "{got}");
+    assert_eq!(p.dark_fraction, Some(0.1));
+}
+
+/// Fewer than 1 % of the pixels masked (or none): no value, but the fraction is reported;
+/// exactly 1 % gives a value. Without a mask both are absent.
+#[test]
+fn psnr_t_dark_is_absent_below_one_percent_of_dark_pixels() {
+    let gt = ramp(20, 20);
+    let pred = gt.map(|v| v * 0.8);
+    let opts = MetricOptions::default();
+    let at = |n: usize| {
+        let dark = DarkMask::from_frame(&frame_with_dark(n)).unwrap();
+        score(&gt, &pred, Some(&dark), &opts).unwrap()
+    };
+    let none = at(0);
+    assert_eq!((none.psnr_t_dark, none.dark_fraction), (None, Some(0.0)));
+    let three = at(3);
+    assert_eq!(
+        (three.psnr_t_dark, three.dark_fraction),
+        (None, Some(0.0075))
+    );
+    let four = at(4);
+    assert_eq!(four.dark_fraction, Some(0.01));
+    assert!(four.psnr_t_dark.is_some_and(f64::is_finite), "{four:?}");
+    let unmasked = score(&gt, &pred, None, &opts).unwrap();
+    assert_eq!((unmasked.psnr_t_dark, unmasked.dark_fraction), (None, None));
+    // Identical images over the mask: +inf, as PSNR-T.
+    let dark = DarkMask::from_frame(&frame_with_dark(40)).unwrap();
+    let same = score(&gt, &gt, Some(&dark), &opts).unwrap();
+    assert_eq!(same.psnr_t_dark, Some(f64::INFINITY));
+}
+
+#[test]
+fn a_mask_of_another_size_is_an_error_naming_both_sizes() {
+    let dark = DarkMask::from_frame(&frame_with_dark(40)).unwrap();
+    let gt = ramp(24, 20);
+    let msg = score(&gt, &gt, Some(&dark), &MetricOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(msg.contains("20x20") && msg.contains("24x20"), "{msg}");
+}
+
 #[test]
 fn psnr_of_constant_offset_is_20_db() {
     let gt = ramp(40, 30);
@@ -110,7 +341,7 @@ fn psnr_of_constant_offset_is_20_db() {
 #[test]
 fn identical_images_give_infinite_psnr_and_unit_ssim() {
     let gt = ramp(64, 48);
-    let s = score(&gt, &gt, &MetricOptions::default()).unwrap();
+    let s = score(&gt, &gt, None, &MetricOptions::default()).unwrap();
     assert_eq!(s.psnr_l, f64::INFINITY);
     assert_eq!(s.psnr_t, f64::INFINITY);
     assert_eq!(s.pu21_psnr, f64::INFINITY);
@@ -145,7 +376,7 @@ fn ssim_saturates_above_one_and_drops_with_noise() {
 fn mismatched_sizes_error_names_both() {
     let a = ramp(32, 24);
     let b = ramp(24, 32);
-    let err = score(&a, &b, &MetricOptions::default()).unwrap_err();
+    let err = score(&a, &b, None, &MetricOptions::default()).unwrap_err();
     let msg = err.to_string();
     assert!(matches!(err, Error::Invalid(_)));
     assert!(msg.contains("32x24") && msg.contains("24x32"), "{msg}");
@@ -158,7 +389,7 @@ fn bad_inputs_are_clear_errors() {
     let gt = ramp(32, 24);
     let mut nan = gt.clone();
     nan.data[3 * (5 * 32 + 7) + 1] = f32::NAN;
-    let msg = score(&gt, &nan, &MetricOptions::default())
+    let msg = score(&gt, &nan, None, &MetricOptions::default())
         .unwrap_err()
         .to_string();
     assert!(
@@ -167,7 +398,7 @@ fn bad_inputs_are_clear_errors() {
     );
     // Below −1/μ the μ-law is undefined.
     let neg = gt.map(|v| v - 0.5);
-    let msg = score(&gt, &neg, &MetricOptions::default())
+    let msg = score(&gt, &neg, None, &MetricOptions::default())
         .unwrap_err()
         .to_string();
     assert!(msg.contains("mu-law"), "{msg}");
@@ -241,8 +472,8 @@ fn score_pair_uses_given_tonemapped_images() {
     let pred = gt.map(|v| v * 0.95 + 0.01);
     let opts = MetricOptions::default();
     let curve = |v: f32| (mu_law(v as f64)) as f32;
-    let s = score(&gt, &pred, &opts).unwrap();
-    let p = score_pair(&gt, &pred, &gt.map(curve), &pred.map(curve), &opts).unwrap();
+    let s = score(&gt, &pred, None, &opts).unwrap();
+    let p = score_pair(&gt, &pred, &gt.map(curve), &pred.map(curve), None, &opts).unwrap();
     assert_eq!((s.psnr_l, s.ssim_l), (p.psnr_l, p.ssim_l));
     assert_eq!((s.pu21_psnr, s.pu21_ssim), (p.pu21_psnr, p.pu21_ssim));
     // Only f32 rounding of the tonemapped values separates the two.
@@ -258,8 +489,14 @@ fn score_pair_uses_given_tonemapped_images() {
         s.ssim_t,
         p.ssim_t
     );
+    assert!(
+        (s.delta_e2000 - p.delta_e2000).abs() < 1e-4,
+        "{} {}",
+        s.delta_e2000,
+        p.delta_e2000
+    );
     let small = ramp(40, 40);
-    assert!(score_pair(&gt, &pred, &small, &small, &opts).is_err());
+    assert!(score_pair(&gt, &pred, &small, &small, None, &opts).is_err());
 }
 
 #[test]

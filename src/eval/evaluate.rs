@@ -12,6 +12,9 @@
 //!   with Mertens weights (OpenCV defaults) computed on the noise-free frames, or (option, and
 //!   for sets without them) the Mertens fusion of the noisy pair itself; L = before the tone
 //!   curve, T = after it (the same curve for both), scored with [`metrics::score_pair`].
+//! - PSNR-T dark's mask ([`dark_mask`]) comes from the set's reference input frame as read,
+//!   the same for every method scored on the set; ΔE2000 reads each path's T images (μ-law,
+//!   or Network-1's tone curve) as sRGB display values.
 //!
 //! Memory: one set at a time; per set at most about four full-size images live at once (output,
 //! reference and, for Network-1, their tone-mapped copies), plus the tiled inference's own.
@@ -24,7 +27,7 @@ use crate::eval::blend::{blend_pair, tone_curve};
 use crate::eval::engine::{LoadedNetwork, Network};
 use crate::eval::infer;
 pub use crate::eval::infer::NetworkOptions;
-use crate::eval::metrics::{self, MetricOptions, Pu21Scale, Scores};
+use crate::eval::metrics::{self, DarkMask, MetricOptions, Pu21Scale, Scores};
 use crate::eval::report::{self, Cell, MetricSummary, SetScore};
 use crate::io::{BitDepth, ExrPrecision, Image, read_image, resize, write_exr, write_ldr};
 use burn::tensor::Device;
@@ -52,15 +55,22 @@ impl Scoring {
         }
     }
 
-    pub fn score(self, reference: &Image, output: &Image, opts: &MetricOptions) -> Result<Scores> {
+    /// `dark`: the set's under-exposed pixels (from its reference input frame), for PSNR-T dark.
+    pub fn score(
+        self,
+        reference: &Image,
+        output: &Image,
+        dark: Option<&DarkMask>,
+        opts: &MetricOptions,
+    ) -> Result<Scores> {
         match self {
-            Scoring::Hdr => metrics::score(reference, output, opts),
+            Scoring::Hdr => metrics::score(reference, output, dark, opts),
             Scoring::Network1 { .. } => {
                 let (rt, ot) = rayon::join(
                     || reference.map(|v| self.display(v)),
                     || output.map(|v| self.display(v)),
                 );
-                metrics::score_pair(reference, output, &rt, &ot, opts)
+                metrics::score_pair(reference, output, &rt, &ot, dark, opts)
             }
         }
     }
@@ -712,6 +722,18 @@ pub fn evaluate(
     Ok(result)
 }
 
+/// The set's under-exposed pixels ([`DarkMask`]) from its reference input frame as read (the
+/// same mask for every method scored on the set); None for a set without one.
+pub fn dark_mask(set: &SetInfo) -> Result<Option<DarkMask>> {
+    let Some(path) = set.reference_frame() else {
+        return Ok(None);
+    };
+    let frame = layout::read_set_image(set, path)?;
+    DarkMask::from_frame(&frame)
+        .map(Some)
+        .map_err(|e| Error::layout(path, e.to_string()))
+}
+
 fn evaluate_set(
     set: &SetInfo,
     method: &dyn Method,
@@ -720,6 +742,8 @@ fn evaluate_set(
     notes: &mut Vec<String>,
 ) -> Result<SetScore> {
     let t0 = Instant::now();
+    // Before the method runs: only the mask (a byte per pixel) stays alive, not the frame.
+    let dark = dark_mask(set)?;
     let outcome = method.run(set, opts)?;
     let Outcome {
         mut output,
@@ -745,7 +769,7 @@ fn evaluate_set(
         })
         .collect();
     let scores = scoring
-        .score(&reference, &output, &opts.metrics)
+        .score(&reference, &output, dark.as_ref(), &opts.metrics)
         .map_err(|e| Error::Invalid(format!("set '{}': {e}", set.name)))?;
     let seconds = t0.elapsed().as_secs_f64();
     notes.extend(set_notes);
@@ -851,6 +875,10 @@ fn setup_lines(r: &EvalSummary, testset: &Path, opts: &EvalOptions) -> String {
     format!(
         "- test set: {}\n- method: {}\n- sets scored: {}{}\n- HDR unit: {unit}\n\
          - PU21 scaling: {pu21}\n\
+         - delta_e2000: mean CIEDE2000 of the T images read as sRGB display values (lower is \
+         better); psnr_t_dark: PSNR-T over the pixels whose reference input frame has its \
+         largest channel below {} (a code in [0, 1]), absent (no value) where under {} % of \
+         the pixels are such\n\
          - mean and confidence intervals over scenes (a scene's sets at several ISOs are one \
          cluster: its mean counts once): percentile bootstrap resampling scenes, {} resamples, \
          seed {}, level {}; +inf values (identical images) are left out of mean and CI and \
@@ -864,6 +892,8 @@ fn setup_lines(r: &EvalSummary, testset: &Path, opts: &EvalOptions) -> String {
         } else {
             format!(" ({} skipped: no output)", r.missing.len())
         },
+        metrics::DARK_CODE,
+        metrics::DARK_MIN_FRACTION * 100.0,
         opts.resamples,
         opts.seed,
         opts.level,

@@ -211,12 +211,12 @@ pub fn network2_frames(set: &SetInfo) -> Result<([Image; 3], [f32; 3])> {
         ));
     }
     let pick = |i: usize| -> Result<Image> {
-        let frames = if (i == r && !set.static_frames.is_empty()) || set.dynamic_frames.is_empty() {
-            &set.static_frames
-        } else {
-            &set.dynamic_frames
+        let path = match set.reference_frame() {
+            Some(p) if i == r => p,
+            _ if set.dynamic_frames.is_empty() => &set.static_frames[i],
+            _ => &set.dynamic_frames[i],
         };
-        crate::data::layout::read_set_image(set, &frames[i])
+        crate::data::layout::read_set_image(set, path)
     };
     let times = [lo, r, hi].map(|i| 2f32.powf(set.evs[i] - set.evs[r]));
     Ok(([pick(lo)?, pick(r)?, pick(hi)?], times))

@@ -12,9 +12,17 @@
 //!   each side, mean over the three channels. SSIM-T is SSIM on `clip(T(x) · 255, 0, 255)`.
 //! - PU21: pu21's MATLAB `pu21_metric` on absolute luminance: PSNR over RGB with peak 256, SSIM on
 //!   luminance with MATLAB `ssim(..., 'DynamicRange', 256)` (replicate borders, no crop).
+//! - ΔE2000: mean over pixels of CIEDE2000 (kL = kC = kH = 1) between the T images read as
+//!   sRGB-encoded display RGB (Rec. 709 primaries, D65): sRGB decoding, the IEC 61966-2-1
+//!   matrix, CIELAB relative to the sRGB white (Y = 1), colour-science's `delta_E(...,
+//!   method='CIE 2000')` (oracle: tools/delta_e_reference.py, to 1e-6).
+//! - PSNR-T dark: PSNR (range 1) of the T images over the pixels where the set's reference input
+//!   frame is under-exposed (largest channel below [`DARK_CODE`]), all three channels; absent
+//!   when fewer than [`DARK_MIN_FRACTION`] of the pixels are masked.
 
 use crate::error::{Error, Result};
 use crate::io::Image;
+use crate::sensor::colour::cie;
 use rayon::prelude::*;
 
 /// μ of the μ-law tonemapper used for PSNR-T/SSIM-T.
@@ -220,6 +228,98 @@ pub fn pu21_ssim(gt: &Image, pred: &Image, opts: &MetricOptions) -> Result<f64> 
 }
 
 // ---------------------------------------------------------------------------------------------
+// Colour difference and the under-exposed region
+
+/// A pixel of the reference input frame is under-exposed when its largest channel, as an LDR
+/// code in [0, 1], is below this (8-bit codes 0..=25).
+pub const DARK_CODE: f32 = 0.1;
+/// PSNR-T dark is reported only when at least this fraction of the pixels is masked.
+pub const DARK_MIN_FRACTION: f64 = 0.01;
+
+/// The pixels where a set's reference input frame is under-exposed (largest channel below
+/// [`DARK_CODE`]), the region where sensor noise dominates a reconstruction.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DarkMask {
+    pub width: usize,
+    pub height: usize,
+    mask: Vec<bool>,
+    count: usize,
+}
+
+impl DarkMask {
+    /// The mask of a reference frame's display codes as read.
+    pub fn from_frame(frame: &Image) -> Result<DarkMask> {
+        check_image(frame, "reference frame")?;
+        let mask: Vec<bool> = frame
+            .data
+            .par_chunks_exact(3)
+            .map(|p| p[0].max(p[1]).max(p[2]) < DARK_CODE)
+            .collect();
+        let count = mask.iter().filter(|&&m| m).count();
+        Ok(DarkMask {
+            width: frame.width,
+            height: frame.height,
+            mask,
+            count,
+        })
+    }
+
+    /// Masked pixels.
+    pub fn count(&self) -> usize {
+        self.count
+    }
+
+    /// Masked pixels over all pixels.
+    pub fn fraction(&self) -> f64 {
+        self.count as f64 / self.mask.len() as f64
+    }
+
+    fn check(&self, img: &Image) -> Result<()> {
+        if (self.width, self.height) != (img.width, img.height) {
+            return Err(Error::Invalid(format!(
+                "the reference frame is {}x{}, the images scored are {}x{}",
+                self.width, self.height, img.width, img.height
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// Mean CIEDE2000 over pixels of two display images read as sRGB-encoded RGB
+/// ([`cie::display_srgb_to_lab`]); lower is better, 0 for identical images.
+pub fn delta_e2000(gt_t: &Image, pred_t: &Image) -> Result<f64> {
+    check_pair(gt_t, pred_t)?;
+    Ok(mean_delta_e_by(&gt_t.data, &pred_t.data, |v| v as f64))
+}
+
+/// [`delta_e2000`] of the μ-law tonemapped images (the T images of PSNR-T), tonemapped in f64.
+pub fn delta_e2000_mu(gt: &Image, pred: &Image) -> Result<f64> {
+    check_pair(gt, pred)?;
+    check_mu_domain(gt, "ground truth")?;
+    check_mu_domain(pred, "prediction")?;
+    Ok(mean_delta_e_by(&gt.data, &pred.data, |v| mu_law(v as f64)))
+}
+
+/// PSNR (range 1) of display images over the masked pixels, all three channels; None when fewer
+/// than [`DARK_MIN_FRACTION`] of the pixels are masked. +inf when they agree there.
+pub fn psnr_dark(gt_t: &Image, pred_t: &Image, dark: &DarkMask) -> Result<Option<f64>> {
+    check_pair(gt_t, pred_t)?;
+    dark.check(gt_t)?;
+    Ok(masked_psnr_by(&gt_t.data, &pred_t.data, dark, |v| v as f64))
+}
+
+/// [`psnr_dark`] of the μ-law tonemapped images: PSNR-T over the under-exposed pixels.
+pub fn psnr_mu_dark(gt: &Image, pred: &Image, dark: &DarkMask) -> Result<Option<f64>> {
+    check_pair(gt, pred)?;
+    dark.check(gt)?;
+    check_mu_domain(gt, "ground truth")?;
+    check_mu_domain(pred, "prediction")?;
+    Ok(masked_psnr_by(&gt.data, &pred.data, dark, |v| {
+        mu_law(v as f64)
+    }))
+}
+
+// ---------------------------------------------------------------------------------------------
 // All at once
 
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -230,15 +330,31 @@ pub struct Scores {
     pub ssim_t: f64,
     pub pu21_psnr: f64,
     pub pu21_ssim: f64,
+    /// Mean CIEDE2000 of the T images read as sRGB display values; lower is better.
+    pub delta_e2000: f64,
+    /// PSNR-T over the pixels where the reference input frame is under-exposed; None without a
+    /// reference frame or when fewer than [`DARK_MIN_FRACTION`] of the pixels are masked.
+    pub psnr_t_dark: Option<f64>,
+    /// Fraction of the pixels in that mask; None without a reference frame.
+    pub dark_fraction: Option<f64>,
 }
 
 /// All metrics of a linear prediction against its linear ground truth; T is the μ-law
-/// tonemapping of the same images.
-pub fn score(gt: &Image, pred: &Image, opts: &MetricOptions) -> Result<Scores> {
+/// tonemapping of the same images. `dark`: the set's under-exposed pixels, for PSNR-T dark.
+pub fn score(
+    gt: &Image,
+    pred: &Image,
+    dark: Option<&DarkMask>,
+    opts: &MetricOptions,
+) -> Result<Scores> {
     check_pair(gt, pred)?;
     check_ssim_size(gt)?;
     check_mu_domain(gt, "ground truth")?;
     check_mu_domain(pred, "prediction")?;
+    let psnr_t_dark = match dark {
+        Some(d) => psnr_mu_dark(gt, pred, d)?,
+        None => None,
+    };
     Ok(Scores {
         psnr_l: psnr(gt, pred, 1.0)?,
         psnr_t: psnr_mu(gt, pred)?,
@@ -246,17 +362,22 @@ pub fn score(gt: &Image, pred: &Image, opts: &MetricOptions) -> Result<Scores> {
         ssim_t: ssim_mu(gt, pred)?,
         pu21_psnr: pu21_psnr(gt, pred, opts)?,
         pu21_ssim: pu21_ssim(gt, pred, opts)?,
+        delta_e2000: delta_e2000_mu(gt, pred)?,
+        psnr_t_dark,
+        dark_fraction: dark.map(DarkMask::fraction),
     })
 }
 
 /// All metrics when the caller has its own tonemapped pair (e.g. Network-1's pre-curve linear
 /// and post-curve images): L metrics and PU21 on `gt_l`/`pred_l`, T metrics (PSNR range 1,
-/// SSIM on clip(·255)) on `gt_t`/`pred_t` as given, with no μ-law applied.
+/// SSIM on clip(·255), ΔE2000, PSNR-T dark) on `gt_t`/`pred_t` as given, with no μ-law
+/// applied.
 pub fn score_pair(
     gt_l: &Image,
     pred_l: &Image,
     gt_t: &Image,
     pred_t: &Image,
+    dark: Option<&DarkMask>,
     opts: &MetricOptions,
 ) -> Result<Scores> {
     check_pair(gt_l, pred_l)?;
@@ -267,6 +388,10 @@ pub fn score_pair(
             gt_l.width, gt_l.height, gt_t.width, gt_t.height
         )));
     }
+    let psnr_t_dark = match dark {
+        Some(d) => psnr_dark(gt_t, pred_t, d)?,
+        None => None,
+    };
     Ok(Scores {
         psnr_l: psnr(gt_l, pred_l, 1.0)?,
         psnr_t: psnr(gt_t, pred_t, 1.0)?,
@@ -274,6 +399,9 @@ pub fn score_pair(
         ssim_t: ssim(gt_t, pred_t)?,
         pu21_psnr: pu21_psnr(gt_l, pred_l, opts)?,
         pu21_ssim: pu21_ssim(gt_l, pred_l, opts)?,
+        delta_e2000: delta_e2000(gt_t, pred_t)?,
+        psnr_t_dark,
+        dark_fraction: dark.map(DarkMask::fraction),
     })
 }
 
@@ -373,6 +501,60 @@ fn mse_by(a: &[f32], b: &[f32], f: impl Fn(f32) -> f64 + Sync) -> f64 {
         })
         .collect();
     sums.iter().sum::<f64>() / a.len() as f64
+}
+
+/// Mean over pixels of CIEDE2000 between `f`-mapped display RGB values, over fixed-size chunks
+/// in parallel and added in chunk order (independent of the thread count).
+fn mean_delta_e_by(a: &[f32], b: &[f32], f: impl Fn(f32) -> f64 + Sync) -> f64 {
+    const CHUNK: usize = 3 << 14;
+    let lab = |p: &[f32]| cie::display_srgb_to_lab([f(p[0]), f(p[1]), f(p[2])]);
+    let sums: Vec<f64> = a
+        .par_chunks(CHUNK)
+        .zip(b.par_chunks(CHUNK))
+        .map(|(ca, cb)| {
+            ca.chunks_exact(3)
+                .zip(cb.chunks_exact(3))
+                .map(|(x, y)| cie::delta_e_2000(lab(x), lab(y)))
+                .sum::<f64>()
+        })
+        .collect();
+    sums.iter().sum::<f64>() / (a.len() / 3) as f64
+}
+
+/// PSNR (range 1) of `f(a) − f(b)` over the masked pixels' three channels, summed like
+/// [`mse_by`]; None below [`DARK_MIN_FRACTION`].
+fn masked_psnr_by(
+    a: &[f32],
+    b: &[f32],
+    dark: &DarkMask,
+    f: impl Fn(f32) -> f64 + Sync,
+) -> Option<f64> {
+    if dark.count == 0 || dark.fraction() < DARK_MIN_FRACTION {
+        return None;
+    }
+    const CHUNK: usize = 1 << 14;
+    let sums: Vec<f64> = a
+        .par_chunks(3 * CHUNK)
+        .zip(b.par_chunks(3 * CHUNK))
+        .zip(dark.mask.par_chunks(CHUNK))
+        .map(|((ca, cb), cm)| {
+            ca.chunks_exact(3)
+                .zip(cb.chunks_exact(3))
+                .zip(cm)
+                .filter(|(_, m)| **m)
+                .map(|((x, y), _)| {
+                    (0..3)
+                        .map(|c| {
+                            let d = f(x[c]) - f(y[c]);
+                            d * d
+                        })
+                        .sum::<f64>()
+                })
+                .sum::<f64>()
+        })
+        .collect();
+    let mse = sums.iter().sum::<f64>() / (3 * dark.count) as f64;
+    Some(psnr_from_mse(mse, 1.0))
 }
 
 /// Gaussian window radius: skimage's `int(truncate · sigma + 0.5)` with truncate 3.5, sigma 1.5;

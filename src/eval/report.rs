@@ -16,7 +16,8 @@ use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::Path;
 
-/// Metric names in table order, as the CSV columns name them.
+/// The six metrics every set has, in table order, as the CSV columns name them: the first
+/// columns of `per_image.csv` after `set`.
 pub const METRICS: [&str; 6] = [
     "psnr_l",
     "psnr_t",
@@ -37,6 +38,42 @@ pub fn metric_values(s: &Scores) -> [f64; 6] {
     ]
 }
 
+/// Columns appended to `per_image.csv` after `seconds` (so the columns before them keep their
+/// positions): ΔE2000 of T (lower is better), PSNR-T over the under-exposed pixels (empty when
+/// absent) and the fraction of pixels in that mask (empty without a reference frame).
+pub const APPENDED: [&str; 3] = ["delta_e2000", "psnr_t_dark", "dark_fraction"];
+
+pub fn appended_values(s: &Scores) -> [Option<f64>; 3] {
+    [Some(s.delta_e2000), s.psnr_t_dark, s.dark_fraction]
+}
+
+/// Metrics of the summary, in its order: [`METRICS`], then ΔE2000 and PSNR-T dark.
+pub const SUMMARY_METRICS: [&str; 8] = [
+    "psnr_l",
+    "psnr_t",
+    "ssim_l",
+    "ssim_t",
+    "pu21_psnr",
+    "pu21_ssim",
+    "delta_e2000",
+    "psnr_t_dark",
+];
+
+/// A set's values of [`SUMMARY_METRICS`]; None where the metric is absent for the set.
+pub fn summary_values(s: &Scores) -> [Option<f64>; 8] {
+    let m = metric_values(s).map(Some);
+    [
+        m[0],
+        m[1],
+        m[2],
+        m[3],
+        m[4],
+        m[5],
+        Some(s.delta_e2000),
+        s.psnr_t_dark,
+    ]
+}
+
 /// One evaluated set (a row of `per_image.csv`).
 #[derive(Clone, Debug, PartialEq)]
 pub struct SetScore {
@@ -52,8 +89,10 @@ pub struct SetScore {
 #[derive(Clone, Debug, PartialEq)]
 pub struct MetricSummary {
     pub metric: &'static str,
-    /// Sets scored.
+    /// Sets with a value of the metric.
     pub n: usize,
+    /// Sets scored without a value of the metric (PSNR-T dark where too few pixels are dark).
+    pub n_absent: usize,
     /// Sets whose value is +inf (identical images: PSNR with MSE 0), left out of mean and CI.
     pub n_inf: usize,
     /// Scenes behind the mean and CI (the bootstrap's unit).
@@ -67,7 +106,8 @@ pub struct MetricSummary {
 /// percentile bootstrap CI resampling scenes (a scene's sets at several ISOs share content and
 /// difficulty: one cluster, as in `hdrsynth ablate`). `scenes` maps a set to its scene
 /// (`testset::scenes_of_sets`); a set not in it is its own scene. +inf values are counted and
-/// left out. All +inf gives mean = lo = hi = +inf; no sets gives NaNs.
+/// left out; sets without a value (None) are counted as absent and left out. All +inf gives
+/// mean = lo = hi = +inf; no values gives NaNs.
 pub fn summarise(
     rows: &[SetScore],
     scenes: &BTreeMap<String, String>,
@@ -75,14 +115,17 @@ pub fn summarise(
     seed: u64,
     level: f64,
 ) -> Vec<MetricSummary> {
-    METRICS
+    SUMMARY_METRICS
         .iter()
         .enumerate()
         .map(|(k, &metric)| {
-            let all: Vec<f64> = rows.iter().map(|r| metric_values(&r.scores)[k]).collect();
-            let n_inf = all.iter().filter(|v| **v == f64::INFINITY).count();
+            let all: Vec<(&SetScore, f64)> = rows
+                .iter()
+                .filter_map(|r| summary_values(&r.scores)[k].map(|v| (r, v)))
+                .collect();
+            let n_inf = all.iter().filter(|(_, v)| *v == f64::INFINITY).count();
             let mut by_scene: BTreeMap<&str, (f64, usize)> = BTreeMap::new();
-            for (r, &v) in rows.iter().zip(&all) {
+            for &(r, v) in &all {
                 if v.is_finite() {
                     let scene = scenes.get(&r.set).map_or(r.set.as_str(), String::as_str);
                     let e = by_scene.entry(scene).or_insert((0.0, 0));
@@ -99,6 +142,7 @@ pub fn summarise(
             MetricSummary {
                 metric,
                 n: all.len(),
+                n_absent: rows.len() - all.len(),
                 n_inf,
                 n_scenes: scene_means.len(),
                 mean,
@@ -118,33 +162,39 @@ pub fn csv_field(s: &str) -> String {
     }
 }
 
-/// `per_image.csv`: set, the six metrics (shortest round-trip decimals; `inf` for +inf),
-/// width, height, seconds.
+/// `per_image.csv`: set, the six [`METRICS`] (shortest round-trip decimals; `inf` for +inf),
+/// width, height, seconds, then the [`APPENDED`] columns (empty where absent).
 pub fn per_image_csv(rows: &[SetScore]) -> String {
-    let mut out = format!("set,{},width,height,seconds\n", METRICS.join(","));
+    let mut out = format!(
+        "set,{},width,height,seconds,{}\n",
+        METRICS.join(","),
+        APPENDED.join(",")
+    );
     for r in rows {
         let v = metric_values(&r.scores);
+        let extra = appended_values(&r.scores).map(|x| x.map_or(String::new(), |x| x.to_string()));
         let _ = writeln!(
             out,
-            "{},{},{},{},{:.3}",
+            "{},{},{},{},{:.3},{}",
             csv_field(&r.set),
             v.map(|x| x.to_string()).join(","),
             r.width,
             r.height,
-            r.seconds
+            r.seconds,
+            extra.join(",")
         );
     }
     out
 }
 
-/// `summary.csv`: metric, n, n_inf, mean, ci_lo, ci_hi, n_scenes.
+/// `summary.csv`: metric, n, n_inf, mean, ci_lo, ci_hi, n_scenes, n_absent.
 pub fn summary_csv(summary: &[MetricSummary]) -> String {
-    let mut out = String::from("metric,n,n_inf,mean,ci_lo,ci_hi,n_scenes\n");
+    let mut out = String::from("metric,n,n_inf,mean,ci_lo,ci_hi,n_scenes,n_absent\n");
     for m in summary {
         let _ = writeln!(
             out,
-            "{},{},{},{},{},{},{}",
-            m.metric, m.n, m.n_inf, m.mean, m.lo, m.hi, m.n_scenes
+            "{},{},{},{},{},{},{},{}",
+            m.metric, m.n, m.n_inf, m.mean, m.lo, m.hi, m.n_scenes, m.n_absent
         );
     }
     out
@@ -153,51 +203,69 @@ pub fn summary_csv(summary: &[MetricSummary]) -> String {
 fn fmt_value(metric: &str, v: f64) -> String {
     if v.is_infinite() || v.is_nan() {
         format!("{v}")
-    } else if metric.contains("ssim") {
+    } else if metric.contains("ssim") || metric == "dark_fraction" {
         format!("{v:.4}")
     } else {
         format!("{v:.2}")
     }
 }
 
+/// How a metric is named in Markdown tables: ΔE2000 says that lower is better.
+fn md_name(metric: &str) -> String {
+    match metric {
+        "delta_e2000" => "delta_e2000 (lower is better)".into(),
+        m => m.into(),
+    }
+}
+
 /// Markdown table of the summary.
 pub fn summary_table(summary: &[MetricSummary], level: f64) -> String {
     let mut out = format!(
-        "| metric | mean | {:.0} % CI | n | scenes | +inf (excluded) |\n|---|---|---|---|---|---|\n",
+        "| metric | mean | {:.0} % CI | n | scenes | +inf (excluded) | no value |\n\
+         |---|---|---|---|---|---|---|\n",
         level * 100.0
     );
     for m in summary {
         let _ = writeln!(
             out,
-            "| {} | {} | [{}, {}] | {} | {} | {} |",
-            m.metric,
+            "| {} | {} | [{}, {}] | {} | {} | {} | {} |",
+            md_name(m.metric),
             fmt_value(m.metric, m.mean),
             fmt_value(m.metric, m.lo),
             fmt_value(m.metric, m.hi),
             m.n,
             m.n_scenes,
-            m.n_inf
+            m.n_inf,
+            m.n_absent
         );
     }
     out
 }
 
-/// One row of a per-set Markdown table.
+/// One row of a per-set Markdown table: [`METRICS`] then [`APPENDED`] ("–" where absent).
 pub fn scores_row(s: &Scores) -> String {
-    let v = metric_values(s);
-    let cells: Vec<String> = METRICS
+    let metrics = METRICS
         .iter()
-        .zip(v)
-        .map(|(m, x)| fmt_value(m, x))
-        .collect();
+        .zip(metric_values(s))
+        .map(|(m, x)| fmt_value(m, x));
+    let appended = APPENDED
+        .iter()
+        .zip(appended_values(s))
+        .map(|(m, x)| x.map_or("–".to_string(), |x| fmt_value(m, x)));
+    let cells: Vec<String> = metrics.chain(appended).collect();
     format!("| {} |", cells.join(" | "))
 }
 
 pub fn scores_header() -> String {
+    let names: Vec<String> = METRICS
+        .iter()
+        .chain(&APPENDED)
+        .map(|m| md_name(m))
+        .collect();
     format!(
         "| {} |\n|{}\n",
-        METRICS.join(" | "),
-        "---|".repeat(METRICS.len())
+        names.join(" | "),
+        "---|".repeat(names.len())
     )
 }
 
@@ -307,6 +375,9 @@ mod tests {
                 ssim_t: v,
                 pu21_psnr: v,
                 pu21_ssim: v,
+                delta_e2000: v,
+                psnr_t_dark: Some(v),
+                dark_fraction: Some(0.5),
             },
             width: 1,
             height: 1,
@@ -329,21 +400,70 @@ mod tests {
                 .map(|(a, b)| (a.to_string(), b.to_string()))
                 .collect();
         for m in summarise(&rows, &scenes, 500, 0, 0.95) {
-            assert_eq!((m.n, m.n_scenes, m.n_inf), (3, 2, 0), "{}", m.metric);
+            assert_eq!(
+                (m.n, m.n_scenes, m.n_inf, m.n_absent),
+                (3, 2, 0, 0),
+                "{}",
+                m.metric
+            );
             assert!((m.mean - 27.5).abs() < 1e-12, "{}: {}", m.metric, m.mean);
             assert!(m.lo >= 15.0 && m.hi <= 40.0 && m.lo < m.hi, "{m:?}");
         }
-        // summary.csv carries n_scenes in its last column.
+        // summary.csv carries n_scenes, then n_absent, in its last columns.
         let csv = summary_csv(&summarise(&rows, &scenes, 500, 0, 0.95));
         let psnr_t = csv
             .lines()
             .find(|l| l.starts_with("psnr_t,"))
             .expect("psnr_t");
-        assert_eq!(psnr_t.split(',').count(), 7, "{psnr_t}");
-        assert!(psnr_t.ends_with(",2"), "{psnr_t}");
+        assert_eq!(psnr_t.split(',').count(), 8, "{psnr_t}");
+        assert!(psnr_t.ends_with(",2,0"), "{psnr_t}");
         // Without a scene map every set is its own scene: the plain mean over sets.
         let m = &summarise(&rows, &BTreeMap::new(), 500, 0, 0.95)[0];
         assert_eq!(m.n_scenes, 3);
         assert!((m.mean - 70.0 / 3.0).abs() < 1e-12);
+    }
+
+    /// A set without PSNR-T dark is absent from that metric's mean and counted, and its
+    /// per_image.csv field is empty; the other metrics keep all three sets.
+    #[test]
+    fn absent_values_are_left_out_and_counted() {
+        let mut rows = vec![
+            row("A_iso100", 10.0),
+            row("B_iso100", 20.0),
+            row("C_iso100", 40.0),
+        ];
+        rows[2].scores.psnr_t_dark = None;
+        rows[2].scores.dark_fraction = Some(0.004);
+        let s = summarise(&rows, &BTreeMap::new(), 500, 0, 0.95);
+        let dark = s.iter().find(|m| m.metric == "psnr_t_dark").expect("dark");
+        assert_eq!((dark.n, dark.n_absent, dark.n_scenes), (2, 1, 2));
+        assert!((dark.mean - 15.0).abs() < 1e-12, "{dark:?}");
+        let de = s.iter().find(|m| m.metric == "delta_e2000").expect("de");
+        assert_eq!((de.n, de.n_absent), (3, 0));
+        assert!((de.mean - 70.0 / 3.0).abs() < 1e-12, "{de:?}");
+        let csv = per_image_csv(&rows);
+        let mut lines = csv.lines();
+        let header: Vec<&str> = lines.next().expect("header").split(',').collect();
+        assert_eq!(
+            header[7..],
+            [
+                "width",
+                "height",
+                "seconds",
+                "delta_e2000",
+                "psnr_t_dark",
+                "dark_fraction"
+            ]
+        );
+        let last: Vec<&str> = lines.next_back().expect("row").split(',').collect();
+        assert_eq!(last[10..], ["40", "", "0.004"]);
+        // All absent: NaN mean, every set counted as absent.
+        for r in &mut rows {
+            r.scores.psnr_t_dark = None;
+        }
+        let s = summarise(&rows, &BTreeMap::new(), 500, 0, 0.95);
+        let dark = s.iter().find(|m| m.metric == "psnr_t_dark").expect("dark");
+        assert_eq!((dark.n, dark.n_absent, dark.n_scenes), (0, 3, 0));
+        assert!(dark.mean.is_nan());
     }
 }

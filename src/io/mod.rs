@@ -17,7 +17,7 @@ pub mod srgb;
 
 pub use image::{Image, dynamic_range_stops, luminance};
 pub use resize::resize;
-pub use srgb::{srgb_decode, srgb_encode, srgb_encode_fast};
+pub use srgb::{srgb_decode, srgb_decode_f64, srgb_encode, srgb_encode_fast};
 
 use crate::error::{Error, Result};
 use std::path::Path;

@@ -36,6 +36,18 @@ pub fn srgb_decode(v: f32) -> f32 {
     }
 }
 
+/// [`srgb_decode`] in f64, for metrics that must agree with colour-science to 1e-6 (the f32
+/// version serves whole-frame paths). No clipping: codes outside [0, 1] follow the same two
+/// pieces, as colour-science's `eotf_sRGB` does.
+#[inline]
+pub fn srgb_decode_f64(v: f64) -> f64 {
+    if v <= 0.040_45 {
+        v / 12.92
+    } else {
+        ((v + 0.055) / 1.055).powf(2.4)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -43,6 +55,9 @@ mod tests {
     fn known_values() {
         // IEC 61966-2-1: 0.5 code value ↔ 0.214041 linear; 0.18 linear ↔ 0.461356
         assert!((srgb_decode(0.5) - 0.214_041_14).abs() < 1e-6);
+        // ((0.5 + 0.055) / 1.055)^2.4 and 0.02 / 12.92 by hand.
+        assert!((srgb_decode_f64(0.5) - 0.214_041_140_482_232_5).abs() < 1e-15);
+        assert!((srgb_decode_f64(0.02) - 0.02 / 12.92).abs() < 1e-18);
         assert!((srgb_encode(0.18) - 0.461_356_1).abs() < 1e-6);
         assert!((srgb_encode(1.0) - 1.0).abs() < 1e-6);
         for i in 0..=100_000 {

@@ -110,6 +110,18 @@ impl SetInfo {
         }
     }
 
+    /// The reference (EV 0) input frame as Network-2 is given it: the static one where the set
+    /// has static frames, else the dynamic one. None when the set lists no frame at the
+    /// reference index.
+    pub fn reference_frame(&self) -> Option<&Path> {
+        let frames = if self.static_frames.is_empty() {
+            &self.dynamic_frames
+        } else {
+            &self.static_frames
+        };
+        frames.get(self.reference).map(PathBuf::as_path)
+    }
+
     /// Indices (short, long) of Network-1's pair and of the blend-class ground truth: EV−3 and
     /// the reference when the set has both (the paper's pair), else its lowest EV and the
     /// reference.

@@ -1,5 +1,6 @@
 //! Colour maths as colour-science computes it: linear sRGB ↔ XYZ (D65), Bradford chromatic
-//! adaptation, CIE 1976 L*a*b* (D50) and CIEDE2000. Conventions: the module docs of `colour`.
+//! adaptation, CIE 1976 L*a*b* (D50, and D65 for display values) and CIEDE2000. Conventions:
+//! the module docs of `colour`.
 
 use crate::linalg::{Mat3, inverse3, mat_vec, mul3};
 
@@ -83,6 +84,19 @@ pub fn xyz_to_lab(xyz: [f64; 3], white: [f64; 3]) -> [f64; 3] {
         f(xyz[2] / white[2]),
     );
     [116.0 * fy - 16.0, 500.0 * (fx - fy), 200.0 * (fy - fz)]
+}
+
+/// XYZ of the sRGB white, RGB (1, 1, 1) through [`SRGB_TO_XYZ`]: (0.9505, 1, 1.089).
+pub fn srgb_white() -> [f64; 3] {
+    linear_srgb_to_xyz([1.0; 3])
+}
+
+/// CIELAB of a display value read as sRGB-encoded RGB (IEC 61966-2-1 decoding, Rec. 709
+/// primaries, D65): decode, [`SRGB_TO_XYZ`], Lab relative to [`srgb_white`] (so display greys
+/// have a* = b* = 0). Values outside [0, 1] go through the same formulas, unclipped.
+pub fn display_srgb_to_lab(rgb: [f64; 3]) -> [f64; 3] {
+    let linear = rgb.map(crate::io::srgb_decode_f64);
+    xyz_to_lab(linear_srgb_to_xyz(linear), srgb_white())
 }
 
 /// Lab (D50) of a colour treated as linear sRGB (D65): sRGB → XYZ D65 → Bradford → Lab D50.
