@@ -932,8 +932,14 @@ fn baseline_cells_score_without_a_network_and_a_test_set_can_name_its_own_refere
     }
     let mertens = summary_mean(&root.join("grid/cells/mertens"), "psnr_t");
     let constant = summary_mean(&root.join("grid/cells/constant"), "psnr_t");
-    assert!(mertens > 100.0 || mertens.is_infinite(), "Mertens {mertens}");
-    assert!(constant.is_finite() && constant < 60.0, "constant {constant}");
+    assert!(
+        mertens > 100.0 || mertens.is_infinite(),
+        "Mertens {mertens}"
+    );
+    assert!(
+        constant.is_finite() && constant < 60.0,
+        "constant {constant}"
+    );
     // The primary table's reference is the grid's (mertens), the `also` table's its own.
     let primary = csv_rows(&root.join("grid/table.csv"));
     let again = csv_rows(&root.join("grid/table_again.csv"));
@@ -944,13 +950,17 @@ fn baseline_cells_score_without_a_network_and_a_test_set_can_name_its_own_refere
     assert_ne!(diff(&primary, "constant"), "");
     assert_eq!(diff(&again, "constant"), "");
     assert_ne!(diff(&again, "mertens"), "");
-    let n_pre = find_row(&primary, &[("row", "constant"), ("metric", "psnr_t")])["n_pretrain_seeds"]
-        .clone();
+    let n_pre =
+        find_row(&primary, &[("row", "constant"), ("metric", "psnr_t")])["n_pretrain_seeds"]
+            .clone();
     assert_eq!(n_pre, "0", "a baseline has no pretraining");
     // A baseline cannot name a checkpoint; a test set's reference must be a cell.
     for (bad, what) in [
         (
-            text.replace("kind = \"mertens\"\n", "kind = \"mertens\"\ncheckpoint = \"x\"\n"),
+            text.replace(
+                "kind = \"mertens\"\n",
+                "kind = \"mertens\"\ncheckpoint = \"x\"\n",
+            ),
             "baseline",
         ),
         (

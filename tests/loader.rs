@@ -222,3 +222,63 @@ fn preview_writes_a_contact_sheet_of_the_expected_size() {
     // Network-1: 2 pure + 2 realistic frames + target = 5 tiles of 48 px + 4 px gaps, 3 rows.
     assert_eq!((img.width, img.height), (5 * 52, 3 * 52));
 }
+
+/// The sample's two frames (channel-major 6×p×p input) as images.
+fn pair_of(s: &Sample) -> (Image, Image) {
+    let p = s.size;
+    let frame = |k: usize| {
+        Image::from_fn(p, p, |x, y| {
+            std::array::from_fn(|c| s.input[(k * 3 + c) * p * p + y * p + x])
+        })
+    };
+    (frame(0), frame(1))
+}
+
+fn classes_of(s: &Sample) -> Vec<u8> {
+    match &s.target {
+        Target::Classes(c) => c.clone(),
+        Target::Hdr(_) => panic!("a Network-1 sample"),
+    }
+}
+
+/// Network-1's default targets are the Mertens classes of the same crop rendered without the
+/// noise draw: exactly the classes of the frames a noise-free loader gives for that sample,
+/// while the inputs stay the noisy ones; `target_frames = "noisy"` gives the classes of the
+/// inputs themselves.
+#[test]
+fn network1_targets_come_from_the_noise_free_render_of_the_same_crop() {
+    let dir = tempfile::tempdir().expect("tmp");
+    dataset("[-3.0, 0.0]", dir.path());
+    let mut clean = loader_cfg(dir.path(), "network1", 1, true);
+    clean.augment = false;
+    let mut noisy = clean.clone();
+    noisy.target_frames = hdrsynth::data::loader::TargetFrames::Noisy;
+    let mut quiet = clean.clone();
+    if let Some(r) = quiet.realism.as_mut() {
+        r.noise = hdrsynth::sensor::realism::NoiseModel::None;
+    }
+    let (c, n, q) = (
+        Loader::new(&clean).expect("clean"),
+        Loader::new(&noisy).expect("noisy"),
+        Loader::new(&quiet).expect("quiet"),
+    );
+    let mut differ = 0;
+    for i in 0..4 {
+        let (sc, sn, sq) = (
+            c.sample(0, i).expect("c"),
+            n.sample(0, i).expect("n"),
+            q.sample(0, i).expect("q"),
+        );
+        assert_eq!(sc.input, sn.input, "the option changes targets only");
+        assert_ne!(sc.input, sq.input, "the inputs carry noise");
+        let (ql, qh) = pair_of(&sq);
+        assert_eq!(classes_of(&sc), blend_classes(&ql, &qh).expect("classes"));
+        let (nl, nh) = pair_of(&sn);
+        assert_eq!(classes_of(&sn), blend_classes(&nl, &nh).expect("classes"));
+        differ += usize::from(classes_of(&sc) != classes_of(&sn));
+    }
+    assert!(
+        differ > 0,
+        "noise changes the Mertens classes of some sample"
+    );
+}

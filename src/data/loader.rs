@@ -544,8 +544,11 @@ impl Loader {
                 let (low, high, classes) = match (op, clean_op) {
                     (Some((_, r)), Some(c)) => {
                         let lin = [exposed(&frames[idx[0]])?, exposed(&frames[idx[1]])?];
-                        let classes =
-                            blend_classes_smoothed(&c.apply(&lin[0], 0), &c.apply(&lin[1], 0), sigma)?;
+                        let classes = blend_classes_smoothed(
+                            &c.apply(&lin[0], 0),
+                            &c.apply(&lin[1], 0),
+                            sigma,
+                        )?;
                         let low = r.apply(&lin[0], hash(noise_seed, &[0]));
                         let high = r.apply(&lin[1], hash(noise_seed, &[1]));
                         (low, high, classes)

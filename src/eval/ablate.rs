@@ -370,8 +370,10 @@ impl AblateConfig {
                 return Err(format!("eval.{key} {m} must be a positive number"));
             }
         }
-        let references = std::iter::once(("eval.reference", &self.eval.reference))
-            .chain(self.testsets().map(|t| ("a test set's reference", &t.reference)));
+        let references = std::iter::once(("eval.reference", &self.eval.reference)).chain(
+            self.testsets()
+                .map(|t| ("a test set's reference", &t.reference)),
+        );
         for (what, r) in references {
             if let Some(r) = r
                 && !self
@@ -679,17 +681,19 @@ fn plan_cell(
         _ if baseline.is_some() => None,
         (Some(p), _) => Some((*p).clone()),
         (None, true) => Some(run_dir),
-        (None, false) => Some(train_cfg
-            .init
-            .as_ref()
-            .and_then(|i| i.checkpoint.clone())
-            .ok_or_else(|| {
-                cell_err(
-                    "train = false evaluates the config's [init] checkpoint, and it has none; \
+        (None, false) => Some(
+            train_cfg
+                .init
+                .as_ref()
+                .and_then(|i| i.checkpoint.clone())
+                .ok_or_else(|| {
+                    cell_err(
+                        "train = false evaluates the config's [init] checkpoint, and it has none; \
                      give `checkpoint = ...`"
-                        .into(),
-                )
-            })?),
+                            .into(),
+                    )
+                })?,
+        ),
     };
     Ok(CellPlan {
         testset: cfg.testset.dir_for(seed),

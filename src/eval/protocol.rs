@@ -122,7 +122,10 @@ fn scene_testset(
     TestsetSpec {
         name: name.map(Into::into),
         label: None,
-        dir: out.join(format!("data/testset{}", name.map_or(String::new(), |n| format!("_{n}")))),
+        dir: out.join(format!(
+            "data/testset{}",
+            name.map_or(String::new(), |n| format!("_{n}"))
+        )),
         radiance: Some(out.join("data/test_radiance")),
         profile: Some(target.to_path_buf()),
         options: crate::data::testset::TestsetOptions {
@@ -171,7 +174,11 @@ fn colour_iso_config(s: &Sizes, out: &Path, base: &Path, target: &Path) -> Ablat
         out: out.join("colour_iso"),
         base: base.to_path_buf(),
         seeds: s.seeds.to_vec(),
-        pretrained_per_seed: Some(out.join("pretrain/seed{seed}").to_string_lossy().into_owned()),
+        pretrained_per_seed: Some(
+            out.join("pretrain/seed{seed}")
+                .to_string_lossy()
+                .into_owned(),
+        ),
         testset: scene_testset(out, None, target, &TARGET_ISOS, &[-2.0, 0.0, 2.0]),
         also,
         eval: EvalSpec {
@@ -181,7 +188,11 @@ fn colour_iso_config(s: &Sizes, out: &Path, base: &Path, target: &Path) -> Ablat
         },
         rows: vec![
             colour("colour_t", "colour: the target's T", true),
-            colour("colour_identity", "colour: identity (noise, levels, response only)", false),
+            colour(
+                "colour_identity",
+                "colour: identity (noise, levels, response only)",
+                false,
+            ),
         ],
         columns: TARGET_ISOS
             .iter()
@@ -296,10 +307,9 @@ fn learning_curve(run: &Path) -> Result<Vec<CurvePoint>> {
         let (Some(step), Some(val)) = (v["step"].as_u64(), v.get("validation")) else {
             continue;
         };
-        if let (Some(mae), Some(constant)) = (
-            val["weight_mae"].as_f64(),
-            val["weight_mae_const"].as_f64(),
-        ) {
+        if let (Some(mae), Some(constant)) =
+            (val["weight_mae"].as_f64(), val["weight_mae_const"].as_f64())
+        {
             curve.push(CurvePoint {
                 step,
                 mae,
@@ -427,7 +437,11 @@ pub fn run(opts: &Options) -> Result<String> {
         let _ = writeln!(report, "| {test_iso} | {} |", cells.join(" | "));
     }
 
-    stage(progress, began, "Network-1: data, per-seed pretraining, grid");
+    stage(
+        progress,
+        began,
+        "Network-1: data, per-seed pretraining, grid",
+    );
     let pairs = out.join("data/train_pairs");
     let pairs_val = out.join("data/validation_pairs");
     let gen_train = configs.join("train_pairs.toml");
@@ -449,9 +463,13 @@ pub fn run(opts: &Options) -> Result<String> {
             lr: n1.pretrain_lr,
             init: None,
         };
-        write_config(&path, &net1_config(&s, &n1, backend, &pairs, &pairs_val, &st))?;
-        train_resumable(&path, progress)
-            .map_err(|e| Error::context(format!("Network-1 pretraining ({})", path.display()), e))?;
+        write_config(
+            &path,
+            &net1_config(&s, &n1, backend, &pairs, &pairs_val, &st),
+        )?;
+        train_resumable(&path, progress).map_err(|e| {
+            Error::context(format!("Network-1 pretraining ({})", path.display()), e)
+        })?;
         curve_runs.push((format!("Net_O pretraining, seed {k}"), run));
     }
     let base1 = configs.join("network1_finetune.toml");
@@ -504,4 +522,72 @@ pub fn run(opts: &Options) -> Result<String> {
     );
     write(&out.join("protocol.md"), &report)?;
     Ok(report)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The grids the full protocol writes parse back as valid ablation configs and follow
+    /// docs/protocol.md: three seeds with per-seed pretraining, one test set per ISO whose
+    /// reference is the ISO-matched cell, Network-1's two baselines with the constant as the
+    /// reference, and Network-1 pretrained on EV −3/0 pairs with validation on other scenes.
+    #[test]
+    fn the_grids_follow_the_protocol_and_parse_back() {
+        let out = Path::new("/o");
+        let target = out.join("target.toml");
+        let s = quickstart::sizes(Preset::Cpu);
+        let parse = |cfg: &AblateConfig| {
+            let text = toml::to_string(cfg).expect("serialise");
+            AblateConfig::parse(&text, Path::new("grid.toml")).expect(&text)
+        };
+        let colour = parse(&colour_iso_config(
+            &s,
+            out,
+            Path::new("/o/base.toml"),
+            &target,
+        ));
+        assert_eq!(colour.seeds, [1, 2, 3]);
+        assert!(colour.pretrained_per_seed.is_some());
+        assert_eq!(colour.cells().len(), 6);
+        for (t, iso) in colour.also.iter().zip(TARGET_ISOS) {
+            assert_eq!(t.options.isos, [f64::from(iso)]);
+            assert_eq!(
+                t.reference.as_deref(),
+                Some(format!("colour_t__iso{iso}").as_str())
+            );
+            assert!(t.noise_per_seed);
+        }
+        let net1 = parse(&network1_config(&s, out, Path::new("/o/b1.toml"), &target));
+        let names: Vec<&str> = net1.rows.iter().map(|r| r.name.as_str()).collect();
+        assert_eq!(
+            names,
+            [
+                "net_o", "control", "net_r", "net_p", "net_s", "constant", "mertens"
+            ]
+        );
+        assert_eq!(net1.eval.reference.as_deref(), Some("constant"));
+        assert_eq!(net1.testset.options.evs, [-3.0, 0.0]);
+        assert_ne!(net1.testset.dir, colour.testset.dir);
+        let n = net1_sizes(Preset::Cpu);
+        let st = Stage {
+            run: out,
+            seed: 1,
+            profile: &target,
+            isos: &DSLR_ISOS,
+            steps: n.pretrain_steps,
+            lr: n.pretrain_lr,
+            init: None,
+        };
+        let cfg = net1_config(&s, &n, "flex", out, &out.join("val"), &st);
+        cfg.validate().expect("valid Network-1 config");
+        assert!(matches!(cfg.model, ModelConfig::BlendUnet(_)));
+        assert_eq!(
+            cfg.data.target_frames,
+            crate::data::loader::TargetFrames::Clean
+        );
+        assert_ne!(NET1_VALIDATION_SEED, quickstart::TEST_SCENE_SEED);
+        assert_ne!(NET1_VALIDATION_SEED, TRAIN_SCENE_SEED);
+        assert_eq!(pair_config(&s, 1, 2).evs, [-3.0, 0.0]);
+    }
 }

@@ -168,7 +168,12 @@ pub(crate) fn target_profile(target: Option<&Path>) -> Result<(String, String, S
 }
 
 /// Pure synthetic EV −2/0/+2 sets with linear EXRs.
-pub(crate) fn generate_config(s: &Sizes, seed: u64, count: usize, size: (usize, usize)) -> GenerateConfig {
+pub(crate) fn generate_config(
+    s: &Sizes,
+    seed: u64,
+    count: usize,
+    size: (usize, usize),
+) -> GenerateConfig {
     let mut cfg = GenerateConfig::new(seed, count, size, vec![-2.0, 0.0, 2.0]);
     cfg.camera.candidates = if s.train_sets > 64 { 24 } else { 8 };
     cfg
@@ -257,7 +262,11 @@ pub(crate) fn row(name: &str, label: &str, set: toml::Table) -> Axis {
 }
 
 /// `{ data = { profile = …, isos = …, … } }` as an ablation row's `set`.
-pub(crate) fn data_set(profile: &Path, isos: Option<&[u32]>, extra: &[(&str, toml::Value)]) -> toml::Table {
+pub(crate) fn data_set(
+    profile: &Path,
+    isos: Option<&[u32]>,
+    extra: &[(&str, toml::Value)],
+) -> toml::Table {
     let mut data = toml::Table::new();
     data.insert(
         "profile".into(),

@@ -582,6 +582,9 @@ fn validation_set<T: Task>(
     // Validation targets are the configured ones (default: the paper's per-pixel maps), not
     // the training smoothing, so runs with different targets compare.
     lc.target_sigma = v.target_sigma;
+    // Network-1 is always scored against the noise-free render's weights: what it should
+    // predict, whichever frames its training targets came from.
+    lc.target_frames = crate::data::loader::TargetFrames::Clean;
     let l = Loader::new(&lc)?;
     let n = v.samples.min(l.len()) as u64;
     let samples: Vec<Sample> = (0..n).map(|g| l.stream_sample(g)).collect::<Result<_>>()?;
