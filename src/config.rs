@@ -10,6 +10,317 @@ pub fn load_toml<T: DeserializeOwned>(path: &Path) -> Result<T> {
     parse_toml(&text, path)
 }
 
+/// [`load_toml`], then the value's rules (`check`, e.g. the struct's `validate`).
+pub fn load_checked<T: DeserializeOwned>(
+    path: &Path,
+    check: impl FnOnce(&T) -> std::result::Result<(), KeyError>,
+) -> Result<T> {
+    let text = crate::io::guard::read_text(path)?;
+    parse_checked(&text, path, check)
+}
+
+/// [`parse_toml`], then the value's rules: a broken one is an error naming the file, the line
+/// of the key (for a key left at its default, of the table that would hold it) and the key,
+/// `t.toml:12: key 'data.exposure': 0 is out of range (must be > 0)`.
+pub fn parse_checked<T: DeserializeOwned>(
+    text: &str,
+    path: &Path,
+    check: impl FnOnce(&T) -> std::result::Result<(), KeyError>,
+) -> Result<T> {
+    let value: T = parse_toml(text, path)?;
+    check(&value).map_err(|e| e.at(path, Some(text)))?;
+    Ok(value)
+}
+
+/// A parsed value that breaks its rule, with the key as the file spells it (`data.exposure`,
+/// `noise[2].a[0]`). Each config struct's `validate` returns it with keys relative to the
+/// struct; the struct holding it adds its own key ([`KeyError::within`]).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("key '{key}': {msg}")]
+pub struct KeyError {
+    pub key: String,
+    pub msg: String,
+}
+
+impl KeyError {
+    pub fn new(key: impl Into<String>, msg: impl Into<String>) -> KeyError {
+        KeyError {
+            key: key.into(),
+            msg: msg.into(),
+        }
+    }
+
+    /// The same error for the struct found under `prefix` (`optim` + `lr` → `optim.lr`).
+    pub fn within(mut self, prefix: &str) -> KeyError {
+        self.key = match self.key.starts_with('[') {
+            true => format!("{prefix}{}", self.key),
+            false => join_key(prefix, &self.key),
+        };
+        self
+    }
+
+    /// The error for the file `path`, with the key's line where `text` (the file's text)
+    /// spells the key.
+    pub fn at(self, path: &Path, text: Option<&str>) -> Error {
+        match text.and_then(|t| key_line(t, &self.key)) {
+            Some(line) => Error::config(format!("{}:{line}", path.display()), self.to_string()),
+            None => Error::config(path, self.to_string()),
+        }
+    }
+}
+
+/// A rule broken in a value built by code rather than read from a file.
+impl From<KeyError> for Error {
+    fn from(e: KeyError) -> Error {
+        Error::Invalid(e.to_string())
+    }
+}
+
+/// The allowed values of a numeric key: a lower and an upper bound, each closed, open or
+/// absent. Displayed as the message says it: `> 0`, `≥ 1`, `in [0, 1)`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Range {
+    lo: Bound,
+    hi: Bound,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Bound {
+    Unbounded,
+    Closed(f64),
+    Open(f64),
+}
+
+impl Range {
+    /// `> 0`.
+    pub const POSITIVE: Range = Range::above(0.0);
+    /// `≥ 0`.
+    pub const NON_NEGATIVE: Range = Range::at_least(0.0);
+    /// `[0, 1]`: a probability or a fraction.
+    pub const UNIT: Range = Range::closed(0.0, 1.0);
+
+    /// `≥ lo`.
+    pub const fn at_least(lo: f64) -> Range {
+        Range {
+            lo: Bound::Closed(lo),
+            hi: Bound::Unbounded,
+        }
+    }
+    /// `> lo`.
+    pub const fn above(lo: f64) -> Range {
+        Range {
+            lo: Bound::Open(lo),
+            hi: Bound::Unbounded,
+        }
+    }
+    /// `[lo, hi]`.
+    pub const fn closed(lo: f64, hi: f64) -> Range {
+        Range {
+            lo: Bound::Closed(lo),
+            hi: Bound::Closed(hi),
+        }
+    }
+    /// `[lo, hi)`.
+    pub const fn half_open(lo: f64, hi: f64) -> Range {
+        Range {
+            lo: Bound::Closed(lo),
+            hi: Bound::Open(hi),
+        }
+    }
+    /// `(lo, hi)`.
+    pub const fn open(lo: f64, hi: f64) -> Range {
+        Range {
+            lo: Bound::Open(lo),
+            hi: Bound::Open(hi),
+        }
+    }
+    /// `(lo, hi]`.
+    pub const fn left_open(lo: f64, hi: f64) -> Range {
+        Range {
+            lo: Bound::Open(lo),
+            hi: Bound::Closed(hi),
+        }
+    }
+
+    /// Whether `v` lies in the range (never for NaN).
+    pub fn contains(self, v: f64) -> bool {
+        let lo = match self.lo {
+            Bound::Unbounded => !v.is_nan(),
+            Bound::Closed(a) => v >= a,
+            Bound::Open(a) => v > a,
+        };
+        let hi = match self.hi {
+            Bound::Unbounded => !v.is_nan(),
+            Bound::Closed(b) => v <= b,
+            Bound::Open(b) => v < b,
+        };
+        lo && hi
+    }
+}
+
+/// A bound as written: the shortest decimal of its f32 when it is one (a bound taken from an
+/// f32 key prints 0.98, not 0.9800000190734863).
+struct Shortest(f64);
+
+impl std::fmt::Display for Shortest {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let v = self.0;
+        if (v as f32) as f64 == v {
+            write!(f, "{}", v as f32)
+        } else {
+            write!(f, "{v}")
+        }
+    }
+}
+
+impl std::fmt::Display for Range {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        use Bound::*;
+        let (lo, hi) = (self.lo, self.hi);
+        let n = Shortest;
+        match (lo, hi) {
+            (Unbounded, Unbounded) => f.write_str("a finite number"),
+            (Closed(a), Unbounded) => write!(f, "≥ {}", n(a)),
+            (Open(a), Unbounded) => write!(f, "> {}", n(a)),
+            (Unbounded, Closed(b)) => write!(f, "≤ {}", n(b)),
+            (Unbounded, Open(b)) => write!(f, "< {}", n(b)),
+            (lo, hi) => {
+                let (l, a) = match lo {
+                    Closed(a) => ('[', a),
+                    Open(a) => ('(', a),
+                    Unbounded => unreachable!("bounded above and below"),
+                };
+                let (r, b) = match hi {
+                    Closed(b) => (']', b),
+                    Open(b) => (')', b),
+                    Unbounded => unreachable!("bounded above and below"),
+                };
+                write!(f, "in {l}{}, {}{r}", n(a), n(b))
+            }
+        }
+    }
+}
+
+/// A number a config holds, as its range rule sees it.
+pub trait Number: Copy + std::fmt::Display {
+    fn as_f64(self) -> f64;
+}
+
+macro_rules! number {
+    ($($t:ty),*) => {$(
+        impl Number for $t {
+            fn as_f64(self) -> f64 {
+                self as f64
+            }
+        }
+    )*};
+}
+number!(f32, f64, u32, u64, usize, i64);
+
+/// Error naming `key` unless `value` lies in `range`:
+/// `key 'optim.lr': 0 is out of range (must be in (0, 1])`.
+pub fn in_range(key: &str, value: impl Number, range: Range) -> std::result::Result<(), KeyError> {
+    check(key, value, range, "")
+}
+
+/// [`in_range`] with what the bound protects in the parentheses (`… (must be ≥ 0: a negative
+/// one grows the weights)`).
+pub fn in_range_because(
+    key: &str,
+    value: impl Number,
+    range: Range,
+    why: &str,
+) -> std::result::Result<(), KeyError> {
+    check(key, value, range, why)
+}
+
+fn check(
+    key: &str,
+    value: impl Number,
+    range: Range,
+    why: &str,
+) -> std::result::Result<(), KeyError> {
+    if range.contains(value.as_f64()) {
+        return Ok(());
+    }
+    let why = match why {
+        "" => String::new(),
+        w => format!(": {w}"),
+    };
+    Err(KeyError::new(
+        key,
+        format!("{value} is out of range (must be {range}{why})"),
+    ))
+}
+
+/// [`in_range`] for every element of the array `key` (errors name `key[i]`).
+pub fn each_in_range<T: Number>(
+    key: &str,
+    values: &[T],
+    range: Range,
+) -> std::result::Result<(), KeyError> {
+    values
+        .iter()
+        .enumerate()
+        .try_for_each(|(i, &v)| in_range(&format!("{key}[{i}]"), v, range))
+}
+
+/// The 1-based line of the value of the key path `key` (`a.b[2].c`) in the TOML `text`, or of
+/// its deepest ancestor the text holds; None when not even its first part is there.
+fn key_line(text: &str, key: &str) -> Option<usize> {
+    use toml::de::DeValue;
+    let doc = toml::de::DeTable::parse(text).ok()?;
+    let mut parts = key_parts(key)?.into_iter();
+    let Some(Part::Key(first)) = parts.next() else {
+        return None;
+    };
+    let mut cur = doc
+        .get_ref()
+        .iter()
+        .find(|(name, _)| name.get_ref().as_ref() == first)?
+        .1;
+    // As deep as the text spells the key: a key left at its default is placed at the table
+    // that would hold it.
+    for part in parts {
+        let next = match (part, cur.get_ref()) {
+            (Part::Key(k), DeValue::Table(t)) => t
+                .iter()
+                .find(|(name, _)| name.get_ref().as_ref() == k)
+                .map(|(_, v)| v),
+            (Part::Index(i), DeValue::Array(a)) => a.get(i),
+            _ => None,
+        };
+        match next {
+            Some(v) => cur = v,
+            None => break,
+        }
+    }
+    let start = cur.span().start.min(text.len());
+    Some(text[..start].matches('\n').count() + 1)
+}
+
+enum Part<'a> {
+    Key(&'a str),
+    Index(usize),
+}
+
+/// `a.b[2][0].c` → a, b, 2, 0, c.
+fn key_parts(key: &str) -> Option<Vec<Part<'_>>> {
+    let mut out = Vec::new();
+    for seg in key.split('.') {
+        let (name, mut rest) = seg.split_once('[').unwrap_or((seg, ""));
+        if !name.is_empty() {
+            out.push(Part::Key(name));
+        }
+        while !rest.is_empty() {
+            let (i, after) = rest.split_once(']')?;
+            out.push(Part::Index(i.parse().ok()?));
+            rest = after.strip_prefix('[').unwrap_or(after);
+        }
+    }
+    Some(out)
+}
+
 /// Parse TOML text into `T`; errors name `path`, the line and, where the text has one there,
 /// the key (`file:line: key 'run.steps': invalid type …`). Every float in the text must be
 /// finite: TOML spells NaN and infinities (`nan`, `inf`) and no setting of the tool means
@@ -240,4 +551,87 @@ pub fn struct_fields<'de, T: serde::Deserialize<'de>>() -> &'static [&'static st
     let mut fields: &'static [&'static str] = &[];
     let _ = T::deserialize(Probe(&mut fields));
     fields
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const TEXT: &str = "seed = 1\n\n[data]\nexposure = 0.5\nisos = [\n  100,\n  200,\n]\n\n\
+                        [[noise]]\niso = 100.0\na = [1, 2, 3]\n\n[[noise]]\niso = 200.0\n";
+
+    #[test]
+    fn a_key_path_is_found_at_the_line_of_its_value() {
+        for (key, line) in [
+            ("seed", Some(1)),
+            ("data.exposure", Some(4)),
+            ("data.isos[1]", Some(7)),
+            ("noise[0].a[2]", Some(12)),
+            ("noise[1].iso", Some(15)),
+            // Not in the text: the deepest ancestor that is, a table at its header.
+            ("noise[1].a[0]", Some(14)),
+            ("data.metering.mid_grey", Some(3)),
+            ("optim.lr", None),
+        ] {
+            assert_eq!(key_line(TEXT, key), line, "{key}");
+        }
+    }
+
+    #[test]
+    fn ranges_test_and_print_their_bounds() {
+        let cases = [
+            (Range::POSITIVE, "> 0", [(0.0, false), (1e-300, true)]),
+            (Range::at_least(1.0), "≥ 1", [(0.5, false), (1.0, true)]),
+            (
+                Range::half_open(0.0, 1.0),
+                "in [0, 1)",
+                [(1.0, false), (0.0, true)],
+            ),
+            (
+                Range::left_open(0.0, 1.0),
+                "in (0, 1]",
+                [(0.0, false), (1.0, true)],
+            ),
+            (
+                Range::open(0.0, 0.98f32 as f64),
+                "in (0, 0.98)",
+                [(0.98f32 as f64, false), (0.5, true)],
+            ),
+            (
+                Range::closed(-1.0, 1e-3),
+                "in [-1, 0.001]",
+                [(0.0011, false), (-1.0, true)],
+            ),
+        ];
+        for (r, text, probes) in cases {
+            assert_eq!(r.to_string(), text);
+            for (v, inside) in probes {
+                assert_eq!(r.contains(v), inside, "{text} {v}");
+            }
+            assert!(!r.contains(f64::NAN), "{text}");
+        }
+    }
+
+    #[test]
+    fn a_broken_rule_names_file_line_key_and_range() {
+        let e = in_range("exposure", 0.0f64, Range::POSITIVE)
+            .unwrap_err()
+            .within("data");
+        assert_eq!(e.key, "data.exposure");
+        assert_eq!(
+            e.at(Path::new("t.toml"), Some(TEXT)).to_string(),
+            "t.toml:4: key 'data.exposure': 0 is out of range (must be > 0)"
+        );
+        let e = in_range_because("lr", 2.0f64, Range::left_open(0.0, 1.0), "why").unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "key 'lr': 2 is out of range (must be in (0, 1]: why)"
+        );
+        let e = each_in_range("isos", &[100.0, -1.0], Range::POSITIVE).unwrap_err();
+        assert_eq!(e.key, "isos[1]");
+        assert_eq!(
+            e.at(Path::new("t.toml"), None).to_string(),
+            "t.toml: key 'isos[1]': -1 is out of range (must be > 0)"
+        );
+    }
 }

@@ -1,6 +1,6 @@
 //! Hostile and careless inputs, and runs cut short: crafted files (a few hundred bytes at most,
 //! made here, none committed), resumed and repeated training runs, corrupted checkpoints,
-//! FIFOs where files belong, and non-finite config values. docs/reliability.md lists the
+//! FIFOs where files belong, and non-finite or out-of-range config values. docs/reliability.md lists the
 //! classes and the test of each.
 
 mod common;
@@ -332,23 +332,65 @@ fn bin() -> std::process::Command {
     std::process::Command::new(env!("CARGO_BIN_EXE_hdrsynth"))
 }
 
+/// `hdrsynth realism --iso 100 --profile PROFILE --in INPUT --out OUT`.
+fn realism_cmd(profile: &Path, input: &Path, out: &Path) -> std::process::Command {
+    let mut c = bin();
+    c.args(["realism", "--iso", "100", "--profile"])
+        .arg(profile)
+        .arg("--in")
+        .arg(input)
+        .arg("--out")
+        .arg(out);
+    c
+}
+
+/// The shipped synthetic example profile (no real device's numbers).
+fn example_profile() -> PathBuf {
+    SensorProfile::shipped_dir().join("example_synthetic.toml")
+}
+
+/// Run `cmd` to its end and return its status and stderr; a run still going after `secs` is
+/// killed and fails the test as `what` (a command that waits on a FIFO or ignores a lock).
+fn finish_within(
+    mut cmd: std::process::Command,
+    secs: u64,
+    what: &str,
+) -> (std::process::ExitStatus, String) {
+    let mut child = cmd
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("spawn");
+    // stderr is read on a thread so that a chatty child cannot block on a full pipe.
+    let mut pipe = child.stderr.take().unwrap();
+    let reader = std::thread::spawn(move || {
+        let mut err = String::new();
+        let _ = std::io::Read::read_to_string(&mut pipe, &mut err);
+        err
+    });
+    let t0 = std::time::Instant::now();
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        if t0.elapsed().as_secs() > secs {
+            child.kill().unwrap();
+            child.wait().unwrap();
+            panic!("{what}: still running after {secs} s");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    };
+    (status, reader.join().unwrap())
+}
+
 #[test]
 fn realism_refuses_to_write_into_its_input() {
     let dir = tempfile::tempdir().unwrap();
     let x = dir.path().join("x");
     write_ldr(&x.join("f.png"), &Image::new(8, 8), BitDepth::Eight).unwrap();
     let before = std::fs::read(x.join("f.png")).unwrap();
-    let profile = SensorProfile::shipped_dir().join("example_synthetic.toml");
     for out in [x.clone(), x.join("out")] {
-        let o = bin()
-            .args(["realism", "--iso", "100", "--profile"])
-            .arg(&profile)
-            .arg("--in")
-            .arg(&x)
-            .arg("--out")
-            .arg(&out)
-            .output()
-            .unwrap();
+        let o = realism_cmd(&example_profile(), &x, &out).output().unwrap();
         let err = String::from_utf8_lossy(&o.stderr);
         assert!(!o.status.success() && err.contains("input"), "{err}");
     }
@@ -475,13 +517,17 @@ fn eval_refuses_a_locked_output() {
     assert_refused_lock(&out, &e.to_string(), &before);
 }
 
-#[test]
-fn testset_refuses_a_locked_output() {
-    let dir = tempfile::tempdir().unwrap();
-    let src = dir.path().join("radiance");
+/// A 24×16 radiance ramp over 8 stops.
+fn radiance_ramp() -> Image {
+    Image::from_fn(24, 16, |x, _| [(x as f32 / 3.0 - 4.0).exp2(); 3])
+}
+
+/// `dir/radiance` holding the ramp as `a.exr`; test-set options at ISO 100 without noise; the
+/// shipped Canon profile.
+fn testset_inputs(dir: &Path) -> (PathBuf, TestsetOptions, SensorProfile) {
+    let src = dir.join("radiance");
     std::fs::create_dir_all(&src).unwrap();
-    let ramp = Image::from_fn(24, 16, |x, _| [(x as f32 / 3.0 - 4.0).exp2(); 3]);
-    write_exr(&src.join("a.exr"), &ramp, ExrPrecision::Float).unwrap();
+    write_exr(&src.join("a.exr"), &radiance_ramp(), ExrPrecision::Float).unwrap();
     let opts = TestsetOptions {
         isos: vec![100.0],
         noise: NoiseModel::None,
@@ -489,6 +535,13 @@ fn testset_refuses_a_locked_output() {
     };
     let profile =
         SensorProfile::load(&SensorProfile::shipped_dir().join("canon_eos_550d.toml")).unwrap();
+    (src, opts, profile)
+}
+
+#[test]
+fn testset_refuses_a_locked_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let (src, opts, profile) = testset_inputs(dir.path());
     let out = dir.path().join("ts");
     let (_held, before) = locked_output(&out);
     let e = testset::build(&src, &profile, &opts, &out).expect_err("locked");
@@ -548,67 +601,35 @@ fn the_cli_writers_refuse_a_locked_output() {
     let dir = tempfile::tempdir().unwrap();
     let x = dir.path().join("x");
     write_ldr(&x.join("f.png"), &Image::new(8, 8), BitDepth::Eight).unwrap();
-    let profile = SensorProfile::shipped_dir().join("example_synthetic.toml");
     let out = dir.path().join("out");
     let (_held, before) = locked_output(&out);
-    let p = |p: &Path| p.display().to_string();
-    let commands: Vec<Vec<String>> = vec![
-        vec![
-            "realism".into(),
-            "--iso".into(),
-            "100".into(),
-            "--profile".into(),
-            p(&profile),
-            "--in".into(),
-            p(&x),
-            "--out".into(),
-            p(&out),
-        ],
-        vec![
-            "infer".into(),
-            "--checkpoint".into(),
-            p(&dir.path().join("run")),
-            "--inputs".into(),
-            p(&x.join("f.png")),
-            p(&x.join("f.png")),
-            "--out".into(),
-            p(&out),
-        ],
-        vec![
-            "diagnose".into(),
-            p(&dir.path().join("captures.toml")),
-            "--out".into(),
-            p(&out),
-        ],
-        vec![
-            "quickstart".into(),
-            "--quiet".into(),
-            "--out".into(),
-            p(&out),
-        ],
+    let mut infer = bin();
+    infer
+        .args(["infer", "--checkpoint"])
+        .arg(dir.path().join("run"))
+        .arg("--inputs")
+        .args([x.join("f.png"), x.join("f.png")])
+        .arg("--out")
+        .arg(&out);
+    let mut diagnose = bin();
+    diagnose
+        .arg("diagnose")
+        .arg(dir.path().join("captures.toml"))
+        .arg("--out")
+        .arg(&out);
+    let mut quickstart = bin();
+    quickstart
+        .args(["quickstart", "--quiet", "--out"])
+        .arg(&out);
+    let commands = [
+        ("realism", realism_cmd(&example_profile(), &x, &out)),
+        ("infer", infer),
+        ("diagnose", diagnose),
+        ("quickstart", quickstart),
     ];
-    for args in commands {
-        let mut child = bin()
-            .args(&args)
-            .stdout(std::process::Stdio::null())
-            .stderr(std::process::Stdio::piped())
-            .spawn()
-            .unwrap();
-        let t0 = std::time::Instant::now();
-        let status = loop {
-            if let Some(s) = child.try_wait().unwrap() {
-                break s;
-            }
-            if t0.elapsed().as_secs() > 60 {
-                child.kill().unwrap();
-                child.wait().unwrap();
-                panic!("`hdrsynth {}` ignored the lock and ran on", args[0]);
-            }
-            std::thread::sleep(std::time::Duration::from_millis(50));
-        };
-        let mut err = String::new();
-        std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut err).unwrap();
-        assert!(!status.success(), "{}: {err}", args[0]);
+    for (what, cmd) in commands {
+        let (status, err) = finish_within(cmd, 60, &format!("{what} ignored the lock"));
+        assert!(!status.success(), "{what}: {err}");
         assert_refused_lock(&out, &err, &before);
     }
 }
@@ -651,16 +672,7 @@ fn a_failed_realism_leaves_no_output() {
     write_ldr(&x.join("a.png"), &Image::new(8, 8), BitDepth::Eight).unwrap();
     std::fs::write(x.join("b.png"), b"not a png").unwrap();
     let out = dir.path().join("out");
-    let profile = SensorProfile::shipped_dir().join("example_synthetic.toml");
-    let o = bin()
-        .args(["realism", "--iso", "100", "--profile"])
-        .arg(&profile)
-        .arg("--in")
-        .arg(&x)
-        .arg("--out")
-        .arg(&out)
-        .output()
-        .unwrap();
+    let o = realism_cmd(&example_profile(), &x, &out).output().unwrap();
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && err.contains("b.png"), "{err}");
     assert!(!out.exists(), "realism left a partial output");
@@ -673,19 +685,9 @@ fn a_failed_realism_leaves_no_output() {
 #[test]
 fn a_testset_failing_on_its_second_file_leaves_nothing_and_resumes() {
     let dir = tempfile::tempdir().unwrap();
-    let src = dir.path().join("radiance");
-    std::fs::create_dir_all(&src).unwrap();
-    let ramp = Image::from_fn(24, 16, |x, _| [(x as f32 / 3.0 - 4.0).exp2(); 3]);
-    write_exr(&src.join("a.exr"), &ramp, ExrPrecision::Float).unwrap();
+    let (src, mut opts, profile) = testset_inputs(dir.path());
     std::fs::write(src.join("b.exr"), b"not an exr").unwrap();
-    let opts = TestsetOptions {
-        isos: vec![100.0],
-        evs: vec![-2.0, 0.0, 2.0],
-        noise: NoiseModel::None,
-        ..TestsetOptions::default()
-    };
-    let profile =
-        SensorProfile::load(&SensorProfile::shipped_dir().join("canon_eos_550d.toml")).unwrap();
+    opts.evs = vec![-2.0, 0.0, 2.0];
     let out = dir.path().join("ts");
     let e = testset::build(&src, &profile, &opts, &out)
         .unwrap_err()
@@ -694,7 +696,7 @@ fn a_testset_failing_on_its_second_file_leaves_nothing_and_resumes() {
     assert!(!out.exists(), "a 1-set test set was left here");
     assert!(layout::detect(&out).is_err());
     // Fixed input, same command: the staged first set is kept, the second added.
-    write_exr(&src.join("b.exr"), &ramp, ExrPrecision::Float).unwrap();
+    write_exr(&src.join("b.exr"), &radiance_ramp(), ExrPrecision::Float).unwrap();
     let s = testset::build(&src, &profile, &opts, &out).unwrap();
     let written: Vec<bool> = s.sets.iter().map(|s| s.written).collect();
     assert_eq!(written, vec![false, true]);
@@ -707,7 +709,7 @@ fn a_testset_failing_on_its_second_file_leaves_nothing_and_resumes() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Values that make no sense are errors naming the key and the file.
+// Values that make no sense are errors naming the file, the line and the key.
 
 fn write_cfg(dir: &Path, name: &str, text: &str) -> PathBuf {
     let p = dir.join(name);
@@ -715,54 +717,585 @@ fn write_cfg(dir: &Path, name: &str, text: &str) -> PathBuf {
     p
 }
 
-#[test]
-fn nonsense_generate_values_are_errors_naming_key_and_file() {
-    let dir = tempfile::tempdir().unwrap();
-    let base = "seed = 1\ncount = 1\nwidth = 32\nheight = 32\n";
-    for (key, extra) in [
-        ("evs", "evs = [-300.0, 0.0]\n"),
-        (
-            "camera.candidates",
-            "evs = [-3.0, 0.0]\n[camera]\ncandidates = 0\n",
-        ),
-        (
-            "scene.min_dynamic_range",
-            "evs = [-3.0, 0.0]\n[scene]\nmin_dynamic_range = 1000.0\n",
-        ),
-        (
-            "scene.real_background_probability",
-            "evs = [-3.0, 0.0]\n[scene]\nreal_background_probability = 1.0\n",
-        ),
-    ] {
-        let p = write_cfg(dir.path(), "g.toml", &format!("{base}{extra}"));
-        let e = hdrsynth::data::generate::GenerateConfig::load(&p)
-            .expect_err(key)
-            .to_string();
-        assert!(e.contains(key) && e.contains("g.toml"), "{key}: {e}");
-    }
-    // The shipped configs (probability 0.5, backgrounds commented out) stay valid.
-    let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/generate.toml");
-    hdrsynth::data::generate::GenerateConfig::load(&shipped).expect("configs/generate.toml");
+/// What a shipped config file is, by its top-level keys.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Kind {
+    Train,
+    Generate,
+    Profile,
+    Ablate,
 }
 
+/// Every file under configs/ with its kind; a file of no known kind fails the test, so a new
+/// kind of config cannot slip past the tests below.
+fn shipped_configs() -> Vec<(PathBuf, Kind)> {
+    let mut todo = vec![Path::new(env!("CARGO_MANIFEST_DIR")).join("configs")];
+    let mut out = Vec::new();
+    while let Some(dir) = todo.pop() {
+        for entry in std::fs::read_dir(&dir).unwrap() {
+            let p = entry.unwrap().path();
+            if p.is_dir() {
+                todo.push(p);
+                continue;
+            }
+            let doc: toml::Table = toml::from_str(&std::fs::read_to_string(&p).unwrap()).unwrap();
+            let kind = if doc.contains_key("run") {
+                Kind::Train
+            } else if doc.contains_key("base") {
+                Kind::Ablate
+            } else if doc.contains_key("levels") {
+                Kind::Profile
+            } else if doc.contains_key("count") {
+                Kind::Generate
+            } else {
+                panic!("{}: a config of no known kind", p.display())
+            };
+            out.push((p, kind));
+        }
+    }
+    out.sort_by(|a, b| a.0.cmp(&b.0));
+    out
+}
+
+/// The key paths (`a.b[2]`) of every number in `v`, each with whether it is an integer.
+fn numbers(v: &toml::Value, key: &str, out: &mut Vec<(String, bool)>) {
+    match v {
+        toml::Value::Float(_) => out.push((key.to_string(), false)),
+        toml::Value::Integer(_) => out.push((key.to_string(), true)),
+        toml::Value::Table(t) => {
+            for (k, x) in t {
+                let k = match key {
+                    "" => k.clone(),
+                    _ => format!("{key}.{k}"),
+                };
+                numbers(x, &k, out);
+            }
+        }
+        toml::Value::Array(a) => {
+            for (i, x) in a.iter().enumerate() {
+                numbers(x, &format!("{key}[{i}]"), out);
+            }
+        }
+        _ => {}
+    }
+}
+
+/// Set the key path `key` (`a.b[2].c`) of `v` to `to`, creating missing tables.
+fn toml_set(v: &mut toml::Value, key: &str, to: toml::Value) {
+    let mut parts = Vec::new();
+    for seg in key.split('.') {
+        let mut it = seg.split('[');
+        parts.push(Ok(it.next().unwrap()));
+        parts.extend(it.map(|i| Err(i.trim_end_matches(']').parse::<usize>().unwrap())));
+    }
+    let (last, path) = parts.split_last().unwrap();
+    let mut cur = v;
+    for p in path {
+        cur = match p {
+            Ok(name) => cur
+                .as_table_mut()
+                .unwrap()
+                .entry(name.to_string())
+                .or_insert_with(|| toml::Value::Table(toml::Table::new())),
+            Err(i) => &mut cur.as_array_mut().unwrap()[*i],
+        };
+    }
+    match last {
+        Ok(name) => {
+            cur.as_table_mut().unwrap().insert(name.to_string(), to);
+        }
+        Err(i) => cur.as_array_mut().unwrap()[*i] = to,
+    }
+}
+
+/// A TOML value written as in a file (`0.5`, `"unet"`, `[1, 2]`, `{ kind = "lut" }`).
+fn toml_literal(text: &str) -> toml::Value {
+    let t: toml::Table = toml::from_str(&format!("v = {text}")).unwrap();
+    t["v"].clone()
+}
+
+/// The value rules of `text` as a config of `kind`: Err when it does not parse, else the
+/// struct's own `validate`.
+fn rules_of(
+    kind: Kind,
+    text: &str,
+    path: &Path,
+) -> Result<Result<(), hdrsynth::config::KeyError>, String> {
+    use hdrsynth::config::parse_toml;
+    use hdrsynth::data::generate::GenerateConfig;
+    use hdrsynth::train::config::TrainConfig;
+    let e = |e: hdrsynth::error::Error| e.to_string();
+    match kind {
+        Kind::Train => parse_toml::<TrainConfig>(text, path)
+            .map(|c| c.validate())
+            .map_err(e),
+        Kind::Generate => parse_toml::<GenerateConfig>(text, path)
+            .map(|c| c.validate())
+            .map_err(e),
+        Kind::Profile => parse_toml::<SensorProfile>(text, path)
+            .map(|c| c.validate())
+            .map_err(e),
+        Kind::Ablate => hdrsynth::eval::ablate::AblateConfig::parse(text, path)
+            .map(|_| Ok(()))
+            .map_err(e),
+    }
+}
+
+/// The message a user gets for `text` as the file `path` of `kind` (each kind's loader parses
+/// and checks through `config::parse_checked`), None when it is accepted.
+fn load_message(kind: Kind, text: &str, path: &Path) -> Option<String> {
+    use hdrsynth::config::parse_checked;
+    use hdrsynth::data::generate::GenerateConfig;
+    use hdrsynth::train::config::TrainConfig;
+    let e = |e: hdrsynth::error::Error| e.to_string();
+    match kind {
+        Kind::Train => parse_checked(text, path, TrainConfig::validate)
+            .err()
+            .map(e),
+        Kind::Generate => parse_checked(text, path, GenerateConfig::validate)
+            .err()
+            .map(e),
+        Kind::Profile => parse_checked(text, path, SensorProfile::validate)
+            .err()
+            .map(e),
+        Kind::Ablate => rules_of(kind, text, path).err(),
+    }
+}
+
+/// `msg` names `file` with a line (`name:12:`) and the key.
+fn assert_names_line_and_key(msg: &str, file: &Path, key: &str) {
+    let name = file.file_name().unwrap().to_string_lossy();
+    let at = format!("{name}:");
+    let line = msg
+        .find(&at)
+        .map(|i| &msg[i + at.len()..])
+        .is_some_and(|rest| rest.starts_with(|c: char| c.is_ascii_digit()));
+    assert!(
+        line && msg.contains(&format!("key '{key}': ")),
+        "should name {name}:LINE and '{key}': {msg}"
+    );
+}
+
+/// A numeric key's range rule as the test knows it (`[]` stands for any index): values outside
+/// it, and, for a key no shipped file holds, the keys and valid values that add it.
+struct Rule {
+    kind: Kind,
+    key: &'static str,
+    bad: &'static [f64],
+    setup: &'static [(&'static str, &'static str)],
+}
+
+const fn rule(kind: Kind, key: &'static str, bad: &'static [f64]) -> Rule {
+    Rule {
+        kind,
+        key,
+        bad,
+        setup: &[],
+    }
+}
+
+/// Numeric keys without a range: any value is meaningful.
+const UNBOUNDED: &[(Kind, &str)] = &[
+    (Kind::Train, "run.seed"),
+    (Kind::Generate, "seed"),
+    // Any warm-up length works (one longer than the run never reaches optim.lr).
+    (Kind::Train, "schedule.warmup_steps"),
+];
+
+const RULES: &[Rule] = {
+    use Kind::*;
+    &[
+        rule(Train, "run.steps", &[0.0]),
+        rule(Train, "run.checkpoint_every", &[0.0]),
+        rule(Train, "run.keep_checkpoints", &[0.0]),
+        rule(Train, "run.log_every", &[0.0]),
+        rule(Train, "model.base_width", &[0.0]),
+        rule(Train, "model.depth", &[11.0]),
+        rule(Train, "model.classes", &[1.0, 257.0]),
+        rule(Train, "model.res_blocks", &[65.0]),
+        rule(Train, "model.hdr_input_scale", &[0.0, -0.25, 1.5]),
+        Rule {
+            setup: &[
+                ("model.variant", "\"unet\""),
+                ("model.unet_merger_widths", "[4, 8, 8]"),
+            ],
+            ..rule(Train, "model.unet_merger_widths[]", &[0.0])
+        },
+        rule(Train, "data.patch", &[4.0, 30.0]),
+        rule(Train, "data.batch_size", &[0.0]),
+        rule(Train, "data.workers", &[0.0]),
+        rule(Train, "data.isos[]", &[0.0, -100.0]),
+        rule(Train, "data.exposure", &[0.0, -1.0]),
+        Rule {
+            setup: &[("data.ev_jitter", "0.5")],
+            ..rule(Train, "data.ev_jitter", &[-0.5, 5.0])
+        },
+        Rule {
+            setup: &[("data.metering.mid_grey", "0.128")],
+            ..rule(Train, "data.metering.mid_grey", &[0.0, 1.0])
+        },
+        Rule {
+            setup: &[("data.metering.max_clipped", "0.02")],
+            ..rule(Train, "data.metering.max_clipped", &[-0.1, 0.5])
+        },
+        rule(Train, "data.target_sigma", &[-1.0]),
+        rule(Train, "optim.lr", &[0.0, -1e-4]),
+        Rule {
+            setup: &[("optim.beta1", "0.9")],
+            ..rule(Train, "optim.beta1", &[-0.1, 1.0])
+        },
+        rule(Train, "optim.beta2", &[-0.1, 1.0]),
+        rule(Train, "optim.epsilon", &[0.0, -1.0]),
+        Rule {
+            setup: &[("optim.weight_decay", "0.0")],
+            ..rule(Train, "optim.weight_decay", &[-5.0])
+        },
+        Rule {
+            setup: &[("schedule.every", "100")],
+            ..rule(Train, "schedule.every", &[0.0])
+        },
+        Rule {
+            setup: &[("schedule.gamma", "0.5")],
+            ..rule(Train, "schedule.gamma", &[0.0, 1.5])
+        },
+        rule(Train, "schedule.min_lr", &[-1e-6, 1.0]),
+        rule(Train, "loss.alpha_samples", &[0.0]),
+        Rule {
+            setup: &[("loss.label_sigma", "8.0")],
+            ..rule(Train, "loss.label_sigma", &[0.0, 300.0])
+        },
+        rule(Train, "validation.every", &[0.0]),
+        rule(Train, "validation.samples", &[0.0]),
+        rule(Train, "validation.patch", &[4.0]),
+        Rule {
+            setup: &[("validation.target_sigma", "0.0")],
+            ..rule(Train, "validation.target_sigma", &[-1.0])
+        },
+        rule(Generate, "count", &[0.0]),
+        rule(Generate, "width", &[8.0, 5000.0]),
+        rule(Generate, "height", &[8.0, 5000.0]),
+        rule(Generate, "evs[]", &[17.0, -17.0]),
+        rule(Generate, "bit_depth", &[12.0]),
+        rule(Generate, "scene.subjects[]", &[65.0]),
+        rule(Generate, "scene.articulated_fraction", &[-0.1, 1.1]),
+        rule(Generate, "scene.motion_scale", &[-1.0, 11.0]),
+        rule(Generate, "scene.real_background_probability", &[-0.1, 1.1]),
+        rule(Generate, "scene.min_dynamic_range", &[-1.0, 33.0]),
+        rule(Generate, "camera.target_over", &[-0.1, 1.0]),
+        rule(Generate, "camera.target_under", &[-0.1, 1.0]),
+        rule(Generate, "camera.over_threshold", &[0.0, 1.0]),
+        rule(Generate, "camera.under_threshold", &[0.0, 1.0]),
+        rule(Generate, "camera.candidates", &[0.0]),
+        rule(Profile, "levels.black_level", &[-1.0, 70000.0]),
+        rule(Profile, "levels.white_level", &[0.0, 70000.0]),
+        rule(Profile, "levels.bit_depth", &[0.0, 17.0]),
+        rule(Profile, "noise[].iso", &[0.0, -100.0]),
+        rule(Profile, "noise[].a[]", &[2.0, -2.0]),
+        rule(Profile, "noise[].b[]", &[2.0, -2.0]),
+        Rule {
+            setup: &[("noise[0].a_stderr", "[1e-7, 1e-7, 1e-7]")],
+            ..rule(Profile, "noise[].a_stderr[]", &[-1e-7])
+        },
+        Rule {
+            setup: &[("noise[0].b_stderr", "[1e-9, 1e-9, 1e-9]")],
+            ..rule(Profile, "noise[].b_stderr[]", &[-1e-9])
+        },
+        rule(Profile, "colour.matrix[][]", &[11.0, -11.0]),
+        Rule {
+            setup: &[(
+                "colour.root_polynomial",
+                "[[1.0, 0, 0, 0, 0, 0], [0, 1.0, 0, 0, 0, 0], [0, 0, 1.0, 0, 0, 0]]",
+            )],
+            ..rule(Profile, "colour.root_polynomial[][]", &[11.0])
+        },
+        rule(Profile, "response.gamma", &[0.0, 11.0]),
+        Rule {
+            setup: &[("source_response", "{ kind = \"gamma\", gamma = 2.2 }")],
+            ..rule(Profile, "source_response.gamma", &[0.0, 11.0])
+        },
+        Rule {
+            setup: &[("response", "{ kind = \"lut\", lut = [0.0, 0.5, 1.0] }")],
+            ..rule(Profile, "response.lut[]", &[1.5, -0.1])
+        },
+    ]
+};
+
+/// `a[2].b[10]` → `a[].b[]`.
+fn key_pattern(key: &str) -> String {
+    let mut out = String::new();
+    let mut skipping = false;
+    for c in key.chars() {
+        match c {
+            '[' => {
+                skipping = true;
+                out.push('[');
+            }
+            ']' => {
+                skipping = false;
+                out.push(']');
+            }
+            _ if skipping => {}
+            _ => out.push(c),
+        }
+    }
+    out
+}
+
+/// Every numeric key of `doc` (a config of `kind` read from `file`) set in turn to each value
+/// outside its rule's range: refused, naming that key (or, for an EV list losing its 0, the
+/// list), and the user's message names the file, the line and the key. `only`: just that rule.
+/// Counts the cases per rule into `hits`.
+fn check_ranges(
+    kind: Kind,
+    file: &Path,
+    doc: &toml::Value,
+    only: Option<usize>,
+    hits: &mut [usize],
+) {
+    let mut keys = Vec::new();
+    numbers(doc, "", &mut keys);
+    for (key, integer) in keys {
+        let pattern = key_pattern(&key);
+        if UNBOUNDED.contains(&(kind, pattern.as_str())) {
+            continue;
+        }
+        let i = RULES
+            .iter()
+            .position(|r| r.kind == kind && r.key == pattern)
+            .unwrap_or_else(|| panic!("{}: no range rule for {kind:?} key {key}", file.display()));
+        if only.is_some_and(|o| o != i) {
+            continue;
+        }
+        for &bad in RULES[i].bad {
+            let mut d = doc.clone();
+            let value = match integer {
+                true => toml::Value::Integer(bad as i64),
+                false => toml::Value::Float(bad),
+            };
+            toml_set(&mut d, &key, value);
+            let text = toml::to_string(&d).unwrap();
+            let e = rules_of(kind, &text, file)
+                .unwrap_or_else(|e| panic!("{}: {key} = {bad} does not parse: {e}", file.display()))
+                .expect_err(&format!("{}: {key} = {bad} accepted", file.display()));
+            let list = key.rsplit_once('[').map_or(key.as_str(), |(l, _)| l);
+            assert!(
+                e.key == key || (e.key == list && list == "evs"),
+                "{}: {key} = {bad} blamed '{}': {e}",
+                file.display(),
+                e.key
+            );
+            let msg = load_message(kind, &text, file).expect("refused");
+            assert_names_line_and_key(&msg, file, &e.key);
+            println!("{key} = {bad}: {msg}");
+            hits[i] += 1;
+        }
+    }
+}
+
+/// Every shipped config and profile parses and passes its rules; every number in them has a
+/// range rule (or is listed as unbounded), and each value outside it is refused naming the
+/// file, the line and the key. Keys no shipped file holds are added to the first file of
+/// their kind that takes them.
 #[test]
-fn nonsense_optimiser_values_are_errors_naming_key_and_file() {
-    let dir = tempfile::tempdir().unwrap();
-    for (key, line) in [
-        ("optim.epsilon", "epsilon = -1.0"),
-        ("optim.weight_decay", "weight_decay = -5.0"),
-    ] {
-        let text = format!(
-            "[run]\nout = \"r\"\nseed = 1\nsteps = 2\ncheckpoint_every = 1\nlog_every = 1\n\
-             [model]\nkind = \"blend_unet\"\nbase_width = 4\ndepth = 2\nbatch_norm = true\n\
-             [data]\ndataset = \"d\"\npatch = 32\nbatch_size = 1\nworkers = 1\n\
-             profile = \"pure\"\n[optim]\nlr = 1e-3\n{line}\n"
+fn every_numeric_key_of_every_shipped_config_has_a_range_and_refuses_values_outside_it() {
+    let files = shipped_configs();
+    let mut hits = vec![0usize; RULES.len()];
+    for (file, kind) in &files {
+        let text = std::fs::read_to_string(file).unwrap();
+        let ok = rules_of(*kind, &text, file);
+        assert!(ok == Ok(Ok(())), "{}: {ok:?}", file.display());
+        if *kind != Kind::Ablate {
+            let doc: toml::Value = toml::from_str(&text).unwrap();
+            check_ranges(*kind, file, &doc, None, &mut hits);
+        }
+    }
+    for (i, r) in RULES.iter().enumerate() {
+        if hits[i] > 0 {
+            continue;
+        }
+        assert!(
+            !r.setup.is_empty(),
+            "no shipped file holds {:?} {}",
+            r.kind,
+            r.key
         );
-        let p = write_cfg(dir.path(), "t.toml", &text);
-        let e = hdrsynth::train::config::TrainConfig::load(&p)
-            .expect_err(key)
-            .to_string();
-        assert!(e.contains(key) && e.contains("t.toml"), "{key}: {e}");
+        for (file, _) in files.iter().filter(|(_, k)| *k == r.kind) {
+            let mut doc: toml::Value =
+                toml::from_str(&std::fs::read_to_string(file).unwrap()).unwrap();
+            for (key, value) in r.setup {
+                toml_set(&mut doc, key, toml_literal(value));
+            }
+            if rules_of(r.kind, &toml::to_string(&doc).unwrap(), file) == Ok(Ok(())) {
+                check_ranges(r.kind, file, &doc, Some(i), &mut hits);
+                break;
+            }
+        }
+        assert!(hits[i] > 0, "no shipped {:?} file takes {}", r.kind, r.key);
+    }
+    assert!(hits.iter().sum::<usize>() > 300, "{hits:?}");
+}
+
+/// Rules between keys (and the few rules that are not ranges) name the key that breaks them.
+#[test]
+fn rules_between_keys_are_errors_naming_the_key_and_line() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs");
+    /// The file's kind and name, the edits (key, TOML value), the key blamed, a piece of
+    /// the message.
+    type Case = (Kind, &'static str, Edits, &'static str, &'static str);
+    type Edits = &'static [(&'static str, &'static str)];
+    let cases: &[Case] = &[
+        (
+            Kind::Train,
+            "net1_pretrain.toml",
+            &[("schedule.min_lr", "1e-3")],
+            "schedule.min_lr",
+            "in [0, 0.0001]",
+        ),
+        (
+            Kind::Train,
+            "net1_pretrain.toml",
+            &[(
+                "run.devices",
+                "[\"flex\", \"flex\", \"flex\", \"flex\", \"flex\"]",
+            )],
+            "run.devices",
+            "5 devices need data.batch_size ≥ 5",
+        ),
+        (
+            Kind::Train,
+            "net1_pretrain.toml",
+            &[("schedule.kind", "\"step\"")],
+            "schedule.every",
+            "needs",
+        ),
+        (
+            Kind::Train,
+            "net1_pretrain.toml",
+            &[("init.checkpoint", "\"a\""), ("init.safetensors", "\"b\"")],
+            "init",
+            "exactly one",
+        ),
+        (
+            Kind::Train,
+            "net1_pretrain.toml",
+            &[("data.patch", "120")],
+            "data.patch",
+            "multiple of 16",
+        ),
+        (
+            Kind::Train,
+            "net1_pretrain.toml",
+            &[("data.profile", "\"configs/sensors/canon_eos_550d.toml\"")],
+            "data.isos",
+            "non-empty",
+        ),
+        (
+            Kind::Generate,
+            "generate.toml",
+            &[("scene.real_background_probability", "1.0")],
+            "scene.real_background_probability",
+            "backgrounds_dir",
+        ),
+        (
+            Kind::Generate,
+            "generate.toml",
+            &[("scene.subjects", "[4, 2]")],
+            "scene.subjects",
+            "min > max",
+        ),
+        (
+            Kind::Generate,
+            "generate.toml",
+            &[
+                ("camera.target_over", "0.6"),
+                ("camera.target_under", "0.5"),
+            ],
+            "camera.target_under",
+            "below 1",
+        ),
+        (
+            Kind::Generate,
+            "generate.toml",
+            &[("camera.under_threshold", "0.99")],
+            "camera.under_threshold",
+            "below over_threshold",
+        ),
+        (
+            Kind::Generate,
+            "generate.toml",
+            &[("evs", "[0.0, -3.0]")],
+            "evs",
+            "ascending",
+        ),
+        (
+            Kind::Generate,
+            "generate.toml",
+            &[("evs", "[-3.0, -1.0]")],
+            "evs",
+            "must contain 0",
+        ),
+        (
+            Kind::Generate,
+            "generate.toml",
+            &[("width", "4000"), ("height", "4000")],
+            "width",
+            "shorter side",
+        ),
+        (
+            Kind::Profile,
+            "sensors/canon_eos_550d.toml",
+            &[("levels.white_level", "1000.0")],
+            "levels.white_level",
+            "above black_level",
+        ),
+        (
+            Kind::Profile,
+            "sensors/canon_eos_550d.toml",
+            &[("noise[1].iso", "100.0")],
+            "noise[1].iso",
+            "strictly ascending",
+        ),
+        (
+            Kind::Profile,
+            "sensors/canon_eos_550d.toml",
+            &[("colour.use_root_polynomial", "true")],
+            "colour.use_root_polynomial",
+            "no root_polynomial",
+        ),
+        (
+            Kind::Profile,
+            "sensors/canon_eos_550d.toml",
+            &[("response", "{ kind = \"lut\", lut = [0.0, 0.6, 0.5, 1.0] }")],
+            "response.lut[2]",
+            "never falls",
+        ),
+        (
+            Kind::Profile,
+            "sensors/canon_eos_550d.toml",
+            &[("effects", "[{ id = \"prnu\", sigma = 0.7, seed = 1 }]")],
+            "effects[0]",
+            "sigma 0.7 must be in [0, 0.5)",
+        ),
+        (
+            Kind::Profile,
+            "sensors/canon_eos_550d.toml",
+            &[("effects", "[{ id = \"no_such_effect\" }]")],
+            "effects[0]",
+            "catalogue",
+        ),
+    ];
+    for (kind, name, edits, key, what) in cases {
+        let file = root.join(name);
+        let mut doc: toml::Value =
+            toml::from_str(&std::fs::read_to_string(&file).unwrap()).unwrap();
+        for (k, v) in *edits {
+            toml_set(&mut doc, k, toml_literal(v));
+        }
+        let text = toml::to_string(&doc).unwrap();
+        let msg = load_message(*kind, &text, &file).unwrap_or_else(|| panic!("{edits:?} accepted"));
+        assert_names_line_and_key(&msg, &file, key);
+        assert!(msg.contains(what), "{edits:?}: {msg}");
+        println!("{edits:?}: {msg}");
     }
 }
 
@@ -823,23 +1356,12 @@ fn temp_names_are_recognised_exactly() {
 
 #[test]
 fn a_finished_run_resumes_to_success_and_leftovers_are_removed() {
-    use hdrsynth::train::{TrainOptions, config::TrainConfig};
     let dir = tempfile::tempdir().unwrap();
-    let data = dir.path().join("data");
-    common::generate(&data, 7, 2, (48, 48), "[-3.0, 0.0]");
     let run = dir.path().join("run");
-    let text = format!(
-        "[run]\nout = {run:?}\nseed = 3\nsteps = 2\ncheckpoint_every = 1\nlog_every = 1\n\
-         keep_checkpoints = 1\n[model]\nkind = \"blend_unet\"\nbase_width = 4\ndepth = 2\n\
-         batch_norm = true\n[data]\ndataset = {data:?}\npatch = 32\nbatch_size = 1\n\
-         workers = 1\nprofile = \"pure\"\n\
-         [optim]\nlr = 1e-3\n"
-    );
-    let cfg: TrainConfig = hdrsynth::config::parse_toml(&text, Path::new("t.toml")).unwrap();
-    let quiet = |resume| TrainOptions {
-        resume,
-        progress: false,
-    };
+    // Only the newest checkpoint kept: an older step folder is then a leftover.
+    let text = resume_config(ResumeCase::plain(false), &run, 2, 1)
+        .replace("keep_checkpoints = 1000", "keep_checkpoints = 1");
+    let cfg = train_cfg(&text);
     hdrsynth::train::run(&cfg, &quiet(false)).unwrap();
     let last = hdrsynth::train::checkpoint::latest(&run).unwrap().unwrap();
     let root = last.parent().unwrap().to_path_buf();
@@ -873,7 +1395,7 @@ fn a_finished_run_resumes_to_success_and_leftovers_are_removed() {
 // Exact resume: a run stopped after any checkpoint and resumed ends bit-identical to an
 // uninterrupted one, and checkpoint bytes are a function of the run.
 
-/// One point of the trainer's option matrix.
+/// One point of the trainer's option matrix, and the crop side.
 #[derive(Clone, Copy, Debug)]
 struct ResumeCase {
     network2: bool,
@@ -882,6 +1404,23 @@ struct ResumeCase {
     workers: usize,
     augment: bool,
     batch: usize,
+    patch: usize,
+}
+
+impl ResumeCase {
+    /// The plainest run of a network: β1 0.5, constant schedule, one worker, no augmentation,
+    /// batch 1, at a patch the network's receptive field spans (Network-2 64, Network-1 32).
+    fn plain(network2: bool) -> ResumeCase {
+        ResumeCase {
+            network2,
+            beta1: 0.5,
+            cosine: false,
+            workers: 1,
+            augment: false,
+            batch: 1,
+            patch: if network2 { 64 } else { 32 },
+        }
+    }
 }
 
 /// A small dataset per network (Network-1 needs EV −3/0, Network-2 −2/0/+2), made once.
@@ -902,13 +1441,14 @@ fn resume_dataset(network2: bool) -> &'static Path {
         .path()
 }
 
+/// A tiny run of `c` into `out`: `steps` steps, a checkpoint every `every`, all kept, every
+/// step logged, pure data.
 fn resume_config(c: ResumeCase, out: &Path, steps: u64, every: u64) -> String {
     let model = if c.network2 {
         "kind = \"wu\"\nbase_width = 4\nres_blocks = 1\n"
     } else {
         "kind = \"blend_unet\"\nbase_width = 4\ndepth = 2\nbatch_norm = true\n"
     };
-    let patch = if c.network2 { 64 } else { 32 };
     let schedule = if c.cosine {
         "kind = \"cosine\"\nwarmup_steps = 2\n"
     } else {
@@ -917,9 +1457,10 @@ fn resume_config(c: ResumeCase, out: &Path, steps: u64, every: u64) -> String {
     format!(
         "[run]\nout = {out:?}\nseed = 5\nsteps = {steps}\ncheckpoint_every = {every}\n\
          log_every = 1\nkeep_checkpoints = 1000\n[model]\n{model}\
-         [data]\ndataset = {:?}\npatch = {patch}\nbatch_size = {}\nworkers = {}\n\
+         [data]\ndataset = {:?}\npatch = {}\nbatch_size = {}\nworkers = {}\n\
          augment = {}\nprofile = \"pure\"\n[optim]\nlr = 2e-4\nbeta1 = {}\n[schedule]\n{schedule}",
         resume_dataset(c.network2),
+        c.patch,
         c.batch,
         c.workers,
         c.augment,
@@ -1000,9 +1541,8 @@ fn assert_resume_exact(c: ResumeCase, steps: u64, every: u64, at: u64) {
     let run = tmp.path().join("run");
     let cfg = train_cfg(&resume_config(c, &run, steps, every));
     hdrsynth::train::run(&cfg, &quiet(false)).expect("uninterrupted run");
-    let (losses, weights) = (logged_losses(&run), final_weights(&run));
-    assert_eq!(losses.len() as u64, steps, "{c:?}");
-
+    let straight = record(&run);
+    assert_eq!(straight.0.len() as u64, steps, "{c:?}");
     let root = checkpoint::dir_of(&run);
     for entry in std::fs::read_dir(&root).expect("checkpoints") {
         let path = entry.expect("entry").path();
@@ -1018,102 +1558,60 @@ fn assert_resume_exact(c: ResumeCase, steps: u64, every: u64, at: u64) {
     std::fs::write(root.join("latest"), format!("step-{at:08}")).expect("latest");
     let s = hdrsynth::train::run(&cfg, &quiet(true)).expect("resumed run");
     assert_eq!(s.start_step, at, "{c:?}");
-    let resumed = logged_losses(&run);
-    for (i, (a, b)) in losses.iter().zip(&resumed).enumerate() {
-        assert_eq!(
-            a, b,
-            "{c:?}: log line {i} differs after resuming at step {at}"
-        );
+    assert_same(
+        &straight,
+        &record(&run),
+        &format!("{c:?} resumed at step {at}"),
+    );
+}
+
+/// What a finished run leaves to compare: its logged losses and its final weights.
+type Record = (Vec<String>, Vec<(String, Vec<u32>)>);
+
+fn record(run: &Path) -> Record {
+    (logged_losses(run), final_weights(run))
+}
+
+/// Every logged loss and every final weight equal.
+fn assert_same(a: &Record, b: &Record, what: &str) {
+    for (i, (x, y)) in a.0.iter().zip(&b.0).enumerate() {
+        assert_eq!(x, y, "{what}: log line {i} differs");
     }
-    assert_eq!(losses.len(), resumed.len(), "{c:?}");
-    let after = final_weights(&run);
-    assert_eq!(weights.len(), after.len());
-    for ((name, a), (_, b)) in weights.iter().zip(&after) {
-        assert!(a == b, "{c:?}: {name} differs after resuming at step {at}");
+    assert_eq!(a.0.len(), b.0.len(), "{what}");
+    assert_eq!(a.1.len(), b.1.len(), "{what}");
+    for ((name, x), (_, y)) in a.1.iter().zip(&b.1) {
+        assert!(x == y, "{what}: {name} differs");
     }
 }
 
-/// A tiny Network-2 run: Network-2, β1 0.5, constant schedule, batch 1, one worker, no
-/// augmentation; 40 steps straight against 20, then `--resume` (run.steps raised) to 40.
+/// A tiny Network-2 run (β1 0.5, constant schedule, batch 1, one worker, no augmentation, a
+/// checkpoint every 5 steps), 40 steps straight, against the same run stopped after 20 steps
+/// and `--resume`d with run.steps raised to 40, and against one killed with SIGKILL through
+/// the binary once it has written its checkpoint at step 10 or later, then `train --resume`d.
 #[test]
-fn a_network2_run_resumed_at_step_20_matches_the_uninterrupted_run() {
-    let c = ResumeCase {
-        network2: true,
-        beta1: 0.5,
-        cosine: false,
-        workers: 1,
-        augment: false,
-        batch: 1,
-    };
-    let tmp = tempfile::tempdir().expect("tmp");
-    let (a, b) = (tmp.path().join("a"), tmp.path().join("b"));
-    hdrsynth::train::run(&train_cfg(&resume_config(c, &a, 40, 5)), &quiet(false))
-        .expect("straight");
-    hdrsynth::train::run(&train_cfg(&resume_config(c, &b, 20, 5)), &quiet(false))
-        .expect("first half");
-    hdrsynth::train::run(&train_cfg(&resume_config(c, &b, 40, 5)), &quiet(true)).expect("resumed");
-    let (la, lb) = (logged_losses(&a), logged_losses(&b));
-    assert_eq!(la.len(), 40);
-    for (i, (x, y)) in la.iter().zip(&lb).enumerate() {
-        assert_eq!(x, y, "step {} differs", i + 1);
-    }
-    let (wa, wb) = (final_weights(&a), final_weights(&b));
-    for ((name, x), (_, y)) in wa.iter().zip(&wb) {
-        assert!(x == y, "{name} differs");
-    }
-}
-
-/// The option matrix: both networks, β1 0.5 and 0.9, constant and cosine schedules, one and
-/// two workers, augmentation on and off, batch 1 and 2 — each value in at least two cases —,
-/// each cut back to a checkpoint drawn (seeded) among its checkpoints and resumed.
-#[test]
-fn runs_resumed_at_a_random_checkpoint_match_uninterrupted_ones_across_the_options() {
-    let cases = [
-        (true, 0.5, false, 1, false, 1),
-        (true, 0.9, true, 2, true, 2),
-        (false, 0.5, true, 1, true, 2),
-        (false, 0.9, false, 2, false, 1),
-    ];
-    let (steps, every) = (12, 3);
-    let mut draw = 0x9e37_79b9_7f4a_7c15u64;
-    for (network2, beta1, cosine, workers, augment, batch) in cases {
-        draw = draw
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        // A checkpoint strictly before the end: 3, 6 or 9.
-        let at = every * (1 + (draw >> 33) % (steps / every - 1));
-        let c = ResumeCase {
-            network2,
-            beta1,
-            cosine,
-            workers,
-            augment,
-            batch,
-        };
-        assert_resume_exact(c, steps, every, at);
-    }
-}
-
-/// A real kill: SIGKILL through the binary once the run has written its checkpoint at
-/// step 10 or later, then `train --resume`; the final weights and the log equal the
-/// uninterrupted run's.
-#[test]
-fn a_network2_run_killed_with_sigkill_and_resumed_matches_the_uninterrupted_run() {
+fn a_network2_run_stopped_or_killed_and_resumed_matches_the_uninterrupted_run() {
     use hdrsynth::train::checkpoint;
-    let c = ResumeCase {
-        network2: true,
-        beta1: 0.5,
-        cosine: false,
-        workers: 1,
-        augment: false,
-        batch: 1,
-    };
+    let c = ResumeCase::plain(true);
     let tmp = tempfile::tempdir().expect("tmp");
-    let (a, b) = (tmp.path().join("a"), tmp.path().join("b"));
-    hdrsynth::train::run(&train_cfg(&resume_config(c, &a, 40, 5)), &quiet(false))
+    let run = tmp.path().join("straight");
+    hdrsynth::train::run(&train_cfg(&resume_config(c, &run, 40, 5)), &quiet(false))
         .expect("straight");
-    let cfg = tmp.path().join("b.toml");
-    std::fs::write(&cfg, resume_config(c, &b, 40, 5)).expect("write");
+    let straight = record(&run);
+    assert_eq!(straight.0.len(), 40);
+
+    let stopped = tmp.path().join("stopped");
+    hdrsynth::train::run(
+        &train_cfg(&resume_config(c, &stopped, 20, 5)),
+        &quiet(false),
+    )
+    .expect("first half");
+    hdrsynth::train::run(&train_cfg(&resume_config(c, &stopped, 40, 5)), &quiet(true))
+        .expect("resumed");
+    assert_same(&straight, &record(&stopped), "stopped at step 20");
+
+    let killed = tmp.path().join("killed");
+    let cfg = tmp.path().join("killed.toml");
+    std::fs::write(&cfg, resume_config(c, &killed, 40, 5)).expect("write");
     let mut child = bin()
         .args(["train", "--quiet", "--config"])
         .arg(&cfg)
@@ -1121,7 +1619,7 @@ fn a_network2_run_killed_with_sigkill_and_resumed_matches_the_uninterrupted_run(
         .expect("spawn");
     let began = std::time::Instant::now();
     let at = loop {
-        let step = checkpoint::latest(&b)
+        let step = checkpoint::latest(&killed)
             .ok()
             .flatten()
             .and_then(|d| checkpoint::read_state(&d).ok())
@@ -1141,11 +1639,42 @@ fn a_network2_run_killed_with_sigkill_and_resumed_matches_the_uninterrupted_run(
         .status()
         .expect("resume");
     assert!(st.success());
-    assert_eq!(logged_losses(&a), logged_losses(&b));
-    let (wa, wb) = (final_weights(&a), final_weights(&b));
-    for ((name, x), (_, y)) in wa.iter().zip(&wb) {
-        assert!(x == y, "{name} differs after a kill at step {at}");
+    assert_same(
+        &straight,
+        &record(&killed),
+        &format!("killed after step {at}"),
+    );
+}
+
+/// The whole option matrix, 2⁶ = 64 runs: Network-1 and Network-2 × β1 0.5 and 0.9 × constant
+/// and cosine schedules × one and two workers × augmentation off and on × batch 1 and 2; each
+/// 5 steps with a checkpoint after every step, cut back to a checkpoint drawn (seeded) among
+/// steps 1–3 and resumed. Tiny networks on 16-pixel patches keep it cheap.
+#[test]
+fn runs_resumed_at_a_random_checkpoint_match_uninterrupted_ones_for_every_option() {
+    let (steps, every) = (5, 1);
+    let mut draw = 0x9e37_79b9_7f4a_7c15u64;
+    let began = std::time::Instant::now();
+    for bits in 0..64u32 {
+        let on = |i: u32| bits >> i & 1 == 1;
+        let c = ResumeCase {
+            network2: on(0),
+            beta1: if on(1) { 0.9 } else { 0.5 },
+            cosine: on(2),
+            workers: if on(3) { 2 } else { 1 },
+            augment: on(4),
+            batch: if on(5) { 2 } else { 1 },
+            patch: 16,
+        };
+        draw = draw
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        // A checkpoint with at least two steps after it: the first resumed step uses the
+        // restored weights, the later ones the restored optimizer too.
+        let at = 1 + (draw >> 33) % (steps - 2);
+        assert_resume_exact(c, steps, every, at);
     }
+    println!("64 resume cases in {:.1} s", began.elapsed().as_secs_f64());
 }
 
 /// Two identical runs write byte-identical checkpoint files (model, optimizer, state, α,
@@ -1154,14 +1683,7 @@ fn a_network2_run_killed_with_sigkill_and_resumed_matches_the_uninterrupted_run(
 fn two_identical_runs_write_byte_identical_checkpoints() {
     use hdrsynth::train::checkpoint;
     for network2 in [true, false] {
-        let c = ResumeCase {
-            network2,
-            beta1: 0.5,
-            cosine: false,
-            workers: 1,
-            augment: false,
-            batch: 1,
-        };
+        let c = ResumeCase::plain(network2);
         let tmp = tempfile::tempdir().expect("tmp");
         let files = |name: &str| {
             let run = tmp.path().join(name);
@@ -1191,12 +1713,8 @@ fn two_identical_runs_write_byte_identical_checkpoints() {
 /// A finished one-step Network-1 run (its final checkpoint carries model, optimizer, state, α).
 fn one_step_run(dir: &Path) -> (hdrsynth::train::config::TrainConfig, PathBuf) {
     let c = ResumeCase {
-        network2: false,
         beta1: 0.9,
-        cosine: false,
-        workers: 1,
-        augment: false,
-        batch: 1,
+        ..ResumeCase::plain(false)
     };
     let run = dir.join("run");
     let cfg = train_cfg(&resume_config(c, &run, 2, 1));
@@ -1450,13 +1968,7 @@ fn realism_on_a_zero_width_radiance_file_is_an_error_not_a_panic() {
         b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 64 +X 0\n",
     )
     .unwrap();
-    let o = bin()
-        .args(["realism", "--iso", "100", "--profile"])
-        .arg(SensorProfile::shipped_dir().join("example_synthetic.toml"))
-        .arg("--in")
-        .arg(&input)
-        .arg("--out")
-        .arg(dir.path().join("out"))
+    let o = realism_cmd(&example_profile(), &input, &dir.path().join("out"))
         .output()
         .unwrap();
     let err = String::from_utf8_lossy(&o.stderr);
@@ -1468,8 +1980,8 @@ fn realism_on_a_zero_width_radiance_file_is_an_error_not_a_panic() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Inputs that are not regular files (a FIFO, a device, a folder) are refused before they are
-// opened: opening a FIFO for reading blocks until a writer comes, forever.
+// Inputs that are not regular files (a FIFO, a device, a folder) are refused, on the file
+// opened without waiting: a plain open of a FIFO for reading blocks until a writer comes.
 
 #[cfg(unix)]
 fn mkfifo(path: &Path) {
@@ -1527,6 +2039,19 @@ fn fifos_given_as_configs_profiles_images_or_checkpoints_are_refused_not_waited_
             let m = hdrsynth::models::WuConfig::default().init(&dev)?;
             hdrsynth::models::import::import_weights(m, p).map(|_| ())
         }),
+        ("captures.toml", |p| {
+            hdrsynth::sensor::captures::CaptureSet::load(p).map(|_| ())
+        }),
+        ("bracket.tif", |p| {
+            hdrsynth::data::brackets::read_exif(p).map(|_| ())
+        }),
+        ("radiance.exr", |p| {
+            hdrsynth::data::testset::to_rec709_matrix(p).map(|_| ())
+        }),
+        #[cfg(feature = "onnx")]
+        ("model.onnx", |p| {
+            hdrsynth::onnx::runtime::OnnxModel::load(p, None).map(|_| ())
+        }),
     ];
     for (name, load) in loads {
         let fifo = dir.path().join(name);
@@ -1554,6 +2079,63 @@ fn fifos_given_as_configs_profiles_images_or_checkpoints_are_refused_not_waited_
     assert!(e.contains("/dev/zero") && e.contains("device"), "{e}");
 }
 
+/// The one opener of single-file inputs tests the file it opened: a FIFO is refused even with
+/// a writer attached (when a plain open would not block), so the refusal comes from the
+/// file's type, not from a wait; a regular file comes back in blocking mode.
+#[cfg(unix)]
+#[test]
+fn open_input_refuses_what_it_opened_unless_a_regular_file_and_never_blocks() {
+    use std::os::fd::AsRawFd;
+    let dir = tempfile::tempdir().unwrap();
+    let fifo = dir.path().join("pipe");
+    mkfifo(&fifo);
+    // Both ends held here (O_RDWR on a FIFO does not block on Linux).
+    let _held = std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .open(&fifo)
+        .unwrap();
+    let p = fifo.clone();
+    let e = within_deadline("open_input", &fifo, move || {
+        guard::open_input(&p).map(|_| ()).map_err(|e| e.to_string())
+    })
+    .expect_err("a FIFO was opened as an input");
+    assert!(e.contains("not a regular file but a FIFO"), "{e}");
+    // Without a writer: refused at once, not waited on.
+    let lone = dir.path().join("lone");
+    mkfifo(&lone);
+    let p = lone.clone();
+    within_deadline("open_input", &lone, move || {
+        guard::open_input(&p).map(|_| ()).map_err(|e| e.to_string())
+    })
+    .expect_err("a FIFO was opened as an input");
+
+    let file = dir.path().join("f.txt");
+    std::fs::write(&file, "abc").unwrap();
+    let link = dir.path().join("link.txt");
+    std::os::unix::fs::symlink(&file, &link).unwrap();
+    for p in [&file, &link] {
+        let mut f = guard::open_input(p).unwrap();
+        // SAFETY: F_GETFL on a descriptor `f` owns.
+        let flags = unsafe { libc::fcntl(f.as_raw_fd(), libc::F_GETFL) };
+        assert_eq!(flags & libc::O_NONBLOCK, 0, "left non-blocking");
+        let mut text = String::new();
+        std::io::Read::read_to_string(&mut f, &mut text).unwrap();
+        assert_eq!(text, "abc");
+    }
+    let e = guard::open_input(dir.path()).unwrap_err();
+    assert!(e.to_string().contains("a folder"), "{e}");
+    let e = guard::open_input(&dir.path().join("missing")).unwrap_err();
+    assert_eq!(e.kind(), std::io::ErrorKind::NotFound);
+    let e = guard::read_text(Path::new("/dev/null"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("/dev/null") && e.contains("character device"),
+        "{e}"
+    );
+}
+
 #[cfg(unix)]
 #[test]
 fn generate_and_realism_refuse_a_fifo_config_or_profile_at_once() {
@@ -1562,45 +2144,21 @@ fn generate_and_realism_refuse_a_fifo_config_or_profile_at_once() {
     mkfifo(&fifo);
     let input = dir.path().join("in");
     write_ldr(&input.join("f.png"), &Image::new(8, 8), BitDepth::Eight).unwrap();
-    let runs: Vec<(&str, std::process::Command)> = vec![
-        ("generate", {
-            let mut c = bin();
-            c.args(["generate", "--config"])
-                .arg(&fifo)
-                .arg("--out")
-                .arg(dir.path().join("gen"));
-            c
-        }),
-        ("realism", {
-            let mut c = bin();
-            c.args(["realism", "--iso", "100", "--profile"])
-                .arg(&fifo)
-                .arg("--in")
-                .arg(&input)
-                .arg("--out")
-                .arg(dir.path().join("real"));
-            c
-        }),
+    let mut generate = bin();
+    generate
+        .args(["generate", "--config"])
+        .arg(&fifo)
+        .arg("--out")
+        .arg(dir.path().join("gen"));
+    let runs = [
+        ("generate", generate),
+        (
+            "realism",
+            realism_cmd(&fifo, &input, &dir.path().join("real")),
+        ),
     ];
-    for (what, mut cmd) in runs {
-        let mut child = cmd
-            .stderr(std::process::Stdio::piped())
-            .spawn()
-            .expect("spawn");
-        let began = std::time::Instant::now();
-        let status = loop {
-            if let Some(s) = child.try_wait().unwrap() {
-                break s;
-            }
-            if began.elapsed().as_secs() > 20 {
-                child.kill().unwrap();
-                child.wait().unwrap();
-                panic!("{what} blocked on a FIFO given as its config/profile");
-            }
-            std::thread::sleep(std::time::Duration::from_millis(20));
-        };
-        let mut err = String::new();
-        std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut err).unwrap();
+    for (what, cmd) in runs {
+        let (status, err) = finish_within(cmd, 20, &format!("{what} blocked on a FIFO"));
         assert_eq!(status.code(), Some(1), "{what}: {err}");
         assert!(
             err.contains("pipe.toml") && err.contains("FIFO"),
@@ -1634,120 +2192,24 @@ fn a_nan_exposure_in_a_train_config_is_refused_naming_the_key() {
 /// is refused by that file's own loader with the file, line and key named.
 #[test]
 fn every_float_key_of_every_shipped_config_refuses_nan_and_infinities() {
-    use hdrsynth::config::parse_toml;
-    use hdrsynth::data::generate::GenerateConfig;
-    use hdrsynth::eval::ablate::AblateConfig;
-    use hdrsynth::train::config::TrainConfig;
-    fn floats(v: &toml::Value, key: String, out: &mut Vec<String>) {
-        match v {
-            toml::Value::Float(_) => out.push(key),
-            toml::Value::Table(t) => {
-                for (k, x) in t {
-                    let k = if key.is_empty() {
-                        k.clone()
-                    } else {
-                        format!("{key}.{k}")
-                    };
-                    floats(x, k, out);
-                }
-            }
-            toml::Value::Array(a) => {
-                for (i, x) in a.iter().enumerate() {
-                    floats(x, format!("{key}[{i}]"), out);
-                }
-            }
-            _ => {}
-        }
-    }
-    fn set(v: &mut toml::Value, key: &str, to: f64) {
-        let (head, rest) = match key.find(['.', '[']) {
-            Some(0) => {
-                let close = key.find(']').unwrap();
-                let i: usize = key[1..close].parse().unwrap();
-                let rest = key[close + 1..].trim_start_matches('.');
-                let x = &mut v.as_array_mut().unwrap()[i];
-                return if rest.is_empty() {
-                    *x = toml::Value::Float(to)
-                } else {
-                    set(x, rest, to)
-                };
-            }
-            Some(i) => (&key[..i], key[i..].trim_start_matches('.')),
-            None => (key, ""),
-        };
-        let x = v.as_table_mut().unwrap().get_mut(head).unwrap();
-        if rest.is_empty() {
-            *x = toml::Value::Float(to);
-        } else {
-            set(x, rest, to);
-        }
-    }
-    type Check = fn(&str, &Path) -> Result<(), String>;
-    let generate: Check = |t, p| {
-        parse_toml::<GenerateConfig>(t, p)
-            .map(|_| ())
-            .map_err(|e| e.to_string())
-    };
-    let train: Check = |t, p| {
-        parse_toml::<TrainConfig>(t, p)
-            .map(|_| ())
-            .map_err(|e| e.to_string())
-    };
-    let profile: Check = |t, p| {
-        parse_toml::<SensorProfile>(t, p)
-            .map(|_| ())
-            .map_err(|e| e.to_string())
-    };
-    let ablate: Check = |t, p| {
-        AblateConfig::parse(t, p)
-            .map(|_| ())
-            .map_err(|e| e.to_string())
-    };
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs");
-    let mut files: Vec<(PathBuf, Check)> = Vec::new();
-    for entry in std::fs::read_dir(root.join("sensors")).unwrap() {
-        files.push((entry.unwrap().path(), profile));
-    }
-    for name in [
-        "generate.toml",
-        "data/net1_train.toml",
-        "data/net2_train.toml",
-    ] {
-        files.push((root.join(name), generate));
-    }
-    for name in [
-        "net1_pretrain.toml",
-        "net1_finetune.toml",
-        "net2_pretrain.toml",
-        "net2_finetune.toml",
-    ] {
-        files.push((root.join(name), train));
-    }
-    for name in [
-        "exp1_network1.toml",
-        "exp2_network2.toml",
-        "exp3_network2_colour_iso.toml",
-    ] {
-        files.push((root.join("experiments").join(name), ablate));
-    }
     let mut checked = 0;
-    for (file, check) in files {
-        let text = std::fs::read_to_string(&file).unwrap();
-        let doc: toml::Value = toml::from_str(&text).unwrap();
+    for (file, kind) in shipped_configs() {
+        let doc: toml::Value = toml::from_str(&std::fs::read_to_string(&file).unwrap()).unwrap();
         let mut keys = Vec::new();
-        floats(&doc, String::new(), &mut keys);
-        for key in keys {
+        numbers(&doc, "", &mut keys);
+        for (key, _) in keys.into_iter().filter(|(_, integer)| !integer) {
             for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
                 let mut d = doc.clone();
-                set(&mut d, &key, bad);
+                toml_set(&mut d, &key, toml::Value::Float(bad));
                 let text = toml::to_string(&d).unwrap();
-                let e = check(&text, &file).expect_err(&format!("{key} = {bad} accepted"));
-                let name = file.file_name().unwrap().to_string_lossy();
+                let e = rules_of(kind, &text, &file)
+                    .expect_err(&format!("{}: {key} = {bad} accepted", file.display()));
                 assert!(
-                    e.contains(&format!("{name}:")) && e.contains(&format!("'{key}'")),
+                    e.contains("not a finite number"),
                     "{}: {key} = {bad}: {e}",
                     file.display()
                 );
+                assert_names_line_and_key(&e, &file, &key);
                 checked += 1;
             }
         }
@@ -1872,10 +2334,10 @@ fn a_grey_chart_capture_is_blamed_rather_than_the_profile_written() {
 }
 
 #[test]
-fn a_generate_size_out_of_range_names_the_keys() {
+fn a_generate_size_out_of_range_names_the_key() {
     use hdrsynth::data::generate::GenerateConfig;
-    for (w, h) in [(0, 64), (64, 1_000_000)] {
-        let dir = tempfile::tempdir().unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    for (w, h, key, line) in [(0, 64, "width", 3), (64, 1_000_000, "height", 4)] {
         let p = write_cfg(
             dir.path(),
             "g.toml",
@@ -1883,7 +2345,7 @@ fn a_generate_size_out_of_range_names_the_keys() {
         );
         let e = GenerateConfig::load(&p).unwrap_err().to_string();
         assert!(
-            e.contains("g.toml") && e.contains("'width'") && e.contains("'height'"),
+            e.contains(&format!("g.toml:{line}: key '{key}': ")) && e.contains("out of range"),
             "{e}"
         );
     }
@@ -1924,17 +2386,12 @@ fn an_exif_exposure_time_stored_as_double_is_read() {
 fn a_refused_training_run_leaves_no_run_folder() {
     use hdrsynth::train::config::TrainConfig;
     let dir = tempfile::tempdir().unwrap();
-    let data = resume_dataset(false);
     let run = dir.path().join("run");
-    let base = format!(
-        "[run]\nout = {run:?}\nseed = 1\nsteps = 2\n[model]\nkind = \"blend_unet\"\n\
-         base_width = 4\ndepth = 2\n[data]\ndataset = {data:?}\npatch = 32\nbatch_size = 1\n\
-         workers = 1\nprofile = \"pure\"\n"
-    );
+    let base = resume_config(ResumeCase::plain(false), &run, 2, 1);
     let cases = [
         (
             "a backend not built in",
-            base.replace("seed = 1\n", "seed = 1\nbackend = \"cuda\"\n"),
+            base.replace("seed = 5\n", "seed = 5\nbackend = \"cuda\"\n"),
         ),
         (
             "init.checkpoint = its own output",

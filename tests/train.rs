@@ -327,14 +327,16 @@ fn data_section_errors_name_the_key_line_and_the_valid_keys() {
             .realism
             .is_none()
     );
-    let cfg = parse(&with("profile = \"p.toml\"\nev_jitter = 0.25"));
+    // A profile without ISOs is refused when the config is checked, before any loader.
+    let cfg: TrainConfig = parse_toml(
+        &with("profile = \"p.toml\"\nev_jitter = 0.25"),
+        Path::new("train.toml"),
+    )
+    .expect("parses");
     assert_eq!(cfg.data.realism.ev_jitter, 0.25);
-    let e = cfg
-        .data
-        .loader(SampleKind::Network1, 1)
-        .expect_err("no isos");
+    let e = cfg.validate().expect_err("no isos");
     assert!(
-        e.to_string().contains("needs a non-empty `isos` list"),
+        e.key == "data.isos" && e.msg.contains("needs a non-empty `isos` list"),
         "{e}"
     );
     let cfg = parse(&with(
@@ -481,14 +483,20 @@ fn schedules_by_hand() {
     };
     assert_eq!(st.lr(2.0, 9, 100), 2.0);
     assert_eq!(st.lr(2.0, 25, 100), 0.5);
-    assert!(
-        Schedule {
-            kind: ScheduleKind::Step,
-            ..Schedule::default()
-        }
-        .validate()
-        .is_err()
-    );
+    let missing = Schedule {
+        kind: ScheduleKind::Step,
+        ..Schedule::default()
+    };
+    assert_eq!(missing.validate(1e-4).unwrap_err().key, "every");
+    assert!(st.validate(1e-4).is_ok());
+    // min_lr above the base learning rate (1e-4 here) is refused.
+    let e = Schedule {
+        min_lr: Some(1e-3),
+        ..Schedule::default()
+    }
+    .validate(1e-4)
+    .unwrap_err();
+    assert_eq!(e.key, "min_lr");
 }
 
 /// Validation (Eq. 4 loss, blend-weight MAE) logged at `step`.

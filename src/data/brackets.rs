@@ -132,8 +132,7 @@ fn list_dir(dir: &Path) -> Result<(Vec<PathBuf>, Vec<PathBuf>)> {
 /// Read the exposure tags of one file; a file without EXIF gives all `None`.
 pub fn read_exif(path: &Path) -> Result<ExifExposure> {
     use exif::{In, Tag, Value};
-    crate::io::guard::regular_file(path)?;
-    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let file = crate::io::guard::open_input(path).map_err(|e| Error::io(path, e))?;
     let exif = match exif::Reader::new().read_from_container(&mut std::io::BufReader::new(file)) {
         Ok(x) => x,
         Err(exif::Error::NotFound(_)) | Err(exif::Error::BlankValue(_)) => {

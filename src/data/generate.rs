@@ -1,7 +1,7 @@
 //! The resumable dataset writer behind `hdrsynth generate` and its config: sets that are
 //! complete (meta.toml present) are kept; a different config in the folder is refused.
 
-use crate::config::load_toml;
+use crate::config::{KeyError, Range, in_range, in_range_because, load_checked};
 use crate::data::layout::hdrsynth as layout;
 use crate::data::scene::{CameraConfig, Generator, SceneConfig, check_size};
 use crate::error::{Error, Result};
@@ -48,8 +48,6 @@ pub struct GenerateConfig {
 /// Largest |EV| of a bracket frame: beyond it the frame is all black or all white at 8 or 16
 /// bits (16 stops is the whole code range of a 16-bit frame).
 pub const MAX_EV: f32 = 16.0;
-/// Largest `scene.min_dynamic_range` (stops); the engine's scenes span about 16–24.
-pub const MAX_DYNAMIC_RANGE: f32 = 32.0;
 
 fn default_bits() -> u32 {
     8
@@ -79,101 +77,51 @@ impl GenerateConfig {
     }
 
     pub fn load(path: &Path) -> Result<GenerateConfig> {
-        let mut cfg: GenerateConfig = load_toml(path)?;
+        let mut cfg: GenerateConfig = load_checked(path, GenerateConfig::validate)?;
         cfg.source = Some(path.to_path_buf());
-        cfg.validate()?;
         Ok(cfg)
     }
 
-    fn origin(&self) -> PathBuf {
+    /// Where the config was read from, for messages.
+    pub(crate) fn origin(&self) -> PathBuf {
         self.source
             .clone()
             .unwrap_or_else(|| PathBuf::from("<config>"))
     }
 
-    pub fn validate(&self) -> Result<()> {
-        let p = self.origin();
-        let bad = |msg: String| Err(Error::config(&p, msg));
-        check_size(self.width, self.height, &p)?;
-        if self.count == 0 {
-            return bad("count must be ≥ 1".into());
-        }
-        if self.evs.is_empty() || !self.evs.contains(&0.0) {
-            return bad(format!(
-                "evs {:?} must contain 0 (the reference frame)",
-                self.evs
+    /// Every value rule of the config, keys as the file spells them. Ranges:
+    /// docs/reliability.md, "Value ranges".
+    pub fn validate(&self) -> std::result::Result<(), KeyError> {
+        check_size(self.width, self.height)?;
+        in_range("count", self.count, Range::at_least(1.0))?;
+        if !self.evs.contains(&0.0) {
+            return Err(KeyError::new(
+                "evs",
+                format!("{:?} must contain 0 (the reference frame)", self.evs),
             ));
         }
-        if self.evs.windows(2).any(|w| w[0] >= w[1]) || self.evs.iter().any(|e| !e.is_finite()) {
-            return bad(format!(
-                "evs {:?} must be finite and strictly ascending",
-                self.evs
-            ));
+        for (i, &ev) in self.evs.iter().enumerate() {
+            in_range_because(
+                &format!("evs[{i}]"),
+                ev,
+                Range::closed(-MAX_EV as f64, MAX_EV as f64),
+                "beyond, a frame is all black or all white at 8 or 16 bits",
+            )?;
         }
-        if let Some(e) = self.evs.iter().find(|e| e.abs() > MAX_EV) {
-            return bad(format!(
-                "evs: {e} stops is beyond ±{MAX_EV}: such a frame is all black or all white at \
-                 8 or 16 bits"
-            ));
-        }
-        // Below 1 the probability applies only "when backgrounds_dir is set" (the shipped
-        // configs keep 0.5 with the folder commented out); 1 demands a real background for
-        // every sample, which no folder cannot give.
-        if self.scene.real_background_probability == 1.0 && self.scene.backgrounds_dir.is_none() {
-            return bad(
-                "scene.real_background_probability = 1 (every sample on a real background) \
-                 needs scene.backgrounds_dir"
-                    .into(),
-            );
-        }
-        if self.camera.candidates == 0 {
-            return bad("camera.candidates = 0: at least one viewpoint must be tried".into());
-        }
-        let dr = self.scene.min_dynamic_range;
-        if !(dr.is_finite() && (0.0..=MAX_DYNAMIC_RANGE).contains(&dr)) {
-            return bad(format!(
-                "scene.min_dynamic_range = {dr} must be in [0, {MAX_DYNAMIC_RANGE}] stops (the \
-                 engine's scenes span about 16–24; a larger minimum is never met)"
+        if self.evs.windows(2).any(|w| w[0] >= w[1]) {
+            return Err(KeyError::new(
+                "evs",
+                format!("{:?} must be strictly ascending", self.evs),
             ));
         }
         if BitDepth::from_bits(self.bit_depth).is_none() {
-            return bad(format!("bit_depth {} must be 8 or 16", self.bit_depth));
-        }
-        let s = &self.scene;
-        if s.subjects[0] > s.subjects[1] {
-            return bad(format!("scene.subjects {:?}: min > max", s.subjects));
-        }
-        for (name, v) in [
-            ("scene.articulated_fraction", s.articulated_fraction),
-            (
-                "scene.real_background_probability",
-                s.real_background_probability,
-            ),
-        ] {
-            if !(0.0..=1.0).contains(&v) {
-                return bad(format!("{name} = {v} must be in [0, 1]"));
-            }
-        }
-        if s.motion_scale.is_nan() || s.motion_scale < 0.0 {
-            return bad("scene.motion_scale must be ≥ 0".into());
-        }
-        let c = &self.camera;
-        if !(0.0..1.0).contains(&c.target_over)
-            || !(0.0..1.0).contains(&c.target_under)
-            || c.target_over + c.target_under >= 1.0
-        {
-            return bad(format!(
-                "camera.target_over {} and target_under {} must be in [0,1) with a sum < 1",
-                c.target_over, c.target_under
+            return Err(KeyError::new(
+                "bit_depth",
+                format!("{} must be 8 or 16", self.bit_depth),
             ));
         }
-        if !(c.under_threshold > 0.0
-            && c.under_threshold < c.over_threshold
-            && c.over_threshold < 1.0)
-        {
-            return bad("camera thresholds need 0 < under_threshold < over_threshold < 1".into());
-        }
-        Ok(())
+        self.scene.validate().map_err(|e| e.within("scene"))?;
+        self.camera.validate().map_err(|e| e.within("camera"))
     }
 
     /// Index of the reference frame (EV 0) in `evs`.

@@ -9,6 +9,7 @@
 //! OpenCV's coefficients to the channels OpenCV would apply them to.
 
 use super::pyramid::{laplacian_blend, reflect101};
+use crate::config::{KeyError, Range, each_in_range, in_range};
 use crate::error::{Error, Result};
 use crate::io::atomic::write_atomic;
 use crate::io::{BitDepth, Image, read_image_info, write_ldr};
@@ -475,30 +476,36 @@ impl ClassWeights {
 
     /// The file's text, checked as [`ClassWeights::load`] checks `path` (named in errors).
     pub fn parse(text: &str, path: &Path) -> Result<ClassWeights> {
-        let cw: ClassWeights = crate::config::parse_toml(text, path)?;
-        if cw.format != CLASS_WEIGHTS_FORMAT {
-            return Err(Error::config(
-                path,
-                format!("format '{}' is not '{CLASS_WEIGHTS_FORMAT}'", cw.format),
+        crate::config::parse_checked(text, path, ClassWeights::validate)
+    }
+
+    /// Format, 256 counts and 256 α > 0, smoothing and Mertens exponents ≥ 0.
+    pub fn validate(&self) -> std::result::Result<(), KeyError> {
+        if self.format != CLASS_WEIGHTS_FORMAT {
+            return Err(KeyError::new(
+                "format",
+                format!("'{}' is not '{CLASS_WEIGHTS_FORMAT}'", self.format),
             ));
         }
-        if cw.counts.len() != CLASSES || cw.alpha.len() != CLASSES {
-            return Err(Error::config(
-                path,
-                format!(
-                    "needs {CLASSES} counts and {CLASSES} alpha values, has {} and {}",
-                    cw.counts.len(),
-                    cw.alpha.len()
-                ),
-            ));
+        for (key, n) in [("counts", self.counts.len()), ("alpha", self.alpha.len())] {
+            if n != CLASSES {
+                return Err(KeyError::new(
+                    key,
+                    format!("has {n} values, needs one per class ({CLASSES})"),
+                ));
+            }
         }
-        if let Some(i) = cw.alpha.iter().position(|a| !(a.is_finite() && *a > 0.0)) {
-            return Err(Error::config(
-                path,
-                format!("alpha[{i}] = {} must be finite and positive", cw.alpha[i]),
-            ));
+        each_in_range("alpha", &self.alpha, Range::POSITIVE)?;
+        in_range("smoothing", self.smoothing, Range::NON_NEGATIVE)?;
+        let m = &self.mertens;
+        for (key, v) in [
+            ("mertens.contrast", m.contrast),
+            ("mertens.saturation", m.saturation),
+            ("mertens.exposure", m.exposure),
+        ] {
+            in_range(key, v, Range::NON_NEGATIVE)?;
         }
-        Ok(cw)
+        Ok(())
     }
 }
 

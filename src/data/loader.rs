@@ -20,7 +20,7 @@
 //!   linear space T · HDR · exposure (1 = the sensor's white level). Realism starts from the
 //!   frames' linear EXRs when present and meters each set with `sensor::metering`.
 
-use crate::config::load_toml;
+use crate::config::{KeyError, Range, each_in_range, in_range, in_range_because, load_checked};
 use crate::data::ground_truth::{blend_classes_smoothed, triangle_merge};
 use crate::data::layout::{self, GroundTruthKind, SetInfo, read_set_image};
 use crate::error::{Error, Result};
@@ -96,7 +96,42 @@ pub struct RealismConfig {
     pub colour: bool,
 }
 
+/// `[data]`'s `profile` value for no sensor realism (the paper's Net_P).
+pub const PURE_PROFILE: &str = "pure";
+
+/// Largest `ev_jitter`, stops: a meter off by more is not a meter.
+pub const MAX_EV_JITTER: f64 = 4.0;
+
 impl RealismConfig {
+    /// The rules of these keys (relative to the table holding them): ISOs > 0 (and at least
+    /// one unless the profile is "pure"), exposure factor > 0, jitter in [0, 4] stops, the
+    /// metering rule's ranges.
+    pub fn validate(&self) -> std::result::Result<(), KeyError> {
+        if self.isos.is_empty() && self.profile != Path::new(PURE_PROFILE) {
+            return Err(KeyError::new(
+                "isos",
+                format!(
+                    "profile '{}' needs a non-empty `isos` list",
+                    self.profile.display()
+                ),
+            ));
+        }
+        each_in_range("isos", &self.isos, Range::POSITIVE)?;
+        in_range_because(
+            "exposure",
+            self.exposure,
+            Range::POSITIVE,
+            "a factor on the metered exposure",
+        )?;
+        in_range_because(
+            "ev_jitter",
+            self.ev_jitter,
+            Range::closed(0.0, MAX_EV_JITTER),
+            "stops",
+        )?;
+        self.metering.validate().map_err(|e| e.within("metering"))
+    }
+
     /// `profile` at `isos`, every other key at its default.
     pub fn new(profile: PathBuf, isos: Vec<f64>) -> Self {
         RealismConfig {
@@ -175,7 +210,20 @@ fn default_prefetch() -> usize {
 
 impl LoaderConfig {
     pub fn load(path: &Path) -> Result<LoaderConfig> {
-        load_toml(path)
+        load_checked(path, LoaderConfig::validate)
+    }
+
+    /// Crop ≥ 8 px, batch, workers and prefetch ≥ 1, target σ ≥ 0, the realism keys' rules.
+    pub fn validate(&self) -> std::result::Result<(), KeyError> {
+        in_range("patch", self.patch, Range::at_least(8.0))?;
+        in_range("batch_size", self.batch_size, Range::at_least(1.0))?;
+        in_range("workers", self.workers, Range::at_least(1.0))?;
+        in_range("prefetch", self.prefetch, Range::at_least(1.0))?;
+        in_range("target_sigma", self.target_sigma, Range::NON_NEGATIVE)?;
+        match &self.realism {
+            Some(r) => r.validate().map_err(|e| e.within("realism")),
+            None => Ok(()),
+        }
     }
 }
 
@@ -297,17 +345,7 @@ pub fn dihedral<T: Copy>(data: &[T], size: usize, c: usize, t: u8) -> Vec<T> {
 
 impl Loader {
     pub fn new(cfg: &LoaderConfig) -> Result<Loader> {
-        if cfg.patch < 8 || cfg.batch_size == 0 || cfg.workers == 0 {
-            return Err(Error::Invalid(
-                "loader: patch ≥ 8, batch_size ≥ 1, workers ≥ 1".into(),
-            ));
-        }
-        if !(cfg.target_sigma.is_finite() && cfg.target_sigma >= 0.0) {
-            return Err(Error::Invalid(format!(
-                "loader: target_sigma {} must be finite and ≥ 0",
-                cfg.target_sigma
-            )));
-        }
+        cfg.validate()?;
         let info = layout::detect(&cfg.dataset)?;
         if info.sets.is_empty() {
             return Err(Error::layout(&cfg.dataset, "no sets"));
@@ -331,18 +369,6 @@ impl Loader {
         let mut source = Source::Display;
         let mut linearise = None;
         if let Some(r) = &cfg.realism {
-            if r.isos.is_empty() {
-                return Err(Error::Invalid("loader: realism.isos is empty".into()));
-            }
-            if !(r.ev_jitter >= 0.0 && r.ev_jitter <= 4.0) {
-                return Err(Error::Invalid(format!(
-                    "loader: realism.ev_jitter {} must be in [0, 4] stops",
-                    r.ev_jitter
-                )));
-            }
-            r.metering
-                .validate()
-                .map_err(|m| Error::Invalid(format!("loader: {m}")))?;
             let mut profile = SensorProfile::load(&r.profile)?;
             let missing = info.sets.iter().find_map(|s| {
                 let idx = frames_at(s, need).ok()?;

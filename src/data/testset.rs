@@ -23,6 +23,7 @@
 //! is 0. This is real scene radiance through a measured sensor model, not a real bracketed
 //! capture: real brackets in a known layout are evaluated directly.
 
+use crate::config::{KeyError, Range, each_in_range, in_range};
 use crate::data::layout::hdrsynth::{self as own, Manifest, SET_META, SetMeta};
 use crate::data::scene::{Camera, SampleStats, ev_tag};
 use crate::error::{Error, Result};
@@ -271,40 +272,48 @@ pub fn scenes_of_sets<'a>(
         .collect())
 }
 
+impl TestsetOptions {
+    /// The options' rules, keys as an `[testset.options]` table spells them: ISOs > 0 (at
+    /// least one), EVs distinct, within ±16 stops and holding 0, exposure factor > 0, the
+    /// metering rule's ranges, 8 or 16 output bits, a resize of at least 1×1.
+    pub fn validate(&self) -> std::result::Result<(), KeyError> {
+        if self.isos.is_empty() {
+            return Err(KeyError::new("isos", "no ISOs given"));
+        }
+        each_in_range("isos", &self.isos, Range::POSITIVE)?;
+        if !self.evs.contains(&0.0) {
+            return Err(KeyError::new(
+                "evs",
+                format!("{:?} must include 0 (the reference frame)", self.evs),
+            ));
+        }
+        let max = crate::data::generate::MAX_EV as f64;
+        each_in_range("evs", &self.evs, Range::closed(-max, max))?;
+        let mut sorted = self.evs.clone();
+        sorted.sort_by(f32::total_cmp);
+        if sorted.windows(2).any(|w| w[0] == w[1]) {
+            return Err(KeyError::new(
+                "evs",
+                format!("{:?} must be distinct", self.evs),
+            ));
+        }
+        self.metering.validate().map_err(|e| e.within("metering"))?;
+        in_range("exposure", self.exposure, Range::POSITIVE)?;
+        if BitDepth::from_bits(self.output_bits).is_none() {
+            return Err(KeyError::new(
+                "output_bits",
+                format!("{} must be 8 or 16", self.output_bits),
+            ));
+        }
+        if let Some((w, h)) = self.resize {
+            each_in_range("resize", &[w, h], Range::at_least(1.0))?;
+        }
+        Ok(())
+    }
+}
+
 fn validate(opts: &TestsetOptions, profile: &SensorProfile) -> Result<()> {
-    if opts.isos.is_empty() {
-        return Err(Error::Invalid("testset: no ISOs given".into()));
-    }
-    if !opts.evs.contains(&0.0) {
-        return Err(Error::Invalid(format!(
-            "testset: EVs {:?} must include 0 (the reference frame)",
-            opts.evs
-        )));
-    }
-    let mut sorted = opts.evs.clone();
-    sorted.sort_by(f32::total_cmp);
-    if sorted.windows(2).any(|w| w[0] == w[1]) || sorted.iter().any(|e| !e.is_finite()) {
-        return Err(Error::Invalid(format!(
-            "testset: EVs {:?} must be finite and distinct",
-            opts.evs
-        )));
-    }
-    opts.metering
-        .validate()
-        .map_err(|m| Error::Invalid(format!("testset: {m}")))?;
-    if !(opts.exposure > 0.0 && opts.exposure.is_finite()) {
-        return Err(Error::Invalid(format!(
-            "testset: exposure factor {} must be > 0",
-            opts.exposure
-        )));
-    }
-    if let Some((w, h)) = opts.resize
-        && (w == 0 || h == 0)
-    {
-        return Err(Error::Invalid(format!(
-            "testset: resize to {w}×{h} is empty"
-        )));
-    }
+    opts.validate()?;
     if opts.noise != NoiseModel::None {
         for &iso in &opts.isos {
             profile.noise_at(iso)?;
@@ -516,7 +525,7 @@ fn write_set(
         drop(frame);
         // A static scene: the "dynamic" capture is the same frame (same noise, byte-identical
         // file) and no pixel moves, so every mask is 0.
-        let bytes = std::fs::read(&path).map_err(|e| Error::io(&path, e))?;
+        let bytes = crate::io::guard::read_file(&path)?;
         write_atomic(&dir.join("dynamic").join(format!("{tag}.png")), &bytes)?;
         write_ldr(
             &dir.join("dynamic").join(format!("mask_{tag}.png")),
@@ -671,8 +680,7 @@ pub fn to_rec709_matrix(path: &Path) -> Result<Option<[[f32; 3]; 3]>> {
     if crate::io::Format::from_path(path)? != crate::io::Format::Exr {
         return Ok(None);
     }
-    crate::io::guard::regular_file(path)?;
-    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let file = crate::io::guard::open_input(path).map_err(|e| Error::io(path, e))?;
     let mut reader = std::io::BufReader::new(file);
     // Unvalidated header read, as the image reader does (it accepts subsampled chroma).
     let meta = exr::meta::MetaData::read_from_buffered(&mut reader, false)

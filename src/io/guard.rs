@@ -1,8 +1,8 @@
 //! Guards around a command's output folder: one writer at a time ([`OutputLock`]), nothing
 //! half-written at the final path ([`Staged`]), no output inside the input
 //! ([`refuse_output_inside`]), a folder walk that cannot loop through symlinks
-//! ([`images_under`]), and single-file inputs that must be regular files ([`read_file`],
-//! [`read_text`]: a FIFO or a device would block or never end). docs/reliability.md lists
+//! ([`images_under`]), and single-file inputs that must be regular files ([`open_input`],
+//! [`read_file`], [`read_text`]: a FIFO or a device would block or never end). docs/reliability.md lists
 //! which command uses which.
 
 use crate::error::{Error, Result};
@@ -286,33 +286,56 @@ fn walk(
     Ok(())
 }
 
-/// Whether `path` is (or links to) a regular file: the one test every input read makes before
-/// opening, and the folder walk's filter (a FIFO, socket or device in a folder is skipped).
+/// Whether `path` is (or links to) a regular file: the folder walk's filter (a FIFO, socket or
+/// device in a folder is skipped).
 pub fn is_regular_file(path: &Path) -> bool {
     std::fs::metadata(path).is_ok_and(|m| m.is_file())
 }
 
-/// Error when `path` exists and is not (a link to) a regular file, naming the path and what it
-/// is; a missing path passes, so the read that follows reports it as its caller words it.
-/// Checked before opening: opening a FIFO for reading blocks until a writer appears, and a
-/// character device may never end, so either would hang the command.
-pub fn regular_file(path: &Path) -> Result<()> {
-    let Ok(meta) = std::fs::metadata(path) else {
-        return Ok(());
-    };
-    if meta.is_file() {
-        return Ok(());
+/// The input file `path` opened for reading, or an error when it is not (a link to) a regular
+/// file, saying what it is. The one way every single-file reader opens its input.
+///
+/// The test is made on the opened file (`fstat`), so nothing can swap the path between test and
+/// open. On Unix the open itself cannot block: it is made with `O_NONBLOCK` (opening a FIFO for
+/// reading otherwise waits for a writer, forever), which is cleared again on a regular file. A
+/// missing file is the plain `NotFound` error, for the caller to word.
+pub fn open_input(path: &Path) -> std::io::Result<File> {
+    let mut opts = OpenOptions::new();
+    opts.read(true);
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::OpenOptionsExt;
+        opts.custom_flags(libc::O_NONBLOCK);
     }
-    Err(Error::io(
-        path,
-        std::io::Error::new(
+    let file = opts.open(path)?;
+    let meta = file.metadata()?;
+    if !meta.is_file() {
+        return Err(std::io::Error::new(
             std::io::ErrorKind::InvalidInput,
             format!(
                 "not a regular file but {}; give the path of a file",
                 file_kind(&meta.file_type())
             ),
-        ),
-    ))
+        ));
+    }
+    #[cfg(unix)]
+    clear_nonblocking(&file)?;
+    Ok(file)
+}
+
+/// Blocking reads again (regular files ignore the flag; cleared so that the handle behaves as
+/// `File::open`'s whatever it is passed to).
+#[cfg(unix)]
+fn clear_nonblocking(file: &File) -> std::io::Result<()> {
+    use std::os::fd::AsRawFd;
+    let fd = file.as_raw_fd();
+    // SAFETY: fcntl on a descriptor this `File` owns and keeps open; F_GETFL/F_SETFL touch
+    // only its status flags.
+    let flags = unsafe { libc::fcntl(fd, libc::F_GETFL) };
+    if flags < 0 || unsafe { libc::fcntl(fd, libc::F_SETFL, flags & !libc::O_NONBLOCK) } < 0 {
+        return Err(std::io::Error::last_os_error());
+    }
+    Ok(())
 }
 
 fn file_kind(t: &std::fs::FileType) -> &'static str {
@@ -335,16 +358,30 @@ fn file_kind(t: &std::fs::FileType) -> &'static str {
     if t.is_dir() { "a folder" } else { "not a file" }
 }
 
-/// The bytes of the input file `path` ([`regular_file`] first); errors name the path.
-pub fn read_file(path: &Path) -> Result<Vec<u8>> {
-    regular_file(path)?;
-    std::fs::read(path).map_err(|e| Error::io(path, e))
+/// The bytes of the input file `path` ([`open_input`]); the I/O error as it is, for callers
+/// that word a missing file themselves.
+pub fn read_input(path: &Path) -> std::io::Result<Vec<u8>> {
+    let mut bytes = Vec::new();
+    open_input(path)?.read_to_end(&mut bytes)?;
+    Ok(bytes)
 }
 
-/// The text of the input file `path` ([`regular_file`] first); errors name the path.
+/// The text of the input file `path` ([`open_input`]); the I/O error as it is (`InvalidData`
+/// when the file is not UTF-8).
+pub fn read_input_text(path: &Path) -> std::io::Result<String> {
+    let mut text = String::new();
+    open_input(path)?.read_to_string(&mut text)?;
+    Ok(text)
+}
+
+/// [`read_input`], errors naming the path.
+pub fn read_file(path: &Path) -> Result<Vec<u8>> {
+    read_input(path).map_err(|e| Error::io(path, e))
+}
+
+/// [`read_input_text`], errors naming the path.
 pub fn read_text(path: &Path) -> Result<String> {
-    regular_file(path)?;
-    std::fs::read_to_string(path).map_err(|e| Error::io(path, e))
+    read_input_text(path).map_err(|e| Error::io(path, e))
 }
 
 /// Whether a path has an image extension the readers know (exr, hdr, pic, png, tif, tiff).

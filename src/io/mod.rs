@@ -115,8 +115,7 @@ pub fn read_image(path: &Path) -> Result<Image> {
 
 pub fn read_image_info(path: &Path) -> Result<(Image, ReadInfo)> {
     let format = Format::from_path(path)?;
-    guard::regular_file(path)?;
-    let bytes = match std::fs::read(path) {
+    let bytes = match guard::read_input(path) {
         Ok(b) => b,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
             return Err(Error::io(

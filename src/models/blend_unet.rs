@@ -27,6 +27,7 @@
 use super::batch_norm::batch_norm_relu;
 use super::conv::{conv_transpose2d, conv2d};
 use super::pool::max_pool2d;
+use crate::config::{KeyError, Range, in_range};
 use crate::error::{Error, Result};
 use burn::module::Module;
 use burn::nn::conv::{Conv2d, Conv2dConfig, ConvTranspose2d, ConvTranspose2dConfig};
@@ -66,20 +67,12 @@ impl Default for BlendUNetConfig {
 }
 
 impl BlendUNetConfig {
-    pub fn validate(&self) -> Result<()> {
-        if self.base_width == 0 {
-            return Err(Error::Invalid("blend U-Net: base_width must be ≥ 1".into()));
-        }
-        if self.depth > 10 {
-            return Err(Error::Invalid(format!(
-                "blend U-Net: depth {} is more than 10 down-sampling steps",
-                self.depth
-            )));
-        }
-        if self.classes < 2 {
-            return Err(Error::Invalid("blend U-Net: classes must be ≥ 2".into()));
-        }
-        Ok(())
+    /// base_width ≥ 1, depth in [0, 10] down-sampling steps, classes in [2, 256] (the class
+    /// maps are 8-bit); keys relative to `[model]`.
+    pub fn validate(&self) -> std::result::Result<(), KeyError> {
+        in_range("base_width", self.base_width, Range::at_least(1.0))?;
+        in_range("depth", self.depth, Range::closed(0.0, 10.0))?;
+        in_range("classes", self.classes, Range::closed(2.0, 256.0))
     }
 
     /// Channel widths of levels 0..=depth.

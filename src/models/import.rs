@@ -56,13 +56,15 @@ fn list(keys: &[String]) -> String {
 /// Strict: a missing tensor, a tensor of another shape or a non-float dtype, or a tensor that
 /// matches no parameter is an error naming the key and the file; `model` is then not modified.
 pub fn import_weights<M: Module>(model: M, path: &Path) -> Result<M> {
-    crate::io::guard::regular_file(path)?;
-    if !path.is_file() {
-        return Err(Error::io(
-            path,
-            std::io::Error::new(std::io::ErrorKind::NotFound, "no such weights file"),
-        ));
-    }
+    let mut file = crate::io::guard::open_input(path).map_err(|e| {
+        let e = match e.kind() {
+            std::io::ErrorKind::NotFound => {
+                std::io::Error::new(std::io::ErrorKind::NotFound, "no such weights file")
+            }
+            _ => e,
+        };
+        Error::io(path, e)
+    })?;
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
@@ -83,7 +85,8 @@ pub fn import_weights<M: Module>(model: M, path: &Path) -> Result<M> {
             ));
         }
     }
-    let bytes = crate::io::guard::read_file(path)?;
+    let mut bytes = Vec::new();
+    std::io::Read::read_to_end(&mut file, &mut bytes).map_err(|e| Error::io(path, e))?;
     import_weights_bytes(model, bytes, path)
 }
 

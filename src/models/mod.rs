@@ -29,7 +29,6 @@ pub mod winograd;
 pub mod wu;
 
 use crate::data::loader::SampleKind;
-use crate::error::Result;
 use serde::{Deserialize, Serialize};
 
 pub use blend_unet::{BlendUNet, BlendUNetConfig};
@@ -53,7 +52,8 @@ impl ModelConfig {
         }
     }
 
-    pub fn validate(&self) -> Result<()> {
+    /// The network's rules, keys relative to `[model]`.
+    pub fn validate(&self) -> std::result::Result<(), crate::config::KeyError> {
         match self {
             ModelConfig::BlendUnet(m) => m.validate(),
             ModelConfig::Wu(m) => m.validate(),

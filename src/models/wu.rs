@@ -31,6 +31,7 @@ use super::activation::leaky_relu;
 use super::batch_norm::{batch_norm, batch_norm_relu};
 use super::conv::{conv_transpose2d, conv2d};
 use super::pad::reflect_pad;
+use crate::config::{KeyError, Range, each_in_range, in_range};
 use crate::error::{Error, Result};
 use burn::module::Module;
 use burn::nn::conv::{Conv2d, Conv2dConfig, ConvTranspose2d, ConvTranspose2dConfig};
@@ -116,6 +117,9 @@ pub struct WuConfig {
     pub hdr_input_scale: f64,
 }
 
+/// Most residual blocks of the ResNet merger.
+pub const MAX_RES_BLOCKS: usize = 64;
+
 impl Default for WuConfig {
     fn default() -> Self {
         WuConfig {
@@ -154,30 +158,35 @@ impl WuConfig {
         }
     }
 
-    pub fn validate(&self) -> Result<()> {
-        if self.base_width == 0 {
-            return Err(Error::Invalid("Wu net: base_width must be ≥ 1".into()));
-        }
+    /// base_width ≥ 1; res_blocks ≤ 64 (the released model has 9); the U-Net's merger widths
+    /// 1 to 8 entries, each ≥ 1; hdr_input_scale in (0, 1] (HDR inputs above 1 would leave the
+    /// x·2 − 1 range); keys relative to `[model]`.
+    pub fn validate(&self) -> std::result::Result<(), KeyError> {
+        in_range("base_width", self.base_width, Range::at_least(1.0))?;
+        in_range(
+            "res_blocks",
+            self.res_blocks,
+            Range::closed(0.0, MAX_RES_BLOCKS as f64),
+        )?;
         if self.variant == WuVariant::Unet {
-            if self.unet_merger_widths.is_empty() || self.unet_merger_widths.len() > 8 {
-                return Err(Error::Invalid(format!(
-                    "Wu net: unet_merger_widths has {} entries, expected 1 to 8",
-                    self.unet_merger_widths.len()
-                )));
-            }
-            if self.unet_merger_widths.contains(&0) {
-                return Err(Error::Invalid(
-                    "Wu net: unet_merger_widths entries must be ≥ 1".into(),
+            let n = self.unet_merger_widths.len();
+            if !(1..=8).contains(&n) {
+                return Err(KeyError::new(
+                    "unet_merger_widths",
+                    format!("has {n} entries, expected 1 to 8"),
                 ));
             }
+            each_in_range(
+                "unet_merger_widths",
+                &self.unet_merger_widths,
+                Range::at_least(1.0),
+            )?;
         }
-        if !(self.hdr_input_scale.is_finite() && self.hdr_input_scale > 0.0) {
-            return Err(Error::Invalid(format!(
-                "Wu net: hdr_input_scale must be finite and > 0, got {}",
-                self.hdr_input_scale
-            )));
-        }
-        Ok(())
+        in_range(
+            "hdr_input_scale",
+            self.hdr_input_scale,
+            Range::left_open(0.0, 1.0),
+        )
     }
 
     /// Widths of the merger's stride-2 convolutions: [4b] (ResNet) or mₖ·b (U-Net).

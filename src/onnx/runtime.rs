@@ -103,13 +103,16 @@ impl OnnxModel {
     /// Loads `path`; `threads` sets ONNX Runtime's intra-op threads (default: its own choice,
     /// one per physical core).
     pub fn load(path: &Path, threads: Option<usize>) -> Result<OnnxModel> {
-        if !path.is_file() {
-            return Err(Error::io(
-                path,
-                std::io::Error::new(std::io::ErrorKind::NotFound, "no such ONNX model"),
-            ));
-        }
-        Self::build(path, threads, |b| b.commit_from_file(path))
+        let bytes = crate::io::guard::read_input(path).map_err(|e| {
+            let e = match e.kind() {
+                std::io::ErrorKind::NotFound => {
+                    std::io::Error::new(std::io::ErrorKind::NotFound, "no such ONNX model")
+                }
+                _ => e,
+            };
+            Error::io(path, e)
+        })?;
+        Self::from_bytes(&bytes, path, threads)
     }
 
     /// A model serialised in memory (a checkpoint exported on the fly: `eval::engine`);

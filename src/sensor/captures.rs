@@ -31,7 +31,7 @@
 //! kinds, names, that every frame file exists and that the frames of a burst have one size);
 //! every error names the manifest, the burst and, where one is involved, the frame file.
 
-use crate::config::parse_toml;
+use crate::config::{KeyError, Range, in_range, in_range_because, parse_checked, parse_toml};
 use crate::error::{Error, Result};
 use crate::io::{BitDepth, Format, Image};
 use serde::{Deserialize, Serialize};
@@ -138,73 +138,69 @@ impl CaptureManifest {
     pub fn parse(text: &str, path: &Path) -> Result<CaptureManifest> {
         let table: toml::Table = parse_toml(text, path)?;
         check_keys(&table, path)?;
-        let manifest: CaptureManifest = parse_toml(text, path)?;
-        manifest.validate().map_err(|m| Error::config(path, m))?;
-        Ok(manifest)
+        parse_checked(text, path, CaptureManifest::validate)
     }
 
-    /// Value checks (not touching files). The message names the burst.
-    pub fn validate(&self) -> std::result::Result<(), String> {
+    /// Value checks (not touching files); keys as the file spells them (`burst[2].iso`), the
+    /// message names the burst.
+    pub fn validate(&self) -> std::result::Result<(), KeyError> {
         if self.format != CAPTURES_FORMAT {
-            return Err(format!(
-                "format '{}' is not '{CAPTURES_FORMAT}'",
-                self.format
+            return Err(KeyError::new(
+                "format",
+                format!("'{}' is not '{CAPTURES_FORMAT}'", self.format),
             ));
         }
         let s = &self.sensor;
-        for (key, v) in [
-            ("white_level", s.white_level),
-            ("black_level", s.black_level),
-        ] {
-            if let Some(v) = v
-                && !(v.is_finite() && v >= 0.0)
-            {
-                return Err(format!("[sensor].{key} = {v} must be a finite DN ≥ 0"));
-            }
+        if let Some(w) = s.white_level {
+            in_range("sensor.white_level", w, Range::POSITIVE)?;
         }
-        if let (Some(w), Some(b)) = (s.white_level, s.black_level)
-            && b >= w
-        {
-            return Err(format!(
-                "[sensor]: black_level {b} must be below white_level {w}"
-            ));
+        if let Some(b) = s.black_level {
+            let below = s.white_level.unwrap_or(f64::INFINITY);
+            in_range_because(
+                "sensor.black_level",
+                b,
+                Range::half_open(0.0, below),
+                "DN, below white_level",
+            )?;
         }
         let mut names = std::collections::HashSet::new();
         for (i, b) in self.bursts.iter().enumerate() {
             let at = burst_label(i, Some(&b.name));
+            let key = |k: &str| format!("burst[{i}].{k}");
+            let bad = |k: &str, m: String| Err(KeyError::new(key(k), format!("{at}: {m}")));
             if b.name.trim().is_empty() {
-                return Err(format!("{at}: name must not be empty"));
+                return bad("name", "name must not be empty".into());
             }
             if !names.insert(b.name.as_str()) {
-                return Err(format!("{at}: the name is used by an earlier burst"));
+                return bad("name", "the name is used by an earlier burst".into());
             }
-            if !(b.iso.is_finite() && b.iso > 0.0) {
-                return Err(format!("{at}: iso {} must be > 0", b.iso));
-            }
-            let exposure_ok = b.exposure_s.is_finite()
-                && (b.exposure_s > 0.0 || (b.kind == BurstKind::Dark && b.exposure_s == 0.0));
-            if !exposure_ok {
-                return Err(format!(
-                    "{at}: exposure_s {} must be > 0 (0 is allowed for dark bursts)",
-                    b.exposure_s
-                ));
-            }
+            in_range(&key("iso"), b.iso, Range::POSITIVE)?;
+            // 0 s is a dark burst's (no light either way); an hour is beyond any burst.
+            let exposure = match b.kind {
+                BurstKind::Dark => Range::closed(0.0, 3600.0),
+                _ => Range::left_open(0.0, 3600.0),
+            };
+            in_range(&key("exposure_s"), b.exposure_s, exposure)?;
             if b.frames.is_empty() {
-                return Err(format!("{at}: frames is empty"));
+                return bad("frames", "frames is empty".into());
             }
             match &b.scene {
                 Some(_) if b.kind != BurstKind::Scene => {
-                    return Err(format!(
-                        "{at}: 'scene' names the scene of a scene burst; this burst is '{}'",
-                        b.kind.as_str()
-                    ));
+                    return bad(
+                        "scene",
+                        format!(
+                            "'scene' names the scene of a scene burst; this burst is '{}'",
+                            b.kind.as_str()
+                        ),
+                    );
                 }
                 Some(sc) if sc.trim().is_empty() => {
-                    return Err(format!("{at}: scene must not be empty"));
+                    return bad("scene", "scene must not be empty".into());
                 }
                 _ => {}
             }
-            for f in &b.frames {
+            for (j, f) in b.frames.iter().enumerate() {
+                let frame = format!("frames[{j}]");
                 let p = Path::new(f);
                 if f.is_empty()
                     || p.is_absolute()
@@ -215,23 +211,30 @@ impl CaptureManifest {
                         )
                     })
                 {
-                    return Err(format!(
-                        "{at}: frame '{f}' must be a relative path inside the capture set \
-                         (no '..', not absolute)"
-                    ));
+                    return bad(
+                        &frame,
+                        format!(
+                            "frame '{f}' must be a relative path inside the capture set (no \
+                             '..', not absolute)"
+                        ),
+                    );
                 }
                 match Format::from_path(p) {
                     Ok(Format::Png | Format::Tiff) => {}
                     _ => {
-                        return Err(format!(
-                            "{at}: frame '{f}' must be a PNG (or TIFF) of sensor DN"
-                        ));
+                        return bad(
+                            &frame,
+                            format!("frame '{f}' must be a PNG (or TIFF) of sensor DN"),
+                        );
                     }
                 }
             }
             let mut seen = std::collections::HashSet::new();
-            if let Some(f) = b.frames.iter().find(|f| !seen.insert(f.as_str())) {
-                return Err(format!("{at}: frame '{f}' is listed twice"));
+            if let Some(j) = b.frames.iter().position(|f| !seen.insert(f.as_str())) {
+                return bad(
+                    &format!("frames[{j}]"),
+                    format!("frame '{}' is listed twice", b.frames[j]),
+                );
             }
         }
         Ok(())
@@ -366,8 +369,7 @@ impl CaptureSet {
                 .to_path_buf();
             (dir, path.to_path_buf())
         };
-        crate::io::guard::regular_file(&manifest_path)?;
-        let text = std::fs::read_to_string(&manifest_path).map_err(|e| {
+        let text = crate::io::guard::read_input_text(&manifest_path).map_err(|e| {
             let e = if e.kind() == std::io::ErrorKind::NotFound {
                 std::io::Error::new(
                     e.kind(),
@@ -531,7 +533,7 @@ pub fn write_capture_set(
     let bad = |m: String| Err(Error::config(&manifest_path, m));
     manifest
         .validate()
-        .map_err(|m| Error::config(&manifest_path, m))?;
+        .map_err(|e| e.at(&manifest_path, None))?;
     if frames.len() != manifest.bursts.len() {
         return bad(format!(
             "{} bursts in the manifest but {} frame lists given",

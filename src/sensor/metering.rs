@@ -13,6 +13,7 @@
 //!
 //! k = min(mid_grey / L_log-avg, 1 / Q_{1 − max_clipped}(max channel)), times a user factor.
 
+use crate::config::{KeyError, Range, in_range};
 use crate::io::{Image, luminance};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -45,25 +46,16 @@ pub struct Exposure {
 }
 
 impl Metering {
-    pub fn validate(&self) -> Result<(), String> {
-        if !(self.mid_grey > 0.0 && self.mid_grey < 1.0) {
-            return Err(format!(
-                "metering mid_grey {} must be in (0, 1)",
-                self.mid_grey
-            ));
-        }
-        if !(0.0..0.5).contains(&self.max_clipped) {
-            return Err(format!(
-                "metering max_clipped {} must be in [0, 0.5)",
-                self.max_clipped
-            ));
-        }
-        Ok(())
+    /// mid_grey in (0, 1) (a fraction of white), max_clipped in [0, 0.5) (clipping half the
+    /// frame is not highlight protection); keys relative to the `metering` table.
+    pub fn validate(&self) -> Result<(), KeyError> {
+        in_range("mid_grey", self.mid_grey, Range::open(0.0, 1.0))?;
+        in_range("max_clipped", self.max_clipped, Range::half_open(0.0, 0.5))
     }
 
     /// The EV0 key of a linear radiance map (any unit). Errors when the map is black.
     pub fn key(&self, radiance: &Image) -> Result<Exposure, String> {
-        self.validate()?;
+        self.validate().map_err(|e| e.to_string())?;
         let px: Vec<(f32, f32)> = radiance
             .data
             .par_chunks_exact(3)

@@ -17,7 +17,7 @@
 //!   extrapolation. A profile may have no noise (or no colour) calibration yet: the realism
 //!   operator then refuses to run the missing step unless told to skip it.
 
-use crate::config::load_toml;
+use crate::config::{KeyError, Range, each_in_range, in_range, in_range_because, load_checked};
 use crate::error::{Error, Result};
 use crate::sensor::response::ToneCurve;
 use serde::{Deserialize, Serialize};
@@ -181,6 +181,12 @@ pub struct NoiseTableRow {
 
 pub const PROFILE_FORMAT: &str = "hdrsynth-sensor/1";
 
+/// The range of each noise coefficient a and b (normalised units, see the module docs).
+const NOISE_COEFFICIENT: Range = Range::closed(-1.0, 1.0);
+/// The range of a colour-matrix entry: device matrices (rows summing to about 1) stay within a
+/// few units; beyond ±10 a matrix amplifies noise more than any camera's.
+const COLOUR_ENTRY: Range = Range::closed(-10.0, 10.0);
+
 impl Response {
     /// Linear → code value, both in [0, 1].
     pub fn apply(&self, x: f64) -> f64 {
@@ -243,23 +249,26 @@ impl Response {
         }
     }
 
-    fn validate(&self, what: &str) -> std::result::Result<(), String> {
+    /// gamma in (0, 10]; a LUT of ≥ 2 non-decreasing values in [0, 1]; keys relative to the
+    /// response's table.
+    fn validate(&self) -> std::result::Result<(), KeyError> {
         match self {
-            Response::Gamma { gamma } if !(*gamma > 0.0 && gamma.is_finite()) => {
-                Err(format!("{what}: gamma {gamma} must be > 0"))
-            }
+            Response::Gamma { gamma } => in_range("gamma", *gamma, Range::left_open(0.0, 10.0)),
             Response::Lut { lut } => {
                 if lut.len() < 2 {
-                    return Err(format!("{what}: lut needs at least 2 samples"));
+                    return Err(KeyError::new("lut", "needs at least 2 samples"));
                 }
-                if lut.windows(2).any(|w| w[1] < w[0])
-                    || lut.iter().any(|v| !(0.0..=1.0).contains(v))
-                {
-                    return Err(format!(
-                        "{what}: lut must be non-decreasing values in [0, 1]"
-                    ));
+                each_in_range("lut", lut, Range::UNIT)?;
+                match lut.windows(2).position(|w| w[1] < w[0]) {
+                    Some(i) => Err(KeyError::new(
+                        format!("lut[{}]", i + 1),
+                        format!(
+                            "{} is below the sample before it: a response never falls",
+                            lut[i + 1]
+                        ),
+                    )),
+                    None => Ok(()),
                 }
-                Ok(())
             }
             _ => Ok(()),
         }
@@ -345,71 +354,92 @@ impl SensorProfile {
     }
 
     pub fn load(path: &Path) -> Result<SensorProfile> {
-        let p: SensorProfile = load_toml(path)?;
-        p.validate().map_err(|m| Error::config(path, m))?;
-        Ok(p)
+        load_checked(path, SensorProfile::validate)
     }
 
     /// Write atomically as TOML.
     pub fn save(&self, path: &Path) -> Result<()> {
-        self.validate().map_err(|m| Error::config(path, m))?;
+        self.validate().map_err(|e| e.at(path, None))?;
         let text = toml::to_string(self).map_err(|e| Error::encode(path, e))?;
         crate::io::atomic::write_atomic(path, text.as_bytes())
     }
 
-    pub fn validate(&self) -> std::result::Result<(), String> {
+    /// Every value rule of the profile, keys as the file spells them. Ranges:
+    /// docs/reliability.md, "Value ranges".
+    pub fn validate(&self) -> std::result::Result<(), KeyError> {
         if self.format != PROFILE_FORMAT {
-            return Err(format!(
-                "format '{}' is not '{PROFILE_FORMAT}'",
-                self.format
+            return Err(KeyError::new(
+                "format",
+                format!("'{}' is not '{PROFILE_FORMAT}'", self.format),
             ));
         }
         let l = &self.levels;
-        if !(1..=16).contains(&l.bit_depth) {
-            return Err(format!(
-                "levels.bit_depth {} must be in 1..=16",
-                l.bit_depth
-            ));
-        }
+        in_range("levels.bit_depth", l.bit_depth, Range::closed(1.0, 16.0))?;
         let max = ((1u32 << l.bit_depth) - 1) as f64;
-        if !(l.black_level >= 0.0 && l.black_level < l.white_level && l.white_level <= max) {
-            return Err(format!(
-                "levels: need 0 ≤ black_level ({}) < white_level ({}) ≤ 2^bit_depth − 1 ({max})",
-                l.black_level, l.white_level
-            ));
-        }
-        if self.noise.windows(2).any(|w| w[0].iso >= w[1].iso) {
-            return Err("noise: ISOs must be strictly ascending".into());
-        }
-        for n in &self.noise {
-            // Negative a or b occur in real published fits (darktable has 1,155 such rows);
-            // a profile may hold them (the import's read-noise floor replaces negative b by
-            // default) and the realism operator clamps the variance at 0.
-            if n.iso.is_nan() || n.iso <= 0.0 || n.a.iter().chain(&n.b).any(|v| !v.is_finite()) {
-                return Err(format!(
-                    "noise at ISO {}: iso > 0 and finite a, b required",
-                    n.iso
+        in_range(
+            "levels.black_level",
+            l.black_level,
+            Range::half_open(0.0, max),
+        )?;
+        in_range_because(
+            "levels.white_level",
+            l.white_level,
+            Range::left_open(l.black_level, max),
+            "above black_level, at most 2^bit_depth − 1",
+        )?;
+        for (i, n) in self.noise.iter().enumerate() {
+            let key = |k: &str| format!("noise[{i}].{k}");
+            in_range(&key("iso"), n.iso, Range::POSITIVE)?;
+            if i > 0 && n.iso <= self.noise[i - 1].iso {
+                return Err(KeyError::new(
+                    key("iso"),
+                    format!(
+                        "{} is not above the ISO before it ({}): ISOs must be strictly ascending",
+                        n.iso,
+                        self.noise[i - 1].iso
+                    ),
                 ));
+            }
+            // Negative a or b occur in real published fits (darktable has 1,155 such rows; a
+            // shipped profile keeps one negative a): a profile may hold them and the realism
+            // operator clamps the variance at 0. Beyond ±1 the noise would exceed the whole
+            // signal range (x and σ² are normalised to it).
+            each_in_range(&key("a"), &n.a, NOISE_COEFFICIENT)?;
+            each_in_range(&key("b"), &n.b, NOISE_COEFFICIENT)?;
+            for (k, se) in [("a_stderr", n.a_stderr), ("b_stderr", n.b_stderr)] {
+                if let Some(se) = se {
+                    each_in_range(&key(k), &se, Range::closed(0.0, 1.0))?;
+                }
             }
         }
         if let Some(c) = &self.colour {
-            if c.matrix.iter().flatten().any(|v| !v.is_finite()) {
-                return Err("colour.matrix has non-finite entries".into());
+            for (r, row) in c.matrix.iter().enumerate() {
+                each_in_range(&format!("colour.matrix[{r}]"), row, COLOUR_ENTRY)?;
             }
             check_colour_matrix(&c.matrix).map_err(|why| {
-                format!("colour.matrix {why}; calibrate it again or remove [colour]")
+                KeyError::new(
+                    "colour.matrix",
+                    format!("{why}; calibrate it again or remove [colour]"),
+                )
             })?;
+            if let Some(rp) = &c.root_polynomial {
+                for (r, row) in rp.iter().enumerate() {
+                    each_in_range(&format!("colour.root_polynomial[{r}]"), row, COLOUR_ENTRY)?;
+                }
+            }
             if c.use_root_polynomial && c.root_polynomial.is_none() {
-                return Err(
-                    "colour.use_root_polynomial = true but no root_polynomial matrix".into(),
-                );
+                return Err(KeyError::new(
+                    "colour.use_root_polynomial",
+                    "true but no root_polynomial matrix",
+                ));
             }
         }
-        self.response.validate("response")?;
-        self.source_response.validate("source_response")?;
+        self.response.validate().map_err(|e| e.within("response"))?;
+        self.source_response
+            .validate()
+            .map_err(|e| e.within("source_response"))?;
         // Ids and parameters: the same check the realism operator makes.
-        crate::sensor::effects::Plan::from_effects(&self.effects)?;
-        Ok(())
+        crate::sensor::effects::Plan::check(&self.effects)
     }
 
     /// Noise parameters (a, b) per channel at `iso`, interpolated linearly in log(ISO).

@@ -407,7 +407,7 @@ fn write_checksums(dir: &Path) -> Result<()> {
     let mut text = String::new();
     for name in names {
         let path = dir.join(&name);
-        let bytes = std::fs::read(&path).map_err(|e| Error::io(&path, e))?;
+        let bytes = crate::io::guard::read_file(&path)?;
         text.push_str(&format!("{}  {name}\n", sha256_hex(&bytes)));
     }
     write_file(&dir.join(CHECKSUMS_FILE), text.as_bytes())

@@ -1,9 +1,9 @@
 //! `hdrsynth train --config F`: the training config (TOML, unknown keys are errors). Paths are
 //! relative to the working directory. See docs/training.md for every key.
 
-use crate::config::load_toml;
-use crate::data::loader::{LoaderConfig, RealismConfig, SampleKind, TargetFrames};
-use crate::error::{Error, Result};
+use crate::config::{KeyError, Range, in_range, in_range_because, load_checked};
+use crate::data::loader::{LoaderConfig, PURE_PROFILE, RealismConfig, SampleKind, TargetFrames};
+use crate::error::Result;
 use crate::models::ModelConfig;
 use crate::train::loss::Network1Reading;
 use serde::{Deserialize, Serialize, de};
@@ -250,19 +250,19 @@ impl DataConfig {
         }
     }
 
+    /// `[data]`'s rules, keys relative to it; `multiple`: the network's down-sampling factor.
+    pub fn validate(&self, multiple: usize) -> std::result::Result<(), KeyError> {
+        check_patch("patch", self.patch, multiple)?;
+        in_range("batch_size", self.batch_size, Range::at_least(1.0))?;
+        in_range("workers", self.workers, Range::at_least(1.0))?;
+        in_range("target_sigma", self.target_sigma, Range::NON_NEGATIVE)?;
+        self.realism.validate()
+    }
+
     /// The loader config of this data section (training: augmentation as configured).
     pub fn loader(&self, kind: SampleKind, seed: u64) -> Result<LoaderConfig> {
-        let realism = if self.realism.profile == Path::new("pure") {
-            None
-        } else {
-            if self.realism.isos.is_empty() {
-                return Err(Error::Invalid(format!(
-                    "data: profile '{}' needs a non-empty `isos` list",
-                    self.realism.profile.display()
-                )));
-            }
-            Some(self.realism.clone())
-        };
+        let realism =
+            (self.realism.profile != Path::new(PURE_PROFILE)).then(|| self.realism.clone());
         Ok(LoaderConfig {
             dataset: self.dataset.clone(),
             kind,
@@ -288,6 +288,42 @@ pub struct OptimConfig {
     pub beta2: f32,
     pub epsilon: f32,
     pub weight_decay: f32,
+}
+
+/// A training crop side: ≥ 8 (the loader's smallest) and a multiple of the network's
+/// down-sampling factor.
+fn check_patch(key: &str, patch: usize, multiple: usize) -> std::result::Result<(), KeyError> {
+    in_range(key, patch, Range::at_least(8.0))?;
+    if !patch.is_multiple_of(multiple) {
+        return Err(KeyError::new(
+            key,
+            format!("{patch} is not a multiple of {multiple}, the network's down-sampling factor"),
+        ));
+    }
+    Ok(())
+}
+
+impl OptimConfig {
+    /// Adam's rules: lr > 0 (no upper bound: a diverging run is stopped by the non-finite
+    /// loss check), β1 and β2 in [0, 1) (β = 1 never forgets, and Adam's bias correction
+    /// divides by 1 − β^t), ε in (0, 1] (it divides by √v + ε), weight decay ≥ 0.
+    pub fn validate(&self) -> std::result::Result<(), KeyError> {
+        in_range("lr", self.lr, Range::POSITIVE)?;
+        in_range("beta1", self.beta1, Range::half_open(0.0, 1.0))?;
+        in_range("beta2", self.beta2, Range::half_open(0.0, 1.0))?;
+        in_range_because(
+            "epsilon",
+            self.epsilon,
+            Range::left_open(0.0, 1.0),
+            "Adam divides by √v + ε",
+        )?;
+        in_range_because(
+            "weight_decay",
+            self.weight_decay,
+            Range::NON_NEGATIVE,
+            "a negative one grows the weights",
+        )
+    }
 }
 
 impl Default for OptimConfig {
@@ -326,13 +362,39 @@ pub enum ScheduleKind {
 }
 
 impl Schedule {
-    pub fn validate(&self) -> Result<()> {
-        if self.kind == ScheduleKind::Step
-            && (self.every.is_none_or(|e| e == 0) || self.gamma.is_none())
-        {
-            return Err(Error::Invalid(
-                "schedule: kind = \"step\" needs `every` ≥ 1 and `gamma`".into(),
-            ));
+    /// The schedule's rules, keys relative to `[schedule]`; `lr`: the base learning rate.
+    pub fn validate(&self, lr: f64) -> std::result::Result<(), KeyError> {
+        if self.kind == ScheduleKind::Step {
+            for (key, given) in [
+                ("every", self.every.is_some()),
+                ("gamma", self.gamma.is_some()),
+            ] {
+                if !given {
+                    return Err(KeyError::new(
+                        key,
+                        "kind = \"step\" needs `every` and `gamma`",
+                    ));
+                }
+            }
+        }
+        if let Some(every) = self.every {
+            in_range("every", every, Range::at_least(1.0))?;
+        }
+        if let Some(gamma) = self.gamma {
+            in_range_because(
+                "gamma",
+                gamma,
+                Range::left_open(0.0, 1.0),
+                "the factor of each decay step",
+            )?;
+        }
+        if let Some(min) = self.min_lr {
+            in_range_because(
+                "min_lr",
+                min,
+                Range::closed(0.0, lr),
+                "the cosine schedule's end, at most optim.lr",
+            )?;
         }
         Ok(())
     }
@@ -389,6 +451,19 @@ pub struct LossConfig {
 /// Default σ of the soft labels, in classes (docs/network1.md).
 pub const DEFAULT_LABEL_SIGMA: f32 = 8.0;
 
+impl LossConfig {
+    /// `[loss]`'s rules, keys relative to it.
+    pub fn validate(&self) -> std::result::Result<(), KeyError> {
+        in_range("alpha_samples", self.alpha_samples, Range::at_least(1.0))?;
+        in_range_because(
+            "label_sigma",
+            self.label_sigma,
+            Range::left_open(0.0, 256.0),
+            "σ in classes, of 256",
+        )
+    }
+}
+
 impl Default for LossConfig {
     fn default() -> Self {
         LossConfig {
@@ -424,94 +499,67 @@ pub struct ValidationConfig {
     pub target_sigma: f32,
 }
 
+impl ValidationConfig {
+    /// `[validation]`'s rules, keys relative to it; `multiple` as for the training patch.
+    pub fn validate(&self, multiple: usize) -> std::result::Result<(), KeyError> {
+        in_range("every", self.every, Range::at_least(1.0))?;
+        in_range("samples", self.samples, Range::at_least(1.0))?;
+        if let Some(p) = self.patch {
+            check_patch("patch", p, multiple)?;
+        }
+        in_range("target_sigma", self.target_sigma, Range::NON_NEGATIVE)
+    }
+}
+
 fn default_val_samples() -> usize {
     16
 }
 
 impl TrainConfig {
     pub fn load(path: &Path) -> Result<TrainConfig> {
-        let cfg: TrainConfig = load_toml(path)?;
-        cfg.validate()
-            .map_err(|e| Error::config(path, e.to_string()))?;
-        Ok(cfg)
+        load_checked(path, TrainConfig::validate)
     }
 
-    pub fn validate(&self) -> Result<()> {
+    /// Every value rule of the config (ranges, and the rules between keys); keys as the file
+    /// spells them. Ranges: docs/reliability.md, "Value ranges".
+    pub fn validate(&self) -> std::result::Result<(), KeyError> {
         let r = &self.run;
-        if r.steps == 0 || r.checkpoint_every == 0 || r.log_every == 0 || r.keep_checkpoints == 0 {
-            return Err(Error::Invalid(
-                "run: steps, checkpoint_every, log_every and keep_checkpoints must be ≥ 1".into(),
-            ));
-        }
-        if !(self.optim.lr > 0.0 && self.optim.lr.is_finite()) {
-            return Err(Error::Invalid(format!(
-                "optim: lr {} must be > 0",
-                self.optim.lr
-            )));
-        }
-        if !(0.0..1.0).contains(&self.optim.beta1) || !(0.0..1.0).contains(&self.optim.beta2) {
-            return Err(Error::Invalid("optim: betas must lie in [0, 1)".into()));
-        }
-        if !(self.optim.epsilon.is_finite() && self.optim.epsilon > 0.0) {
-            return Err(Error::Invalid(format!(
-                "optim.epsilon = {} must be finite and > 0 (Adam divides by √v + ε)",
-                self.optim.epsilon
-            )));
-        }
-        if !(self.optim.weight_decay.is_finite() && self.optim.weight_decay >= 0.0) {
-            return Err(Error::Invalid(format!(
-                "optim.weight_decay = {} must be finite and ≥ 0 (a negative one grows the \
-                 weights)",
-                self.optim.weight_decay
-            )));
+        for (key, v) in [
+            ("run.steps", r.steps),
+            ("run.checkpoint_every", r.checkpoint_every),
+            ("run.keep_checkpoints", r.keep_checkpoints as u64),
+            ("run.log_every", r.log_every),
+        ] {
+            in_range(key, v, Range::at_least(1.0))?;
         }
         if r.devices.len() > self.data.batch_size {
-            return Err(Error::Invalid(format!(
-                "run.devices: {} devices need data.batch_size ≥ {0} (one shard each), got {}",
-                r.devices.len(),
-                self.data.batch_size
-            )));
+            return Err(KeyError::new(
+                "run.devices",
+                format!(
+                    "{} devices need data.batch_size ≥ {0} (one shard each), got {}",
+                    r.devices.len(),
+                    self.data.batch_size
+                ),
+            ));
         }
-        self.schedule.validate()?;
-        self.model.validate()?;
+        self.model.validate().map_err(|e| e.within("model"))?;
         let m = self.model.size_multiple();
-        if !self.data.patch.is_multiple_of(m) {
-            return Err(Error::Invalid(format!(
-                "data: patch {} is not a multiple of {m}, the network's down-sampling factor",
-                self.data.patch
-            )));
-        }
+        self.data.validate(m).map_err(|e| e.within("data"))?;
+        self.optim.validate().map_err(|e| e.within("optim"))?;
+        self.schedule
+            .validate(self.optim.lr)
+            .map_err(|e| e.within("schedule"))?;
         if let Some(i) = &self.init
             && i.checkpoint.is_some() == i.safetensors.is_some()
         {
-            return Err(Error::Invalid(
-                "init: give exactly one of `checkpoint` and `safetensors`".into(),
+            return Err(KeyError::new(
+                "init",
+                "give exactly one of `checkpoint` and `safetensors`",
             ));
         }
-        if let Some(v) = &self.validation
-            && v.every == 0
-        {
-            return Err(Error::Invalid("validation: every must be ≥ 1".into()));
-        }
-        let sigmas = [
-            ("data.target_sigma", self.data.target_sigma),
-            (
-                "validation.target_sigma",
-                self.validation.as_ref().map_or(0.0, |v| v.target_sigma),
-            ),
-        ];
-        for (key, s) in sigmas {
-            if !(s.is_finite() && s >= 0.0) {
-                return Err(Error::Invalid(format!(
-                    "{key} = {s} must be finite and ≥ 0"
-                )));
-            }
-        }
-        if !(self.loss.label_sigma.is_finite() && self.loss.label_sigma > 0.0) {
-            return Err(Error::Invalid(format!(
-                "loss.label_sigma = {} must be finite and > 0",
-                self.loss.label_sigma
-            )));
+        self.loss.validate().map_err(|e| e.within("loss"))?;
+        if let Some(v) = &self.validation {
+            v.validate(m).map_err(|e| e.within("validation"))?;
         }
         Ok(())
     }

@@ -317,7 +317,7 @@ impl Log {
         let path = run.join(LOG_FILE);
         match resume_step {
             Some(step) => {
-                let text = std::fs::read_to_string(&path).unwrap_or_default();
+                let text = crate::io::guard::read_input_text(&path).unwrap_or_default();
                 let kept: String = text
                     .lines()
                     .filter(|l| line_step(l).is_some_and(|s| s <= step))

@@ -601,8 +601,7 @@ fn is_image_name(lower: &str) -> bool {
 /// Read `expected` exposure values (log2 stops, whitespace separated) from a text file.
 /// `what` says what the values are for, used in the messages.
 pub(crate) fn read_stops(path: &Path, expected: usize, what: &str) -> Result<Vec<f32>> {
-    crate::io::guard::regular_file(path)?;
-    let text = match std::fs::read_to_string(path) {
+    let text = match crate::io::guard::read_input_text(path) {
         Ok(t) => t,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
             return Err(Error::layout(path, format!("missing ({what})")));
@@ -654,7 +653,6 @@ pub(crate) struct Header {
 
 pub(crate) fn read_header(path: &Path) -> Result<Header> {
     let format = Format::from_path(path)?;
-    crate::io::guard::regular_file(path)?;
     if format == Format::Exr {
         let img = crate::io::read_image(path)?;
         return Ok(Header {
@@ -674,7 +672,11 @@ pub(crate) fn read_header(path: &Path) -> Result<Header> {
         }
         other => Error::decode(path, other),
     };
-    let reader = image::ImageReader::open(path).map_err(|e| Error::io(path, e))?;
+    let file = crate::io::guard::open_input(path).map_err(|e| Error::io(path, e))?;
+    let mut reader = image::ImageReader::new(std::io::BufReader::new(file));
+    if let Ok(f) = image::ImageFormat::from_path(path) {
+        reader.set_format(f);
+    }
     let decoder = match reader.into_decoder() {
         Ok(d) => d,
         // Old .pic files without the RADIANCE signature: io's reader accepts them.

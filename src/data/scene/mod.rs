@@ -13,6 +13,7 @@ pub mod noise;
 pub mod subjects;
 pub mod world;
 
+use crate::config::{KeyError, Range, each_in_range, in_range, in_range_because};
 use crate::data::generate::GenerateConfig;
 use crate::error::{Error, Result};
 use crate::io::{Image, dynamic_range_stops, read_image};
@@ -20,7 +21,7 @@ use crate::rng::Rng;
 use crate::sensor::response::ToneCurve;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::Arc;
 use subjects::{Posed, Subject};
 use world::{WORLD_H, WORLD_W, World};
@@ -72,6 +73,88 @@ pub struct CameraConfig {
     pub under_threshold: f32,
     /// Viewpoints tried per sample.
     pub candidates: usize,
+}
+
+/// Largest `scene.min_dynamic_range` (stops); the engine's scenes span about 16–24.
+pub const MAX_DYNAMIC_RANGE: f32 = 32.0;
+/// Most moving subjects per sample.
+pub const MAX_SUBJECTS: usize = 64;
+/// Largest `scene.motion_scale`: beyond it subjects leave the frame between exposures.
+pub const MAX_MOTION_SCALE: f32 = 10.0;
+
+impl SceneConfig {
+    /// `[scene]`'s rules, keys relative to it.
+    pub fn validate(&self) -> Result<(), KeyError> {
+        each_in_range(
+            "subjects",
+            &self.subjects,
+            Range::closed(0.0, MAX_SUBJECTS as f64),
+        )?;
+        if self.subjects[0] > self.subjects[1] {
+            return Err(KeyError::new(
+                "subjects",
+                format!("{:?}: min > max", self.subjects),
+            ));
+        }
+        in_range(
+            "articulated_fraction",
+            self.articulated_fraction,
+            Range::UNIT,
+        )?;
+        in_range(
+            "motion_scale",
+            self.motion_scale,
+            Range::closed(0.0, MAX_MOTION_SCALE as f64),
+        )?;
+        in_range(
+            "real_background_probability",
+            self.real_background_probability,
+            Range::UNIT,
+        )?;
+        // Below 1 the probability applies only "when backgrounds_dir is set" (the shipped
+        // configs keep 0.5 with the folder commented out); 1 demands a real background for
+        // every sample, which no folder cannot give.
+        if self.real_background_probability == 1.0 && self.backgrounds_dir.is_none() {
+            return Err(KeyError::new(
+                "real_background_probability",
+                "1 (every sample on a real background) needs scene.backgrounds_dir",
+            ));
+        }
+        in_range_because(
+            "min_dynamic_range",
+            self.min_dynamic_range,
+            Range::closed(0.0, MAX_DYNAMIC_RANGE as f64),
+            "stops; the engine's scenes span about 16–24, a larger minimum is never met",
+        )
+    }
+}
+
+impl CameraConfig {
+    /// `[camera]`'s rules, keys relative to it: target fractions in [0, 1) summing below 1,
+    /// 0 < under_threshold < over_threshold < 1, at least one candidate viewpoint.
+    pub fn validate(&self) -> Result<(), KeyError> {
+        in_range("target_over", self.target_over, Range::half_open(0.0, 1.0))?;
+        in_range(
+            "target_under",
+            self.target_under,
+            Range::half_open(0.0, 1.0),
+        )?;
+        let rest = 1.0 - self.target_over;
+        in_range_because(
+            "target_under",
+            self.target_under,
+            Range::half_open(0.0, rest as f64),
+            "target_over + target_under must stay below 1",
+        )?;
+        in_range("over_threshold", self.over_threshold, Range::open(0.0, 1.0))?;
+        in_range_because(
+            "under_threshold",
+            self.under_threshold,
+            Range::open(0.0, self.over_threshold as f64),
+            "below over_threshold",
+        )?;
+        in_range("candidates", self.candidates, Range::at_least(1.0))
+    }
 }
 
 impl Default for CameraConfig {
@@ -173,7 +256,7 @@ pub struct Generator {
 
 impl Generator {
     pub fn new(cfg: &GenerateConfig) -> Result<Generator> {
-        cfg.validate()?;
+        cfg.validate().map_err(|e| e.at(&cfg.origin(), None))?;
         let mut backgrounds = Vec::new();
         if let Some(dir) = &cfg.scene.backgrounds_dir {
             let entries = std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?;
@@ -490,15 +573,18 @@ pub fn ev_tag(ev: f32) -> String {
 
 /// Check a requested frame size (the config keys `width` and `height`) against the engine's
 /// limits.
-pub fn check_size(width: usize, height: usize, path: &Path) -> Result<()> {
-    let (long, short) = (width.max(height), width.min(height));
-    if short < 16 || long > MAX_LONG_SIDE || short > MAX_SHORT_SIDE {
-        return Err(Error::config(
-            path,
+pub fn check_size(width: usize, height: usize) -> Result<(), KeyError> {
+    let range = Range::closed(16.0, MAX_LONG_SIDE as f64);
+    in_range("width", width, range)?;
+    in_range("height", height, range)?;
+    let short = width.min(height);
+    if short > MAX_SHORT_SIDE {
+        let key = if width <= height { "width" } else { "height" };
+        return Err(KeyError::new(
+            key,
             format!(
-                "keys 'width' = {width}, 'height' = {height}: frame size {width}×{height} out of \
-                 range: each side ≥ 16, at most {MAX_LONG_SIDE}×{MAX_SHORT_SIDE} in either \
-                 orientation"
+                "{short} is out of range (the shorter side must be ≤ {MAX_SHORT_SIDE}: at most \
+                 {MAX_LONG_SIDE}×{MAX_SHORT_SIDE} in either orientation)"
             ),
         ));
     }

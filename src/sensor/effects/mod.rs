@@ -18,6 +18,7 @@
 //! and the pixel coordinates, so they are the same in every frame and every run; per-frame
 //! draws (row offsets, noise) come from the frame seed.
 
+use crate::config::KeyError;
 use crate::rng::{hash, unit_f32};
 use crate::sensor::captures::BurstKind;
 use crate::sensor::profile::{EffectSpec, SensorProfile};
@@ -137,21 +138,36 @@ impl Default for Plan {
 
 impl Plan {
     pub fn from_effects(effects: &[EffectSpec]) -> Result<Plan, String> {
+        Self::compile(effects).map_err(|(_, m)| m)
+    }
+
+    /// [`Plan::from_effects`]'s checks as a profile's key rule: an error names the
+    /// `effects[i]` table and, in its message, the parameter.
+    pub fn check(effects: &[EffectSpec]) -> Result<(), KeyError> {
+        Self::compile(effects)
+            .map(|_| ())
+            .map_err(|(i, m)| KeyError::new(format!("effects[{i}]"), m))
+    }
+
+    /// The plan, or the index of the first effect refused and why.
+    fn compile(effects: &[EffectSpec]) -> Result<Plan, (usize, String)> {
         let mut plan = Plan::default();
         let mut seen = Vec::new();
-        for e in effects {
+        for (i, e) in effects.iter().enumerate() {
             let entry = entry(&e.id).ok_or_else(|| {
-                format!(
+                let m = format!(
                     "effects: '{}' is not in this build's effect catalogue ({})",
                     e.id,
                     known().join(", ")
-                )
+                );
+                (i, m)
             })?;
             if seen.contains(&e.id) {
-                return Err(format!("effects: '{}' is listed twice", e.id));
+                return Err((i, format!("effects: '{}' is listed twice", e.id)));
             }
             seen.push(e.id.clone());
-            (entry.install)(&e.params, &mut plan).map_err(|m| format!("effect '{}': {m}", e.id))?;
+            (entry.install)(&e.params, &mut plan)
+                .map_err(|m| (i, format!("effect '{}': {m}", e.id)))?;
         }
         Ok(plan)
     }
