@@ -269,7 +269,7 @@ impl Baseline {
             ),
             Baseline::Mertens => (
                 "Mertens weights of the noisy pair (no network)".into(),
-                Box::new(|low, high| crate::data::ground_truth::blend_weights_high(low, high)),
+                Box::new(crate::data::ground_truth::blend_weights_high),
             ),
         };
         Box::new(evaluate::Network1 {
