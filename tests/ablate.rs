@@ -153,9 +153,16 @@ fn a_two_by_two_grid_makes_the_table_skips_finished_cells_and_resumes_a_killed_o
     }
     assert!(!md.contains("not run yet"), "{md}");
     let t1 = table(&grid.join("table.csv"));
-    assert_eq!(t1.len(), 4 * 4, "4 cells × 4 metrics");
+    let count = |m: &str| t1.keys().filter(|k| k.2 == m).count();
+    for m in ["psnr_t", "psnr_l", "ssim_t", "ssim_l", "delta_e2000"] {
+        assert_eq!(count(m), 4, "4 cells of {m}");
+    }
+    // PSNR-T dark only for cells whose sets hold enough under-exposed pixels.
+    assert_eq!(t1.len(), 5 * 4 + count("psnr_t_dark"));
     let cell = |r: &str, c: &str| grid.join("cells").join(format!("{r}__{c}"));
-    for ((r, c, m), (mean, diff)) in &t1 {
+    // PSNR-T dark averages per scene over the sets that have it, which is not the summary's
+    // mean over sets; the other five are the same mean over the 4 sets.
+    for ((r, c, m), (mean, diff)) in t1.iter().filter(|(k, _)| k.2 != "psnr_t_dark") {
         // 4 sets (2 scenes × 2 ISOs); the grid's mean is the cell evaluation's mean.
         let own = summary_mean(&cell(r, c), m);
         assert!((mean - own).abs() < 1e-9, "{r}/{c} {m}: {mean} vs {own}");
@@ -972,4 +979,74 @@ fn baseline_cells_score_without_a_network_and_a_test_set_can_name_its_own_refere
         let msg = AblateConfig::load(&path).expect_err(what).to_string();
         assert!(msg.contains(what), "{what}: {msg}");
     }
+}
+
+/// ΔE2000 and PSNR-T dark come from per_image.csv's appended columns by name; a set whose
+/// PSNR-T dark is empty (too few under-exposed pixels) is left out of that metric only, and a
+/// file without the columns gives those metrics no row. Expected values by hand.
+#[test]
+fn delta_e_and_dark_psnr_columns_are_tabled_with_missing_values_left_out() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let rows = "[[rows]]\nname = \"a\"\ntrain = false\n[[rows]]\nname = \"b\"\ntrain = false\n\
+                [[rows]]\nname = \"old\"\ntrain = false\n";
+    let cfg = grid_config(tmp.path(), "", rows);
+    let header = "set,psnr_l,psnr_t,ssim_l,ssim_t,pu21_psnr,pu21_ssim,width,height,seconds,\
+                  delta_e2000,psnr_t_dark,dark_fraction\n";
+    for (cell, lines) in [
+        (
+            0,
+            [
+                "x_iso100,1,30,0.9,0.9,1,0.9,8,8,0,2.0,20,0.2",
+                "y_iso100,1,31,0.9,0.9,1,0.9,8,8,0,3.0,,0.004",
+                "z_iso100,1,32,0.9,0.9,1,0.9,8,8,0,4.0,22,0.3",
+            ],
+        ),
+        (
+            1,
+            [
+                "x_iso100,1,30,0.9,0.9,1,0.9,8,8,0,1.5,21,0.2",
+                "y_iso100,1,31,0.9,0.9,1,0.9,8,8,0,2.5,,0.004",
+                "z_iso100,1,32,0.9,0.9,1,0.9,8,8,0,3.0,25,0.3",
+            ],
+        ),
+    ] {
+        let eval = cfg.cell_dir(cell, None).join("eval");
+        std::fs::create_dir_all(&eval).expect("mkdir");
+        std::fs::write(
+            eval.join("per_image.csv"),
+            format!("{header}{}\n", lines.join("\n")),
+        )
+        .expect("per_image");
+        std::fs::write(eval.join("summary.csv"), "metric\n").expect("summary");
+    }
+    write_scores(
+        &cfg.cell_dir(2, None).join("eval"),
+        &[("x_iso100", 30.0), ("y_iso100", 31.0), ("z_iso100", 32.0)],
+    );
+    ablate::write_table(&cfg).expect("table");
+    let t = csv_rows(&tmp.path().join("grid/table.csv"));
+    let de = find_row(&t, &[("row", "b"), ("metric", "delta_e2000")]);
+    assert!((num(de, "mean") - 7.0 / 3.0).abs() < 1e-12, "{de:?}");
+    assert!(
+        (num(de, "diff_vs_reference") + 2.0 / 3.0).abs() < 1e-12,
+        "{de:?}"
+    );
+    assert_eq!(de["n_scenes"], "3");
+    let dark = find_row(&t, &[("row", "b"), ("metric", "psnr_t_dark")]);
+    assert!((num(dark, "mean") - 23.0).abs() < 1e-12, "{dark:?}");
+    assert!(
+        (num(dark, "diff_vs_reference") - 2.0).abs() < 1e-12,
+        "{dark:?}"
+    );
+    assert_eq!(dark["n_scenes"], "2");
+    assert!(
+        !t.iter()
+            .any(|r| r["row"] == "old"
+                && (r["metric"] == "delta_e2000" || r["metric"] == "psnr_t_dark")),
+        "a file without the columns has no such rows"
+    );
+    let old_psnr = find_row(&t, &[("row", "old"), ("metric", "psnr_t")]);
+    assert!((num(old_psnr, "mean") - 31.0).abs() < 1e-12);
+    let md = std::fs::read_to_string(tmp.path().join("grid/table.md")).expect("md");
+    assert!(md.contains("ΔE2000") && md.contains("PSNR-T dark"), "{md}");
 }

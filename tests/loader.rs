@@ -282,3 +282,54 @@ fn network1_targets_come_from_the_noise_free_render_of_the_same_crop() {
         "noise changes the Mertens classes of some sample"
     );
 }
+
+/// `target_space = "scene"` leaves the inputs as they are and gives Network-2 the target
+/// without the colour transform: the device target is T times it, per pixel (by hand from the
+/// profile's matrix).
+#[test]
+fn a_scene_target_is_the_device_target_without_t() {
+    use hdrsynth::data::loader::Target;
+    use hdrsynth::sensor::realism::TargetSpace;
+    let dir = tempfile::tempdir().expect("tmp");
+    dataset("[-2.0, 0.0, 2.0]", dir.path());
+    let mut device = loader_cfg(dir.path(), "network2", 1, true);
+    device.augment = false;
+    let mut scene = device.clone();
+    scene.realism.as_mut().expect("realism").target_space = TargetSpace::Scene;
+    let profile = hdrsynth::sensor::profile::SensorProfile::load(
+        &hdrsynth::sensor::profile::SensorProfile::shipped_dir().join("example_synthetic.toml"),
+    )
+    .expect("profile");
+    let m = profile.colour.as_ref().expect("matrix").matrix;
+    let (d, s) = (
+        Loader::new(&device).expect("device"),
+        Loader::new(&scene).expect("scene"),
+    );
+    let mut checked = 0;
+    for i in 0..4 {
+        let (sd, ss) = (d.sample(0, i).expect("d"), s.sample(0, i).expect("s"));
+        assert_eq!(sd.input, ss.input, "the option changes the target only");
+        let (Target::Hdr(td), Target::Hdr(ts)) = (&sd.target, &ss.target) else {
+            panic!("network2 targets are HDR");
+        };
+        let n = td.len() / 3;
+        for px in 0..n {
+            let sv = [ts[px], ts[n + px], ts[2 * n + px]].map(f64::from);
+            let dv = [td[px], td[n + px], td[2 * n + px]].map(f64::from);
+            // Away from the clipping point, which applies after T.
+            if sv.iter().chain(&dv).any(|&v| v >= 1.0) {
+                continue;
+            }
+            for c in 0..3 {
+                let want = (0..3).map(|k| m[c][k] * sv[k]).sum::<f64>().max(0.0);
+                assert!(
+                    (dv[c] - want).abs() <= 1e-5 * want.max(1e-3),
+                    "{dv:?} vs T·{sv:?}"
+                );
+            }
+            checked += 1;
+        }
+        assert_ne!(td, ts);
+    }
+    assert!(checked > 1000, "{checked} pixels checked");
+}

@@ -2270,6 +2270,17 @@ fn type_errors_in_configs_name_the_key() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("a.toml:") && e.contains("'seeds'"), "{e}");
+    // A test set's options obey `testset`'s own rules inside an ablation config.
+    let ablate = std::fs::read_to_string(root.join("experiments/cpu/exp2_network2.toml")).unwrap();
+    let text = ablate.replace("evs = [-2.0, 0.0, 2.0]", "evs = [-2.0, 2.0]");
+    let e = hdrsynth::eval::ablate::AblateConfig::parse(&text, Path::new("a.toml"))
+        .map(|_| ())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("a.toml") && e.contains("'options.evs'") && e.contains("must include 0"),
+        "{e}"
+    );
 }
 
 // ---------------------------------------------------------------------------------------------

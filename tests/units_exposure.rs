@@ -166,3 +166,80 @@ fn testset_meters_like_a_phone_not_on_the_highlights() {
         ev0.pixel_count()
     );
 }
+
+/// `ground_truth = "scene"` writes the metered radiance itself (scene-linear Rec. 709, key k)
+/// while the frames keep T; `device` writes T · radiance · k. Both by hand from the profile's
+/// matrix and the key, per pixel, below the ground truth's white.
+#[test]
+fn a_scene_referred_ground_truth_is_the_metered_radiance_and_the_device_one_t_of_it() {
+    use hdrsynth::sensor::realism::TargetSpace;
+    let tmp = tempfile::tempdir().expect("tmp");
+    let mut rad = Image::new(48, 32);
+    for (i, p) in rad.data.chunks_exact_mut(3).enumerate() {
+        let t = (i % 48) as f32 / 47.0;
+        p.copy_from_slice(&[0.02 + 0.3 * t, 0.05 + 0.1 * t, 0.2 - 0.15 * t]);
+    }
+    let file = tmp.path().join("patch.exr");
+    write_exr(&file, &rad, ExrPrecision::Float).expect("exr");
+    let profile = SensorProfile::load(&SensorProfile::shipped_dir().join("canon_eos_550d.toml"))
+        .expect("profile");
+    let m = profile.colour.as_ref().expect("a colour matrix").matrix;
+    let gt = |space: TargetSpace, name: &str| {
+        let opts = TestsetOptions {
+            isos: vec![100.0],
+            evs: vec![-2.0, 0.0, 2.0],
+            noise: NoiseModel::None,
+            ground_truth: space,
+            ..TestsetOptions::default()
+        };
+        let key = testset::exposure_key(&rad, &opts).expect("key") as f64;
+        let out = tmp.path().join(name);
+        testset::build(&file, &profile, &opts, &out).expect("testset");
+        let frame = read_image(&out.join("patch_iso100/static/ev+0.png")).expect("ev0");
+        (
+            read_image(&out.join("patch_iso100/hdr_gt.exr")).expect("gt"),
+            frame,
+            key,
+        )
+    };
+    let (scene, scene_frame, key) = gt(TargetSpace::Scene, "scene");
+    let (device, device_frame, _) = gt(TargetSpace::Device, "device");
+    // Same frames: the option changes the ground truth only.
+    assert_eq!(scene_frame.data, device_frame.data);
+    let white = 4.0; // the shortest frame (EV −2) clips at 2^2 in EV0 units
+    let mut checked = 0;
+    for ((r, s), d) in rad
+        .data
+        .chunks_exact(3)
+        .zip(scene.data.chunks_exact(3))
+        .zip(device.data.chunks_exact(3))
+    {
+        let lin: Vec<f64> = r.iter().map(|&v| v as f64 * key).collect();
+        for c in 0..3 {
+            let want_scene = lin[c].min(white);
+            let want_device = (0..3)
+                .map(|k| m[c][k] * lin[k])
+                .sum::<f64>()
+                .max(0.0)
+                .min(white);
+            assert!(
+                (s[c] as f64 - want_scene).abs() <= 1e-5 * want_scene.max(1.0),
+                "{s:?} vs {lin:?}"
+            );
+            assert!(
+                (d[c] as f64 - want_device).abs() <= 1e-5 * want_device.max(1.0),
+                "{d:?}"
+            );
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, 48 * 32 * 3);
+    // The two differ where T is not the identity.
+    assert!(
+        scene
+            .data
+            .iter()
+            .zip(&device.data)
+            .any(|(a, b)| (a - b).abs() > 1e-3)
+    );
+}

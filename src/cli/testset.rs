@@ -11,7 +11,7 @@ use crate::data::brackets::ScanOptions;
 use crate::data::testset::{self, TestsetOptions, TestsetSummary};
 use crate::sensor::metering::Metering;
 use crate::sensor::profile::SensorProfile;
-use crate::sensor::realism::NoiseModel;
+use crate::sensor::realism::{NoiseModel, TargetSpace};
 use anyhow::{Context, Result};
 use std::path::PathBuf;
 
@@ -80,6 +80,10 @@ pub struct Args {
     /// Skip the colour transform T (frames and ground truth).
     #[arg(long)]
     pub no_colour: bool,
+    /// The ground truth's space: device (T applied, as in the frames) or scene (scene-linear
+    /// Rec. 709; T on the frames only, as a device's ISP renders).
+    #[arg(long, value_enum, default_value = "device")]
+    pub ground_truth: TargetSpace,
     /// Frame bits: 8 or 16.
     #[arg(long, default_value_t = 8)]
     pub bits: u32,
@@ -111,6 +115,7 @@ impl Args {
             colour: !self.no_colour,
             output_bits: self.bits,
             resize: self.resize,
+            ground_truth: self.ground_truth,
         }
     }
 }

@@ -28,7 +28,7 @@ use crate::io::Image;
 use crate::rng::{Rng, hash};
 use crate::sensor::metering::Metering;
 use crate::sensor::profile::{Response, SensorProfile};
-use crate::sensor::realism::{NoiseModel, Realism, RealismOptions};
+use crate::sensor::realism::{NoiseModel, Realism, RealismOptions, TargetSpace};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -94,6 +94,10 @@ pub struct RealismConfig {
     /// Apply the profile's colour transform (false for the colour ablation).
     #[serde(default = "yes")]
     pub colour: bool,
+    /// Network-2's target space: `device` (default: T applied, as the inputs) or `scene`
+    /// (scene-linear Rec. 709, T on the inputs only).
+    #[serde(default, skip_serializing_if = "TargetSpace::is_device")]
+    pub target_space: TargetSpace,
 }
 
 /// `[data]`'s `profile` value for no sensor realism (the paper's Net_P).
@@ -143,6 +147,7 @@ impl RealismConfig {
             ev_jitter: half(),
             source: Source::default(),
             colour: yes(),
+            target_space: TargetSpace::Device,
         }
     }
 }
@@ -545,6 +550,11 @@ impl Loader {
             }
             None => 1.0,
         };
+        let space = self
+            .cfg
+            .realism
+            .as_ref()
+            .map_or(TargetSpace::Device, |r| r.target_space);
         let noise_seed = hash(self.cfg.seed, &[0x0153, epoch, index as u64]);
         // One realism seed per frame, so frames of a sample get independent noise.
         let exposed = |frame: &Path| -> Result<Image> {
@@ -656,7 +666,7 @@ impl Loader {
                             Source::Linear => exposure,
                             _ => exposure / white,
                         };
-                        r.device_linear(&hdr.map(|v| v * unit))
+                        r.target_linear(&hdr.map(|v| v * unit), space)
                     }
                     None => hdr.map(|v| v / white),
                 };

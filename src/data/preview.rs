@@ -76,6 +76,7 @@ pub fn preview(args: &PreviewOptions) -> Result<String> {
         ev_jitter: 0.0,
         source: Default::default(),
         colour: true,
+        target_space: Default::default(),
     });
     let pure = Loader::new(&base)?;
     let real = Loader::new(&real_cfg)?;

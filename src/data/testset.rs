@@ -13,7 +13,9 @@
 //! - `static/clean_<ev>.png` is the same frame with `NoiseModel::None` (Network-1's
 //!   reference weights come from it);
 //! - `hdr_gt.exr` is the radiance in the device's linear space at EV0, `T · radiance · k`
-//!   ([`Realism::device_linear`], 1 = sensor white), the Network-2 loader's target convention,
+//!   ([`Realism::device_linear`], 1 = sensor white), the Network-2 loader's target convention
+//!   (with `ground_truth = "scene"`: `radiance · k` in scene-linear Rec. 709, T on the frames
+//!   only, matching the loader's `target_space = "scene"`),
 //!   clipped per channel at the shortest frame's white (2^−EV_min): what a merge of the bracket
 //!   can know, as in a real bracket's merged ground truth. Radiance above it is clipped in every
 //!   frame; a ground truth holding it would score every method on values no input carries (and
@@ -34,7 +36,7 @@ use crate::rng::hash;
 use crate::sensor::colour::cie::{bradford, xy_to_xyz};
 use crate::sensor::metering::Metering;
 use crate::sensor::profile::{Response, SensorProfile};
-use crate::sensor::realism::{NoiseModel, Realism, RealismOptions};
+use crate::sensor::realism::{NoiseModel, Realism, RealismOptions, TargetSpace};
 use crate::sensor::response::ToneCurve;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -67,6 +69,10 @@ pub struct TestsetOptions {
     pub output_bits: u32,
     /// Resample every radiance map to this size (width, height) first.
     pub resize: Option<(usize, usize)>,
+    /// The ground truth's space: `device` (T applied, as in the frames) or `scene`
+    /// (scene-linear Rec. 709, T on the frames only).
+    #[serde(skip_serializing_if = "TargetSpace::is_device")]
+    pub ground_truth: TargetSpace,
 }
 
 impl Default for TestsetOptions {
@@ -81,6 +87,7 @@ impl Default for TestsetOptions {
             colour: true,
             output_bits: 8,
             resize: None,
+            ground_truth: TargetSpace::Device,
         }
     }
 }
@@ -552,7 +559,7 @@ fn write_set(
             depth,
         )?;
     }
-    let mut gt = realism(0.0)?.device_linear(radiance);
+    let mut gt = realism(0.0)?.target_linear(radiance, opts.ground_truth);
     let white = ground_truth_white(&opts.evs);
     gt.data.iter_mut().for_each(|v| *v = v.min(white));
     write_exr(&dir.join("hdr_gt.exr"), &gt, ExrPrecision::Float)?;

@@ -20,7 +20,7 @@ use crate::data::testset::{self, TestsetOptions};
 use crate::device::device_from_name;
 use crate::error::{Error, Result};
 use crate::eval::evaluate::{self, EvalOptions, NetworkOptions, from_checkpoint};
-use crate::eval::report::{self, METRICS};
+use crate::eval::report::{self, METRICS, SUMMARY_METRICS};
 use crate::io::atomic::write_atomic;
 use crate::sensor::profile::SensorProfile;
 use crate::stats::{self, bootstrap_crossed};
@@ -177,6 +177,21 @@ pub struct EvalSpec {
     /// much for SSIM (docs/protocol.md).
     pub margin_psnr: f64,
     pub margin_ssim: f64,
+    /// ± this much ΔE2000 (half a just-noticeable difference of about 1).
+    pub margin_delta_e: f64,
+}
+
+impl EvalSpec {
+    /// The TOST margin of a table metric.
+    fn margin(&self, metric: &str) -> f64 {
+        if metric.starts_with("ssim") {
+            self.margin_ssim
+        } else if metric == "delta_e2000" {
+            self.margin_delta_e
+        } else {
+            self.margin_psnr
+        }
+    }
 }
 
 impl Default for EvalSpec {
@@ -190,6 +205,7 @@ impl Default for EvalSpec {
             reference: None,
             margin_psnr: 0.2,
             margin_ssim: 0.005,
+            margin_delta_e: 0.5,
         }
     }
 }
@@ -365,6 +381,7 @@ impl AblateConfig {
         for (key, m) in [
             ("margin_psnr", self.eval.margin_psnr),
             ("margin_ssim", self.eval.margin_ssim),
+            ("margin_delta_e", self.eval.margin_delta_e),
         ] {
             if !(m > 0.0 && m.is_finite()) {
                 return Err(format!("eval.{key} {m} must be a positive number"));
@@ -420,6 +437,9 @@ impl AblateConfig {
                     "{what}: noise_per_seed needs `seeds` and a test set built from `radiance`"
                 ));
             }
+            t.options
+                .validate()
+                .map_err(|e| format!("{what}: {}", e.within("options")))?;
         }
         Ok(())
     }
@@ -858,66 +878,73 @@ fn run_cell(
 // ---------------------------------------------------------------------------------------------
 // The table
 
-/// Per-set metric values of a finished cell (`eval/per_image.csv`), by set name.
-fn read_per_image(path: &Path) -> Result<BTreeMap<String, [f64; 6]>> {
+/// Per-set values of [`SUMMARY_METRICS`] of a finished cell (`eval/per_image.csv`), by set
+/// name, columns found by their header names. An appended metric is NaN where the file lacks its
+/// column or leaves it empty (PSNR-T dark for a set with too few under-exposed pixels); NaN
+/// values are left out of the statistics.
+fn read_per_image(path: &Path) -> Result<SetScores> {
     let text = crate::io::guard::read_text(path)?;
-    let mut lines = text.lines();
-    let header = split_csv(lines.next().unwrap_or_default());
-    let want: Vec<&str> = std::iter::once("set").chain(METRICS).collect();
-    if header.len() < want.len() || header[..want.len()] != want[..] {
-        return Err(Error::layout(
+    let mut reader = csv::Reader::from_reader(text.as_bytes());
+    let bad = |line: Option<u64>, m: String| {
+        Error::layout(
             path,
-            format!("header must start with {}", want.join(",")),
-        ));
+            match line {
+                Some(l) => format!("line {l}: {m}"),
+                None => m,
+            },
+        )
+    };
+    let header = reader
+        .headers()
+        .map_err(|e| bad(None, e.to_string()))?
+        .clone();
+    let col = |name: &str| header.iter().position(|h| h == name);
+    let required = |name: &str| col(name).ok_or_else(|| bad(None, format!("no '{name}' column")));
+    let set_col = required("set")?;
+    let cols = SUMMARY_METRICS.map(col);
+    for m in METRICS {
+        required(m)?;
     }
     let mut out = BTreeMap::new();
-    for (i, line) in lines.enumerate().filter(|(_, l)| !l.trim().is_empty()) {
-        let f = split_csv(line);
-        let bad = |m: &str| Error::layout(path, format!("line {}: {m}", i + 2));
-        if f.len() < want.len() {
-            return Err(bad("too few fields"));
+    for record in reader.records() {
+        let record = record.map_err(|e| bad(None, e.to_string()))?;
+        let line = record.position().map(|p| p.line());
+        let mut v = [f64::NAN; SUMMARY_METRICS.len()];
+        for (k, c) in cols.iter().enumerate() {
+            let field = c.and_then(|c| record.get(c)).unwrap_or("");
+            if field.is_empty() && k >= METRICS.len() {
+                continue;
+            }
+            v[k] = field.parse().map_err(|_| {
+                bad(
+                    line,
+                    format!("{} '{field}' is not a number", SUMMARY_METRICS[k]),
+                )
+            })?;
         }
-        let mut v = [0.0; 6];
-        for (k, x) in v.iter_mut().enumerate() {
-            *x = f[k + 1]
-                .parse()
-                .map_err(|_| bad(&format!("{} '{}' is not a number", METRICS[k], f[k + 1])))?;
-        }
-        out.insert(f[0].clone(), v);
+        let set = record.get(set_col).unwrap_or_default().to_string();
+        out.insert(set, v);
     }
     Ok(out)
 }
 
-/// One CSV line into fields (RFC 4180 quoting, as `report::csv_field` writes it).
-fn split_csv(line: &str) -> Vec<String> {
-    let mut fields = vec![String::new()];
-    let mut quoted = false;
-    let mut chars = line.chars().peekable();
-    while let Some(ch) = chars.next() {
-        let cur = fields.last_mut().expect("one field");
-        match (ch, quoted) {
-            ('"', true) if chars.peek() == Some(&'"') => {
-                cur.push('"');
-                chars.next();
-            }
-            ('"', _) => quoted = !quoted,
-            (',', false) => fields.push(String::new()),
-            _ => cur.push(ch),
-        }
-    }
-    fields
-}
-
-/// The metrics of the paper's tables, in their order.
-const TABLE_METRICS: [(&str, &str); 4] = [
+/// The metrics of the tables, in their order: the paper's four, then ΔE2000 of the tone-mapped
+/// output (lower is better) and PSNR-T over the reference frame's under-exposed pixels, where
+/// colour and noise can matter (docs/protocol.md).
+const TABLE_METRICS: [(&str, &str); 6] = [
     ("psnr_t", "PSNR-T"),
     ("psnr_l", "PSNR-L"),
     ("ssim_t", "SSIM-T"),
     ("ssim_l", "SSIM-L"),
+    ("delta_e2000", "ΔE2000"),
+    ("psnr_t_dark", "PSNR-T dark"),
 ];
 
 fn metric_index(m: &str) -> usize {
-    METRICS.iter().position(|x| *x == m).expect("known metric")
+    SUMMARY_METRICS
+        .iter()
+        .position(|x| *x == m)
+        .expect("known metric")
 }
 
 fn fmt(metric: &str, v: f64) -> String {
@@ -930,8 +957,8 @@ fn fmt(metric: &str, v: f64) -> String {
     }
 }
 
-/// Per-set values of the six metrics (`report::METRICS` order), by set name.
-type SetScores = BTreeMap<String, [f64; 6]>;
+/// Per-set values of [`SUMMARY_METRICS`] (NaN where absent), by set name.
+type SetScores = BTreeMap<String, [f64; SUMMARY_METRICS.len()]>;
 
 /// A finished cell's scores: one per-set table per finished run, in the grid's seed order.
 /// Seed `None`: a run that serves every seed (no `seeds`, or a cell that does not train).
@@ -1200,6 +1227,12 @@ fn write_table_for(cfg: &AblateConfig, t: &TestsetSpec) -> Result<Table> {
                 .map(|(s, sets)| (*s, sets.iter().map(|(n, v)| (n.as_str(), v[k])).collect()))
                 .collect();
             let st = crossed_stat(cfg, &rows, &scenes);
+            if st.n_scenes == 0 {
+                // A metric no set of this cell has (PSNR-T dark without under-exposed pixels,
+                // or a per_image.csv older than the metric): no row, "–" in the Markdown.
+                cell_text.insert((mi, d.r, d.c), ("–".into(), "–".into()));
+                continue;
+            }
             // Paired within seed, scene and set: the same scenes and the same seed's data
             // stream, so scene difficulty and seed luck cancel and the interval is much tighter
             // than the two means' intervals.
@@ -1218,11 +1251,7 @@ fn write_table_for(cfg: &AblateConfig, t: &TestsetSpec) -> Result<Table> {
                         .collect();
                     crossed_stat(cfg, &rows, &scenes)
                 });
-            let margin = if metric.starts_with("ssim") {
-                cfg.eval.margin_ssim
-            } else {
-                cfg.eval.margin_psnr
-            };
+            let margin = cfg.eval.margin(metric);
             let tests = diff.as_ref().and_then(|x| x.tests(cfg.eval.level, margin));
             let opt = |f: &dyn Fn(&Stat) -> String| diff.as_ref().map(f).unwrap_or_default();
             entries.push(TableEntry {
@@ -1365,9 +1394,12 @@ fn write_table_for(cfg: &AblateConfig, t: &TestsetSpec) -> Result<Table> {
         format!(
             " Δ [{pct:.0} % paired t interval over scenes, each scene's Δ the mean over seeds] \
              p = Wilcoxon signed-rank p (two-sided); * = the t interval excludes 0; ≈ = \
-             equivalent within ±{} dB PSNR / ±{} SSIM (TOST, α = {:.2}).",
+             equivalent within ±{} dB PSNR / ±{} SSIM / ±{} ΔE2000 (TOST, α = {:.2}). ΔE2000: \
+             lower is better. PSNR-T dark: over the pixels the reference frame under-exposes, \
+             sets with at least 1 % of them.",
             cfg.eval.margin_psnr,
             cfg.eval.margin_ssim,
+            cfg.eval.margin_delta_e,
             1.0 - cfg.eval.level
         )
     } else {

@@ -1,6 +1,7 @@
-//! `hdrsynth protocol`: the full protocol of docs/protocol.md at CPU scale, one resumable
-//! command. It runs the main job with its held-out-simulator matrix (`eval::quickstart`), then
-//! two more grids on the same test scenes, pretrainings and target device:
+//! `hdrsynth quickstart --full`: the full protocol of docs/protocol.md at CPU scale, one
+//! resumable command. It runs the main job with its held-out-simulator matrix
+//! (`eval::quickstart`), then three more grids on the same test scenes, pretrainings and target
+//! device:
 //! - colour × fine-tuning ISO (the paper's Tables 3–4): Network-2 fine-tuned with the target's
 //!   colour transform or with identity colour, at each ISO alone; scored on the primary test set
 //!   and on one test set per ISO whose reference is the ISO-matched cell, so the
@@ -9,7 +10,10 @@
 //!   model and fine-tuned four ways, beside two baselines without a network (one constant blend
 //!   weight; the Mertens weights of the noisy pair), scored on EV −3/0 pairs of the test scenes
 //!   at three ISOs; its learning curves (held-out blend-weight MAE against the best constant)
-//!   come from the pretraining logs.
+//!   come from the pretraining logs;
+//! - scene-referred ground truth: the target's colour on the inputs only, the ground truth in
+//!   scene-linear Rec. 709, Network-2 fine-tuned with scene targets with and without the colour
+//!   model, beside the device-target Net_S.
 //!
 //! Scene seeds: training 2026, test 7 (the main job's), Network-1 validation 2027; nothing is
 //! tuned on the test scenes.
@@ -23,6 +27,7 @@ use crate::eval::quickstart::{
     train_resumable, write, write_config,
 };
 use crate::models::{BlendUNetConfig, ModelConfig};
+use crate::sensor::realism::TargetSpace;
 use crate::train::config::{TrainConfig, ValidationConfig};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -209,6 +214,79 @@ fn colour_iso_config(s: &Sizes, out: &Path, base: &Path, target: &Path) -> Ablat
                 }
             })
             .collect(),
+    }
+}
+
+/// Design (a) of docs/protocol.md: the ground truth in scene-linear Rec. 709 with the target's
+/// colour T on the inputs only, as a device's ISP renders, so a network has to undo T and the
+/// colour model can matter. Rows: Net_O and the main job's Net_S (device-space targets) as they
+/// are, and three fine-tunings with scene targets — Net_R (no colour, no noise: the fair pure
+/// baseline and the reference), colour T without noise, and the full model.
+fn scene_target_config(s: &Sizes, out: &Path, base: &Path, target: &Path) -> AblateConfig {
+    let scene = ("target_space", toml::Value::from("scene"));
+    let no_noise = ("noise", toml::Value::from("none"));
+    let target_row = |name: &str, label: &str, extra: &[(&str, toml::Value)]| {
+        row(name, label, data_set(target, Some(&TARGET_ISOS), extra))
+    };
+    let primary = scene_testset(out, None, target, &TARGET_ISOS, &[-2.0, 0.0, 2.0]);
+    AblateConfig {
+        title: "Scene-referred ground truth — Network-2 scored against scene-linear Rec. 709, \
+                the target's colour on the inputs only"
+            .into(),
+        out: out.join("scene_target"),
+        base: base.to_path_buf(),
+        seeds: s.seeds.to_vec(),
+        pretrained_per_seed: Some(
+            out.join("pretrain/seed{seed}")
+                .to_string_lossy()
+                .into_owned(),
+        ),
+        testset: TestsetSpec {
+            dir: out.join("data/testset_scene_target"),
+            options: crate::data::testset::TestsetOptions {
+                ground_truth: TargetSpace::Scene,
+                ..primary.options.clone()
+            },
+            ..primary
+        },
+        also: Vec::new(),
+        eval: EvalSpec {
+            resamples: 2000,
+            reference: Some("net_r_scene".into()),
+            ..EvalSpec::default()
+        },
+        rows: vec![
+            Axis {
+                train: false,
+                ..row(
+                    "net_o",
+                    "Net_O (pretrained through the DSLR, no fine-tuning)",
+                    toml::Table::new(),
+                )
+            },
+            target_row(
+                "net_s_device",
+                "Net_S with device-space targets (the main job's recipe)",
+                &[],
+            ),
+            target_row(
+                "net_r_scene",
+                "Net_R, scene targets (target response, levels, exposure rule; no colour, no \
+                 noise)",
+                &[no_noise.clone(), ("colour", false.into()), scene.clone()],
+            ),
+            target_row(
+                "colour_scene",
+                "colour T, scene targets, no noise",
+                &[no_noise, scene.clone()],
+            ),
+            target_row(
+                "net_s_scene",
+                "Net_S, scene targets (full target model)",
+                &[scene],
+            ),
+        ],
+        columns: Vec::new(),
     }
 }
 
@@ -515,6 +593,25 @@ pub fn run(opts: &Options) -> Result<String> {
         16,
         curves_table(&curve_runs)?
     );
+    stage(
+        progress,
+        began,
+        "scene-referred ground truth, colour on the inputs only (Network-2)",
+    );
+    let scene_path = configs.join("scene_target.toml");
+    write_config(
+        &scene_path,
+        &scene_target_config(&s, out, &configs.join("finetune.toml"), &target),
+    )?;
+    let scene = AblateConfig::load(&scene_path)?;
+    let summary = ablate::run(&scene, &scene_path, progress)
+        .map_err(|e| Error::context("the scene-referred grid", e))?;
+    let _ = write!(
+        report,
+        "\n## Ground truth in scene-linear Rec. 709, the target's colour on the inputs only \
+         (Network-2)\n\n{}\n",
+        ablate::report(&scene, &summary)
+    );
     let _ = write!(
         report,
         "\nTotal {:.1} s with the main job (backend {backend}).\n",
@@ -589,5 +686,25 @@ mod tests {
         assert_ne!(NET1_VALIDATION_SEED, quickstart::TEST_SCENE_SEED);
         assert_ne!(NET1_VALIDATION_SEED, TRAIN_SCENE_SEED);
         assert_eq!(pair_config(&s, 1, 2).evs, [-3.0, 0.0]);
+        let scene = parse(&scene_target_config(
+            &s,
+            out,
+            Path::new("/o/base.toml"),
+            &target,
+        ));
+        assert_eq!(scene.testset.options.ground_truth, TargetSpace::Scene);
+        assert_ne!(scene.testset.dir, colour.testset.dir);
+        assert_eq!(scene.eval.reference.as_deref(), Some("net_r_scene"));
+        let space = |name: &str| {
+            let r = scene.rows.iter().find(|r| r.name == name).expect(name);
+            r.set
+                .get("data")
+                .and_then(|d| d.get("target_space"))
+                .cloned()
+        };
+        assert_eq!(space("net_s_device"), None);
+        for name in ["net_r_scene", "colour_scene", "net_s_scene"] {
+            assert_eq!(space(name), Some("scene".into()), "{name}");
+        }
     }
 }

@@ -13,7 +13,7 @@
 //! resumes: rerunning the command after an interruption keeps what is finished. The configs it
 //! runs are written to OUT/configs/ so each stage can be rerun or changed by hand.
 
-use crate::config::parse_toml;
+use crate::config::parse_checked;
 use crate::data::generate::{GenerateConfig, generate};
 use crate::data::loader::RealismConfig;
 use crate::error::{Error, Result};
@@ -158,7 +158,7 @@ pub(crate) fn target_profile(target: Option<&Path>) -> Result<(String, String, S
         None => (TARGET_PROFILE.0.to_string(), TARGET_PROFILE.1.to_string()),
     };
     let at = target.unwrap_or(Path::new(TARGET_PROFILE.0));
-    let profile: SensorProfile = parse_toml(&text, at)?;
+    let profile = parse_checked(&text, at, SensorProfile::validate)?;
     let file = if file == PRETRAIN_PROFILE.0 {
         format!("target_{file}")
     } else {
@@ -1028,6 +1028,7 @@ pub fn run(opts: &Options) -> Result<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::config::parse_toml;
 
     /// The shipped DSLR profile is the 550D's with only its response replaced.
     #[test]

@@ -29,6 +29,26 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::sync::{Arc, Mutex};
 
+/// The space of Network-2's linear ground truth. `Device`: the device's linear RGB after its
+/// colour transform T, the same space as the inputs, so a network never has to correct colour.
+/// `Scene`: scene-linear Rec. 709 at the same exposure, with T on the inputs only, as a device's
+/// ISP renders: the network must undo T, so the colour model can matter (docs/protocol.md).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum TargetSpace {
+    #[default]
+    Device,
+    Scene,
+}
+
+impl TargetSpace {
+    /// For `skip_serializing_if`: configs and recipes written before the key existed keep
+    /// their text (a run's or test set's identity).
+    pub fn is_device(&self) -> bool {
+        *self == TargetSpace::Device
+    }
+}
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "kebab-case")]
 pub enum NoiseModel {
@@ -591,12 +611,21 @@ impl Realism {
     /// linear space: T · (v / source saturation) · exposure, so 1 = the sensor's white level.
     /// No noise, no clipping: the Network-2 target that matches realistic inputs.
     pub fn device_linear(&self, linear: &Image) -> Image {
+        self.target_linear(linear, TargetSpace::Device)
+    }
+
+    /// The linear target of `linear` in `space`: [`Realism::device_linear`], or for
+    /// [`TargetSpace::Scene`] the same exposure scaling without T (the inputs keep T).
+    pub fn target_linear(&self, linear: &Image, space: TargetSpace) -> Image {
         let k = self.exposure / self.source_sat;
         let mut out = linear.clone();
         for p in out.data.chunks_exact_mut(3) {
             let v = [p[0].max(0.0) * k, p[1].max(0.0) * k, p[2].max(0.0) * k];
-            let d = self.colour.apply(v);
-            p.copy_from_slice(&d.map(|x| x.max(0.0)));
+            let d = match space {
+                TargetSpace::Device => self.colour.apply(v).map(|x| x.max(0.0)),
+                TargetSpace::Scene => v,
+            };
+            p.copy_from_slice(&d);
         }
         out
     }
