@@ -300,7 +300,8 @@ fn data_section_errors_name_the_key_line_and_the_valid_keys() {
         e.contains(
             "train.toml:20: unknown field `bogus`, expected one of `dataset`, `generate`, \
              `patch`, `batch_size`, `workers`, `augment`, `profile`, `isos`, `noise`, \
-             `exposure`, `metering`, `ev_jitter`, `source`, `colour`, `target_sigma`, `target_frames`"
+             `exposure`, `metering`, `ev_jitter`, `source`, `colour`, `target_space`, `target_sigma`, \
+             `target_frames`"
         ),
         "{e}"
     );
