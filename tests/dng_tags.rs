@@ -4,6 +4,7 @@
 //! conversion against hand-computed values, refusals, and the written profile driving the
 //! realism operator. Synthetic DNGs are built here (tags only, no image data); the real files
 //! are under ../shared/data/real_raw.
+#![allow(clippy::needless_range_loop)]
 
 use hdrsynth::sensor::colour::cie::xy_to_cct;
 use hdrsynth::sensor::dng::colour::dng_colour;
@@ -34,8 +35,20 @@ type Entries = Vec<(u16, Val)>;
 /// A TIFF with IFD 0 = `ifds[0]` (no chain) and the other IFDs reachable through `Ifds`
 /// pointers only.
 fn tiff(ifds: &[Entries], big_endian: bool) -> Vec<u8> {
-    let u16b = |v: u16| if big_endian { v.to_be_bytes() } else { v.to_le_bytes() };
-    let u32b = |v: u32| if big_endian { v.to_be_bytes() } else { v.to_le_bytes() };
+    let u16b = |v: u16| {
+        if big_endian {
+            v.to_be_bytes()
+        } else {
+            v.to_le_bytes()
+        }
+    };
+    let u32b = |v: u32| {
+        if big_endian {
+            v.to_be_bytes()
+        } else {
+            v.to_le_bytes()
+        }
+    };
     let mut at = 8usize;
     let offsets: Vec<usize> = ifds
         .iter()
@@ -62,7 +75,9 @@ fn tiff(ifds: &[Entries], big_endian: bool) -> Vec<u8> {
                 Val::Rational(v) => (
                     5,
                     v.len(),
-                    v.iter().flat_map(|(n, d)| [u32b(*n), u32b(*d)].concat()).collect(),
+                    v.iter()
+                        .flat_map(|(n, d)| [u32b(*n), u32b(*d)].concat())
+                        .collect(),
                 ),
                 Val::SRational(v) => (
                     10,
@@ -75,10 +90,20 @@ fn tiff(ifds: &[Entries], big_endian: bool) -> Vec<u8> {
                     12,
                     v.len(),
                     v.iter()
-                        .flat_map(|x| if big_endian { x.to_be_bytes() } else { x.to_le_bytes() })
+                        .flat_map(|x| {
+                            if big_endian {
+                                x.to_be_bytes()
+                            } else {
+                                x.to_le_bytes()
+                            }
+                        })
                         .collect(),
                 ),
-                Val::Ifds(k) => (4, k.len(), k.iter().flat_map(|&i| u32b(offsets[i] as u32)).collect()),
+                Val::Ifds(k) => (
+                    4,
+                    k.len(),
+                    k.iter().flat_map(|&i| u32b(offsets[i] as u32)).collect(),
+                ),
             };
             out.extend(u16b(tag));
             out.extend(u16b(typ));
@@ -128,8 +153,14 @@ fn synthetic(iso: u16, model: &'static str) -> Vec<Entries> {
         (50722, ratios(&CM2, 10000)),
         (50723, ratios(&CC, 10000)),
         (50724, ratios(&CC, 10000)),
-        (50727, Val::Rational(AB.iter().map(|&n| (n, 1_000_000)).collect())),
-        (50728, Val::Rational(NEUTRAL.iter().map(|&n| (n, 1_000_000)).collect())),
+        (
+            50727,
+            Val::Rational(AB.iter().map(|&n| (n, 1_000_000)).collect()),
+        ),
+        (
+            50728,
+            Val::Rational(NEUTRAL.iter().map(|&n| (n, 1_000_000)).collect()),
+        ),
         (50778, Val::Short(vec![17])),
         (50779, Val::Short(vec![21])),
         (50931, Val::Ascii("com.example")),
@@ -147,7 +178,10 @@ fn synthetic(iso: u16, model: &'static str) -> Vec<Entries> {
         (33422, Val::Byte(vec![0, 1, 1, 2])),
         (50713, Val::Short(vec![2, 2])),
         (50714, Val::Long(BLACK.to_vec())),
-        (50715, Val::SRational(DELTA_H.iter().map(|&n| (n, 1)).collect())),
+        (
+            50715,
+            Val::SRational(DELTA_H.iter().map(|&n| (n, 1)).collect()),
+        ),
         (50717, Val::Short(vec![WHITE])),
         (51041, Val::Double(NOISE.to_vec())),
     ];
@@ -182,7 +216,11 @@ fn reference() -> Value {
 }
 
 fn nums(v: &Value) -> Vec<f64> {
-    v.as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect()
+    v.as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect()
 }
 
 fn rows(v: &Value) -> Vec<f64> {
@@ -217,7 +255,10 @@ fn robertson_cct_matches_colour_science() {
         let xy = nums(&case["xy"]);
         let want = case["cct"].as_f64().unwrap();
         let got = xy_to_cct([xy[0], xy[1]]);
-        assert!((got - want).abs() < 1e-7 * want, "xy {xy:?}: {got} vs {want}");
+        assert!(
+            (got - want).abs() < 1e-7 * want,
+            "xy {xy:?}: {got} vs {want}"
+        );
     }
 }
 
@@ -241,9 +282,15 @@ fn synthetic_tags_read_exactly_in_both_byte_orders() {
         let q = |v: &[i32], d: f64| -> Vec<f64> { v.iter().map(|&n| n as f64 / d).collect() };
         assert_eq!(t.color_matrix[0].unwrap().as_flattened(), q(&CM1, 10000.0));
         assert_eq!(t.color_matrix[1].unwrap().as_flattened(), q(&CM2, 10000.0));
-        assert_eq!(t.camera_calibration[1].unwrap().as_flattened(), q(&CC, 10000.0));
+        assert_eq!(
+            t.camera_calibration[1].unwrap().as_flattened(),
+            q(&CC, 10000.0)
+        );
         assert_eq!(t.calibration_illuminant, [Some(17), Some(21)]);
-        assert_eq!(t.camera_calibration_signature.as_deref(), Some("com.example"));
+        assert_eq!(
+            t.camera_calibration_signature.as_deref(),
+            Some("com.example")
+        );
         assert_eq!(t.analog_balance, Some([1.1, 1.0, 0.95]));
         assert_eq!(t.as_shot_neutral, Some([0.65, 1.0, 0.45]));
         assert_eq!(t.black_level, Some(vec![64.0, 60.0, 68.0, 72.0]));
@@ -272,12 +319,21 @@ fn synthetic_colour_matches_the_independent_reference() {
     let t = read_dng_tags_bytes(&bytes, p).unwrap();
     let c = dng_colour(&t, p).unwrap();
     let e = &s["expected"];
-    assert!((c.cct - e["cct"].as_f64().unwrap()).abs() < 1e-6, "{}", c.cct);
+    assert!(
+        (c.cct - e["cct"].as_f64().unwrap()).abs() < 1e-6,
+        "{}",
+        c.cct
+    );
     close(&c.white_xy, &nums(&e["xy"]), 1e-12, "white xy");
     let (temps, g) = c.interpolation.unwrap();
     assert_eq!(temps, [2856.0, 6504.0]);
     assert!((g - e["weight_lower_temperature"].as_f64().unwrap()).abs() < 1e-10);
-    close(c.camera_from_xyz.as_flattened(), &rows(&e["camera_from_xyz"]), 1e-9, "CM");
+    close(
+        c.camera_from_xyz.as_flattened(),
+        &rows(&e["camera_from_xyz"]),
+        1e-9,
+        "CM",
+    );
     let tm = hdrsynth::sensor::colour::fit::t_from_camera_xyz(&c.camera_from_xyz).unwrap();
     close(tm.as_flattened(), &rows(&e["t"]), 1e-9, "T");
     // With the two calibrations equal to one matrix, the white's CCT is irrelevant: CM is
@@ -308,7 +364,10 @@ fn noise_profile_converts_to_the_profile_units_by_hand() {
     })
     .unwrap();
     let l = &cal.profile.levels;
-    assert_eq!((l.black_level, l.white_level, l.bit_depth), (68.0, 4000.0, 12));
+    assert_eq!(
+        (l.black_level, l.white_level, l.bit_depth),
+        (68.0, 4000.0, 12)
+    );
     assert_eq!(cal.files[0].levels.black, [66.0, 66.0, 74.0]);
     let r = [3934.0 / 3932.0, 3934.0 / 3932.0, 3926.0 / 3932.0];
     let n = &cal.profile.noise[0];
@@ -316,7 +375,11 @@ fn noise_profile_converts_to_the_profile_units_by_hand() {
     for c in 0..3 {
         let (s, o) = (NOISE[2 * c], NOISE[2 * c + 1]);
         assert!((n.a[c] - s * r[c]).abs() < 1e-20, "a[{c}] {}", n.a[c]);
-        assert!((n.b[c] - o * r[c] * r[c]).abs() < 1e-22, "b[{c}] {}", n.b[c]);
+        assert!(
+            (n.b[c] - o * r[c] * r[c]).abs() < 1e-22,
+            "b[{c}] {}",
+            n.b[c]
+        );
     }
     // The independent reference agrees.
     let e = &reference()["synthetic"]["expected"]["noise"];
@@ -369,7 +432,10 @@ fn linear_raw_levels_per_sample() {
     })
     .unwrap();
     let l = &cal.profile.levels;
-    assert_eq!((l.black_level, l.white_level, l.bit_depth), (20.0, 1000.0, 16));
+    assert_eq!(
+        (l.black_level, l.white_level, l.bit_depth),
+        (20.0, 1000.0, 16)
+    );
     let r = [990.0 / 980.0, 990.0 / 980.0, 1000.0 / 980.0];
     let n = &cal.profile.noise[0];
     for c in 0..3 {
@@ -382,13 +448,27 @@ fn linear_raw_levels_per_sample() {
 #[test]
 fn iso_from_ifd0_and_the_65535_rule() {
     let p = Path::new("iso.dng");
-    let ifds = set(without(synthetic(100, "Cam 1"), 34665), 0, 34855, Val::Short(vec![800]));
-    assert_eq!(read_dng_tags_bytes(&tiff(&ifds, false), p).unwrap().iso, Some(800.0));
+    let ifds = set(
+        without(synthetic(100, "Cam 1"), 34665),
+        0,
+        34855,
+        Val::Short(vec![800]),
+    );
+    assert_eq!(
+        read_dng_tags_bytes(&tiff(&ifds, false), p).unwrap().iso,
+        Some(800.0)
+    );
     let mut ifds = synthetic(65535, "Cam 1");
     ifds[2].push((34866, Val::Long(vec![102400])));
-    assert_eq!(read_dng_tags_bytes(&tiff(&ifds, false), p).unwrap().iso, Some(102400.0));
+    assert_eq!(
+        read_dng_tags_bytes(&tiff(&ifds, false), p).unwrap().iso,
+        Some(102400.0)
+    );
     let ifds = synthetic(0, "Cam 1");
-    assert_eq!(read_dng_tags_bytes(&tiff(&ifds, false), p).unwrap().iso, None);
+    assert_eq!(
+        read_dng_tags_bytes(&tiff(&ifds, false), p).unwrap().iso,
+        None
+    );
 }
 
 #[test]
@@ -409,7 +489,10 @@ fn profile_from_several_dngs_is_sorted_loads_and_drives_realism() {
     assert!(!cal.existed);
     let p = SensorProfile::load(&out).unwrap();
     assert_eq!(p.name, "Cam 1");
-    assert_eq!(p.noise.iter().map(|n| n.iso).collect::<Vec<_>>(), vec![100.0, 400.0]);
+    assert_eq!(
+        p.noise.iter().map(|n| n.iso).collect::<Vec<_>>(),
+        vec![100.0, 400.0]
+    );
     assert!(p.provenance.colour.contains("iso400.dng") && p.provenance.colour.contains("K"));
     assert!(p.provenance.noise.contains("iso100.dng ISO 100"));
     // Realism at ISO 100 in DN: σ² = S·(W_c − B_c)·I + O·(W_c − B_c)² with the file's own
@@ -418,7 +501,11 @@ fn profile_from_several_dngs_is_sorted_loads_and_drives_realism() {
     let i = 1000.0f32;
     let v = r.variance_dn([i; 3]);
     let want = 5e-6 * 3934.0 * i as f64 + 1e-8 * 3934.0f64.powi(2);
-    assert!((v[0] as f64 - want).abs() < 1e-5 * want, "{} vs {want}", v[0]);
+    assert!(
+        (v[0] as f64 - want).abs() < 1e-5 * want,
+        "{} vs {want}",
+        v[0]
+    );
     let img = hdrsynth::io::Image::from_fn(4, 4, |x, y| [0.1 * x as f32, 0.2, 0.05 * y as f32]);
     let opts_none = RealismOptions {
         noise: NoiseModel::Gaussian,
@@ -452,8 +539,12 @@ fn refusals_name_the_file_and_what_is_wrong() {
     let out = dir.path().join("p.toml");
     let d = dir.path();
     // Missing NoiseProfile and ISO: both named, with the file.
-    let f = write(d, "bare.dng", &without(without(synthetic(100, "Cam 1"), 51041), 34665));
-    let e = err(&[f.clone()], &out, true);
+    let f = write(
+        d,
+        "bare.dng",
+        &without(without(synthetic(100, "Cam 1"), 51041), 34665),
+    );
+    let e = err(std::slice::from_ref(&f), &out, true);
     assert!(
         e.contains("bare.dng") && e.contains("NoiseProfile (51041)") && e.contains("ISO"),
         "{e}"
@@ -469,7 +560,11 @@ fn refusals_name_the_file_and_what_is_wrong() {
     assert!(SensorProfile::load(&out).unwrap().noise.is_empty());
     std::fs::remove_file(&out).unwrap();
     // Missing colour tags.
-    let f = write(d, "nocm.dng", &without(without(synthetic(100, "Cam 1"), 50721), 50728));
+    let f = write(
+        d,
+        "nocm.dng",
+        &without(without(synthetic(100, "Cam 1"), 50721), 50728),
+    );
     let e = err(&[f], &out, true);
     assert!(
         e.contains("nocm.dng") && e.contains("ColorMatrix1 (50721)") && e.contains("AsShotNeutral"),
@@ -477,10 +572,20 @@ fn refusals_name_the_file_and_what_is_wrong() {
     );
     let f = write(d, "noill.dng", &without(synthetic(100, "Cam 1"), 50779));
     let e = err(&[f], &out, true);
-    assert!(e.contains("noill.dng") && e.contains("CalibrationIlluminant2"), "{e}");
-    let f = write(d, "other.dng", &set(synthetic(100, "Cam 1"), 0, 50779, Val::Short(vec![255])));
+    assert!(
+        e.contains("noill.dng") && e.contains("CalibrationIlluminant2"),
+        "{e}"
+    );
+    let f = write(
+        d,
+        "other.dng",
+        &set(synthetic(100, "Cam 1"), 0, 50779, Val::Short(vec![255])),
+    );
     let e = err(&[f], &out, true);
-    assert!(e.contains("other.dng") && e.contains("255 (other light source)"), "{e}");
+    assert!(
+        e.contains("other.dng") && e.contains("255 (other light source)"),
+        "{e}"
+    );
     // Mixed models name both files and both models.
     let a = write(d, "a.dng", &synthetic(100, "Cam 1"));
     let b = write(d, "b.dng", &synthetic(200, "Cam 2"));
@@ -492,11 +597,26 @@ fn refusals_name_the_file_and_what_is_wrong() {
     // Duplicate ISOs name both files.
     let c = write(d, "c.dng", &synthetic(100, "Cam 1"));
     let e = err(&[a, c], &out, true);
-    assert!(e.contains("a.dng") && e.contains("c.dng") && e.contains("ISO 100"), "{e}");
+    assert!(
+        e.contains("a.dng") && e.contains("c.dng") && e.contains("ISO 100"),
+        "{e}"
+    );
     // A NoiseProfile of 4 values.
-    let f = write(d, "np4.dng", &set(synthetic(100, "Cam 1"), 1, 51041, Val::Double(vec![1e-5; 4])));
+    let f = write(
+        d,
+        "np4.dng",
+        &set(
+            synthetic(100, "Cam 1"),
+            1,
+            51041,
+            Val::Double(vec![1e-5; 4]),
+        ),
+    );
     let e = err(&[f], &out, true);
-    assert!(e.contains("np4.dng") && e.contains("NoiseProfile has 4 values"), "{e}");
+    assert!(
+        e.contains("np4.dng") && e.contains("NoiseProfile has 4 values"),
+        "{e}"
+    );
     // Not a DNG; no raw IFD.
     let f = d.join("text.dng");
     std::fs::write(&f, b"hello").unwrap();
@@ -533,8 +653,14 @@ fn truncated_or_corrupt_files_never_panic() {
 // --- the real files ----------------------------------------------------------------------------
 
 fn shared(rel: &str) -> PathBuf {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data").join(rel);
-    assert!(p.exists(), "{} is missing: this test needs ../shared/data", p.display());
+    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data")
+        .join(rel);
+    assert!(
+        p.exists(),
+        "{} is missing: this test needs ../shared/data",
+        p.display()
+    );
     p
 }
 
@@ -553,50 +679,115 @@ fn real_dng_tags_match_tifffile_and_the_reference() {
         let t = read_dng_tags(&path).unwrap();
         assert_eq!(t.make, opt_str(&rec["make"]), "{name}");
         assert_eq!(t.model, opt_str(&rec["model"]), "{name}");
-        assert_eq!(t.unique_camera_model, opt_str(&rec["unique_camera_model"]), "{name}");
+        assert_eq!(
+            t.unique_camera_model,
+            opt_str(&rec["unique_camera_model"]),
+            "{name}"
+        );
         assert_eq!(t.iso, rec["iso"].as_f64(), "{name}");
-        assert_eq!(t.bits_per_sample as u64, rec["bits_per_sample"].as_u64().unwrap());
+        assert_eq!(
+            t.bits_per_sample as u64,
+            rec["bits_per_sample"].as_u64().unwrap()
+        );
         let linear = matches!(t.layout, RawLayout::LinearRaw { samples: 3 });
         assert_eq!(linear, rec["photometric"].as_u64() == Some(34892), "{name}");
         for (k, key) in ["color_matrix1", "color_matrix2"].iter().enumerate() {
             let want = (!rec[key].is_null()).then(|| quotients(&rec[key]));
-            assert_eq!(t.color_matrix[k].map(|m| m.as_flattened().to_vec()), want, "{name} {key}");
+            assert_eq!(
+                t.color_matrix[k].map(|m| m.as_flattened().to_vec()),
+                want,
+                "{name} {key}"
+            );
         }
-        for (k, key) in ["camera_calibration1", "camera_calibration2"].iter().enumerate() {
+        for (k, key) in ["camera_calibration1", "camera_calibration2"]
+            .iter()
+            .enumerate()
+        {
             let want = (!rec[key].is_null()).then(|| quotients(&rec[key]));
             let got = t.camera_calibration[k].map(|m| m.as_flattened().to_vec());
             assert_eq!(got, want, "{name} {key}");
         }
-        for (k, key) in ["calibration_illuminant1", "calibration_illuminant2"].iter().enumerate() {
-            assert_eq!(t.calibration_illuminant[k].map(u64::from), rec[*key].as_u64(), "{name}");
+        for (k, key) in ["calibration_illuminant1", "calibration_illuminant2"]
+            .iter()
+            .enumerate()
+        {
+            assert_eq!(
+                t.calibration_illuminant[k].map(u64::from),
+                rec[*key].as_u64(),
+                "{name}"
+            );
         }
         let sig = |key: &str| opt_str(&rec[key]);
-        assert_eq!(t.camera_calibration_signature, sig("camera_calibration_signature"));
-        assert_eq!(t.profile_calibration_signature, sig("profile_calibration_signature"));
+        assert_eq!(
+            t.camera_calibration_signature,
+            sig("camera_calibration_signature")
+        );
+        assert_eq!(
+            t.profile_calibration_signature,
+            sig("profile_calibration_signature")
+        );
         let v3 = |key: &str| (!rec[key].is_null()).then(|| quotients(&rec[key]));
-        assert_eq!(t.analog_balance.map(|v| v.to_vec()), v3("analog_balance"), "{name}");
-        assert_eq!(t.as_shot_neutral.map(|v| v.to_vec()), v3("as_shot_neutral"), "{name}");
-        assert_eq!(t.black_level.clone().unwrap_or(vec![0.0]), quotients(&rec["black_level"]));
+        assert_eq!(
+            t.analog_balance.map(|v| v.to_vec()),
+            v3("analog_balance"),
+            "{name}"
+        );
+        assert_eq!(
+            t.as_shot_neutral.map(|v| v.to_vec()),
+            v3("as_shot_neutral"),
+            "{name}"
+        );
+        assert_eq!(
+            t.black_level.clone().unwrap_or(vec![0.0]),
+            quotients(&rec["black_level"])
+        );
         let rep = nums(&rec["black_level_repeat"]);
-        assert_eq!(t.black_level_repeat.map(|v| v as f64).to_vec(), rep, "{name}");
+        assert_eq!(
+            t.black_level_repeat.map(|v| v as f64).to_vec(),
+            rep,
+            "{name}"
+        );
         assert_eq!(t.white_level, Some(nums(&rec["white_level"])), "{name}");
         let bits: Option<Vec<f64>> = rec["noise_profile_bits"].as_array().map(|a| {
-            a.iter().map(|b| f64::from_bits(b.as_u64().unwrap())).collect()
+            a.iter()
+                .map(|b| f64::from_bits(b.as_u64().unwrap()))
+                .collect()
         });
         assert_eq!(t.noise_profile, bits, "{name} NoiseProfile");
         assert_eq!(t.plane_colours, vec![0, 1, 2]);
         // Colour, levels, noise.
         let e = &rec["expected"];
         let c = dng_colour(&t, &path).unwrap();
-        assert!((c.cct - e["cct"].as_f64().unwrap()).abs() < 1e-6, "{name} CCT {}", c.cct);
-        close(c.camera_from_xyz.as_flattened(), &rows(&e["camera_from_xyz"]), 1e-9, name);
+        assert!(
+            (c.cct - e["cct"].as_f64().unwrap()).abs() < 1e-6,
+            "{name} CCT {}",
+            c.cct
+        );
+        close(
+            c.camera_from_xyz.as_flattened(),
+            &rows(&e["camera_from_xyz"]),
+            1e-9,
+            name,
+        );
         let tm = hdrsynth::sensor::colour::fit::t_from_camera_xyz(&c.camera_from_xyz).unwrap();
         close(tm.as_flattened(), &rows(&e["t"]), 1e-9, name);
         let lv = t.channel_levels(&path).unwrap().levels;
         let el = &e["levels"];
-        assert_eq!(lv.black_level, el["black_level"].as_f64().unwrap(), "{name}");
-        assert_eq!(lv.white_level, el["white_level"].as_f64().unwrap(), "{name}");
-        assert_eq!(lv.bit_depth as u64, el["bit_depth"].as_u64().unwrap(), "{name}");
+        assert_eq!(
+            lv.black_level,
+            el["black_level"].as_f64().unwrap(),
+            "{name}"
+        );
+        assert_eq!(
+            lv.white_level,
+            el["white_level"].as_f64().unwrap(),
+            "{name}"
+        );
+        assert_eq!(
+            lv.bit_depth as u64,
+            el["bit_depth"].as_u64().unwrap(),
+            "{name}"
+        );
         if let Some(np) = t.noise_per_channel(&path).unwrap() {
             let lv = t.channel_levels(&path).unwrap();
             let row = hdrsynth::sensor::dng::profile::noise_row(1.0, &np, &lv, &lv.levels);
@@ -629,8 +820,11 @@ fn real_dngs_make_profiles_or_are_refused_by_name() {
         assert!(!cal.report().is_empty());
     }
     // The 550D chart capture: no NoiseProfile, ISO 0 (not recorded).
-    let e = err(&[chart.clone()], &out, true);
-    assert!(e.contains("colorchart.dng") && e.contains("NoiseProfile") && e.contains("ISO"), "{e}");
+    let e = err(std::slice::from_ref(&chart), &out, true);
+    assert!(
+        e.contains("colorchart.dng") && e.contains("NoiseProfile") && e.contains("ISO"),
+        "{e}"
+    );
     let _ = std::fs::remove_file(&out);
     calibrate_dng(&DngOptions {
         files: vec![chart],
@@ -643,5 +837,8 @@ fn real_dngs_make_profiles_or_are_refused_by_name() {
     assert_eq!(p.levels.black_level, 2056.0);
     assert!(p.provenance.colour.contains("ColorMatrix1 alone"));
     let e = err(&[six_d, iphone], &out, true);
-    assert!(e.contains("Canon EOS 6D") && e.contains("iPhone13,3 back camera"), "{e}");
+    assert!(
+        e.contains("Canon EOS 6D") && e.contains("iPhone13,3 back camera"),
+        "{e}"
+    );
 }

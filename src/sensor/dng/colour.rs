@@ -107,16 +107,27 @@ pub fn dng_colour(tags: &DngTags, path: &Path) -> Result<DngColour> {
     let white = match (tags.as_shot_neutral, tags.as_shot_white_xy) {
         (Some(n), _) if n.iter().all(|v| *v > 0.0) => White::Neutral(n),
         (Some(n), _) => {
-            return Err(Error::decode(path, format!("AsShotNeutral {n:?} is not positive")));
+            return Err(Error::decode(
+                path,
+                format!("AsShotNeutral {n:?} is not positive"),
+            ));
         }
         (None, Some(xy)) if xy[0] > 0.0 && xy[1] > 0.0 && xy[0] + xy[1] < 1.0 => White::Xy(xy),
         (None, Some(xy)) => {
-            return Err(Error::decode(path, format!("AsShotWhiteXY {xy:?} is not a chromaticity")));
+            return Err(Error::decode(
+                path,
+                format!("AsShotWhiteXY {xy:?} is not a chromaticity"),
+            ));
         }
-        (None, None) => return Err(missing(path, "AsShotNeutral (50728) or AsShotWhiteXY (50729)")),
+        (None, None) => {
+            return Err(missing(
+                path,
+                "AsShotNeutral (50728) or AsShotWhiteXY (50729)",
+            ));
+        }
     };
     let (m1, m2) = calibrated_matrices(tags, path)?;
-    let Some((m2, temps)) = m2 else {
+    let Some(Upper { m: m2, temps }) = m2 else {
         let xy = white_xy(&white, &m1, path)?;
         return Ok(DngColour {
             cct: xy_to_cct(xy),
@@ -172,32 +183,39 @@ fn lerp(a: &Mat3, b: &Mat3, g: f64) -> Mat3 {
 fn white_xy(white: &White, m: &Mat3, path: &Path) -> Result<[f64; 2]> {
     match white {
         White::Xy(xy) => Ok(*xy),
-        White::Neutral(n) => solve3(*m, *n)
-            .and_then(xyz_to_xy)
-            .ok_or_else(|| {
-                Error::decode(
-                    path,
-                    format!(
-                        "AsShotNeutral {n:?} has no chromaticity under the colour matrix {m:?} \
+        White::Neutral(n) => solve3(*m, *n).and_then(xyz_to_xy).ok_or_else(|| {
+            Error::decode(
+                path,
+                format!(
+                    "AsShotNeutral {n:?} has no chromaticity under the colour matrix {m:?} \
                          (singular, or XYZ summing to ≤ 0)"
-                    ),
-                )
-            }),
+                ),
+            )
+        }),
     }
+}
+
+/// The higher-temperature calibration's matrix, with both temperatures (lower first).
+struct Upper {
+    m: Mat3,
+    temps: [f64; 2],
 }
 
 /// CM_1 and, where there are two calibrations, CM_2 with the temperatures (lower first; the
 /// pair is swapped so). A second matrix whose temperature equals the first's is not needed
 /// (the DNG SDK then uses ColorMatrix1 alone; so does this).
-fn calibrated_matrices(tags: &DngTags, path: &Path) -> Result<(Mat3, Option<(Mat3, [f64; 2])>)> {
+fn calibrated_matrices(tags: &DngTags, path: &Path) -> Result<(Mat3, Option<Upper>)> {
     let [cm1, cm2] = tags.color_matrix;
     let cm1 = cm1.ok_or_else(|| missing(path, "ColorMatrix1 (50721)"))?;
     let ab = tags.analog_balance.unwrap_or([1.0; 3]);
-    let ab: Mat3 = std::array::from_fn(|i| std::array::from_fn(|j| if i == j { ab[i] } else { 0.0 }));
+    let ab: Mat3 =
+        std::array::from_fn(|i| std::array::from_fn(|j| if i == j { ab[i] } else { 0.0 }));
     let use_cc = tags.camera_calibration_signature == tags.profile_calibration_signature;
     let identity: Mat3 = std::array::from_fn(|i| std::array::from_fn(|j| (i == j) as u8 as f64));
     let cm = |k: usize, m: &Mat3| {
-        let cc = tags.camera_calibration[k].filter(|_| use_cc).unwrap_or(identity);
+        let cc = tags.camera_calibration[k]
+            .filter(|_| use_cc)
+            .unwrap_or(identity);
         mul3(&mul3(&ab, &cc), m)
     };
     let m1 = cm(0, &cm1);
@@ -223,9 +241,21 @@ fn calibrated_matrices(tags: &DngTags, path: &Path) -> Result<(Mat3, Option<(Mat
     Ok(if t1 == t2 {
         (m1, None)
     } else if t1 < t2 {
-        (m1, Some((m2, [t1, t2])))
+        (
+            m1,
+            Some(Upper {
+                m: m2,
+                temps: [t1, t2],
+            }),
+        )
     } else {
-        (m2, Some((m1, [t2, t1])))
+        (
+            m2,
+            Some(Upper {
+                m: m1,
+                temps: [t2, t1],
+            }),
+        )
     })
 }
 

@@ -217,6 +217,17 @@ pub fn demosaic_bilinear(m: &Mosaic) -> Image {
     })
 }
 
+/// One strip or tile of the raw image: its origin, size, and where its bytes lie.
+struct Chunk {
+    x0: usize,
+    y0: usize,
+    width: usize,
+    rows: usize,
+    offset: usize,
+    /// The stored byte count (0: not given).
+    len: usize,
+}
+
 /// The raw samples, row-major, raw_width × raw_height.
 fn decode_samples(t: &Tiff, ifd: &Ifd, info: &DngInfo) -> Result<Vec<u16>> {
     let (w, h, bits) = (
@@ -225,8 +236,63 @@ fn decode_samples(t: &Tiff, ifd: &Ifd, info: &DngInfo) -> Result<Vec<u16>> {
         info.bits_per_sample as usize,
     );
     let mut out = vec![0u16; w * h];
-    // Chunks: (x0, y0, chunk width, chunk rows, data).
-    let mut chunks: Vec<(usize, usize, usize, usize, usize, usize)> = Vec::new();
+    for c in chunks(t, ifd, w, h)? {
+        let need = (c.width * c.rows * bits).div_ceil(8);
+        if c.len != 0 && c.len < need {
+            return Err(Error::decode(
+                t.path,
+                format!(
+                    "raw data chunk at byte {} holds {} bytes, {need} needed",
+                    c.offset, c.len
+                ),
+            ));
+        }
+        let data = t.slice(c.offset, need)?;
+        let mut bitpos = 0usize;
+        for y in 0..c.rows {
+            for x in 0..c.width {
+                let v = match bits {
+                    8 => data[y * c.width + x] as u16,
+                    16 => {
+                        let i = 2 * (y * c.width + x);
+                        if t.little {
+                            u16::from_le_bytes([data[i], data[i + 1]])
+                        } else {
+                            u16::from_be_bytes([data[i], data[i + 1]])
+                        }
+                    }
+                    _ => unpack_msb_first(data, &mut bitpos, bits),
+                };
+                let (gx, gy) = (c.x0 + x, c.y0 + y);
+                if gx < w && gy < h {
+                    out[gy * w + gx] = v;
+                }
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// The next `bits`-bit sample at `bitpos`: MSB-first bit packing, no row padding (DNG spec,
+/// BitsPerSample).
+fn unpack_msb_first(data: &[u8], bitpos: &mut usize, bits: usize) -> u16 {
+    let mut v = 0u32;
+    let mut left = bits;
+    while left > 0 {
+        let byte = data[*bitpos / 8] as u32;
+        let avail = 8 - *bitpos % 8;
+        let take = avail.min(left);
+        let shifted = (byte >> (avail - take)) & ((1 << take) - 1);
+        v = (v << take) | shifted;
+        left -= take;
+        *bitpos += take;
+    }
+    v as u16
+}
+
+/// The tiles or strips covering the w × h raw image.
+fn chunks(t: &Tiff, ifd: &Ifd, w: usize, h: usize) -> Result<Vec<Chunk>> {
+    let mut chunks = Vec::new();
     if let Some(offs) = t.uints(ifd, TAG_TILE_OFFSETS)? {
         let tw = t.required(ifd, TAG_TILE_WIDTH, "TileWidth")? as usize;
         let tl = t.required(ifd, TAG_TILE_LENGTH, "TileLength")? as usize;
@@ -240,85 +306,44 @@ fn decode_samples(t: &Tiff, ifd: &Ifd, info: &DngInfo) -> Result<Vec<u16>> {
             ));
         }
         for (k, &o) in offs.iter().enumerate().take(across * down) {
-            let len = counts.get(k).copied().unwrap_or(0) as usize;
-            chunks.push((
-                (k % across) * tw,
-                (k / across) * tl,
-                tw,
-                tl,
-                o as usize,
-                len,
-            ));
+            chunks.push(Chunk {
+                x0: (k % across) * tw,
+                y0: (k / across) * tl,
+                width: tw,
+                rows: tl,
+                offset: o as usize,
+                len: counts.get(k).copied().unwrap_or(0) as usize,
+            });
         }
-    } else {
-        let offs = t.uints(ifd, TAG_STRIP_OFFSETS)?.ok_or_else(|| {
-            Error::decode(t.path, "raw image has neither strips nor tiles")
-        })?;
-        let rps = self
-            .uint(ifd, TAG_ROWS_PER_STRIP)?
-            .unwrap_or(h as u64)
-            .min(h as u64) as usize;
-        let counts = t.uints(ifd, TAG_STRIP_BYTES)?.unwrap_or_default();
-        if rps == 0 || offs.len() < h.div_ceil(rps) {
-            return Err(Error::decode(
-                t.path,
-                "strip layout does not cover the raw image",
-            ));
-        }
-        for (k, &o) in offs.iter().enumerate().take(h.div_ceil(rps)) {
-            let len = counts.get(k).copied().unwrap_or(0) as usize;
+        return Ok(chunks);
+    }
+    let offs = t
+        .uints(ifd, TAG_STRIP_OFFSETS)?
+        .ok_or_else(|| Error::decode(t.path, "raw image has neither strips nor tiles"))?;
+    let rps = t
+        .uint(ifd, TAG_ROWS_PER_STRIP)?
+        .unwrap_or(h as u64)
+        .min(h as u64) as usize;
+    let counts = t.uints(ifd, TAG_STRIP_BYTES)?.unwrap_or_default();
+    if rps == 0 || offs.len() < h.div_ceil(rps) {
+        return Err(Error::decode(
+            t.path,
+            "strip layout does not cover the raw image",
+        ));
+    }
+    for (k, &o) in offs.iter().enumerate().take(h.div_ceil(rps)) {
+        chunks.push(Chunk {
+            x0: 0,
+            y0: k * rps,
+            width: w,
             // The last strip may hold fewer rows.
-            chunks.push((0, k * rps, w, rps.min(h - k * rps), o as usize, len));
-        }
+            rows: rps.min(h - k * rps),
+            offset: o as usize,
+            len: counts.get(k).copied().unwrap_or(0) as usize,
+        });
     }
-    for (x0, y0, cw, ch, off, len) in chunks {
-        let need = (cw * ch * bits).div_ceil(8);
-        if len != 0 && len < need {
-            return Err(Error::decode(
-                t.path,
-                format!("raw data chunk at byte {off} holds {len} bytes, {need} needed"),
-            ));
-        }
-        let data = t.slice(off, need)?;
-        let mut bitpos = 0usize;
-        for y in 0..ch {
-            for x in 0..cw {
-                let v = match bits {
-                    8 => data[y * cw + x] as u16,
-                    16 => {
-                        let i = 2 * (y * cw + x);
-                        if t.little {
-                            u16::from_le_bytes([data[i], data[i + 1]])
-                        } else {
-                            u16::from_be_bytes([data[i], data[i + 1]])
-                        }
-                    }
-                    _ => {
-                        // MSB-first bit packing, no row padding (DNG spec, BitsPerSample).
-                        let mut v = 0u32;
-                        let mut left = bits;
-                        while left > 0 {
-                            let byte = data[bitpos / 8] as u32;
-                            let avail = 8 - bitpos % 8;
-                            let take = avail.min(left);
-                            let shifted = (byte >> (avail - take)) & ((1 << take) - 1);
-                            v = (v << take) | shifted;
-                            left -= take;
-                            bitpos += take;
-                        }
-                        v as u16
-                    }
-                };
-                let (gx, gy) = (x0 + x, y0 + y);
-                if gx < w && gy < h {
-                    out[gy * w + gx] = v;
-                }
-            }
-        }
-    }
-    Ok(out)
+    Ok(chunks)
 }
-
 
 fn info_from(t: &Tiff, ifd: &Ifd) -> Result<DngInfo> {
     let path = t.path;
@@ -333,7 +358,10 @@ fn info_from(t: &Tiff, ifd: &Ifd) -> Result<DngInfo> {
     if tags.black_level.as_ref().is_some_and(|b| b.len() > 1) && (rr > 2 || rc > 2) {
         return Err(Error::unsupported(
             path,
-            format!("BlackLevel with repeat {:?} (at most 2 × 2 is supported)", [rr, rc]),
+            format!(
+                "BlackLevel with repeat {:?} (at most 2 × 2 is supported)",
+                [rr, rc]
+            ),
         ));
     }
     let black_level: [[f64; 2]; 2] =
@@ -451,7 +479,12 @@ fn bayer_cfa(t: &Tiff, ifd: &Ifd) -> Result<[[u8; 2]; 2]> {
 
 /// ActiveArea (top, left, bottom, right) and the DefaultCrop (x, y, w, h) within it; a
 /// DefaultCrop that does not fit is ignored.
-fn areas(t: &Tiff, ifd: &Ifd, raw_width: usize, raw_height: usize) -> Result<([usize; 4], [usize; 4])> {
+fn areas(
+    t: &Tiff,
+    ifd: &Ifd,
+    raw_width: usize,
+    raw_height: usize,
+) -> Result<([usize; 4], [usize; 4])> {
     let path = t.path;
     let aa =
         t.uints(ifd, TAG_ACTIVE_AREA)?

@@ -81,7 +81,11 @@ pub fn read_dng_file(path: &Path, noise: bool) -> Result<DngFile> {
         path: path.to_path_buf(),
         camera: tags.camera().unwrap_or_else(|| "unknown camera".into()),
         levels: tags.channel_levels(path)?,
-        noise_profile: if noise { tags.noise_per_channel(path)? } else { None },
+        noise_profile: if noise {
+            tags.noise_per_channel(path)?
+        } else {
+            None
+        },
         colour,
         t,
         tags,
@@ -154,9 +158,16 @@ pub fn calibrate_dng(opts: &DngOptions) -> Result<DngCalibration> {
             first.camera
         )));
     }
-    let noise = if opts.noise { noise_rows(&files)? } else { Vec::new() };
+    let noise = if opts.noise {
+        noise_rows(&files)?
+    } else {
+        Vec::new()
+    };
     let (mut profile, existed) = SensorProfile::load_or_create(&opts.out, || {
-        Ok::<_, Error>(new_profile(opts.name.as_deref().unwrap_or(&first.camera), first))
+        Ok::<_, Error>(new_profile(
+            opts.name.as_deref().unwrap_or(&first.camera),
+            first,
+        ))
     })?;
     profile.colour = Some(Colour {
         matrix: first.t,
@@ -232,9 +243,8 @@ fn colour_provenance(f: &DngFile) -> String {
     let c = &f.colour;
     let matrices = match c.interpolation {
         Some(([t1, t2], g)) => {
-            let ill = |k: usize| {
-                illuminant_name(tags.calibration_illuminant[k].unwrap_or(0)).to_string()
-            };
+            let ill =
+                |k: usize| illuminant_name(tags.calibration_illuminant[k].unwrap_or(0)).to_string();
             format!(
                 "ColorMatrix1 ({}) and ColorMatrix2 ({}) interpolated by inverse CCT between \
                  {t1} K and {t2} K, weight {g:.4} on the {t1} K matrix",
@@ -308,7 +318,12 @@ fn noise_provenance(files: &[DngFile]) -> String {
          (W_c − B_c)/(W − B) (1 where the levels agree):",
     );
     let mut sorted: Vec<&DngFile> = files.iter().collect();
-    sorted.sort_by(|a, b| a.tags.iso.unwrap_or(0.0).total_cmp(&b.tags.iso.unwrap_or(0.0)));
+    sorted.sort_by(|a, b| {
+        a.tags
+            .iso
+            .unwrap_or(0.0)
+            .total_cmp(&b.tags.iso.unwrap_or(0.0))
+    });
     for f in sorted {
         let np = f.noise_profile.unwrap_or_default();
         s.push_str(&format!(
@@ -330,15 +345,24 @@ impl DngCalibration {
     /// A plain-text summary for the command line.
     pub fn report(&self) -> String {
         let p = &self.profile;
+        let parts = if p.noise.is_empty() {
+            "colour and levels (no noise)"
+        } else {
+            "colour, levels and noise"
+        };
         let mut s = format!(
-            "{} {} ({}): colour, levels and noise from the tags of {} DNG(s)\n",
+            "{} {} ({}): {parts} from the tags of {} DNG(s)\n",
             if self.existed { "updated" } else { "wrote" },
             self.out.display(),
             p.name,
             self.files.len()
         );
         for f in &self.files {
-            let iso = f.tags.iso.map(|v| format!("ISO {v}")).unwrap_or("no ISO".into());
+            let iso = f
+                .tags
+                .iso
+                .map(|v| format!("ISO {v}"))
+                .unwrap_or("no ISO".into());
             s.push_str(&format!(
                 "  {}: {}, {iso}, white at {:.1} K\n",
                 f.path.display(),
@@ -352,13 +376,13 @@ impl DngCalibration {
             l.black_level, l.white_level, l.bit_depth
         ));
         for row in &self.files[0].t {
-            s.push_str(&format!("  [{:>9.5}, {:>9.5}, {:>9.5}]\n", row[0], row[1], row[2]));
+            s.push_str(&format!(
+                "  [{:>9.5}, {:>9.5}, {:>9.5}]\n",
+                row[0], row[1], row[2]
+            ));
         }
         for n in &p.noise {
-            s.push_str(&format!(
-                "noise ISO {}: a {:?}, b {:?}\n",
-                n.iso, n.a, n.b
-            ));
+            s.push_str(&format!("noise ISO {}: a {:?}, b {:?}\n", n.iso, n.a, n.b));
         }
         s
     }

@@ -93,7 +93,8 @@ impl DngTags {
         let path = t.path;
         let ifd0 = &t.ifd0;
         let (layout, plane_colours) = read_layout(t, ifd, photometric)?;
-        let text0 = |tag| -> Result<Option<String>> { Ok(t.text(ifd0, tag)?.or(t.text(ifd, tag)?)) };
+        let text0 =
+            |tag| -> Result<Option<String>> { Ok(t.text(ifd0, tag)?.or(t.text(ifd, tag)?)) };
         let nums0 = |tag| -> Result<Option<Vec<f64>>> { first_of(t, [ifd0, ifd], tag) };
         let nums_raw = |tag| -> Result<Option<Vec<f64>>> { first_of(t, [ifd, ifd0], tag) };
         let matrix = |tag: u16, name: &str| -> Result<Option<Mat3>> {
@@ -102,13 +103,20 @@ impl DngTags {
         let illuminant = |tag| -> Result<Option<u16>> {
             Ok(nums0(tag)?.and_then(|v| v.first().map(|x| x.clamp(0.0, 65535.0) as u16)))
         };
-        let bits = nums_raw(TAG_BITS)?.and_then(|v| v.first().copied()).unwrap_or(1.0);
+        let bits = nums_raw(TAG_BITS)?
+            .and_then(|v| v.first().copied())
+            .unwrap_or(1.0);
         let repeat = nums_raw(TAG_BLACK_REPEAT)?.unwrap_or(vec![1.0, 1.0]);
         let black_level_repeat = match repeat.as_slice() {
             [r, c] if (1.0..=16.0).contains(r) && (1.0..=16.0).contains(c) => {
                 [*r as usize, *c as usize]
             }
-            _ => return Err(Error::decode(path, format!("BlackLevelRepeatDim {repeat:?}"))),
+            _ => {
+                return Err(Error::decode(
+                    path,
+                    format!("BlackLevelRepeatDim {repeat:?}"),
+                ));
+            }
         };
         let tags = DngTags {
             make: text0(TAG_MAKE)?,
@@ -153,7 +161,10 @@ impl DngTags {
             if v.iter().all(|x| x.is_finite()) {
                 Ok(())
             } else {
-                Err(Error::decode(path, format!("{name} holds a non-finite value: {v:?}")))
+                Err(Error::decode(
+                    path,
+                    format!("{name} holds a non-finite value: {v:?}"),
+                ))
             }
         };
         for (name, m) in [
@@ -169,11 +180,20 @@ impl DngTags {
         finite("AnalogBalance", &self.analog_balance.unwrap_or_default())?;
         finite("AsShotNeutral", &self.as_shot_neutral.unwrap_or_default())?;
         finite("AsShotWhiteXY", &self.as_shot_white_xy.unwrap_or_default())?;
-        finite("BlackLevel", self.black_level.as_deref().unwrap_or_default())?;
+        finite(
+            "BlackLevel",
+            self.black_level.as_deref().unwrap_or_default(),
+        )?;
         finite("BlackLevelDeltaH", &self.black_level_delta_h)?;
         finite("BlackLevelDeltaV", &self.black_level_delta_v)?;
-        finite("WhiteLevel", self.white_level.as_deref().unwrap_or_default())?;
-        finite("NoiseProfile", self.noise_profile.as_deref().unwrap_or_default())?;
+        finite(
+            "WhiteLevel",
+            self.white_level.as_deref().unwrap_or_default(),
+        )?;
+        finite(
+            "NoiseProfile",
+            self.noise_profile.as_deref().unwrap_or_default(),
+        )?;
         let [r, c] = self.black_level_repeat;
         let want = r * c * self.samples();
         match &self.black_level {
@@ -290,7 +310,11 @@ impl DngTags {
             if w.len() != self.samples() || self.samples() != 3 {
                 return Err(Error::decode(
                     path,
-                    format!("WhiteLevel has {} values for {} sample(s)", w.len(), self.samples()),
+                    format!(
+                        "WhiteLevel has {} values for {} sample(s)",
+                        w.len(),
+                        self.samples()
+                    ),
                 ));
             }
             for (s, &ch) in planes.iter().enumerate() {
@@ -392,7 +416,10 @@ fn fixed<const N: usize>(path: &Path, v: Option<Vec<f64>>, name: &str) -> Result
         Some(v) => v.as_slice().try_into().map(Some).map_err(|_| {
             Error::unsupported(
                 path,
-                format!("{name} has {} values; {N} expected (a 3-colour camera)", v.len()),
+                format!(
+                    "{name} has {} values; {N} expected (a 3-colour camera)",
+                    v.len()
+                ),
             )
         }),
     }
@@ -410,7 +437,9 @@ fn read_layout(t: &Tiff, ifd: &Ifd, photometric: u32) -> Result<(RawLayout, Vec<
     let pattern = t
         .bytes_of(ifd, TAG_CFA_PATTERN)?
         .ok_or_else(|| Error::decode(path, "CFA raw image without a CFAPattern tag (33422)"))?;
-    let plane_colours = t.bytes_of(ifd, TAG_CFA_PLANE_COLOR)?.unwrap_or(vec![0, 1, 2]);
+    let plane_colours = t
+        .bytes_of(ifd, TAG_CFA_PLANE_COLOR)?
+        .unwrap_or(vec![0, 1, 2]);
     let dims = match dim.as_slice() {
         [r, c] if (1..=16).contains(r) && (1..=16).contains(c) => [*r as usize, *c as usize],
         _ => return Err(Error::decode(path, format!("CFARepeatPatternDim {dim:?}"))),

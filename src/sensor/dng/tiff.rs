@@ -298,7 +298,9 @@ impl<'a> Tiff<'a> {
         match ifd.get(&tag) {
             Some(e) if matches!(e.typ, 1 | 7) => {
                 let b = self.slice(e.offset, e.count as usize)?;
-                let s = String::from_utf8_lossy(b).trim_end_matches('\0').to_string();
+                let s = String::from_utf8_lossy(b)
+                    .trim_end_matches('\0')
+                    .to_string();
                 Ok(Some(s))
             }
             _ => self.ascii(ifd, tag),
@@ -356,5 +358,4 @@ impl<'a> Tiff<'a> {
             )
         })
     }
-
-    /// The raw samples, row-major, raw_width × raw_height.
+}
