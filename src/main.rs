@@ -21,7 +21,8 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
     },
-    /// Fit a sensor profile's colour transform or noise model from real captures.
+    /// Fit a sensor profile's colour transform or noise model from real captures, or read them
+    /// from DNG tags.
     Calibrate {
         #[command(subcommand)]
         command: CalibrateCommand,
@@ -67,6 +68,8 @@ enum CalibrateCommand {
     Colour(hdrsynth::cli::calibrate::colour::Args),
     /// Noise σ² = a·I + b per ISO and channel from a capture set (captures.toml).
     Noise(hdrsynth::cli::calibrate::noise::Args),
+    /// Colour, levels and noise per ISO from DNG tags (ColorMatrix, NoiseProfile, levels).
+    Dng(hdrsynth::cli::calibrate::dng::Args),
 }
 
 #[derive(Subcommand)]
@@ -99,6 +102,9 @@ fn main() -> Result<()> {
         Command::Calibrate {
             command: CalibrateCommand::Noise(args),
         } => println!("{}", hdrsynth::cli::calibrate::noise::run(&args)?),
+        Command::Calibrate {
+            command: CalibrateCommand::Dng(args),
+        } => println!("{}", hdrsynth::cli::calibrate::dng::run(&args)?),
         Command::Profile { command } => println!("{}", hdrsynth::cli::profile::run(&command)?),
         Command::Realism(args) => println!("{}", hdrsynth::cli::realism::run(&args)?),
         Command::Train(args) => {

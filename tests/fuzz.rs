@@ -374,6 +374,22 @@ fn fuzz_dng() {
     });
 }
 
+/// The tag reader of `calibrate dng` and what is computed from the tags (colour, levels,
+/// noise), on the same seed.
+#[test]
+fn fuzz_dng_tags() {
+    let seed = small_dng();
+    let path = Path::new("input.dng");
+    hdrsynth::sensor::dng::read_dng_tags_bytes(&seed, path).expect("the seed DNG's tags read");
+    fuzz("dng_tags", &[seed], false, |bytes| {
+        if let Ok(t) = hdrsynth::sensor::dng::read_dng_tags_bytes(bytes, path) {
+            let _ = hdrsynth::sensor::dng::colour::dng_colour(&t, path);
+            let _ = t.channel_levels(path);
+            let _ = t.noise_per_channel(path);
+        }
+    });
+}
+
 fn repo(rel: &str) -> Vec<u8> {
     std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join(rel)).unwrap()
 }

@@ -1,6 +1,7 @@
 //! Colour maths as colour-science computes it: linear sRGB ↔ XYZ (D65), Bradford chromatic
-//! adaptation, CIE 1976 L*a*b* (D50, and D65 for display values) and CIEDE2000. Conventions:
-//! the module docs of `colour`.
+//! adaptation, CIE 1976 L*a*b* (D50, and D65 for display values), CIEDE2000 and the correlated
+//! colour temperature of a chromaticity (Robertson 1968). Conventions: the module docs of
+//! `colour`.
 
 use crate::linalg::{Mat3, inverse3, mat_vec, mul3};
 
@@ -27,6 +28,72 @@ pub const A_XY: [f64; 2] = [0.44758, 0.40745];
 /// XYZ (Y = 1) of a chromaticity.
 pub fn xy_to_xyz(xy: [f64; 2]) -> [f64; 3] {
     [xy[0] / xy[1], 1.0, (1.0 - xy[0] - xy[1]) / xy[1]]
+}
+
+/// Chromaticity xy of XYZ; None when X + Y + Z is not positive (no chromaticity).
+pub fn xyz_to_xy(xyz: [f64; 3]) -> Option<[f64; 2]> {
+    let s = xyz[0] + xyz[1] + xyz[2];
+    (s > 0.0 && s.is_finite()).then(|| [xyz[0] / s, xyz[1] / s])
+}
+
+/// Robertson's isotemperature lines (Wyszecki & Stiles, Table 1(3.11)): reciprocal
+/// megakelvin, CIE 1960 u, v, slope. The 325-mired u is 0.24792 (Lindbloom's correction, as
+/// colour-science has it; the DNG SDK's copy reads 0.24702).
+const ROBERTSON: [[f64; 4]; 31] = [
+    [0.0, 0.18006, 0.26352, -0.24341],
+    [10.0, 0.18066, 0.26589, -0.25479],
+    [20.0, 0.18133, 0.26846, -0.26876],
+    [30.0, 0.18208, 0.27119, -0.28539],
+    [40.0, 0.18293, 0.27407, -0.30470],
+    [50.0, 0.18388, 0.27709, -0.32675],
+    [60.0, 0.18494, 0.28021, -0.35156],
+    [70.0, 0.18611, 0.28342, -0.37915],
+    [80.0, 0.18740, 0.28668, -0.40955],
+    [90.0, 0.18880, 0.28997, -0.44278],
+    [100.0, 0.19032, 0.29326, -0.47888],
+    [125.0, 0.19462, 0.30141, -0.58204],
+    [150.0, 0.19962, 0.30921, -0.70471],
+    [175.0, 0.20525, 0.31647, -0.84901],
+    [200.0, 0.21142, 0.32312, -1.0182],
+    [225.0, 0.21807, 0.32909, -1.2168],
+    [250.0, 0.22511, 0.33439, -1.4512],
+    [275.0, 0.23247, 0.33904, -1.7298],
+    [300.0, 0.24010, 0.34308, -2.0637],
+    [325.0, 0.24792, 0.34655, -2.4681],
+    [350.0, 0.25591, 0.34951, -2.9641],
+    [375.0, 0.26400, 0.35200, -3.5814],
+    [400.0, 0.27218, 0.35407, -4.3633],
+    [425.0, 0.28039, 0.35577, -5.3762],
+    [450.0, 0.28863, 0.35714, -6.7262],
+    [475.0, 0.29685, 0.35823, -8.5955],
+    [500.0, 0.30505, 0.35907, -11.324],
+    [525.0, 0.31320, 0.35968, -15.628],
+    [550.0, 0.32129, 0.36011, -23.325],
+    [575.0, 0.32931, 0.36038, -40.770],
+    [600.0, 0.33724, 0.36051, -116.45],
+];
+
+/// Correlated colour temperature (K) of a chromaticity by Robertson's method (1968): the signed
+/// distance to each isotemperature line in CIE 1960 uv, interpolated in reciprocal temperature
+/// between the two lines either side, as colour-science's `uv_to_CCT_Robertson1968` and the
+/// DNG SDK compute it. Beyond the table the result is its end: 100 000 K or 1667 K.
+pub fn xy_to_cct(xy: [f64; 2]) -> f64 {
+    let d = 1.5 - xy[0] + 6.0 * xy[1];
+    let (u, v) = (2.0 * xy[0] / d, 3.0 * xy[1] / d);
+    let (mut last_dt, mut k) = (0.0, ROBERTSON.len() - 1);
+    let mut dt_k = 0.0;
+    for (i, line) in ROBERTSON.iter().enumerate().skip(1) {
+        let len = (1.0 + line[3] * line[3]).sqrt();
+        // Distance from the line, positive on the high-temperature side.
+        let dt = -(u - line[1]) * (line[3] / len) + (v - line[2]) / len;
+        if dt <= 0.0 || i == ROBERTSON.len() - 1 {
+            (k, dt_k) = (i, (-dt).max(0.0));
+            break;
+        }
+        last_dt = dt;
+    }
+    let f = if k == 1 { 0.0 } else { dt_k / (last_dt + dt_k) };
+    1.0e6 / (ROBERTSON[k - 1][0] * f + ROBERTSON[k][0] * (1.0 - f))
 }
 
 /// von Kries chromatic adaptation matrix with the Bradford cone space, from white `src` to white
