@@ -23,8 +23,8 @@ use crate::error::{Error, Result};
 use crate::eval::ablate::{self, AblateConfig, Axis, AxisKind, EvalSpec, TestsetSpec};
 use crate::eval::quickstart::{
     self, DSLR_ISOS, Options, PRETRAIN_PROFILE, Preset, Sizes, Stage, TARGET_ISOS,
-    TRAIN_SCENE_SEED, data_set, generate_config, row, stage, target_profile, train_config,
-    train_resumable, write, write_config,
+    TRAIN_SCENE_SEED, control_row, data_set, generate_config, net_o_row, row, stage,
+    target_profile, train_config, train_resumable, write, write_config,
 };
 use crate::models::{BlendUNetConfig, ModelConfig};
 use crate::sensor::realism::TargetSpace;
@@ -256,14 +256,7 @@ fn scene_target_config(s: &Sizes, out: &Path, base: &Path, target: &Path) -> Abl
             ..EvalSpec::default()
         },
         rows: vec![
-            Axis {
-                train: false,
-                ..row(
-                    "net_o",
-                    "Net_O (pretrained through the DSLR, no fine-tuning)",
-                    toml::Table::new(),
-                )
-            },
+            net_o_row(),
             target_row(
                 "net_s_device",
                 "Net_S with device-space targets (the main job's recipe)",
@@ -324,22 +317,8 @@ fn network1_config(s: &Sizes, out: &Path, base: &Path, target: &Path) -> AblateC
             ..EvalSpec::default()
         },
         rows: vec![
-            Axis {
-                train: false,
-                ..row(
-                    "net_o",
-                    "Net_O (pretrained through the DSLR, no fine-tuning)",
-                    toml::Table::new(),
-                )
-            },
-            Axis {
-                kind: AxisKind::Control,
-                ..row(
-                    "control",
-                    "control (Net_O trained on its own DSLR data, same steps)",
-                    toml::Table::new(),
-                )
-            },
+            net_o_row(),
+            control_row(),
             target_row(
                 "net_r",
                 "Net_R (target response, levels, exposure rule; no colour, no noise)",

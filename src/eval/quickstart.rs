@@ -261,6 +261,30 @@ pub(crate) fn row(name: &str, label: &str, set: toml::Table) -> Axis {
     }
 }
 
+/// Net_O as a grid row: the per-seed pretraining scored as it is.
+pub(crate) fn net_o_row() -> Axis {
+    Axis {
+        train: false,
+        ..row(
+            "net_o",
+            "Net_O (pretrained through the DSLR, no fine-tuning)",
+            toml::Table::new(),
+        )
+    }
+}
+
+/// The control row: Net_O trained further on its own DSLR data for the same steps.
+pub(crate) fn control_row() -> Axis {
+    Axis {
+        kind: AxisKind::Control,
+        ..row(
+            "control",
+            "control (Net_O trained on its own DSLR data, same steps)",
+            toml::Table::new(),
+        )
+    }
+}
+
 /// `{ data = { profile = …, isos = …, … } }` as an ablation row's `set`.
 pub(crate) fn data_set(
     profile: &Path,
@@ -450,22 +474,8 @@ fn experiment_config(
             ..EvalSpec::default()
         },
         rows: vec![
-            Axis {
-                train: false,
-                ..row(
-                    "net_o",
-                    "Net_O (pretrained through the DSLR, no fine-tuning)",
-                    toml::Table::new(),
-                )
-            },
-            Axis {
-                kind: AxisKind::Control,
-                ..row(
-                    "control",
-                    "control (Net_O trained on its own DSLR data, same steps)",
-                    toml::Table::new(),
-                )
-            },
+            net_o_row(),
+            control_row(),
             target_row(
                 REFERENCE,
                 "Net_R (target response, levels, exposure rule; no colour, no noise)",
