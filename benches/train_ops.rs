@@ -1,4 +1,4 @@
-//! Issue 18 item 2: where Network-1's training step goes, op by op. Times each convolution of
+//! Where Network-1's training step goes, op by op. Times each convolution of
 //! the default U-Net (batch 4, 128² crops) forward, forward + input gradient, forward + weight
 //! gradient on an autodiff device, then the other op kinds of the step (BatchNorm, ReLU,
 //! max-pool, concatenation) at their largest shape. The backward costs are the differences.

@@ -90,8 +90,8 @@ pub fn compiled_backends() -> Vec<&'static str> {
 
 /// Keep freed memory in the process heap instead of returning it to the OS. glibc hands every
 /// block over its mmap threshold (at most 32 MiB, e.g. Network-1's 4×256×128² class map) back
-/// to the OS on free, so each training step page-faults its large activations in again: 12–15 %
-/// of a CPU step went to the kernel clearing pages (BENCHMARKS.md). Process-wide, so it is called
+/// to the OS on free, so each training step page-faults its large activations in again: a large
+/// share of a CPU step went to the kernel clearing pages. Process-wide, so it is called
 /// by the binary and the benches, never by library code. glibc still maps blocks over 64 MiB
 /// that a thread other than the main one allocates (its per-thread heaps are that size). Returns
 /// whether the setting took (false off glibc, where nothing is changed).

@@ -1,4 +1,4 @@
-//! Bracket folders off a device (issue 19): EXIF exposures, sidecars, grouping, refusals, and the
+//! Bracket folders off a device: EXIF exposures, sidecars, grouping, refusals, and the
 //! Kalantari-layout test set whose ground truth is the triangle merge.
 //!
 //! The JPEGs are written here with EXIF by a minimal APP1 writer (below, written from the EXIF
@@ -445,7 +445,7 @@ fn the_ground_truth_is_the_triangle_merge_of_the_written_frames() {
         ..BracketOptions::default()
     };
     // An output inside the bracket folder is refused before anything is written (a rerun
-    // would scan its Kalantari sets as brackets; issue 16 item 3).
+    // would scan its Kalantari sets as brackets).
     let inside = tmp.path().join("out");
     let e = bracket_testset::build(tmp.path(), &opts, &inside)
         .expect_err("output inside the input")
@@ -1150,7 +1150,7 @@ fn mtb_keeps_a_textureless_frame_in_place_against_itself() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// EXIF orientation (issue 19, session 6): frames are read upright.
+// EXIF orientation: frames are read upright.
 
 /// The stored 3×2 test image's labels: row 0 = A B C, row 1 = D E F.
 const LABELS: [[u8; 3]; 6] = [
@@ -2005,17 +2005,16 @@ fn bad_input_indices_are_refused_naming_the_folder_and_nothing_is_written() {
 // A real 7-exposure bracket (Canon EOS 550D JPEGs, ../shared/data/real_brackets/canon_550d_room,
 // its PROVENANCE.md): the test set with auto inputs and the ground truth from all frames.
 
+mod common;
+
 #[test]
 #[ignore = "needs ../shared/data"]
 fn canon_550d_room_builds_with_auto_inputs_and_the_ground_truth_from_all_frames() {
     use std::process::Command;
-    let src =
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/real_brackets/canon_550d_room");
-    assert!(
-        src.join("stack_room_exp_0.jpg").is_file(),
-        "{} is missing: this test needs ../shared/data",
-        src.display()
-    );
+    let src = common::shared_data("real_brackets/canon_550d_room/stack_room_exp_0.jpg")
+        .parent()
+        .expect("parent")
+        .to_path_buf();
     let tmp = tempfile::tempdir().expect("tmp");
     let out = tmp.path().join("canon");
     let start = std::time::Instant::now();

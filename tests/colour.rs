@@ -13,22 +13,10 @@ use hdrsynth::sensor::dng::{read_dng, read_dng_info, read_dng_mosaic};
 use hdrsynth::sensor::profile::{
     Levels, NoiseAtIso, PROFILE_FORMAT, ProfileKind, Provenance, Response, SensorProfile,
 };
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-fn shared(rel: &str) -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data")
-        .join(rel);
-    if p.exists() {
-        Some(p)
-    } else {
-        println!(
-            "skipped: {} is absent (shared data not checked out)",
-            p.display()
-        );
-        None
-    }
-}
+mod common;
+use common::shared_data;
 
 // --- oracles.json through serde_json, with accessors that panic naming what is missing -------
 
@@ -66,16 +54,17 @@ impl Oracle for Value {
     }
 }
 
-fn oracles() -> Option<Value> {
-    let p = shared("oracles/oracles.json")?;
-    Some(serde_json::from_str(&std::fs::read_to_string(p).unwrap()).expect("oracles.json"))
+fn oracles() -> Value {
+    let p = shared_data("oracles/oracles.json");
+    serde_json::from_str(&std::fs::read_to_string(p).unwrap()).expect("oracles.json")
 }
 
 // --- oracles -------------------------------------------------------------------------------------
 
 #[test]
+#[ignore = "needs ../shared/data"]
 fn delta_e_2000_matches_colour_science_on_40_pairs() {
-    let Some(o) = oracles() else { return };
+    let o = oracles();
     let pairs = o.key("delta_e_2000").arr();
     assert_eq!(pairs.len(), 40);
     for (k, p) in pairs.iter().enumerate() {
@@ -107,8 +96,9 @@ fn delta_e_2000_edge_cases() {
 }
 
 #[test]
+#[ignore = "needs ../shared/data"]
 fn least_squares_and_root_polynomial_match_colour_science() {
-    let Some(o) = oracles() else { return };
+    let o = oracles();
     let cc = o.key("colour_correction");
     let syn = cc.key("synthetic_rgb").rows3();
     let real = cc.key("real_rgb").rows3();
@@ -508,10 +498,9 @@ fn clipped_patch_error_names_the_patch() {
 // --- DNG ----------------------------------------------------------------------------------------
 
 #[test]
+#[ignore = "needs ../shared/data"]
 fn real_dng_reads_with_expected_size_pattern_and_levels() {
-    let Some(p) = shared("real_raw/colorchart.dng") else {
-        return;
-    };
+    let p = shared_data("real_raw/colorchart.dng");
     let info = read_dng_info(&p).unwrap();
     assert_eq!(info.cfa_string(), "RGGB");
     assert_eq!((info.raw_width, info.raw_height), (1888, 1182));
@@ -704,10 +693,9 @@ fn options(real: &Path, out: &Path) -> CalibrateOptions {
 }
 
 #[test]
+#[ignore = "needs ../shared/data"]
 fn calibrate_colour_on_the_real_dng_writes_a_profile() {
-    let Some(dng) = shared("real_raw/colorchart.dng") else {
-        return;
-    };
+    let dng = shared_data("real_raw/colorchart.dng");
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("canon.toml");
     let opts = CalibrateOptions {

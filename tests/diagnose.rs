@@ -201,7 +201,7 @@ fn hidden_vignetting() {
 }
 
 /// Bursts over `max_pixels` are analysed on evenly spread bands of rows, measured and simulated
-/// alike (issue 15 item 7). On 96×256 frames with a budget of 4096 pixels (the minimum of 8
+/// alike. On 96×256 frames with a budget of 4096 pixels (the minimum of 8
 /// bands of 8 rows, a quarter of the frame) the null case names nothing, and effects whose statistics need the
 /// whole field (vignetting), whole rows (row noise), column means (column noise) and vertical
 /// lags (correlated noise, 2-D Gaussian filter) are still named first and recovered.
@@ -344,7 +344,7 @@ fn weak_hidden_effects() {
     }
 }
 
-/// `hdrsynth diagnose` writes report.json in the issue's shape, report.md, the plots and a
+/// `hdrsynth diagnose` writes report.json in its documented shape, report.md, the plots and a
 /// profile.toml that the realism operator (what the loader builds for training samples)
 /// applies: its fitted vignetting darkens a corner of a uniform frame by 1 − k·r².
 #[test]
@@ -378,7 +378,7 @@ fn cli_report_and_profile_flow_into_the_realism_operator() {
         assert!(out.join(f).is_file(), "{f} missing");
     }
     let json = std::fs::read_to_string(out.join("report.json")).unwrap();
-    // The issue's shape: these keys, in this order, and a step's keys.
+    // The documented shape: these keys, in this order, and a step's keys.
     let mut at = 0;
     for key in [
         "\"format\": \"hdrsynth-diagnosis/1\"",
@@ -666,7 +666,7 @@ fn no_hidden_effect_over_sizes_and_seeds() {
     }
 }
 
-/// The issue's classic confusions, hidden in pairs: row noise vs correlated noise, DSNU vs
+/// The classic confusions, hidden in pairs: row noise vs correlated noise, DSNU vs
 /// column FPN, PRNU vs vignetting, hot pixels vs column FPN, channel noise vs heavy tails. Both
 /// are named, each parameter within 25 %, and the gap ends under the threshold.
 #[test]
@@ -740,7 +740,7 @@ fn confusable_pairs_are_told_apart() {
 
 /// The final model's temporal noise against the truth: per ISO, the shared a and b (DN, DN²)
 /// within `tol` of the planted ones, and every dark and flat burst's simulated mean temporal
-/// variance within 3 % of the measured one (the base-model check of the issue's failures).
+/// variance within 3 % of the measured one (the base-model check).
 /// Returns the disagreements, so a test lists every failing case at once.
 fn temporal_noise_mismatches(d: &Diagnosis, t: &Truth, tol: f64, what: &str) -> Vec<String> {
     let mut bad = Vec::new();
@@ -778,7 +778,7 @@ fn temporal_noise_mismatches(d: &Diagnosis, t: &Truth, tol: f64, what: &str) -> 
     bad
 }
 
-/// Issue 15, items 2 and 3: black offsets from 2 to 200 DN and every fixed pattern of the
+/// Black offsets from 2 to 200 DN and every fixed pattern of the
 /// catalogue (column FPN, DSNU, PRNU, hot pixels, vignetting) at two ISOs leave the model's
 /// temporal noise (a, b) at the planted values: temporal statistics see no fixed pattern, and the
 /// pedestal is named without breaking b.
@@ -815,7 +815,7 @@ fn fixed_patterns_and_black_offsets_leave_temporal_noise_alone() {
     assert!(bad.is_empty(), "{}", bad.join("\n"));
 }
 
-/// Issue 15, item 5: Student-t read noise at two strengths is named and the model keeps the
+/// Student-t read noise at two strengths is named and the model keeps the
 /// measured temporal variance (b within 5 %, every burst's mean variance within 3 %).
 #[test]
 fn heavy_tails_keep_the_temporal_variance() {
@@ -836,7 +836,7 @@ fn heavy_tails_keep_the_temporal_variance() {
     assert!(bad.is_empty(), "{}", bad.join("\n"));
 }
 
-/// Issue 15, item 4: noise filtered by a 2-D Gaussian kernel (the truth's own direct 2-D
+/// Noise filtered by a 2-D Gaussian kernel (the truth's own direct 2-D
 /// filter) at lag-1 correlations from ≈ 0.45 to ≈ 0.91, beyond the old family's 0.5: named
 /// first, both axes' lag-1 correlation within 10 % of the value computed by hand from the
 /// truth's kernel, the gap closed, and the temporal variance kept.
@@ -860,7 +860,7 @@ fn correlated_noise_up_to_high_correlation() {
     assert!(bad.is_empty(), "{}", bad.join("\n"));
 }
 
-/// Issue 15, item 1: a response exponent with no scene bursts is found from the flat series
+/// A response exponent with no scene bursts is found from the flat series
 /// (EMVA 1288: flats at two exposure times, one illumination) at several strengths and both
 /// directions, and recovered within 5 %.
 #[test]
@@ -876,7 +876,7 @@ fn linearity_from_flat_series() {
     }
 }
 
-/// Issue 15, item 1 (second half): toe/shoulder responses from an EMVA 1288 flat series of seven
+/// Toe/shoulder responses from an EMVA 1288 flat series of seven
 /// levels (5–80 % of the range before the curve), with and without a scene; the catalogue
 /// names the shape it found and recovers its parameters (toe within 15 %, shoulder within
 /// 10 %), and a pure power law is still named a power law. The truth applies the curves in
@@ -1113,7 +1113,7 @@ fn linear_sensor_with_a_long_flat_series_names_nothing() {
     }
 }
 
-/// Issue 15, item 6: a scene-only set (three scenes of one size, an EV0/EV−3 pair each, one
+/// A scene-only set (three scenes of one size, an EV0/EV−3 pair each, one
 /// frame per burst, no darks or flats) runs without a profile; with `scene` keys each pair is
 /// compared within its scene and the shared tone curve is named and recovered (exponents 0.8
 /// and 1.15); the statistics the set cannot support are listed as not tested. Without the keys

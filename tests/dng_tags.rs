@@ -652,17 +652,8 @@ fn truncated_or_corrupt_files_never_panic() {
 
 // --- the real files ----------------------------------------------------------------------------
 
-fn shared(rel: &str) -> PathBuf {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data")
-        .join(rel);
-    assert!(
-        p.exists(),
-        "{} is missing: this test needs ../shared/data",
-        p.display()
-    );
-    p
-}
+mod common;
+use common::shared_data as shared;
 
 fn opt_str(v: &Value) -> Option<String> {
     v.as_str().map(String::from)

@@ -1,4 +1,4 @@
-//! Issue 14 items 6 and 7: HDR scores in one unit whatever exposure stops a set's file writes,
+//! HDR scores in one unit whatever exposure stops a set's file writes,
 //! and Network-1's reference from noise-free frames.
 
 use hdrsynth::data::ground_truth::{self, MertensWeights};
@@ -381,58 +381,6 @@ fn network1_is_scored_against_the_clean_weight_reference_by_default() {
         "{:?}",
         r.notes
     );
-}
-
-/// Measurement, not a check (run by hand): on the test set at `HDRSYNTH_NET1_TESTSET` (e.g.
-/// `hdrsynth testset --radiance ../shared/data/real_hdr …`), PSNR-L / PSNR-T of two stand-in
-/// networks — Mertens weights of the noisy pair (the old target's imitator) and of the clean
-/// pair — against both references. docs/evaluation.md quotes the output.
-#[test]
-#[ignore]
-fn measure_network1_references_on_a_testset() {
-    let Ok(root) = std::env::var("HDRSYNTH_NET1_TESTSET") else {
-        eprintln!("skipped: set HDRSYNTH_NET1_TESTSET");
-        return;
-    };
-    let info = layout::detect(Path::new(&root)).expect("detect");
-    println!("set | mimic vs noisy-mertens | mimic vs clean-weights | clean vs noisy-mertens");
-    for set in &info.sets {
-        let (low, high) = read_pair(&set.static_frames);
-        let (clow, chigh) = read_pair(&set.clean_frames);
-        let blend = |w: Vec<f32>| hdrsynth::eval::blend::blend_pair(&low, &high, &w).unwrap();
-        let mimic = blend(ground_truth::blend_weights_high(&low, &high).unwrap());
-        let seer = blend(ground_truth::blend_weights_high(&clow, &chigh).unwrap());
-        let r = |kind| {
-            network1_reference(set, (0, 1), &low, &high, kind)
-                .unwrap()
-                .0
-        };
-        let (old, new) = (
-            r(Network1Reference::NoisyMertens),
-            r(Network1Reference::CleanWeights),
-        );
-        let t = |img: &Image| img.map(|v| hdrsynth::eval::blend::tone_curve(v, 2.0));
-        let score = |reference: &Image, out: &Image| {
-            let opts = hdrsynth::eval::metrics::MetricOptions::default();
-            let s = hdrsynth::eval::metrics::score_pair(
-                reference,
-                out,
-                &t(reference),
-                &t(out),
-                None,
-                &opts,
-            )
-            .unwrap();
-            format!("{:.2} / {:.2}", s.psnr_l, s.psnr_t)
-        };
-        println!(
-            "{} | {} | {} | {}",
-            set.name,
-            score(&old, &mimic),
-            score(&new, &mimic),
-            score(&old, &seer)
-        );
-    }
 }
 
 #[test]

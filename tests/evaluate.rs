@@ -60,16 +60,6 @@ fn dataset() -> &'static Path {
     .path()
 }
 
-fn shared_data() -> Option<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        eprintln!("skipped: {} is absent", dir.display());
-        None
-    }
-}
-
 fn set_names() -> Vec<String> {
     layout::detect(dataset())
         .expect("detect")
@@ -642,9 +632,9 @@ fn the_triangle_merge_with_the_true_response_recovers_the_ground_truth() {
 }
 
 #[test]
+#[ignore = "needs ../shared/data"]
 fn a_testset_from_real_radiance_has_noise_colour_and_scores_through_eval() {
-    let Some(shared) = shared_data() else { return };
-    let desk = shared.join("real_hdr/Desk.exr");
+    let desk = common::shared_data("real_hdr/Desk.exr");
     let tmp = tempfile::tempdir().expect("tmp");
     let out = tmp.path().join("ts");
     // Through the binary, the Network-1 bracket; resized small for speed.

@@ -9,7 +9,7 @@ use hdrsynth::io::{
     BitDepth, ExrPrecision, Format, Image, luminance, read_image, read_image_info, write_exr,
     write_hdr, write_image, write_ldr,
 };
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 // ---------------------------------------------------------------------------------------------
 // helpers
@@ -53,19 +53,7 @@ fn tmp() -> tempfile::TempDir {
     tempfile::tempdir().expect("create a temporary directory")
 }
 
-/// The OpenEXR sample images (ILM, BSD licence) shipped beside the crate, if present.
-fn real_hdr_dir() -> Option<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/real_hdr");
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        eprintln!(
-            "SKIP: {} not found; real-file EXR checks not run",
-            dir.display()
-        );
-        None
-    }
-}
+mod common;
 
 fn assert_close_rel(got: f32, want: f32, tol: f32, what: &str) {
     let err = (got - want).abs();
@@ -452,13 +440,10 @@ fn exr_luminance_chroma_formula_and_chromaticities() {
 /// 1.7e-4), hence 4e-3. The pixels are in smooth regions (sky; one textured ground pixel,
 /// (1073, 507), where the shared filter still matches).
 #[test]
+#[ignore = "needs ../shared/data"]
 fn mt_tam_north_luminance_chroma_matches_openexr() {
-    let Some(dir) = real_hdr_dir() else { return };
-    let path = dir.join("MtTamNorth.exr");
-    if !path.exists() {
-        eprintln!("SKIP: {} not found", path.display());
-        return;
-    }
+    // The OpenEXR sample images (ILM, BSD licence).
+    let path = common::shared_data("real_hdr/MtTamNorth.exr");
     let img = read_image(&path).expect("read MtTamNorth.exr");
     assert_eq!((img.width, img.height), (1198, 796));
     // read_image already rejects NaN/Inf; check the range too.
@@ -513,15 +498,11 @@ fn mt_tam_north_luminance_chroma_matches_openexr() {
 }
 
 #[test]
+#[ignore = "needs ../shared/data"]
 fn desk_and_carrots_read() {
-    let Some(dir) = real_hdr_dir() else { return };
     // Desk: RGBA half, PIZ. Carrots: RGBA half, ZIP, ACES chromaticities (returned as stored).
     for (name, w, h) in [("Desk.exr", 644, 874), ("Carrots.exr", 600, 400)] {
-        let path = dir.join(name);
-        if !path.exists() {
-            eprintln!("SKIP: {} not found", path.display());
-            continue;
-        }
+        let path = common::shared_data(&format!("real_hdr/{name}"));
         let img = read_image(&path).unwrap_or_else(|e| panic!("read {name}: {e}"));
         assert_eq!((img.width, img.height), (w, h), "{name} size");
         assert!(img.data.iter().all(|v| v.is_finite()), "{name} non-finite");

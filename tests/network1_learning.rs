@@ -1,4 +1,4 @@
-//! Making Network-1 learn (issue 14 item 1): the loss readings against hand-computed values and
+//! Making Network-1 learn: the loss readings against hand-computed values and
 //! gradients, target smoothing against a hand computation, the best-constant baseline, the
 //! config keys, and a short training run that must beat the best constant on held-out pairs.
 

@@ -1,4 +1,4 @@
-//! The read-noise floor for darktable's negative b and the noise table (issue 14 item 3).
+//! The read-noise floor for darktable's negative b and the noise table.
 //!
 //! darktable's Canon EOS 550D profile (set 1) has b < 0 at ISO 200–3200; kept verbatim, the
 //! realism operator clamps a·x + b at 0 and the shadows get no noise at all. The two CSV rows

@@ -526,7 +526,7 @@ fn export_cli_verifies_and_infer_onnx_matches_the_checkpoint() {
     );
 }
 
-/// The graph as the issue asks for it, counted by hand from the architecture: opset 17, one
+/// The graph, counted by hand from the architecture: opset 17, one
 /// BatchNormalization per BatchNorm module, Pad(mode = reflect) before every Network-2
 /// convolution, ConvTranspose with the pads/output_padding of each alignment.
 #[test]
@@ -626,7 +626,7 @@ fn exported_graphs_have_the_promised_structure() {
     }
 }
 
-/// `eval::engine` (issue 18 item 3): a checkpoint run through each engine. `auto` on the CPU
+/// `eval::engine`: a checkpoint run through each engine. `auto` on the CPU
 /// device picks ONNX Runtime when it is there (these tests require it), `burn` forces Burn, and
 /// both agree within the parity tolerance on Network-1's blend weights and Network-2's HDR.
 #[test]

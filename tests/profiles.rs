@@ -128,7 +128,7 @@ fn colour_ablation_profiles_differ_and_canon_fit_agrees_with_adobe() {
     assert!(pair > 2.5, "ablation pair differs by only {pair:.2} ΔE00");
 }
 
-/// The composite phone profile (issue 14 item 10): darktable's OnePlus 6 noise, the Galaxy S9's
+/// The composite phone profile: darktable's OnePlus 6 noise, the Galaxy S9's
 /// Adobe colour matrix, a 10-bit phone raw's levels; labelled composite, never measured.
 #[test]
 fn composite_phone_profile_is_what_it_says() {

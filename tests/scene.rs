@@ -275,16 +275,12 @@ fn bad_configs_name_file_and_problem() {
     assert!(e.contains("must contain 0"), "{e}");
 }
 
+mod common;
+
 #[test]
+#[ignore = "needs ../shared/data"]
 fn real_radiance_backgrounds_are_used_when_configured() {
-    let real = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/real_hdr");
-    if !real.is_dir() {
-        eprintln!(
-            "skipping: {} not found (shared data absent)",
-            real.display()
-        );
-        return;
-    }
+    let real = common::shared_data("real_hdr");
     let mut c = cfg("");
     c.scene.backgrounds_dir = Some(real);
     c.scene.real_background_probability = 1.0;

@@ -1,4 +1,4 @@
-//! Burn's LibTorch backend (`--features tch`, issue 18): the device name resolves, and a short
+//! Burn's LibTorch backend (`--features tch`): the device name resolves, and a short
 //! seeded training of each network on it is repeatable bit for bit (same seed, same threads)
 //! and lowers the loss on a fixed batch. Built only with the `tch` feature (not in CI: it needs
 //! an installed libtorch, docs/training.md).

@@ -513,7 +513,7 @@ fn a_short_run_learns_the_blend_weights() {
     let tmp = tempfile::tempdir().expect("tmp");
     let run = tmp.path().join("learn");
     // The paper's recipe (literal Eq. 4, stream α, per-pixel targets), pinned: the defaults
-    // changed in issue 14 and are tested in tests/network1_learning.rs.
+    // are tested in tests/network1_learning.rs.
     let text = config_text(&run, 300, "", 3e-3, true)
         .replace("batch_size = 2", "batch_size = 4")
         .replace(
@@ -582,7 +582,7 @@ fn a_short_run_learns_the_blend_weights() {
     }
 }
 
-/// One writer per run folder (issue 16): while another holder has the run's lock, `train`
+/// One writer per run folder: while another holder has the run's lock, `train`
 /// refuses with a message naming the lock, and writes no checkpoint.
 #[test]
 fn a_second_trainer_into_a_locked_run_folder_is_refused() {
@@ -600,7 +600,7 @@ fn a_second_trainer_into_a_locked_run_folder_is_refused() {
     assert!(run.join("checkpoints").is_dir());
 }
 
-/// Issue 18 item 4: data-parallel gradients over two devices equal the single-device gradient
+/// Data-parallel gradients over two devices equal the single-device gradient
 /// of the combined batch, for Network-1 without BatchNorm (with BatchNorm each shard is
 /// normalised by its own statistics, as in PyTorch's DDP: not comparable; docs/training.md),
 /// both loss readings. Odd batch sizes split unevenly (3 = 2 + 1) and are weighted by their

@@ -1,4 +1,4 @@
-//! Issue 14 items 2, 4, 5: one target unit in every mode, realism from linear frames, one
+//! One target unit in every mode, realism from linear frames, one
 //! auto-exposure rule. Expected values are hand-derived (see each test).
 
 use hdrsynth::config::parse_toml;

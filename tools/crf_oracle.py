@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Dev-time oracle for tests/brackets.rs (issue 19): OpenCV's CalibrateDebevec response and
+"""Dev-time oracle for tests/brackets.rs: OpenCV's CalibrateDebevec response and
 AlignMTB shifts on small deterministic brackets. Writes tests/data/brackets/:
   crf_{0..4}.png      an 8-bit bracket (times in crf_times.txt) of a synthetic scene through a
                       non-gamma response (1 - exp(-4x)) / (1 - exp(-4))

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 18 item 1: one command, one machine, one run — the training step of both networks in
+# One command, one machine, one run — the training step of both networks in
 # Burn (cargo bench --bench train_step, criterion's median) against PyTorch CPU
 # (tools/torch_step_reference.py, same architectures, batch, crop, loss, Adam; run before and
 # after Burn so drift shows), then whole-image inference in Burn flex against ONNX Runtime

@@ -673,7 +673,7 @@ pub fn resolve_linearisation(
 pub fn build(dir: &Path, opts: &BracketOptions, out: &Path) -> Result<BracketSummary> {
     // A test set inside the bracket folder would be scanned as brackets by the next run.
     crate::io::guard::refuse_output_inside(dir, out)?;
-    // One writer per output (issue 16), held to the end.
+    // One writer per output, held to the end.
     let _lock = crate::io::guard::OutputLock::acquire(out, "testset --brackets")?;
     let BracketScan { sets, mut notes } = brackets::scan(dir, &opts.scan)?;
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;

@@ -72,7 +72,7 @@ pub fn weight_from_probabilities(
 /// expected class (or the argmax) / (C − 1), computed on the host in f32 with the usual max
 /// subtraction. Same result as softmax followed by [`weight_from_probabilities`], without
 /// materialising the C×H×W probabilities: at 256 classes the on-device softmax cost more than
-/// the whole U-Net forward (3.75 s vs 3.5 s per 640² window, BENCHMARKS.md).
+/// the whole U-Net forward.
 pub fn weight_from_logits(
     logits: &[f32],
     classes: usize,

@@ -1,8 +1,8 @@
 //! Which engine runs a trained network on whole images. A checkpoint runs in Burn on the
 //! run's device, or — `Engine::Auto` on a CPU device, in a build with the `onnx` feature and
 //! ONNX Runtime's library present — in ONNX Runtime on the same network exported in memory:
-//! on CPU, ONNX Runtime is 1.2–2.1× faster than flex on the same windows (BENCHMARKS.md) and
-//! agrees within 1e-4 (tests/onnx.rs). An exported file (`infer --onnx`) always runs in ONNX
+//! it agrees with flex within 1e-4 (tests/onnx.rs); BENCHMARKS.md has the two engines' times,
+//! which are close on the CPU. An exported file (`infer --onnx`) always runs in ONNX
 //! Runtime. The tiling is the same for every engine, so only kernel rounding differs.
 
 use crate::device::is_cpu;

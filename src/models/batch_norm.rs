@@ -1,4 +1,4 @@
-//! BatchNorm for the networks' layers, fused and parallel on flex in training mode (issue 18).
+//! BatchNorm for the networks' layers, fused and parallel on flex in training mode.
 //!
 //! Flex inherits burn-backend's default `batch_norm_train` and `batch_norm_train_backward`: a
 //! chain of swap_dims/reshape copies, reductions and broadcasts, each a serial pass over the

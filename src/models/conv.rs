@@ -1,4 +1,4 @@
-//! 2D convolution for the networks' layers, faster on flex (issue 18).
+//! 2D convolution for the networks' layers, faster on flex.
 //!
 //! Burn 0.22's default weight gradient (`burn-backend`'s `conv2d_weight_backward`, which flex
 //! inherits) is itself a convolution: x with batch and channels swapped, by the output gradient

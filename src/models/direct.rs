@@ -1,4 +1,4 @@
-//! Direct convolution for thin stride-1 layers on flex (issue 18): those with at most
+//! Direct convolution for thin stride-1 layers on flex: those with at most
 //! [`MAX_BLOCK`] channels on one side, such as Network-2's output layer (5×5, 64 → 3 at full
 //! resolution). im2col + GEMM is a poor fit there: a GEMM with M = 3 runs at a fraction of the
 //! machine's speed, and the im2col matrix (c_in·k² rows × the image) is 25× the input, copied

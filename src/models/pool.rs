@@ -1,6 +1,6 @@
 //! Max-pooling for Network-1's encoder (2×2, stride 2).
 //!
-//! On flex (issue 18) the 2×2 stride-2 case is one op with its own autodiff step: flex's
+//! On flex the 2×2 stride-2 case is one op with its own autodiff step: flex's
 //! max-pool goes through its general 3-D kernel (a window loop per output with i64 indices, then
 //! a backward that scatters through them), 1.8 % of Network-1's step. Here the forward pass
 //! keeps, per output, which of its four inputs won (one byte), and the backward writes each

@@ -1,5 +1,5 @@
 //! Winograd minimal filtering F(m×m, r×r) for the networks' stride-1 convolutions on flex
-//! (issue 18): each m×m block of outputs from an α×α input patch (α = m + r − 1) by α² products
+//! each m×m block of outputs from an α×α input patch (α = m + r − 1) by α² products
 //! instead of m²·r², so Network-1's 5×5 head by F(4×4, 5×5) needs 4 multiplies per output
 //! instead of 25 and a 3×3 layer by F(4×4, 3×3) 2.25 instead of 9 (Lavin & Gray, "Fast
 //! Algorithms for Convolutional Neural Networks", CVPR 2016). Per batch of tiles:

@@ -169,7 +169,7 @@ pub fn network1(model: &BlendUNet, opts: &ExportOptions) -> Result<ModelProto> {
     let logits = g.conv("head", &cur, 1, [2; 4])?;
     // Softmax over the class axis spelled out (max, exp, sum, divide): ONNX Runtime's Softmax
     // over a non-last axis took 44 % of a 768² window's time in its profiler; these ops stream
-    // over NCHW as they are (BENCHMARKS.md). The blend weight reuses the exponentials and their
+    // over NCHW as they are. The blend weight reuses the exponentials and their
     // sum.
     let max = g.node(
         "ReduceMax",

@@ -1,4 +1,4 @@
-//! Network-1's loss as one operation on flex (issue 18).
+//! Network-1's loss as one operation on flex.
 //!
 //! Every reading of [`super::loss::network1_loss`] is a softmax over the 256 classes followed by
 //! a per-pixel loss. Composed from tensor operations, that is a dozen serial passes over the

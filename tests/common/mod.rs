@@ -5,7 +5,22 @@
 use burn::tensor::{Device, Tensor, TensorData};
 use hdrsynth::config::parse_toml;
 use hdrsynth::data::generate::GenerateConfig;
-use std::path::Path;
+use std::path::{Path, PathBuf};
+
+/// `../shared/data/REL` beside the repository. Tests that call it are
+/// `#[ignore = "needs ../shared/data"]` (run with `--ignored` where the folder exists); a missing
+/// file fails the test, naming it, rather than letting it pass without checking anything.
+pub fn shared_data(rel: &str) -> PathBuf {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data")
+        .join(rel);
+    assert!(
+        p.exists(),
+        "{} is missing: this test needs ../shared/data",
+        p.display()
+    );
+    p
+}
 
 /// Generate a small pure synthetic dataset into `dir` with the scene engine.
 pub fn generate(dir: &Path, seed: u64, count: usize, (width, height): (usize, usize), evs: &str) {

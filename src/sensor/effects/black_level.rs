@@ -6,7 +6,7 @@
 //! simulated, averaged over dark bursts. No adjustment of the noise: the base model's (a, b)
 //! are measured from the dark mean (`summary::temporal_ptc`) and refitted after every step, and
 //! a given profile's noise is the user's. (The old rule b += a·offset assumed an unclamped
-//! photon-transfer fit without darks; with b clamped at 0 it broke, issue 15.)
+//! photon-transfer fit without darks; with b clamped at 0 it breaks.)
 
 use super::params::{Finite, parse};
 use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, table};
