@@ -11,7 +11,7 @@
 //! The matrices come from Cook–Toom's construction on points p₀… and ∞, evaluated at compile
 //! time ([`cook_toom`], f64 then rounded once): a correlation is the transpose of a polynomial
 //! product evaluated at those points, so with Vₙ the α×n Vandermonde matrix (row j = 1, pⱼ, …,
-//! pⱼⁿ⁻¹; the ∞ row picks the leading coefficient), Aᵀ = V_mᵀ, G = V_r and Bᵀ = (V_α⁻¹)ᵀ. As
+//! pⱼⁿ⁻¹; the ∞ row picks the top-degree coefficient), Aᵀ = V_mᵀ, G = V_r and Bᵀ = (V_α⁻¹)ᵀ. As
 //! constants, the transforms' unrolled loops skip every zero entry. Rounding differs from the
 //! direct convolution's (the transforms add and subtract before the products): a few 1e-7 of the
 //! output's scale for F(2, 3), up to about 1e-5 for α = 6 and 2e-5 for α = 8 (tests/winograd.rs,
