@@ -1,6 +1,7 @@
 //! Ground truth: pyramids against hand-computed values (OpenCV pyrDown/pyrUp semantics with
 //! reflect-101 borders), Mertens fusion against OpenCV 5.0 `MergeMertens` oracles, the triangle
-//! merge against its oracle, the blend-class sign convention on hand examples, the class
+//! merge against its oracle (on the committed crops in tests/data/oracle_crops, and full size
+//! where ../shared/data exists), the blend-class sign convention on hand examples, the class
 //! weights on hand histograms, and `dataset weights` on a small generated dataset.
 
 use hdrsynth::config::parse_toml;
@@ -192,73 +193,137 @@ fn laplacian_pyramid_collapses_to_the_input_and_blend_is_linear() {
 // ---------------------------------------------------------------------------------------------
 // Oracles
 
-const MERTENS_CASES: [(&str, [&str; 3], bool); 4] = [
-    ("desk_2exp", ["ev-3", "ev+0", ""], false),
-    ("carrots_2exp", ["ev-3", "ev+0", ""], false),
-    ("desk_3exp", ["ev-2", "ev+0", "ev+2"], true),
-    ("carrots_3exp", ["ev-2", "ev+0", "ev+2"], true),
-];
+/// The oracle cases of `DIR/oracles.json` of `kind` ("mertens" or "triangle_merge"), by name.
+fn oracle_cases(dir: &Path, kind: &str) -> Vec<(String, serde_json::Value)> {
+    let text = std::fs::read_to_string(dir.join("oracles.json")).expect("oracles.json");
+    let json: serde_json::Value = serde_json::from_str(&text).expect("oracles.json");
+    let cases = json["cases"]
+        .as_object()
+        .expect("oracles.json: no \"cases\"");
+    let mut out: Vec<(String, serde_json::Value)> = cases
+        .iter()
+        .filter(|(_, c)| c["kind"] == kind)
+        .map(|(n, c)| (n.clone(), c.clone()))
+        .collect();
+    out.sort_by(|a, b| a.0.cmp(&b.0));
+    out
+}
 
-fn frames(dir: &Path, case: &str, evs: &[&str]) -> Vec<Image> {
-    evs.iter()
-        .filter(|e| !e.is_empty())
-        .map(|e| {
-            let p = dir.join(format!("{case}_{e}.png"));
+/// A case's input frames (its "inputs", read from `dir`).
+fn frames(dir: &Path, name: &str, case: &serde_json::Value) -> Vec<Image> {
+    case["inputs"]
+        .as_array()
+        .unwrap_or_else(|| panic!("{name}: no inputs"))
+        .iter()
+        .map(|f| {
+            let p = dir.join(f.as_str().expect("input name"));
             read_image(&p).unwrap_or_else(|err| panic!("{}: {err}", p.display()))
         })
         .collect()
 }
 
+fn weight(name: &str, case: &serde_json::Value, key: &str) -> f32 {
+    case[key]
+        .as_f64()
+        .unwrap_or_else(|| panic!("{name}: no {key}")) as f32
+}
+
+/// Runs our `mertens` on every MergeMertens case of `DIR/oracles.json` (Desk and Carrots, two
+/// and three frames, default weights and contrast·saturation·exposure) and checks the largest
+/// and the mean absolute difference against OpenCV's output.
+fn check_mertens_oracles(dir: &Path, max_limit: f32, mean_limit: f64) {
+    let cases = oracle_cases(dir, "mertens");
+    let names: Vec<&str> = cases.iter().map(|(n, _)| n.as_str()).collect();
+    let mut want_names = Vec::new();
+    for scene in ["carrots", "desk"] {
+        for frames in ["2exp", "3exp"] {
+            for suffix in ["mertens_cse", "mertens_default"] {
+                want_names.push(format!("{scene}_{frames}_{suffix}"));
+            }
+        }
+    }
+    assert_eq!(names, want_names, "the Mertens cases of oracles.json");
+    let mut results = Vec::new();
+    for (name, case) in &cases {
+        let inputs = frames(dir, name, case);
+        let (c, s, e) = (
+            weight(name, case, "contrast_weight"),
+            weight(name, case, "saturation_weight"),
+            weight(name, case, "exposure_weight"),
+        );
+        let output = case["output"].as_str().expect("output");
+        let want = read_image(&dir.join(output)).expect("oracle exr");
+        let got = mertens(&inputs, c, s, e).expect("mertens");
+        let (max, mean) = errors(&got, &want);
+        println!("{name}: max abs error {max:.3e}, mean {mean:.3e}");
+        results.push((name, max, mean));
+    }
+    for (name, max, mean) in &results {
+        assert!(
+            *max <= max_limit && *mean <= mean_limit,
+            "{name}: max abs error {max:.3e} (limit {max_limit:e}), mean {mean:.3e} (limit \
+             {mean_limit:e})"
+        );
+    }
+}
+
+/// Runs our `triangle_merge` on every triangle-merge case of `DIR/oracles.json` (Desk and
+/// Carrots, EV −2/0/+2) and checks the largest absolute difference against the oracle.
+fn check_triangle_oracles(dir: &Path, limit: f32) {
+    let cases = oracle_cases(dir, "triangle_merge");
+    let names: Vec<&str> = cases.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(names, ["carrots_3exp_triangle", "desk_3exp_triangle"]);
+    for (name, case) in &cases {
+        let f: [Image; 3] = frames(dir, name, case).try_into().expect("three frames");
+        let t: Vec<f32> = case["exposure_times"]
+            .as_array()
+            .expect("exposure_times")
+            .iter()
+            .map(|v| v.as_f64().expect("time") as f32)
+            .collect();
+        let gamma = weight(name, case, "gamma");
+        let output = case["output"].as_str().expect("output");
+        let want = read_image(&dir.join(output)).expect("oracle exr");
+        let got = triangle_merge(&f, [t[0], t[1], t[2]], gamma).expect("merge");
+        let (max, mean) = errors(&got, &want);
+        println!("{name}: max abs error {max:.3e}, mean {mean:.3e}");
+        assert!(
+            max <= limit,
+            "{name}: max abs error {max:.3e} (limit {limit:e}), mean {mean:.3e}"
+        );
+    }
+}
+
+/// The committed crop oracles (tools/oracle_crops.py).
+fn crops() -> PathBuf {
+    common::oracle_crops("oracles.json")
+        .parent()
+        .expect("parent")
+        .to_path_buf()
+}
+
 #[test]
 #[ignore = "needs ../shared/data"]
 fn mertens_matches_opencv_oracles() {
-    let dir = oracles();
-    let json = std::fs::read_to_string(dir.join("oracles.json")).expect("oracles.json");
-    let mut results = Vec::new();
-    for (case, evs, _) in MERTENS_CASES {
-        let inputs = frames(&dir, case, &evs);
-        // (suffix, contrast, saturation, exposure) as listed in oracles.json.
-        for (suffix, c, s, e) in [
-            ("mertens_default", 1.0, 1.0, 0.0),
-            ("mertens_cse", 1.0, 1.0, 1.0),
-        ] {
-            let name = format!("{case}_{suffix}");
-            assert!(
-                json.contains(&format!("\"{name}\"")),
-                "oracles.json has no case {name}"
-            );
-            let want = read_image(&dir.join(format!("{name}.exr"))).expect("oracle exr");
-            let got = mertens(&inputs, c, s, e).expect("mertens");
-            let (max, mean) = errors(&got, &want);
-            println!("{name}: max abs error {max:.3e}, mean {mean:.3e}");
-            results.push((name, max, mean));
-        }
-    }
-    assert_eq!(results.len(), 8);
-    for (name, max, mean) in &results {
-        assert!(
-            *max <= 2e-3 && *mean <= 1e-4,
-            "{name}: max abs error {max:.3e} (limit 2e-3), mean {mean:.3e} (limit 1e-4)"
-        );
-    }
+    check_mertens_oracles(&oracles(), 2e-3, 1e-4);
+}
+
+#[test]
+fn mertens_matches_opencv_on_committed_crops() {
+    // f32 both sides, the same operations in another order: a few ulps apart (max ~5e-7).
+    check_mertens_oracles(&crops(), 1e-5, 1e-6);
 }
 
 #[test]
 #[ignore = "needs ../shared/data"]
 fn triangle_merge_matches_oracles() {
-    let dir = oracles();
-    for case in ["desk_3exp", "carrots_3exp"] {
-        let f = frames(&dir, case, &["ev-2", "ev+0", "ev+2"]);
-        let f: [Image; 3] = f.try_into().expect("three frames");
-        let want = read_image(&dir.join(format!("{case}_triangle.exr"))).expect("oracle exr");
-        let got = triangle_merge(&f, [0.25, 1.0, 4.0], 2.2).expect("merge");
-        let (max, mean) = errors(&got, &want);
-        println!("{case}_triangle: max abs error {max:.3e}, mean {mean:.3e}");
-        assert!(
-            max <= 1e-5,
-            "{case}_triangle: max abs error {max:.3e} (limit 1e-5), mean {mean:.3e}"
-        );
-    }
+    check_triangle_oracles(&oracles(), 1e-5);
+}
+
+#[test]
+fn triangle_merge_matches_oracle_on_committed_crops() {
+    // The oracle is f64 rounded to f32; ours is f32 (max ~2.4e-7 = 1 ulp at 4).
+    check_triangle_oracles(&crops(), 2e-6);
 }
 
 #[test]

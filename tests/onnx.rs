@@ -32,18 +32,6 @@ fn device() -> Device {
     hdrsynth::device::device_from_name("flex").expect("flex")
 }
 
-fn shared(name: &str) -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data/oracles")
-        .join(name);
-    if p.is_file() {
-        Some(p)
-    } else {
-        eprintln!("skipping the real-image check: {} not found", p.display());
-        None
-    }
-}
-
 /// Replaces every weight and BatchNorm statistic of `model` by seeded random values (through
 /// a SafeTensors file and the strict importer), so that no parameter keeps a neutral value
 /// (γ = 1, β = 0, mean 0, variance 1) that a wrong export could get right by accident.
@@ -113,16 +101,13 @@ fn assert_close(checks: &[Check], what: &str) {
     }
 }
 
-fn images(names: &[&str]) -> Option<(Vec<hdrsynth::io::Image>, String)> {
-    let paths: Option<Vec<PathBuf>> = names.iter().map(|n| shared(n)).collect();
-    let paths = paths?;
-    Some((
-        paths
-            .iter()
-            .map(|p| read_image(p).expect("image"))
-            .collect(),
-        names.join(" + "),
-    ))
+/// Real frames: the committed 64×48 Desk crop's brackets (tests/data/oracle_crops), and a label.
+fn images(names: &[&str]) -> (Vec<hdrsynth::io::Image>, String) {
+    let frames = names
+        .iter()
+        .map(|n| read_image(&common::oracle_crops(n)).expect("image"))
+        .collect();
+    (frames, format!("real crop {}", names.join(" + ")))
 }
 
 #[test]
@@ -130,8 +115,8 @@ fn network1_exports_match_burn_in_onnx_runtime() {
     require_ort();
     let tmp = tempfile::tempdir().expect("tmp");
     let dev = device();
-    let real = images(&["desk_2exp_ev-3.png", "desk_2exp_ev+0.png"]);
-    let real_ref = real.as_ref().map(|(i, l)| (i.as_slice(), l.as_str()));
+    let real = images(&["desk_ev-3.png", "desk_ev+0.png"]);
+    let real_ref = Some((real.0.as_slice(), real.1.as_str()));
     for (k, batch_norm) in [true, false].into_iter().enumerate() {
         let cfg = BlendUNetConfig {
             base_width: 4,
@@ -140,7 +125,7 @@ fn network1_exports_match_burn_in_onnx_runtime() {
             ..Default::default()
         };
         let loaded = Loaded::Network1(network1(&cfg, 3 + k as u64, tmp.path()));
-        // Dynamic: checked at two non-square sizes (64×68, 72×64) and a 256×224 real crop.
+        // Dynamic: checked at two non-square sizes (64×68, 72×64) and the 64×48 real crop.
         let path = tmp.path().join(format!("n1-dyn-{k}.onnx"));
         let mut onnx = export_and_load(&loaded, &ExportOptions::default(), &path);
         assert_eq!(onnx.static_size, None);
@@ -152,6 +137,11 @@ fn network1_exports_match_burn_in_onnx_runtime() {
         );
         assert!(checks.iter().all(|c| c.weight_max_abs_diff.is_some()));
         assert!(checks.iter().any(|c| c.height != c.width));
+        assert!(
+            checks
+                .iter()
+                .any(|c| c.input == real.1 && (c.height, c.width) == (48, 64))
+        );
         // Inputs off the 2^depth grid are refused before ONNX Runtime sees them.
         let e = onnx
             .network1(&[0.0; 3 * 30 * 32], &[0.0; 3 * 30 * 32], (1, 30, 32))
@@ -180,7 +170,7 @@ fn network1_exports_match_burn_in_onnx_runtime() {
     assert!(!onnx.has_weight);
     let checks = verify::verify(&loaded, &mut onnx, size, real_ref, &dev).expect("verify");
     assert_close(&checks, "Network-1 static 32×48");
-    // A static size larger than the real frames (232 wide): they continue by reflection.
+    // A static size larger than the real frames (64×48): they continue by reflection.
     let big = InputSize::Static {
         height: 336,
         width: 384,
@@ -222,11 +212,7 @@ fn network2_exports_match_burn_in_onnx_runtime() {
         .iter()
         .map(|e| read_image(&set.join(format!("static/{e}.png"))).expect("frame"))
         .collect();
-    let real = images(&[
-        "desk_3exp_ev-2.png",
-        "desk_3exp_ev+0.png",
-        "desk_3exp_ev+2.png",
-    ]);
+    let (real_frames, real_label) = images(&["desk_ev-2.png", "desk_ev+0.png", "desk_ev+2.png"]);
 
     let mut resnet = WuConfig::resnet(2);
     resnet.res_blocks = 2;
@@ -246,25 +232,23 @@ fn network2_exports_match_burn_in_onnx_runtime() {
         let gen_ref = Some((generated.as_slice(), "generated set (96×80 crop)"));
         let mut checks =
             verify::verify(&loaded, &mut onnx, InputSize::Dynamic, gen_ref, &dev).expect("verify");
-        if let Some((imgs, label)) = &real {
-            let m = loaded.size_multiple();
-            let (h, w) = (
-                (imgs[0].height.min(256) / m) * m,
-                (imgs[0].width.min(256) / m) * m,
-            );
-            let frames = verify::crop_frames(imgs, h, w).expect("crop");
-            checks.push(
-                verify::compare(
-                    &loaded,
-                    &mut onnx,
-                    &frames,
-                    verify::CHECK_TIMES,
-                    &dev,
-                    label,
-                )
-                .expect("compare"),
-            );
-        }
+        let m = loaded.size_multiple();
+        let (h, w) = (
+            (real_frames[0].height.min(256) / m) * m,
+            (real_frames[0].width.min(256) / m) * m,
+        );
+        let frames = verify::crop_frames(&real_frames, h, w).expect("crop");
+        checks.push(
+            verify::compare(
+                &loaded,
+                &mut onnx,
+                &frames,
+                verify::CHECK_TIMES,
+                &dev,
+                &real_label,
+            )
+            .expect("compare"),
+        );
         assert_close(&checks, &what);
         assert!(checks.iter().any(|c| c.height != c.width));
         // The output is linear HDR above the reference's white where the short frame says so:

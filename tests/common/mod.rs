@@ -22,6 +22,17 @@ pub fn shared_data(rel: &str) -> PathBuf {
     p
 }
 
+/// `tests/data/oracle_crops/REL`: oracle outputs on small crops of real HDR scenes, committed
+/// (tools/oracle_crops.py writes them; PROVENANCE.md beside them), so the oracle tests run in
+/// any clone.
+pub fn oracle_crops(rel: &str) -> PathBuf {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data/oracle_crops")
+        .join(rel);
+    assert!(p.exists(), "{} is missing", p.display());
+    p
+}
+
 /// Generate a small pure synthetic dataset into `dir` with the scene engine.
 pub fn generate(dir: &Path, seed: u64, count: usize, (width, height): (usize, usize), evs: &str) {
     let text = format!(
