@@ -7,6 +7,7 @@ pub mod data;
 pub mod device;
 pub mod error;
 pub mod eval;
+pub mod experiments;
 pub mod io;
 pub mod linalg;
 pub mod models;

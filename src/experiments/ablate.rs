@@ -20,7 +20,7 @@ use crate::data::testset::{self, TestsetOptions};
 use crate::device::device_from_name;
 use crate::error::{Error, Result};
 use crate::eval::evaluate::{self, EvalOptions, NetworkOptions, from_checkpoint};
-use crate::eval::report::{self, METRICS, SUMMARY_METRICS};
+use crate::eval::report::{self, SUMMARY_METRICS};
 use crate::io::atomic::write_atomic;
 use crate::sensor::profile::SensorProfile;
 use crate::stats::{self, bootstrap_crossed};
@@ -879,53 +879,18 @@ fn run_cell(
 // The table
 
 /// Per-set values of [`SUMMARY_METRICS`] of a finished cell (`eval/per_image.csv`), by set
-/// name, columns found by their header names. An appended metric is NaN where the file lacks its
-/// column or leaves it empty (PSNR-T dark for a set with too few under-exposed pixels); NaN
-/// values are left out of the statistics.
+/// name. An appended metric is NaN where the file lacks its column or leaves it empty (PSNR-T
+/// dark for a set with too few under-exposed pixels); NaN values are left out of the statistics.
 fn read_per_image(path: &Path) -> Result<SetScores> {
-    let text = crate::io::guard::read_text(path)?;
-    let mut reader = csv::Reader::from_reader(text.as_bytes());
-    let bad = |line: Option<u64>, m: String| {
-        Error::layout(
-            path,
-            match line {
-                Some(l) => format!("line {l}: {m}"),
-                None => m,
-            },
-        )
-    };
-    let header = reader
-        .headers()
-        .map_err(|e| bad(None, e.to_string()))?
-        .clone();
-    let col = |name: &str| header.iter().position(|h| h == name);
-    let required = |name: &str| col(name).ok_or_else(|| bad(None, format!("no '{name}' column")));
-    let set_col = required("set")?;
-    let cols = SUMMARY_METRICS.map(col);
-    for m in METRICS {
-        required(m)?;
-    }
-    let mut out = BTreeMap::new();
-    for record in reader.records() {
-        let record = record.map_err(|e| bad(None, e.to_string()))?;
-        let line = record.position().map(|p| p.line());
-        let mut v = [f64::NAN; SUMMARY_METRICS.len()];
-        for (k, c) in cols.iter().enumerate() {
-            let field = c.and_then(|c| record.get(c)).unwrap_or("");
-            if field.is_empty() && k >= METRICS.len() {
-                continue;
-            }
-            v[k] = field.parse().map_err(|_| {
-                bad(
-                    line,
-                    format!("{} '{field}' is not a number", SUMMARY_METRICS[k]),
-                )
-            })?;
-        }
-        let set = record.get(set_col).unwrap_or_default().to_string();
-        out.insert(set, v);
-    }
-    Ok(out)
+    Ok(report::read_per_image(path)?
+        .into_iter()
+        .map(|row| {
+            (
+                row.set.clone(),
+                row.summary_values().map(|v| v.unwrap_or(f64::NAN)),
+            )
+        })
+        .collect())
 }
 
 /// The metrics of the tables, in their order: the paper's four, then ΔE2000 of the tone-mapped

@@ -1,6 +1,6 @@
 //! `hdrsynth quickstart --full`: the full protocol of docs/protocol.md at CPU scale, one
 //! resumable command. It runs the main job with its held-out-simulator matrix
-//! (`eval::quickstart`), then three more grids on the same test scenes, pretrainings and target
+//! (`experiments::quickstart`), then three more grids on the same test scenes, pretrainings and target
 //! device:
 //! - colour × fine-tuning ISO (the paper's Tables 3–4): Network-2 fine-tuned with the target's
 //!   colour transform or with identity colour, at each ISO alone; scored on the primary test set
@@ -20,8 +20,8 @@
 
 use crate::data::generate::{GenerateConfig, generate};
 use crate::error::{Error, Result};
-use crate::eval::ablate::{self, AblateConfig, Axis, AxisKind, EvalSpec, TestsetSpec};
-use crate::eval::quickstart::{
+use crate::experiments::ablate::{self, AblateConfig, Axis, AxisKind, EvalSpec, TestsetSpec};
+use crate::experiments::quickstart::{
     self, DSLR_ISOS, Options, PRETRAIN_PROFILE, Preset, Sizes, Stage, TARGET_ISOS,
     TRAIN_SCENE_SEED, control_row, data_set, generate_config, net_o_row, row, stage,
     target_profile, train_config, train_resumable, write, write_config,

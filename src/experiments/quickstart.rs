@@ -17,8 +17,10 @@ use crate::config::parse_checked;
 use crate::data::generate::{GenerateConfig, generate};
 use crate::data::loader::RealismConfig;
 use crate::error::{Error, Result};
-use crate::eval::ablate::{self, AblateConfig, Axis, AxisKind, DiffEntry, EvalSpec, TestsetSpec};
 use crate::eval::evaluate::{self, EvalOptions, TriangleMerge};
+use crate::experiments::ablate::{
+    self, AblateConfig, Axis, AxisKind, DiffEntry, EvalSpec, TestsetSpec,
+};
 use crate::models::{ModelConfig, WuConfig, WuVariant};
 use crate::sensor::metering::Metering;
 use crate::sensor::profile::Response;
