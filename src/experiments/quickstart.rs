@@ -537,19 +537,16 @@ pub(crate) fn stage(progress: bool, began: Instant, what: &str) {
     }
 }
 
-fn io_context(what: String) -> impl FnOnce(std::io::Error) -> Error {
-    move |e| Error::context(what, e)
-}
-
 /// The generated test scenes' linear radiance (`hdr_gt.exr` of each set), copied into one
 /// folder, as `testset` reads a folder of maps.
 fn test_scenes(opts: &Options, s: &Sizes) -> Result<PathBuf> {
     let scenes = opts.out.join("data/test_scenes");
     generate(&test_scene_config(s), &scenes, opts.progress)?;
     let dir = opts.out.join("data/test_radiance");
-    std::fs::create_dir_all(&dir).map_err(io_context(format!("creating {}", dir.display())))?;
-    let entries =
-        std::fs::read_dir(&scenes).map_err(io_context(format!("reading {}", scenes.display())))?;
+    std::fs::create_dir_all(&dir)
+        .map_err(|e| Error::context(format!("creating {}", dir.display()), e))?;
+    let entries = std::fs::read_dir(&scenes)
+        .map_err(|e| Error::context(format!("reading {}", scenes.display()), e))?;
     for e in entries {
         let set = e
             .map_err(|e| Error::context(format!("reading {}", scenes.display()), e))?
@@ -564,13 +561,11 @@ fn test_scenes(opts: &Options, s: &Sizes) -> Result<PathBuf> {
             let to = dir.join(format!("{name}.exr"));
             if !to.is_file() {
                 let tmp = dir.join(format!(".{name}.exr.tmp"));
-                std::fs::copy(&gt, &tmp).map_err(io_context(format!(
-                    "copying {} to {}",
-                    gt.display(),
-                    tmp.display()
-                )))?;
+                std::fs::copy(&gt, &tmp).map_err(|e| {
+                    Error::context(format!("copying {} to {}", gt.display(), tmp.display()), e)
+                })?;
                 std::fs::rename(&tmp, &to)
-                    .map_err(io_context(format!("renaming {}", tmp.display())))?;
+                    .map_err(|e| Error::context(format!("renaming {}", tmp.display()), e))?;
             }
         }
     }
@@ -776,7 +771,7 @@ pub fn run(opts: &Options) -> Result<String> {
     let configs = out.join("configs");
     let sensors = configs.join("sensors");
     std::fs::create_dir_all(&sensors)
-        .map_err(io_context(format!("creating {}", sensors.display())))?;
+        .map_err(|e| Error::context(format!("creating {}", sensors.display()), e))?;
     let pre_profile = sensors.join(PRETRAIN_PROFILE.0);
     let (target_file, target_text, target_profile) = target_profile(opts.target.as_deref())?;
     let target = sensors.join(target_file);

@@ -272,11 +272,10 @@ pub fn network1_batch(samples: &[Sample], device: &Device) -> Result<(Tensor<4>,
 // of their `tonemap`, which returns 2·T − 1 (images in [−1, 1]): their loss is 4 × this one,
 // with the same minimiser (Adam is insensitive to that scale apart from its ε).
 
-/// μ of the μ-law tone mapping (`MU = 5000.` in Wu et al.'s `model.py`).
-pub const MU: f64 = 5000.0;
+pub use crate::io::mu_law::MU;
 
-/// μ-law tone mapping T(x) = log(1 + μx) / log(1 + μ), element-wise (T(0) = 0, T(1) = 1).
-/// Negative values are treated as 0 (log(1 + μx) is undefined below −1/μ).
+/// The tensor form of [`crate::io::mu_law::mu_law`], element-wise (T(0) = 0, T(1) = 1), with
+/// negative values clamped to 0 first.
 pub fn mu_law<const D: usize>(t: Tensor<D>, mu: f64) -> Tensor<D> {
     t.clamp_min(0.0)
         .mul_scalar(mu)
