@@ -1852,7 +1852,7 @@ fn a_corrupted_checkpoint_is_refused_by_resume_eval_infer_and_export() {
         "infer: {err}"
     );
     // eval, on the library path it and `ablate` share.
-    let e = hdrsynth::eval::engine::LoadedNetwork::from_checkpoint(
+    let e = hdrsynth::engine::LoadedNetwork::from_checkpoint(
         &ckpt,
         &hdrsynth::eval::infer::NetworkOptions::default(),
         &burn::tensor::Device::flex(),

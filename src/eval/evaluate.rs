@@ -24,13 +24,11 @@ use crate::data::layout::{self, SetInfo};
 use crate::data::scene::ev_tag;
 use crate::error::{Error, Result};
 use crate::eval::blend::{blend_pair, tone_curve};
-use crate::eval::engine::{LoadedNetwork, Network};
 use crate::eval::infer;
 pub use crate::eval::infer::NetworkOptions;
 use crate::eval::metrics::{self, DarkMask, MetricOptions, Pu21Scale, Scores};
 use crate::eval::report::{self, Cell, MetricSummary, SetScore};
 use crate::io::{BitDepth, ExrPrecision, Image, read_image, resize, write_exr, write_ldr};
-use burn::tensor::Device;
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use std::fmt::Write as _;
@@ -218,75 +216,6 @@ impl Method for Predictions {
             inputs: set_inputs(set),
             notes,
         })
-    }
-}
-
-// ---------------------------------------------------------------------------------------------
-// Networks from a checkpoint
-
-/// The method for a checkpoint (or run folder): the network its state names, weights loaded,
-/// on the engine `opts.engine` chooses (`eval::engine`).
-pub fn from_checkpoint(
-    path: &Path,
-    opts: &NetworkOptions,
-    device: &Device,
-) -> Result<Box<dyn Method>> {
-    let net = LoadedNetwork::from_checkpoint(path, opts, device)?;
-    Ok(from_network(net, opts))
-}
-
-/// What `hdrsynth eval` scores.
-#[derive(Clone, Debug)]
-pub enum Source {
-    /// A folder of linear predictions made elsewhere, `<set>.exr` (or `.hdr`).
-    Predictions(PathBuf),
-    /// A checkpoint (or run folder: its latest checkpoint) run here on the device `backend`
-    /// names (`device::device_from_name`).
-    Checkpoint {
-        path: PathBuf,
-        backend: String,
-        network: NetworkOptions,
-    },
-}
-
-/// The method that scores `source`.
-pub fn method_for(source: &Source) -> Result<Box<dyn Method>> {
-    match source {
-        Source::Predictions(dir) => {
-            if !dir.is_dir() {
-                return Err(Error::Invalid(format!(
-                    "--predictions {}: not a folder",
-                    dir.display()
-                )));
-            }
-            Ok(Box::new(Predictions { dir: dir.clone() }))
-        }
-        Source::Checkpoint {
-            path,
-            backend,
-            network,
-        } => {
-            let device = crate::device::device_from_name(backend)?;
-            from_checkpoint(path, network, &device)
-        }
-    }
-}
-
-/// The method for a loaded network (a checkpoint's, or an exported ONNX file's).
-pub fn from_network(net: LoadedNetwork, opts: &NetworkOptions) -> Box<dyn Method> {
-    match net.network {
-        Network::Network1 => {
-            let mode = opts.weight;
-            Box::new(Network1 {
-                description: format!("{}, weight {mode:?}", net.describe()),
-                weights: Box::new(move |low, high| net.network1_weight(low, high, mode)),
-                tone_k: opts.tone_k,
-            })
-        }
-        Network::Network2 => Box::new(Network2 {
-            description: net.describe(),
-            infer: Box::new(move |frames, times| net.network2_hdr(frames, times)),
-        }),
     }
 }
 

@@ -19,7 +19,6 @@
 //! the thread count or the vector width. Other backends compose the loss from Burn's operations
 //! (`loss.rs`), which the tests compare this with.
 
-use super::loss::Network1Reading;
 use crate::models::par::{Shared, flex_tensor};
 use burn::backend::autodiff::Autodiff;
 use burn::backend::autodiff::NodeId;
@@ -31,7 +30,24 @@ use burn::backend::tensor::{FloatTensor, IntTensor};
 use burn::backend::{Dispatch, Flex, TensorMetadata, backend_extension};
 use burn::tensor::{DType, Int, Tensor};
 use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
 use std::sync::Arc;
+
+/// How the Network-1 loss reads its 256 classes (`[loss] reading`, docs/network1.md).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Network1Reading {
+    /// Paper Eq. 4 as written: α_t · Σ_c |p_c − 1[c = t]| = 2α_t(1 − p_t) (`train::loss::weighted_l1`).
+    Literal,
+    /// α_t · |Σ_c p_c·c/(C−1) − t/(C−1)|: L1 of the expected blend weight (`train::loss::ordinal_l1`).
+    Ordinal,
+    /// α_t · (−log p_t) (`train::loss::weighted_cross_entropy`).
+    CrossEntropy,
+    /// α_t · (−Σ_c q_c log p_c) with q a Gaussian over class indices around t
+    /// (`train::loss::soft_cross_entropy`).
+    #[default]
+    Soft,
+}
 
 /// The per-pixel loss of one reading (`sigma`: the soft labels' width in classes).
 #[derive(Clone, Copy, Debug, PartialEq)]

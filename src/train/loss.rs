@@ -19,7 +19,6 @@ use crate::data::loader::{Sample, Target};
 use crate::error::{Error, Result};
 use burn::tensor::activation::{log_softmax, softmax};
 use burn::tensor::{Device, Int, Tensor, TensorData};
-use serde::{Deserialize, Serialize};
 
 fn check_shapes(probs: &Tensor<4>, target: &Tensor<3, Int>, alpha: &Tensor<1>) -> [usize; 4] {
     let [b, c, h, w] = probs.dims();
@@ -78,21 +77,7 @@ pub fn weighted_l1_explicit(
     (l1 * a_t).mean()
 }
 
-/// How the Network-1 loss reads its 256 classes (`[loss] reading`, docs/network1.md).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Network1Reading {
-    /// Paper Eq. 4 as written: α_t · Σ_c |p_c − 1[c = t]| = 2α_t(1 − p_t) ([`weighted_l1`]).
-    Literal,
-    /// α_t · |Σ_c p_c·c/(C−1) − t/(C−1)|: L1 of the expected blend weight ([`ordinal_l1`]).
-    Ordinal,
-    /// α_t · (−log p_t) ([`weighted_cross_entropy`]).
-    CrossEntropy,
-    /// α_t · (−Σ_c q_c log p_c) with q a Gaussian over class indices around t
-    /// ([`soft_cross_entropy`]).
-    #[default]
-    Soft,
-}
+pub use super::fused_loss::Network1Reading;
 
 /// The class index of every class as a weight c/(C−1), shaped [1, C, 1, 1].
 fn class_levels(c: usize, device: &Device) -> Tensor<4> {
