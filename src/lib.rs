@@ -10,6 +10,7 @@ pub mod error;
 pub mod eval;
 pub mod experiments;
 pub mod io;
+pub mod kernels;
 pub mod linalg;
 pub mod models;
 #[cfg(feature = "onnx")]

@@ -77,7 +77,7 @@ pub fn weighted_l1_explicit(
     (l1 * a_t).mean()
 }
 
-pub use super::fused_loss::Network1Reading;
+pub use crate::kernels::fused_loss::Network1Reading;
 
 /// The class index of every class as a weight c/(C−1), shaped [1, C, 1, 1].
 fn class_levels(c: usize, device: &Device) -> Tensor<4> {
@@ -154,11 +154,11 @@ pub fn network1_loss(
     label_sigma: f32,
 ) -> Tensor<1> {
     #[cfg(feature = "flex")]
-    if let Some(per_pixel) = super::fused_loss::class_loss(
+    if let Some(per_pixel) = crate::kernels::fused_loss::class_loss(
         &logits,
         &target,
         &alpha,
-        super::fused_loss::ClassLoss {
+        crate::kernels::fused_loss::ClassLoss {
             reading,
             sigma: label_sigma,
         },

@@ -1,10 +1,10 @@
-//! 2D convolution for the networks' layers, faster on flex (issue 18).
+//! 2D convolution for the networks' layers, faster on flex.
 //!
 //! Burn 0.22's default weight gradient (`burn-backend`'s `conv2d_weight_backward`, which flex
 //! inherits) is itself a convolution: x with batch and channels swapped, by the output gradient
 //! as a kernel as large as the image. On flex that becomes one GEMM per input channel with N =
 //! kh·kw output columns (9 for a 3×3 kernel) that re-packs the whole output gradient each time,
-//! so the weight gradient cost 1.5–3× the forward pass (`cargo bench --bench train_ops`).
+//! so the weight gradient cost more than the forward pass (`cargo bench --bench train_ops`).
 //! Here, on flex, it is the usual lowering instead: dW[co, (ci, i, j)] = Σ_b Σ_p dY_b[co, p] ·
 //! col_b[(ci, i, j), p], one GEMM per batch item and tile of output rows (M = c_out,
 //! N = c_in·kh·kw, K = the tile). The forward pass uses the same im2col tiles (Y_b = W · col,
@@ -14,8 +14,8 @@
 //! fixed order (tiles and batch items in sequence, kernel offsets in order within a tile, the
 //! GEMM splits its output, never its K), so results are bit-for-bit repeatable. Stride-1 3×3
 //! and 5×5 layers with enough channels and tiles (`flex::winograd_for`) run all three
-//! passes by Winograd instead (`models::winograd`), and stride-1 layers with at most 4 channels
-//! on one side (`flex::direct_for`) by a direct convolution (`models::direct`).
+//! passes by Winograd instead (`kernels::winograd`), and stride-1 layers with at most 4 channels
+//! on one side (`flex::direct_for`) by a direct convolution (`kernels::direct`).
 //!
 //! It is a Burn backend extension (`#[backend_extension]`) with a hand-written autodiff step;
 //! other backends (tch, wgpu, cuda, ndarray) run Burn's conv2d unchanged. The kernels take flex
@@ -27,7 +27,7 @@ use burn::nn::conv::{Conv2d, ConvTranspose2d};
 use burn::tensor::Tensor;
 use burn::tensor::ops::{ConvOptions, ConvTransposeOptions};
 
-/// Whether flex's stride-1 3×3 and 5×5 convolutions use Winograd (`models::winograd`, the
+/// Whether flex's stride-1 3×3 and 5×5 convolutions use Winograd (`kernels::winograd`, the
 /// default) or im2col; for benchmarks that compare the two in one process. Results differ in
 /// rounding only.
 #[cfg(feature = "flex")]
@@ -79,8 +79,7 @@ pub fn conv_transpose2d(conv: &ConvTranspose2d, x: Tensor<4>) -> Tensor<4> {
 /// gradient, so it runs the same kernels with the roles swapped: forward = [`flex::input_grad`]'s
 /// kernel, input gradient = the convolution's forward, weight gradient = the convolution's
 /// weight gradient with x and dy exchanged (flex's own did the weight gradient as a
-/// convolution as large as the image, 34 ms for Network-1's 64→32 up-sampling where this takes
-/// about 2).
+/// convolution as large as the image).
 pub fn conv_transpose2d_op(
     x: Tensor<4>,
     weight: Tensor<4>,
@@ -136,9 +135,9 @@ pub(crate) mod flex {
     use burn::tensor::{DType, Tensor};
     use rayon::prelude::*;
 
-    use crate::models::direct;
-    use crate::models::par::{Shared, flex_tensor, matmul};
-    use crate::models::winograd::{self, Winograd};
+    use crate::kernels::direct;
+    use crate::kernels::par::{Shared, flex_tensor, matmul};
+    use crate::kernels::winograd::{self, Winograd};
 
     /// Conv2d without bias by [`forward`], whose autodiff step uses [`input_grad`] and
     /// [`weight_grad`].
@@ -600,9 +599,9 @@ pub(crate) mod flex {
 
     /// Tiles per Winograd block below which a layer stays on im2col: wide layers (c_in + c_out
     /// channels) fit few tiles in a block, and GEMMs that narrow re-pack the transformed filters
-    /// for every block (Network-2's merger down-sampling, 384 → 256 by polyphase: 16 tiles, its
-    /// input gradient 0.205 s against im2col's 0.101; its first deconvolution 24 tiles and
-    /// slower too; its second 32 tiles and faster, `cargo bench --bench train_ops`).
+    /// for every block (Network-2's merger down-sampling, 384 → 256 by polyphase: 16 tiles,
+    /// slower on Winograd; its first deconvolution 24 tiles and slower too; its second 32 tiles
+    /// and faster, `cargo bench --bench train_ops`).
     const WINOGRAD_MIN_BLOCK_TILES: usize = 32;
 
     /// Whether a c_in → c_out convolution runs by [`direct`]: stride 1, no dilation, and at

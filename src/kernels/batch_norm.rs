@@ -1,4 +1,4 @@
-//! BatchNorm for the networks' layers, fused and parallel on flex in training mode (issue 18).
+//! BatchNorm for the networks' layers, fused and parallel on flex in training mode.
 //!
 //! Flex inherits burn-backend's default `batch_norm_train` and `batch_norm_train_backward`: a
 //! chain of swap_dims/reshape copies, reductions and broadcasts, each a serial pass over the
@@ -74,7 +74,7 @@ pub(crate) mod flex {
     use burn::tensor::{DType, Shape, Tensor};
     use rayon::prelude::*;
 
-    use crate::models::par::{Shared, flex_tensor};
+    use crate::kernels::par::{Shared, flex_tensor};
 
     /// Batch normalisation with the batch's own statistics: (output, mean, biased variance), as
     /// `ModuleOps::batch_norm_train`, then a ReLU where `relu`, by [`forward`]; its autodiff step
