@@ -42,7 +42,13 @@ impl MuLawFloat for f32 {
 /// loss's tensor form `train::loss::mu_law`) clamp before; the metrics take the values as given
 /// and refuse images with values at or below −1/μ.
 #[inline]
-pub fn mu_law<F: MuLawFloat>(x: F) -> F {
+pub fn mu_law(x: f64) -> f64 {
+    curve(x)
+}
+
+/// [`mu_law`] evaluated in `F`'s own precision (f32 for previews).
+#[inline]
+pub fn curve<F: MuLawFloat>(x: F) -> F {
     // Spelled as numpy spells it (not ln_1p) so results agree to the last bit.
     (F::ONE + F::MU * x).ln().div((F::ONE + F::MU).ln())
 }
