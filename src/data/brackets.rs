@@ -631,7 +631,7 @@ fn folder_stops(
     opts: &ScanOptions,
 ) -> Result<std::result::Result<(Vec<f64>, String), Vec<String>>> {
     if let Some(evs) = &opts.evs {
-        if frames.len() % evs.len() != 0 {
+        if !frames.len().is_multiple_of(evs.len()) {
             return Err(Error::layout(
                 dir,
                 format!(
