@@ -4,8 +4,8 @@
 //! max-pool, concatenation) at their largest shape. The backward costs are the differences.
 //! Plain timings (median of `HDRSYNTH_BENCH_REPS`, default 3, after one warm-up), on the backend
 //! named by `HDRSYNTH_BENCH_BACKEND` (default flex); the convolutions go through the networks'
-//! `models::conv::{conv2d_op, conv_transpose2d_op}`, or Burn's with `HDRSYNTH_BENCH_CONV=burn`;
-//! BatchNorm through the networks' `models::batch_norm::batch_norm`:
+//! `kernels::conv::{conv2d_op, conv_transpose2d_op}`, or Burn's with `HDRSYNTH_BENCH_CONV=burn`;
+//! BatchNorm through the networks' `kernels::batch_norm::batch_norm`:
 //!     cargo bench --bench train_ops
 
 #[path = "../tests/common/mod.rs"]
@@ -17,9 +17,9 @@ use burn::nn::{BatchNormConfig, Relu};
 use burn::tensor::module::{conv_transpose2d, conv2d};
 use burn::tensor::ops::{ConvOptions, ConvTransposeOptions};
 use burn::tensor::{Device, Int, Tensor, TensorData};
-use hdrsynth::models::batch_norm::batch_norm;
-use hdrsynth::models::conv::{conv_transpose2d_op, conv2d_op};
-use hdrsynth::models::pool::max_pool2d;
+use hdrsynth::kernels::batch_norm::batch_norm;
+use hdrsynth::kernels::conv::{conv_transpose2d_op, conv2d_op};
+use hdrsynth::kernels::pool::max_pool2d;
 use hdrsynth::train::config::DEFAULT_LABEL_SIGMA;
 use hdrsynth::train::loss::{Network1Reading, network1_loss};
 use std::time::Instant;
@@ -74,7 +74,7 @@ fn main() {
     let burn_conv = std::env::var("HDRSYNTH_BENCH_CONV").is_ok_and(|v| v == "burn");
     // `HDRSYNTH_BENCH_CONV=im2col`: the networks' convolutions without Winograd.
     if std::env::var("HDRSYNTH_BENCH_CONV").is_ok_and(|v| v == "im2col") {
-        hdrsynth::models::conv::set_winograd(false);
+        hdrsynth::kernels::conv::set_winograd(false);
     }
     let dev = hdrsynth::device::device_from_name(&backend)
         .expect("backend")

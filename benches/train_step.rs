@@ -6,7 +6,7 @@
 //! - Network-2: batch 4 of 18×256×256 (μ-law L2), the authors' patch size.
 //!
 //! Throughput is reported in samples/s. `HDRSYNTH_BENCH_CONV=im2col` turns flex's Winograd
-//! convolutions off (`models::conv::set_winograd`), to compare the two in one build.
+//! convolutions off (`kernels::conv::set_winograd`), to compare the two in one build.
 
 #[path = "../tests/common/mod.rs"]
 mod common;
@@ -92,7 +92,7 @@ fn bench(c: &mut Criterion) {
     hdrsynth::device::retain_freed_memory();
     #[cfg(feature = "flex")]
     if std::env::var("HDRSYNTH_BENCH_CONV").is_ok_and(|v| v == "im2col") {
-        hdrsynth::models::conv::set_winograd(false);
+        hdrsynth::kernels::conv::set_winograd(false);
     }
     let alpha = ClassWeights::new(
         &std::array::from_fn(|i| 1 + i as u64),

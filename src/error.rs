@@ -32,6 +32,19 @@ pub enum Error {
     /// A dataset folder that does not match the layout it claims or seems to have.
     #[error("{}: {msg}", path.display())]
     Layout { path: PathBuf, msg: String },
+    /// An output folder locked by another running hdrsynth process.
+    #[error(
+        "{} is in use by another hdrsynth process ({holder}); wait for it to finish or choose \
+         another output (lock: {})",
+        path.display(),
+        lock.display()
+    )]
+    InUse {
+        path: PathBuf,
+        /// The holder as its lock file names it ("pid unknown" when it names none).
+        holder: String,
+        lock: PathBuf,
+    },
     /// Invalid parameters passed by code (not tied to a file).
     #[error("{0}")]
     Invalid(String),
@@ -86,6 +99,12 @@ impl Error {
             what: what.to_string(),
             source: source.into(),
         }
+    }
+    /// `e` behind `what` on one line ("what: e"), for `map_err`: the message shape of the
+    /// dataset passes. [`Error::context`] keeps the cause as the source instead (a chain, as
+    /// `anyhow` prints it).
+    pub fn within(what: String) -> impl FnOnce(Error) -> Error {
+        move |e| Error::Invalid(format!("{what}: {e}"))
     }
     pub fn layout(path: impl AsRef<Path>, msg: impl ToString) -> Self {
         Error::Layout {

@@ -5,9 +5,12 @@ pub mod cli;
 pub mod config;
 pub mod data;
 pub mod device;
+pub mod engine;
 pub mod error;
 pub mod eval;
+pub mod experiments;
 pub mod io;
+pub mod kernels;
 pub mod linalg;
 pub mod models;
 #[cfg(feature = "onnx")]

@@ -9,7 +9,7 @@ mod common;
 
 use burn::module::{Module, ModuleVisitor, Param};
 use burn::tensor::{Device, Tensor};
-use hdrsynth::eval::ablate::{self, AblateConfig, CellStatus};
+use hdrsynth::experiments::ablate::{self, AblateConfig, CellStatus};
 use hdrsynth::io::{ExrPrecision, Image, write_exr};
 use hdrsynth::models::ModelConfig;
 use hdrsynth::sensor::profile::SensorProfile;

@@ -7,7 +7,7 @@ mod common;
 
 use burn::tensor::{Tensor, activation};
 use common::{centred_tensor, flex_autodiff, to_vec, value_and_grad};
-use hdrsynth::models::activation::leaky_relu;
+use hdrsynth::kernels::activation::leaky_relu;
 
 #[test]
 fn equals_burns_leaky_relu_and_its_gradient() {

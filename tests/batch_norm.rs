@@ -10,7 +10,7 @@ mod common;
 use burn::module::{Param, RunningState};
 use burn::nn::{BatchNorm, BatchNormConfig};
 use burn::tensor::{Device, Tensor, TensorData};
-use hdrsynth::models::batch_norm::{batch_norm, batch_norm_relu};
+use hdrsynth::kernels::batch_norm::{batch_norm, batch_norm_relu};
 
 fn flex() -> Device {
     hdrsynth::device::device_from_name("flex").expect("flex")

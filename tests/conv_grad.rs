@@ -12,7 +12,7 @@ use burn::tensor::module::{conv_transpose2d, conv2d};
 use burn::tensor::ops::{ConvOptions, ConvTransposeOptions};
 use burn::tensor::{Tensor, TensorData};
 use common::{centred_tensor, flex_autodiff, to_vec};
-use hdrsynth::models::conv::{conv_transpose2d_op, conv2d_op};
+use hdrsynth::kernels::conv::{conv_transpose2d_op, conv2d_op};
 
 /// (output, dL/dx, dL/dW, dL/db) of Σ (y ⊙ r) for a fixed r, y = `op(x, w, bias)` with a bias
 /// of `cout` channels.

@@ -9,7 +9,7 @@ mod common;
 use burn::tensor::activation::softmax;
 use burn::tensor::{Int, Tensor, TensorData};
 use common::{flex_autodiff, to_vec};
-use hdrsynth::train::fused_loss::{ClassLoss, class_loss, exp};
+use hdrsynth::kernels::fused_loss::{ClassLoss, class_loss, exp};
 use hdrsynth::train::loss::{
     Network1Reading, network1_loss, ordinal_l1, soft_cross_entropy, weighted_cross_entropy,
     weighted_l1,

@@ -703,11 +703,11 @@ fn fuzz_ablate_config() {
     let path = Path::new("ablate.toml");
     for s in &seeds {
         let text = std::str::from_utf8(s).unwrap();
-        hdrsynth::eval::ablate::AblateConfig::parse(text, path).expect("the seed is valid");
+        hdrsynth::experiments::ablate::AblateConfig::parse(text, path).expect("the seed is valid");
     }
     fuzz("ablate_toml", &seeds, true, |bytes| {
         if let Ok(text) = std::str::from_utf8(bytes) {
-            let _ = hdrsynth::eval::ablate::AblateConfig::parse(text, path);
+            let _ = hdrsynth::experiments::ablate::AblateConfig::parse(text, path);
         }
     });
 }

@@ -615,7 +615,7 @@ fn exported_graphs_have_the_promised_structure() {
 /// both agree within the parity tolerance on Network-1's blend weights and Network-2's HDR.
 #[test]
 fn engines_agree_and_auto_picks_onnx_runtime_on_cpu() {
-    use hdrsynth::eval::engine::{Engine, LoadedNetwork};
+    use hdrsynth::engine::{Engine, LoadedNetwork};
     use hdrsynth::eval::infer::NetworkOptions;
     require_ort();
     let tmp = tempfile::tempdir().expect("tmp");

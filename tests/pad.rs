@@ -8,7 +8,7 @@ mod common;
 use burn::tensor::Tensor;
 use burn::tensor::ops::PadMode;
 use common::{centred_tensor, flex_autodiff, to_vec, value_and_grad};
-use hdrsynth::models::pad::reflect_pad;
+use hdrsynth::kernels::pad::reflect_pad;
 
 /// Network-2's paddings ('SAME' 5×5 stride 2 on even and odd sizes, 3×3 stride 1) and
 /// asymmetric ones: the same values as Burn's reflection padding, and a gradient within float

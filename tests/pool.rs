@@ -8,7 +8,7 @@ mod common;
 use burn::nn::pool::MaxPool2dConfig;
 use burn::tensor::Tensor;
 use common::{centred_tensor, flex_autodiff, to_vec, value_and_grad};
-use hdrsynth::models::pool::max_pool2d;
+use hdrsynth::kernels::pool::max_pool2d;
 
 #[test]
 fn equals_burns_max_pool_and_its_gradient() {

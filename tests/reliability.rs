@@ -583,9 +583,9 @@ fn ablate_refuses_a_locked_output() {
         ),
     )
     .unwrap();
-    let cfg = hdrsynth::eval::ablate::AblateConfig::load(&cfg_path).unwrap();
+    let cfg = hdrsynth::experiments::ablate::AblateConfig::load(&cfg_path).unwrap();
     let (_held, before) = locked_output(&cfg.out);
-    let e = hdrsynth::eval::ablate::run(&cfg, &cfg_path, false).expect_err("locked");
+    let e = hdrsynth::experiments::ablate::run(&cfg, &cfg_path, false).expect_err("locked");
     assert_refused_lock(&cfg.out, &e.to_string(), &before);
 }
 
@@ -832,7 +832,7 @@ fn rules_of(
         Kind::Profile => parse_toml::<SensorProfile>(text, path)
             .map(|c| c.validate())
             .map_err(e),
-        Kind::Ablate => hdrsynth::eval::ablate::AblateConfig::parse(text, path)
+        Kind::Ablate => hdrsynth::experiments::ablate::AblateConfig::parse(text, path)
             .map(|_| Ok(()))
             .map_err(e),
     }
@@ -1849,7 +1849,7 @@ fn a_corrupted_checkpoint_is_refused_by_resume_eval_infer_and_export() {
         "infer: {err}"
     );
     // eval, on the library path it and `ablate` share.
-    let e = hdrsynth::eval::engine::LoadedNetwork::from_checkpoint(
+    let e = hdrsynth::engine::LoadedNetwork::from_checkpoint(
         &ckpt,
         &hdrsynth::eval::infer::NetworkOptions::default(),
         &burn::tensor::Device::flex(),
@@ -2014,7 +2014,7 @@ fn within_deadline<T: Send + 'static>(
 #[test]
 fn fifos_given_as_configs_profiles_images_or_checkpoints_are_refused_not_waited_on() {
     use hdrsynth::data::generate::GenerateConfig;
-    use hdrsynth::eval::ablate::AblateConfig;
+    use hdrsynth::experiments::ablate::AblateConfig;
     use hdrsynth::train::config::TrainConfig;
     let dir = tempfile::tempdir().unwrap();
     type Load = fn(&Path) -> hdrsynth::error::Result<()>;
@@ -2262,7 +2262,7 @@ fn type_errors_in_configs_name_the_key() {
     assert!(e.contains("p.toml:") && e.contains("'colour.matrix"), "{e}");
     let ablate = std::fs::read_to_string(root.join("experiments/exp1_network1.toml")).unwrap();
     let text = ablate.replace("seeds = [1, 2, 3]", "seeds = \"1\"");
-    let e = hdrsynth::eval::ablate::AblateConfig::parse(&text, Path::new("a.toml"))
+    let e = hdrsynth::experiments::ablate::AblateConfig::parse(&text, Path::new("a.toml"))
         .map(|_| ())
         .unwrap_err()
         .to_string();
@@ -2270,7 +2270,7 @@ fn type_errors_in_configs_name_the_key() {
     // A test set's options obey `testset`'s own rules inside an ablation config.
     let ablate = std::fs::read_to_string(root.join("experiments/cpu/exp2_network2.toml")).unwrap();
     let text = ablate.replace("evs = [-2.0, 0.0, 2.0]", "evs = [-2.0, 2.0]");
-    let e = hdrsynth::eval::ablate::AblateConfig::parse(&text, Path::new("a.toml"))
+    let e = hdrsynth::experiments::ablate::AblateConfig::parse(&text, Path::new("a.toml"))
         .map(|_| ())
         .unwrap_err()
         .to_string();

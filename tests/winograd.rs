@@ -4,7 +4,7 @@
 // Matrix entries by index, as the papers write them.
 #![allow(clippy::needless_range_loop)]
 
-use hdrsynth::models::winograd::{Winograd, conv2d_f32, cook_toom, weight_grad_f32};
+use hdrsynth::kernels::winograd::{Winograd, conv2d_f32, cook_toom, weight_grad_f32};
 
 /// Deterministic values in [−1, 1).
 fn values(n: usize, seed: u64) -> Vec<f32> {

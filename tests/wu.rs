@@ -9,8 +9,8 @@ use burn::optim::{AdamConfig, GradientsParams};
 use burn::store::{BurnToPyTorchAdapter, ModuleSnapshot};
 use burn::tensor::{Device, Tensor, TensorData};
 use hdrsynth::data::loader::{Sample, Target};
+use hdrsynth::kernels::pad::reflect_pad;
 use hdrsynth::models::import::expected_tensors;
-use hdrsynth::models::pad::reflect_pad;
 use hdrsynth::models::wu::{
     self, DeconvAlignment, WuConfig, WuNet, WuVariant, conv_same, same_padding,
 };

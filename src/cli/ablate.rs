@@ -3,7 +3,7 @@
 //! result is a table shaped like the paper's. Rerunning skips finished cells and resumes the
 //! interrupted one.
 
-use crate::eval::ablate::{self, AblateConfig, AblateSummary};
+use crate::experiments::ablate::{self, AblateConfig, AblateSummary};
 use anyhow::{Context, Result};
 use std::path::PathBuf;
 

@@ -11,8 +11,8 @@
 
 use crate::data::layout::find_set;
 use crate::device::device_from_name;
+use crate::engine::{LoadedNetwork, Network};
 use crate::eval::blend::fuse;
-use crate::eval::engine::{LoadedNetwork, Network};
 use crate::eval::infer::{
     NetworkOptions, network1_frames, network2_frames, write_network1, write_network2,
 };

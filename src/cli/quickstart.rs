@@ -1,7 +1,7 @@
 //! `hdrsynth quickstart`: the main job, the primary comparison of docs/protocol.md on embedded
-//! defaults (README, docs/quickstart.md). What it runs is `eval::quickstart`.
+//! defaults (README, docs/quickstart.md). What it runs is `experiments::quickstart`.
 
-use crate::eval::quickstart::{self, Options, Preset};
+use crate::experiments::quickstart::{self, Options, Preset};
 use anyhow::Result;
 use std::path::PathBuf;
 
@@ -46,7 +46,7 @@ pub struct Args {
 
 pub fn run(args: &Args) -> Result<String> {
     let run = if args.full {
-        crate::eval::protocol::run
+        crate::experiments::protocol::run
     } else {
         quickstart::run
     };

@@ -530,6 +530,9 @@ pub fn scan(root: &Path, opts: &ScanOptions) -> Result<BracketScan> {
     Ok(scan)
 }
 
+/// A folder's frames as read: path, EXIF exposure tags, kind.
+type Frames = [(PathBuf, ExifExposure, FrameKind)];
+
 /// One folder's frames into sets; `Err(files)` lists frames without a determinable exposure.
 fn scan_folder(
     dir: &Path,
@@ -557,49 +560,10 @@ fn scan_folder(
              file-name order"
         ));
     }
-    let order: Vec<usize> = {
-        let mut idx: Vec<usize> = (0..frames.len()).collect();
-        if timed {
-            idx.sort_by(|&a, &b| {
-                frames[a]
-                    .1
-                    .captured_s
-                    .unwrap_or(0.0)
-                    .total_cmp(&frames[b].1.captured_s.unwrap_or(0.0))
-                    .then_with(|| frames[a].0.cmp(&frames[b].0))
-            });
-        }
-        idx
-    };
-
-    // Stops in file-name order (sidecars are by name), or the declared EVs by position.
-    let (stops, source): (Vec<f64>, String) = if let Some(evs) = &opts.evs {
-        if frames.len() % evs.len() != 0 {
-            return Err(Error::layout(
-                dir,
-                format!(
-                    "{} frame(s) do not divide into sets of the {} declared EVs {evs:?}",
-                    frames.len(),
-                    evs.len()
-                ),
-            ));
-        }
-        let mut s = vec![0.0; frames.len()];
-        for (pos, &i) in order.iter().enumerate() {
-            s[i] = evs[pos % evs.len()];
-        }
-        (s, format!("declared EVs {evs:?} in capture order"))
-    } else if let Some(s) = sidecar_stops(dir, files)? {
-        s
-    } else {
-        let exif: Vec<(PathBuf, ExifExposure)> = frames
-            .iter()
-            .map(|(p, e, _)| (p.clone(), e.clone()))
-            .collect();
-        match exif_stops(&exif) {
-            Ok(s) => s,
-            Err(missing) => return Ok(Err(missing)),
-        }
+    let order = capture_order(&frames, timed);
+    let (stops, source) = match folder_stops(dir, files, &frames, &order, opts)? {
+        Ok(s) => s,
+        Err(missing) => return Ok(Err(missing)),
     };
 
     let mut baselines: Vec<f64> = frames
@@ -614,10 +578,98 @@ fn scan_folder(
         ));
     }
 
-    // Split into sets in capture order.
+    let (groups, gaps) = group_sets(&frames, &order, &stops, timed, opts);
+    let how = grouping_text(groups.len(), prefix, timed, opts);
+    if gaps > 0 {
+        out.notes.push(format!(
+            "{where_}: {gaps} set boundar{} from capture-time gaps alone (no repeated exposure)",
+            if gaps == 1 { "y" } else { "ies" }
+        ));
+    }
+    for (k, g) in groups.iter().enumerate() {
+        let name = match (prefix.is_empty(), groups.len()) {
+            (false, 1) => prefix.to_string(),
+            (false, _) => format!("{prefix}_{:03}", k + 1),
+            (true, _) => format!("set_{:03}", k + 1),
+        };
+        let set_frames = set_frames(&name, &how, g, &frames, &stops)?;
+        out.sets.push(BracketSet {
+            name,
+            frames: set_frames,
+            exposure_source: source.clone(),
+            grouping: how.clone(),
+        });
+    }
+    Ok(Ok(()))
+}
+
+/// Frame indices in capture order: by EXIF capture time (then name) when `timed`, else as
+/// given (file-name order).
+fn capture_order(frames: &Frames, timed: bool) -> Vec<usize> {
+    let mut idx: Vec<usize> = (0..frames.len()).collect();
+    if timed {
+        idx.sort_by(|&a, &b| {
+            frames[a]
+                .1
+                .captured_s
+                .unwrap_or(0.0)
+                .total_cmp(&frames[b].1.captured_s.unwrap_or(0.0))
+                .then_with(|| frames[a].0.cmp(&frames[b].0))
+        });
+    }
+    idx
+}
+
+/// Stops in file-name order (sidecars are by name), or the declared EVs by position, with
+/// where they came from; `Err(files)` lists frames without a determinable exposure.
+#[allow(clippy::type_complexity)]
+fn folder_stops(
+    dir: &Path,
+    files: &[PathBuf],
+    frames: &Frames,
+    order: &[usize],
+    opts: &ScanOptions,
+) -> Result<std::result::Result<(Vec<f64>, String), Vec<String>>> {
+    if let Some(evs) = &opts.evs {
+        if !frames.len().is_multiple_of(evs.len()) {
+            return Err(Error::layout(
+                dir,
+                format!(
+                    "{} frame(s) do not divide into sets of the {} declared EVs {evs:?}",
+                    frames.len(),
+                    evs.len()
+                ),
+            ));
+        }
+        let mut s = vec![0.0; frames.len()];
+        for (pos, &i) in order.iter().enumerate() {
+            s[i] = evs[pos % evs.len()];
+        }
+        return Ok(Ok((s, format!("declared EVs {evs:?} in capture order"))));
+    }
+    if let Some(s) = sidecar_stops(dir, files)? {
+        return Ok(Ok(s));
+    }
+    let exif: Vec<(PathBuf, ExifExposure)> = frames
+        .iter()
+        .map(|(p, e, _)| (p.clone(), e.clone()))
+        .collect();
+    Ok(exif_stops(&exif))
+}
+
+/// Split into sets in capture order: a new set where an exposure repeats (or the declared EVs
+/// are used up) or, with capture times, where they are more than `max_gap_s` apart. Returns
+/// the sets and how many boundaries came from time gaps alone.
+fn group_sets(
+    frames: &Frames,
+    order: &[usize],
+    stops: &[f64],
+    timed: bool,
+    opts: &ScanOptions,
+) -> (Vec<Vec<usize>>, usize) {
     let mut groups: Vec<Vec<usize>> = Vec::new();
     let mut gaps = 0;
-    for &i in &order {
+    for &i in order {
         let start_new = match groups.last() {
             None => true,
             Some(g) => {
@@ -641,12 +693,17 @@ fn scan_folder(
             g.push(i);
         }
     }
+    (groups, gaps)
+}
+
+/// How the folder was grouped, in words (the sets' `grouping`).
+fn grouping_text(n_groups: usize, prefix: &str, timed: bool, opts: &ScanOptions) -> String {
     let order_what = if timed {
         "EXIF capture time"
     } else {
         "file name"
     };
-    let how = if groups.len() == 1 {
+    if n_groups == 1 {
         if prefix.is_empty() {
             format!("all frames of the folder ({order_what} order)")
         } else {
@@ -666,76 +723,68 @@ fn scan_folder(
                 String::new()
             }
         )
-    };
-    if gaps > 0 {
-        out.notes.push(format!(
-            "{where_}: {gaps} set boundar{} from capture-time gaps alone (no repeated exposure)",
-            if gaps == 1 { "y" } else { "ies" }
+    }
+}
+
+/// The frames `g` of set `name` (grouped `how`) in ascending stop; an error for a set of one
+/// frame, of mixed EXIF orientations or with a repeated exposure.
+fn set_frames(
+    name: &str,
+    how: &str,
+    g: &[usize],
+    frames: &Frames,
+    stops: &[f64],
+) -> Result<Vec<BracketFrame>> {
+    if g.len() < 2 {
+        return Err(Error::layout(
+            &frames[g[0]].0,
+            format!(
+                "set '{name}' ({how}) holds only this frame; a bracket needs at least two \
+                 exposures"
+            ),
         ));
     }
-    for (k, g) in groups.iter().enumerate() {
-        let name = match (prefix.is_empty(), groups.len()) {
-            (false, 1) => prefix.to_string(),
-            (false, _) => format!("{prefix}_{:03}", k + 1),
-            (true, _) => format!("set_{:03}", k + 1),
-        };
-        if g.len() < 2 {
-            return Err(Error::layout(
-                &frames[g[0]].0,
-                format!(
-                    "set '{name}' ({how}) holds only this frame; a bracket needs at least two \
-                     exposures"
-                ),
-            ));
-        }
-        let mut set_frames: Vec<BracketFrame> = g
-            .iter()
-            .map(|&i| BracketFrame {
-                path: frames[i].0.clone(),
-                kind: frames[i].2,
-                exif: frames[i].1.clone(),
-                stop: stops[i],
-            })
-            .collect();
-        set_frames.sort_by(|a, b| a.stop.total_cmp(&b.stop));
-        let orient_of = |f: &BracketFrame| f.exif.orientation.unwrap_or(1);
-        if set_frames
-            .iter()
-            .any(|f| orient_of(f) != orient_of(&set_frames[0]))
-        {
-            return Err(Error::layout(
-                &set_frames[0].path,
-                format!(
-                    "set '{name}': its frames have different EXIF orientations ({}); the frames \
-                     of one bracket must be captured in one orientation",
-                    set_frames
-                        .iter()
-                        .map(|f| format!("{} {}", f.path.display(), orient_of(f)))
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                ),
-            ));
-        }
-        if let Some(w) = set_frames
-            .windows(2)
-            .find(|w| (w[1].stop - w[0].stop).abs() < SAME_STOP)
-        {
-            return Err(Error::layout(
-                &w[1].path,
-                format!(
-                    "set '{name}': same exposure as {} (stop {:.3}); a bracket needs distinct \
-                     exposures",
-                    w[0].path.display(),
-                    w[0].stop
-                ),
-            ));
-        }
-        out.sets.push(BracketSet {
-            name,
-            frames: set_frames,
-            exposure_source: source.clone(),
-            grouping: how.clone(),
-        });
+    let mut set_frames: Vec<BracketFrame> = g
+        .iter()
+        .map(|&i| BracketFrame {
+            path: frames[i].0.clone(),
+            kind: frames[i].2,
+            exif: frames[i].1.clone(),
+            stop: stops[i],
+        })
+        .collect();
+    set_frames.sort_by(|a, b| a.stop.total_cmp(&b.stop));
+    let orient_of = |f: &BracketFrame| f.exif.orientation.unwrap_or(1);
+    if set_frames
+        .iter()
+        .any(|f| orient_of(f) != orient_of(&set_frames[0]))
+    {
+        return Err(Error::layout(
+            &set_frames[0].path,
+            format!(
+                "set '{name}': its frames have different EXIF orientations ({}); the frames \
+                 of one bracket must be captured in one orientation",
+                set_frames
+                    .iter()
+                    .map(|f| format!("{} {}", f.path.display(), orient_of(f)))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        ));
     }
-    Ok(Ok(()))
+    if let Some(w) = set_frames
+        .windows(2)
+        .find(|w| (w[1].stop - w[0].stop).abs() < SAME_STOP)
+    {
+        return Err(Error::layout(
+            &w[1].path,
+            format!(
+                "set '{name}': same exposure as {} (stop {:.3}); a bracket needs distinct \
+                 exposures",
+                w[0].path.display(),
+                w[0].stop
+            ),
+        ));
+    }
+    Ok(set_frames)
 }

@@ -11,7 +11,6 @@ use crate::data::ground_truth::{
     self, CLASS_MAP_FILE, CLASS_WEIGHTS_FILE, CLASSES, ClassWeights, MertensWeights,
 };
 use crate::data::layout::{self, SetInfo};
-use crate::data::within;
 use crate::error::{Error, Result};
 use crate::io::{BitDepth, Image, write_ldr};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -85,7 +84,7 @@ fn process_set(set: &SetInfo, w: MertensWeights) -> Result<SetResult> {
 /// to print.
 pub fn write_class_maps(args: &ClassMapOptions) -> Result<String> {
     let dir = &args.dir;
-    let info = layout::detect(dir).map_err(within(format!(
+    let info = layout::detect(dir).map_err(Error::within(format!(
         "dataset weights {}: detecting the layout",
         dir.display()
     )))?;
@@ -99,12 +98,12 @@ pub fn write_class_maps(args: &ClassMapOptions) -> Result<String> {
         .sets
         .par_iter()
         .map(|s| {
-            let r = process_set(s, w).map_err(within(format!("set {}", s.name)));
+            let r = process_set(s, w).map_err(Error::within(format!("set {}", s.name)));
             bar.inc(1);
             r
         })
         .collect::<Result<Vec<_>>>()
-        .map_err(within(format!("dataset weights {}", dir.display())))?;
+        .map_err(Error::within(format!("dataset weights {}", dir.display())))?;
     bar.finish_and_clear();
 
     let mut hist = [0u64; CLASSES];
@@ -116,9 +115,12 @@ pub fn write_class_maps(args: &ClassMapOptions) -> Result<String> {
     let cw = ClassWeights::new(&hist, w, results.len());
     let weights_path = dir.join(CLASS_WEIGHTS_FILE);
     cw.save(&weights_path)
-        .map_err(within(format!("dataset weights {}", dir.display())))?;
+        .map_err(Error::within(format!("dataset weights {}", dir.display())))?;
     if let Some(p) = &args.plot {
-        write_plot(p, &cw).map_err(within(format!("dataset weights: plot {}", p.display())))?;
+        write_plot(p, &cw).map_err(Error::within(format!(
+            "dataset weights: plot {}",
+            p.display()
+        )))?;
     }
 
     let mut pairs: Vec<(f32, f32, usize)> = Vec::new();

@@ -12,9 +12,3 @@ pub mod preview;
 pub mod pyramid;
 pub mod scene;
 pub mod testset;
-
-/// `e` behind `what` ("what: e"): the context the CLI's messages carried before these passes
-/// moved into the library.
-pub(crate) fn within(what: String) -> impl FnOnce(crate::Error) -> crate::Error {
-    move |e| crate::Error::Invalid(format!("{what}: {e}"))
-}

@@ -107,7 +107,7 @@ pub fn preview(args: &PreviewOptions) -> Result<String> {
         let target = match &b.target {
             Target::Classes(c) => Image::from_fn(p, p, |x, y| [c[y * p + x] as f32 / 255.0; 3]),
             Target::Hdr(h) => {
-                let mu = |v: f32| (1.0 + 5000.0 * v.max(0.0)).ln() / 5001f32.ln();
+                let mu = |v: f32| crate::io::mu_law::curve(v.max(0.0));
                 Image::from_fn(p, p, |x, y| {
                     std::array::from_fn(|c| mu(h[c * p * p + y * p + x]))
                 })

@@ -294,7 +294,7 @@ impl TestsetOptions {
                 format!("{:?} must include 0 (the reference frame)", self.evs),
             ));
         }
-        let max = crate::data::generate::MAX_EV as f64;
+        let max = crate::data::scene::config::MAX_EV as f64;
         each_in_range("evs", &self.evs, Range::closed(-max, max))?;
         let mut sorted = self.evs.clone();
         sorted.sort_by(f32::total_cmp);

@@ -6,13 +6,25 @@
 use crate::data::layout::SetInfo;
 use crate::error::{Error, Result};
 use crate::eval::blend::{BlendWeight, DEFAULT_TONE_K, fuse, weight_from_logits};
-use crate::eval::engine::Engine;
 use crate::eval::metrics::mu_law;
 use crate::eval::tiling::{Planar, Tiling, run_tiled};
 use crate::io::{BitDepth, ExrPrecision, Image, read_image, write_exr, write_ldr};
 use crate::models::{BlendUNet, BlendUNetConfig, WuConfig, WuNet};
 use burn::tensor::{Device, Tensor, TensorData};
 use std::path::Path;
+
+/// The engine flag of `infer`, `eval` and `ablate`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum Engine {
+    /// ONNX Runtime on a CPU device when this build has the `onnx` feature and
+    /// ORT_DYLIB_PATH names its library; Burn otherwise.
+    #[default]
+    Auto,
+    /// Burn on the chosen device.
+    Burn,
+    /// ONNX Runtime (feature `onnx`, ORT_DYLIB_PATH); an error when unavailable.
+    Onnx,
+}
 
 /// Default core tile side for full-resolution inference (a multiple of 16).
 pub const DEFAULT_TILE: usize = 384;

@@ -25,15 +25,7 @@ use crate::io::Image;
 use crate::sensor::colour::cie;
 use rayon::prelude::*;
 
-/// μ of the μ-law tonemapper used for PSNR-T/SSIM-T.
-pub const MU: f64 = 5000.0;
-
-/// μ-law tonemapping `log(1 + μx) / log(1 + μ)`: maps [0, 1] to [0, 1]; NaN below −1/μ.
-#[inline]
-pub fn mu_law(x: f64) -> f64 {
-    // Spelled as numpy spells it (not ln_1p) so results agree to the last bit.
-    (1.0 + MU * x).ln() / (1.0 + MU).ln()
-}
+pub use crate::io::mu_law::{MU, mu_law};
 
 /// The clip(x · 255, 0, 255) that the field applies before SSIM.
 #[inline]

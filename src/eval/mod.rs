@@ -1,12 +1,8 @@
 //! Evaluation-side machinery: full-resolution inference by overlapping tiles, Network-1's
 //! blend-map fusion (blend map → Laplacian blend → tone curve), and the field's metrics.
-pub mod ablate;
 pub mod blend;
-pub mod engine;
 pub mod evaluate;
 pub mod infer;
 pub mod metrics;
-pub mod protocol;
-pub mod quickstart;
 pub mod report;
 pub mod tiling;

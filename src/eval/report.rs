@@ -12,6 +12,7 @@ use embedded_graphics::mono_font::iso_8859_1::FONT_7X13;
 use embedded_graphics::pixelcolor::Rgb888;
 use embedded_graphics::prelude::*;
 use embedded_graphics::text::Text;
+use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::Path;
@@ -165,26 +166,77 @@ pub fn csv_field(s: &str) -> String {
 /// `per_image.csv`: set, the six [`METRICS`] (shortest round-trip decimals; `inf` for +inf),
 /// width, height, seconds, then the [`APPENDED`] columns (empty where absent).
 pub fn per_image_csv(rows: &[SetScore]) -> String {
-    let mut out = format!(
-        "set,{},width,height,seconds,{}\n",
-        METRICS.join(","),
-        APPENDED.join(",")
-    );
+    let mut w = csv::Writer::from_writer(Vec::new());
+    let header = ["set"]
+        .into_iter()
+        .chain(METRICS)
+        .chain(["width", "height", "seconds"])
+        .chain(APPENDED);
+    // Writing into a Vec cannot fail.
+    let _ = w.write_record(header);
     for r in rows {
-        let v = metric_values(&r.scores);
-        let extra = appended_values(&r.scores).map(|x| x.map_or(String::new(), |x| x.to_string()));
-        let _ = writeln!(
-            out,
-            "{},{},{},{},{:.3},{}",
-            csv_field(&r.set),
-            v.map(|x| x.to_string()).join(","),
-            r.width,
-            r.height,
-            r.seconds,
-            extra.join(",")
-        );
+        let fields = [r.set.clone()]
+            .into_iter()
+            .chain(metric_values(&r.scores).map(|x| x.to_string()))
+            .chain([
+                r.width.to_string(),
+                r.height.to_string(),
+                format!("{:.3}", r.seconds),
+            ])
+            .chain(appended_values(&r.scores).map(|x| x.map_or(String::new(), |x| x.to_string())));
+        let _ = w.write_record(fields);
     }
-    out
+    String::from_utf8(w.into_inner().unwrap_or_default()).unwrap_or_default()
+}
+
+/// A row of `per_image.csv` read back (a finished evaluation on disk), columns by header name:
+/// the appended metrics are `None` where the field is empty or the file lacks the column.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+pub struct PerImageRow {
+    pub set: String,
+    pub psnr_l: f64,
+    pub psnr_t: f64,
+    pub ssim_l: f64,
+    pub ssim_t: f64,
+    pub pu21_psnr: f64,
+    pub pu21_ssim: f64,
+    #[serde(default)]
+    pub delta_e2000: Option<f64>,
+    #[serde(default)]
+    pub psnr_t_dark: Option<f64>,
+}
+
+impl PerImageRow {
+    /// The row's values of [`SUMMARY_METRICS`], as [`summary_values`] gives them for scores.
+    pub fn summary_values(&self) -> [Option<f64>; 8] {
+        [
+            Some(self.psnr_l),
+            Some(self.psnr_t),
+            Some(self.ssim_l),
+            Some(self.ssim_t),
+            Some(self.pu21_psnr),
+            Some(self.pu21_ssim),
+            self.delta_e2000,
+            self.psnr_t_dark,
+        ]
+    }
+}
+
+/// The rows of a `per_image.csv`; an error names the file and the line.
+pub fn read_per_image(path: &Path) -> Result<Vec<PerImageRow>> {
+    let text = crate::io::guard::read_text(path)?;
+    csv::Reader::from_reader(text.as_bytes())
+        .deserialize()
+        .map(|row| {
+            row.map_err(|e| {
+                let m = match e.position() {
+                    Some(p) => format!("line {}: {e}", p.line()),
+                    None => e.to_string(),
+                };
+                Error::layout(path, m)
+            })
+        })
+        .collect()
 }
 
 /// `summary.csv`: metric, n, n_inf, mean, ci_lo, ci_hi, n_scenes, n_absent.

@@ -112,16 +112,14 @@ impl OutputLock {
             Err(TryLockError::WouldBlock) => {
                 let mut holder = String::new();
                 let _ = file.read_to_string(&mut holder);
-                return Err(Error::Invalid(format!(
-                    "{} is in use by another hdrsynth process ({}); wait for it to finish or \
-                     choose another output (lock: {})",
-                    out.display(),
-                    match holder.trim() {
+                return Err(Error::InUse {
+                    path: out.to_path_buf(),
+                    holder: match holder.trim() {
                         "" => "pid unknown".to_string(),
                         h => h.to_string(),
                     },
-                    lock_path.display()
-                )));
+                    lock: lock_path,
+                });
             }
             Err(TryLockError::Error(e)) => return Err(Error::io(&lock_path, e)),
         }

@@ -12,6 +12,7 @@ mod hdr;
 pub mod image;
 mod ldr;
 pub mod limits;
+pub mod mu_law;
 mod resize;
 pub mod srgb;
 

@@ -24,11 +24,11 @@
 //! on an autodiff device, and the running statistics otherwise; call `model.valid()` for
 //! inference on an autodiff device.
 
-use super::batch_norm::batch_norm_relu;
-use super::conv::{conv_transpose2d, conv2d};
-use super::pool::max_pool2d;
 use crate::config::{KeyError, Range, in_range};
 use crate::error::{Error, Result};
+use crate::kernels::batch_norm::batch_norm_relu;
+use crate::kernels::conv::{conv_transpose2d, conv2d};
+use crate::kernels::pool::max_pool2d;
 use burn::module::Module;
 use burn::nn::conv::{Conv2d, Conv2dConfig, ConvTranspose2d, ConvTranspose2dConfig};
 use burn::nn::pool::{MaxPool2d, MaxPool2dConfig};

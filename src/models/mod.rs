@@ -4,28 +4,12 @@
 //! - [`blend_unet`]: Network-1, the U-Net that predicts a 256-class blend map from (EV−3, EV0).
 //! - [`wu`]: Network-2, Wu et al. (ECCV 2018), three exposures → linear HDR; [`import`] moves
 //!   weights to and from PyTorch-style SafeTensors files.
-//! - [`conv`]: the layers' 2D convolutions and transposed convolutions, im2col + GEMM on flex.
-//! - [`pad`]: reflection padding (Network-2's convolutions), one fused op on flex.
-//! - [`activation`]: leaky ReLU (Network-2's encoders), one fused op on flex.
-//! - [`pool`]: Network-1's 2×2 max-pool, one fused op on flex.
-//! - `winograd` (flex): Winograd F(m×m, r×r) for the stride-1 3×3 and 5×5 convolutions.
-//! - `direct` (flex): direct convolution for thin stride-1 layers (≤ 4 channels on one side).
-//! - [`batch_norm`]: the layers' BatchNorm, fused and parallel on flex in training mode.
+//! - The layers' operations (convolution, padding, activation, pooling, BatchNorm) come from
+//!   [`crate::kernels`], which picks the hand-written flex kernels or Burn's ops.
 //! - [`ModelConfig`]: either network's config, tagged by `kind` (training configs, checkpoints).
 
-pub mod activation;
-pub mod batch_norm;
 pub mod blend_unet;
-pub mod conv;
-#[cfg(feature = "flex")]
-pub mod direct;
 pub mod import;
-pub mod pad;
-#[cfg(feature = "flex")]
-pub(crate) mod par;
-pub mod pool;
-#[cfg(feature = "flex")]
-pub mod winograd;
 pub mod wu;
 
 use crate::data::loader::SampleKind;

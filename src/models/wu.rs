@@ -27,12 +27,12 @@
 //! 0.9, Burn momentum 0.1) when the input lives on an autodiff device, the running statistics
 //! otherwise; call `model.valid()` for inference on an autodiff device.
 
-use super::activation::leaky_relu;
-use super::batch_norm::{batch_norm, batch_norm_relu};
-use super::conv::{conv_transpose2d, conv2d};
-use super::pad::reflect_pad;
 use crate::config::{KeyError, Range, each_in_range, in_range};
 use crate::error::{Error, Result};
+use crate::kernels::activation::leaky_relu;
+use crate::kernels::batch_norm::{batch_norm, batch_norm_relu};
+use crate::kernels::conv::{conv_transpose2d, conv2d};
+use crate::kernels::pad::reflect_pad;
 use burn::module::Module;
 use burn::nn::conv::{Conv2d, Conv2dConfig, ConvTranspose2d, ConvTranspose2dConfig};
 use burn::nn::{BatchNorm, BatchNormConfig, Initializer, PaddingConfig2d};

@@ -115,7 +115,7 @@ impl OnnxModel {
         Self::from_bytes(&bytes, path, threads)
     }
 
-    /// A model serialised in memory (a checkpoint exported on the fly: `eval::engine`);
+    /// A model serialised in memory (a checkpoint exported on the fly: `engine`);
     /// `label` names it in messages.
     pub fn from_bytes(bytes: &[u8], label: &Path, threads: Option<usize>) -> Result<OnnxModel> {
         Self::build(label, threads, |b| b.commit_from_memory(bytes))

@@ -19,7 +19,6 @@ use crate::data::loader::{Sample, Target};
 use crate::error::{Error, Result};
 use burn::tensor::activation::{log_softmax, softmax};
 use burn::tensor::{Device, Int, Tensor, TensorData};
-use serde::{Deserialize, Serialize};
 
 fn check_shapes(probs: &Tensor<4>, target: &Tensor<3, Int>, alpha: &Tensor<1>) -> [usize; 4] {
     let [b, c, h, w] = probs.dims();
@@ -78,21 +77,7 @@ pub fn weighted_l1_explicit(
     (l1 * a_t).mean()
 }
 
-/// How the Network-1 loss reads its 256 classes (`[loss] reading`, docs/network1.md).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Network1Reading {
-    /// Paper Eq. 4 as written: α_t · Σ_c |p_c − 1[c = t]| = 2α_t(1 − p_t) ([`weighted_l1`]).
-    Literal,
-    /// α_t · |Σ_c p_c·c/(C−1) − t/(C−1)|: L1 of the expected blend weight ([`ordinal_l1`]).
-    Ordinal,
-    /// α_t · (−log p_t) ([`weighted_cross_entropy`]).
-    CrossEntropy,
-    /// α_t · (−Σ_c q_c log p_c) with q a Gaussian over class indices around t
-    /// ([`soft_cross_entropy`]).
-    #[default]
-    Soft,
-}
+pub use crate::kernels::fused_loss::Network1Reading;
 
 /// The class index of every class as a weight c/(C−1), shaped [1, C, 1, 1].
 fn class_levels(c: usize, device: &Device) -> Tensor<4> {
@@ -169,11 +154,11 @@ pub fn network1_loss(
     label_sigma: f32,
 ) -> Tensor<1> {
     #[cfg(feature = "flex")]
-    if let Some(per_pixel) = super::fused_loss::class_loss(
+    if let Some(per_pixel) = crate::kernels::fused_loss::class_loss(
         &logits,
         &target,
         &alpha,
-        super::fused_loss::ClassLoss {
+        crate::kernels::fused_loss::ClassLoss {
             reading,
             sigma: label_sigma,
         },
@@ -272,11 +257,10 @@ pub fn network1_batch(samples: &[Sample], device: &Device) -> Result<(Tensor<4>,
 // of their `tonemap`, which returns 2·T − 1 (images in [−1, 1]): their loss is 4 × this one,
 // with the same minimiser (Adam is insensitive to that scale apart from its ε).
 
-/// μ of the μ-law tone mapping (`MU = 5000.` in Wu et al.'s `model.py`).
-pub const MU: f64 = 5000.0;
+pub use crate::io::mu_law::MU;
 
-/// μ-law tone mapping T(x) = log(1 + μx) / log(1 + μ), element-wise (T(0) = 0, T(1) = 1).
-/// Negative values are treated as 0 (log(1 + μx) is undefined below −1/μ).
+/// The tensor form of [`crate::io::mu_law::mu_law`], element-wise (T(0) = 0, T(1) = 1), with
+/// negative values clamped to 0 first.
 pub fn mu_law<const D: usize>(t: Tensor<D>, mu: f64) -> Tensor<D> {
     t.clamp_min(0.0)
         .mul_scalar(mu)

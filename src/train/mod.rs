@@ -11,7 +11,6 @@
 pub mod checkpoint;
 pub mod config;
 #[cfg(feature = "flex")]
-pub mod fused_loss;
 pub mod loss;
 pub mod task;
 

@@ -4,7 +4,7 @@
 
 use super::{DatasetInfo, GroundTruth, GroundTruthKind, LayoutKind, SetInfo};
 use crate::config::parse_toml;
-use crate::data::generate::GenerateConfig;
+use crate::data::scene::config::GenerateConfig;
 use crate::data::scene::{RenderedSample, SampleStats, ev_tag};
 use crate::error::{Error, Result};
 use crate::io::{Image, atomic::write_atomic, write_exr, write_ldr};

@@ -1,8 +1,7 @@
 //! What a dataset folder holds, as detected by [`crate::data::layout`] (`hdrsynth dataset info`).
 
 use crate::data::layout::{self, DatasetInfo, GroundTruthKind, SetInfo};
-use crate::data::within;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use rayon::prelude::*;
 use std::fmt::Write as _;
 use std::path::Path;
@@ -32,7 +31,7 @@ fn set_dr(set: &SetInfo) -> Result<Dr> {
     if gt.kind == GroundTruthKind::Display {
         return Ok(Dr::NotApplicable("display-referred GT"));
     }
-    let img = crate::io::read_image(&gt.path).map_err(within(format!(
+    let img = crate::io::read_image(&gt.path).map_err(Error::within(format!(
         "set {}: reading the ground truth",
         set.name
     )))?;
@@ -75,7 +74,7 @@ pub fn info_report(dir: &Path) -> Result<String> {
 /// [`info_report`], and with `verify` every file decoded and checked against its set's size
 /// ([`layout::verify`]): the bad files are listed in the report and counted in the second value.
 pub fn info_report_verified(dir: &Path, verify: bool) -> Result<(String, usize)> {
-    let info = layout::detect(dir).map_err(within(format!(
+    let info = layout::detect(dir).map_err(Error::within(format!(
         "dataset info {}: detecting the layout",
         dir.display()
     )))?;
@@ -109,7 +108,7 @@ pub fn info_report_verified(dir: &Path, verify: bool) -> Result<(String, usize)>
         .par_iter()
         .map(set_dr)
         .collect::<Result<Vec<_>>>()
-        .map_err(within(format!("dataset info {}", dir.display())))?;
+        .map_err(Error::within(format!("dataset info {}", dir.display())))?;
     Ok((render(&info, &drs), 0))
 }
 

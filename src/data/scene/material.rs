@@ -154,6 +154,6 @@ pub fn random_albedo(rng: &mut Rng) -> [f32; 3] {
         1.0 + sat * (hue - 2.094).cos(),
         1.0 + sat * (hue + 2.094).cos(),
     ];
-    let lum = 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
+    let lum = crate::io::luminance(c);
     [c[0] / lum * l, c[1] / lum * l, c[2] / lum * l].map(|x| x.clamp(0.02, 0.95))
 }

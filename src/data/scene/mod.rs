@@ -8,17 +8,18 @@
 //! in view → render the background once → composite the subjects at each frame's time.
 //! Frame i's linear value is radiance · key · 2^ev_i; display frames apply the tone curve.
 
+pub mod config;
 pub mod material;
 pub mod noise;
 pub mod subjects;
 pub mod world;
 
 use crate::config::{KeyError, Range, each_in_range, in_range, in_range_because};
-use crate::data::generate::GenerateConfig;
 use crate::error::{Error, Result};
 use crate::io::{Image, dynamic_range_stops, read_image};
 use crate::rng::Rng;
 use crate::sensor::response::ToneCurve;
+use config::GenerateConfig;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;

@@ -143,7 +143,7 @@ fn warm_light(rng: &mut Rng, level: f32) -> [f32; 3] {
     // Tungsten-to-neutral tints.
     let t = rng.f32();
     let c = [1.0, 0.75 + 0.2 * t, 0.45 + 0.45 * t];
-    let lum = 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
+    let lum = crate::io::luminance(c);
     mul(c, level / lum)
 }
 
@@ -310,7 +310,7 @@ impl World {
         let mut e = room.e;
         for l in &self.lamps {
             let d2 = (x - l.x).powi(2) + (y - l.y).powi(2);
-            let lum = 0.2126 * l.radiance[0] + 0.7152 * l.radiance[1] + 0.0722 * l.radiance[2];
+            let lum = crate::io::luminance(l.radiance);
             e += lum * l.r * l.r * 0.02 / (d2 + 0.01);
         }
         e

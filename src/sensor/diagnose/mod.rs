@@ -21,6 +21,7 @@
 //!    explains what is left, the loop stops and the report lists those statistics.
 
 mod bootstrap;
+mod notes;
 mod plots;
 mod report;
 
@@ -35,6 +36,7 @@ use crate::sensor::effects::{self, FitCtx, Plan, Protocol, Stat, Summary};
 use crate::sensor::noise::{self, CalibrateOptions, NoiseCalibration};
 use crate::sensor::profile::{Colour, EffectSpec, Levels, SensorProfile};
 use bootstrap::{Context, evaluate, statistics};
+pub use notes::Note;
 use plots::radial_profile;
 use rayon::prelude::*;
 use report::evidence;
@@ -106,7 +108,7 @@ pub struct Diagnosis {
     pub last: Evaluation,
     pub unexplained: Vec<String>,
     /// Effects named but not kept, and why; how scenes were grouped; what is not modelled.
-    pub notes: Vec<String>,
+    pub notes: Vec<Note>,
     /// Statistics the captures do not support, and the bursts they need.
     pub skipped: Vec<String>,
     pub profile: SensorProfile,
@@ -370,7 +372,7 @@ pub fn threshold(m: usize, alpha: f64) -> f64 {
 }
 
 /// Run the workflow. `profile`: the starting model (None: fit the base model from the
-/// captures).
+/// captures). Stages: measure, base model, gap steps, diagnosis.
 pub fn diagnose(
     set: &CaptureSet,
     profile: Option<SensorProfile>,
@@ -381,225 +383,53 @@ pub fn diagnose(
             "at least 2 bootstrap replicates are needed".into(),
         ));
     }
-    // Levels for the per-channel calibration: the profile's when given.
-    let cal_opts = CalibrateOptions {
-        white_level: profile.as_ref().map(|p| p.levels.white_level),
-        black_level: profile.as_ref().map(|p| p.levels.black_level),
-    };
-    let (measured, calibration) = measure(set, &burst_infos(set, opts.max_pixels), &cal_opts)?;
-    // The base model takes its levels from the calibration or, for a set without darks and
-    // flats (e.g. scene pairs), the declared ones.
-    if let (None, Err(e), None) = (&profile, &calibration, declared_levels(set)) {
-        return Err(Error::config(
-            &set.manifest_path,
-            format!(
-                "the base model needs a noise calibration of the captures ({e}), or, for a set \
-                 without dark and flat bursts, declared [sensor] white_level and black_level \
-                 (or --profile)"
-            ),
-        ));
-    }
+    let m = Measurement::take(set, profile.as_ref(), opts)?;
+    let mut notes = m.banded_note(set, opts).into_iter().collect::<Vec<_>>();
     let fitted_base = profile.is_none();
-    let mut notes = Vec::new();
-    let banded: Vec<String> = measured
-        .iter()
-        .filter(|m| m.height < m.full_height)
-        .map(|m| {
-            format!(
-                "'{}' {} of {}",
-                set.bursts()[m.burst].name,
-                m.height,
-                m.full_height
-            )
-        })
-        .collect();
-    if !banded.is_empty() {
-        notes.push(format!(
-            "bursts over {} pixels were analysed on evenly spread bands of {} rows, measured and \
-             simulated alike (rows: {}); --max-pixels 0 analyses every row (slower, more power)",
-            opts.max_pixels,
-            effects::summary::BAND,
-            banded.join(", ")
-        ));
-    }
-    let (mut model, base) = match profile {
-        Some(p) => {
-            let name = p.name.clone();
-            (p, format!("the given profile '{name}'"))
-        }
-        None => match &calibration {
-            Ok(cal) => (
-                base_profile(set, Some(cal), &measured)?,
-                "the paper's base model fitted from the captures (T from the chart, one (a, b) \
-                 per ISO shared by the channels from the temporal photon transfer, declared \
-                 levels)"
-                    .to_string(),
-            ),
-            Err(e) => {
-                notes.push(format!(
-                    "no noise calibration ({e}): the base model is noise-free, so only \
-                     statistics of means (response, exposure ratios) are compared"
-                ));
-                (
-                    base_profile(set, None, &measured)?,
-                    "the paper's base model without noise (declared levels, T from the chart if \
-                     any)"
-                        .to_string(),
-                )
-            }
-        },
-    };
+    let (model, base) = base_model(set, profile, &m, &mut notes)?;
     let proto0 = protocol(set, &model, opts.max_pixels)?;
-    let m = statistics(&proto0, &measured).len();
+    let measured_stats = statistics(&proto0, &m.summaries);
     let ctx = Context {
         set,
-        measured: &measured,
+        measured: &m.summaries,
         opts,
-        threshold: threshold(m, opts.alpha),
+        threshold: threshold(measured_stats.len(), opts.alpha),
     };
-    let calibration = calibration.ok();
     let initial = evaluate(&ctx, &model)?;
-    let measured_stats = statistics(&proto0, &measured);
-    let mut skipped: Vec<String> = effects::CATALOGUE
-        .iter()
-        .filter(|e| !measured_stats.iter().any(|s| s.effect == Some(e.id)))
-        .map(|e| format!("{}: not tested, needs {}", e.id, e.needs))
-        .collect();
-    if !measured_stats.iter().any(|s| s.effect.is_none()) {
-        skipped.push(
-            "mean temporal variance (base-model check): not tested, needs a dark or flat burst \
-             with ≥ 2 frames"
-                .into(),
-        );
-    }
-    let by_size: Vec<String> = effects::nonlinear_response::scene_groups(&measured)
-        .iter()
-        .filter(|g| g[0].scene.is_none())
-        .map(|g| {
-            g.iter()
-                .map(|b| set.bursts()[b.burst].name.as_str())
-                .collect::<Vec<_>>()
-                .join(", ")
-        })
-        .collect();
-    if !by_size.is_empty() {
-        notes.push(format!(
-            "scene bursts without a `scene` key were grouped by frame size, one size taken as \
-             one scene ({}); declare `scene = \"…\"` on each scene burst in captures.toml to \
-             group them explicitly",
-            by_size.join("; ")
-        ));
-    }
-    let mut current = initial.clone();
-    let mut steps = Vec::new();
-    let mut tried: Vec<&str> = Vec::new();
-    while current.gap > ctx.threshold {
-        let in_model: Vec<String> = model.effects.iter().map(|e| e.id.clone()).collect();
-        let mut cands: Vec<&Row> = current
-            .rows
-            .iter()
-            .filter(|r| r.significant)
-            .filter(|r| {
-                r.stat
-                    .effect
-                    .is_some_and(|e| !tried.contains(&e) && !in_model.iter().any(|m| m == e))
-            })
-            .collect();
-        cands.sort_by(|a, b| b.z.abs().total_cmp(&a.z.abs()));
-        let Some(top) = cands.first() else { break };
-        let id = top.stat.effect.expect("filtered");
-        tried.push(id);
-        let entry = effects::entry(id).expect("catalogue id");
-        let proto = protocol(set, &model, opts.max_pixels)?;
-        let meas: Vec<Stat> = current.rows.iter().map(|r| r.stat.clone()).collect();
-        let sim_mean: Vec<f64> = current.rows.iter().map(|r| r.sim_mean).collect();
-        let fctx = FitCtx {
-            measured: &meas,
-            simulated_mean: &sim_mean,
-            summaries: &measured,
-            protocol: &proto,
-            profile: &model,
-            seed: hash(opts.seed, &[steps.len() as u64, 0xf17]),
-        };
-        let params = match (entry.fit)(&fctx) {
-            Ok(p) => p,
-            Err(m) => {
-                notes.push(format!(
-                    "{id} named by {} but not fitted: {m}",
-                    top.stat.key
-                ));
-                continue;
-            }
-        };
-        let mut next = model.clone();
-        next.effects.push(EffectSpec {
-            id: id.to_string(),
-            params: params.clone(),
-        });
-        if fitted_base {
-            // The base noise was fitted from the captures: refit it under the new model
-            // (corrected black, row variance drawn separately, channel scales).
-            refit_noise(&mut next, &measured)?;
-        } else if let Some(adjust) = entry.adjust {
-            adjust(&mut next, &params);
-        }
-        if let Err(m) = next.validate() {
-            notes.push(format!("{id}: fitted parameters rejected: {m}"));
-            continue;
-        }
-        let after = evaluate(&ctx, &next)?;
-        let ev = evidence(top);
-        if after.gap < current.gap {
-            steps.push(Step {
-                effect: id.to_string(),
-                params,
-                gap_before: current.gap,
-                gap_after: after.gap,
-                evidence: ev,
-                before: current,
-                after: after.clone(),
-            });
-            model = next;
-            current = after;
-        } else {
-            notes.push(format!(
-                "{id} named by {ev} but adding it did not shrink the gap ({:.2} → {:.2}); not kept",
-                current.gap, after.gap
-            ));
+    let skipped = untested(&measured_stats);
+    notes.extend(grouped_by_size(set, &m.summaries));
+    let mut search = Search {
+        model,
+        current: initial.clone(),
+        steps: Vec::new(),
+        tried: Vec::new(),
+        fitted_base,
+    };
+    while search.current.gap > ctx.threshold {
+        match search.step(&ctx)? {
+            StepOutcome::Done => break,
+            StepOutcome::Kept => {}
+            StepOutcome::Noted(n) => notes.push(n),
         }
     }
+    let Search {
+        mut model,
+        current,
+        steps,
+        ..
+    } = search;
     let unexplained = current
         .rows
         .iter()
         .filter(|r| r.significant)
         .map(evidence)
         .collect();
-    // Exposure pairs that do not scale with exposure, left unexplained: say what it means.
-    for r in current
-        .rows
-        .iter()
-        .filter(|r| r.significant && r.stat.effect == Some(effects::nonlinear_response::ID))
-    {
-        notes.push(format!(
-            "{}: the signal scales as exposure^{:.3} instead of exposure^{:.3}: the frames hide \
-             a tone curve (not linear sensor data); a curve that differs between scenes is \
-             outside the catalogue's response shapes (power law, toe, shoulder)",
-            r.stat.key, r.stat.value, r.sim_mean
-        ));
-    }
+    notes.extend(tone_curve_notes(&current));
     if !steps.is_empty() {
-        let ids: Vec<&str> = steps.iter().map(|s| s.effect.as_str()).collect();
-        let note = format!(
-            "effects {} added by hdrsynth diagnose of {}",
-            ids.join(", "),
-            set.manifest_path.display()
-        );
-        model.provenance.notes = Some(match model.provenance.notes.take() {
-            Some(n) if !n.is_empty() => format!("{n}; {note}"),
-            _ => note,
-        });
+        add_provenance(&mut model, &steps, set);
     }
-    let radial = measured
+    let radial = m
+        .summaries
         .iter()
         .filter(|s| s.kind == BurstKind::Flat)
         .map(|s| {
@@ -620,9 +450,280 @@ pub fn diagnose(
         notes,
         skipped,
         profile: model,
-        calibration,
+        calibration: m.calibration.ok(),
         radial,
     })
+}
+
+/// The measure stage: the measured bursts' summaries and, from the same pass, the noise
+/// calibration of the photon-transfer bursts.
+struct Measurement {
+    summaries: Vec<Summary>,
+    calibration: Result<NoiseCalibration>,
+}
+
+impl Measurement {
+    fn take(
+        set: &CaptureSet,
+        profile: Option<&SensorProfile>,
+        opts: &DiagnoseOptions,
+    ) -> Result<Self> {
+        // Levels for the per-channel calibration: the profile's when given.
+        let cal_opts = CalibrateOptions {
+            white_level: profile.map(|p| p.levels.white_level),
+            black_level: profile.map(|p| p.levels.black_level),
+        };
+        let (summaries, calibration) = measure(set, &burst_infos(set, opts.max_pixels), &cal_opts)?;
+        // The base model takes its levels from the calibration or, for a set without darks and
+        // flats (e.g. scene pairs), the declared ones.
+        if let (None, Err(e), None) = (profile, &calibration, declared_levels(set)) {
+            return Err(Error::config(
+                &set.manifest_path,
+                format!(
+                    "the base model needs a noise calibration of the captures ({e}), or, for a \
+                     set without dark and flat bursts, declared [sensor] white_level and \
+                     black_level (or --profile)"
+                ),
+            ));
+        }
+        Ok(Measurement {
+            summaries,
+            calibration,
+        })
+    }
+
+    /// The note on bursts analysed on bands of rows, if any was.
+    fn banded_note(&self, set: &CaptureSet, opts: &DiagnoseOptions) -> Option<Note> {
+        let bursts: Vec<String> = self
+            .summaries
+            .iter()
+            .filter(|m| m.height < m.full_height)
+            .map(|m| {
+                format!(
+                    "'{}' {} of {}",
+                    set.bursts()[m.burst].name,
+                    m.height,
+                    m.full_height
+                )
+            })
+            .collect();
+        (!bursts.is_empty()).then_some(Note::Banded {
+            max_pixels: opts.max_pixels,
+            bursts,
+        })
+    }
+}
+
+/// The base-model stage: the given profile, or the paper's base model fitted from the
+/// captures (noise-free without a calibration, noted); with the report's words for it.
+fn base_model(
+    set: &CaptureSet,
+    profile: Option<SensorProfile>,
+    m: &Measurement,
+    notes: &mut Vec<Note>,
+) -> Result<(SensorProfile, String)> {
+    Ok(match profile {
+        Some(p) => {
+            let name = p.name.clone();
+            (p, format!("the given profile '{name}'"))
+        }
+        None => match &m.calibration {
+            Ok(cal) => (
+                base_profile(set, Some(cal), &m.summaries)?,
+                "the paper's base model fitted from the captures (T from the chart, one (a, b) \
+                 per ISO shared by the channels from the temporal photon transfer, declared \
+                 levels)"
+                    .to_string(),
+            ),
+            Err(e) => {
+                notes.push(Note::NoCalibration(e.to_string()));
+                (
+                    base_profile(set, None, &m.summaries)?,
+                    "the paper's base model without noise (declared levels, T from the chart if \
+                     any)"
+                        .to_string(),
+                )
+            }
+        },
+    })
+}
+
+/// The catalogue effects (and the base-model check) these captures cannot test, and why.
+fn untested(measured_stats: &[Stat]) -> Vec<String> {
+    let mut skipped: Vec<String> = effects::CATALOGUE
+        .iter()
+        .filter(|e| !measured_stats.iter().any(|s| s.effect == Some(e.id)))
+        .map(|e| format!("{}: not tested, needs {}", e.id, e.needs))
+        .collect();
+    if !measured_stats.iter().any(|s| s.effect.is_none()) {
+        skipped.push(
+            "mean temporal variance (base-model check): not tested, needs a dark or flat burst \
+             with ≥ 2 frames"
+                .into(),
+        );
+    }
+    skipped
+}
+
+/// The note on scene bursts grouped by frame size for want of `scene` keys, if any were.
+fn grouped_by_size(set: &CaptureSet, measured: &[Summary]) -> Option<Note> {
+    let groups: Vec<String> = effects::nonlinear_response::scene_groups(measured)
+        .iter()
+        .filter(|g| g[0].scene.is_none())
+        .map(|g| {
+            g.iter()
+                .map(|b| set.bursts()[b.burst].name.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        })
+        .collect();
+    (!groups.is_empty()).then_some(Note::GroupedBySize(groups))
+}
+
+/// The gap-step stage's state: the model so far, its comparison, the steps kept and the
+/// effects tried.
+struct Search {
+    model: SensorProfile,
+    current: Evaluation,
+    steps: Vec<Step>,
+    tried: Vec<&'static str>,
+    /// The base noise was fitted from the captures (refit it after each step).
+    fitted_base: bool,
+}
+
+/// What one gap step did.
+enum StepOutcome {
+    /// No untried effect explains a significant statistic.
+    Done,
+    /// The effect was added and the model and comparison moved on.
+    Kept,
+    /// The effect was not added, and why.
+    Noted(Note),
+}
+
+impl Search {
+    /// Name the effect of the statistic with the largest significant |z| not yet tried or in
+    /// the model, fit it, and keep it when the gap shrinks.
+    fn step(&mut self, ctx: &Context) -> Result<StepOutcome> {
+        let in_model: Vec<String> = self.model.effects.iter().map(|e| e.id.clone()).collect();
+        let mut cands: Vec<&Row> = self
+            .current
+            .rows
+            .iter()
+            .filter(|r| r.significant)
+            .filter(|r| {
+                r.stat
+                    .effect
+                    .is_some_and(|e| !self.tried.contains(&e) && !in_model.iter().any(|m| m == e))
+            })
+            .collect();
+        cands.sort_by(|a, b| b.z.abs().total_cmp(&a.z.abs()));
+        let Some(top) = cands.first().map(|r| (*r).clone()) else {
+            return Ok(StepOutcome::Done);
+        };
+        let id = top.stat.effect.expect("filtered");
+        self.tried.push(id);
+        let entry = effects::entry(id).expect("catalogue id");
+        let proto = protocol(ctx.set, &self.model, ctx.opts.max_pixels)?;
+        let params = match self.fit(ctx, &proto, entry) {
+            Ok(p) => p,
+            Err(why) => {
+                return Ok(StepOutcome::Noted(Note::NotFitted {
+                    effect: id.to_string(),
+                    key: top.stat.key.clone(),
+                    why,
+                }));
+            }
+        };
+        let mut next = self.model.clone();
+        next.effects.push(EffectSpec {
+            id: id.to_string(),
+            params: params.clone(),
+        });
+        if self.fitted_base {
+            // The base noise was fitted from the captures: refit it under the new model
+            // (corrected black, row variance drawn separately, channel scales).
+            refit_noise(&mut next, ctx.measured)?;
+        } else if let Some(adjust) = entry.adjust {
+            adjust(&mut next, &params);
+        }
+        if let Err(m) = next.validate() {
+            return Ok(StepOutcome::Noted(Note::Rejected {
+                effect: id.to_string(),
+                why: m.to_string(),
+            }));
+        }
+        let after = evaluate(ctx, &next)?;
+        let ev = evidence(&top);
+        if after.gap >= self.current.gap {
+            return Ok(StepOutcome::Noted(Note::NotKept {
+                effect: id.to_string(),
+                evidence: ev,
+                gap_before: self.current.gap,
+                gap_after: after.gap,
+            }));
+        }
+        let before = std::mem::replace(&mut self.current, after.clone());
+        self.steps.push(Step {
+            effect: id.to_string(),
+            params,
+            gap_before: before.gap,
+            gap_after: after.gap,
+            evidence: ev,
+            before,
+            after,
+        });
+        self.model = next;
+        Ok(StepOutcome::Kept)
+    }
+
+    /// The named effect's parameters fitted under the current model (the error says why not).
+    fn fit(
+        &self,
+        ctx: &Context,
+        proto: &Protocol,
+        entry: &effects::Entry,
+    ) -> std::result::Result<toml::Table, String> {
+        let meas: Vec<Stat> = self.current.rows.iter().map(|r| r.stat.clone()).collect();
+        let sim_mean: Vec<f64> = self.current.rows.iter().map(|r| r.sim_mean).collect();
+        let fctx = FitCtx {
+            measured: &meas,
+            simulated_mean: &sim_mean,
+            summaries: ctx.measured,
+            protocol: proto,
+            profile: &self.model,
+            seed: hash(ctx.opts.seed, &[self.steps.len() as u64, 0xf17]),
+        };
+        (entry.fit)(&fctx)
+    }
+}
+
+/// Exposure pairs that do not scale with exposure, left unexplained: what it means.
+fn tone_curve_notes(current: &Evaluation) -> Vec<Note> {
+    current
+        .rows
+        .iter()
+        .filter(|r| r.significant && r.stat.effect == Some(effects::nonlinear_response::ID))
+        .map(|r| Note::ToneCurve {
+            key: r.stat.key.clone(),
+            measured: r.stat.value,
+            simulated: r.sim_mean,
+        })
+        .collect()
+}
+
+/// The effects added, in the profile's provenance notes.
+fn add_provenance(model: &mut SensorProfile, steps: &[Step], set: &CaptureSet) {
+    let ids: Vec<&str> = steps.iter().map(|s| s.effect.as_str()).collect();
+    let note = format!(
+        "effects {} added by hdrsynth diagnose of {}",
+        ids.join(", "),
+        set.manifest_path.display()
+    );
+    model.provenance.notes = Some(match model.provenance.notes.take() {
+        Some(n) if !n.is_empty() => format!("{n}; {note}"),
+        _ => note,
+    });
 }
 
 /// `hdrsynth diagnose CAPTURES [--profile P] --out DIR`: load the capture set (a folder with

@@ -27,6 +27,7 @@ pub mod black_level;
 pub mod channel_noise;
 pub mod column_noise;
 pub mod correlated_noise;
+pub mod curve;
 pub mod dsnu;
 pub mod heavy_tailed_read_noise;
 pub mod hot_pixels;

@@ -27,14 +27,14 @@ pub struct Protocol {
     /// white − the profile's black level (the normalisation of signals).
     pub range: f64,
     /// The model's response curve (None: linear), to linearise flat and scene bursts.
-    pub response: Option<super::nonlinear_response::Curve>,
+    pub response: Option<super::curve::Curve>,
 }
 
 impl Protocol {
     /// The model's power-law exponent (1 when the response is linear or not a power law).
     pub fn exponent(&self) -> f64 {
         match self.response {
-            Some(super::nonlinear_response::Curve::Power(p)) => p,
+            Some(super::curve::Curve::Power(p)) => p,
             _ => 1.0,
         }
     }

@@ -1,6 +1,6 @@
 //! The photon-transfer-curve plot of a calibration.
 
-use super::{CHANNELS, NoiseCalibration};
+use super::{CHANNELS, IsoFit, NoiseCalibration};
 use crate::error::Result;
 use crate::io::Image;
 use crate::plot::{Canvas, decade_label, x_tick, y_tick};
@@ -61,7 +61,6 @@ fn render(cal: &NoiseCalibration) -> Image {
     let (w, h) = ptc_plot_size(cal.isos.len());
     let mut cv = Canvas::new(w, h);
     let ink = MonoTextStyle::new(&FONT_6X10, INK);
-    let bold = MonoTextStyle::new(&FONT_7X13_BOLD, INK);
     let _ = Text::new(
         "Photon transfer: temporal variance [DN²] vs signal above black [DN], log-log; \
          points = bins ±1 SE, lines = WLS fits",
@@ -69,91 +68,159 @@ fn render(cal: &NoiseCalibration) -> Image {
         ink,
     )
     .draw(&mut cv);
-
-    // Shared axis ranges (decades) so that panels compare at a glance.
-    let bins = || {
-        cal.isos
-            .iter()
-            .flat_map(|f| f.channels.iter().flat_map(|c| &c.bins))
-    };
-    let min_x = bins()
-        .map(|b| b.signal)
-        .filter(|&x| x >= 1.0)
-        .fold(f64::INFINITY, f64::min);
-    let max_x = bins().map(|b| b.signal).fold(1.0, f64::max);
-    let x_lo = if min_x.is_finite() {
-        min_x.log10().floor().min(0.0) as i32
-    } else {
-        0
-    };
-    let x_hi = (max_x.log10().ceil() as i32).max(x_lo + 1);
-    let min_y = bins()
-        .map(|b| b.variance - b.stderr)
-        .filter(|&y| y > 0.0)
-        .fold(f64::INFINITY, f64::min);
-    let max_y = bins()
-        .map(|b| b.variance + b.stderr)
-        .fold(f64::NEG_INFINITY, f64::max);
-    let y_lo = if min_y.is_finite() {
-        min_y.log10().floor() as i32
-    } else {
-        -1
-    };
-    let y_hi = if max_y.is_finite() && max_y > 0.0 {
-        (max_y.log10().ceil() as i32).max(y_lo + 1)
-    } else {
-        y_lo + 1
-    };
-
+    let decades = Decades::of(cal);
     for (k, fit) in cal.isos.iter().enumerate() {
+        let p = Panel::new(k, decades);
+        p.draw_axes(&mut cv, fit);
+        p.draw_fits(&mut cv, fit);
+        p.draw_bins(&mut cv, fit);
+        // Legend.
+        for (c, ch) in fit.channels.iter().enumerate() {
+            let txt = format!("{} a={:.4} b={:.3}", CHANNELS[c], ch.a, ch.b);
+            let _ = Text::new(
+                &txt,
+                Point::new(p.ax0 + 6, p.ay0 + 12 + 11 * c as i32),
+                MonoTextStyle::new(&FONT_6X10, COLOURS[c]),
+            )
+            .draw(&mut cv);
+        }
+    }
+    cv.into_image()
+}
+
+/// The axis ranges in decades, shared by the panels so that they compare at a glance.
+#[derive(Clone, Copy)]
+struct Decades {
+    x_lo: i32,
+    x_hi: i32,
+    y_lo: i32,
+    y_hi: i32,
+}
+
+impl Decades {
+    fn of(cal: &NoiseCalibration) -> Decades {
+        let bins = || {
+            cal.isos
+                .iter()
+                .flat_map(|f| f.channels.iter().flat_map(|c| &c.bins))
+        };
+        let min_x = bins()
+            .map(|b| b.signal)
+            .filter(|&x| x >= 1.0)
+            .fold(f64::INFINITY, f64::min);
+        let max_x = bins().map(|b| b.signal).fold(1.0, f64::max);
+        let x_lo = if min_x.is_finite() {
+            min_x.log10().floor().min(0.0) as i32
+        } else {
+            0
+        };
+        let x_hi = (max_x.log10().ceil() as i32).max(x_lo + 1);
+        let min_y = bins()
+            .map(|b| b.variance - b.stderr)
+            .filter(|&y| y > 0.0)
+            .fold(f64::INFINITY, f64::min);
+        let max_y = bins()
+            .map(|b| b.variance + b.stderr)
+            .fold(f64::NEG_INFINITY, f64::max);
+        let y_lo = if min_y.is_finite() {
+            min_y.log10().floor() as i32
+        } else {
+            -1
+        };
+        let y_hi = if max_y.is_finite() && max_y > 0.0 {
+            (max_y.log10().ceil() as i32).max(y_lo + 1)
+        } else {
+            y_lo + 1
+        };
+        Decades {
+            x_lo,
+            x_hi,
+            y_lo,
+            y_hi,
+        }
+    }
+}
+
+/// One ISO's panel: its origin and plot area, and the data-to-pixel maps.
+struct Panel {
+    oy: i32,
+    ax0: i32,
+    ax1: i32,
+    ay0: i32,
+    ay1: i32,
+    d: Decades,
+}
+
+impl Panel {
+    fn new(k: usize, d: Decades) -> Panel {
         let ox = (k % PTC_COLUMNS * PTC_PANEL.0) as i32;
         let oy = (PTC_HEADER + k / PTC_COLUMNS * PTC_PANEL.1) as i32;
         let (pw, ph) = (PTC_PANEL.0 as i32, PTC_PANEL.1 as i32);
-        let (ax0, ax1) = (ox + LEFT, ox + pw - RIGHT);
-        let (ay0, ay1) = (oy + TOP, oy + ph - BOTTOM);
-        let map_x = |x: f64| {
-            let t = (x.max(10f64.powi(x_lo)).log10() - x_lo as f64) / (x_hi - x_lo) as f64;
-            ax0 as f64 + t * (ax1 - ax0) as f64
-        };
-        let map_y = |y: f64| {
-            let t = (y.log10() - y_lo as f64) / (y_hi - y_lo) as f64;
-            ay1 as f64 - t * (ay1 - ay0) as f64
-        };
-        let clip_y = |y: f64| y.clamp(ay0 as f64, ay1 as f64);
-
-        // Grid and ticks.
-        for d in x_lo..=x_hi {
-            let x = map_x(10f64.powi(d)).round() as i32;
-            x_tick(&mut cv, (ay0, ay1), x, &decade_label(d), GRID, ink);
+        Panel {
+            oy,
+            ax0: ox + LEFT,
+            ax1: ox + pw - RIGHT,
+            ay0: oy + TOP,
+            ay1: oy + ph - BOTTOM,
+            d,
         }
-        for d in y_lo..=y_hi {
-            let y = map_y(10f64.powi(d)).round() as i32;
-            y_tick(&mut cv, (ax0, ax1), y, &decade_label(d), GRID, ink);
+    }
+
+    fn map_x(&self, x: f64) -> f64 {
+        let (x_lo, x_hi) = (self.d.x_lo, self.d.x_hi);
+        let t = (x.max(10f64.powi(x_lo)).log10() - x_lo as f64) / (x_hi - x_lo) as f64;
+        self.ax0 as f64 + t * (self.ax1 - self.ax0) as f64
+    }
+
+    fn map_y(&self, y: f64) -> f64 {
+        let (y_lo, y_hi) = (self.d.y_lo, self.d.y_hi);
+        let t = (y.log10() - y_lo as f64) / (y_hi - y_lo) as f64;
+        self.ay1 as f64 - t * (self.ay1 - self.ay0) as f64
+    }
+
+    fn clip_y(&self, y: f64) -> f64 {
+        y.clamp(self.ay0 as f64, self.ay1 as f64)
+    }
+
+    /// Grid, ticks, frame and the panel's labels.
+    fn draw_axes(&self, cv: &mut Canvas, fit: &IsoFit) {
+        let ink = MonoTextStyle::new(&FONT_6X10, INK);
+        let bold = MonoTextStyle::new(&FONT_7X13_BOLD, INK);
+        let (ax0, ax1, ay0, ay1, oy) = (self.ax0, self.ax1, self.ay0, self.ay1, self.oy);
+        for d in self.d.x_lo..=self.d.x_hi {
+            let x = self.map_x(10f64.powi(d)).round() as i32;
+            x_tick(cv, (ay0, ay1), x, &decade_label(d), GRID, ink);
+        }
+        for d in self.d.y_lo..=self.d.y_hi {
+            let y = self.map_y(10f64.powi(d)).round() as i32;
+            y_tick(cv, (ax0, ax1), y, &decade_label(d), GRID, ink);
         }
         let _ = Rectangle::new(
             Point::new(ax0, ay0),
             Size::new((ax1 - ax0 + 1) as u32, (ay1 - ay0 + 1) as u32),
         )
         .into_styled(PrimitiveStyle::with_stroke(INK, 1))
-        .draw(&mut cv);
-        let _ =
-            Text::new(&format!("ISO {}", fit.iso), Point::new(ax0, oy + 14), bold).draw(&mut cv);
+        .draw(cv);
+        let _ = Text::new(&format!("ISO {}", fit.iso), Point::new(ax0, oy + 14), bold).draw(cv);
         let _ = Text::with_alignment(
             "variance [DN²]",
             Point::new(ax1, oy + 14),
             ink,
             Alignment::Right,
         )
-        .draw(&mut cv);
+        .draw(cv);
         let _ = Text::with_alignment(
             "signal above black [DN]",
             Point::new((ax0 + ax1) / 2, ay1 + 28),
             ink,
             Alignment::Center,
         )
-        .draw(&mut cv);
+        .draw(cv);
+    }
 
-        // Fitted lines.
+    /// The fitted lines a·x + b, clipped to the plot area.
+    fn draw_fits(&self, cv: &mut Canvas, fit: &IsoFit) {
+        let (x_lo, x_hi) = (self.d.x_lo, self.d.x_hi);
         for (c, ch) in fit.channels.iter().enumerate() {
             let style = PrimitiveStyle::with_stroke(COLOURS[c], 1);
             let n = 120;
@@ -163,65 +230,56 @@ fn render(cal: &NoiseCalibration) -> Image {
                 let x = 10f64.powf(lx);
                 let y = ch.a * x + ch.b;
                 let pt = if y > 0.0 {
-                    let py = map_y(y);
-                    (py >= ay0 as f64 && py <= ay1 as f64)
-                        .then(|| Point::new(map_x(x).round() as i32, py.round() as i32))
+                    let py = self.map_y(y);
+                    (py >= self.ay0 as f64 && py <= self.ay1 as f64)
+                        .then(|| Point::new(self.map_x(x).round() as i32, py.round() as i32))
                 } else {
                     None
                 };
                 if let (Some(p0), Some(p1)) = (prev, pt) {
-                    let _ = Line::new(p0, p1).into_styled(style).draw(&mut cv);
+                    let _ = Line::new(p0, p1).into_styled(style).draw(cv);
                 }
                 prev = pt;
             }
         }
-        // Bins with error bars.
+    }
+
+    /// The bins with ±1 SE bars; bins left of the axis as hollow squares on its edge.
+    fn draw_bins(&self, cv: &mut Canvas, fit: &IsoFit) {
         for (c, ch) in fit.channels.iter().enumerate() {
             let colour = COLOURS[c];
             for b in &ch.bins {
                 if b.variance <= 0.0 {
                     continue;
                 }
-                let x = map_x(b.signal).round() as i32;
-                let y = clip_y(map_y(b.variance)).round() as i32;
-                let hi = clip_y(map_y(b.variance + b.stderr)).round() as i32;
+                let x = self.map_x(b.signal).round() as i32;
+                let y = self.clip_y(self.map_y(b.variance)).round() as i32;
+                let hi = self.clip_y(self.map_y(b.variance + b.stderr)).round() as i32;
                 let lo_v = b.variance - b.stderr;
                 let lo = if lo_v > 0.0 {
-                    clip_y(map_y(lo_v)).round() as i32
+                    self.clip_y(self.map_y(lo_v)).round() as i32
                 } else {
-                    ay1
+                    self.ay1
                 };
                 let bar = PrimitiveStyle::with_stroke(colour, 1);
                 let _ = Line::new(Point::new(x, lo), Point::new(x, hi))
                     .into_styled(bar)
-                    .draw(&mut cv);
+                    .draw(cv);
                 for e in [lo, hi] {
                     let _ = Line::new(Point::new(x - 2, e), Point::new(x + 2, e))
                         .into_styled(bar)
-                        .draw(&mut cv);
+                        .draw(cv);
                 }
-                if b.signal < 10f64.powi(x_lo) {
+                if b.signal < 10f64.powi(self.d.x_lo) {
                     let _ = Rectangle::new(Point::new(x - 3, y - 3), Size::new(7, 7))
                         .into_styled(PrimitiveStyle::with_stroke(colour, 1))
-                        .draw(&mut cv);
+                        .draw(cv);
                 } else {
                     let _ = Circle::new(Point::new(x - 2, y - 2), 5)
                         .into_styled(PrimitiveStyle::with_fill(colour))
-                        .draw(&mut cv);
+                        .draw(cv);
                 }
             }
         }
-        // Legend.
-        for (c, ch) in fit.channels.iter().enumerate() {
-            let txt = format!("{} a={:.4} b={:.3}", CHANNELS[c], ch.a, ch.b);
-            let _ = Text::new(
-                &txt,
-                Point::new(ax0 + 6, ay0 + 12 + 11 * c as i32),
-                MonoTextStyle::new(&FONT_6X10, COLOURS[c]),
-            )
-            .draw(&mut cv);
-        }
     }
-
-    cv.into_image()
 }

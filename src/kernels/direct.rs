@@ -4,15 +4,13 @@
 //! machine's speed, and the im2col matrix (c_in·k² rows × the image) is 25× the input, copied
 //! for every pass. Here each task holds a few zero-padded input rows and keeps, for
 //! [`LANES`] output pixels of up to [`MAX_BLOCK`] output channels, the sums in registers
-//! over every input channel and kernel tap (Network-2's output layer, batch 4 of 256²: forward
-//! 0.069 → 0.030 s, input gradient 0.098 → 0.028 s, weight gradient 0.150 → 0.042 s, `cargo
-//! bench --bench train_ops`; PyTorch's three passes take 0.19 s). The input gradient is the same kernel on the output gradient with the
-//! kernels turned 180° (`models::conv`); the weight gradient sums each (c_out, c_in, tap)
+//! over every input channel and kernel tap (timings: `cargo bench --bench train_ops`). The
+//! input gradient is the same kernel on the output gradient with the kernels turned 180° (`kernels::conv`); the weight gradient sums each (c_out, c_in, tap)
 //! product over the batch and the image in `LANES` partial sums, added in lane order.
 //! Every sum runs in a fixed order inside one task, so results do not depend on the thread
 //! count.
 
-use crate::models::par::{Shared, pad_rows, with_avx2};
+use crate::kernels::par::{Shared, pad_rows, with_avx2};
 use rayon::prelude::*;
 
 /// Output pixels of one row computed together: the inner loops' vector width.

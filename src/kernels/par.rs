@@ -1,4 +1,4 @@
-//! What the flex kernels (`conv`, `winograd`, `direct`, `batch_norm`, `train::fused_loss`)
+//! What the flex kernels (`conv`, `winograd`, `direct`, `batch_norm`, `kernels::fused_loss`)
 //! share: the pointer their parallel tasks write one output through, the tensor the output
 //! becomes, the GEMM call, AVX2 compilation and zero-padded row copies.
 
@@ -134,8 +134,8 @@ pub(crate) fn pad_rows(
     }
 }
 
-/// The autodiff step of a flex op with one input and no checkpointed tensors (`models::pad`,
-/// `models::pool`): registers dL/dx = `dx(dL/dy, state)` where x is tracked.
+/// The autodiff step of a flex op with one input and no checkpointed tensors (`kernels::pad`,
+/// `kernels::pool`): registers dL/dx = `dx(dL/dy, state)` where x is tracked.
 pub(crate) fn unary_backward<S>(
     ops: Ops<S, 1>,
     grads: &mut Gradients,

@@ -2,7 +2,7 @@
 //!
 //! On flex the 2×2 stride-2 case is one op with its own autodiff step: flex's
 //! max-pool goes through its general 3-D kernel (a window loop per output with i64 indices, then
-//! a backward that scatters through them), 1.8 % of Network-1's step. Here the forward pass
+//! a backward that scatters through them). Here the forward pass
 //! keeps, per output, which of its four inputs won (one byte), and the backward writes each
 //! gradient there. The winner is flex's: the first maximum in row-major order, a NaN wherever
 //! the window holds one (the last), so values and gradients have the same bits as flex's.
@@ -41,7 +41,7 @@ mod flex {
     use rayon::prelude::*;
     use std::sync::Arc;
 
-    use crate::models::par::{flex_tensor, unary_backward};
+    use crate::kernels::par::{flex_tensor, unary_backward};
 
     /// 2×2 stride-2 max-pool by [`forward`]; its autodiff step runs [`backward`].
     #[backend_extension(Flex, Autodiff)]

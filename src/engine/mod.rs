@@ -8,6 +8,7 @@
 use crate::device::is_cpu;
 use crate::error::{Error, Result};
 use crate::eval::blend::BlendWeight;
+pub use crate::eval::infer::Engine;
 use crate::eval::infer::{
     NetworkOptions, network1_tiling, network1_weight, network2_hdr, network2_tiling,
 };
@@ -19,18 +20,7 @@ use burn::module::Module;
 use burn::tensor::Device;
 use std::path::{Path, PathBuf};
 
-/// The engine flag of `infer`, `eval` and `ablate`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
-pub enum Engine {
-    /// ONNX Runtime on a CPU device when this build has the `onnx` feature and
-    /// ORT_DYLIB_PATH names its library; Burn otherwise.
-    #[default]
-    Auto,
-    /// Burn on the chosen device.
-    Burn,
-    /// ONNX Runtime (feature `onnx`, ORT_DYLIB_PATH); an error when unavailable.
-    Onnx,
-}
+pub mod method;
 
 /// Which of the two networks.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

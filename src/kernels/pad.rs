@@ -4,8 +4,7 @@
 //! (period 2(n − 1)); an axis of length 1 is replicated.
 //!
 //! On flex it is one op with its own autodiff step: Burn's `pad` builds the padded
-//! tensor from slices, and its gradient from zeroed tensors and slice assignments (a visible
-//! share of Network-2's step profile). Here the forward pass
+//! tensor from slices, and its gradient from zeroed tensors and slice assignments. Here the forward pass
 //! copies each plane once through the two axes' index maps, and the backward pass adds each
 //! output gradient element into the input element it came from, in a fixed order (rows in
 //! sequence; within a row the interior, then the borders; one task per plane), so results do
@@ -82,7 +81,7 @@ mod flex {
     use rayon::prelude::*;
 
     use super::source_indices;
-    use crate::models::par::{flex_tensor, unary_backward};
+    use crate::kernels::par::{flex_tensor, unary_backward};
 
     /// Pads as [`super::reflect_pad`] by [`forward`]; its autodiff step runs [`backward`].
     #[backend_extension(Flex, Autodiff)]

@@ -1,4 +1,4 @@
-//! Winograd minimal filtering F(m×m, r×r) for the networks' stride-1 convolutions on flex
+//! Winograd minimal filtering F(m×m, r×r) for the networks' stride-1 convolutions on flex:
 //! each m×m block of outputs from an α×α input patch (α = m + r − 1) by α² products
 //! instead of m²·r², so Network-1's 5×5 head by F(4×4, 5×5) needs 4 multiplies per output
 //! instead of 25 and a 3×3 layer by F(4×4, 3×3) 2.25 instead of 9 (Lavin & Gray, "Fast
@@ -21,7 +21,7 @@
 // The transforms are small matrix products, clearest with indices.
 #![allow(clippy::needless_range_loop)]
 
-use crate::models::par::{Shared, matmul, pad_rows, with_avx2};
+use crate::kernels::par::{Shared, matmul, pad_rows, with_avx2};
 use rayon::prelude::*;
 
 /// Most points any transform here uses (α ≤ 8).
@@ -168,9 +168,8 @@ pub enum Winograd {
     /// F(2×2, 5×5) on 0, ±1, ±1/2 (α = 6): for tests and comparisons.
     F2x5,
     /// F(4×4, 5×5) on 0, ±1, ±1/2, ±2 (α = 8): Network-1's 5×5 head. Against F(2×2, 5×5) a
-    /// quarter of the tiles and 4 transformed values per pixel instead of 9 (head forward
-    /// 0.088 → 0.05 s, input gradient 0.11 s by im2col → 0.09 s, `cargo bench --bench
-    /// train_ops`), at about twice the rounding error (tests/winograd.rs).
+    /// quarter of the tiles and 4 transformed values per pixel instead of 9 (timings: `cargo
+    /// bench --bench train_ops`), at about twice the rounding error (tests/winograd.rs).
     F4x5,
 }
 

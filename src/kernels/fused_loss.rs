@@ -1,9 +1,8 @@
 //! Network-1's loss as one operation on flex.
 //!
-//! Every reading of [`super::loss::network1_loss`] is a softmax over the 256 classes followed by
+//! Every reading of `train::loss::network1_loss` is a softmax over the 256 classes followed by
 //! a per-pixel loss. Composed from tensor operations, that is a dozen serial passes over the
-//! B×256×H×W logits forward and as many backward (0.24 s of a 1.3 s Network-1 step,
-//! `cargo bench --bench train_ops`). Here each pixel's loss comes from its column of logits in
+//! B×256×H×W logits forward and as many backward (`cargo bench --bench train_ops`). Here each pixel's loss comes from its column of logits in
 //! one parallel pass (max, then exp-sum), keeping only its log-sum-exp; the backward
 //! recomputes p_c = exp(z_c − lse) and writes dℓ/dz_c in closed form:
 //!
@@ -17,10 +16,9 @@
 //! with E = Σ p_c·c/(C−1). The exponential is a branch-free polynomial ([`exp`]) so the loops
 //! vectorise; every sum runs over the classes in order per pixel, so results do not depend on
 //! the thread count or the vector width. Other backends compose the loss from Burn's operations
-//! (`loss.rs`), which the tests compare this with.
+//! (`train/loss.rs`), which the tests compare this with.
 
-use super::loss::Network1Reading;
-use crate::models::par::{Shared, flex_tensor};
+use crate::kernels::par::{Shared, flex_tensor};
 use burn::backend::autodiff::Autodiff;
 use burn::backend::autodiff::NodeId;
 use burn::backend::autodiff::checkpoint::base::Checkpointer;
@@ -31,7 +29,24 @@ use burn::backend::tensor::{FloatTensor, IntTensor};
 use burn::backend::{Dispatch, Flex, TensorMetadata, backend_extension};
 use burn::tensor::{DType, Int, Tensor};
 use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
 use std::sync::Arc;
+
+/// How the Network-1 loss reads its 256 classes (`[loss] reading`, docs/network1.md).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Network1Reading {
+    /// Paper Eq. 4 as written: α_t · Σ_c |p_c − 1[c = t]| = 2α_t(1 − p_t) (`train::loss::weighted_l1`).
+    Literal,
+    /// α_t · |Σ_c p_c·c/(C−1) − t/(C−1)|: L1 of the expected blend weight (`train::loss::ordinal_l1`).
+    Ordinal,
+    /// α_t · (−log p_t) (`train::loss::weighted_cross_entropy`).
+    CrossEntropy,
+    /// α_t · (−Σ_c q_c log p_c) with q a Gaussian over class indices around t
+    /// (`train::loss::soft_cross_entropy`).
+    #[default]
+    Soft,
+}
 
 /// The per-pixel loss of one reading (`sigma`: the soft labels' width in classes).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -166,8 +181,7 @@ pub fn class_loss(
 
 /// Pixels per task: 256 classes × 512 pixels of f32 (512 KiB) stay in L2 between the max and
 /// the exp-sum pass, and each class's run of 2 KiB is long enough for the prefetcher (64 pixels,
-/// 256-byte runs 64 KiB apart, took the Eq. 4 loss's forward + backward 0.077 s against 0.047 s
-/// and the soft cross-entropy's 0.137 s against 0.085 s, `cargo bench --bench train_ops`).
+/// 256-byte runs 64 KiB apart, were slower in both losses, `cargo bench --bench train_ops`).
 const BLOCK: usize = 512;
 
 /// e^x for the softmax's x ≤ 0 (any x in [−87, 88]; below −87 it returns e^−87 ≈ 1.6e−38,

@@ -1,6 +1,6 @@
 //! `hdrsynth quickstart --full`: the full protocol of docs/protocol.md at CPU scale, one
 //! resumable command. It runs the main job with its held-out-simulator matrix
-//! (`eval::quickstart`), then three more grids on the same test scenes, pretrainings and target
+//! (`experiments::quickstart`), then three more grids on the same test scenes, pretrainings and target
 //! device:
 //! - colour × fine-tuning ISO (the paper's Tables 3–4): Network-2 fine-tuned with the target's
 //!   colour transform or with identity colour, at each ISO alone; scored on the primary test set
@@ -20,8 +20,8 @@
 
 use crate::data::generate::{GenerateConfig, generate};
 use crate::error::{Error, Result};
-use crate::eval::ablate::{self, AblateConfig, Axis, AxisKind, EvalSpec, TestsetSpec};
-use crate::eval::quickstart::{
+use crate::experiments::ablate::{self, AblateConfig, Axis, AxisKind, EvalSpec, TestsetSpec};
+use crate::experiments::quickstart::{
     self, DSLR_ISOS, Options, PRETRAIN_PROFILE, Preset, Sizes, Stage, TARGET_ISOS,
     TRAIN_SCENE_SEED, control_row, data_set, generate_config, net_o_row, row, stage,
     target_profile, train_config, train_resumable, write, write_config,
@@ -420,34 +420,76 @@ fn curves_table(runs: &[(String, PathBuf)]) -> Result<String> {
     Ok(out)
 }
 
+/// What the protocol's grids share: sizes, backend, folders and the two profiles.
+struct Setup<'a> {
+    s: Sizes,
+    n1: Net1Sizes,
+    backend: &'a str,
+    out: &'a Path,
+    configs: PathBuf,
+    pre_profile: PathBuf,
+    target: PathBuf,
+    progress: bool,
+}
+
 /// Run the full protocol into `opts.out` (the main job's folder: its data, pretrainings and
 /// test scenes are shared). Returns the report, also written to OUT/protocol.md.
 pub fn run(opts: &Options) -> Result<String> {
     let began = Instant::now();
-    let progress = opts.progress;
     let main = quickstart::run(&Options {
         heldout: true,
         ..opts.clone()
     })?;
     let s = quickstart::sizes(opts.preset);
-    let n1 = net1_sizes(opts.preset);
     let backend = opts.backend.as_deref().unwrap_or(s.backend);
     let out = &opts.out;
     let _lock = crate::io::guard::OutputLock::acquire(&out.join("protocol"), "protocol")?;
     let configs = out.join("configs");
     let sensors = configs.join("sensors");
-    let pre_profile = sensors.join(PRETRAIN_PROFILE.0);
-    let target = sensors.join(target_profile(opts.target.as_deref())?.0);
+    let x = Setup {
+        n1: net1_sizes(opts.preset),
+        backend,
+        out,
+        pre_profile: sensors.join(PRETRAIN_PROFILE.0),
+        target: sensors.join(target_profile(opts.target.as_deref())?.0),
+        configs,
+        progress: opts.progress,
+        s,
+    };
     let mut report = format!("# The full protocol (docs/protocol.md)\n\n## Main job\n\n{main}\n");
 
-    stage(progress, began, "colour × fine-tuning ISO (Network-2)");
-    let colour_path = configs.join("colour_iso.toml");
+    stage(x.progress, began, "colour × fine-tuning ISO (Network-2)");
+    colour_iso_grid(&x, &mut report)?;
+    stage(
+        x.progress,
+        began,
+        "Network-1: data, per-seed pretraining, grid",
+    );
+    network1_grid(&x, &mut report)?;
+    stage(
+        x.progress,
+        began,
+        "scene-referred ground truth, colour on the inputs only (Network-2)",
+    );
+    scene_grid(&x, &mut report)?;
+    let _ = write!(
+        report,
+        "\nTotal {:.1} s with the main job (backend {backend}).\n",
+        began.elapsed().as_secs_f64()
+    );
+    write(&out.join("protocol.md"), &report)?;
+    Ok(report)
+}
+
+/// The colour × fine-tuning ISO grid and its ISO diagonal.
+fn colour_iso_grid(x: &Setup, report: &mut String) -> Result<()> {
+    let colour_path = x.configs.join("colour_iso.toml");
     write_config(
         &colour_path,
-        &colour_iso_config(&s, out, &configs.join("finetune.toml"), &target),
+        &colour_iso_config(&x.s, x.out, &x.configs.join("finetune.toml"), &x.target),
     )?;
     let colour = AblateConfig::load(&colour_path)?;
-    let summary = ablate::run(&colour, &colour_path, progress)
+    let summary = ablate::run(&colour, &colour_path, x.progress)
         .map_err(|e| Error::context("the colour × ISO grid", e))?;
     let _ = write!(
         report,
@@ -493,20 +535,20 @@ pub fn run(opts: &Options) -> Result<String> {
             .collect();
         let _ = writeln!(report, "| {test_iso} | {} |", cells.join(" | "));
     }
+    Ok(())
+}
 
-    stage(
-        progress,
-        began,
-        "Network-1: data, per-seed pretraining, grid",
-    );
+/// Network-1: its pair data, per-seed pretraining, the grid and the learning curves.
+fn network1_grid(x: &Setup, report: &mut String) -> Result<()> {
+    let (s, n1, out, configs) = (&x.s, &x.n1, x.out, &x.configs);
     let pairs = out.join("data/train_pairs");
     let pairs_val = out.join("data/validation_pairs");
     let gen_train = configs.join("train_pairs.toml");
     let gen_val = configs.join("validation_pairs.toml");
-    write_config(&gen_train, &pair_config(&s, TRAIN_SCENE_SEED, s.train_sets))?;
-    write_config(&gen_val, &pair_config(&s, NET1_VALIDATION_SEED, 16))?;
-    generate(&GenerateConfig::load(&gen_train)?, &pairs, progress)?;
-    generate(&GenerateConfig::load(&gen_val)?, &pairs_val, progress)?;
+    write_config(&gen_train, &pair_config(s, TRAIN_SCENE_SEED, s.train_sets))?;
+    write_config(&gen_val, &pair_config(s, NET1_VALIDATION_SEED, 16))?;
+    generate(&GenerateConfig::load(&gen_train)?, &pairs, x.progress)?;
+    generate(&GenerateConfig::load(&gen_val)?, &pairs_val, x.progress)?;
     let mut curve_runs = Vec::new();
     for &k in s.seeds {
         let run = out.join(format!("network1_pretrain/seed{k}"));
@@ -514,7 +556,7 @@ pub fn run(opts: &Options) -> Result<String> {
         let st = Stage {
             run: &run,
             seed: k,
-            profile: &pre_profile,
+            profile: &x.pre_profile,
             isos: &DSLR_ISOS,
             steps: n1.pretrain_steps,
             lr: n1.pretrain_lr,
@@ -522,9 +564,9 @@ pub fn run(opts: &Options) -> Result<String> {
         };
         write_config(
             &path,
-            &net1_config(&s, &n1, backend, &pairs, &pairs_val, &st),
+            &net1_config(s, n1, x.backend, &pairs, &pairs_val, &st),
         )?;
-        train_resumable(&path, progress).map_err(|e| {
+        train_resumable(&path, x.progress).map_err(|e| {
             Error::context(format!("Network-1 pretraining ({})", path.display()), e)
         })?;
         curve_runs.push((format!("Net_O pretraining, seed {k}"), run));
@@ -534,9 +576,9 @@ pub fn run(opts: &Options) -> Result<String> {
     write_config(
         &base1,
         &net1_config(
-            &s,
-            &n1,
-            backend,
+            s,
+            n1,
+            x.backend,
             &pairs,
             &pairs_val,
             &Stage {
@@ -551,9 +593,9 @@ pub fn run(opts: &Options) -> Result<String> {
         ),
     )?;
     let n1_path = configs.join("network1.toml");
-    write_config(&n1_path, &network1_config(&s, out, &base1, &target))?;
+    write_config(&n1_path, &network1_config(s, out, &base1, &x.target))?;
     let net1 = AblateConfig::load(&n1_path)?;
-    let summary = ablate::run(&net1, &n1_path, progress)
+    let summary = ablate::run(&net1, &n1_path, x.progress)
         .map_err(|e| Error::context("the Network-1 grid", e))?;
     let _ = write!(
         report,
@@ -572,18 +614,18 @@ pub fn run(opts: &Options) -> Result<String> {
         16,
         curves_table(&curve_runs)?
     );
-    stage(
-        progress,
-        began,
-        "scene-referred ground truth, colour on the inputs only (Network-2)",
-    );
-    let scene_path = configs.join("scene_target.toml");
+    Ok(())
+}
+
+/// The scene-referred ground-truth grid (Network-2).
+fn scene_grid(x: &Setup, report: &mut String) -> Result<()> {
+    let scene_path = x.configs.join("scene_target.toml");
     write_config(
         &scene_path,
-        &scene_target_config(&s, out, &configs.join("finetune.toml"), &target),
+        &scene_target_config(&x.s, x.out, &x.configs.join("finetune.toml"), &x.target),
     )?;
     let scene = AblateConfig::load(&scene_path)?;
-    let summary = ablate::run(&scene, &scene_path, progress)
+    let summary = ablate::run(&scene, &scene_path, x.progress)
         .map_err(|e| Error::context("the scene-referred grid", e))?;
     let _ = write!(
         report,
@@ -591,13 +633,7 @@ pub fn run(opts: &Options) -> Result<String> {
          (Network-2)\n\n{}\n",
         ablate::report(&scene, &summary)
     );
-    let _ = write!(
-        report,
-        "\nTotal {:.1} s with the main job (backend {backend}).\n",
-        began.elapsed().as_secs_f64()
-    );
-    write(&out.join("protocol.md"), &report)?;
-    Ok(report)
+    Ok(())
 }
 
 #[cfg(test)]

@@ -3,7 +3,7 @@
 //!
 //! On flex it is one op with its own autodiff step: Burn's `leaky_relu` is a
 //! comparison, a scaled copy and a `mask_where`, and its gradient two more `mask_where`s and a
-//! scaling (3 % of Network-2's step in the profile). Here the forward pass and the gradient are
+//! scaling. Here the forward pass and the gradient are
 //! one pass each over the tensor, with the same bits as Burn's (each element is either copied
 //! or multiplied once).
 
@@ -30,7 +30,7 @@ mod flex {
     use burn::tensor::Tensor;
     use rayon::prelude::*;
 
-    use crate::models::par::{flex_tensor, with_avx2};
+    use crate::kernels::par::{flex_tensor, with_avx2};
 
     /// Elements per parallel task.
     const CHUNK: usize = 1 << 16;

@@ -74,7 +74,7 @@ pub(crate) mod flex {
     use burn::tensor::{DType, Shape, Tensor};
     use rayon::prelude::*;
 
-    use crate::models::par::{Shared, flex_tensor};
+    use crate::kernels::par::{Shared, flex_tensor};
 
     /// Batch normalisation with the batch's own statistics: (output, mean, biased variance), as
     /// `ModuleOps::batch_norm_train`, then a ReLU where `relu`, by [`forward`]; its autodiff step

@@ -1,0 +1,277 @@
+//! Writing the test set: per set, the inputs' and ground-truth frames' codes, their
+//! alignment, the merged ground truth, the files and the record.
+
+use super::*;
+
+/// A stop rounded as exposure.txt writes it, so the merge uses exactly what the field's code
+/// will read back.
+fn written_stop(s: f64) -> f64 {
+    format!("{s:.6}").parse().unwrap_or(0.0)
+}
+
+pub(super) fn build_sets(
+    sets: &[brackets::BracketSet],
+    lin: &Linearise,
+    opts: &BracketOptions,
+    out: &Path,
+    mut notes: Vec<String>,
+) -> Result<BracketSummary> {
+    // Every set's inputs first: a bad --inputs leaves nothing written.
+    let selections = sets
+        .iter()
+        .map(|set| select_inputs(set, &opts.inputs))
+        .collect::<Result<Vec<_>>>()?;
+    let mut built = Vec::with_capacity(sets.len());
+    for (set, sel) in sets.iter().zip(&selections) {
+        built.push(build_set(set, sel, lin, opts, out, &mut notes)?);
+    }
+    Ok(BracketSummary { sets: built, notes })
+}
+
+/// Which inputs and ground-truth frames a set of more than three frames (or a chosen
+/// selection) took.
+fn selection_note(
+    set: &brackets::BracketSet,
+    sel: &InputSelection,
+    n_gt: usize,
+    n_dropped: usize,
+) -> String {
+    format!(
+        "set '{}': {} frames; inputs {:?} ({}); ground truth from {n_gt} frame(s){}",
+        set.name,
+        set.frames.len(),
+        sel.indices,
+        sel.how,
+        if n_dropped == 0 {
+            String::new()
+        } else {
+            format!(", dropped {n_dropped}")
+        }
+    )
+}
+
+/// One set's frames as the merge takes them: the written 16-bit γ codes of the ground-truth
+/// frames, their codes as stored (only for the hat merge), and the reference's clipped or dark
+/// fraction.
+struct SetCodes {
+    codes: Vec<Image>,
+    stored: Vec<Image>,
+    reference_bad: f64,
+}
+
+/// Build one set's folder (inputs, exposure.txt, merged ground truth, record).
+fn build_set(
+    set: &brackets::BracketSet,
+    sel: &InputSelection,
+    lin: &Linearise,
+    opts: &BracketOptions,
+    out: &Path,
+    notes: &mut Vec<String>,
+) -> Result<BuiltBracketSet> {
+    let n = set.frames.len();
+    let idx = sel.indices;
+    let gt_idx: Vec<usize> = match opts.gt_frames {
+        GtFrames::Inputs => idx.to_vec(),
+        GtFrames::All => (0..n).collect(),
+    };
+    let chosen: Vec<&BracketFrame> = idx.iter().map(|&i| &set.frames[i]).collect();
+    let dropped: Vec<PathBuf> = (0..n)
+        .filter(|i| !gt_idx.contains(i))
+        .map(|i| set.frames[i].path.clone())
+        .collect();
+    if n > 3 || opts.inputs != InputChoice::Spread {
+        notes.push(selection_note(set, sel, gt_idx.len(), dropped.len()));
+    }
+    // Position of the reference among the merged frames.
+    let ref_pos = gt_idx.iter().position(|&i| i == idx[1]).unwrap_or(0);
+    // Stops relative to the shortest input, rounded as written.
+    let stops: Vec<f64> = gt_idx
+        .iter()
+        .map(|&i| written_stop(set.frames[i].stop - chosen[0].stop))
+        .collect();
+    // The hat merge weighs each frame by its code values as stored: kept, aligned alike.
+    let hat = gt_idx != idx;
+    let SetCodes {
+        mut codes,
+        mut stored,
+        reference_bad,
+    } = set_codes(set, &gt_idx, idx[1], ref_pos, lin, hat)?;
+    let mut gt_shifts: Vec<Option<[i32; 2]>> = vec![None; gt_idx.len()];
+    if let Some(mtb) = opts.align {
+        // MTB on the γ-encoded frames: its median thresholds need no response.
+        let s: Vec<(i32, i32)> = codes
+            .iter()
+            .map(|c| align::mtb_shift(&codes[ref_pos], c, mtb))
+            .collect();
+        codes = align::apply_shifts(&codes, &s);
+        if hat {
+            stored = align::apply_shifts(&stored, &s);
+        }
+        if codes[ref_pos].width == 0 || codes[ref_pos].height == 0 {
+            return Err(Error::layout(
+                &set.frames[idx[1]].path,
+                format!("set '{}': MTB shifts {s:?} leave no common area", set.name),
+            ));
+        }
+        gt_shifts = s.iter().map(|&(x, y)| Some([x, y])).collect();
+    }
+    let (w, h) = (codes[ref_pos].width, codes[ref_pos].height);
+    let pos = idx.map(|i| gt_idx.iter().position(|&g| g == i).unwrap_or(0));
+    let (hdr, gt_merge) = merge_set(&codes, &stored, &stops, pos, hat)?;
+
+    let set_dir = out.join(&set.name);
+    write_set_files(&set_dir, &codes, &stops, pos, &hdr)?;
+    let record = BuiltBracketSet {
+        name: set.name.clone(),
+        width: w,
+        height: h,
+        grouping: set.grouping.clone(),
+        exposure_source: set.exposure_source.clone(),
+        response: if gt_idx.iter().all(|&i| set.frames[i].kind == FrameKind::Dng) {
+            "linear raw (DNG black/white levels)".to_string()
+        } else {
+            opts.response.describe()
+        },
+        inputs: idx.to_vec(),
+        selection: sel.how.clone(),
+        reference_clipped_or_dark: reference_bad,
+        gt_merge,
+        gt_dynamic_range_stops: crate::io::dynamic_range_stops(&hdr, 0.1, 99.9).unwrap_or(0.0),
+        frames: chosen
+            .iter()
+            .zip(FRAME_NAMES)
+            .zip(pos)
+            .map(|((f, name), p)| RecordFrame {
+                source: f.path.clone(),
+                written: name.to_string(),
+                stop: stops[p],
+                exposure_time_s: f.exif.exposure_time,
+                iso: f.exif.iso,
+            })
+            .collect(),
+        ground_truth: gt_idx
+            .iter()
+            .zip(&stops)
+            .zip(&gt_shifts)
+            .map(|((&i, &stop), &shift)| GtRecordFrame {
+                source: set.frames[i].path.clone(),
+                index: i,
+                stop,
+                input: idx.contains(&i),
+                shift,
+            })
+            .collect(),
+        dropped,
+        shifts: if opts.align.is_some() {
+            pos.iter().filter_map(|&p| gt_shifts[p]).collect()
+        } else {
+            Vec::new()
+        },
+    };
+    let toml =
+        toml::to_string_pretty(&record).map_err(|e| Error::encode(set_dir.join(RECORD), e))?;
+    crate::io::atomic::write_atomic(&set_dir.join(RECORD), toml.as_bytes())?;
+    Ok(record)
+}
+
+/// Each ground-truth frame `gt_idx` of `set`: decode → (metering, for the reference `ref_idx`)
+/// → linear → written code linear^(1/γ) on 16 bits; only the written codes (and, for the hat
+/// merge, the stored codes) are kept. The frames must all have the reference's size.
+fn set_codes(
+    set: &brackets::BracketSet,
+    gt_idx: &[usize],
+    ref_idx: usize,
+    ref_pos: usize,
+    lin: &Linearise,
+    hat: bool,
+) -> Result<SetCodes> {
+    let inv_g = 1.0 / FIELD_GAMMA;
+    let mut codes: Vec<Image> = Vec::with_capacity(gt_idx.len());
+    let mut stored: Vec<Image> = Vec::new();
+    let mut reference_bad = 0.0;
+    for &i in gt_idx {
+        let f = &set.frames[i];
+        let code = code_frame(f)?;
+        if i == ref_idx {
+            reference_bad = clipped_or_dark(&code);
+        }
+        if hat {
+            stored.push(code.clone());
+        }
+        let linear = linearise(f, code, lin);
+        codes.push(linear.map(|v| (v.clamp(0.0, 1.0).powf(inv_g) * 65535.0).round() / 65535.0));
+    }
+    let (w, h) = (codes[ref_pos].width, codes[ref_pos].height);
+    for (&i, img) in gt_idx.iter().zip(&codes) {
+        if (img.width, img.height) != (w, h) {
+            return Err(Error::layout(
+                &set.frames[i].path,
+                format!(
+                    "{}×{}, but the set's reference frame {} is {w}×{h}",
+                    img.width,
+                    img.height,
+                    set.frames[ref_idx].path.display()
+                ),
+            ));
+        }
+    }
+    Ok(SetCodes {
+        codes,
+        stored,
+        reference_bad,
+    })
+}
+
+/// The ground truth and how it was merged: Kalantari's triangle merge of the three inputs at
+/// positions `pos`, or (`hat`) the weighted merge of every frame.
+fn merge_set(
+    codes: &[Image],
+    stored: &[Image],
+    stops: &[f64],
+    pos: [usize; 3],
+    hat: bool,
+) -> Result<(Image, String)> {
+    Ok(if !hat {
+        let times = pos.map(|p| stops[p].exp2() as f32);
+        (
+            ground_truth::triangle_merge(&pos.map(|p| codes[p].clone()), times, FIELD_GAMMA)?,
+            "Kalantari's triangle merge of the three inputs (weights from the reference's \
+             value)"
+                .to_string(),
+        )
+    } else {
+        let times: Vec<f64> = stops.iter().map(|s| s.exp2()).collect();
+        (
+            hat_merge(codes, stored, &times, FIELD_GAMMA)?,
+            format!(
+                "weighted merge of all {} frames: w = (1 − |2z − 1|) · t per frame and \
+                 channel from its own code z, 0 where z ≤ {DARK_CODE}/255 or ≥ \
+                 {CLIPPED_CODE}/255",
+                codes.len()
+            ),
+        )
+    })
+}
+
+/// The set's folder: the three inputs (16-bit), exposure.txt and the ground truth.
+fn write_set_files(
+    set_dir: &Path,
+    codes: &[Image],
+    stops: &[f64],
+    pos: [usize; 3],
+    hdr: &Image,
+) -> Result<()> {
+    std::fs::create_dir_all(set_dir).map_err(|e| Error::io(set_dir, e))?;
+    for (&p, name) in pos.iter().zip(FRAME_NAMES) {
+        write_ldr(&set_dir.join(name), &codes[p], BitDepth::Sixteen)?;
+    }
+    let expo = set_dir.join(crate::data::layout::kalantari::EXPOSURE_FILE);
+    let text = pos
+        .iter()
+        .map(|&p| format!("{}", stops[p]))
+        .collect::<Vec<_>>()
+        .join("\n")
+        + "\n";
+    crate::io::atomic::write_atomic(&expo, text.as_bytes())?;
+    write_hdr(&set_dir.join(crate::data::layout::kalantari::GT_FILE), hdr)
+}

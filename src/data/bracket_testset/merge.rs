@@ -1,0 +1,194 @@
+//! Choosing a bracket's three network inputs by metering, and the HDR merge of its frames.
+
+use super::*;
+
+/// The metering rule's thresholds, 8-bit code values: a pixel is clipped where any channel is
+/// at or above [`CLIPPED_CODE`], dark where every channel is at or below [`DARK_CODE`].
+pub const CLIPPED_CODE: f32 = 250.0;
+pub const DARK_CODE: f32 = 5.0;
+
+/// Fraction of the pixels of `code` (a frame's values in [0, 1] as stored — JPEG/PNG/TIFF code
+/// / maximum code; DNG: linear after levels and white balance) that are clipped or dark
+/// ([`CLIPPED_CODE`], [`DARK_CODE`]).
+pub fn clipped_or_dark(code: &Image) -> f64 {
+    // A thousandth of a code absorbs the decoders' rounding of v / 255.
+    let (hi, lo) = (CLIPPED_CODE - 1e-3, DARK_CODE + 1e-3);
+    let bad = code
+        .data
+        .par_chunks_exact(3)
+        .filter(|p| p.iter().any(|&v| v * 255.0 >= hi) || p.iter().all(|&v| v * 255.0 <= lo))
+        .count();
+    bad as f64 / code.pixel_count().max(1) as f64
+}
+
+/// How the inputs of one set were chosen.
+#[derive(Clone, Debug, PartialEq)]
+pub struct InputSelection {
+    pub indices: [usize; 3],
+    /// In words, for the record and the report.
+    pub how: String,
+    /// [`clipped_or_dark`] of every reference considered (`auto` only): (index, fraction).
+    pub metered: Vec<(usize, f64)>,
+}
+
+/// Steps within this many stops of the best achievable spacing are equally acceptable to
+/// `auto`: EXIF times are marked in third stops.
+pub const AUTO_STEP_TOLERANCE: f64 = 1.0 / 3.0;
+
+/// `--inputs auto` on a set with exposure stops `stops` (ascending): of all triples i < j < k,
+/// those whose larger deviation of a step from 2 stops, max(|s_j − s_i − 2|, |s_k − s_j − 2|),
+/// is within [`AUTO_STEP_TOLERANCE`] of the smallest achievable are candidates (the network's
+/// EV −2/0/+2 as nearly as the bracket allows); of these the one whose middle frame (the
+/// reference) has the smallest `metered(j)` — [`clipped_or_dark`] — wins, ties going to the
+/// smaller deviation, then the shorter frames. A metering rule computed from the frames alone.
+pub fn auto_inputs(
+    stops: &[f64],
+    mut metered: impl FnMut(usize) -> Result<f64>,
+) -> Result<InputSelection> {
+    let n = stops.len();
+    let mut triples = Vec::new();
+    for i in 0..n {
+        for j in i + 1..n {
+            for k in j + 1..n {
+                let d = (stops[j] - stops[i] - 2.0)
+                    .abs()
+                    .max((stops[k] - stops[j] - 2.0).abs());
+                triples.push(([i, j, k], d));
+            }
+        }
+    }
+    let best = triples.iter().map(|t| t.1).fold(f64::INFINITY, f64::min);
+    if !best.is_finite() {
+        return Err(Error::Invalid(format!(
+            "--inputs auto needs at least three frames, the set has {n}"
+        )));
+    }
+    triples.retain(|t| t.1 <= best + AUTO_STEP_TOLERANCE + 1e-9);
+    let mut fractions: Vec<(usize, f64)> = Vec::new();
+    for (t, _) in &triples {
+        if !fractions.iter().any(|f| f.0 == t[1]) {
+            fractions.push((t[1], metered(t[1])?));
+        }
+    }
+    fractions.sort_by_key(|f| f.0);
+    let bad = |j: usize| fractions.iter().find(|f| f.0 == j).map_or(1.0, |f| f.1);
+    let (idx, d) = triples
+        .iter()
+        .min_by(|a, b| {
+            bad(a.0[1])
+                .total_cmp(&bad(b.0[1]))
+                .then(a.1.total_cmp(&b.1))
+                .then(a.0.cmp(&b.0))
+        })
+        .copied()
+        .ok_or_else(|| Error::Invalid("--inputs auto: no triple of frames".to_string()))?;
+    let how = format!(
+        "auto: steps {:.2}, {:.2} stops (largest deviation from 2 stops {d:.2}; candidates \
+         within {:.2} of the best {best:.2}); reference {} of the candidates' references {} \
+         with the fewest pixels clipped (a channel ≥ {CLIPPED_CODE}/255) or dark (all ≤ \
+         {DARK_CODE}/255): {:.2} %",
+        stops[idx[1]] - stops[idx[0]],
+        stops[idx[2]] - stops[idx[1]],
+        AUTO_STEP_TOLERANCE,
+        idx[1],
+        fractions
+            .iter()
+            .map(|(j, f)| format!("{j} ({:.2} %)", 100.0 * f))
+            .collect::<Vec<_>>()
+            .join(", "),
+        100.0 * bad(idx[1])
+    );
+    Ok(InputSelection {
+        indices: idx,
+        how,
+        metered: fractions,
+    })
+}
+
+/// The weight [`hat_merge`] gives a frame's code value `z` (as stored, in [0, 1]): the hat
+/// 1 − |2z − 1|, zero where the code is clipped (≥ [`CLIPPED_CODE`]/255) or dark
+/// (≤ [`DARK_CODE`]/255) — the metering rule's thresholds, per channel.
+pub fn code_weight(z: f32) -> f64 {
+    let c = z * 255.0;
+    if c >= CLIPPED_CODE - 1e-3 || c <= DARK_CODE + 1e-3 {
+        0.0
+    } else {
+        1.0 - (2.0 * f64::from(z) - 1.0).abs()
+    }
+}
+
+/// The multi-exposure weighted average over any number of frames (Debevec & Malik 1997, Eq. 6,
+/// in the linear domain, with the exposure-time factor of Robertson et al. 2003):
+/// per pixel and channel H = Σ w_i · L_i / t_i / Σ w_i, L_i = v_i^γ, where `frames` hold the
+/// values v_i as written (linear^(1/γ)), `codes` each frame's code values as stored (aligned
+/// and cropped like `frames`), and w_i = [`code_weight`](z_i) · t_i:
+/// - the hat of the frame's OWN code trusts each frame where it recorded mid values, and no
+///   frame for being an input;
+/// - zero at clipped and dark codes: there an estimated response is set by its smoothness
+///   term alone and a JPEG clips channel by channel;
+/// - · t_i: photon noise makes the variance of L_i / t_i fall as 1/t_i, and a short frame's
+///   error near its black floor is multiplied by 1/t_i — without it a frame 7 stops short
+///   pulls dark regions up by its floor.
+///
+/// Where every weight is 0: the shortest frame's L/t when it is clipped there (white is a
+/// lower bound), else the longest frame's that is not clipped.
+pub fn hat_merge(frames: &[Image], codes: &[Image], times: &[f64], gamma: f32) -> Result<Image> {
+    let Some(first) = frames.first() else {
+        return Err(Error::Invalid("hat merge: no frames".to_string()));
+    };
+    if frames.len() != times.len() || frames.len() != codes.len() {
+        return Err(Error::Invalid(format!(
+            "hat merge: {} frames, {} code images and {} exposure times",
+            frames.len(),
+            codes.len(),
+            times.len()
+        )));
+    }
+    if times.iter().any(|t| !(t.is_finite() && *t > 0.0)) {
+        return Err(Error::Invalid(format!(
+            "hat merge: exposure times {times:?} must be finite and positive"
+        )));
+    }
+    let (w, h) = (first.width, first.height);
+    if let Some(f) = frames
+        .iter()
+        .chain(codes)
+        .find(|f| (f.width, f.height) != (w, h))
+    {
+        return Err(Error::Invalid(format!(
+            "hat merge: images differ in size ({}×{} and {w}×{h})",
+            f.width, f.height
+        )));
+    }
+    let g = f64::from(gamma);
+    // Frames from the shortest exposure to the longest.
+    let mut order: Vec<usize> = (0..times.len()).collect();
+    order.sort_by(|&a, &b| times[a].total_cmp(&times[b]));
+    let hdr = |i: usize, k: usize| f64::from(frames[i].data[k]).clamp(0.0, 1.0).powf(g) / times[i];
+    let clipped = |i: usize, k: usize| codes[i].data[k] * 255.0 >= CLIPPED_CODE - 1e-3;
+    let data = (0..first.data.len())
+        .into_par_iter()
+        .map(|k| {
+            let (mut num, mut den) = (0.0f64, 0.0f64);
+            for i in 0..frames.len() {
+                let wt = code_weight(codes[i].data[k]) * times[i];
+                num += wt * hdr(i, k);
+                den += wt;
+            }
+            if den > 0.0 {
+                (num / den) as f32
+            } else if clipped(order[0], k) {
+                hdr(order[0], k) as f32
+            } else {
+                let i = order
+                    .iter()
+                    .rev()
+                    .copied()
+                    .find(|&i| !clipped(i, k))
+                    .unwrap_or(order[0]);
+                hdr(i, k) as f32
+            }
+        })
+        .collect();
+    Ok(Image::from_vec(w, h, data))
+}

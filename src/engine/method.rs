@@ -1,0 +1,75 @@
+//! Evaluation methods that run a trained network here: a checkpoint's or an exported ONNX
+//! file's network on the engine [`super::LoadedNetwork`] picks, as `eval::evaluate`'s
+//! [`Method`]s.
+
+use super::{LoadedNetwork, Network};
+use crate::error::{Error, Result};
+use crate::eval::evaluate::{Method, Network1, Network2, NetworkOptions, Predictions};
+use burn::tensor::Device;
+use std::path::{Path, PathBuf};
+
+/// The method for a checkpoint (or run folder): the network its state names, weights loaded,
+/// on the engine `opts.engine` chooses (`engine`).
+pub fn from_checkpoint(
+    path: &Path,
+    opts: &NetworkOptions,
+    device: &Device,
+) -> Result<Box<dyn Method>> {
+    let net = LoadedNetwork::from_checkpoint(path, opts, device)?;
+    Ok(from_network(net, opts))
+}
+
+/// What `hdrsynth eval` scores.
+#[derive(Clone, Debug)]
+pub enum Source {
+    /// A folder of linear predictions made elsewhere, `<set>.exr` (or `.hdr`).
+    Predictions(PathBuf),
+    /// A checkpoint (or run folder: its latest checkpoint) run here on the device `backend`
+    /// names (`device::device_from_name`).
+    Checkpoint {
+        path: PathBuf,
+        backend: String,
+        network: NetworkOptions,
+    },
+}
+
+/// The method that scores `source`.
+pub fn method_for(source: &Source) -> Result<Box<dyn Method>> {
+    match source {
+        Source::Predictions(dir) => {
+            if !dir.is_dir() {
+                return Err(Error::Invalid(format!(
+                    "--predictions {}: not a folder",
+                    dir.display()
+                )));
+            }
+            Ok(Box::new(Predictions { dir: dir.clone() }))
+        }
+        Source::Checkpoint {
+            path,
+            backend,
+            network,
+        } => {
+            let device = crate::device::device_from_name(backend)?;
+            from_checkpoint(path, network, &device)
+        }
+    }
+}
+
+/// The method for a loaded network (a checkpoint's, or an exported ONNX file's).
+pub fn from_network(net: LoadedNetwork, opts: &NetworkOptions) -> Box<dyn Method> {
+    match net.network {
+        Network::Network1 => {
+            let mode = opts.weight;
+            Box::new(Network1 {
+                description: format!("{}, weight {mode:?}", net.describe()),
+                weights: Box::new(move |low, high| net.network1_weight(low, high, mode)),
+                tone_k: opts.tone_k,
+            })
+        }
+        Network::Network2 => Box::new(Network2 {
+            description: net.describe(),
+            infer: Box::new(move |frames, times| net.network2_hdr(frames, times)),
+        }),
+    }
+}

@@ -1,0 +1,367 @@
+//! The methods `hdrsynth eval` scores: predictions made elsewhere, Network-1 and Network-2
+//! (any network behind a closure), and the classical merge that knows the device.
+
+use super::*;
+
+// ---------------------------------------------------------------------------------------------
+// Predictions made elsewhere
+
+/// Linear HDR predictions `DIR/<set name>.exr` (or `.hdr`), scored against each set's linear
+/// ground truth. Predictions are taken in the unit of the set's files (the ground truth's, as
+/// the field's tools write them). Negative values are clamped to 0 (μ-law is undefined below
+/// −1/5000).
+pub struct Predictions {
+    pub dir: PathBuf,
+}
+
+impl Predictions {
+    /// The candidates for a set, in order of preference.
+    pub fn candidates(&self, set: &SetInfo) -> [PathBuf; 2] {
+        [
+            self.dir.join(format!("{}.exr", set.name)),
+            self.dir.join(format!("{}.hdr", set.name)),
+        ]
+    }
+
+    pub fn find(&self, set: &SetInfo) -> Option<PathBuf> {
+        self.candidates(set).into_iter().find(|p| p.is_file())
+    }
+}
+
+impl Method for Predictions {
+    fn describe(&self, _opts: &EvalOptions) -> String {
+        format!(
+            "predictions from {} (linear HDR in the unit of each set's ground truth file, scored \
+             against it; T = μ-law, μ = 5000)",
+            self.dir.display()
+        )
+    }
+
+    fn missing(&self, set: &SetInfo) -> Option<String> {
+        if self.find(set).is_some() {
+            return None;
+        }
+        let [a, b] = self.candidates(set);
+        Some(format!("{} or {}", a.display(), b.display()))
+    }
+
+    fn run(&self, set: &SetInfo, _opts: &EvalOptions) -> Result<Outcome> {
+        let path = self.find(set).ok_or_else(|| {
+            let [a, b] = self.candidates(set);
+            Error::layout(
+                &self.dir,
+                format!(
+                    "no prediction for set '{}': looked for {} and {}",
+                    set.name,
+                    a.display(),
+                    b.display()
+                ),
+            )
+        })?;
+        // One after the other: a file's bytes and decoded planes are transient copies of the
+        // image, so parallel reads would double the peak memory for little gain (each decode
+        // is parallel already).
+        let reference = layout::read_linear_ground_truth(set)?;
+        let mut output = read_image(&path)?;
+        if (output.width, output.height) != (reference.width, reference.height) {
+            return Err(Error::layout(
+                &path,
+                format!(
+                    "prediction is {}×{}, the ground truth of set '{}' is {}×{}",
+                    output.width, output.height, set.name, reference.width, reference.height
+                ),
+            ));
+        }
+        // The file's unit → hdrsynth's, as the ground truth was.
+        let k = set.file_to_reference();
+        let negative = output
+            .data
+            .par_iter_mut()
+            .map(|v| {
+                let neg = *v < 0.0;
+                *v = v.max(0.0) * k;
+                neg as usize
+            })
+            .sum::<usize>();
+        let mut notes = Vec::new();
+        if negative > 0 {
+            notes.push(format!(
+                "{}: {negative} negative values clamped to 0",
+                path.display()
+            ));
+        }
+        Ok(Outcome {
+            output,
+            reference,
+            scoring: Scoring::Hdr,
+            inputs: set_inputs(set),
+            notes,
+        })
+    }
+}
+
+/// A network's long-exposure blend weight per pixel for a static (low, high) pair (code values
+/// in [0, 1]), at the frames' size.
+pub type BlendInference = Box<dyn Fn(&Image, &Image) -> Result<Vec<f32>>>;
+
+/// What Network-1's output is scored against (docs/evaluation.md).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum Network1Reference {
+    /// The Laplacian blend (Network-1's own output stage) of the noisy pair with Mertens
+    /// weights computed on the noise-free pair: what a network that sees through the noise
+    /// would produce. Sets without noise-free frames fall back to `noisy-mertens` (noted).
+    #[default]
+    CleanWeights,
+    /// The Mertens fusion of the noisy pair: rewards imitating noise-driven weights (Mertens'
+    /// contrast term is |Laplacian|, which noise inflates).
+    NoisyMertens,
+}
+
+impl Network1Reference {
+    fn describe(self) -> &'static str {
+        match self {
+            Network1Reference::CleanWeights => {
+                "reference = Laplacian blend of the noisy static pair with Mertens weights \
+                 (OpenCV defaults: contrast 1, saturation 1, exposure 0) of its noise-free \
+                 frames (sets without them: the Mertens fusion of the noisy pair, noted)"
+            }
+            Network1Reference::NoisyMertens => {
+                "reference = Mertens fusion (OpenCV defaults: contrast 1, saturation 1, \
+                 exposure 0) of the same noisy static pair"
+            }
+        }
+    }
+}
+
+/// Network-1's reference L for the static frames (`low`, `high`) at indices `pair` of `set`
+/// (docs/evaluation.md), and a note when `kind` could not be followed (no noise-free frames).
+pub fn network1_reference(
+    set: &SetInfo,
+    pair: (usize, usize),
+    low: &Image,
+    high: &Image,
+    kind: Network1Reference,
+) -> Result<(Image, Option<String>)> {
+    let noisy_mertens = || {
+        let w = MertensWeights::OPENCV_DEFAULT;
+        ground_truth::mertens(
+            &[low.clone(), high.clone()],
+            w.contrast,
+            w.saturation,
+            w.exposure,
+        )
+    };
+    match kind {
+        Network1Reference::NoisyMertens => Ok((noisy_mertens()?, None)),
+        Network1Reference::CleanWeights if set.clean_frames.len() != set.evs.len() => Ok((
+            noisy_mertens()?,
+            Some(format!(
+                "set '{}' has no noise-free frames: Network-1 scored against the Mertens fusion \
+                 of the noisy pair",
+                set.name
+            )),
+        )),
+        Network1Reference::CleanWeights => {
+            let read = |i: usize| -> Result<Image> {
+                let p = &set.clean_frames[i];
+                layout::read_set_image(set, p)
+            };
+            let (cl, ch) = rayon::join(|| read(pair.0), || read(pair.1));
+            let w = ground_truth::blend_weights_high(&cl?, &ch?)?;
+            Ok((blend_pair(low, high, &w)?, None))
+        }
+    }
+}
+
+/// Network-1 on the static pair, scored against [`network1_reference`].
+pub struct Network1 {
+    /// For the report: the network and its checkpoint.
+    pub description: String,
+    pub weights: BlendInference,
+    /// Tone curve k of the T images (output and reference alike).
+    pub tone_k: f32,
+}
+
+impl Method for Network1 {
+    fn describe(&self, opts: &EvalOptions) -> String {
+        format!(
+            "{}, tone k {}; {}; L before the tone curve, T after it",
+            self.description,
+            self.tone_k,
+            opts.network1_reference.describe()
+        )
+    }
+
+    fn run(&self, set: &SetInfo, opts: &EvalOptions) -> Result<Outcome> {
+        if set.static_frames.len() != set.evs.len() {
+            return Err(Error::layout(
+                &set.dir,
+                format!(
+                    "set '{}' has no static (motion-free) frames: Network-1's reference is a \
+                     fusion of aligned frames",
+                    set.name
+                ),
+            ));
+        }
+        let (lo, hi) = set.network1_pair()?;
+        let read = |i: usize| -> Result<Image> {
+            let p = &set.static_frames[i];
+            layout::read_set_image(set, p)
+        };
+        let (low, high) = rayon::join(|| read(lo), || read(hi));
+        let (low, high) = (low?, high?);
+        let w = (self.weights)(&low, &high)?;
+        if w.len() != low.pixel_count() {
+            return Err(Error::Invalid(format!(
+                "set '{}': the network returned {} blend weights for {}×{} frames",
+                set.name,
+                w.len(),
+                low.width,
+                low.height
+            )));
+        }
+        let output = blend_pair(&low, &high, &w)?;
+        let (reference, note) =
+            network1_reference(set, (lo, hi), &low, &high, opts.network1_reference)?;
+        Ok(Outcome {
+            output,
+            reference,
+            scoring: Scoring::Network1 {
+                tone_k: self.tone_k,
+            },
+            inputs: [lo, hi]
+                .iter()
+                .map(|&i| {
+                    (
+                        format!("input {}", ev_tag(set.evs[i])),
+                        Frame::File(set.static_frames[i].clone()),
+                    )
+                })
+                .collect(),
+            notes: note.into_iter().collect(),
+        })
+    }
+}
+
+/// A network's full-resolution inference on three frames (shortest, reference, longest; LDR
+/// code values in [0, 1]) with exposure times relative to the reference (how the networks are
+/// trained) → linear HDR of the frames' size in hdrsynth's unit, 1 = the reference exposure's
+/// white.
+pub type HdrInference = Box<dyn Fn([&Image; 3], [f32; 3]) -> Result<Image>>;
+
+/// Network-2 (or any three-frame HDR network) on each set's frames as
+/// [`infer::network2_frames`] picks them (the frames `hdrsynth infer --set` uses), scored
+/// against the set's linear ground truth.
+pub struct Network2 {
+    /// For the report: the network and its checkpoint.
+    pub description: String,
+    pub infer: HdrInference,
+}
+
+impl Method for Network2 {
+    fn describe(&self, _opts: &EvalOptions) -> String {
+        format!(
+            "{}; scored against each set's linear ground truth (T = μ-law, μ = 5000)",
+            self.description
+        )
+    }
+
+    fn run(&self, set: &SetInfo, _opts: &EvalOptions) -> Result<Outcome> {
+        let (frames, times) = infer::network2_frames(set)?;
+        let evs = [0, set.reference, set.evs.len() - 1].map(|i| set.evs[i]);
+        for (f, ev) in frames.iter().zip(evs) {
+            if (f.width, f.height) != (set.width, set.height) {
+                return Err(Error::layout(
+                    &set.dir,
+                    format!(
+                        "set '{}': frame {} is {}×{}, the set is {}×{}",
+                        set.name,
+                        ev_tag(ev),
+                        f.width,
+                        f.height,
+                        set.width,
+                        set.height
+                    ),
+                ));
+            }
+        }
+        let [a, b, c] = &frames;
+        let mut output = (self.infer)([a, b, c], times)?;
+        let reference = layout::read_linear_ground_truth(set)?;
+        if (output.width, output.height) != (reference.width, reference.height) {
+            return Err(Error::Invalid(format!(
+                "set '{}': the network returned {}×{} for {}×{} frames",
+                set.name, output.width, output.height, reference.width, reference.height
+            )));
+        }
+        // As for predictions: μ-law needs values above −1/5000.
+        output.data.par_iter_mut().for_each(|v| *v = v.max(0.0));
+        Ok(Outcome {
+            output,
+            reference,
+            scoring: Scoring::Hdr,
+            inputs: frames
+                .into_iter()
+                .zip(evs)
+                .map(|(f, ev)| (format!("input {}", ev_tag(ev)), Frame::Loaded(f)))
+                .collect(),
+            notes: Vec::new(),
+        })
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// A classical merge that knows the device
+
+/// The paper's ground-truth merge ([`ground_truth::triangle_merge_with`], Kalantari's weights)
+/// of each set's three frames, linearised with the device's true response: the noise ceiling
+/// beside the networks (docs/protocol.md). With `clean`, the set's noise-free renderings
+/// (`static/clean_<ev>.png`, written by `hdrsynth testset`) instead of its noisy frames, so
+/// the two rows differ only by the test noise.
+pub struct TriangleMerge {
+    /// The device response the frames were rendered with: code = response(signal), signal 1
+    /// at the sensor's white.
+    pub response: crate::sensor::profile::Response,
+    pub clean: bool,
+}
+
+impl Method for TriangleMerge {
+    fn describe(&self, _opts: &EvalOptions) -> String {
+        format!(
+            "triangle merge of the {} frames, linearised with the true device response ({:?}); \
+             scored against each set's linear ground truth (T = μ-law, μ = 5000)",
+            if self.clean { "noise-free" } else { "noisy" },
+            self.response
+        )
+    }
+
+    fn missing(&self, set: &SetInfo) -> Option<String> {
+        (self.clean && set.clean_frames.len() != set.evs.len()).then(|| {
+            format!(
+                "{}/static/clean_<ev>.png (noise-free frames)",
+                set.dir.display()
+            )
+        })
+    }
+
+    fn run(&self, set: &SetInfo, _opts: &EvalOptions) -> Result<Outcome> {
+        let (mut frames, times) = infer::network2_frames(set)?;
+        if self.clean {
+            let picks = [0, set.reference, set.evs.len() - 1];
+            for (f, i) in frames.iter_mut().zip(picks) {
+                *f = layout::read_set_image(set, &set.clean_frames[i])?;
+            }
+        }
+        let response = self.response.clone();
+        let mut output = ground_truth::triangle_merge_with(&frames, times, |v| response.invert(v))?;
+        output.data.par_iter_mut().for_each(|v| *v = v.max(0.0));
+        let reference = layout::read_linear_ground_truth(set)?;
+        Ok(Outcome {
+            output,
+            reference,
+            scoring: Scoring::Hdr,
+            inputs: set_inputs(set),
+            notes: Vec::new(),
+        })
+    }
+}

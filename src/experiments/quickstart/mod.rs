@@ -1,0 +1,741 @@
+//! The main job (`hdrsynth quickstart`): the primary comparison of docs/protocol.md at CPU
+//! scale, on embedded defaults. Generate synthetic EV −2/0/+2 training sets; per seed, pretrain
+//! a small Network-2 (Net_O) through a DSLR-class camera model (the Canon EOS 550D's colour,
+//! noise and levels with a gamma-2.2 response at ISO 100–200) and fine-tune it for the target
+//! device (default: the composite phone profile) four ways — the full device model (Net_S), the
+//! device's response, levels and exposure rule only (Net_R, the fair pure baseline and the
+//! reference), the scene engine's display frames (Net_P) and, as a control, its own DSLR data;
+//! score every network on the primary test set (24 held-out scene-engine scenes through the
+//! target model, test noise redrawn per seed), on real radiance and on a real capture where
+//! they exist; print the tables with paired tests, the noise ceiling and the protocol's decision.
+//!
+//! Nothing is tuned on the test scenes (scene seed 7 is used for nothing else). Every stage
+//! resumes: rerunning the command after an interruption keeps what is finished. The configs it
+//! runs are written to OUT/configs/ so each stage can be rerun or changed by hand.
+
+use crate::config::parse_checked;
+use crate::data::generate::{GenerateConfig, generate};
+use crate::data::loader::RealismConfig;
+use crate::error::{Error, Result};
+use crate::eval::evaluate::{self, EvalOptions, TriangleMerge};
+use crate::experiments::ablate::{self, AblateConfig, Axis, AxisKind, EvalSpec, TestsetSpec};
+use crate::models::{ModelConfig, WuConfig, WuVariant};
+use crate::sensor::metering::Metering;
+use crate::sensor::profile::Response;
+use crate::sensor::profile::SensorProfile;
+use crate::sensor::realism::NoiseModel;
+use crate::train;
+use crate::train::config::{
+    DataConfig, InitConfig, LossConfig, OptimConfig, RunConfig, Schedule, ScheduleKind, TrainConfig,
+};
+use crate::train::{TrainOptions, checkpoint};
+use serde::Serialize;
+
+mod reading;
+mod test_sets;
+pub use reading::Decision;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+use test_sets::{noise_ceiling, optional_source, real_capture, test_scenes};
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Preset {
+    /// About 10 minutes on 2 CPU cores: a narrow Network-2, short runs, small crops.
+    Cpu,
+    /// Wu et al.'s released width and longer runs, for a GPU (pass --backend cuda or wgpu).
+    Gpu,
+}
+
+/// What a quickstart run is asked for (the command's flags).
+#[derive(Clone, Debug)]
+pub struct Options {
+    /// Output folder (resumes an interrupted quickstart of the same preset).
+    pub out: PathBuf,
+    pub preset: Preset,
+    /// Compute device; default the preset's (flex for cpu, cuda for gpu).
+    pub backend: Option<String>,
+    /// Real HDR radiance maps for the descriptive real-radiance table; default
+    /// ../shared/data/real_hdr when it exists.
+    pub radiance: Option<PathBuf>,
+    /// A real bracket folder for the real-capture table; default
+    /// ../shared/data/real_brackets/canon_550d_room when it exists.
+    pub brackets: Option<PathBuf>,
+    /// The target device's sensor profile; default the shipped composite phone.
+    pub target: Option<PathBuf>,
+    /// Also score every network on the held-out-simulator renderings of the primary scenes
+    /// (docs/protocol.md, full protocol part 1).
+    pub heldout: bool,
+    pub progress: bool,
+}
+
+/// The sizes of one preset.
+pub(crate) struct Sizes {
+    pub(crate) train_sets: usize,
+    pub(crate) train_size: (usize, usize),
+    pub(crate) test_scenes: usize,
+    pub(crate) test_size: (usize, usize),
+    pub(crate) base_width: usize,
+    pub(crate) res_blocks: usize,
+    pub(crate) patch: usize,
+    pub(crate) batch: usize,
+    pub(crate) pretrain_steps: u64,
+    pub(crate) finetune_steps: u64,
+    pub(crate) pretrain_lr: f64,
+    pub(crate) finetune_lr: f64,
+    pub(crate) checkpoint_every: u64,
+    pub(crate) seeds: &'static [u64],
+    pub(crate) backend: &'static str,
+}
+
+pub(crate) fn sizes(p: Preset) -> Sizes {
+    match p {
+        Preset::Cpu => Sizes {
+            train_sets: 40,
+            train_size: (160, 128),
+            test_scenes: 24,
+            test_size: (192, 144),
+            base_width: 8,
+            res_blocks: 2,
+            patch: 64,
+            batch: 8,
+            pretrain_steps: 800,
+            finetune_steps: 300,
+            pretrain_lr: 1e-3,
+            finetune_lr: 5e-4,
+            checkpoint_every: 100,
+            seeds: &[1, 2, 3],
+            backend: "flex",
+        },
+        Preset::Gpu => Sizes {
+            train_sets: 256,
+            train_size: (512, 384),
+            test_scenes: 48,
+            test_size: (512, 384),
+            base_width: 64,
+            res_blocks: 9,
+            patch: 256,
+            batch: 8,
+            pretrain_steps: 20000,
+            finetune_steps: 4000,
+            pretrain_lr: 1e-4,
+            finetune_lr: 5e-5,
+            checkpoint_every: 1000,
+            seeds: &[1, 2, 3],
+            backend: "cuda",
+        },
+    }
+}
+
+/// Seed of the training scenes, and of the primary test scenes (used for nothing else).
+pub(crate) const TRAIN_SCENE_SEED: u64 = 2026;
+pub(crate) const TEST_SCENE_SEED: u64 = 7;
+/// Test scenes need at least this range (stops); an EV −2/0/+2 bracket holds about 12.
+const TEST_MIN_DYNAMIC_RANGE: f32 = 10.0;
+
+/// Sensor profiles shipped with the binary, so the main job needs no files but its own.
+/// Net_O's camera: the Canon EOS 550D's measured colour, noise and levels with a gamma-2.2
+/// response (Kalantari's Canon 5D data assume that curve).
+pub(crate) const PRETRAIN_PROFILE: (&str, &str) = (
+    "dslr_canon_550d_gamma22.toml",
+    include_str!("../../../configs/sensors/dslr_canon_550d_gamma22.toml"),
+);
+/// The default target device: phone-class noise (OnePlus 6) and colour (Galaxy S9), kind
+/// `composite`.
+const TARGET_PROFILE: (&str, &str) = (
+    "composite_phone.toml",
+    include_str!("../../../configs/sensors/composite_phone.toml"),
+);
+
+/// The target profile's file name, text and profile: `target`, else the shipped composite
+/// phone.
+pub(crate) fn target_profile(target: Option<&Path>) -> Result<(String, String, SensorProfile)> {
+    let (file, text) = match target {
+        Some(p) => {
+            let text = crate::io::guard::read_text(p)
+                .map_err(|e| Error::context(format!("--target {}: cannot read", p.display()), e))?;
+            let file = p
+                .file_name()
+                .map(|f| f.to_string_lossy().into_owned())
+                .unwrap_or_else(|| "target.toml".into());
+            (file, text)
+        }
+        None => (TARGET_PROFILE.0.to_string(), TARGET_PROFILE.1.to_string()),
+    };
+    let at = target.unwrap_or(Path::new(TARGET_PROFILE.0));
+    let profile = parse_checked(&text, at, SensorProfile::validate)?;
+    let file = if file == PRETRAIN_PROFILE.0 {
+        format!("target_{file}")
+    } else {
+        file
+    };
+    Ok((file, text, profile))
+}
+
+/// Pure synthetic EV −2/0/+2 sets with linear EXRs.
+pub(crate) fn generate_config(
+    s: &Sizes,
+    seed: u64,
+    count: usize,
+    size: (usize, usize),
+) -> GenerateConfig {
+    let mut cfg = GenerateConfig::new(seed, count, size, vec![-2.0, 0.0, 2.0]);
+    cfg.camera.candidates = if s.train_sets > 64 { 24 } else { 8 };
+    cfg
+}
+
+/// The primary test scenes: the scene engine at another seed, static, with the dynamic range
+/// a bracket can hold (docs/protocol.md, "Data").
+fn test_scene_config(s: &Sizes) -> GenerateConfig {
+    let mut cfg = generate_config(s, TEST_SCENE_SEED, s.test_scenes, s.test_size);
+    cfg.scene.min_dynamic_range = TEST_MIN_DYNAMIC_RANGE;
+    cfg.scene.subjects = [0, 0];
+    cfg
+}
+
+/// What differs between the pretraining and the fine-tuning config.
+pub(crate) struct Stage<'a> {
+    pub(crate) run: &'a Path,
+    pub(crate) seed: u64,
+    /// A profile path or "pure".
+    pub(crate) profile: &'a Path,
+    pub(crate) isos: &'a [u32],
+    pub(crate) steps: u64,
+    pub(crate) lr: f64,
+    pub(crate) init: Option<&'a Path>,
+}
+
+pub(crate) fn train_config(s: &Sizes, backend: &str, data: &Path, st: &Stage) -> TrainConfig {
+    let mut realism = RealismConfig::new(st.profile.to_path_buf(), isos(st.isos));
+    realism.noise = NoiseModel::Gaussian;
+    TrainConfig {
+        run: RunConfig {
+            out: st.run.to_path_buf(),
+            seed: st.seed,
+            steps: st.steps,
+            backend: backend.to_string(),
+            devices: Vec::new(),
+            checkpoint_every: s.checkpoint_every,
+            keep_checkpoints: 2,
+            log_every: 10,
+        },
+        model: ModelConfig::Wu(WuConfig {
+            variant: WuVariant::Resnet,
+            base_width: s.base_width,
+            res_blocks: s.res_blocks,
+            hdr_input_scale: 0.25,
+            ..WuConfig::default()
+        }),
+        data: DataConfig::new(data.to_path_buf(), s.patch, s.batch, realism),
+        optim: OptimConfig {
+            lr: st.lr,
+            ..OptimConfig::default()
+        },
+        schedule: Schedule {
+            kind: ScheduleKind::Cosine,
+            warmup_steps: st.steps / 10,
+            min_lr: Some(st.lr / 50.0),
+            ..Schedule::default()
+        },
+        init: st.init.map(|i| InitConfig {
+            checkpoint: Some(i.to_path_buf()),
+            safetensors: None,
+        }),
+        loss: LossConfig::default(),
+        validation: None,
+    }
+}
+
+/// ISOs of the target (fine-tuning and test set) and of the DSLR (pretraining).
+pub(crate) const TARGET_ISOS: [u32; 3] = [100, 800, 3200];
+pub(crate) const DSLR_ISOS: [u32; 2] = [100, 200];
+
+pub(crate) fn isos(list: &[u32]) -> Vec<f64> {
+    list.iter().map(|&i| f64::from(i)).collect()
+}
+
+/// An ablation row: its name, label and the `set` laid over the fine-tuning config.
+pub(crate) fn row(name: &str, label: &str, set: toml::Table) -> Axis {
+    Axis {
+        name: name.into(),
+        label: Some(label.into()),
+        set,
+        train: true,
+        checkpoint: None,
+        kind: AxisKind::Finetune,
+    }
+}
+
+/// Net_O as a grid row: the per-seed pretraining scored as it is.
+pub(crate) fn net_o_row() -> Axis {
+    Axis {
+        train: false,
+        ..row(
+            "net_o",
+            "Net_O (pretrained through the DSLR, no fine-tuning)",
+            toml::Table::new(),
+        )
+    }
+}
+
+/// The control row: Net_O trained further on its own DSLR data for the same steps.
+pub(crate) fn control_row() -> Axis {
+    Axis {
+        kind: AxisKind::Control,
+        ..row(
+            "control",
+            "control (Net_O trained on its own DSLR data, same steps)",
+            toml::Table::new(),
+        )
+    }
+}
+
+/// `{ data = { profile = …, isos = …, … } }` as an ablation row's `set`.
+pub(crate) fn data_set(
+    profile: &Path,
+    isos: Option<&[u32]>,
+    extra: &[(&str, toml::Value)],
+) -> toml::Table {
+    let mut data = toml::Table::new();
+    data.insert(
+        "profile".into(),
+        profile.to_string_lossy().into_owned().into(),
+    );
+    if let Some(isos) = isos {
+        let list: Vec<toml::Value> = isos.iter().map(|&i| i64::from(i).into()).collect();
+        data.insert("isos".into(), list.into());
+    }
+    for (k, v) in extra {
+        data.insert((*k).into(), v.clone());
+    }
+    toml::Table::from_iter([("data".to_string(), data.into())])
+}
+
+/// The reference row of the primary comparison.
+const REFERENCE: &str = "net_r";
+
+/// The held-out simulators: the primary scenes rendered through variants of the target model
+/// that are not the training simulator (docs/protocol.md, full protocol part 1): (name, label,
+/// the profile's response replaced, noise model, metering).
+struct Heldout {
+    name: &'static str,
+    label: &'static str,
+    response: Option<Response>,
+    noise: NoiseModel,
+    metering: Option<Metering>,
+}
+
+const HELDOUT: [Heldout; 4] = [
+    Heldout {
+        name: "heldout_gamma22",
+        label: "held-out simulator: the target's response replaced by γ 2.2",
+        response: Some(Response::Gamma { gamma: 2.2 }),
+        noise: NoiseModel::Gaussian,
+        metering: None,
+    },
+    Heldout {
+        name: "heldout_filmic",
+        label: "held-out simulator: the target's response replaced by the filmic curve",
+        response: Some(Response::Filmic),
+        noise: NoiseModel::Gaussian,
+        metering: None,
+    },
+    Heldout {
+        name: "heldout_poisson",
+        label: "held-out simulator: Poisson shot noise plus Gaussian read noise",
+        response: None,
+        noise: NoiseModel::PoissonGaussian,
+        metering: None,
+    },
+    Heldout {
+        name: "heldout_metering",
+        label: "held-out simulator: another metering rule (mid grey 0.18, 5 % clipped)",
+        response: None,
+        noise: NoiseModel::Gaussian,
+        metering: Some(Metering {
+            mid_grey: 0.18,
+            max_clipped: 0.05,
+        }),
+    },
+];
+
+/// The held-out test sets' specs, writing each variant's profile beside the target's.
+fn heldout_testsets(
+    out: &Path,
+    scenes: &Path,
+    target: &SensorProfile,
+    sensors: &Path,
+) -> Result<Vec<TestsetSpec>> {
+    HELDOUT
+        .iter()
+        .map(|h| {
+            let mut profile = target.clone();
+            if let Some(r) = &h.response {
+                profile.response = r.clone();
+            }
+            let path = sensors.join(format!("{}.toml", h.name));
+            write_config(&path, &profile)?;
+            let mut options = crate::data::testset::TestsetOptions {
+                isos: isos(&TARGET_ISOS),
+                evs: vec![-2.0, 0.0, 2.0],
+                noise: h.noise,
+                ..Default::default()
+            };
+            if let Some(m) = h.metering {
+                options.metering = m;
+            }
+            Ok(TestsetSpec {
+                name: Some(h.name.into()),
+                label: Some(h.label.into()),
+                dir: out.join(format!("data/testset_{}", h.name)),
+                radiance: Some(scenes.to_path_buf()),
+                profile: Some(path),
+                options,
+                noise_per_seed: false,
+                reference: None,
+            })
+        })
+        .collect()
+}
+
+/// Where the test sets come from.
+struct TestSources {
+    /// Generated scenes' radiance (the primary test set).
+    scenes: PathBuf,
+    /// Real radiance maps, if any.
+    real_radiance: Option<PathBuf>,
+    /// A built real-capture test set, if any.
+    real_capture: Option<PathBuf>,
+}
+
+fn experiment_config(
+    s: &Sizes,
+    out: &Path,
+    base: &Path,
+    src: &TestSources,
+    target: &Path,
+) -> AblateConfig {
+    let mut options = crate::data::testset::TestsetOptions {
+        isos: isos(&TARGET_ISOS),
+        evs: vec![-2.0, 0.0, 2.0],
+        ..Default::default()
+    };
+    let testset = TestsetSpec {
+        name: None,
+        label: None,
+        dir: out.join("data/testset"),
+        radiance: Some(src.scenes.clone()),
+        profile: Some(target.to_path_buf()),
+        options: options.clone(),
+        noise_per_seed: true,
+        reference: None,
+    };
+    let mut also = Vec::new();
+    if let Some(r) = &src.real_radiance {
+        options.seed = 0;
+        also.push(TestsetSpec {
+            name: Some("real_radiance".into()),
+            label: Some("real radiance through the target model (descriptive)".into()),
+            dir: out.join("data/testset_real_radiance"),
+            radiance: Some(r.clone()),
+            profile: Some(target.to_path_buf()),
+            options,
+            noise_per_seed: false,
+            reference: None,
+        });
+    }
+    if let Some(c) = &src.real_capture {
+        also.push(TestsetSpec {
+            name: Some("real_capture".into()),
+            label: Some("a real capture (descriptive)".into()),
+            dir: c.clone(),
+            radiance: None,
+            profile: None,
+            options: Default::default(),
+            noise_per_seed: false,
+            reference: None,
+        });
+    }
+    let target_row = |name: &str, label: &str, extra: &[(&str, toml::Value)]| {
+        row(name, label, data_set(target, Some(&TARGET_ISOS), extra))
+    };
+    AblateConfig {
+        title: "Main job — Network-2 for the target device: Net_S (full device model) vs Net_R \
+                (response, levels and exposure rule only), Net_P, Net_O and the control"
+            .into(),
+        out: out.join("experiment"),
+        base: base.to_path_buf(),
+        seeds: s.seeds.to_vec(),
+        pretrained_per_seed: Some(
+            out.join("pretrain/seed{seed}")
+                .to_string_lossy()
+                .into_owned(),
+        ),
+        testset,
+        also,
+        eval: EvalSpec {
+            resamples: 2000,
+            reference: Some(REFERENCE.into()),
+            ..EvalSpec::default()
+        },
+        rows: vec![
+            net_o_row(),
+            control_row(),
+            target_row(
+                REFERENCE,
+                "Net_R (target response, levels, exposure rule; no colour, no noise)",
+                &[("noise", "none".into()), ("colour", false.into())],
+            ),
+            row(
+                "net_p",
+                "Net_P (engine display frames, the paper's pure synthetic)",
+                data_set(Path::new("pure"), None, &[]),
+            ),
+            target_row(
+                "net_s",
+                "Net_S (full target model: colour, noise, levels, response)",
+                &[],
+            ),
+        ],
+        columns: Vec::new(),
+    }
+}
+
+pub(crate) fn write(path: &Path, text: &str) -> Result<()> {
+    crate::io::atomic::write_atomic(path, text.as_bytes())
+        .map_err(|e| Error::context(format!("writing {}", path.display()), e))
+}
+
+/// Write a config as TOML: what the stage then loads, and what a user reruns by hand.
+pub(crate) fn write_config(path: &Path, cfg: &impl Serialize) -> Result<()> {
+    write(
+        path,
+        &toml::to_string(cfg).map_err(|e| Error::encode(path, e))?,
+    )
+}
+
+/// Train the config at `path` to its `run.steps`: from scratch, resumed from its latest
+/// checkpoint, or not at all when it got there before.
+pub(crate) fn train_resumable(path: &Path, progress: bool) -> Result<()> {
+    let cfg = TrainConfig::load(path)?;
+    let done = match checkpoint::latest(&cfg.run.out)? {
+        Some(d) => Some(checkpoint::read_state(&d)?.step),
+        None => None,
+    };
+    if done.is_none_or(|step| step < cfg.run.steps) {
+        crate::train::run(
+            &cfg,
+            &TrainOptions {
+                resume: done.is_some(),
+                progress,
+            },
+        )?;
+    }
+    Ok(())
+}
+
+pub(crate) fn stage(progress: bool, began: Instant, what: &str) {
+    if progress {
+        eprintln!("[{:>6.1} s] {what}", began.elapsed().as_secs_f64());
+    }
+}
+
+/// What stages 1–3 leave for the grid: the configs folder, the grid's config, the target's
+/// profile, and the real test sets' folders or why there are none.
+struct Prepared {
+    configs: PathBuf,
+    exp_path: PathBuf,
+    target_profile: SensorProfile,
+    real_radiance: reading::Optional,
+    real_capture: reading::Optional,
+}
+
+/// Run the main job (every stage resumes) and return its report.
+pub fn run(opts: &Options) -> Result<String> {
+    let began = Instant::now();
+    let progress = opts.progress;
+    let s = sizes(opts.preset);
+    let backend = opts.backend.as_deref().unwrap_or(s.backend);
+    let out = &opts.out;
+    // One main job per folder: a second would rewrite the configs the first is reading. The
+    // commands it runs lock their own subfolders (data/…, pretrain, experiment).
+    let _lock = crate::io::guard::OutputLock::acquire(out, "quickstart")?;
+    if out.join("pretrain").join(train::RUN_CONFIG).is_file() {
+        return Err(Error::Invalid(format!(
+            "{} holds a main job of an earlier protocol (one pretraining for every seed); \
+             choose another --out or delete it",
+            out.display()
+        )));
+    }
+    let p = prepare(opts, &s, backend, began)?;
+
+    stage(
+        progress,
+        began,
+        "4/5 per seed: control, Net_R, Net_P and Net_S fine-tuned; every network scored on every \
+         test set (hdrsynth ablate)",
+    );
+    let exp = AblateConfig::load(&p.exp_path)?;
+    let summary = ablate::run(&exp, &p.exp_path, progress)
+        .map_err(|e| Error::context("the main job's grid", e))?;
+
+    stage(progress, began, "5/5 noise ceiling and decision");
+    let mut device = p.target_profile.clone();
+    device.source_response = Response::Linear;
+    let ceiling = noise_ceiling(&exp, &device.response, &out.join("noise_ceiling"), progress)?;
+    let tables = ablate::write_tables(&exp)?;
+    let mut report = reading::report(
+        &exp,
+        &summary,
+        &tables,
+        &ceiling,
+        &p.real_radiance,
+        &p.real_capture,
+    );
+    let _ = write!(
+        report,
+        "\nTotal {:.1} s ({} preset, backend {backend}). Configs in {} (rerun a stage with \
+         `hdrsynth train --config …` or `hdrsynth ablate --config {}`).",
+        began.elapsed().as_secs_f64(),
+        match opts.preset {
+            Preset::Cpu => "cpu",
+            Preset::Gpu => "gpu",
+        },
+        p.configs.display(),
+        p.exp_path.display()
+    );
+    let report_path = out.join("report.md");
+    write(&report_path, &report)?;
+    Ok(report)
+}
+
+/// Stages 1–3: the sensor profiles, the training sets, the pretrainings, the test sets and
+/// the grid's config.
+fn prepare(opts: &Options, s: &Sizes, backend: &str, began: Instant) -> Result<Prepared> {
+    let (progress, out) = (opts.progress, &opts.out);
+    let configs = out.join("configs");
+    let sensors = configs.join("sensors");
+    std::fs::create_dir_all(&sensors)
+        .map_err(|e| Error::context(format!("creating {}", sensors.display()), e))?;
+    let pre_profile = sensors.join(PRETRAIN_PROFILE.0);
+    let (target_file, target_text, target_profile) = target_profile(opts.target.as_deref())?;
+    let target = sensors.join(target_file);
+    write(&pre_profile, PRETRAIN_PROFILE.1)?;
+    write(&target, &target_text)?;
+
+    stage(progress, began, "1/5 synthetic training sets (EV −2/0/+2)");
+    let data = out.join("data/train");
+    let gen_path = configs.join("train_data.toml");
+    write_config(
+        &gen_path,
+        &generate_config(s, TRAIN_SCENE_SEED, s.train_sets, s.train_size),
+    )?;
+    generate(&GenerateConfig::load(&gen_path)?, &data, progress)?;
+
+    stage(
+        progress,
+        began,
+        "2/5 pretraining Network-2 (Net_O) per seed through a DSLR model (550D, gamma 2.2, ISO \
+         100–200)",
+    );
+    pretrain(opts, s, backend, &data, &pre_profile, &configs)?;
+
+    stage(
+        progress,
+        began,
+        "3/5 test sets (held-out generated scenes; real radiance and a real capture where \
+         present)",
+    );
+    let real_radiance = optional_source(
+        opts.radiance.as_ref(),
+        "radiance",
+        "../shared/data/real_hdr",
+    )?;
+    let brackets = optional_source(
+        opts.brackets.as_ref(),
+        "brackets",
+        "../shared/data/real_brackets/canon_550d_room",
+    )?;
+    let real_capture_dir = match &brackets {
+        Ok(b) => Ok(real_capture(b, out)
+            .map_err(|e| Error::context(format!("the real capture {}", b.display()), e))?),
+        Err(why) => Err(why.clone()),
+    };
+    let sources = TestSources {
+        scenes: test_scenes(opts, s)?,
+        real_radiance: real_radiance.as_ref().ok().cloned(),
+        real_capture: real_capture_dir.as_ref().ok().cloned(),
+    };
+    let heldout = if opts.heldout {
+        heldout_testsets(out, &sources.scenes, &target_profile, &sensors)?
+    } else {
+        Vec::new()
+    };
+    let base_path = configs.join("finetune.toml");
+    write_config(
+        &base_path,
+        &train_config(
+            s,
+            backend,
+            &data,
+            &Stage {
+                run: &out.join("unused"),
+                seed: 0,
+                profile: Path::new("pure"),
+                isos: &TARGET_ISOS,
+                steps: s.finetune_steps,
+                lr: s.finetune_lr,
+                init: Some(&out.join("pretrain/seed1")),
+            },
+        ),
+    )?;
+    let exp_path = configs.join("experiment.toml");
+    let mut exp_cfg = experiment_config(s, out, &base_path, &sources, &target);
+    exp_cfg.also.extend(heldout);
+    write_config(&exp_path, &exp_cfg)?;
+    Ok(Prepared {
+        configs,
+        exp_path,
+        target_profile,
+        real_radiance,
+        real_capture: real_capture_dir,
+    })
+}
+
+/// Stage 2: Net_O per seed, pretrained on `data` through the DSLR profile.
+fn pretrain(
+    opts: &Options,
+    s: &Sizes,
+    backend: &str,
+    data: &Path,
+    pre_profile: &Path,
+    configs: &Path,
+) -> Result<()> {
+    for &k in s.seeds {
+        let pre_run = opts.out.join(format!("pretrain/seed{k}"));
+        let pre_path = configs.join(format!("pretrain_seed{k}.toml"));
+        write_config(
+            &pre_path,
+            &train_config(
+                s,
+                backend,
+                data,
+                &Stage {
+                    run: &pre_run,
+                    seed: k,
+                    profile: pre_profile,
+                    isos: &DSLR_ISOS,
+                    steps: s.pretrain_steps,
+                    lr: s.pretrain_lr,
+                    init: None,
+                },
+            ),
+        )?;
+        train_resumable(&pre_path, opts.progress)
+            .map_err(|e| Error::context(format!("pretraining ({})", pre_path.display()), e))?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,153 @@
+//! The main job's test sets beside the held-out ones: the generated test scenes, the real
+//! radiance and real capture where present, and the noise ceiling on the primary test set.
+
+use super::*;
+
+/// The generated test scenes' linear radiance (`hdr_gt.exr` of each set), copied into one
+/// folder, as `testset` reads a folder of maps.
+pub(super) fn test_scenes(opts: &Options, s: &Sizes) -> Result<PathBuf> {
+    let scenes = opts.out.join("data/test_scenes");
+    generate(&test_scene_config(s), &scenes, opts.progress)?;
+    let dir = opts.out.join("data/test_radiance");
+    std::fs::create_dir_all(&dir)
+        .map_err(|e| Error::context(format!("creating {}", dir.display()), e))?;
+    let entries = std::fs::read_dir(&scenes)
+        .map_err(|e| Error::context(format!("reading {}", scenes.display()), e))?;
+    for e in entries {
+        let set = e
+            .map_err(|e| Error::context(format!("reading {}", scenes.display()), e))?
+            .path();
+        let gt = set.join("hdr_gt.exr");
+        if gt.is_file() {
+            let name = set
+                .file_name()
+                .unwrap_or_default()
+                .to_string_lossy()
+                .into_owned();
+            let to = dir.join(format!("{name}.exr"));
+            if !to.is_file() {
+                let tmp = dir.join(format!(".{name}.exr.tmp"));
+                std::fs::copy(&gt, &tmp).map_err(|e| {
+                    Error::context(format!("copying {} to {}", gt.display(), tmp.display()), e)
+                })?;
+                std::fs::rename(&tmp, &to)
+                    .map_err(|e| Error::context(format!("renaming {}", tmp.display()), e))?;
+            }
+        }
+    }
+    Ok(dir)
+}
+
+/// A flag's folder, else the shared data's default when it exists. Returns the folder or why
+/// there is none.
+pub(super) fn optional_source(
+    flag: Option<&PathBuf>,
+    name: &str,
+    default: &str,
+) -> Result<std::result::Result<PathBuf, String>> {
+    if let Some(p) = flag {
+        return if p.exists() {
+            Ok(Ok(p.clone()))
+        } else {
+            Err(Error::Invalid(format!(
+                "--{name} {}: no such file or folder",
+                p.display()
+            )))
+        };
+    }
+    let d = Path::new(default);
+    Ok(if d.is_dir() {
+        Ok(d.to_path_buf())
+    } else {
+        Err(format!("{default} is absent; pass --{name} DIR"))
+    })
+}
+
+/// The real-capture test set: three frames two stops apart chosen by the frames' own metering,
+/// ground truth merged from every frame, linearised by a Debevec response estimated from the
+/// brackets (`hdrsynth testset --brackets --inputs auto --gt-frames all`).
+pub(super) fn real_capture(brackets: &Path, out: &Path) -> Result<PathBuf> {
+    use crate::data::bracket_testset::{self, BracketOptions, GtFrames, InputChoice};
+    use crate::data::brackets::ScanOptions;
+    let dir = out.join("data/testset_real_capture");
+    if !dir.is_dir() {
+        // Built beside and renamed when complete, so an interrupted build is redone.
+        let partial = out.join("data/testset_real_capture.partial");
+        if partial.exists() {
+            std::fs::remove_dir_all(&partial).map_err(|e| Error::io(&partial, e))?;
+        }
+        let opts = BracketOptions {
+            // A tripod bracket may take minutes (the 550D's spans 101 s): frames group into a
+            // set until an exposure repeats or an hour passes.
+            scan: ScanOptions {
+                max_gap_s: 3600.0,
+                ..ScanOptions::default()
+            },
+            inputs: InputChoice::Auto,
+            gt_frames: GtFrames::All,
+            ..BracketOptions::default()
+        };
+        bracket_testset::build(brackets, &opts, &partial)?;
+        std::fs::rename(&partial, &dir).map_err(|e| Error::io(&dir, e))?;
+    }
+    Ok(dir)
+}
+
+/// The noise ceiling of the primary test set: the triangle merge with the true response, of
+/// the noisy frames and of the noise-free ones; mean over seeds of the mean over scenes of each
+/// metric (`report::METRICS` order of `metrics`).
+pub(super) fn noise_ceiling(
+    cfg: &AblateConfig,
+    response: &Response,
+    out: &Path,
+    progress: bool,
+) -> Result<[(f64, f64); 4]> {
+    let mut sums = [(0.0, 0.0); 4];
+    for &k in &cfg.seeds {
+        let testset = cfg.testset.dir_for(Some(k));
+        let mut pair = [0.0f64; 8];
+        for (ci, clean) in [false, true].into_iter().enumerate() {
+            let method = TriangleMerge {
+                response: response.clone(),
+                clean,
+            };
+            let dir = out.join(format!("seed{k}/{}", if clean { "clean" } else { "noisy" }));
+            let partial = dir.with_extension("partial");
+            if partial.exists() {
+                std::fs::remove_dir_all(&partial).map_err(|e| Error::io(&partial, e))?;
+            }
+            let sum = evaluate::evaluate(
+                &testset,
+                &method,
+                &partial,
+                &EvalOptions {
+                    progress: false,
+                    ..EvalOptions::default()
+                },
+            )?;
+            if dir.exists() {
+                std::fs::remove_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
+            }
+            std::fs::rename(&partial, &dir).map_err(|e| Error::io(&dir, e))?;
+            for (mi, m) in ["psnr_t", "psnr_l", "ssim_t", "ssim_l"].iter().enumerate() {
+                let v = sum
+                    .summary
+                    .iter()
+                    .find(|x| x.metric == *m)
+                    .map_or(f64::NAN, |x| x.mean);
+                pair[ci * 4 + mi] = v;
+            }
+        }
+        for mi in 0..4 {
+            sums[mi].0 += pair[mi] / cfg.seeds.len() as f64;
+            sums[mi].1 += pair[4 + mi] / cfg.seeds.len() as f64;
+        }
+        if progress {
+            eprintln!(
+                "noise ceiling, seed {k}: triangle merge PSNR-T noisy {:.2} / noise-free {:.2}",
+                pair[0], pair[4]
+            );
+        }
+    }
+    Ok(sums)
+}

@@ -1,0 +1,177 @@
+use super::*;
+use crate::config::parse_toml;
+use crate::experiments::ablate::DiffEntry;
+
+/// The shipped DSLR profile is the 550D's with only its response replaced.
+#[test]
+fn the_dslr_profile_is_the_550d_with_a_gamma_response() {
+    let dslr: SensorProfile =
+        parse_toml(PRETRAIN_PROFILE.1, Path::new("d.toml")).expect("dslr profile parses");
+    assert_eq!(dslr.response, Response::Gamma { gamma: 2.2 });
+    let canon: SensorProfile = parse_toml(
+        include_str!("../../../configs/sensors/canon_eos_550d.toml"),
+        Path::new("c.toml"),
+    )
+    .expect("550D profile parses");
+    assert_eq!(dslr.colour, canon.colour);
+    assert_eq!(dslr.noise, canon.noise);
+    assert_eq!(dslr.levels, canon.levels);
+    assert_eq!(dslr.provenance.noise, canon.provenance.noise);
+}
+
+/// Serialise, parse back: the value the stage will load.
+fn round_trip<T: Serialize + serde::de::DeserializeOwned>(cfg: &T) -> T {
+    let text = toml::to_string(cfg).expect("serialise");
+    parse_toml(&text, Path::new("written.toml")).expect(&text)
+}
+
+/// The configs the main job writes read back to the values it built and validate, for
+/// both presets, and they are the protocol's (docs/protocol.md): five rows with Net_R the
+/// reference, Net_R the target model without colour and noise, per-seed pretraining and
+/// test noise, 24 held-out test scenes at another seed (the full run is too long for the
+/// test suite; its output is in the README).
+#[test]
+fn the_configs_follow_the_protocol_and_read_back() {
+    let root = Path::new("/r");
+    let target = root.join(TARGET_PROFILE.0);
+    for preset in [Preset::Cpu, Preset::Gpu] {
+        let s = sizes(preset);
+        let gen_cfg = generate_config(&s, TRAIN_SCENE_SEED, s.train_sets, s.train_size);
+        assert_eq!(round_trip(&gen_cfg), gen_cfg);
+        gen_cfg.validate().expect("valid generate config");
+        let test_cfg = test_scene_config(&s);
+        test_cfg.validate().expect("valid test scene config");
+        assert_ne!(test_cfg.seed, gen_cfg.seed);
+        assert!(test_cfg.count >= 20, "the protocol needs ≥ 20 test scenes");
+        for seed in s.seeds {
+            let st = Stage {
+                run: root,
+                seed: *seed,
+                profile: &target,
+                isos: &DSLR_ISOS,
+                steps: s.pretrain_steps,
+                lr: s.pretrain_lr,
+                init: None,
+            };
+            let cfg = train_config(&s, s.backend, &root.join("data"), &st);
+            assert_eq!(round_trip(&cfg), cfg);
+            cfg.validate().expect("valid train config");
+            assert_eq!(cfg.run.seed, *seed);
+        }
+        let src = TestSources {
+            scenes: root.join("scenes"),
+            real_radiance: Some(root.join("hdr")),
+            real_capture: Some(root.join("capture")),
+        };
+        let exp = experiment_config(&s, root, &root.join("ft.toml"), &src, &target);
+        assert_eq!(round_trip(&exp), exp);
+        assert_eq!(exp.eval.reference.as_deref(), Some(REFERENCE));
+        let names: Vec<&str> = exp.rows.iter().map(|r| r.name.as_str()).collect();
+        assert_eq!(names, ["net_o", "control", "net_r", "net_p", "net_s"]);
+        let net_r = &exp.rows[2].set["data"];
+        assert_eq!(net_r["noise"].as_str(), Some("none"));
+        assert_eq!(net_r["colour"].as_bool(), Some(false));
+        assert_eq!(
+            net_r["profile"].as_str(),
+            exp.rows[4].set["data"]["profile"].as_str()
+        );
+        assert!(exp.rows[4].set["data"].get("noise").is_none());
+        assert!(exp.testset.noise_per_seed);
+        assert!(
+            exp.pretrained_per_seed
+                .as_deref()
+                .is_some_and(|p| p.contains("{seed}"))
+        );
+        let also: Vec<_> = exp.also.iter().filter_map(|t| t.name.as_deref()).collect();
+        assert_eq!(also, ["real_radiance", "real_capture"]);
+    }
+}
+
+/// Each held-out rendering differs from the target model in one part only.
+#[test]
+fn each_heldout_simulator_changes_one_part_of_the_target_model() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let (_, _, target) = target_profile(None).expect("target");
+    let specs =
+        heldout_testsets(tmp.path(), Path::new("/scenes"), &target, tmp.path()).expect("heldout");
+    let base = crate::data::testset::TestsetOptions {
+        isos: isos(&TARGET_ISOS),
+        evs: vec![-2.0, 0.0, 2.0],
+        ..Default::default()
+    };
+    let mut changed = Vec::new();
+    for t in &specs {
+        let p = SensorProfile::load(t.profile.as_ref().expect("profile")).expect("load");
+        let mut what = Vec::new();
+        if p.response != target.response {
+            what.push(format!("{:?}", p.response));
+        }
+        if p.colour != target.colour || p.noise != target.noise || p.levels != target.levels {
+            what.push("colour/noise/levels".into());
+        }
+        if t.options.noise != base.noise {
+            what.push(format!("{:?}", t.options.noise));
+        }
+        if t.options.metering != base.metering {
+            what.push("metering".into());
+        }
+        assert_eq!(t.options.isos, base.isos);
+        changed.push(what.join(" + "));
+    }
+    assert_eq!(
+        changed,
+        [
+            "Gamma { gamma: 2.2 }",
+            "Filmic",
+            "PoissonGaussian",
+            "metering"
+        ]
+    );
+}
+
+fn diff(mean: f64, lo: f64, hi: f64, wilcoxon: f64, tost: f64, signs: usize) -> DiffEntry {
+    DiffEntry {
+        mean,
+        sign_holds: signs,
+        n_seeds: 3,
+        t: Some(crate::stats::PairedT {
+            n: 24,
+            mean,
+            sd: 1.0,
+            se: 0.2,
+            t: mean / 0.2,
+            p: 0.5,
+            level: 0.95,
+            ci_lower: lo,
+            ci_upper: hi,
+        }),
+        wilcoxon_p: Some(wilcoxon),
+        margin: 0.2,
+        tost_p: Some(tost),
+    }
+}
+
+/// The decision rule of docs/protocol.md on hand-made cases.
+#[test]
+fn the_decision_follows_the_protocol() {
+    let d = |x: DiffEntry| Decision::from_diff(&x, 0.05);
+    assert_eq!(d(diff(0.5, 0.2, 0.8, 0.01, 0.9, 3)), Decision::Better);
+    // One seed against: not "better", and not equivalent either.
+    assert_eq!(d(diff(0.5, 0.2, 0.8, 0.01, 0.9, 2)), Decision::Inconclusive);
+    assert_eq!(d(diff(-0.5, -0.8, -0.2, 0.01, 0.9, 3)), Decision::Worse);
+    // The interval excludes 0 but Wilcoxon does not reject: not decided by the t alone.
+    assert_eq!(d(diff(0.5, 0.2, 0.8, 0.2, 0.9, 3)), Decision::Inconclusive);
+    assert_eq!(
+        d(diff(0.02, -0.1, 0.14, 0.6, 0.01, 2)),
+        Decision::Equivalent
+    );
+    assert_eq!(
+        d(diff(0.02, -0.3, 0.34, 0.6, 0.3, 2)),
+        Decision::Inconclusive
+    );
+    let few = DiffEntry {
+        t: None,
+        ..diff(3.0, 2.0, 4.0, 0.001, 0.9, 3)
+    };
+    assert_eq!(d(few), Decision::Inconclusive);
+}
