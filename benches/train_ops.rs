@@ -70,7 +70,7 @@ fn main() {
         .ok()
         .and_then(|v| v.parse().ok())
         .unwrap_or(3);
-    // `HDRSYNTH_BENCH_CONV=burn`: Burn's conv2d instead of the networks' (src/models/conv.rs).
+    // `HDRSYNTH_BENCH_CONV=burn`: Burn's conv2d instead of the networks' (src/kernels/conv.rs).
     let burn_conv = std::env::var("HDRSYNTH_BENCH_CONV").is_ok_and(|v| v == "burn");
     // `HDRSYNTH_BENCH_CONV=im2col`: the networks' convolutions without Winograd.
     if std::env::var("HDRSYNTH_BENCH_CONV").is_ok_and(|v| v == "im2col") {

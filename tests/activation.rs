@@ -1,4 +1,4 @@
-//! Leaky ReLU (`models::activation`): on flex one op of our own with its own gradient.
+//! Leaky ReLU (`kernels::activation`): on flex one op of our own with its own gradient.
 //! It must give the same bits as Burn's `leaky_relu` and that op's autodiff gradient (the path
 //! it replaces), and the hand-computed values, including the gradient 1 at x = 0.
 #![cfg(feature = "flex")]

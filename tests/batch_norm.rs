@@ -1,4 +1,4 @@
-//! The networks' BatchNorm (`models::batch_norm`): in training mode on flex it is a
+//! The networks' BatchNorm (`kernels::batch_norm`): in training mode on flex it is a
 //! fused kernel of our own; it must equal a hand-computed case and Burn's own
 //! `BatchNorm::forward` (burn-backend's default decomposition, the reference it replaces) in
 //! output, running statistics and gradients, be bit-for-bit repeatable, and leave eval mode to

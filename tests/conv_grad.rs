@@ -1,4 +1,4 @@
-//! The networks' convolution (`models::conv`): on flex its forward pass, input
+//! The networks' convolution (`kernels::conv`): on flex its forward pass, input
 //! gradient and weight gradient are im2col tiles + GEMM of our own; they must equal a
 //! hand-computed case, Burn's own conv2d and its gradients (flex's transposed convolution for
 //! dx, burn-backend's default weight gradient: the references they replace) on the networks'

@@ -1,4 +1,4 @@
-//! Network-1's loss fused into one operation on flex (`train::fused_loss`): it must
+//! Network-1's loss fused into one operation on flex (`kernels::fused_loss`): it must
 //! equal hand-computed values and Burn's composition of the same loss (softmax, gather, log-
 //! softmax … in train/loss.rs) in every reading, forward and gradient, and be bit-for-bit
 //! repeatable on any thread count.

@@ -610,7 +610,7 @@ fn exported_graphs_have_the_promised_structure() {
     }
 }
 
-/// `eval::engine`: a checkpoint run through each engine. `auto` on the CPU
+/// `engine`: a checkpoint run through each engine. `auto` on the CPU
 /// device picks ONNX Runtime when it is there (these tests require it), `burn` forces Burn, and
 /// both agree within the parity tolerance on Network-1's blend weights and Network-2's HDR.
 #[test]

@@ -1,4 +1,4 @@
-//! Reflection padding (`models::pad`): on flex one op of our own with its own
+//! Reflection padding (`kernels::pad`): on flex one op of our own with its own
 //! gradient. It must equal Burn's `pad(PadMode::Reflect)` and that op's autodiff gradient (the
 //! path it replaces) on Network-2's paddings, and hand-computed sums where a pad wraps around.
 #![cfg(feature = "flex")]

@@ -1,4 +1,4 @@
-//! Network-1's 2×2 max-pool (`models::pool`): on flex one op of our own with its own
+//! Network-1's 2×2 max-pool (`kernels::pool`): on flex one op of our own with its own
 //! gradient. It must give the same values and gradient as Burn's `MaxPool2d` (flex's kernel, the
 //! path it replaces), ties and odd sizes included, and the hand-computed case.
 #![cfg(feature = "flex")]

@@ -1,4 +1,4 @@
-//! Winograd F(m×m, r×r) (src/models/winograd.rs) against a direct convolution in f64, and its
+//! Winograd F(m×m, r×r) (src/kernels/winograd.rs) against a direct convolution in f64, and its
 //! Cook–Toom matrices against Lavin & Gray's published F(2, 3).
 #![cfg(feature = "flex")]
 // Matrix entries by index, as the papers write them.
