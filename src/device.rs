@@ -84,7 +84,7 @@ mod wgpu {
                 "device 'wgpu': no usable adapter ({why}). wgpu needs a Vulkan, Metal or DX12 \
                  driver: on Linux the GPU vendor's Vulkan driver, or for a slow CPU one \
                  Debian/Ubuntu's mesa-vulkan-drivers (`vulkaninfo --summary` lists what wgpu \
-                 can see); CUBECL_WGPU_DEFAULT_DEVICE picks among several (docs/training.md)"
+                 can see); CUBECL_WGPU_DEFAULT_DEVICE picks among several (docs/gpu.md)"
             ))),
         }
     }

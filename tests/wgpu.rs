@@ -1,7 +1,7 @@
 //! Burn's wgpu backend (cargo feature `wgpu`) run, not only compiled, and checked against flex.
 //! CI runs these on lavapipe (Mesa's Vulkan driver on the CPU; `.ci/run` installs
 //! `mesa-vulkan-drivers`); on a machine with a GPU and its Vulkan/Metal/DX12 driver they run
-//! there. `cargo test --release --features wgpu,onnx --test wgpu` (docs/training.md).
+//! there. `cargo test --release --features wgpu,onnx --test wgpu` (docs/gpu.md).
 //!
 //! Every other test runs flex, where the layers go through this crate's own kernels
 //! (`models::conv`: im2col, Winograd, polyphase, direct; the fused BatchNorm+ReLU, pooling,
