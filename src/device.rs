@@ -65,11 +65,7 @@ mod wgpu {
                     let info = setup.adapter.get_info();
                     let what = format!(
                         "{} ({:?}, {:?}, driver {} {})",
-                        info.name,
-                        info.backend,
-                        info.device_type,
-                        info.driver,
-                        info.driver_info
+                        info.name, info.backend, info.device_type, info.driver, info.driver_info
                     );
                     (device, what)
                 })
