@@ -6,17 +6,24 @@ use crate::error::{Error, Result};
 pub use burn::tensor::Device;
 
 /// Names accepted: "flex" (default CPU), "ndarray", "tch" / "libtorch" (LibTorch CPU), "wgpu",
-/// "cuda" / "cuda:N".
+/// "cuda" / "cuda:N". Only cuda takes an index: wgpu's adapter is the one wgpu picks for high
+/// performance, or the one `CUBECL_WGPU_DEFAULT_DEVICE` names (e.g. `DiscreteGpu(1)`, `Cpu`).
 pub fn device_from_name(name: &str) -> Result<Device> {
     let (kind, index) = match name.split_once(':') {
         Some((k, i)) => (
             k,
-            i.parse::<usize>()
-                .map_err(|_| Error::Invalid(format!("device '{name}': bad index '{i}'")))?,
+            Some(
+                i.parse::<usize>()
+                    .map_err(|_| Error::Invalid(format!("device '{name}': bad index '{i}'")))?,
+            ),
         ),
-        None => (name, 0),
+        None => (name, None),
     };
-    let _ = index;
+    if index.is_some() && kind != "cuda" {
+        return Err(Error::Invalid(format!(
+            "device '{name}': only cuda takes an index (cuda:N); write '{kind}'"
+        )));
+    }
     match kind {
         #[cfg(feature = "flex")]
         "flex" | "cpu" => Ok(Device::flex()),
@@ -27,14 +34,73 @@ pub fn device_from_name(name: &str) -> Result<Device> {
         #[allow(deprecated)]
         "tch" | "libtorch" => Ok(Device::libtorch()),
         #[cfg(feature = "wgpu")]
-        "wgpu" => Ok(Device::wgpu(burn::tensor::DeviceKind::DefaultDevice)),
+        "wgpu" => wgpu::device(),
         #[cfg(feature = "cuda")]
-        "cuda" => Ok(Device::cuda(index)),
+        "cuda" => Ok(Device::cuda(index.unwrap_or(0))),
         _ => Err(Error::Invalid(format!(
             "device '{name}' is not available in this build (compiled in: {}); \
              enable the cargo feature of the same name",
             compiled_backends().join(", ")
         ))),
+    }
+}
+
+/// wgpu's device, acquired once per process. Burn's `Device::wgpu` acquires its adapter at the
+/// first tensor operation and panics there when there is none; acquiring it here turns a
+/// machine without a usable adapter into an error before anything is built or written.
+#[cfg(feature = "wgpu")]
+mod wgpu {
+    use super::{Device, Error, Result};
+    use std::sync::OnceLock;
+
+    /// The device and its adapter's description, or why there is none.
+    type Acquired = std::result::Result<(Device, String), String>;
+
+    fn acquired() -> &'static Acquired {
+        static DEVICE: OnceLock<Acquired> = OnceLock::new();
+        DEVICE.get_or_init(|| {
+            Device::wgpu_options()
+                .init_with_setup()
+                .map(|(device, setup)| {
+                    let info = setup.adapter.get_info();
+                    let what = format!(
+                        "{} ({:?}, {:?}, driver {} {})",
+                        info.name, info.backend, info.device_type, info.driver, info.driver_info
+                    );
+                    (device, what)
+                })
+                .map_err(|e| e.to_string())
+        })
+    }
+
+    pub fn device() -> Result<Device> {
+        match acquired() {
+            Ok((device, _)) => Ok(device.clone()),
+            Err(why) => Err(Error::Invalid(format!(
+                "device 'wgpu': no usable adapter ({why}). wgpu needs a Vulkan, Metal or DX12 \
+                 driver: on Linux the GPU vendor's Vulkan driver, or for a slow CPU one \
+                 Debian/Ubuntu's mesa-vulkan-drivers (`vulkaninfo --summary` lists what wgpu \
+                 can see); CUBECL_WGPU_DEFAULT_DEVICE picks among several (docs/gpu.md)"
+            ))),
+        }
+    }
+
+    pub fn adapter() -> Option<&'static str> {
+        acquired().as_ref().ok().map(|(_, what)| what.as_str())
+    }
+}
+
+/// The wgpu adapter the device runs on ("llvmpipe (LLVM 15.0.6, 256 bits) (Vulkan, Cpu, …)"),
+/// once `device_from_name("wgpu")` has acquired it; `None` before, without one, or in a build
+/// without the `wgpu` feature.
+pub fn wgpu_adapter() -> Option<&'static str> {
+    #[cfg(feature = "wgpu")]
+    {
+        wgpu::adapter()
+    }
+    #[cfg(not(feature = "wgpu"))]
+    {
+        None
     }
 }
 
@@ -123,6 +189,9 @@ mod tests {
         // [[7,10],[15,22]] sums to 54.
         assert_eq!(s, 54.0);
         assert!(device_from_name("tpu").is_err());
+        // An index only means something for cuda; elsewhere it is refused, not ignored.
+        let err = device_from_name("flex:1").expect_err("index").to_string();
+        assert!(err.contains("only cuda takes an index"), "{err}");
     }
 }
 

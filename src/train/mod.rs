@@ -425,6 +425,11 @@ pub fn train<T: Task + Sync>(
             .map(|d| Ok(device_from_name(d)?.autodiff()))
             .collect::<Result<_>>()?
     };
+    if opts.progress
+        && let Some(adapter) = crate::device::wgpu_adapter()
+    {
+        eprintln!("wgpu adapter: {adapter}");
+    }
     let existing = checkpoint::latest(run)?;
     let (model, optim, start) =
         start_or_resume(task, cfg, opts.resume, &devices[0], existing.as_deref())?;
