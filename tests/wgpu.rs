@@ -4,8 +4,8 @@
 //! there. `cargo test --release --features wgpu,onnx --test wgpu` (docs/gpu.md).
 //!
 //! Every other test runs flex, where the layers go through this crate's own kernels
-//! (`models::conv`: im2col, Winograd, polyphase, direct; the fused BatchNorm+ReLU, pooling,
-//! reflection padding and leaky ReLU; `train::fused_loss`). Each of them is taken only where
+//! (`kernels::conv`: im2col, Winograd, polyphase, direct; the fused BatchNorm+ReLU, pooling,
+//! reflection padding and leaky ReLU; `kernels::fused_loss`). Each of them is taken only where
 //! `device::is_flex` holds, so on wgpu the same model code runs Burn's own operations
 //! ([`wgpu_runs_burns_ops_not_the_flex_kernels`]): these tests compare two implementations of
 //! the networks, from the same weights on the same data. The sizes are chosen so that flex
@@ -29,7 +29,7 @@ use hdrsynth::data::ground_truth::{ClassWeights, MertensWeights};
 use hdrsynth::data::layout;
 use hdrsynth::data::loader::Sample;
 use hdrsynth::device::{device_from_name, is_cpu, is_flex};
-use hdrsynth::eval::engine::{Engine, LoadedNetwork};
+use hdrsynth::engine::{Engine, LoadedNetwork};
 use hdrsynth::eval::infer::{NetworkOptions, network1_frames, network2_frames};
 use hdrsynth::io::{Image, read_image};
 use hdrsynth::models::{BlendUNetConfig, ModelConfig, WuConfig};
@@ -140,8 +140,8 @@ fn wgpu_runs_burns_ops_not_the_flex_kernels() {
         "wgpu adapter: {}",
         hdrsynth::device::wgpu_adapter().expect("acquired")
     );
-    // The one switch every fused flex path checks (models::conv, batch_norm, pool, pad,
-    // activation; train::fused_loss): false on wgpu, so Burn's ops run there.
+    // The one switch every fused flex path checks (kernels::conv, batch_norm, pool, pad,
+    // activation; kernels::fused_loss): false on wgpu, so Burn's ops run there.
     assert!(!is_flex(&dev) && !is_flex(&dev.clone().autodiff()));
     assert!(is_flex(&flex().autodiff()));
     // `Engine::Auto` keeps a wgpu checkpoint in Burn (ONNX Runtime runs on the CPU).
@@ -153,13 +153,13 @@ fn wgpu_runs_burns_ops_not_the_flex_kernels() {
         let a = Tensor::<1>::ones([4], d);
         (l, t, a)
     };
-    let loss = hdrsynth::train::fused_loss::ClassLoss {
+    let loss = hdrsynth::kernels::fused_loss::ClassLoss {
         reading: Network1Reading::Literal,
         sigma: 0.0,
     };
     let on = |d: &Device| {
         let (l, t, a) = inputs(d);
-        hdrsynth::train::fused_loss::class_loss(&l, &t, &a, loss).is_some()
+        hdrsynth::kernels::fused_loss::class_loss(&l, &t, &a, loss).is_some()
     };
     assert!(on(&flex()) && !on(&dev));
     // A device index means nothing for wgpu: refused, not ignored.
