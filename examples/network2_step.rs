@@ -9,13 +9,12 @@
 //! generates into runs/example_data on first use; run from the repository root). Any
 //! Network-2 config works, e.g. configs/net2_finetune.toml once its pretraining has run.
 use anyhow::{Context, Result, bail};
-use burn::optim::AdamConfig;
 use hdrsynth::data::loader::Loader;
 use hdrsynth::device::device_from_name;
 use hdrsynth::models::ModelConfig;
 use hdrsynth::train::config::TrainConfig;
 use hdrsynth::train::task::{Network2, Task};
-use hdrsynth::train::{checkpoint, seeded_init, train_step};
+use hdrsynth::train::{initial_model, optimizer, train_step};
 use std::path::PathBuf;
 use std::sync::Arc;
 
@@ -41,15 +40,10 @@ fn main() -> Result<()> {
     let task = Network2 {
         config: model.clone(),
     };
-    let mut net = seeded_init(&device, cfg.run.seed, || task.init(&device))?;
-    if let Some(init) = cfg.init.as_ref().and_then(|i| i.checkpoint.as_ref()) {
-        net = checkpoint::load_model(net, &checkpoint::resolve(init)?)
-            .with_context(|| format!("[init] checkpoint {}", init.display()))?;
-    }
-    let mut optim = AdamConfig::new()
-        .with_beta_1(cfg.optim.beta1)
-        .with_beta_2(cfg.optim.beta2)
-        .init();
+    // As the trainer starts a new run: seeded weights, then [init]'s weights if any; Adam as
+    // [optim] says.
+    let net = initial_model(&task, &cfg, &device)?;
+    let mut optim = optimizer(&cfg.optim);
 
     let batch = loader.epoch(0).next().context("the dataset is empty")??;
     let (net, before) = train_step(&task, net, &mut optim, cfg.optim.lr, &batch, &device)?;

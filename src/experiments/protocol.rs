@@ -481,21 +481,38 @@ pub fn run(opts: &Options) -> Result<String> {
     Ok(report)
 }
 
-/// The colour × fine-tuning ISO grid and its ISO diagonal.
-fn colour_iso_grid(x: &Setup, report: &mut String) -> Result<()> {
-    let colour_path = x.configs.join("colour_iso.toml");
-    write_config(
-        &colour_path,
-        &colour_iso_config(&x.s, x.out, &x.configs.join("finetune.toml"), &x.target),
-    )?;
-    let colour = AblateConfig::load(&colour_path)?;
-    let summary = ablate::run(&colour, &colour_path, x.progress)
-        .map_err(|e| Error::context("the colour × ISO grid", e))?;
+/// Writes a grid's ablation config to `configs/FILE`, loads it back (validated as a user's file
+/// would be), runs it (resumable) and appends its report under `heading`.
+fn run_grid(
+    x: &Setup,
+    file: &str,
+    cfg: &AblateConfig,
+    what: &str,
+    heading: &str,
+    report: &mut String,
+) -> Result<AblateConfig> {
+    let path = x.configs.join(file);
+    write_config(&path, cfg)?;
+    let grid = AblateConfig::load(&path)?;
+    let summary = ablate::run(&grid, &path, x.progress).map_err(|e| Error::context(what, e))?;
     let _ = write!(
         report,
-        "\n## Colour × fine-tuning ISO (Network-2)\n\n{}\n",
-        ablate::report(&colour, &summary)
+        "\n## {heading}\n\n{}\n",
+        ablate::report(&grid, &summary)
     );
+    Ok(grid)
+}
+
+/// The colour × fine-tuning ISO grid and its ISO diagonal.
+fn colour_iso_grid(x: &Setup, report: &mut String) -> Result<()> {
+    let colour = run_grid(
+        x,
+        "colour_iso.toml",
+        &colour_iso_config(&x.s, x.out, &x.configs.join("finetune.toml"), &x.target),
+        "the colour × ISO grid",
+        "Colour × fine-tuning ISO (Network-2)",
+        report,
+    )?;
     let tables = ablate::write_tables(&colour)?;
     let _ = writeln!(
         report,
@@ -592,16 +609,14 @@ fn network1_grid(x: &Setup, report: &mut String) -> Result<()> {
             },
         ),
     )?;
-    let n1_path = configs.join("network1.toml");
-    write_config(&n1_path, &network1_config(s, out, &base1, &x.target))?;
-    let net1 = AblateConfig::load(&n1_path)?;
-    let summary = ablate::run(&net1, &n1_path, x.progress)
-        .map_err(|e| Error::context("the Network-1 grid", e))?;
-    let _ = write!(
+    let net1 = run_grid(
+        x,
+        "network1.toml",
+        &network1_config(s, out, &base1, &x.target),
+        "the Network-1 grid",
+        "Network-1",
         report,
-        "\n## Network-1\n\n{}\n",
-        ablate::report(&net1, &summary)
-    );
+    )?;
     for &k in s.seeds {
         let cell = net1.out.join(format!("cells/net_s/seed{k}/run"));
         curve_runs.push((format!("Net_S fine-tuning, seed {k}"), cell));
@@ -619,20 +634,15 @@ fn network1_grid(x: &Setup, report: &mut String) -> Result<()> {
 
 /// The scene-referred ground-truth grid (Network-2).
 fn scene_grid(x: &Setup, report: &mut String) -> Result<()> {
-    let scene_path = x.configs.join("scene_target.toml");
-    write_config(
-        &scene_path,
+    run_grid(
+        x,
+        "scene_target.toml",
         &scene_target_config(&x.s, x.out, &x.configs.join("finetune.toml"), &x.target),
-    )?;
-    let scene = AblateConfig::load(&scene_path)?;
-    let summary = ablate::run(&scene, &scene_path, x.progress)
-        .map_err(|e| Error::context("the scene-referred grid", e))?;
-    let _ = write!(
+        "the scene-referred grid",
+        "Ground truth in scene-linear Rec. 709, the target's colour on the inputs only \
+         (Network-2)",
         report,
-        "\n## Ground truth in scene-linear Rec. 709, the target's colour on the inputs only \
-         (Network-2)\n\n{}\n",
-        ablate::report(&scene, &summary)
-    );
+    )?;
     Ok(())
 }
 

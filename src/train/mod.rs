@@ -485,15 +485,7 @@ fn start_or_resume<T: Task>(
 ) -> Result<(T::Model, ModuleOptimizer, u64)> {
     let run = &cfg.run.out;
     let identity = identity_of(cfg)?;
-    let optim = AdamConfig::new()
-        .with_beta_1(cfg.optim.beta1)
-        .with_beta_2(cfg.optim.beta2)
-        .with_epsilon(cfg.optim.epsilon)
-        .with_weight_decay(
-            (cfg.optim.weight_decay > 0.0)
-                .then(|| burn::optim::decay::WeightDecayConfig::new(cfg.optim.weight_decay)),
-        )
-        .init();
+    let optim = optimizer(&cfg.optim);
     match (existing, resume) {
         (Some(dir), true) => {
             let saved = crate::io::guard::read_text(&run.join(RUN_CONFIG))?;
@@ -527,38 +519,56 @@ fn start_or_resume<T: Task>(
                 dir.display()
             ),
         )),
-        (None, false) => {
-            let mut model = seeded_init(device, cfg.run.seed, || task.init(device))?;
-            if let Some(path) = cfg.init.as_ref().and_then(|i| i.safetensors.as_ref()) {
-                model = crate::models::import::import_weights(model, path)?;
-            }
-            if let Some(init) = cfg.init.as_ref().and_then(|i| i.checkpoint.as_ref()) {
-                let own = crate::io::guard::resolve(run)?;
-                if crate::io::guard::resolve(init)?.starts_with(&own) {
-                    return Err(Error::Invalid(format!(
-                        "init.checkpoint {} lies in this run's own output folder (run.out = {}): \
-                         fine-tuning starts from another run's checkpoint",
-                        init.display(),
-                        run.display()
-                    )));
-                }
-                let dir = checkpoint::resolve(init)?;
-                let state = checkpoint::read_state(&dir)?;
-                if state.model != task.model_config() {
-                    return Err(Error::config(
-                        dir.join(checkpoint::STATE_FILE),
-                        format!(
-                            "init checkpoint holds {:?}, the config asks for {:?}",
-                            state.model,
-                            task.model_config()
-                        ),
-                    ));
-                }
-                model = checkpoint::load_model(model, &dir)?;
-            }
-            Ok((model, optim, 0))
-        }
+        (None, false) => Ok((initial_model(task, cfg, device)?, optim, 0)),
     }
+}
+
+/// Adam as `[optim]` configures it (the trainer's optimiser, fresh).
+pub fn optimizer(cfg: &config::OptimConfig) -> ModuleOptimizer {
+    AdamConfig::new()
+        .with_beta_1(cfg.beta1)
+        .with_beta_2(cfg.beta2)
+        .with_epsilon(cfg.epsilon)
+        .with_weight_decay(
+            (cfg.weight_decay > 0.0)
+                .then(|| burn::optim::decay::WeightDecayConfig::new(cfg.weight_decay)),
+        )
+        .init()
+}
+
+/// A new run's model: seeded initialisation, then `[init]`'s SafeTensors weights and/or
+/// checkpoint (another run's, holding the same model).
+pub fn initial_model<T: Task>(task: &T, cfg: &TrainConfig, device: &Device) -> Result<T::Model> {
+    let run = &cfg.run.out;
+    let mut model = seeded_init(device, cfg.run.seed, || task.init(device))?;
+    if let Some(path) = cfg.init.as_ref().and_then(|i| i.safetensors.as_ref()) {
+        model = crate::models::import::import_weights(model, path)?;
+    }
+    if let Some(init) = cfg.init.as_ref().and_then(|i| i.checkpoint.as_ref()) {
+        let own = crate::io::guard::resolve(run)?;
+        if crate::io::guard::resolve(init)?.starts_with(&own) {
+            return Err(Error::Invalid(format!(
+                "init.checkpoint {} lies in this run's own output folder (run.out = {}): \
+                 fine-tuning starts from another run's checkpoint",
+                init.display(),
+                run.display()
+            )));
+        }
+        let dir = checkpoint::resolve(init)?;
+        let state = checkpoint::read_state(&dir)?;
+        if state.model != task.model_config() {
+            return Err(Error::config(
+                dir.join(checkpoint::STATE_FILE),
+                format!(
+                    "init checkpoint holds {:?}, the config asks for {:?}",
+                    state.model,
+                    task.model_config()
+                ),
+            ));
+        }
+        model = checkpoint::load_model(model, &dir)?;
+    }
+    Ok(model)
 }
 
 /// The fixed held-out samples scored every `every` steps, and the task's baseline scores on
