@@ -5,7 +5,7 @@
 //! 2.32 / TIFF 6.0 specifications, independent of the crate's reader); the oracle values are
 //! the hand-known exposure times written into them.
 
-use hdrsynth::data::bracket_testset::{self, BracketOptions, ResponseChoice};
+use hdrsynth::data::bracket_testset::{self, BracketOptions, EncodeSpec, ResponseChoice};
 use hdrsynth::data::brackets::{self, ScanOptions};
 use hdrsynth::sensor::profile::Response;
 use image::ExtendedColorType;
@@ -193,7 +193,7 @@ fn assert_close(a: &[f64], b: &[f64], tol: f64) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Item 1: reading bracket folders.
+// Reading bracket folders.
 
 #[test]
 fn exif_exposure_time_iso_and_fnumber_are_read_from_a_jpeg() {
@@ -393,6 +393,8 @@ fn a_corrupt_jpeg_is_an_error_naming_it_not_a_panic() {
         scan: ScanOptions::default(),
         response: ResponseChoice::Declared(Response::Srgb),
         align: None,
+        // Written as the field's linear^(1/2.2), which the hand merges below read with γ 2.2.
+        encode: EncodeSpec::Field,
         ..BracketOptions::default()
     };
     let beside = tempfile::tempdir().expect("tmp"); // outputs inside the input are refused
@@ -403,7 +405,7 @@ fn a_corrupt_jpeg_is_an_error_naming_it_not_a_panic() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Item 4: the Kalantari-layout test set and its ground truth.
+// The Kalantari-layout test set and its ground truth.
 
 /// An EV −2/0/+2 bracket (1/400, 1/100, 1/25 s) in one sub-folder.
 fn bracket_folder(root: &Path) -> PathBuf {
@@ -442,6 +444,8 @@ fn the_ground_truth_is_the_triangle_merge_of_the_written_frames() {
         scan: ScanOptions::default(),
         response: ResponseChoice::Declared(Response::Srgb),
         align: None,
+        // Written as the field's linear^(1/2.2), which the hand merges below read with γ 2.2.
+        encode: EncodeSpec::Field,
         ..BracketOptions::default()
     };
     // An output inside the bracket folder is refused before anything is written (a rerun
@@ -560,6 +564,8 @@ fn the_bracket_test_set_reads_as_kalantari_and_eval_scores_it() {
         scan: ScanOptions::default(),
         response: ResponseChoice::Declared(Response::Srgb),
         align: None,
+        // Written as the field's linear^(1/2.2), which the hand merges below read with γ 2.2.
+        encode: EncodeSpec::Field,
         ..BracketOptions::default()
     };
     bracket_testset::build(tmp.path(), &opts, &out).expect("build");
@@ -616,7 +622,7 @@ fn the_bracket_test_set_reads_as_kalantari_and_eval_scores_it() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Item 2: the response from the brackets, against OpenCV (tools/crf_oracle.py).
+// The response from the brackets, against OpenCV (tools/crf_oracle.py).
 
 fn oracle_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/brackets")
@@ -752,7 +758,7 @@ fn robertson_response_matches_opencv_calibrate_robertson() {
 const ROBERTSON_TOL: f64 = 1e-5;
 
 // ---------------------------------------------------------------------------------------------
-// Item 3: MTB alignment, against OpenCV AlignMTB (tools/crf_oracle.py).
+// MTB alignment, against OpenCV AlignMTB (tools/crf_oracle.py).
 
 #[test]
 fn mtb_recovers_known_shifts_as_opencv_align_mtb_does() {
@@ -793,6 +799,11 @@ fn mtb_recovers_known_shifts_as_opencv_align_mtb_does() {
 // a tiny Network-2 checkpoint and of a tiny Network-1 checkpoint on the written set.
 
 fn train_tiny(run: &Path, model: &str, evs: &str) {
+    train_tiny_with(run, model, evs, "profile = \"pure\"");
+}
+
+/// [`train_tiny`] with `realism` as the `[data]` lines of the sensor model.
+fn train_tiny_with(run: &Path, model: &str, evs: &str, realism: &str) {
     use hdrsynth::config::parse_toml;
     use hdrsynth::data::generate::GenerateConfig;
     use hdrsynth::train::TrainOptions;
@@ -807,7 +818,7 @@ fn train_tiny(run: &Path, model: &str, evs: &str) {
     let text = format!(
         "[run]\nout = {run:?}\nseed = 4\nsteps = 2\ncheckpoint_every = 2\nlog_every = 1\n\
          [model]\n{model}\n\
-         [data]\ndataset = {data:?}\npatch = 32\nbatch_size = 2\nworkers = 1\nprofile = \"pure\"\n\
+         [data]\ndataset = {data:?}\npatch = 32\nbatch_size = 2\nworkers = 1\n{realism}\n\
          [optim]\nlr = 1e-3\n"
     );
     let cfg: TrainConfig = parse_toml(&text, Path::new("train.toml")).expect("config");
@@ -992,11 +1003,26 @@ fn dng_brackets_are_linear_raw_with_exif_exposures() {
         // Ignored for DNG frames: they are linear.
         response: ResponseChoice::Declared(Response::Srgb),
         align: None,
+        // `--encode auto`: a raw has no device curve, so the field's linear^(1/2.2).
         ..BracketOptions::default()
     };
     let beside = tempfile::tempdir().expect("tmp"); // outputs inside the input are refused
     let built =
         bracket_testset::build(tmp.path(), &opts, &beside.path().join("out")).expect("build");
+    let enc = std::fs::read_to_string(beside.path().join("out/encoding.toml")).expect("encoding");
+    assert!(
+        enc.contains("kind = \"gamma\"") && enc.contains("gamma = 2.2"),
+        "{enc}"
+    );
+    // Device codes of a raw do not exist: refused, naming a frame.
+    let device = BracketOptions {
+        encode: EncodeSpec::Device,
+        ..opts.clone()
+    };
+    let e = bracket_testset::build(tmp.path(), &device, &beside.path().join("out2"))
+        .expect_err("device codes of a DNG")
+        .to_string();
+    assert!(e.contains(".dng") && e.contains("linear raw"), "{e}");
     assert!(
         built.sets[0].response.contains("linear raw"),
         "{}",
@@ -1318,7 +1344,7 @@ fn frames_of_one_set_with_different_orientations_are_refused_naming_them() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Item 5: `diagnose --brackets`: a bracket folder as scene bursts (response and exposure-ratio
+// `diagnose --brackets`: a bracket folder as scene bursts (response and exposure-ratio
 // checks). The truth here is this test's own camera: radiance × exposure time, an optional
 // hidden power-law response before the sRGB encoding, and an optional frame whose true exposure
 // differs from the one written into its EXIF.
@@ -1526,6 +1552,8 @@ fn testset_with_robertson_records_the_estimator_and_writes_its_curve() {
         scan: ScanOptions::default(),
         response: ResponseChoice::Robertson(RobertsonOptions::default()),
         align: None,
+        // Written as the field's linear^(1/2.2), which the hand merges below read with γ 2.2.
+        encode: EncodeSpec::Field,
         ..BracketOptions::default()
     };
     let beside = tempfile::tempdir().expect("tmp"); // outputs inside the input are refused
@@ -1577,6 +1605,7 @@ fn srgb_opts(inputs: InputChoice, gt_frames: GtFrames) -> BracketOptions {
         response: ResponseChoice::Declared(Response::Srgb),
         inputs,
         gt_frames,
+        encode: EncodeSpec::Field,
         ..BracketOptions::default()
     }
 }
@@ -2082,14 +2111,36 @@ fn canon_550d_room_builds_with_auto_inputs_and_the_ground_truth_from_all_frames(
     // In eval's unit (1 = the reference's white, factor 2^s_reference) the ground truth agrees
     // with the reference where that frame is well exposed (its JPEG codes 16–249, clear of the
     // estimated response's toe and shoulder), and is at or above its white where it clipped.
+    // The inputs hold the camera's own codes (`--encode auto`), linearised here per channel by
+    // the Debevec estimate the ground truth was merged with (crf_debevec.csv: exp g(z),
+    // running maximum, 1 at code 255).
+    let rows = read_csv_rows(&out.join("crf_debevec.csv"));
+    let tables: Vec<Vec<f64>> = (1..4)
+        .map(|c| {
+            let mut run = 0.0f64;
+            let raw: Vec<f64> = rows
+                .iter()
+                .map(|r| {
+                    run = run.max(r[c]);
+                    run
+                })
+                .collect();
+            raw.iter().map(|v| (v / raw[255]).min(1.0)).collect()
+        })
+        .collect();
     let (_, _, reference) = read_u16_tiff(&set.join("frame_2.tif"));
     let ref_src = frames[1]["source"].as_str().expect("source");
     let ref_codes = image::open(ref_src).expect("jpeg").to_rgb8().into_raw();
     let scale = expo[1].exp2();
     let (mut ratios, mut clipped) = (Vec::new(), Vec::new());
-    for ((r, g), &z) in reference.iter().zip(&gt).zip(&ref_codes) {
+    for (k, ((r, g), &z)) in reference.iter().zip(&gt).zip(&ref_codes).enumerate() {
+        assert_eq!(
+            (r * 255.0).round() as u8,
+            z,
+            "the written reference holds the JPEG codes"
+        );
         match z {
-            16..=249 => ratios.push(g * scale / r.powf(2.2)),
+            16..=249 => ratios.push(g * scale / tables[k % 3][z as usize]),
             255 => clipped.push(g * scale),
             _ => {}
         }
@@ -2134,5 +2185,222 @@ fn canon_550d_room_builds_with_auto_inputs_and_the_ground_truth_from_all_frames(
     assert!(
         max > 2.0,
         "brightest ground truth {max} × the reference's white"
+    );
+}
+
+// ---------------------------------------------------------------------------------------------
+// The written inputs' encoding (`--encode`) and eval's check against a network's training
+// frames.
+
+/// The 8-bit codes of a JPEG of `bracket_folder`.
+fn jpeg_codes(path: &Path) -> Vec<f64> {
+    let img = image::open(path).expect("jpeg").to_rgb8();
+    img.into_raw().iter().map(|&v| f64::from(v)).collect()
+}
+
+/// A copy of the composite phone profile with its device response replaced by `response`
+/// (TOML lines of the `[response]` table).
+fn profile_with_response(dir: &Path, response: &str) -> PathBuf {
+    let shipped =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/sensors/composite_phone.toml");
+    let text = std::fs::read_to_string(shipped).expect("profile");
+    assert!(text.contains("[response]\nkind = \"srgb\"\n"));
+    let p = dir.join(format!("phone_{}.toml", response.len()));
+    let new = text.replace(
+        "[response]\nkind = \"srgb\"\n",
+        &format!("[response]\n{response}\n"),
+    );
+    std::fs::write(&p, new).expect("write profile");
+    p
+}
+
+#[test]
+fn written_inputs_keep_the_device_codes_or_take_a_named_curve_and_the_ground_truth_stays() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let src = bracket_folder(tmp.path());
+    let beside = tempfile::tempdir().expect("tmp");
+    let gamma18 = profile_with_response(beside.path(), "kind = \"gamma\"\ngamma = 1.8");
+    let srgb_profile = profile_with_response(beside.path(), "kind = \"srgb\"");
+    let build = |encode: EncodeSpec, name: &str| -> PathBuf {
+        let opts = BracketOptions {
+            response: ResponseChoice::Declared(Response::Srgb),
+            encode,
+            ..BracketOptions::default()
+        };
+        let out = beside.path().join(name);
+        bracket_testset::build(tmp.path(), &opts, &out).expect("build");
+        out
+    };
+    let auto = build(EncodeSpec::Auto, "auto");
+    let field = build(EncodeSpec::Field, "field");
+    let g18 = build(EncodeSpec::Profile(gamma18), "g18");
+    let same = build(EncodeSpec::Profile(srgb_profile), "srgb");
+    // Inputs by exposure: 1/400 (IMG_1), 1/100 (IMG_0), 1/25 s (IMG_2).
+    let inputs = ["IMG_1.jpg", "IMG_0.jpg", "IMG_2.jpg"];
+    let srgb_decode = |v: f64| {
+        if v <= 0.04045 {
+            v / 12.92
+        } else {
+            ((v + 0.055) / 1.055).powf(2.4)
+        }
+    };
+    for (k, jpeg) in inputs.iter().enumerate() {
+        let codes = jpeg_codes(&src.join(jpeg));
+        let frame = format!("scene1/frame_{}.tif", k + 1);
+        // auto = device for JPEGs: the JPEG's own codes, 8 bits widened to 16 exactly (×257).
+        let (_, _, dev) = read_u16_tiff(&auto.join(&frame));
+        for (d, c) in dev.iter().zip(&codes) {
+            assert!((d * 255.0 - c).abs() < 1e-9, "{frame}: {d} vs code {c}");
+        }
+        // field: sRGB decoded by hand, then L^(1/2.2); profile γ 1.8: L^(1/1.8); 16-bit codes.
+        for (dir, g) in [(&field, 2.2), (&g18, 1.8)] {
+            let (_, _, v) = read_u16_tiff(&dir.join(&frame));
+            for (got, c) in v.iter().zip(&codes) {
+                let want = srgb_decode(c / 255.0).powf(1.0 / g);
+                assert!(
+                    (got - want).abs() <= 0.6 / 65535.0,
+                    "{frame} γ {g}: {got} vs {want}"
+                );
+            }
+        }
+        // Re-encoded with the device's true curve: its own codes again.
+        let (_, _, v) = read_u16_tiff(&same.join(&frame));
+        for (got, c) in v.iter().zip(&codes) {
+            assert!(
+                (got * 255.0 - c).abs() < 255.0 / 65535.0,
+                "{frame}: {got} vs {c}"
+            );
+        }
+    }
+    // The ground truth comes from the linearised frames, whatever the inputs' encoding.
+    let gt = std::fs::read(field.join("scene1/HDRImg.hdr")).expect("gt");
+    for dir in [&auto, &g18, &same] {
+        assert_eq!(
+            std::fs::read(dir.join("scene1/HDRImg.hdr")).expect("gt"),
+            gt
+        );
+    }
+    // The record: the curve each set of inputs holds.
+    let enc = |dir: &Path| {
+        hdrsynth::data::encoding::of_testset(dir)
+            .expect("read")
+            .expect("some")
+    };
+    assert_eq!(enc(&auto).response, Response::Srgb);
+    assert_eq!(enc(&field).response, Response::Gamma { gamma: 2.2 });
+    assert_eq!(enc(&g18).response, Response::Gamma { gamma: 1.8 });
+    let record = std::fs::read_to_string(auto.join("scene1/brackets.toml")).expect("record");
+    assert!(
+        record.contains("encoding = \"srgb (the device's own codes"),
+        "{record}"
+    );
+}
+
+#[test]
+fn an_estimated_response_is_recorded_as_the_curve_of_the_device_codes() {
+    // Debevec from the test's sRGB JPEGs: the recorded curve maps linear (1 = the estimate's
+    // code-255 white) to code, the mean over channels of the inverse of crf_debevec.csv's
+    // curves, computed here by hand from that file: running maximum of exp g(z) over codes,
+    // divided by its value at 255, inverted by linear interpolation between codes.
+    let tmp = tempfile::tempdir().expect("tmp");
+    bracket_folder(tmp.path());
+    let beside = tempfile::tempdir().expect("tmp");
+    let out = beside.path().join("out");
+    bracket_testset::build(tmp.path(), &BracketOptions::default(), &out).expect("build");
+    let e = hdrsynth::data::encoding::of_testset(&out)
+        .expect("read")
+        .expect("some");
+    assert!(e.source.contains("Debevec"), "{}", e.source);
+    let rows = read_csv_rows(&out.join("crf_debevec.csv"));
+    assert_eq!(rows.len(), 256);
+    let tables: Vec<Vec<f64>> = (1..4)
+        .map(|c| {
+            let mut run = 0.0f64;
+            let raw: Vec<f64> = rows
+                .iter()
+                .map(|r| {
+                    run = run.max(r[c]);
+                    run
+                })
+                .collect();
+            raw.iter().map(|v| (v / raw[255]).min(1.0)).collect()
+        })
+        .collect();
+    let inverse = |t: &[f64], x: f64| -> f64 {
+        if x <= t[0] {
+            return 0.0;
+        }
+        let z = (1..256).find(|&z| t[z] >= x).unwrap_or(255);
+        let f = if t[z] > t[z - 1] {
+            (x - t[z - 1]) / (t[z] - t[z - 1])
+        } else {
+            1.0
+        };
+        ((z - 1) as f64 + f) / 255.0
+    };
+    let mut worst = 0.0f64;
+    // On the curve's own 1024 + 1 sample points, where it is the inverse itself.
+    for i in 0..=1024 {
+        let x = i as f64 / 1024.0;
+        let want = tables.iter().map(|t| inverse(t, x)).sum::<f64>() / 3.0;
+        worst = worst.max((e.response.apply(x) - want).abs());
+    }
+    assert!(worst < 1e-9, "{worst}");
+}
+
+#[test]
+fn eval_warns_when_a_network_meets_a_curve_it_was_not_trained_on() {
+    use hdrsynth::engine::method::from_checkpoint;
+    use hdrsynth::eval::evaluate::{self, EvalOptions};
+    use hdrsynth::eval::infer::NetworkOptions;
+    let tmp = tempfile::tempdir().expect("tmp");
+    bracket_folder(tmp.path());
+    let beside = tempfile::tempdir().expect("tmp");
+    let testset = |encode: EncodeSpec, name: &str| -> PathBuf {
+        let opts = BracketOptions {
+            response: ResponseChoice::Declared(Response::Srgb),
+            encode,
+            ..BracketOptions::default()
+        };
+        let out = beside.path().join(name);
+        bracket_testset::build(tmp.path(), &opts, &out).expect("build");
+        out
+    };
+    let device_set = testset(EncodeSpec::Device, "device");
+    let field_set = testset(EncodeSpec::Field, "field");
+    // Fine-tuned on the composite phone, whose device response is sRGB, as the JPEGs'.
+    let phone = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/sensors/composite_phone.toml");
+    let run = beside.path().join("phone_run");
+    train_tiny_with(
+        &run,
+        "kind = \"wu\"\nbase_width = 4\nres_blocks = 1",
+        "[-2.0, 0.0, 2.0]",
+        &format!("profile = {phone:?}\nisos = [100.0]"),
+    );
+    let device = hdrsynth::device::device_from_name("flex").expect("flex");
+    let method = from_checkpoint(&run, &NetworkOptions::default(), &device).expect("load");
+    let trained = method
+        .trained_encoding()
+        .expect("the run records its profile");
+    assert_eq!(trained.response, Response::Srgb);
+    let eval = |set: &Path, name: &str| {
+        evaluate::evaluate(
+            set,
+            method.as_ref(),
+            &beside.path().join(name),
+            &EvalOptions::default(),
+        )
+        .expect("eval")
+    };
+    let same = eval(&device_set, "e_device");
+    assert!(same.warnings.is_empty(), "{:?}", same.warnings);
+    let other = eval(&field_set, "e_field");
+    assert_eq!(other.warnings.len(), 1, "{:?}", other.warnings);
+    let w = &other.warnings[0];
+    assert!(w.contains("srgb") && w.contains("gamma 2.2"), "{w}");
+    let md = std::fs::read_to_string(beside.path().join("e_field/summary.md")).expect("md");
+    assert!(
+        md.contains("## Warnings") && md.contains("gamma 2.2"),
+        "{md}"
     );
 }

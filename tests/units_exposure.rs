@@ -31,7 +31,7 @@ fn loader(dir: &Path, kind: &str, realism: &str) -> Loader {
     Loader::new(&cfg).expect("loader")
 }
 
-/// Item 2: a pure-mode Network-2 target is hdr_gt in units of the reference frame's white.
+/// A pure-mode Network-2 target is hdr_gt in units of the reference frame's white.
 /// The engine's EV0 display white is the filmic curve's clipping point (7.24 engine units), so
 /// target = hdr_gt / 7.24 (before, the target was hdr_gt itself: 7.24× too large).
 #[test]
@@ -58,7 +58,7 @@ fn pure_network2_targets_are_in_units_of_the_reference_white() {
     assert!(worst < 1e-5, "relative error {worst}");
 }
 
-/// Item 4: realism starts from the linear EXRs. An EV0 highlight ramp 3.0 … 7.2 engine units
+/// Realism starts from the linear EXRs. An EV0 highlight ramp 3.0 … 7.2 engine units
 /// occupies filmic display codes ~250–255 (a handful of 8-bit levels); metered (log-average →
 /// 0.128 of white, k ≈ 0.027) it lands at ~0.08–0.19 of sensor white, which a 10-bit raw and an
 /// 8-bit sRGB output resolve into dozens of codes. Reading the display PNGs (the old path)
@@ -129,7 +129,7 @@ fn realism_reads_the_linear_frames_not_the_posterised_display_frames() {
     assert!(codes.iter().all(|&c| c < 250), "{codes:?}");
 }
 
-/// Item 5: the test set is exposed by the auto-exposure rule. A scene of 0.1 with a sun of
+/// The test set is exposed by the auto-exposure rule. A scene of 0.1 with a sun of
 /// 1000 on 1.5 % of the pixels: the old rule (99th percentile at 0.9 of white) put the sun's
 /// percentile at 0.9 and the scene at 9e-5 of white (≈ 98 % of the EV0 frame black); average
 /// metering with a 2 % clipping budget lets the sun clip and puts the log-average,

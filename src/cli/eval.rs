@@ -120,7 +120,12 @@ impl Args {
 pub fn run(args: &Args) -> Result<String> {
     let method = method_for(&args.source()?)?;
     let r = evaluate(&args.testset, method.as_ref(), &args.out, &args.options())?;
-    let mut s = format!(
+    let mut s = String::new();
+    for w in &r.warnings {
+        let _ = writeln!(s, "warning: {w}\n");
+    }
+    let _ = write!(
+        s,
         "{} set(s) scored in {:.1} s; {}\n\n{}",
         r.rows.len(),
         r.seconds,

@@ -5,7 +5,7 @@
 
 use crate::data::align::MtbOptions;
 use crate::data::bracket_testset::{
-    self, BracketOptions, GtFrames, InputChoice, ResponseChoice, ResponseSpec,
+    self, BracketOptions, EncodeSpec, GtFrames, InputChoice, ResponseChoice, ResponseSpec,
 };
 use crate::data::brackets::ScanOptions;
 use crate::data::testset::{self, TestsetOptions, TestsetSummary};
@@ -54,6 +54,12 @@ pub struct Args {
     /// --brackets: ground truth from the inputs (Kalantari's merge) or all frames of the set.
     #[arg(long, default_value = "inputs")]
     pub gt_frames: GtFrames,
+    /// --brackets: how the written inputs encode their linear signal: auto (device for
+    /// JPEG/PNG/TIFF, field for DNG), device (the frames' own codes), field (linear^(1/2.2)) or
+    /// profile:PATH (re-encoded with that profile's device response). Recorded in
+    /// OUT/encoding.toml; `eval` warns when a network was trained on another curve.
+    #[arg(long, default_value = "auto")]
+    pub encode: EncodeSpec,
     /// Output folder (hdrsynth layout; an interrupted run resumes).
     #[arg(long)]
     pub out: PathBuf,
@@ -149,6 +155,7 @@ pub fn bracket_options(args: &Args) -> Result<BracketOptions> {
         align: args.align.then(MtbOptions::default),
         inputs: args.inputs.clone().unwrap_or_default(),
         gt_frames: args.gt_frames,
+        encode: args.encode.clone(),
     })
 }
 

@@ -174,20 +174,33 @@ pub fn mtb_shift(reference: &Image, img: &Image, opts: MtbOptions) -> (i32, i32)
 /// Crop every frame to the region all of them cover once frame i is moved by `shifts[i]`
 /// (out(x, y) = frame(x − dx, y − dy)); returns the cropped frames.
 pub fn apply_shifts(frames: &[Image], shifts: &[(i32, i32)]) -> Vec<Image> {
-    let (w, h) = (frames[0].width as i32, frames[0].height as i32);
+    let region = common_region(frames[0].width, frames[0].height, shifts);
+    frames
+        .iter()
+        .zip(shifts)
+        .map(|(f, &s)| crop_shifted(f, s, region))
+        .collect()
+}
+
+/// The region (x0, y0, width, height), in reference coordinates, that frames of size w×h
+/// shifted by `shifts` all cover.
+pub fn common_region(w: usize, h: usize, shifts: &[(i32, i32)]) -> (i32, i32, usize, usize) {
+    let (w, h) = (w as i32, h as i32);
     // In reference coordinates, frame i covers x ∈ [dx, w + dx).
     let x0 = shifts.iter().map(|s| s.0).max().unwrap_or(0).max(0);
     let x1 = shifts.iter().map(|s| w + s.0).min().unwrap_or(w).min(w);
     let y0 = shifts.iter().map(|s| s.1).max().unwrap_or(0).max(0);
     let y1 = shifts.iter().map(|s| h + s.1).min().unwrap_or(h).min(h);
-    let (cw, ch) = ((x1 - x0).max(0) as usize, (y1 - y0).max(0) as usize);
-    frames
-        .iter()
-        .zip(shifts)
-        .map(|(f, &(dx, dy))| {
-            Image::from_fn(cw, ch, |x, y| {
-                f.get((x as i32 + x0 - dx) as usize, (y as i32 + y0 - dy) as usize)
-            })
-        })
-        .collect()
+    (x0, y0, (x1 - x0).max(0) as usize, (y1 - y0).max(0) as usize)
+}
+
+/// `frame`, shifted by (dx, dy), cropped to `region` ([`common_region`]).
+pub fn crop_shifted(
+    frame: &Image,
+    (dx, dy): (i32, i32),
+    (x0, y0, cw, ch): (i32, i32, usize, usize),
+) -> Image {
+    Image::from_fn(cw, ch, |x, y| {
+        frame.get((x as i32 + x0 - dx) as usize, (y as i32 + y0 - dy) as usize)
+    })
 }

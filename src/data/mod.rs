@@ -4,6 +4,7 @@ pub mod bracket_captures;
 pub mod bracket_testset;
 pub mod brackets;
 pub mod class_maps;
+pub mod encoding;
 pub mod generate;
 pub mod ground_truth;
 pub mod layout;

@@ -3,6 +3,7 @@
 //! [`Method`]s.
 
 use super::{LoadedNetwork, Network};
+use crate::data::encoding::FrameEncoding;
 use crate::error::{Error, Result};
 use crate::eval::evaluate::{Method, Network1, Network2, NetworkOptions, Predictions};
 use burn::tensor::Device;
@@ -16,7 +17,56 @@ pub fn from_checkpoint(
     device: &Device,
 ) -> Result<Box<dyn Method>> {
     let net = LoadedNetwork::from_checkpoint(path, opts, device)?;
-    Ok(from_network(net, opts))
+    // The run folder holds the config that says what the training frames were encoded with.
+    let run = net
+        .source
+        .parent()
+        .and_then(Path::parent)
+        .map(Path::to_path_buf);
+    let encoding = match run {
+        Some(run) if run.join(crate::train::RUN_CONFIG).is_file() => {
+            crate::train::config::run_frame_encoding(&run).map_err(|e| e.to_string())
+        }
+        _ => Ok(None),
+    };
+    Ok(Box::new(Trained {
+        method: from_network(net, opts),
+        encoding,
+    }))
+}
+
+/// A checkpoint's method with its run's training encoding (or why it could not be read).
+struct Trained {
+    method: Box<dyn Method>,
+    encoding: std::result::Result<Option<FrameEncoding>, String>,
+}
+
+impl Method for Trained {
+    fn describe(&self, opts: &crate::eval::evaluate::EvalOptions) -> String {
+        match &self.encoding {
+            Ok(_) => self.method.describe(opts),
+            Err(e) => format!(
+                "{}; its training frames' encoding could not be read: {e}",
+                self.method.describe(opts)
+            ),
+        }
+    }
+
+    fn missing(&self, set: &crate::data::layout::SetInfo) -> Option<String> {
+        self.method.missing(set)
+    }
+
+    fn run(
+        &self,
+        set: &crate::data::layout::SetInfo,
+        opts: &crate::eval::evaluate::EvalOptions,
+    ) -> Result<crate::eval::evaluate::Outcome> {
+        self.method.run(set, opts)
+    }
+
+    fn trained_encoding(&self) -> Option<&FrameEncoding> {
+        self.encoding.as_ref().ok().and_then(Option::as_ref)
+    }
 }
 
 /// What `hdrsynth eval` scores.

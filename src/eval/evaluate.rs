@@ -19,6 +19,7 @@
 //! Memory: one set at a time; per set at most about four full-size images live at once (output,
 //! reference and, for Network-1, their tone-mapped copies), plus the tiled inference's own.
 
+use crate::data::encoding::{self, FrameEncoding};
 use crate::data::ground_truth::{self, MertensWeights};
 use crate::data::layout::{self, SetInfo};
 use crate::data::scene::ev_tag;
@@ -108,6 +109,11 @@ pub trait Method {
         None
     }
     fn run(&self, set: &SetInfo, opts: &EvalOptions) -> Result<Outcome>;
+    /// The curve of the frames the method was trained on, where known (a checkpoint's run):
+    /// compared with the test set's ([`crate::data::encoding`]).
+    fn trained_encoding(&self) -> Option<&FrameEncoding> {
+        None
+    }
 }
 
 /// Display frames of a set for the grid: the dynamic frames (what a network sees), else the
@@ -187,6 +193,9 @@ pub struct EvalSummary {
     /// (set, what was looked for) of sets skipped with `allow_missing`.
     pub missing: Vec<(String, String)>,
     pub notes: Vec<String>,
+    /// Why the scores may not mean what they seem: a network scored on frames encoded with a
+    /// curve other than its training frames'.
+    pub warnings: Vec<String>,
     pub seconds: f64,
 }
 
@@ -213,6 +222,7 @@ pub fn evaluate(
     }
     let began = Instant::now();
     let info = layout::detect(testset)?;
+    let (warnings, mut notes) = encoding_check(method, testset)?;
     let mut missing = Vec::new();
     let mut sets = Vec::new();
     for set in &info.sets {
@@ -257,7 +267,6 @@ pub fn evaluate(
         ProgressBar::hidden()
     };
     let mut rows = Vec::new();
-    let mut notes = Vec::new();
     for set in sets {
         bar.set_message(set.name.clone());
         let row = evaluate_set(set, method, out, opts, &mut notes)?;
@@ -278,6 +287,7 @@ pub fn evaluate(
         summary,
         missing,
         notes,
+        warnings,
         seconds: began.elapsed().as_secs_f64(),
     };
     report::write_text(&out.join(PER_IMAGE), &report::per_image_csv(&result.rows))?;
@@ -289,6 +299,27 @@ pub fn evaluate(
     report::write_text(&out.join(REPORT), &report_md(&result, testset, opts))?;
     staged.commit()?;
     Ok(result)
+}
+
+/// The method's training encoding against the test set's: (warnings, notes).
+fn encoding_check(method: &dyn Method, testset: &Path) -> Result<(Vec<String>, Vec<String>)> {
+    let Some(trained) = method.trained_encoding() else {
+        return Ok((Vec::new(), Vec::new()));
+    };
+    Ok(match encoding::of_testset(testset)? {
+        Some(test) => (
+            encoding::mismatch(trained, &test).into_iter().collect(),
+            Vec::new(),
+        ),
+        None => (
+            Vec::new(),
+            vec![format!(
+                "the test set does not record its frames' encoding (camera JPEGs of Kalantari's \
+                 or Wu's layout); the network was trained on frames encoded with {}",
+                trained.describe()
+            )],
+        ),
+    })
 }
 
 /// The set's under-exposed pixels ([`DarkMask`]) from its reference input frame as read (the
@@ -472,6 +503,12 @@ fn setup_lines(r: &EvalSummary, testset: &Path, opts: &EvalOptions) -> String {
 
 fn missing_and_notes(r: &EvalSummary) -> String {
     let mut s = String::new();
+    if !r.warnings.is_empty() {
+        s.push_str("\n## Warnings\n\n");
+        for w in &r.warnings {
+            let _ = writeln!(s, "- {w}");
+        }
+    }
     if !r.missing.is_empty() {
         s.push_str("\n## Sets without output (skipped)\n\n");
         for (set, looked) in &r.missing {

@@ -2,6 +2,7 @@
 //! relative to the working directory. See docs/training.md for every key.
 
 use crate::config::{KeyError, Range, in_range, in_range_because, load_checked};
+use crate::data::encoding::{self, FrameEncoding};
 use crate::data::loader::{LoaderConfig, PURE_PROFILE, RealismConfig, SampleKind, TargetFrames};
 use crate::error::Result;
 use crate::models::ModelConfig;
@@ -277,6 +278,28 @@ impl DataConfig {
             target_frames: self.target_frames,
         })
     }
+}
+
+impl DataConfig {
+    /// The curve the training frames were encoded with: the profile's device response, or in
+    /// pure mode the dataset's display curve (None where its layout does not record one).
+    pub fn frame_encoding(&self) -> Result<Option<FrameEncoding>> {
+        let p = &self.realism.profile;
+        if p == Path::new(PURE_PROFILE) {
+            return encoding::of_dataset(&self.dataset);
+        }
+        let profile = crate::sensor::profile::SensorProfile::load(p)?;
+        Ok(Some(FrameEncoding::new(
+            format!("the device response of profile {}", p.display()),
+            profile.response,
+        )))
+    }
+}
+
+/// [`DataConfig::frame_encoding`] of the run in folder `run` (its `config.toml`).
+pub fn run_frame_encoding(run: &Path) -> Result<Option<FrameEncoding>> {
+    let cfg: TrainConfig = crate::config::load_toml(&run.join(super::RUN_CONFIG))?;
+    cfg.data.frame_encoding()
 }
 
 /// Adam (Kingma and Ba) with decoupled-free L2 weight decay as Burn implements it.

@@ -12,6 +12,8 @@ fn written_stop(s: f64) -> f64 {
 pub(super) fn build_sets(
     sets: &[brackets::BracketSet],
     lin: &Linearise,
+    encode: &Encode,
+    record: &FrameEncoding,
     opts: &BracketOptions,
     out: &Path,
     mut notes: Vec<String>,
@@ -23,7 +25,8 @@ pub(super) fn build_sets(
         .collect::<Result<Vec<_>>>()?;
     let mut built = Vec::with_capacity(sets.len());
     for (set, sel) in sets.iter().zip(&selections) {
-        built.push(build_set(set, sel, lin, opts, out, &mut notes)?);
+        let how = Encoding { encode, record };
+        built.push(build_set(set, sel, lin, how, opts, out, &mut notes)?);
     }
     Ok(BracketSummary { sets: built, notes })
 }
@@ -50,12 +53,21 @@ fn selection_note(
     )
 }
 
-/// One set's frames as the merge takes them: the written 16-bit γ codes of the ground-truth
-/// frames, their codes as stored (only for the hat merge), and the reference's clipped or dark
+/// The resolved `--encode` and its record.
+#[derive(Clone, Copy)]
+struct Encoding<'a> {
+    encode: &'a Encode,
+    record: &'a FrameEncoding,
+}
+
+/// One set's frames as the merge takes them: the 16-bit γ codes of the ground-truth frames,
+/// their codes as stored (only for the hat merge), the inputs as written when not the γ codes
+/// (`--encode device` or a profile's curve; in input order) and the reference's clipped or dark
 /// fraction.
 struct SetCodes {
     codes: Vec<Image>,
     stored: Vec<Image>,
+    written: Vec<Image>,
     reference_bad: f64,
 }
 
@@ -64,6 +76,7 @@ fn build_set(
     set: &brackets::BracketSet,
     sel: &InputSelection,
     lin: &Linearise,
+    how: Encoding,
     opts: &BracketOptions,
     out: &Path,
     notes: &mut Vec<String>,
@@ -94,8 +107,9 @@ fn build_set(
     let SetCodes {
         mut codes,
         mut stored,
+        mut written,
         reference_bad,
-    } = set_codes(set, &gt_idx, idx[1], ref_pos, lin, hat)?;
+    } = set_codes(set, &gt_idx, idx, ref_pos, lin, hat, how.encode)?;
     let mut gt_shifts: Vec<Option<[i32; 2]>> = vec![None; gt_idx.len()];
     if let Some(mtb) = opts.align {
         // MTB on the γ-encoded frames: its median thresholds need no response.
@@ -103,9 +117,14 @@ fn build_set(
             .iter()
             .map(|c| align::mtb_shift(&codes[ref_pos], c, mtb))
             .collect();
+        let region = align::common_region(codes[ref_pos].width, codes[ref_pos].height, &s);
         codes = align::apply_shifts(&codes, &s);
         if hat {
             stored = align::apply_shifts(&stored, &s);
+        }
+        for (img, &i) in written.iter_mut().zip(&idx) {
+            let p = gt_idx.iter().position(|&g| g == i).unwrap_or(0);
+            *img = align::crop_shifted(img, s[p], region);
         }
         if codes[ref_pos].width == 0 || codes[ref_pos].height == 0 {
             return Err(Error::layout(
@@ -120,7 +139,12 @@ fn build_set(
     let (hdr, gt_merge) = merge_set(&codes, &stored, &stops, pos, hat)?;
 
     let set_dir = out.join(&set.name);
-    write_set_files(&set_dir, &codes, &stops, pos, &hdr)?;
+    let inputs: [&Image; 3] = if written.is_empty() {
+        pos.map(|p| &codes[p])
+    } else {
+        [&written[0], &written[1], &written[2]]
+    };
+    write_set_files(&set_dir, inputs, &stops, pos, &hdr)?;
     let record = BuiltBracketSet {
         name: set.name.clone(),
         width: w,
@@ -132,6 +156,7 @@ fn build_set(
         } else {
             opts.response.describe()
         },
+        encoding: how.record.describe(),
         inputs: idx.to_vec(),
         selection: sel.how.clone(),
         reference_clipped_or_dark: reference_bad,
@@ -174,20 +199,25 @@ fn build_set(
     Ok(record)
 }
 
-/// Each ground-truth frame `gt_idx` of `set`: decode → (metering, for the reference `ref_idx`)
-/// → linear → written code linear^(1/γ) on 16 bits; only the written codes (and, for the hat
-/// merge, the stored codes) are kept. The frames must all have the reference's size.
+/// Each ground-truth frame `gt_idx` of `set`: decode → (metering, for the reference, the
+/// middle of the inputs `idx`) → linear → code linear^(1/γ) on 16 bits; only those codes (and,
+/// for the hat merge, the stored codes; for the inputs, what `encode` writes when it is not
+/// the γ code) are kept. The frames must all have the reference's size.
 fn set_codes(
     set: &brackets::BracketSet,
     gt_idx: &[usize],
-    ref_idx: usize,
+    idx: [usize; 3],
     ref_pos: usize,
     lin: &Linearise,
     hat: bool,
+    encode: &Encode,
 ) -> Result<SetCodes> {
+    let ref_idx = idx[1];
     let inv_g = 1.0 / FIELD_GAMMA;
+    let sixteen = |v: f32| (v.clamp(0.0, 1.0) * 65535.0).round() / 65535.0;
     let mut codes: Vec<Image> = Vec::with_capacity(gt_idx.len());
     let mut stored: Vec<Image> = Vec::new();
+    let mut written: Vec<Option<Image>> = vec![None; 3];
     let mut reference_bad = 0.0;
     for &i in gt_idx {
         let f = &set.frames[i];
@@ -198,9 +228,17 @@ fn set_codes(
         if hat {
             stored.push(code.clone());
         }
+        let input = idx.iter().position(|&k| k == i);
+        if let (Some(k), Encode::Device) = (input, encode) {
+            written[k] = Some(code.map(sixteen));
+        }
         let linear = linearise(f, code, lin);
-        codes.push(linear.map(|v| (v.clamp(0.0, 1.0).powf(inv_g) * 65535.0).round() / 65535.0));
+        if let (Some(k), Encode::Curve(r)) = (input, encode) {
+            written[k] = Some(linear.map(|v| sixteen(r.apply(f64::from(v)) as f32)));
+        }
+        codes.push(linear.map(|v| sixteen(v.clamp(0.0, 1.0).powf(inv_g))));
     }
+    let written: Vec<Image> = written.into_iter().flatten().collect();
     let (w, h) = (codes[ref_pos].width, codes[ref_pos].height);
     for (&i, img) in gt_idx.iter().zip(&codes) {
         if (img.width, img.height) != (w, h) {
@@ -218,6 +256,7 @@ fn set_codes(
     Ok(SetCodes {
         codes,
         stored,
+        written,
         reference_bad,
     })
 }
@@ -256,14 +295,14 @@ fn merge_set(
 /// The set's folder: the three inputs (16-bit), exposure.txt and the ground truth.
 fn write_set_files(
     set_dir: &Path,
-    codes: &[Image],
+    inputs: [&Image; 3],
     stops: &[f64],
     pos: [usize; 3],
     hdr: &Image,
 ) -> Result<()> {
     std::fs::create_dir_all(set_dir).map_err(|e| Error::io(set_dir, e))?;
-    for (&p, name) in pos.iter().zip(FRAME_NAMES) {
-        write_ldr(&set_dir.join(name), &codes[p], BitDepth::Sixteen)?;
+    for (img, name) in inputs.into_iter().zip(FRAME_NAMES) {
+        write_ldr(&set_dir.join(name), img, BitDepth::Sixteen)?;
     }
     let expo = set_dir.join(crate::data::layout::kalantari::EXPOSURE_FILE);
     let text = pos
