@@ -2404,3 +2404,167 @@ fn eval_warns_when_a_network_meets_a_curve_it_was_not_trained_on() {
         "{md}"
     );
 }
+
+// ---------------------------------------------------------------------------------------------
+// A profile from brackets (`calibrate brackets`): the device's output-domain noise and
+// response, and the encoding it makes agree by construction.
+
+/// Gaussian draws from a fixed LCG (Box–Muller): the test's own noise, independent of the
+/// library's generator.
+struct TestNoise(u64);
+
+impl TestNoise {
+    fn uniform(&mut self) -> f64 {
+        self.0 = self
+            .0
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        ((self.0 >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+    }
+
+    fn normal(&mut self) -> f64 {
+        let (u, v) = (self.uniform(), self.uniform());
+        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+    }
+}
+
+/// A bracket of 8-bit sRGB PNGs (exposure.txt stops) of a smooth scene with noise of variance
+/// a·L + b added to the linear signal L before the encoding: white, or (`correlated`) the mean
+/// of 2×2 neighbouring draws times 2 (same variance, neighbours correlated as a denoiser's or
+/// demosaicker's residual is).
+fn noisy_png_bracket(dir: &Path, a: f64, b: f64, stops: &[f64], correlated: bool) {
+    std::fs::create_dir_all(dir).expect("mkdir");
+    let (w, h) = (192usize, 144usize);
+    let mut rng = TestNoise(7);
+    for (i, s) in stops.iter().enumerate() {
+        let mut img = image::RgbImage::new(w as u32, h as u32);
+        let field: Vec<f64> = (0..(w + 1) * (h + 1) * 3).map(|_| rng.normal()).collect();
+        let draw = |x: usize, y: usize, c: usize| {
+            let f = |x: usize, y: usize| field[(y * (w + 1) + x) * 3 + c];
+            if correlated {
+                (f(x, y) + f(x + 1, y) + f(x, y + 1) + f(x + 1, y + 1)) / 2.0
+            } else {
+                f(x, y)
+            }
+        };
+        for y in 0..h {
+            for x in 0..w {
+                // A gentle ramp from 2^−7 to 2^0 of white at stop 0, a slight tint per channel.
+                let l0 = (-7.0 + 7.0 * x as f64 / (w - 1) as f64).exp2() * s.exp2();
+                let px = [(0, 0.9), (1, 1.0), (2, 0.8)].map(|(c, k): (usize, f64)| {
+                    let l = (k * l0).min(1.0);
+                    let n = (a * l + b).sqrt() * draw(x, y, c);
+                    (srgb(l + n) * 255.0).round() as u8
+                });
+                img.put_pixel(x as u32, y as u32, image::Rgb(px));
+            }
+        }
+        img.save(dir.join(format!("f{i}.png"))).expect("png");
+    }
+    let text: String = stops.iter().map(|s| format!("{s}\n")).collect();
+    std::fs::write(dir.join("exposure.txt"), text).expect("exposure.txt");
+}
+
+#[test]
+fn calibrate_brackets_recovers_a_known_output_noise_and_encodes_what_it_trains_on() {
+    use hdrsynth::data::bracket_profile::{BracketProfileOptions, calibrate_brackets};
+    let tmp = tempfile::tempdir().expect("tmp");
+    let (a, b) = (4e-4, 1e-5);
+    noisy_png_bracket(&tmp.path().join("scene"), a, b, &[-2.0, 0.0, 2.0], false);
+    let beside = tempfile::tempdir().expect("tmp");
+    let out = beside.path().join("phone.toml");
+    let cal = calibrate_brackets(
+        tmp.path(),
+        &BracketProfileOptions {
+            scan: ScanOptions::default(),
+            response: ResponseChoice::Declared(Response::Srgb),
+            out: out.clone(),
+            name: Some("test phone".into()),
+        },
+    )
+    .expect("calibrate");
+    eprintln!("{}", cal.report(&out));
+    let p = hdrsynth::sensor::profile::SensorProfile::load(&out).expect("profile");
+    assert_eq!(p.response, Response::Srgb);
+    // No EXIF: ISO 100, said so.
+    assert_eq!(p.noise.len(), 1);
+    assert!(
+        cal.notes.iter().any(|n| n.contains("ISO 100")),
+        "{:?}",
+        cal.notes
+    );
+    let row = &p.noise[0];
+    for c in 0..3 {
+        // σ² at mid-signal within 15 % of the truth; b is small beside a·L there.
+        let (got, want) = (row.a[c] * 0.25 + row.b[c], a * 0.25 + b);
+        assert!(
+            (got / want - 1.0).abs() < 0.15,
+            "channel {c}: {got} vs {want}"
+        );
+        assert!(
+            (row.a[c] / a - 1.0).abs() < 0.2,
+            "channel {c}: a {} vs {a}",
+            row.a[c]
+        );
+    }
+    // White noise: the low- and high-order residuals agree.
+    for r in cal.correlation_ratio {
+        assert!((r - 1.0).abs() < 0.1, "{:?}", cal.correlation_ratio);
+    }
+    // The middle frame (no ExposureBiasValue) is taken as the auto-exposed one.
+    assert_eq!(cal.metering.len(), 1);
+    assert!(cal.metering[0].how.contains("middle"), "{:?}", cal.metering);
+
+    // Test set and training agree by construction: the test set linearised by the profile and
+    // kept as device codes records the profile's curve, which a run trained on it reads.
+    let ts = beside.path().join("ts");
+    let opts = BracketOptions {
+        response: ResponseChoice::new(Some(&out), None).expect("choice"),
+        ..BracketOptions::default()
+    };
+    bracket_testset::build(tmp.path(), &opts, &ts).expect("testset");
+    let test = hdrsynth::data::encoding::of_testset(&ts)
+        .expect("read")
+        .expect("some");
+    let data: hdrsynth::train::config::DataConfig = hdrsynth::config::parse_toml(
+        &format!(
+            "dataset = \"unused\"\npatch = 32\nbatch_size = 2\nprofile = {out:?}\nisos = [100.0]\n"
+        ),
+        Path::new("data.toml"),
+    )
+    .expect("data config");
+    let trained = data.frame_encoding().expect("read").expect("some");
+    assert_eq!(trained.response, test.response);
+    assert!(hdrsynth::data::encoding::mismatch(&trained, &test).is_none());
+}
+
+#[test]
+fn calibrate_brackets_sees_spatially_correlated_output_noise() {
+    use hdrsynth::data::bracket_profile::{BracketProfileOptions, calibrate_brackets};
+    let tmp = tempfile::tempdir().expect("tmp");
+    noisy_png_bracket(
+        &tmp.path().join("scene"),
+        4e-4,
+        1e-5,
+        &[-2.0, 0.0, 2.0],
+        true,
+    );
+    let beside = tempfile::tempdir().expect("tmp");
+    let out = beside.path().join("phone.toml");
+    let cal = calibrate_brackets(
+        tmp.path(),
+        &BracketProfileOptions {
+            scan: ScanOptions::default(),
+            response: ResponseChoice::Declared(Response::Srgb),
+            out: out.clone(),
+            name: None,
+        },
+    )
+    .expect("calibrate");
+    eprintln!("{}", cal.report(&out));
+    // 2×2-box noise: neighbours share half their draws. Immerkær's second differences cancel
+    // much of it; the pixel − 3×3-mean residual far less, so the ratio rises well above 1.
+    for r in cal.correlation_ratio {
+        assert!(r > 1.5, "{:?}", cal.correlation_ratio);
+    }
+}

@@ -88,6 +88,8 @@ pub enum CalibrateCommand {
     Noise(crate::cli::calibrate::noise::Args),
     /// Colour, levels and noise per ISO from DNG tags (ColorMatrix, NoiseProfile, levels).
     Dng(crate::cli::calibrate::dng::Args),
+    /// Response, output-domain noise and exposure rule from bracketed JPEG/PNG/TIFF frames.
+    Brackets(crate::cli::calibrate::brackets::Args),
 }
 
 #[derive(Subcommand)]
@@ -122,6 +124,9 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Calibrate {
             command: CalibrateCommand::Dng(args),
         } => println!("{}", crate::cli::calibrate::dng::run(&args)?),
+        Command::Calibrate {
+            command: CalibrateCommand::Brackets(args),
+        } => println!("{}", crate::cli::calibrate::brackets::run(&args)?),
         Command::Profile { command } => println!("{}", crate::cli::profile::run(&command)?),
         Command::Realism(args) => println!("{}", crate::cli::realism::run(&args)?),
         Command::Train(args) => {

@@ -229,7 +229,7 @@ pub fn diagnose_brackets(
     crate::io::guard::refuse_output_inside(dir, out)?;
     let brackets::BracketScan { sets, mut notes } = brackets::scan(dir, &opts.scan)?;
     let _lock = crate::io::guard::OutputLock::acquire(out, "diagnose --brackets")?;
-    let lin = bracket_testset::resolve_linearisation(&sets, &opts.response, out, &mut notes)?;
+    let lin = bracket_testset::resolve_linearisation(&sets, &opts.response, Some(out), &mut notes)?;
     let estimated = matches!(
         opts.response,
         ResponseChoice::Debevec(_) | ResponseChoice::Robertson(_)

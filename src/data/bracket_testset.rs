@@ -578,12 +578,12 @@ fn linearise(frame: &BracketFrame, code: Image, lin: &Linearise) -> Image {
 
 /// The linearisation of LDR frames for the scanned `sets` under `choice`: a curve as given, or
 /// a response estimated from the first set whose frames are all LDR (all its frames, times
-/// from their stops), written to `crf_dir` (OpenCV's convention) and noted. With no LDR set
-/// (DNG brackets, linear after their levels) nothing is estimated.
+/// from their stops), written to `crf_dir` when given (OpenCV's convention) and noted. With no
+/// LDR set (DNG brackets, linear after their levels) nothing is estimated.
 pub fn resolve_linearisation(
     sets: &[brackets::BracketSet],
     choice: &ResponseChoice,
-    crf_dir: &Path,
+    crf_dir: Option<&Path>,
     notes: &mut Vec<String>,
 ) -> Result<Linearise> {
     let (name, file) = match choice {
@@ -615,23 +615,26 @@ pub fn resolve_linearisation(
         ResponseChoice::Debevec(o) => crf::calibrate_debevec(&frames, &times, *o)?,
         _ => unreachable!("curves returned above"),
     };
-    let mut csv = String::from("code,r,g,b\n");
-    for (z, ((r, g), b)) in response[0]
-        .iter()
-        .zip(&response[1])
-        .zip(&response[2])
-        .enumerate()
-    {
-        csv.push_str(&format!("{z},{r},{g},{b}\n"));
+    let mut written = String::new();
+    if let Some(crf_dir) = crf_dir {
+        let mut csv = String::from("code,r,g,b\n");
+        for (z, ((r, g), b)) in response[0]
+            .iter()
+            .zip(&response[1])
+            .zip(&response[2])
+            .enumerate()
+        {
+            csv.push_str(&format!("{z},{r},{g},{b}\n"));
+        }
+        std::fs::create_dir_all(crf_dir).map_err(|e| Error::io(crf_dir, e))?;
+        let path = crf_dir.join(file);
+        crate::io::atomic::write_atomic(&path, csv.as_bytes())?;
+        written = format!(", written to {}", path.display());
     }
-    std::fs::create_dir_all(crf_dir).map_err(|e| Error::io(crf_dir, e))?;
-    let path = crf_dir.join(file);
-    crate::io::atomic::write_atomic(&path, csv.as_bytes())?;
     notes.push(format!(
-        "response: {name} estimated from set '{}' ({} frames), written to {}",
+        "response: {name} estimated from set '{}' ({} frames){written}",
         set.name,
         set.frames.len(),
-        path.display()
     ));
     if matches!(choice, ResponseChoice::Robertson(_)) {
         // Robertson's I(255) is the mean exposure of all clipped observations, far above the
@@ -651,7 +654,7 @@ pub fn build(dir: &Path, opts: &BracketOptions, out: &Path) -> Result<BracketSum
     let _lock = crate::io::guard::OutputLock::acquire(out, "testset --brackets")?;
     let BracketScan { sets, mut notes } = brackets::scan(dir, &opts.scan)?;
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
-    let lin = resolve_linearisation(&sets, &opts.response, out, &mut notes)?;
+    let lin = resolve_linearisation(&sets, &opts.response, Some(out), &mut notes)?;
     let (encode, record) = resolve_encoding(&opts.encode, &sets, &lin, &opts.response)?;
     let summary = build_sets(&sets, &lin, &encode, &record, opts, out, notes)?;
     record.save(out)?;

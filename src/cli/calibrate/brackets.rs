@@ -1,0 +1,47 @@
+//! `hdrsynth calibrate brackets DIR --out PROFILE`: a device profile in the device's output
+//! domain from its bracketed frames (`data::bracket_profile`, docs/your_device.md).
+
+use crate::data::bracket_profile::{BracketProfileOptions, calibrate_brackets};
+use crate::data::bracket_testset::{ResponseChoice, ResponseSpec};
+use crate::data::brackets::ScanOptions;
+use std::path::PathBuf;
+
+#[derive(clap::Args, Clone, Debug)]
+pub struct Args {
+    /// A folder of bracketed JPEG/PNG/TIFF frames of the device (sets by sub-folder or capture
+    /// time, exposures from EXIF or a sidecar, as `testset --brackets` reads them).
+    pub dir: PathBuf,
+    /// Sensor profile to write: an existing one keeps its name, kind, colour, levels and
+    /// effects and gets its response and the measured ISOs' noise replaced.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Name of a new profile.
+    #[arg(long)]
+    pub name: Option<String>,
+    /// The frames' response: debevec (default) or robertson, estimated from the brackets, or a
+    /// declared srgb, linear or gamma:G.
+    #[arg(long)]
+    pub response: Option<ResponseSpec>,
+    /// Declared EV steps in capture order, for frames without EXIF or sidecar.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub declared_evs: Option<Vec<f64>>,
+    /// Largest gap between capture times within one set, seconds.
+    #[arg(long, default_value_t = ScanOptions::default().max_gap_s)]
+    pub max_gap: f64,
+}
+
+pub fn run(args: &Args) -> anyhow::Result<String> {
+    let cal = calibrate_brackets(
+        &args.dir,
+        &BracketProfileOptions {
+            scan: ScanOptions {
+                evs: args.declared_evs.clone(),
+                max_gap_s: args.max_gap,
+            },
+            response: ResponseChoice::new(None, args.response.as_ref())?,
+            out: args.out.clone(),
+            name: args.name.clone(),
+        },
+    )?;
+    Ok(cal.report(&args.out))
+}

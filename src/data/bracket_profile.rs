@@ -1,0 +1,479 @@
+//! `hdrsynth calibrate brackets DIR --out PROFILE`: a device profile from what a user has — a
+//! folder of bracketed JPEG/PNG/TIFF frames of the device — in the device's **output** domain,
+//! the frames a network sees after the device's processing (docs/your_device.md):
+//! - the response: the linearisation of `testset --brackets` (Debevec by default, or a
+//!   declared curve) as one curve ([`bracket_testset::table_response`] for an estimate);
+//! - the noise per ISO (EXIF ISO of the frames): per frame and channel, on flat pixels, the
+//!   robust (MAD) σ of Immerkær's noise-estimation residual (mask [1 −2 1; −2 4 −2; 1 −2 1],
+//!   Σ mask² = 36, so σ² = σ²_residual / 36 for white noise), per code bin; less the 8-bit
+//!   rounding the simulation adds back (1/12 code²); carried to the linear domain through the
+//!   profile's own response (σ_lin = σ_code / R'(x)), so simulating with the profile puts the
+//!   measured σ back at each code; then σ² = a·x + b by weighted least squares;
+//! - the spatial correlation of that noise: per bin the ratio of the variance of a low-order
+//!   residual (pixel − 3×3 mean, 8/9 σ² for white noise) to Immerkær's, 1 for white noise and
+//!   above 1 where the device's processing (denoising, demosaicking, compression) correlates
+//!   it; reported, not modelled;
+//! - the exposure rule: the auto-exposed frame of each set (EXIF ExposureBiasValue 0, else the
+//!   middle frame) gives where the device put its log-average luminance (fraction of white)
+//!   and how much it let clip; reported beside the loader's `[realism.metering]` keys.
+//!
+//! Levels are 16-bit 0 … 65535 (the processed frames carry no raw levels; 16 bits add no
+//! visible quantisation); colour is identity unless the profile already has one (the frames
+//! are already rendered; `calibrate colour` or `calibrate dng` measure T).
+
+use crate::data::bracket_testset::{self, Linearise, ResponseChoice};
+use crate::data::brackets::{self, BracketFrame, FrameKind, ScanOptions};
+use crate::error::{Error, Result};
+use crate::io::Image;
+use crate::sensor::profile::{
+    Colour, Levels, NoiseAtIso, ProfileKind, Provenance, Response, SensorProfile,
+};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// Code bins of the noise measurement (of the 3×3 mean code).
+const BINS: usize = 16;
+/// Fewest flat pixels for a bin's σ.
+const MIN_PIXELS: usize = 200;
+/// Of each bin's pixels, the flattest fraction (smallest local gradient) is measured.
+const FLAT_FRACTION: f64 = 0.5;
+/// Codes at or beyond these (of 255) are clipped or crushed: no noise survives there.
+const LOW_CODE: f64 = 3.0 / 255.0;
+const HIGH_CODE: f64 = 250.0 / 255.0;
+/// MAD → σ for a normal distribution.
+const MAD_SIGMA: f64 = 1.482_602_218_505_602;
+
+#[derive(Clone, Debug)]
+pub struct BracketProfileOptions {
+    pub scan: ScanOptions,
+    /// How codes become linear (Debevec from the brackets unless declared).
+    pub response: ResponseChoice,
+    /// The profile to write (an existing one keeps its name, kind, colour and effects).
+    pub out: PathBuf,
+    pub name: Option<String>,
+}
+
+/// One code bin of one channel at one ISO.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NoiseBin {
+    pub iso: f64,
+    pub channel: usize,
+    /// Mean code (of 1) and its linear value under the profile's response.
+    pub code: f64,
+    pub linear: f64,
+    /// σ² in codes² (of 1), quantisation removed, and carried to linear.
+    pub var_code: f64,
+    pub var_linear: f64,
+    /// Low-order over Immerkær residual variance (1 for white noise).
+    pub correlation_ratio: f64,
+    pub pixels: usize,
+}
+
+/// Where one set's auto-exposed frame put its signal.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MeteredFrame {
+    pub frame: PathBuf,
+    /// How the frame was taken to be the auto-exposed one.
+    pub how: String,
+    /// exp(mean ln luminance) of the linear frame, fraction of white.
+    pub log_average: f64,
+    /// Fraction of pixels with a channel at or above 250/255.
+    pub clipped: f64,
+}
+
+#[derive(Clone, Debug)]
+pub struct BracketCalibration {
+    pub profile: SensorProfile,
+    pub existed: bool,
+    pub bins: Vec<NoiseBin>,
+    /// Per channel, the median over bins of [`NoiseBin::correlation_ratio`].
+    pub correlation_ratio: [f64; 3],
+    pub metering: Vec<MeteredFrame>,
+    pub notes: Vec<String>,
+}
+
+/// Calibrate a profile from the bracket folder `dir` and write it to `opts.out`.
+pub fn calibrate_brackets(dir: &Path, opts: &BracketProfileOptions) -> Result<BracketCalibration> {
+    let scan = brackets::scan(dir, &opts.scan)?;
+    let mut notes = scan.notes;
+    if let Some(f) = scan
+        .sets
+        .iter()
+        .flat_map(|s| &s.frames)
+        .find(|f| f.kind == FrameKind::Dng)
+    {
+        return Err(Error::layout(
+            &f.path,
+            "a DNG is linear raw, not the device's output; `hdrsynth calibrate dng` reads its \
+             tags",
+        ));
+    }
+    let lin = bracket_testset::resolve_linearisation(&scan.sets, &opts.response, None, &mut notes)?;
+    let response = match &lin {
+        Linearise::Curve(r) => r.clone(),
+        Linearise::Table(t) => bracket_testset::table_response(t),
+    };
+    let frames: Vec<&BracketFrame> = scan.sets.iter().flat_map(|s| &s.frames).collect();
+    let mut bins = Vec::new();
+    let mut by_iso: Vec<(f64, Vec<&BracketFrame>)> = Vec::new();
+    for f in &frames {
+        let iso = f.exif.iso.unwrap_or(100.0);
+        match by_iso.iter_mut().find(|(i, _)| *i == iso) {
+            Some((_, v)) => v.push(f),
+            None => by_iso.push((iso, vec![f])),
+        }
+    }
+    if frames.iter().any(|f| f.exif.iso.is_none()) {
+        notes.push("frames without EXIF ISO are taken as ISO 100".into());
+    }
+    by_iso.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut rows = Vec::new();
+    for (iso, group) in &by_iso {
+        let mut iso_bins = Vec::new();
+        for f in group {
+            let code = brackets::read_frame_image(f)?;
+            iso_bins.extend(noise_bins(&code, *iso, &response));
+        }
+        let merged = merge_bins(&iso_bins);
+        match fit_row(*iso, &merged) {
+            Some(row) => rows.push(row),
+            None => notes.push(format!(
+                "ISO {iso}: too few flat pixels at two or more code levels per channel for a \
+                 noise fit; no noise row"
+            )),
+        }
+        bins.extend(merged);
+    }
+    let metering = scan
+        .sets
+        .iter()
+        .map(|s| metered(s, &lin))
+        .collect::<Result<Vec<_>>>()?;
+    let (mut profile, existed) = SensorProfile::load_or_create(&opts.out, || {
+        Ok::<_, Error>(SensorProfile::new_measured(
+            opts.name
+                .clone()
+                .unwrap_or_else(|| format!("device of {}", dir.display())),
+            Levels {
+                black_level: 0.0,
+                white_level: 65535.0,
+                bit_depth: 16,
+            },
+            response.clone(),
+            Provenance {
+                colour: "identity: not measured from brackets (the frames are already \
+                         rendered; `hdrsynth calibrate colour` or `calibrate dng` measure T)"
+                    .into(),
+                noise: String::new(),
+                levels: "output domain: 16-bit 0 … 65535 (processed frames carry no raw \
+                         levels; 16 bits add no visible quantisation)"
+                    .into(),
+                response: String::new(),
+                notes: None,
+            },
+        ))
+    })?;
+    if profile.colour.is_none() {
+        profile.colour = Some(Colour {
+            matrix: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+            root_polynomial: None,
+            use_root_polynomial: false,
+        });
+    }
+    profile.kind = if existed {
+        profile.kind
+    } else {
+        ProfileKind::Measured
+    };
+    profile.response = response;
+    profile.provenance.response = format!(
+        "{} of bracket folder {} (`hdrsynth calibrate brackets`)",
+        opts.response.describe(),
+        dir.display()
+    );
+    for row in rows {
+        profile.noise.retain(|r| r.iso != row.iso);
+        profile.noise.push(row);
+    }
+    profile.noise.sort_by(|a, b| a.iso.total_cmp(&b.iso));
+    profile.provenance.noise = format!(
+        "output-domain noise of bracket folder {} (`hdrsynth calibrate brackets`): MAD σ of \
+         Immerkær's residual on the flattest half of each code bin's pixels, 8-bit rounding \
+         removed, carried to linear through the profile's response, σ² = a·x + b by WLS",
+        dir.display()
+    );
+    profile
+        .validate()
+        .map_err(|msg| Error::config(&opts.out, msg))?;
+    profile.save(&opts.out)?;
+    let correlation_ratio = [0, 1, 2].map(|c| {
+        let mut r: Vec<f64> = bins
+            .iter()
+            .filter(|b| b.channel == c && b.correlation_ratio.is_finite())
+            .map(|b| b.correlation_ratio)
+            .collect();
+        crate::stats::median(&mut r)
+    });
+    Ok(BracketCalibration {
+        profile,
+        existed,
+        bins,
+        correlation_ratio,
+        metering,
+        notes,
+    })
+}
+
+/// One interior pixel of one channel: the scene's local gradient, Immerkær's residual, the
+/// low-order residual (pixel − 3×3 mean) and the 3×3 mean code.
+#[derive(Clone, Copy)]
+struct Residual {
+    gradient: f64,
+    immerkaer: f64,
+    low_order: f64,
+    mean: f64,
+}
+
+/// The noise bins of one frame's codes (values of 1), per channel.
+fn noise_bins(code: &Image, iso: f64, response: &Response) -> Vec<NoiseBin> {
+    let (w, h) = (code.width, code.height);
+    let mut out = Vec::new();
+    if w < 5 || h < 5 {
+        return out;
+    }
+    for c in 0..3 {
+        let v = |x: usize, y: usize| f64::from(code.data[(y * w + x) * 3 + c]);
+        let mut per_bin: Vec<Vec<Residual>> = vec![Vec::new(); BINS];
+        for y in 2..h - 2 {
+            for x in 2..w - 2 {
+                let mut sum = 0.0;
+                let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+                for dy in 0..3 {
+                    for dx in 0..3 {
+                        let p = v(x + dx - 1, y + dy - 1);
+                        sum += p;
+                        lo = lo.min(p);
+                        hi = hi.max(p);
+                    }
+                }
+                if lo <= LOW_CODE || hi >= HIGH_CODE {
+                    continue;
+                }
+                let mean = sum / 9.0;
+                let imm = 4.0 * v(x, y)
+                    - 2.0 * (v(x - 1, y) + v(x + 1, y) + v(x, y - 1) + v(x, y + 1))
+                    + v(x - 1, y - 1)
+                    + v(x + 1, y - 1)
+                    + v(x - 1, y + 1)
+                    + v(x + 1, y + 1);
+                // The local gradient of the scene, on 3-pixel baselines so noise weighs less.
+                let gx = (v(x + 2, y) - v(x - 2, y)).abs();
+                let gy = (v(x, y + 2) - v(x, y - 2)).abs();
+                let bin = ((mean * BINS as f64) as usize).min(BINS - 1);
+                per_bin[bin].push(Residual {
+                    gradient: gx + gy,
+                    immerkaer: imm,
+                    low_order: v(x, y) - mean,
+                    mean,
+                });
+            }
+        }
+        for px in per_bin.iter_mut() {
+            if px.len() < 2 * MIN_PIXELS {
+                continue;
+            }
+            px.sort_by(|a, b| a.gradient.total_cmp(&b.gradient));
+            let keep = &px[..(px.len() as f64 * FLAT_FRACTION) as usize];
+            let mad = |f: fn(&Residual) -> f64| {
+                let mut a: Vec<f64> = keep.iter().map(|p| f(p).abs()).collect();
+                MAD_SIGMA * crate::stats::median(&mut a)
+            };
+            let s_imm = mad(|p| p.immerkaer);
+            let s_low = mad(|p| p.low_order);
+            let var_imm = s_imm * s_imm / 36.0;
+            let mean = keep.iter().map(|p| p.mean).sum::<f64>() / keep.len() as f64;
+            let var_code = var_imm - 1.0 / (12.0 * 255.0 * 255.0);
+            let x = response.invert(mean);
+            let slope = response.slope(x.clamp(1e-6, 1.0 - 1e-6));
+            out.push(NoiseBin {
+                iso,
+                channel: c,
+                code: mean,
+                linear: x,
+                var_code,
+                var_linear: var_code / (slope * slope),
+                correlation_ratio: if var_imm > 0.0 {
+                    s_low * s_low / (8.0 / 9.0) / var_imm
+                } else {
+                    f64::NAN
+                },
+                pixels: keep.len(),
+            });
+        }
+    }
+    out
+}
+
+/// Bins of several frames at one ISO pooled per channel and code bin (pixel-weighted).
+fn merge_bins(bins: &[NoiseBin]) -> Vec<NoiseBin> {
+    let mut out: Vec<NoiseBin> = Vec::new();
+    for b in bins {
+        let key = |o: &NoiseBin| {
+            o.channel == b.channel
+                && ((o.code * BINS as f64) as usize).min(BINS - 1)
+                    == ((b.code * BINS as f64) as usize).min(BINS - 1)
+        };
+        match out.iter_mut().find(|o| key(o)) {
+            Some(o) => {
+                let (n0, n1) = (o.pixels as f64, b.pixels as f64);
+                let mix = |a: f64, c: f64| (a * n0 + c * n1) / (n0 + n1);
+                o.code = mix(o.code, b.code);
+                o.linear = mix(o.linear, b.linear);
+                o.var_code = mix(o.var_code, b.var_code);
+                o.var_linear = mix(o.var_linear, b.var_linear);
+                o.correlation_ratio = mix(o.correlation_ratio, b.correlation_ratio);
+                o.pixels += b.pixels;
+            }
+            None => out.push(b.clone()),
+        }
+    }
+    out.sort_by(|a, b| {
+        (a.channel, a.code)
+            .partial_cmp(&(b.channel, b.code))
+            .unwrap_or(std::cmp::Ordering::Equal)
+    });
+    out
+}
+
+/// σ²_lin = a·x + b per channel over the bins with positive variance; a, b ≥ 0.
+fn fit_row(iso: f64, bins: &[NoiseBin]) -> Option<NoiseAtIso> {
+    let mut a = [0.0; 3];
+    let mut b = [0.0; 3];
+    for c in 0..3 {
+        let points: Vec<crate::stats::Point> = bins
+            .iter()
+            .filter(|k| k.channel == c && k.var_linear > 0.0 && k.linear > 0.0)
+            .map(|k| crate::stats::Point {
+                x: k.linear,
+                y: k.var_linear,
+                // A MAD variance has about 2.7/n relative variance for normal data.
+                se: k.var_linear * (2.7 / k.pixels as f64).sqrt(),
+                n: k.pixels,
+            })
+            .collect();
+        if points.len() < 2 {
+            return None;
+        }
+        let fit = crate::stats::wls(&points)?;
+        a[c] = fit.a.max(0.0);
+        b[c] = fit.b.max(0.0);
+    }
+    Some(NoiseAtIso {
+        iso,
+        a,
+        b,
+        a_stderr: None,
+        b_stderr: None,
+    })
+}
+
+/// The auto-exposed frame of `set` and where it put its signal.
+fn metered(set: &brackets::BracketSet, lin: &Linearise) -> Result<MeteredFrame> {
+    // An auto-exposure bracket marks its metered frame by bias 0 and the others by their
+    // offsets; frames that all record 0 (manual exposures) mark nothing.
+    let zero: Vec<&BracketFrame> = set
+        .frames
+        .iter()
+        .filter(|f| f.exif.bias_ev == Some(0.0))
+        .collect();
+    let marked = zero.len() == 1 && set.frames.iter().all(|f| f.exif.bias_ev.is_some());
+    let (frame, how) = if marked {
+        (zero[0], "the one frame with EXIF ExposureBiasValue 0")
+    } else {
+        (
+            &set.frames[set.frames.len() / 2],
+            "the middle frame (ExposureBiasValue marks no single frame)",
+        )
+    };
+    let code = brackets::read_frame_image(frame)?;
+    let clipped = code
+        .data
+        .chunks_exact(3)
+        .filter(|p| p.iter().any(|&v| f64::from(v) >= HIGH_CODE))
+        .count() as f64
+        / code.pixel_count().max(1) as f64;
+    let linear = bracket_testset::linear_frame(frame, lin)?;
+    let lum = linear.luminance();
+    let log_mean = lum
+        .iter()
+        .map(|&l| (f64::from(l).max(1e-6)).ln())
+        .sum::<f64>()
+        / lum.len().max(1) as f64;
+    Ok(MeteredFrame {
+        frame: frame.path.clone(),
+        how: how.into(),
+        log_average: log_mean.exp(),
+        clipped,
+    })
+}
+
+impl BracketCalibration {
+    /// The command's report.
+    pub fn report(&self, out: &Path) -> String {
+        let mut s = String::new();
+        for n in &self.notes {
+            let _ = writeln!(s, "note: {n}");
+        }
+        let _ = writeln!(
+            s,
+            "{} profile {} ('{}'): response {}",
+            if self.existed { "updated" } else { "new" },
+            out.display(),
+            self.profile.name,
+            self.profile.response.label()
+        );
+        let _ = writeln!(
+            s,
+            "output-domain noise (per ISO, channel, code bin): code, linear, σ_code (8-bit \
+             codes), σ²_lin, low/high-order variance ratio (1 = white noise), pixels"
+        );
+        for b in &self.bins {
+            let _ = writeln!(
+                s,
+                "  ISO {:<5} {} code {:.3} linear {:.4} σ {:.3} σ²_lin {:.3e} ratio {:.2} n {}",
+                b.iso,
+                ["R", "G", "B"][b.channel],
+                b.code,
+                b.linear,
+                b.var_code.max(0.0).sqrt() * 255.0,
+                b.var_linear,
+                b.correlation_ratio,
+                b.pixels
+            );
+        }
+        for r in &self.profile.noise {
+            let e = |v: [f64; 3]| format!("[{:.3e}, {:.3e}, {:.3e}]", v[0], v[1], v[2]);
+            let _ = writeln!(s, "noise ISO {}: a {} b {}", r.iso, e(r.a), e(r.b));
+        }
+        let r = self.correlation_ratio;
+        let _ = writeln!(
+            s,
+            "spatial correlation: low/high-order residual variance ratio, median over bins: R \
+             {:.2}, G {:.2}, B {:.2} (1 = white noise; above 1: the device's processing \
+             correlates its noise, which the profile's white noise does not model)",
+            r[0], r[1], r[2]
+        );
+        for m in &self.metering {
+            let _ = writeln!(
+                s,
+                "metering: {} ({}): log-average luminance {:.4} of white, {:.2} % clipped \
+                 (the loader's [realism.metering] mid_grey and max_clipped)",
+                m.frame.display(),
+                m.how,
+                m.log_average,
+                100.0 * m.clipped
+            );
+        }
+        s
+    }
+}
