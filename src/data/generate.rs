@@ -81,9 +81,10 @@ pub fn generate(cfg: &GenerateConfig, out: &Path, progress: bool) -> Result<Summ
             continue;
         }
         let sample = generator.render(index);
-        layout::write_set(out, index, &sample, cfg).map_err(|e| {
-            Error::Invalid(format!("writing set {index} under {}: {e}", out.display()))
-        })?;
+        layout::write_set(out, index, &sample, cfg).map_err(Error::within(format!(
+            "writing set {index} under {}",
+            out.display()
+        )))?;
         s.over.push(sample.stats.over_fraction);
         s.under.push(sample.stats.under_fraction);
         s.dynamic_range.push(sample.stats.dynamic_range_stops);

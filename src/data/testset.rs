@@ -490,7 +490,6 @@ fn write_set(
 ) -> Result<BuiltSet> {
     let name = set_name(&scene.name, iso);
     let dir = out.join(&name);
-    let reference = opts.evs.iter().position(|&e| e == 0.0).unwrap_or(0);
     let (w, h) = (radiance.width, radiance.height);
     if dir.join(SET_META).is_file() {
         let meta = own::read_set_meta(&dir)?;
@@ -508,13 +507,14 @@ fn write_set(
     let depth = BitDepth::from_bits(opts.output_bits).ok_or_else(|| {
         Error::Invalid(format!("output bits {} must be 8 or 16", opts.output_bits))
     })?;
-    let realism = |ev: f32| {
+    // The device at `ev` stops from the metered key, with the configured noise or none.
+    let realism = |ev: f32, noise: NoiseModel| {
         Realism::new(
             device,
             &RealismOptions {
                 iso,
                 exposure: key as f64 * (ev as f64).exp2(),
-                noise: opts.noise,
+                noise,
                 colour: opts.colour,
                 output_bits: opts.output_bits,
             },
@@ -522,50 +522,79 @@ fn write_set(
     };
     let (mut over, mut under) = (0.0, 0.0);
     for &ev in &opts.evs {
-        let frame = realism(ev)?.apply(radiance, frame_seed(opts.seed, &scene.name, iso, ev));
+        let frame =
+            realism(ev, opts.noise)?.apply(radiance, frame_seed(opts.seed, &scene.name, iso, ev));
         if ev == 0.0 {
             (over, under) = clip_fractions(&frame);
         }
-        let tag = ev_tag(ev);
-        let path = dir.join("static").join(format!("{tag}.png"));
-        write_ldr(&path, &frame, depth)?;
-        drop(frame);
-        // A static scene: the "dynamic" capture is the same frame (same noise, byte-identical
-        // file) and no pixel moves, so every mask is 0.
-        let bytes = crate::io::guard::read_file(&path)?;
-        write_atomic(&dir.join("dynamic").join(format!("{tag}.png")), &bytes)?;
-        write_ldr(
-            &dir.join("dynamic").join(format!("mask_{tag}.png")),
-            &Image::new(w, h),
-            BitDepth::Eight,
-        )?;
+        write_frame(&dir, ev, frame, depth)?;
         // The same frame without noise (same exposure, colour, levels, response and
         // quantisation): Network-1's reference takes its blend weights from these, so it does
         // not reward imitating noise-driven weights (docs/evaluation.md).
-        let clean = Realism::new(
-            device,
-            &RealismOptions {
-                iso,
-                exposure: key as f64 * (ev as f64).exp2(),
-                noise: NoiseModel::None,
-                colour: opts.colour,
-                output_bits: opts.output_bits,
-            },
-        )?
-        .apply(radiance, frame_seed(opts.seed, &scene.name, iso, ev));
+        let clean = realism(ev, NoiseModel::None)?
+            .apply(radiance, frame_seed(opts.seed, &scene.name, iso, ev));
         write_ldr(
             &dir.join("static").join(own::clean_frame_name(ev)),
             &clean,
             depth,
         )?;
     }
-    let mut gt = realism(0.0)?.target_linear(radiance, opts.ground_truth);
+    let mut gt = realism(0.0, opts.noise)?.target_linear(radiance, opts.ground_truth);
     let white = ground_truth_white(&opts.evs);
     gt.data.iter_mut().for_each(|v| *v = v.min(white));
     write_exr(&dir.join("hdr_gt.exr"), &gt, ExrPrecision::Float)?;
     drop(gt);
-    let meta = SetMeta {
-        name: name.clone(),
+    let meta = set_meta(&name, index, scene, radiance, key, (over, under), opts);
+    let path = dir.join(SET_META);
+    let text = toml::to_string(&meta).map_err(|e| Error::encode(&path, e))?;
+    write_atomic(&path, text.as_bytes())?;
+    Ok(BuiltSet {
+        name,
+        iso,
+        width: w,
+        height: h,
+        key,
+        over_fraction: over,
+        under_fraction: under,
+        written: true,
+    })
+}
+
+/// One frame of a set at `ev`: static/<tag>.png and, as the scene is static, the same file as
+/// the dynamic capture with an all-zero motion mask.
+fn write_frame(dir: &Path, ev: f32, frame: Image, depth: BitDepth) -> Result<()> {
+    let (w, h) = (frame.width, frame.height);
+    let tag = ev_tag(ev);
+    let path = dir.join("static").join(format!("{tag}.png"));
+    write_ldr(&path, &frame, depth)?;
+    drop(frame);
+    // A static scene: the "dynamic" capture is the same frame (same noise, byte-identical
+    // file) and no pixel moves, so every mask is 0.
+    let bytes = crate::io::guard::read_file(&path)?;
+    write_atomic(&dir.join("dynamic").join(format!("{tag}.png")), &bytes)?;
+    write_ldr(
+        &dir.join("dynamic").join(format!("mask_{tag}.png")),
+        &Image::new(w, h),
+        BitDepth::Eight,
+    )
+}
+
+/// set.toml's description of a set made from one radiance map: exposure key and clipping
+/// (`clip`: the EV0 frame's over- and under-exposed fractions), no camera motion, no subjects.
+fn set_meta(
+    name: &str,
+    index: u64,
+    scene: &SceneEntry,
+    radiance: &Image,
+    key: f32,
+    clip: (f32, f32),
+    opts: &TestsetOptions,
+) -> SetMeta {
+    let (w, h) = (radiance.width, radiance.height);
+    let (over, under) = clip;
+    let reference = opts.evs.iter().position(|&e| e == 0.0).unwrap_or(0);
+    SetMeta {
+        name: name.to_string(),
         index,
         width: w,
         height: h,
@@ -592,20 +621,7 @@ fn write_set(
             subjects: 0,
             articulated: 0,
         },
-    };
-    let path = dir.join(SET_META);
-    let text = toml::to_string(&meta).map_err(|e| Error::encode(&path, e))?;
-    write_atomic(&path, text.as_bytes())?;
-    Ok(BuiltSet {
-        name,
-        iso,
-        width: w,
-        height: h,
-        key,
-        over_fraction: over,
-        under_fraction: under,
-        written: true,
-    })
+    }
 }
 
 /// The ground truth's clipping point in EV0 units: the shortest frame's white, 2^−EV_min (1 when

@@ -370,7 +370,7 @@ fn evaluate_set(
         .collect();
     let scores = scoring
         .score(&reference, &output, dark.as_ref(), &opts.metrics)
-        .map_err(|e| Error::Invalid(format!("set '{}': {e}", set.name)))?;
+        .map_err(Error::within(format!("set '{}'", set.name)))?;
     let seconds = t0.elapsed().as_secs_f64();
     notes.extend(set_notes);
 

@@ -12,7 +12,7 @@ use crate::error::{Error, Result};
 use exr::block::chunk::{Chunk, CompressedBlock};
 use exr::math::Vec2;
 use exr::meta::MetaData;
-use exr::meta::attribute::{Chromaticities, SampleType};
+use exr::meta::attribute::{Chromaticities, IntegerBounds, SampleType};
 use exr::meta::header::Header;
 use rayon::prelude::*;
 use std::io::{Cursor, Seek, SeekFrom};
@@ -346,11 +346,25 @@ fn decode_planes(
         ));
     }
 
-    // Headers whose `bytes_per_pixel` is patched so the crate accepts subsampled blocks; one
-    // per distinct value (at most a few: full blocks, the last block, odd/even single lines).
+    let (geometry, patched) = block_geometry(path, header, subsampled, &chunks)?;
+    let blocks = decode_blocks(path, header, selected, chunks, geometry, &patched)?;
+    assemble_planes(path, header, selected, blocks)
+}
+
+/// Each block's pixel bounds in the data window (checked to lie inside it) and, when channels
+/// are subsampled, the `bytes_per_pixel` its decoder must be told; plus the headers whose
+/// `bytes_per_pixel` is patched so the crate accepts subsampled blocks, one per distinct value
+/// (at most a few: full blocks, the last block, odd/even single lines).
+#[allow(clippy::type_complexity)]
+fn block_geometry(
+    path: &Path,
+    header: &Header,
+    subsampled: bool,
+    chunks: &[Chunk],
+) -> Result<(Vec<(IntegerBounds, Option<usize>)>, Vec<(usize, Header)>)> {
     let mut patched: Vec<(usize, Header)> = Vec::new();
     let mut geometry = Vec::with_capacity(chunks.len());
-    for chunk in &chunks {
+    for chunk in chunks {
         let tile = header
             .get_block_data_indices(&chunk.compressed_block)
             .map_err(|e| exr_err(path, e))?;
@@ -395,8 +409,19 @@ fn decode_planes(
         };
         geometry.push((bounds, bpp));
     }
+    Ok((geometry, patched))
+}
 
-    let blocks: Vec<Block> = chunks
+/// The selected channels' samples of every block, decoded in parallel.
+fn decode_blocks(
+    path: &Path,
+    header: &Header,
+    selected: &[usize],
+    chunks: Vec<Chunk>,
+    geometry: Vec<(IntegerBounds, Option<usize>)>,
+    patched: &[(usize, Header)],
+) -> Result<Vec<Block>> {
+    chunks
         .into_par_iter()
         .zip(geometry.into_par_iter())
         .map(|(chunk, (bounds, bpp))| {
@@ -422,8 +447,17 @@ fn decode_planes(
                 ))
             })
         })
-        .collect::<Result<_>>()?;
+        .collect()
+}
 
+/// The selected channels as planes at their own resolution, each block's samples copied to
+/// its place (an error when a block's samples overrun the plane).
+fn assemble_planes(
+    path: &Path,
+    header: &Header,
+    selected: &[usize],
+    blocks: Vec<Block>,
+) -> Result<Vec<Plane>> {
     let mut planes: Vec<Plane> = selected
         .iter()
         .map(|&ci| {

@@ -219,10 +219,6 @@ impl OnnxModel {
         Ok(())
     }
 
-    fn run_err(&self, e: impl std::fmt::Display) -> Error {
-        Error::Invalid(format!("{}: ONNX Runtime: {e}", self.path.display()))
-    }
-
     /// Network-1 on `n` pairs of `[3, h, w]` planar frames (EV−3, EV0), stacked: the class
     /// probabilities `[n, C, h, w]` and, if the model has it, the blend weight `[n, 1, h, w]`.
     pub fn network1(
@@ -236,14 +232,14 @@ impl OnnxModel {
         let shape = [n, 3, h, w];
         let input = |v: &[f32]| Tensor::from_array((shape, v.to_vec()));
         let (a, b) = (
-            input(low).map_err(|e| self.run_err(e))?,
-            input(high).map_err(|e| self.run_err(e))?,
+            input(low).map_err(|e| run_err(&self.path, e))?,
+            input(high).map_err(|e| run_err(&self.path, e))?,
         );
         let has_weight = self.has_weight;
         let outputs = self
             .session
             .run(ort::inputs![N1_INPUTS[0] => a, N1_INPUTS[1] => b])
-            .map_err(|e| Error::Invalid(format!("{}: ONNX Runtime: {e}", self.path.display())))?;
+            .map_err(|e| run_err(&self.path, e))?;
         let take = |name: &str| -> std::result::Result<Vec<f32>, String> {
             let (_, data) = outputs[name]
                 .try_extract_tensor::<f32>()
@@ -254,8 +250,8 @@ impl OnnxModel {
         let weight = has_weight.then(|| take(N1_WEIGHT)).transpose();
         drop(outputs);
         Ok((
-            probs.map_err(|e| self.run_err(e))?,
-            weight.map_err(|e| self.run_err(e))?,
+            probs.map_err(|e| run_err(&self.path, e))?,
+            weight.map_err(|e| run_err(&self.path, e))?,
         ))
     }
 
@@ -277,22 +273,21 @@ impl OnnxModel {
             )));
         }
         let shape = [n, 3, h, w];
-        let a = Tensor::from_array((shape, low.to_vec())).map_err(|e| self.run_err(e))?;
-        let b = Tensor::from_array((shape, high.to_vec())).map_err(|e| self.run_err(e))?;
+        let a = Tensor::from_array((shape, low.to_vec())).map_err(|e| run_err(&self.path, e))?;
+        let b = Tensor::from_array((shape, high.to_vec())).map_err(|e| run_err(&self.path, e))?;
         let options = RunOptions::new()
-            .map_err(|e| self.run_err(e))?
+            .map_err(|e| run_err(&self.path, e))?
             .with_outputs(OutputSelector::no_default().with(N1_WEIGHT));
-        let path = self.path.clone();
         let outputs = self
             .session
             .run_with_options(ort::inputs![N1_INPUTS[0] => a, N1_INPUTS[1] => b], &options)
-            .map_err(|e| Error::Invalid(format!("{}: ONNX Runtime: {e}", path.display())))?;
+            .map_err(|e| run_err(&self.path, e))?;
         let out = outputs[N1_WEIGHT]
             .try_extract_tensor::<f32>()
             .map(|(_, d)| d.to_vec())
             .map_err(|e| e.to_string());
         drop(outputs);
-        out.map_err(|e| self.run_err(e))
+        out.map_err(|e| run_err(&self.path, e))
     }
 
     /// Network-2 on `n` triples of `[3, h, w]` planar frames (EV −2, 0, +2), each frame
@@ -308,11 +303,15 @@ impl OnnxModel {
         self.check_size(h, w)?;
         let mut values = Vec::new();
         for f in frames {
-            values
-                .push(Tensor::from_array(([n, 3, h, w], f.to_vec())).map_err(|e| self.run_err(e))?);
+            values.push(
+                Tensor::from_array(([n, 3, h, w], f.to_vec()))
+                    .map_err(|e| run_err(&self.path, e))?,
+            );
         }
-        let t = Tensor::from_array(([n, 3], times.to_vec())).map_err(|e| self.run_err(e))?;
-        let [a, b, c]: [Tensor<f32>; 3] = values.try_into().map_err(|_| self.run_err("inputs"))?;
+        let t = Tensor::from_array(([n, 3], times.to_vec())).map_err(|e| run_err(&self.path, e))?;
+        let [a, b, c]: [Tensor<f32>; 3] = values
+            .try_into()
+            .map_err(|_| run_err(&self.path, "inputs"))?;
         let outputs = self
             .session
             .run(ort::inputs![
@@ -321,12 +320,17 @@ impl OnnxModel {
                 N2_FRAMES[2] => c,
                 N2_TIMES => t
             ])
-            .map_err(|e| Error::Invalid(format!("{}: ONNX Runtime: {e}", self.path.display())))?;
+            .map_err(|e| run_err(&self.path, e))?;
         let out = outputs[N2_OUTPUT]
             .try_extract_tensor::<f32>()
             .map(|(_, d)| d.to_vec())
             .map_err(|e| e.to_string());
         drop(outputs);
-        out.map_err(|e| self.run_err(e))
+        out.map_err(|e| run_err(&self.path, e))
     }
+}
+
+/// An error of ONNX Runtime while running the model at `path`.
+fn run_err(path: &Path, e: impl std::fmt::Display) -> Error {
+    Error::Invalid(format!("{}: ONNX Runtime: {e}", path.display()))
 }

@@ -167,112 +167,14 @@ pub struct Selection {
 /// Select one camera's profile: case-insensitive exact maker and model; then `profile_name`;
 /// then, where ISOs still repeat, the set. Errors list the choices.
 pub fn select(rows: &[DarktableRow], q: &Query, csv: &Path) -> Result<Selection> {
-    let eq = |a: &str, b: &str| a.trim().eq_ignore_ascii_case(b.trim());
     let camera = format!("{} {}", q.maker, q.model);
-    let maker_rows: Vec<&DarktableRow> = rows.iter().filter(|r| eq(&r.maker, &q.maker)).collect();
-    if maker_rows.is_empty() {
-        let mut makers: Vec<&str> = rows.iter().map(|r| r.maker.as_str()).collect();
-        makers.sort_unstable();
-        makers.dedup();
-        return Err(Error::config(
-            csv,
-            format!("no maker '{}' (makers: {})", q.maker, makers.join(", ")),
-        ));
-    }
-    let cam: Vec<&DarktableRow> = maker_rows
-        .iter()
-        .copied()
-        .filter(|r| eq(&r.model, &q.model))
-        .collect();
-    if cam.is_empty() {
-        let mut models: Vec<&str> = maker_rows.iter().map(|r| r.model.as_str()).collect();
-        models.sort_unstable();
-        models.dedup();
-        return Err(Error::config(
-            csv,
-            format!(
-                "maker '{}' has no model '{}' (models: {})",
-                q.maker,
-                q.model,
-                models.join(", ")
-            ),
-        ));
-    }
-    let families_of = |rs: &[&DarktableRow]| {
-        let mut fams: Vec<String> = Vec::new();
-        for r in rs {
-            let f = profile_family(&r.profile_name).to_string();
-            if !fams.contains(&f) {
-                fams.push(f);
-            }
-        }
-        fams
-    };
-    let all_families = families_of(&cam);
+    let cam = camera_rows(rows, q, csv)?;
     let picked: Vec<&DarktableRow> = match &q.profile_name {
         None => cam.clone(),
-        Some(p) => {
-            let v: Vec<&DarktableRow> = cam
-                .iter()
-                .copied()
-                .filter(|r| eq(profile_family(&r.profile_name), p) || eq(&r.profile_name, p))
-                .collect();
-            if v.is_empty() {
-                return Err(Error::config(
-                    csv,
-                    format!(
-                        "{camera}: no profile named '{p}' (profile names: {})",
-                        quote_list(&all_families)
-                    ),
-                ));
-            }
-            v
-        }
+        Some(p) => named_rows(&cam, p, &camera, csv)?,
     };
-
-    // Number rows at each ISO in CSV order: set k = the k-th row at each ISO.
-    let mut sets: Vec<Vec<&DarktableRow>> = Vec::new();
-    let mut seen: Vec<(f64, usize)> = Vec::new();
-    for r in &picked {
-        let k = match seen.iter_mut().find(|(iso, _)| *iso == r.iso) {
-            Some((_, n)) => {
-                *n += 1;
-                *n - 1
-            }
-            None => {
-                seen.push((r.iso, 1));
-                0
-            }
-        };
-        if sets.len() <= k {
-            sets.push(Vec::new());
-        }
-        sets[k].push(r);
-    }
+    let (sets, seen) = number_sets(&picked);
     let n_sets = sets.len();
-    let describe_sets = || {
-        sets.iter()
-            .enumerate()
-            .map(|(k, s)| {
-                let mut isos: Vec<f64> = s.iter().map(|r| r.iso).collect();
-                isos.sort_by(f64::total_cmp);
-                let lines: Vec<usize> = s.iter().map(|r| r.line).collect();
-                format!(
-                    "  --set {}: ISO {} ({} rows, CSV lines {}–{}, profile names {})",
-                    k + 1,
-                    isos.iter()
-                        .map(|i| format!("{i}"))
-                        .collect::<Vec<_>>()
-                        .join(", "),
-                    s.len(),
-                    lines.iter().min().unwrap_or(&0),
-                    lines.iter().max().unwrap_or(&0),
-                    quote_list(&families_of(s))
-                )
-            })
-            .collect::<Vec<_>>()
-            .join("\n")
-    };
     let set = match q.set {
         None if n_sets > 1 => {
             let mut dup: Vec<f64> = seen
@@ -292,7 +194,7 @@ pub fn select(rows: &[DarktableRow], q: &Query, csv: &Path) -> Result<Selection>
                         .collect::<Vec<_>>()
                         .join(", "),
                     quote_list(&families_of(&picked)),
-                    describe_sets()
+                    describe_sets(&sets)
                 ),
             ));
         }
@@ -303,7 +205,7 @@ pub fn select(rows: &[DarktableRow], q: &Query, csv: &Path) -> Result<Selection>
                 format!(
                     "{camera}: --set {k} does not exist; there {} {n_sets} set(s):\n{}",
                     if n_sets == 1 { "is" } else { "are" },
-                    describe_sets()
+                    describe_sets(&sets)
                 ),
             ));
         }
@@ -318,6 +220,141 @@ pub fn select(rows: &[DarktableRow], q: &Query, csv: &Path) -> Result<Selection>
         set,
         sets: n_sets,
     })
+}
+
+/// Names (maker, model, profile) match case-insensitively, surrounding spaces ignored.
+fn same_name(a: &str, b: &str) -> bool {
+    a.trim().eq_ignore_ascii_case(b.trim())
+}
+
+/// The rows of the query's maker and model; an error lists the makers, or the maker's models.
+fn camera_rows<'a>(
+    rows: &'a [DarktableRow],
+    q: &Query,
+    csv: &Path,
+) -> Result<Vec<&'a DarktableRow>> {
+    let maker_rows: Vec<&DarktableRow> = rows
+        .iter()
+        .filter(|r| same_name(&r.maker, &q.maker))
+        .collect();
+    if maker_rows.is_empty() {
+        let mut makers: Vec<&str> = rows.iter().map(|r| r.maker.as_str()).collect();
+        makers.sort_unstable();
+        makers.dedup();
+        return Err(Error::config(
+            csv,
+            format!("no maker '{}' (makers: {})", q.maker, makers.join(", ")),
+        ));
+    }
+    let cam: Vec<&DarktableRow> = maker_rows
+        .iter()
+        .copied()
+        .filter(|r| same_name(&r.model, &q.model))
+        .collect();
+    if cam.is_empty() {
+        let mut models: Vec<&str> = maker_rows.iter().map(|r| r.model.as_str()).collect();
+        models.sort_unstable();
+        models.dedup();
+        return Err(Error::config(
+            csv,
+            format!(
+                "maker '{}' has no model '{}' (models: {})",
+                q.maker,
+                q.model,
+                models.join(", ")
+            ),
+        ));
+    }
+    Ok(cam)
+}
+
+/// The camera's rows whose profile family or full profile name is `name`; an error lists the
+/// camera's families.
+fn named_rows<'a>(
+    cam: &[&'a DarktableRow],
+    name: &str,
+    camera: &str,
+    csv: &Path,
+) -> Result<Vec<&'a DarktableRow>> {
+    let v: Vec<&DarktableRow> = cam
+        .iter()
+        .copied()
+        .filter(|r| {
+            same_name(profile_family(&r.profile_name), name) || same_name(&r.profile_name, name)
+        })
+        .collect();
+    if v.is_empty() {
+        return Err(Error::config(
+            csv,
+            format!(
+                "{camera}: no profile named '{name}' (profile names: {})",
+                quote_list(&families_of(cam))
+            ),
+        ));
+    }
+    Ok(v)
+}
+
+/// Distinct profile families of `rs`, in order of first appearance.
+fn families_of(rs: &[&DarktableRow]) -> Vec<String> {
+    let mut fams: Vec<String> = Vec::new();
+    for r in rs {
+        let f = profile_family(&r.profile_name).to_string();
+        if !fams.contains(&f) {
+            fams.push(f);
+        }
+    }
+    fams
+}
+
+/// Rows numbered at each ISO in CSV order: set k = the k-th row at each ISO. Also each ISO
+/// with its row count.
+#[allow(clippy::type_complexity)]
+fn number_sets<'a>(picked: &[&'a DarktableRow]) -> (Vec<Vec<&'a DarktableRow>>, Vec<(f64, usize)>) {
+    let mut sets: Vec<Vec<&DarktableRow>> = Vec::new();
+    let mut seen: Vec<(f64, usize)> = Vec::new();
+    for r in picked {
+        let k = match seen.iter_mut().find(|(iso, _)| *iso == r.iso) {
+            Some((_, n)) => {
+                *n += 1;
+                *n - 1
+            }
+            None => {
+                seen.push((r.iso, 1));
+                0
+            }
+        };
+        if sets.len() <= k {
+            sets.push(Vec::new());
+        }
+        sets[k].push(r);
+    }
+    (sets, seen)
+}
+
+/// One line per set for the errors: its ISOs, rows, CSV lines and profile names.
+fn describe_sets(sets: &[Vec<&DarktableRow>]) -> String {
+    sets.iter()
+        .enumerate()
+        .map(|(k, s)| {
+            let mut isos: Vec<f64> = s.iter().map(|r| r.iso).collect();
+            isos.sort_by(f64::total_cmp);
+            let lines: Vec<usize> = s.iter().map(|r| r.line).collect();
+            format!(
+                "  --set {}: ISO {} ({} rows, CSV lines {}–{}, profile names {})",
+                k + 1,
+                isos.iter()
+                    .map(|i| format!("{i}"))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                s.len(),
+                lines.iter().min().unwrap_or(&0),
+                lines.iter().max().unwrap_or(&0),
+                quote_list(&families_of(s))
+            )
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
 }
 
 fn quote_list(v: &[String]) -> String {

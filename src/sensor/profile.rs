@@ -19,6 +19,8 @@
 
 use crate::config::{KeyError, Range, each_in_range, in_range, in_range_because, load_checked};
 use crate::error::{Error, Result};
+pub use crate::sensor::effects::plan::EffectSpec;
+use crate::sensor::effects::plan::Plan;
 use crate::sensor::response::ToneCurve;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -139,15 +141,6 @@ impl std::str::FromStr for Response {
             },
         }
     }
-}
-
-/// An extra physical effect, applied by the realism operator in physical order. Filled by the
-/// gap workflow; `id` must name an effect of the catalogue (src/sensor/effects/).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct EffectSpec {
-    pub id: String,
-    #[serde(flatten)]
-    pub params: toml::Table,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -439,7 +432,7 @@ impl SensorProfile {
             .validate()
             .map_err(|e| e.within("source_response"))?;
         // Ids and parameters: the same check the realism operator makes.
-        crate::sensor::effects::Plan::check(&self.effects)
+        Plan::check(&self.effects)
     }
 
     /// Noise parameters (a, b) per channel at `iso`, interpolated linearly in log(ISO).

@@ -10,6 +10,7 @@
 
 pub mod checkpoint;
 pub mod config;
+mod log;
 #[cfg(feature = "flex")]
 pub mod loss;
 pub mod task;
@@ -25,8 +26,7 @@ use burn::optim::{AdamConfig, GradientsAccumulator, GradientsParams, ModuleOptim
 use burn::tensor::{Bool, Device, Int, Tensor};
 use checkpoint::CheckpointState;
 use config::TrainConfig;
-use serde::{Deserialize, Serialize};
-use std::io::Write;
+use log::{Log, LogLine, Number, Scores};
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
@@ -304,96 +304,6 @@ fn identity_of(cfg: &TrainConfig) -> Result<String> {
     toml::to_string(&c).map_err(|e| Error::encode(RUN_CONFIG, e))
 }
 
-struct Log {
-    path: PathBuf,
-    file: std::fs::File,
-}
-
-impl Log {
-    /// Open the run's log; on resume keep only lines up to `step` (later ones were written
-    /// after the checkpoint and will be written again).
-    fn open(run: &Path, resume_step: Option<u64>) -> Result<Log> {
-        let path = run.join(LOG_FILE);
-        match resume_step {
-            Some(step) => {
-                let text = crate::io::guard::read_input_text(&path).unwrap_or_default();
-                let kept: String = text
-                    .lines()
-                    .filter(|l| line_step(l).is_some_and(|s| s <= step))
-                    .map(|l| format!("{l}\n"))
-                    .collect();
-                write_atomic(&path, kept.as_bytes())?;
-            }
-            None => write_atomic(&path, b"")?,
-        }
-        let file = std::fs::OpenOptions::new()
-            .append(true)
-            .open(&path)
-            .map_err(|e| Error::io(&path, e))?;
-        Ok(Log { path, file })
-    }
-
-    fn write(&mut self, line: &LogLine) -> Result<()> {
-        let text = serde_json::to_string(line).map_err(|e| Error::encode(&self.path, e))?;
-        writeln!(self.file, "{text}")
-            .and_then(|_| self.file.flush())
-            .map_err(|e| Error::io(&self.path, e))
-    }
-}
-
-/// One line of the metrics log: a JSON object whose keys come in field order, `step` first.
-#[derive(Serialize)]
-#[serde(untagged)]
-enum LogLine<'a> {
-    Interval {
-        step: u64,
-        epoch: Number,
-        loss: Number,
-        lr: Number,
-        samples_per_s: Number,
-        elapsed_s: Number,
-    },
-    Validation {
-        step: u64,
-        validation: Scores<'a>,
-    },
-    Stopped {
-        step: u64,
-        loss: Number,
-        error: &'static str,
-    },
-}
-
-/// A score as JSON: a number, or its name as a string when not finite (JSON has no NaN).
-struct Number(f64);
-
-impl Serialize for Number {
-    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
-        if self.0.is_finite() {
-            s.serialize_f64(self.0)
-        } else {
-            s.serialize_str(&self.0.to_string())
-        }
-    }
-}
-
-/// Validation scores as one JSON object, in the task's order.
-struct Scores<'a>(&'a [(String, f64)]);
-
-impl Serialize for Scores<'_> {
-    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
-        s.collect_map(self.0.iter().map(|(k, v)| (k, Number(*v))))
-    }
-}
-
-fn line_step(line: &str) -> Option<u64> {
-    #[derive(Deserialize)]
-    struct Step {
-        step: u64,
-    }
-    serde_json::from_str::<Step>(line).ok().map(|s| s.step)
-}
-
 /// The trainer shared by both networks: the run folder, then `start_or_resume`, the
 /// `validation_set`, and `train_loop`.
 pub fn train<T: Task + Sync>(
@@ -650,12 +560,10 @@ fn train_loop<T: Task + Sync>(
     let total = cfg.run.steps;
     let bar = progress_bar(progress, start, total);
     let mut batches = loader.range(start * bs, total * bs);
-    let (mut interval_loss, mut interval_steps) = (0.0f64, 0u64);
-    let (mut first_loss, mut last_loss) = (None, f64::NAN);
+    let mut interval = Interval::new(bs);
     let mut last_checkpoint = existing;
     let mut last_validation = Vec::new();
     let began = Instant::now();
-    let mut interval_start = Instant::now();
     let state_at = |step: u64, loss: Option<f64>| CheckpointState {
         format: checkpoint::FORMAT.into(),
         step,
@@ -692,44 +600,16 @@ fn train_loop<T: Task + Sync>(
         let (next, value) = train_step_parallel(task, model, &mut optim, lr, &batch, &devices)?;
         model = next;
         if !value.is_finite() {
-            log.write(&LogLine::Stopped {
-                step,
-                loss: Number(value),
-                error: "non-finite loss",
-            })?;
-            bar.abandon();
-            let kept = match &last_checkpoint {
-                Some(d) => format!("the last good checkpoint is {}", d.display()),
-                None => "no checkpoint was written yet".into(),
-            };
-            return Err(Error::Invalid(format!(
-                "step {step}: the training loss is {value} (non-finite; lr {lr:e}); training \
-                 stopped and nothing after the last checkpoint was saved: {kept}. Lower \
-                 optim.lr or check the data"
-            )));
+            let last = last_checkpoint.as_deref();
+            return Err(stop_non_finite(&mut log, &bar, step, value, lr, last));
         }
-        interval_loss += value;
-        interval_steps += 1;
+        interval.add(value);
         let done = step + 1;
         bar.set_position(done);
 
         if done % cfg.run.log_every == 0 || done == total {
-            let mean = interval_loss / interval_steps as f64;
-            let secs = interval_start.elapsed().as_secs_f64();
-            let sps = (interval_steps * bs) as f64 / secs.max(1e-9);
-            first_loss.get_or_insert(mean);
-            last_loss = mean;
-            bar.set_message(format!("loss {mean:.4} · {sps:.1} samples/s"));
-            log.write(&LogLine::Interval {
-                step: done,
-                epoch: Number((done * bs) as f64 / loader.len() as f64),
-                loss: Number(mean),
-                lr: Number(lr),
-                samples_per_s: Number(sps),
-                elapsed_s: Number(began.elapsed().as_secs_f64()),
-            })?;
-            (interval_loss, interval_steps) = (0.0, 0);
-            interval_start = Instant::now();
+            let epoch = (done * bs) as f64 / loader.len() as f64;
+            interval.close(&mut log, &bar, done, epoch, lr, began)?;
         }
         if let Some(v) = &validation
             && (done % v.every == 0 || done == total)
@@ -739,7 +619,7 @@ fn train_loop<T: Task + Sync>(
         if done % cfg.run.checkpoint_every == 0 || done == total {
             let dir = checkpoint::save(
                 run,
-                &state_at(done, Some(last_loss).filter(|l| l.is_finite())),
+                &state_at(done, Some(interval.last_mean).filter(|l| l.is_finite())),
                 &model,
                 Some(&optim),
                 cfg.run.keep_checkpoints,
@@ -754,13 +634,101 @@ fn train_loop<T: Task + Sync>(
         run: run.clone(),
         start_step: start,
         steps: total,
-        first_loss: first_loss.unwrap_or(f64::NAN),
-        last_loss,
+        first_loss: interval.first_mean.unwrap_or(f64::NAN),
+        last_loss: interval.last_mean,
         checkpoint: last_checkpoint.unwrap_or_default(),
         samples_per_s: ((total - start) * bs) as f64 / secs.max(1e-9),
         validation: last_validation,
         already_finished: false,
     })
+}
+
+/// The training loss since the last log line, and the mean of the first and of the last line.
+struct Interval {
+    loss: f64,
+    steps: u64,
+    start: Instant,
+    batch_size: u64,
+    first_mean: Option<f64>,
+    last_mean: f64,
+}
+
+impl Interval {
+    fn new(batch_size: u64) -> Interval {
+        Interval {
+            loss: 0.0,
+            steps: 0,
+            start: Instant::now(),
+            batch_size,
+            first_mean: None,
+            last_mean: f64::NAN,
+        }
+    }
+
+    fn add(&mut self, loss: f64) {
+        self.loss += loss;
+        self.steps += 1;
+    }
+
+    /// End the interval at step `done`: its mean loss and throughput go to the progress bar
+    /// and the log (with `epoch`, `lr` and the time since `began`); the next one starts.
+    fn close(
+        &mut self,
+        log: &mut Log,
+        bar: &indicatif::ProgressBar,
+        done: u64,
+        epoch: f64,
+        lr: f64,
+        began: Instant,
+    ) -> Result<()> {
+        let mean = self.loss / self.steps as f64;
+        let secs = self.start.elapsed().as_secs_f64();
+        let sps = (self.steps * self.batch_size) as f64 / secs.max(1e-9);
+        self.first_mean.get_or_insert(mean);
+        self.last_mean = mean;
+        bar.set_message(format!("loss {mean:.4} · {sps:.1} samples/s"));
+        log.write(&LogLine::Interval {
+            step: done,
+            epoch: Number(epoch),
+            loss: Number(mean),
+            lr: Number(lr),
+            samples_per_s: Number(sps),
+            elapsed_s: Number(began.elapsed().as_secs_f64()),
+        })?;
+        (self.loss, self.steps) = (0.0, 0);
+        self.start = Instant::now();
+        Ok(())
+    }
+}
+
+/// A non-finite loss at `step`: logged, the bar abandoned, and the error that stops the run
+/// naming the last good checkpoint (nothing after it is saved).
+fn stop_non_finite(
+    log: &mut Log,
+    bar: &indicatif::ProgressBar,
+    step: u64,
+    value: f64,
+    lr: f64,
+    last_checkpoint: Option<&Path>,
+) -> Error {
+    let logged = log.write(&LogLine::Stopped {
+        step,
+        loss: Number(value),
+        error: "non-finite loss",
+    });
+    if let Err(e) = logged {
+        return e;
+    }
+    bar.abandon();
+    let kept = match last_checkpoint {
+        Some(d) => format!("the last good checkpoint is {}", d.display()),
+        None => "no checkpoint was written yet".into(),
+    };
+    Error::Invalid(format!(
+        "step {step}: the training loss is {value} (non-finite; lr {lr:e}); training \
+         stopped and nothing after the last checkpoint was saved: {kept}. Lower \
+         optim.lr or check the data"
+    ))
 }
 
 /// Mean validation scores over `samples`, in batches, on the inference model.

@@ -244,97 +244,123 @@ pub fn detect(root: &Path) -> Result<DatasetInfo> {
                 found.push((layout, *set));
                 skipped.extend(notes);
             }
-            Probe::NotASet(not) => {
-                let inner = list_dir(&sub.path)?;
-                let mut inner_found = 0usize;
-                let mut inner_skipped = Vec::new();
-                for d in &inner.dirs {
-                    let name = format!("{}/{}", sub.name, d.name);
-                    match classify(&d.path, &name)? {
-                        Probe::Set { layout, set, notes } => {
-                            found.push((layout, *set));
-                            skipped.extend(notes);
-                            inner_found += 1;
-                        }
-                        Probe::NotASet(n) => inner_skipped.push((d.path.clone(), n.reason)),
-                    }
-                }
-                if inner_found > 0 {
-                    if not.has_images {
-                        skipped.push((sub.path.clone(), not.reason));
-                    }
-                    skipped.extend(inner_skipped);
-                } else if inner.dirs.is_empty() {
-                    skipped.push((sub.path.clone(), not.reason));
-                } else {
-                    skipped.push((
-                        sub.path.clone(),
-                        format!(
-                            "{}; none of its {} sub-folder(s) is a set either",
-                            not.reason,
-                            inner.dirs.len()
-                        ),
-                    ));
-                }
-            }
+            Probe::NotASet(not) => scan_below(sub, not, &mut found, &mut skipped)?,
         }
     }
     if !found.is_empty() && root_probe.has_images {
         skipped.insert(0, (root.to_path_buf(), root_probe.reason.clone()));
     }
-
     if found.is_empty() {
-        let mut msg = format!(
-            "no sets found: looked at the folder itself, its sub-folders and one level below \
-             for a known layout ({LAYOUT_HINTS})"
-        );
-        if listing.dirs.is_empty() || root_probe.has_images {
-            msg.push_str(&format!("; the folder itself: {}", root_probe.reason));
-        }
-        if !skipped.is_empty() {
-            msg.push_str("; skipped: ");
-            let parts: Vec<String> = skipped
-                .iter()
-                .take(10)
-                .map(|(p, r)| format!("{} ({r})", p.display()))
-                .collect();
-            msg.push_str(&parts.join(", "));
-            if skipped.len() > 10 {
-                msg.push_str(&format!(", … {} more", skipped.len() - 10));
-            }
-        }
-        return Err(Error::layout(root, msg));
+        return Err(no_sets(root, &listing, &root_probe, &skipped));
     }
-
-    let layout = found[0].0;
-    if found.iter().any(|(l, _)| *l != layout) {
-        let mut groups: Vec<(LayoutKind, usize, String)> = Vec::new();
-        for (l, s) in &found {
-            match groups.iter_mut().find(|g| g.0 == *l) {
-                Some(g) => g.1 += 1,
-                None => groups.push((*l, 1, s.name.clone())),
-            }
-        }
-        let parts: Vec<String> = groups
-            .iter()
-            .map(|(l, n, first)| format!("{n} {l} set(s) (e.g. {first})"))
-            .collect();
-        return Err(Error::layout(
-            root,
-            format!(
-                "mixed layouts: {}; a dataset folder must hold sets of one layout \
-                 (point at a sub-folder or separate them)",
-                parts.join(", ")
-            ),
-        ));
-    }
-
+    let layout = one_layout(root, &found)?;
     Ok(DatasetInfo {
         root: root.to_path_buf(),
         layout,
         sets: found.into_iter().map(|(_, s)| s).collect(),
         skipped,
     })
+}
+
+/// The sub-folders of `sub`, a folder that is not a set itself (e.g. Kalantari's `Training`):
+/// their sets go into `found`, the rest into `skipped`, and so does `sub` when it holds
+/// images of its own or nothing below it is a set.
+fn scan_below(
+    sub: &Entry,
+    not: NotASet,
+    found: &mut Vec<(LayoutKind, SetInfo)>,
+    skipped: &mut Vec<(PathBuf, String)>,
+) -> Result<()> {
+    let inner = list_dir(&sub.path)?;
+    let mut inner_found = 0usize;
+    let mut inner_skipped = Vec::new();
+    for d in &inner.dirs {
+        let name = format!("{}/{}", sub.name, d.name);
+        match classify(&d.path, &name)? {
+            Probe::Set { layout, set, notes } => {
+                found.push((layout, *set));
+                skipped.extend(notes);
+                inner_found += 1;
+            }
+            Probe::NotASet(n) => inner_skipped.push((d.path.clone(), n.reason)),
+        }
+    }
+    if inner_found > 0 {
+        if not.has_images {
+            skipped.push((sub.path.clone(), not.reason));
+        }
+        skipped.extend(inner_skipped);
+    } else if inner.dirs.is_empty() {
+        skipped.push((sub.path.clone(), not.reason));
+    } else {
+        skipped.push((
+            sub.path.clone(),
+            format!(
+                "{}; none of its {} sub-folder(s) is a set either",
+                not.reason,
+                inner.dirs.len()
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// The error for a dataset folder without sets: where [`detect`] looked and, for the first
+/// ten things skipped, why.
+fn no_sets(
+    root: &Path,
+    listing: &Listing,
+    root_probe: &NotASet,
+    skipped: &[(PathBuf, String)],
+) -> Error {
+    let mut msg = format!(
+        "no sets found: looked at the folder itself, its sub-folders and one level below \
+         for a known layout ({LAYOUT_HINTS})"
+    );
+    if listing.dirs.is_empty() || root_probe.has_images {
+        msg.push_str(&format!("; the folder itself: {}", root_probe.reason));
+    }
+    if !skipped.is_empty() {
+        msg.push_str("; skipped: ");
+        let parts: Vec<String> = skipped
+            .iter()
+            .take(10)
+            .map(|(p, r)| format!("{} ({r})", p.display()))
+            .collect();
+        msg.push_str(&parts.join(", "));
+        if skipped.len() > 10 {
+            msg.push_str(&format!(", … {} more", skipped.len() - 10));
+        }
+    }
+    Error::layout(root, msg)
+}
+
+/// The one layout of the sets found (`found` is not empty), or an error counting each
+/// layout's sets with an example.
+fn one_layout(root: &Path, found: &[(LayoutKind, SetInfo)]) -> Result<LayoutKind> {
+    let layout = found[0].0;
+    if found.iter().all(|(l, _)| *l == layout) {
+        return Ok(layout);
+    }
+    let mut groups: Vec<(LayoutKind, usize, String)> = Vec::new();
+    for (l, s) in found {
+        match groups.iter_mut().find(|g| g.0 == *l) {
+            Some(g) => g.1 += 1,
+            None => groups.push((*l, 1, s.name.clone())),
+        }
+    }
+    let parts: Vec<String> = groups
+        .iter()
+        .map(|(l, n, first)| format!("{n} {l} set(s) (e.g. {first})"))
+        .collect();
+    Err(Error::layout(
+        root,
+        format!(
+            "mixed layouts: {}; a dataset folder must hold sets of one layout \
+             (point at a sub-folder or separate them)",
+            parts.join(", ")
+        ),
+    ))
 }
 
 /// A linear ground truth in hdrsynth's unit (1 = the reference exposure's white): the file's

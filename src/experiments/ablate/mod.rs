@@ -334,46 +334,7 @@ impl AblateConfig {
         for (axis, list) in [("rows", &self.rows), ("columns", &self.columns)] {
             let mut seen = std::collections::BTreeSet::new();
             for a in list {
-                if a.name.is_empty()
-                    || !a
-                        .name
-                        .chars()
-                        .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
-                {
-                    return Err(format!(
-                        "[[{axis}]] name '{}': use letters, digits, '-' and '_' only",
-                        a.name
-                    ));
-                }
-                if !seen.insert(&a.name) {
-                    return Err(format!("[[{axis}]] name '{}' appears twice", a.name));
-                }
-                if a.kind.baseline().is_some() && a.checkpoint.is_some() {
-                    return Err(format!(
-                        "[[{axis}]] '{}': a baseline kind has no network; it cannot name a \
-                         checkpoint",
-                        a.name
-                    ));
-                }
-                if a.kind == AxisKind::Control && (!a.train || a.checkpoint.is_some()) {
-                    return Err(format!(
-                        "[[{axis}]] '{}': kind = \"control\" trains; it cannot also have \
-                         train = false or a checkpoint",
-                        a.name
-                    ));
-                }
-                let sets_seed = a
-                    .set
-                    .get("run")
-                    .and_then(|r| r.as_table())
-                    .is_some_and(|r| r.contains_key("seed"));
-                if sets_seed && !self.seeds.is_empty() {
-                    return Err(format!(
-                        "[[{axis}]] '{}' sets run.seed, but the grid's `seeds` set every \
-                         trained cell's seed",
-                        a.name
-                    ));
-                }
+                self.check_axis(axis, a, &mut seen)?;
             }
         }
         let mut seeds = self.seeds.clone();
@@ -382,6 +343,70 @@ impl AblateConfig {
         if seeds.len() != self.seeds.len() {
             return Err(format!("seeds {:?}: a seed appears twice", self.seeds));
         }
+        self.check_eval()?;
+        if let Some(p) = &self.pretrained_per_seed
+            && (self.seeds.is_empty() || !p.contains("{seed}"))
+        {
+            return Err(format!(
+                "pretrained_per_seed '{p}' needs `seeds` and '{{seed}}' in the path"
+            ));
+        }
+        self.check_testsets()
+    }
+
+    /// One row or column of `axis` ("rows" or "columns"): its name (unique among `seen`), its
+    /// kind against its checkpoint and training, and its seed against the grid's `seeds`.
+    fn check_axis<'a>(
+        &self,
+        axis: &str,
+        a: &'a Axis,
+        seen: &mut std::collections::BTreeSet<&'a String>,
+    ) -> std::result::Result<(), String> {
+        if a.name.is_empty()
+            || !a
+                .name
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
+        {
+            return Err(format!(
+                "[[{axis}]] name '{}': use letters, digits, '-' and '_' only",
+                a.name
+            ));
+        }
+        if !seen.insert(&a.name) {
+            return Err(format!("[[{axis}]] name '{}' appears twice", a.name));
+        }
+        if a.kind.baseline().is_some() && a.checkpoint.is_some() {
+            return Err(format!(
+                "[[{axis}]] '{}': a baseline kind has no network; it cannot name a \
+                 checkpoint",
+                a.name
+            ));
+        }
+        if a.kind == AxisKind::Control && (!a.train || a.checkpoint.is_some()) {
+            return Err(format!(
+                "[[{axis}]] '{}': kind = \"control\" trains; it cannot also have \
+                 train = false or a checkpoint",
+                a.name
+            ));
+        }
+        let sets_seed = a
+            .set
+            .get("run")
+            .and_then(|r| r.as_table())
+            .is_some_and(|r| r.contains_key("seed"));
+        if sets_seed && !self.seeds.is_empty() {
+            return Err(format!(
+                "[[{axis}]] '{}' sets run.seed, but the grid's `seeds` set every \
+                 trained cell's seed",
+                a.name
+            ));
+        }
+        Ok(())
+    }
+
+    /// `[eval]`: the confidence level, the equivalence margins, and references that are cells.
+    fn check_eval(&self) -> std::result::Result<(), String> {
         if !(self.eval.level > 0.0 && self.eval.level < 1.0) {
             return Err(format!("eval.level {} must be in (0, 1)", self.eval.level));
         }
@@ -408,13 +433,11 @@ impl AblateConfig {
                 return Err(format!("{what} '{r}' is not a cell of the grid"));
             }
         }
-        if let Some(p) = &self.pretrained_per_seed
-            && (self.seeds.is_empty() || !p.contains("{seed}"))
-        {
-            return Err(format!(
-                "pretrained_per_seed '{p}' needs `seeds` and '{{seed}}' in the path"
-            ));
-        }
+        Ok(())
+    }
+
+    /// The primary test set and each `[[also]]`: names, how each is built, its options.
+    fn check_testsets(&self) -> std::result::Result<(), String> {
         let mut names = std::collections::BTreeSet::new();
         for (i, t) in std::iter::once(&self.testset).chain(&self.also).enumerate() {
             let what = match (i, &t.name) {

@@ -446,7 +446,20 @@ pub fn sample_chart(
     let inv = h
         .inverse()
         .ok_or_else(|| Error::Invalid("chart corners give a singular mapping".into()))?;
-    // The patch area must be a convex quadrilateral in the given order (no flips or bow-ties).
+    check_convex(&corners, region)?;
+    let mut out = Vec::with_capacity(24);
+    for (p, patch) in COLORCHECKER24.iter().enumerate() {
+        let vals = patch_pixels(img, &h, &inv, p, patch)?;
+        if let Some(clip) = clip_level {
+            check_unclipped(patch, &vals, clip)?;
+        }
+        out.push(PatchSample::of(&vals));
+    }
+    Ok(out)
+}
+
+/// The patch area must be a convex quadrilateral in the given order (no flips or bow-ties).
+fn check_convex(corners: &[[f64; 2]; 4], region: &ChartRegion) -> Result<()> {
     let cross = |a: [f64; 2], b: [f64; 2], c: [f64; 2]| {
         (b[0] - a[0]) * (c[1] - b[1]) - (b[1] - a[1]) * (c[0] - b[0])
     };
@@ -460,91 +473,110 @@ pub fn sample_chart(
             region
         )));
     }
+    Ok(())
+}
+
+/// The pixels of patch `p`'s sampling window (the cell's central half, mapped into the image
+/// by `h`; `inv` maps pixel centres back), at least [`MIN_PATCH_PIXELS`] of them.
+fn patch_pixels(
+    img: &Image,
+    h: &Homography,
+    inv: &Homography,
+    p: usize,
+    patch: &Patch,
+) -> Result<Vec<[f64; 3]>> {
     let (w, hgt) = (img.width as f64, img.height as f64);
-    let mut out = Vec::with_capacity(24);
-    for (p, patch) in COLORCHECKER24.iter().enumerate() {
-        let (i, j) = ((p % CHART_COLS) as f64, (p / CHART_COLS) as f64);
-        let (u0, u1, v0, v1) = (i + 0.25, i + 0.75, j + 0.25, j + 0.75);
-        let quad = [[u0, v0], [u1, v0], [u1, v1], [u0, v1]].map(|q| h.apply(q));
-        if quad
-            .iter()
-            .any(|q| !(q[0] >= 0.0 && q[0] <= w && q[1] >= 0.0 && q[1] <= hgt))
-        {
-            return Err(Error::Invalid(format!(
-                "patch {} ({}): its sampling window lies outside the {}×{} image; check the \
-                 chart corners",
-                patch.number, patch.name, img.width, img.height
-            )));
+    let (i, j) = ((p % CHART_COLS) as f64, (p / CHART_COLS) as f64);
+    let (u0, u1, v0, v1) = (i + 0.25, i + 0.75, j + 0.25, j + 0.75);
+    let quad = [[u0, v0], [u1, v0], [u1, v1], [u0, v1]].map(|q| h.apply(q));
+    if quad
+        .iter()
+        .any(|q| !(q[0] >= 0.0 && q[0] <= w && q[1] >= 0.0 && q[1] <= hgt))
+    {
+        return Err(Error::Invalid(format!(
+            "patch {} ({}): its sampling window lies outside the {}×{} image; check the \
+             chart corners",
+            patch.number, patch.name, img.width, img.height
+        )));
+    }
+    let xmin = quad
+        .iter()
+        .map(|q| q[0])
+        .fold(f64::INFINITY, f64::min)
+        .floor()
+        .max(0.0) as usize;
+    let xmax = (quad
+        .iter()
+        .map(|q| q[0])
+        .fold(f64::NEG_INFINITY, f64::max)
+        .ceil() as usize)
+        .min(img.width);
+    let ymin = quad
+        .iter()
+        .map(|q| q[1])
+        .fold(f64::INFINITY, f64::min)
+        .floor()
+        .max(0.0) as usize;
+    let ymax = (quad
+        .iter()
+        .map(|q| q[1])
+        .fold(f64::NEG_INFINITY, f64::max)
+        .ceil() as usize)
+        .min(img.height);
+    let mut vals: Vec<[f64; 3]> = Vec::new();
+    for y in ymin..ymax {
+        for x in xmin..xmax {
+            let [u, v] = inv.apply([x as f64 + 0.5, y as f64 + 0.5]);
+            if u >= u0 && u < u1 && v >= v0 && v < v1 {
+                let px = img.get(x, y);
+                vals.push([px[0] as f64, px[1] as f64, px[2] as f64]);
+            }
         }
-        let xmin = quad
-            .iter()
-            .map(|q| q[0])
-            .fold(f64::INFINITY, f64::min)
-            .floor()
-            .max(0.0) as usize;
-        let xmax = (quad
-            .iter()
-            .map(|q| q[0])
-            .fold(f64::NEG_INFINITY, f64::max)
-            .ceil() as usize)
-            .min(img.width);
-        let ymin = quad
-            .iter()
-            .map(|q| q[1])
-            .fold(f64::INFINITY, f64::min)
-            .floor()
-            .max(0.0) as usize;
-        let ymax = (quad
-            .iter()
-            .map(|q| q[1])
-            .fold(f64::NEG_INFINITY, f64::max)
-            .ceil() as usize)
-            .min(img.height);
-        let mut vals: Vec<[f64; 3]> = Vec::new();
-        for y in ymin..ymax {
-            for x in xmin..xmax {
-                let [u, v] = inv.apply([x as f64 + 0.5, y as f64 + 0.5]);
-                if u >= u0 && u < u1 && v >= v0 && v < v1 {
-                    let px = img.get(x, y);
-                    vals.push([px[0] as f64, px[1] as f64, px[2] as f64]);
+    }
+    if vals.len() < MIN_PATCH_PIXELS {
+        return Err(Error::Invalid(format!(
+            "patch {} ({}): only {} pixels in its sampling window (need {MIN_PATCH_PIXELS}); \
+             the chart is too small in the image or the corners are wrong",
+            patch.number,
+            patch.name,
+            vals.len()
+        )));
+    }
+    Ok(vals)
+}
+
+/// A clipped patch is an error: any sampled value at or above [`CLIP_FRACTION`] × `clip`.
+fn check_unclipped(patch: &Patch, vals: &[[f64; 3]], clip: f64) -> Result<()> {
+    let limit = CLIP_FRACTION * clip;
+    let mut worst: Option<(usize, f64)> = None;
+    let mut count = 0usize;
+    for v in vals {
+        for c in 0..3 {
+            if v[c] >= limit {
+                count += 1;
+                if worst.is_none_or(|(_, w)| v[c] > w) {
+                    worst = Some((c, v[c]));
                 }
             }
         }
-        if vals.len() < MIN_PATCH_PIXELS {
-            return Err(Error::Invalid(format!(
-                "patch {} ({}): only {} pixels in its sampling window (need {MIN_PATCH_PIXELS}); \
-                 the chart is too small in the image or the corners are wrong",
-                patch.number,
-                patch.name,
-                vals.len()
-            )));
-        }
-        if let Some(clip) = clip_level {
-            let limit = CLIP_FRACTION * clip;
-            let mut worst: Option<(usize, f64)> = None;
-            let mut count = 0usize;
-            for v in &vals {
-                for c in 0..3 {
-                    if v[c] >= limit {
-                        count += 1;
-                        if worst.is_none_or(|(_, w)| v[c] > w) {
-                            worst = Some((c, v[c]));
-                        }
-                    }
-                }
-            }
-            if let Some((c, v)) = worst {
-                return Err(Error::Invalid(format!(
-                    "patch {} ({}) is clipped: {count} sampled values at or above {:.4} \
-                     ({CLIP_FRACTION} × clip level {clip}), up to {v:.4} in channel {}; lower \
-                     the exposure or leave it out of the capture",
-                    patch.number,
-                    patch.name,
-                    limit,
-                    ["R", "G", "B"][c]
-                )));
-            }
-        }
+    }
+    if let Some((c, v)) = worst {
+        return Err(Error::Invalid(format!(
+            "patch {} ({}) is clipped: {count} sampled values at or above {:.4} \
+             ({CLIP_FRACTION} × clip level {clip}), up to {v:.4} in channel {}; lower \
+             the exposure or leave it out of the capture",
+            patch.number,
+            patch.name,
+            limit,
+            ["R", "G", "B"][c]
+        )));
+    }
+    Ok(())
+}
+
+impl PatchSample {
+    /// Mean and sample standard deviation (0 for one pixel) of a patch's pixels.
+    fn of(vals: &[[f64; 3]]) -> PatchSample {
         let n = vals.len() as f64;
         let mean: [f64; 3] = std::array::from_fn(|c| vals.iter().map(|v| v[c]).sum::<f64>() / n);
         let std: [f64; 3] = std::array::from_fn(|c| {
@@ -554,13 +586,12 @@ pub fn sample_chart(
                 (vals.iter().map(|v| (v[c] - mean[c]).powi(2)).sum::<f64>() / (n - 1.0)).sqrt()
             }
         });
-        out.push(PatchSample {
+        PatchSample {
             mean,
             std,
             pixels: vals.len(),
-        });
+        }
     }
-    Ok(out)
 }
 
 #[cfg(test)]

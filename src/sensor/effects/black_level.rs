@@ -8,35 +8,21 @@
 //! a given profile's noise is the user's. (The old rule b += a·offset assumed an unclamped
 //! photon-transfer fit without darks; with b clamped at 0 it breaks.)
 
-use super::params::{Finite, parse};
-use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, table};
+use super::plan::id;
+use super::{Entry, FitCtx, Protocol, Stat, Summary, float, table};
 use crate::sensor::captures::BurstKind;
-use serde::Deserialize;
 
-pub const ID: &str = "black_level";
+pub const ID: &str = id::BLACK_LEVEL;
 const NAME: &str = "mean dark level";
 
 pub const ENTRY: Entry = Entry {
     id: ID,
     about: "pedestal offset from the declared black level (DN)",
     needs: "a dark burst",
-    install,
     statistics,
     fit,
     adjust: None,
 };
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct Params {
-    offset_dn: Finite,
-}
-
-fn install(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
-    let Params { offset_dn } = parse(p)?;
-    plan.black_offset += offset_dn.0 as f32;
-    Ok(())
-}
 
 fn statistics(p: &Protocol, s: &[Summary], out: &mut Vec<Stat>) {
     for b in s.iter().filter(|b| b.kind == BurstKind::Dark) {

@@ -8,12 +8,11 @@
 //! temporal photon transfer (`summary::temporal_ptc`, row-offset variance taken out of b) over
 //! the model's a, b at each ISO with dark and flat bursts, averaged over ISOs.
 
-use super::params::{Triple, parse};
-use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, table};
+use super::plan::id;
+use super::{Entry, FitCtx, Protocol, Stat, Summary, float, table};
 use crate::sensor::captures::BurstKind;
-use serde::Deserialize;
 
-pub const ID: &str = "channel_noise";
+pub const ID: &str = id::CHANNEL_NOISE;
 const NAMES: [&str; 3] = [
     "temporal variance ratio R",
     "temporal variance ratio G",
@@ -24,30 +23,10 @@ pub const ENTRY: Entry = Entry {
     id: ID,
     about: "different noise a, b per colour channel (multipliers on the profile's a, b)",
     needs: "a dark or flat burst with ≥ 2 frames",
-    install,
     statistics,
     fit,
     adjust: None,
 };
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct Params {
-    a_scale: Triple,
-    b_scale: Triple,
-}
-
-fn install(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
-    let Params {
-        a_scale: Triple(a),
-        b_scale: Triple(b),
-    } = parse(p)?;
-    for c in 0..3 {
-        plan.a_scale[c] *= a[c] as f32;
-        plan.b_scale[c] *= b[c] as f32;
-    }
-    Ok(())
-}
 
 fn statistics(p: &Protocol, s: &[Summary], out: &mut Vec<Stat>) {
     for b in s

@@ -7,19 +7,18 @@
 //! E = σ² (the total spatial variance of a dark mean would also fire on DSNU and hot pixels).
 //! Fit: σ² = measured − simulated.
 
-use super::params::{OffsetPattern, parse};
-use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, hashed_normal};
+use super::plan::id;
+use super::{Entry, FitCtx, Protocol, Stat, Summary, float, hashed_normal};
 use super::{seed_value, table};
 use crate::sensor::captures::BurstKind;
 
-pub const ID: &str = "column_noise";
+pub const ID: &str = id::COLUMN_NOISE;
 const NAME: &str = "column offset covariance (top × bottom half)";
 
 pub const ENTRY: Entry = Entry {
     id: ID,
     about: "column offsets N(0, sigma_dn²), fixed across frames",
     needs: "a dark burst with ≥ 2 frames",
-    install,
     statistics,
     fit,
     adjust: None,
@@ -27,11 +26,6 @@ pub const ENTRY: Entry = Entry {
 
 pub fn offset(sigma: f32, seed: u64, x: usize) -> f32 {
     sigma * hashed_normal(seed, &[x as u64, 0xc0])
-}
-
-fn install(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
-    plan.column = Some(parse::<OffsetPattern>(p)?.checked()?);
-    Ok(())
 }
 
 /// Covariance over columns of the top- and bottom-half column means.

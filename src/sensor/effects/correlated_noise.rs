@@ -15,108 +15,25 @@
 //! horizontally the row offsets), and the kernel width minimises the squared error at both
 //! lags.
 
-use super::params::{Finite, parse};
-use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, table};
+use super::plan::{RHO_MAX, id, kernel, lag_correlation, width};
+use super::{Entry, FitCtx, Protocol, Stat, Summary, float, table};
 use crate::sensor::captures::BurstKind;
-use serde::Deserialize;
 
-pub const ID: &str = "correlated_noise";
+pub const ID: &str = id::CORRELATED_NOISE;
 const NAMES: [&str; 3] = [
     "vertical lag-1 correlation of temporal residuals",
     "vertical lag-2 correlation of temporal residuals",
     "horizontal lag-1 correlation of temporal residuals (row offsets removed)",
 ];
-/// Largest lag-1 correlation of the family (kernel radius 7).
-pub const RHO_MAX: f64 = 0.95;
 
 pub const ENTRY: Entry = Entry {
     id: ID,
     about: "spatially correlated noise: separable Gaussian kernel, lag-1 correlation rho_h, rho_v",
     needs: "a dark burst with ≥ 2 frames",
-    install,
     statistics,
     fit,
     adjust: None,
 };
-
-/// Half kernel (k(0), k(1), …, k(R)) of width `s`, normalised so the full kernel has Σk² = 1.
-pub fn kernel(s: f64) -> Vec<f64> {
-    if s <= 0.0 {
-        return vec![1.0];
-    }
-    let r = (3.0 * s).ceil().max(1.0) as usize;
-    let mut k: Vec<f64> = (0..=r)
-        .map(|i| (-((i * i) as f64) / (2.0 * s * s)).exp())
-        .collect();
-    let ss = k[0] * k[0] + 2.0 * k[1..].iter().map(|v| v * v).sum::<f64>();
-    for v in &mut k {
-        *v /= ss.sqrt();
-    }
-    k
-}
-
-/// Lag-`d` correlation of white noise filtered by the full kernel of half kernel `k`.
-pub fn lag_correlation(k: &[f64], d: usize) -> f64 {
-    let r = k.len() as isize - 1;
-    let at = |i: isize| {
-        if i.abs() <= r {
-            k[i.unsigned_abs()]
-        } else {
-            0.0
-        }
-    };
-    (-r..=r).map(|i| at(i) * at(i + d as isize)).sum()
-}
-
-/// Kernel width whose lag-1 correlation is `rho` (bisection; the correlation grows with s).
-pub fn width(rho: f64) -> f64 {
-    if rho <= 0.0 {
-        return 0.0;
-    }
-    let (mut lo, mut hi) = (0.0, 4.0);
-    for _ in 0..60 {
-        let mid = 0.5 * (lo + hi);
-        if lag_correlation(&kernel(mid), 1) < rho {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    0.5 * (lo + hi)
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct Params {
-    rho: Option<Finite>,
-    rho_h: Option<Finite>,
-    rho_v: Option<Finite>,
-}
-
-fn rho(r: Option<Finite>, key: &str) -> Result<Option<f64>, String> {
-    match r {
-        Some(Finite(r)) if !(0.0..=RHO_MAX).contains(&r) => {
-            Err(format!("{key} {r} must be in [0, {RHO_MAX}]"))
-        }
-        r => Ok(r.map(|r| r.0)),
-    }
-}
-
-fn install(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
-    let Params {
-        rho: r,
-        rho_h,
-        rho_v,
-    } = parse(p)?;
-    let both = rho(r, "rho")?;
-    let (h, v) = (rho(rho_h, "rho_h")?.or(both), rho(rho_v, "rho_v")?.or(both));
-    let (Some(h), Some(v)) = (h, v) else {
-        return Err("needs rho_h and rho_v (or rho for both axes)".into());
-    };
-    let f = |r: f64| kernel(width(r)).iter().map(|&x| x as f32).collect();
-    plan.corr_kernels = Some((f(h), f(v)));
-    Ok(())
-}
 
 /// Residual noise correlations of a dark summary: (vertical lag 1, vertical lag 2, horizontal
 /// lag 1 without row offsets), each over the residual variance without its uncorrelated parts

@@ -6,19 +6,18 @@
 //! removed degrees of freedom, minus the temporal part v̄/L (EMVA 1288). Fit: σ² = measured −
 //! simulated.
 
-use super::params::{OffsetPattern, parse};
-use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, hashed_normal};
+use super::plan::id;
+use super::{Entry, FitCtx, Protocol, Stat, Summary, float, hashed_normal};
 use super::{prnu::fixed_excess, seed_value, table};
 use crate::sensor::captures::BurstKind;
 
-pub const ID: &str = "dsnu";
+pub const ID: &str = id::DSNU;
 const NAME: &str = "fixed pixel variance (rows, columns removed)";
 
 pub const ENTRY: Entry = Entry {
     id: ID,
     about: "fixed per-pixel dark offsets N(0, sigma_dn²) without row/column structure",
     needs: "a dark burst with ≥ 2 frames",
-    install,
     statistics,
     fit,
     adjust: None,
@@ -26,11 +25,6 @@ pub const ENTRY: Entry = Entry {
 
 pub fn offset(sigma: f32, seed: u64, x: usize, y: usize, c: usize) -> f32 {
     sigma * hashed_normal(seed, &[x as u64, y as u64, c as u64, 0xd5])
-}
-
-fn install(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
-    plan.dsnu = Some(parse::<OffsetPattern>(p)?.checked()?);
-    Ok(())
 }
 
 fn statistics(p: &Protocol, s: &[Summary], out: &mut Vec<Stat>) {

@@ -10,38 +10,21 @@
 //! the excess over the simulated value, times m2², gives κ4 of the read noise, its excess
 //! kurtosis κ = κ4 / b², and the Student-t with that kurtosis has dof = 4 + 6/κ.
 
-use super::params::{Finite, parse};
-use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, table};
+use super::plan::id;
+use super::{Entry, FitCtx, Protocol, Stat, Summary, float, table};
 use crate::sensor::captures::BurstKind;
-use serde::Deserialize;
 
-pub const ID: &str = "heavy_tailed_read_noise";
+pub const ID: &str = id::HEAVY_TAILED_READ_NOISE;
 const NAME: &str = "excess kurtosis of temporal residuals";
 
 pub const ENTRY: Entry = Entry {
     id: ID,
     about: "Student-t read noise (dof degrees of freedom) of the profile's variance b",
     needs: "a dark burst with ≥ 2 frames",
-    install,
     statistics,
     fit,
     adjust: None,
 };
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct Params {
-    dof: Finite,
-}
-
-fn install(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
-    let Params { dof: Finite(d) } = parse(p)?;
-    if !(d > 4.0 && d.is_finite()) {
-        return Err(format!("dof {d} must be > 4 (finite kurtosis)"));
-    }
-    plan.heavy_dof = Some(d as f32);
-    Ok(())
-}
 
 fn statistics(p: &Protocol, s: &[Summary], out: &mut Vec<Stat>) {
     for b in s.iter().filter(|b| b.kind == BurstKind::Dark) {

@@ -7,20 +7,18 @@
 //! single-frame spike of s DN moves it by s/L only. Fit: fraction = measured − simulated;
 //! offset = median residual of the measured hot values.
 
-use super::params::{Finite, Seed, parse};
-use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, hashed_unit};
+use super::plan::id;
+use super::{Entry, FitCtx, Protocol, Stat, Summary, float, hashed_unit};
 use super::{seed_value, table};
 use crate::sensor::captures::BurstKind;
-use serde::Deserialize;
 
-pub const ID: &str = "hot_pixels";
+pub const ID: &str = id::HOT_PIXELS;
 const NAME: &str = "hot value fraction";
 
 pub const ENTRY: Entry = Entry {
     id: ID,
     about: "a fraction of values with a fixed extra dark offset (offset_dn)",
     needs: "a dark burst",
-    install,
     statistics,
     fit,
     adjust: None,
@@ -32,29 +30,6 @@ pub fn offset(fraction: f32, off: f32, seed: u64, x: usize, y: usize, c: usize) 
     } else {
         0.0
     }
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct Params {
-    fraction: Finite,
-    offset_dn: Finite,
-    seed: Seed,
-}
-
-fn install(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
-    let Params {
-        fraction: Finite(f),
-        offset_dn: Finite(o),
-        seed,
-    } = parse(p)?;
-    if !(0.0..0.1).contains(&f) || o < 0.0 {
-        return Err(format!(
-            "fraction {f} must be in [0, 0.1) and offset_dn {o} ≥ 0"
-        ));
-    }
-    plan.hot = Some((f as f32, o as f32, seed.0));
-    Ok(())
 }
 
 fn statistics(p: &Protocol, s: &[Summary], out: &mut Vec<Stat>) {

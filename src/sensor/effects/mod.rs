@@ -2,9 +2,11 @@
 //! order) + diagnostic statistics + a fit from captures, one file each.
 //!
 //! A profile lists effects as `[[effects]]` tables `{ id = "...", <params> }`. The realism
-//! operator compiles them into a [`Plan`] (what to do at each stage of the pixel pipeline) with
-//! each effect's `install`; the gap workflow (src/sensor/diagnose/) evaluates every effect's
-//! `statistics` on measured and simulated capture sets and calls `fit` on the one it names.
+//! operator compiles them into a [`Plan`] (what to do at each stage of the pixel pipeline):
+//! plan.rs holds each effect's parameters and their checks, the plain data the profile stores
+//! and checks on load, below the profile; the effect files, which fit and adjust profiles, are
+//! above it. The gap workflow (src/sensor/diagnose/) evaluates every effect's `statistics` on
+//! measured and simulated capture sets and calls `fit` on the one it names.
 //!
 //! Physical order inside the realism operator (docs/diagnose.md):
 //! signal stage (before noise): vignetting gain → PRNU gain → nonlinear response;
@@ -18,10 +20,9 @@
 //! and the pixel coordinates, so they are the same in every frame and every run; per-frame
 //! draws (row offsets, noise) come from the frame seed.
 
-use crate::config::KeyError;
 use crate::rng::{hash, unit_f32};
 use crate::sensor::captures::BurstKind;
-use crate::sensor::profile::{EffectSpec, SensorProfile};
+use crate::sensor::profile::SensorProfile;
 
 pub mod black_level;
 pub mod channel_noise;
@@ -33,11 +34,14 @@ pub mod heavy_tailed_read_noise;
 pub mod hot_pixels;
 pub mod nonlinear_response;
 pub mod params;
+pub mod plan;
 pub mod prnu;
 pub mod row_noise;
 pub mod summary;
 pub mod vignetting;
 
+pub use params::{float, seed_value, table};
+pub use plan::{EffectSpec, Plan};
 pub use summary::{Protocol, Summary};
 
 /// One catalogue entry.
@@ -47,8 +51,6 @@ pub struct Entry {
     pub about: &'static str,
     /// The bursts its statistics need (reported when a capture set has none).
     pub needs: &'static str,
-    /// Check the parameters and add the effect to the plan.
-    pub install: fn(&toml::Table, &mut Plan) -> Result<(), String>,
     /// The effect's diagnostic statistics of one capture set (measured or simulated).
     pub statistics: fn(&Protocol, &[Summary], &mut Vec<Stat>),
     /// Fit the parameters from the captures (measured statistics against the current model's
@@ -88,101 +90,9 @@ pub fn entry(id: &str) -> Option<&'static Entry> {
     CATALOGUE.iter().find(|e| e.id == id)
 }
 
-/// What the realism operator applies, compiled from a profile's effects. The default is the
-/// paper's model (nothing extra).
-#[derive(Clone, Debug, PartialEq)]
-pub struct Plan {
-    /// Vignetting: gain 1 − k·r², r = distance from the centre / half-diagonal.
-    pub vignetting_k: f32,
-    /// PRNU: gain 1 + σ·z per value, (σ, seed).
-    pub prnu: Option<(f32, u64)>,
-    /// Nonlinear response: I → R·f(I/R), R = white − black.
-    pub response: Option<nonlinear_response::Curve>,
-    /// Channel noise: multipliers on a and b per channel.
-    pub a_scale: [f32; 3],
-    pub b_scale: [f32; 3],
-    /// Heavy-tailed read noise: Student-t degrees of freedom.
-    pub heavy_dof: Option<f32>,
-    /// Correlated noise: half kernels (k(0)..k(R)) filtering the normal draws horizontally
-    /// and vertically (separable, Σk² = 1 over each full kernel).
-    pub corr_kernels: Option<(Vec<f32>, Vec<f32>)>,
-    /// Black-level offset in DN.
-    pub black_offset: f32,
-    /// Row offsets: σ in DN, drawn anew in every frame.
-    pub row_sigma: f32,
-    /// Column offsets (σ DN, seed).
-    pub column: Option<(f32, u64)>,
-    /// DSNU (σ DN, seed).
-    pub dsnu: Option<(f32, u64)>,
-    /// Hot pixels (fraction of values, offset DN, seed).
-    pub hot: Option<(f32, f32, u64)>,
-}
-
-impl Default for Plan {
-    fn default() -> Self {
-        Plan {
-            vignetting_k: 0.0,
-            prnu: None,
-            response: None,
-            a_scale: [1.0; 3],
-            b_scale: [1.0; 3],
-            heavy_dof: None,
-            corr_kernels: None,
-            black_offset: 0.0,
-            row_sigma: 0.0,
-            column: None,
-            dsnu: None,
-            hot: None,
-        }
-    }
-}
-
+// The plan's fixed patterns, drawn by the effects' simulation code (the plan itself is plain
+// data in plan.rs, which the profile checks).
 impl Plan {
-    pub fn from_effects(effects: &[EffectSpec]) -> Result<Plan, String> {
-        Self::compile(effects).map_err(|(_, m)| m)
-    }
-
-    /// [`Plan::from_effects`]'s checks as a profile's key rule: an error names the
-    /// `effects[i]` table and, in its message, the parameter.
-    pub fn check(effects: &[EffectSpec]) -> Result<(), KeyError> {
-        Self::compile(effects)
-            .map(|_| ())
-            .map_err(|(i, m)| KeyError::new(format!("effects[{i}]"), m))
-    }
-
-    /// The plan, or the index of the first effect refused and why.
-    fn compile(effects: &[EffectSpec]) -> Result<Plan, (usize, String)> {
-        let mut plan = Plan::default();
-        let mut seen = Vec::new();
-        for (i, e) in effects.iter().enumerate() {
-            let entry = entry(&e.id).ok_or_else(|| {
-                let m = format!(
-                    "effects: '{}' is not in this build's effect catalogue ({})",
-                    e.id,
-                    known().join(", ")
-                );
-                (i, m)
-            })?;
-            if seen.contains(&e.id) {
-                return Err((i, format!("effects: '{}' is listed twice", e.id)));
-            }
-            seen.push(e.id.clone());
-            (entry.install)(&e.params, &mut plan)
-                .map_err(|m| (i, format!("effect '{}': {m}", e.id)))?;
-        }
-        Ok(plan)
-    }
-
-    /// True when the plan changes nothing in the pixel loop (the realism fast path).
-    pub fn per_pixel_neutral(&self) -> bool {
-        let d = Plan::default();
-        Plan {
-            a_scale: d.a_scale,
-            b_scale: d.b_scale,
-            ..self.clone()
-        } == d
-    }
-
     /// Per-value gain (vignetting × PRNU) of a w×h frame, None when there is none.
     pub fn gain_map(&self, w: usize, h: usize) -> Option<Vec<f32>> {
         if self.vignetting_k == 0.0 && self.prnu.is_none() {
@@ -244,30 +154,6 @@ pub fn hashed_normal(seed: u64, parts: &[u64]) -> f32 {
 /// A uniform in [0, 1) from hashed bits.
 pub fn hashed_unit(seed: u64, parts: &[u64]) -> f32 {
     unit_f32(hash(seed, parts))
-}
-
-// ---------------------------------------------------------------------------------------------
-// Parameters (each effect's struct: `params::parse`)
-
-/// A pattern seed as a TOML value (62 bits, so it fits an i64).
-pub fn seed_value(seed: u64) -> toml::Value {
-    toml::Value::Integer((seed >> 2) as i64)
-}
-
-pub fn table(items: &[(&str, toml::Value)]) -> toml::Table {
-    items
-        .iter()
-        .map(|(k, v)| (k.to_string(), v.clone()))
-        .collect()
-}
-
-/// A float rounded to 4 significant digits, for params that go into reports and profiles.
-pub fn float(v: f64) -> toml::Value {
-    if v == 0.0 || !v.is_finite() {
-        return toml::Value::Float(v);
-    }
-    let p = 10f64.powi(3 - v.abs().log10().floor() as i32);
-    toml::Value::Float((v * p).round() / p)
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -388,4 +274,13 @@ pub fn masked_mean(v: &[f64], keep: impl Fn(usize) -> bool) -> f64 {
 /// Bursts of one kind.
 pub fn of_kind(s: &[Summary], kind: BurstKind) -> impl Iterator<Item = &Summary> {
     s.iter().filter(move |b| b.kind == kind)
+}
+
+#[cfg(test)]
+mod tests {
+    /// The catalogue and the plan's parameter checks list the same effects in the same order.
+    #[test]
+    fn catalogue_matches_plan() {
+        assert_eq!(super::known(), super::plan::ids());
+    }
 }

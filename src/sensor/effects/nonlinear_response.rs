@@ -28,13 +28,11 @@
 //! simulated) over its statistics.
 
 use super::curve::MAX_LINEAR;
-use super::params::{Finite, parse};
-use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary};
+use super::plan::id;
+use super::{Entry, FitCtx, Protocol, Stat, Summary};
 use crate::sensor::captures::BurstKind;
-use serde::Deserialize;
-use serde::de::IgnoredAny;
 
-pub const ID: &str = "nonlinear_response";
+pub const ID: &str = id::NONLINEAR_RESPONSE;
 const NAME: &str = "response exponent";
 
 pub const ENTRY: Entry = Entry {
@@ -42,99 +40,12 @@ pub const ENTRY: Entry = Entry {
     about: "signal not proportional to exposure × ISO: I → R·f(I/R), f a power law or a \
             linear segment with a toe and/or a shoulder",
     needs: "scene bursts of one scene at two exposures, or flats of one ISO at two exposure times",
-    install,
     statistics,
     fit,
     adjust: None,
 };
 
-pub use super::curve::Curve;
-
-/// The curve of a profile's `nonlinear_response` parameters (`shape` defaults to `power_law`,
-/// which is what profiles written before the toe/shoulder family hold).
-pub fn curve(p: &toml::Table) -> Result<Curve, String> {
-    let shape = match p.get("shape") {
-        None => "power_law",
-        Some(toml::Value::String(s)) => s.as_str(),
-        Some(v) => return Err(format!("'shape' must be a string, got {v}")),
-    };
-    let (toe, shoulder) = match shape {
-        "power_law" => {
-            let PowerLaw {
-                exponent: Finite(e),
-                ..
-            } = parse(p)?;
-            if !(0.2..=5.0).contains(&e) {
-                return Err(format!("exponent {e} must be in [0.2, 5]"));
-            }
-            return Ok(Curve::Power(e));
-        }
-        "toe" => (Some(parse::<Toe>(p)?.toe.0), None),
-        "shoulder" => (None, Some(parse::<Shoulder>(p)?.shoulder.0)),
-        "toe_shoulder" => {
-            let t: ToeShoulder = parse(p)?;
-            (Some(t.toe.0), Some(t.shoulder.0))
-        }
-        s => {
-            return Err(format!(
-                "unknown shape '{s}' (expected power_law, toe, shoulder or toe_shoulder)"
-            ));
-        }
-    };
-    if let Some(toe) = toe.filter(|t| !(*t > 0.0 && *t <= 0.5)) {
-        return Err(format!(
-            "toe {toe} must be in (0, 0.5] (a fraction of the range)"
-        ));
-    }
-    if let Some(shoulder) = shoulder.filter(|s| !(0.2..=20.0).contains(s)) {
-        return Err(format!(
-            "shoulder {shoulder} must be in [0.2, 20] (a fraction of the range)"
-        ));
-    }
-    Ok(Curve::ToeShoulder {
-        toe: toe.unwrap_or(0.0),
-        shoulder: shoulder.unwrap_or(f64::INFINITY),
-    })
-}
-
-// The parameters of each shape (`shape` itself is read first, by `curve`).
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct PowerLaw {
-    #[serde(rename = "shape")]
-    _shape: Option<IgnoredAny>,
-    exponent: Finite,
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct Toe {
-    #[serde(rename = "shape")]
-    _shape: IgnoredAny,
-    toe: Finite,
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct Shoulder {
-    #[serde(rename = "shape")]
-    _shape: IgnoredAny,
-    shoulder: Finite,
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct ToeShoulder {
-    #[serde(rename = "shape")]
-    _shape: IgnoredAny,
-    toe: Finite,
-    shoulder: Finite,
-}
-
-fn install(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
-    plan.response = Some(curve(p)?);
-    Ok(())
-}
+pub use super::curve::{Curve, curve};
 
 /// Scene bursts grouped by their declared `scene` (captures.toml); bursts without one by
 /// frame size (the fallback: one size = one scene, which the report names); within a group

@@ -2,7 +2,8 @@
 //! `#[derive(Deserialize)] #[serde(deny_unknown_fields)]` struct through [`parse`], whose
 //! errors name the parameter (serde's own name only the type: "invalid type: string, expected
 //! f64"). Unknown keys are reported first and the fields in declaration order, a missing one
-//! where it falls, so the first fault found is the one the message names.
+//! where it falls, so the first fault found is the one the message names. [`float`], [`table`]
+//! and [`seed_value`] write parameters (fits, reports, profiles).
 
 use serde::Deserialize;
 use serde::de::{
@@ -14,6 +15,29 @@ use std::fmt;
 /// The effect's parameters from its table (the `id` key already taken out).
 pub fn parse<T: DeserializeOwned>(p: &toml::Table) -> Result<T, String> {
     T::deserialize(Table(p)).map_err(|e| e.to_string())
+}
+
+// Writing parameters (fits, reports and profiles).
+
+/// A pattern seed as a TOML value (62 bits, so it fits an i64).
+pub fn seed_value(seed: u64) -> toml::Value {
+    toml::Value::Integer((seed >> 2) as i64)
+}
+
+pub fn table(items: &[(&str, toml::Value)]) -> toml::Table {
+    items
+        .iter()
+        .map(|(k, v)| (k.to_string(), v.clone()))
+        .collect()
+}
+
+/// A float rounded to 4 significant digits, for params that go into reports and profiles.
+pub fn float(v: f64) -> toml::Value {
+    if v == 0.0 || !v.is_finite() {
+        return toml::Value::Float(v);
+    }
+    let p = 10f64.powi(3 - v.abs().log10().floor() as i32);
+    toml::Value::Float((v * p).round() / p)
 }
 
 /// A finite number (integer or float in the TOML).

@@ -7,20 +7,18 @@
 //! offset-only excess of a dark burst at the same ISO (DSNU), divided by the squared mean
 //! signal: an estimate of σ². Fit: σ² = measured − simulated.
 
-use super::params::{Finite, Seed, parse};
-use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, hashed_normal};
+use super::plan::id;
+use super::{Entry, FitCtx, Protocol, Stat, Summary, float, hashed_normal};
 use super::{seed_value, table};
 use crate::sensor::captures::BurstKind;
-use serde::Deserialize;
 
-pub const ID: &str = "prnu";
+pub const ID: &str = id::PRNU;
 const NAME: &str = "PRNU variance (relative²)";
 
 pub const ENTRY: Entry = Entry {
     id: ID,
     about: "fixed per-pixel gain 1 + σ·z (high-frequency photo-response non-uniformity)",
     needs: "a flat burst with ≥ 2 frames",
-    install,
     statistics,
     fit,
     adjust: None,
@@ -28,25 +26,6 @@ pub const ENTRY: Entry = Entry {
 
 pub fn gain(sigma: f32, seed: u64, x: usize, y: usize, c: usize) -> f32 {
     1.0 + sigma * hashed_normal(seed, &[x as u64, y as u64, c as u64, 0x9d])
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct Params {
-    sigma: Finite,
-    seed: Seed,
-}
-
-fn install(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
-    let Params {
-        sigma: Finite(s),
-        seed,
-    } = parse(p)?;
-    if !(0.0..0.5).contains(&s) {
-        return Err(format!("sigma {s} must be in [0, 0.5)"));
-    }
-    plan.prnu = Some((s as f32, seed.0));
-    Ok(())
 }
 
 /// Offset-only fixed excess of a dark or flat burst: fixed residual variance − v̄/L.

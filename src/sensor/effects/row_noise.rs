@@ -8,41 +8,23 @@
 //! The base model's b was fitted to temporal variances that include σ², so adding the effect
 //! lowers b by σ² (in DN²) at every ISO.
 
-use super::params::{Finite, parse};
-use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, table};
+use super::params::parse;
+use super::plan::{RowNoise, id};
+use super::{Entry, FitCtx, Protocol, Stat, Summary, float, table};
 use crate::sensor::captures::BurstKind;
 use crate::sensor::profile::SensorProfile;
-use serde::Deserialize;
 
-pub const ID: &str = "row_noise";
+pub const ID: &str = id::ROW_NOISE;
 const NAME: &str = "row offset covariance (left × right half)";
 
 pub const ENTRY: Entry = Entry {
     id: ID,
     about: "row offsets N(0, sigma_dn²) drawn anew in every frame",
     needs: "a dark burst with ≥ 2 frames",
-    install,
     statistics,
     fit,
     adjust: Some(adjust),
 };
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct Params {
-    sigma_dn: Finite,
-}
-
-fn install(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
-    let Params {
-        sigma_dn: Finite(s),
-    } = parse(p)?;
-    if s < 0.0 {
-        return Err(format!("sigma_dn {s} must be ≥ 0"));
-    }
-    plan.row_sigma = s as f32;
-    Ok(())
-}
 
 fn statistics(p: &Protocol, s: &[Summary], out: &mut Vec<Stat>) {
     for b in s.iter().filter(|b| b.kind == BurstKind::Dark) {
@@ -58,7 +40,7 @@ fn fit(ctx: &FitCtx) -> Result<toml::Table, String> {
 }
 
 fn adjust(profile: &mut SensorProfile, params: &toml::Table) {
-    let s = parse::<Params>(params).map_or(0.0, |p| p.sigma_dn.0);
+    let s = parse::<RowNoise>(params).map_or(0.0, |p| p.sigma_dn.0);
     let range = profile.levels.white_level - profile.levels.black_level;
     for n in &mut profile.noise {
         for b in &mut n.b {

@@ -8,20 +8,18 @@
 //! quadratic surface first, so the two do not confuse each other.
 //! Fit: k = measured k̂ − simulated k̂ (the simulated model has no vignetting).
 
-use super::params::{Finite, parse};
+use super::plan::id;
 use super::summary::normalised_xy;
-use super::{Entry, FitCtx, Plan, Protocol, Stat, Summary, float, table};
+use super::{Entry, FitCtx, Protocol, Stat, Summary, float, table};
 use crate::sensor::captures::BurstKind;
-use serde::Deserialize;
 
-pub const ID: &str = "vignetting";
+pub const ID: &str = id::VIGNETTING;
 const NAME: &str = "radial falloff k (flat mean vs r²)";
 
 pub const ENTRY: Entry = Entry {
     id: ID,
     about: "radial gain falloff 1 − k·r² (r: distance from the centre / half-diagonal)",
     needs: "a flat burst",
-    install,
     statistics,
     fit,
     adjust: None,
@@ -31,23 +29,6 @@ pub const ENTRY: Entry = Entry {
 pub fn gain(k: f32, x: usize, y: usize, w: usize, h: usize) -> f32 {
     let (u, v) = normalised_xy(x, y, w, h);
     (1.0 - k as f64 * (u * u + v * v)).max(0.0) as f32
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct Params {
-    strength: Finite,
-}
-
-fn install(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
-    let Params {
-        strength: Finite(k),
-    } = parse(p)?;
-    if !(0.0..1.0).contains(&k) {
-        return Err(format!("strength {k} must be in [0, 1)"));
-    }
-    plan.vignetting_k = k as f32;
-    Ok(())
 }
 
 /// k̂ of one flat burst.

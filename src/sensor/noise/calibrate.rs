@@ -76,36 +76,15 @@ impl CalibrationPlan {
         opts: &CalibrateOptions,
         stats: Vec<BurstFrames>,
     ) -> Result<NoiseCalibration> {
-        let manifest_err = |m: String| Error::config(&set.manifest_path, m);
         let CalibrationPlan {
             white_level,
             white_source,
             used,
             skipped,
         } = self;
-        // Black level: override > declared > dark-frame estimate (median over dark frames of
-        // each frame's outlier-clipped mean).
-        let mut means: Vec<f64> = stats.iter().flat_map(|s| s.frame_means.clone()).collect();
-        let black_estimated = (!means.is_empty()).then(|| median(&mut means));
         let black_declared = set.manifest.sensor.black_level;
-        let (black_level, black_source) = match (opts.black_level, black_declared, black_estimated)
-        {
-            (Some(b), _, _) => (b, LevelSource::Override),
-            (None, Some(b), _) => (b, LevelSource::Declared),
-            (None, None, Some(b)) => (b, LevelSource::EstimatedFromDark),
-            (None, None, None) => {
-                return Err(manifest_err(
-                    "black level unknown: declare [sensor].black_level, pass --black-level, or \
-                     include a dark burst"
-                        .into(),
-                ));
-            }
-        };
-        if !(black_level.is_finite() && black_level >= 0.0 && black_level < white_level) {
-            return Err(manifest_err(format!(
-                "black level {black_level} must be ≥ 0 and below the white level {white_level}"
-            )));
-        }
+        let (black_level, black_source, black_estimated) =
+            black_level(set, opts, &stats, white_level)?;
 
         // Per-burst statistics and bins (bins of every band of a burst together).
         let s_lin = ((white_level - black_level) / 200.0).max(1.0);
@@ -138,48 +117,10 @@ impl CalibrationPlan {
         let mut iso_values: Vec<f64> = used.iter().map(|&i| set.bursts()[i].iso).collect();
         iso_values.sort_by(f64::total_cmp);
         iso_values.dedup();
-        let mut isos = Vec::new();
-        for iso in iso_values {
-            let group: Vec<_> = per_burst
-                .iter()
-                .filter(|(i, _, _)| set.bursts()[*i].iso == iso)
-                .collect();
-            let bursts: Vec<usize> = group.iter().map(|(i, _, _)| *i).collect();
-            let mut channels = Vec::new();
-            for (c, cname) in CHANNELS.iter().enumerate() {
-                let mut bins = Vec::new();
-                let mut counts = Counts::default();
-                for (_, b, n) in &group {
-                    bins.extend(b[c].iter().cloned());
-                    counts.add(&n[c]);
-                }
-                let fit = fit_bins(&bins).map_err(|m| {
-                    manifest_err(format!(
-                        "ISO {iso}, channel {cname} (bursts {}): {m}",
-                        bursts
-                            .iter()
-                            .map(|&i| format!("'{}'", set.bursts()[i].name))
-                            .collect::<Vec<_>>()
-                            .join(", ")
-                    ))
-                })?;
-                channels.push(ChannelFit {
-                    a: fit.a,
-                    b: fit.b,
-                    a_stderr: fit.a_se,
-                    b_stderr: fit.b_se,
-                    chi2_reduced: fit.chi2_reduced,
-                    bins,
-                    counts,
-                });
-            }
-            let channels: [ChannelFit; 3] = channels.try_into().expect("three channels");
-            isos.push(IsoFit {
-                iso,
-                bursts,
-                channels,
-            });
-        }
+        let isos = iso_values
+            .into_iter()
+            .map(|iso| fit_iso(set, iso, &per_burst))
+            .collect::<Result<_>>()?;
 
         Ok(NoiseCalibration {
             source: set.dir.display().to_string(),
@@ -196,12 +137,97 @@ impl CalibrationPlan {
     }
 }
 
+/// The black level, where it came from, and the dark-frame estimate: override > declared >
+/// estimate (median over dark frames of each frame's outlier-clipped mean). It must lie in
+/// [0, white).
+fn black_level(
+    set: &CaptureSet,
+    opts: &CalibrateOptions,
+    stats: &[BurstFrames],
+    white_level: f64,
+) -> Result<(f64, LevelSource, Option<f64>)> {
+    let manifest_err = |m: String| Error::config(&set.manifest_path, m);
+    let mut means: Vec<f64> = stats.iter().flat_map(|s| s.frame_means.clone()).collect();
+    let black_estimated = (!means.is_empty()).then(|| median(&mut means));
+    let black_declared = set.manifest.sensor.black_level;
+    let (black_level, black_source) = match (opts.black_level, black_declared, black_estimated) {
+        (Some(b), _, _) => (b, LevelSource::Override),
+        (None, Some(b), _) => (b, LevelSource::Declared),
+        (None, None, Some(b)) => (b, LevelSource::EstimatedFromDark),
+        (None, None, None) => {
+            return Err(manifest_err(
+                "black level unknown: declare [sensor].black_level, pass --black-level, or \
+                 include a dark burst"
+                    .into(),
+            ));
+        }
+    };
+    if !(black_level.is_finite() && black_level >= 0.0 && black_level < white_level) {
+        return Err(manifest_err(format!(
+            "black level {black_level} must be ≥ 0 and below the white level {white_level}"
+        )));
+    }
+    Ok((black_level, black_source, black_estimated))
+}
+
+/// The fit of one ISO: per channel, the bins and counts of its bursts (`per_burst`: burst,
+/// bins per channel, counts per channel) together.
+fn fit_iso(
+    set: &CaptureSet,
+    iso: f64,
+    per_burst: &[(usize, [Vec<Bin>; 3], [Counts; 3])],
+) -> Result<IsoFit> {
+    let group: Vec<_> = per_burst
+        .iter()
+        .filter(|(i, _, _)| set.bursts()[*i].iso == iso)
+        .collect();
+    let bursts: Vec<usize> = group.iter().map(|(i, _, _)| *i).collect();
+    let mut channels = Vec::new();
+    for (c, cname) in CHANNELS.iter().enumerate() {
+        let mut bins = Vec::new();
+        let mut counts = Counts::default();
+        for (_, b, n) in &group {
+            bins.extend(b[c].iter().cloned());
+            counts.add(&n[c]);
+        }
+        let fit = fit_bins(&bins).map_err(|m| {
+            Error::config(
+                &set.manifest_path,
+                format!(
+                    "ISO {iso}, channel {cname} (bursts {}): {m}",
+                    bursts
+                        .iter()
+                        .map(|&i| format!("'{}'", set.bursts()[i].name))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            )
+        })?;
+        channels.push(ChannelFit {
+            a: fit.a,
+            b: fit.b,
+            a_stderr: fit.a_se,
+            b_stderr: fit.b_se,
+            chi2_reduced: fit.chi2_reduced,
+            bins,
+            counts,
+        });
+    }
+    let channels: [ChannelFit; 3] = channels.try_into().expect("three channels");
+    Ok(IsoFit {
+        iso,
+        bursts,
+        channels,
+    })
+}
+
 const OK: u8 = 0;
 const SATURATED: u8 = 1;
 const DEFECTIVE: u8 = 2;
 const CLIPPED_LOW: u8 = 3;
 
-/// Exclusions and bins for one channel of one burst.
+/// Exclusions and bins for one channel of one burst: saturated pixels, mean outliers against
+/// their neighbours, pixels clipped at 0, then per signal bin the variance outliers.
 fn channel_bins(
     st: &BurstStats,
     c: usize,
@@ -209,8 +235,7 @@ fn channel_bins(
     black: f64,
     s_lin: f64,
 ) -> (Vec<Bin>, Counts) {
-    let (w, h) = (st.width, st.height);
-    let np = w * h;
+    let np = st.width * st.height;
     let idx = |p: usize| p * 3 + c;
     let mut status: Vec<u8> = (0..np)
         .map(|p| {
@@ -221,16 +246,62 @@ fn channel_bins(
             }
         })
         .collect();
+    let (z, nb) = neighbour_scores(st, c, &status);
+    mark_mean_outliers(&mut status, &z);
+    for (p, s) in status.iter_mut().enumerate() {
+        if *s == OK && st.min[idx(p)] == 0 {
+            *s = CLIPPED_LOW;
+        }
+    }
 
-    // Per pixel the median temporal mean and variance of its 5×5 neighbours (the pixel itself
-    // left out, so that they are independent of its own temporal noise). The neighbour median
-    // is the binning variable; the mean-outlier score is z = (mean − neighbour median) /
-    // √(neighbour median variance / n), robustly rescaled below.
+    // Bins on the asinh grid of the neighbour-median signal; variance outliers and stuck
+    // pixels within each bin.
+    let mut counts = Counts::default();
+    let mut groups: BTreeMap<i64, Vec<usize>> = BTreeMap::new();
+    for p in 0..np {
+        if status[p] == OK {
+            if !nb[p].is_finite() {
+                counts.sparse += 1;
+                continue;
+            }
+            let s = nb[p] as f64 - black;
+            let key = ((s / s_lin).asinh() / BIN_STEP).floor() as i64;
+            groups.entry(key).or_default().push(p);
+        }
+    }
+    let mut bins = Vec::new();
+    for pixels in groups.values() {
+        let keep = without_variance_outliers(st, c, pixels, &mut status);
+        if keep.len() < MIN_BIN_PIXELS {
+            counts.sparse += keep.len();
+            continue;
+        }
+        counts.used += keep.len();
+        bins.push(bin_of(st, c, &keep, burst, black));
+    }
+    for &s in &status {
+        match s {
+            SATURATED => counts.saturated += 1,
+            DEFECTIVE => counts.defective += 1,
+            CLIPPED_LOW => counts.clipped_low += 1,
+            _ => {}
+        }
+    }
+    (bins, counts)
+}
+
+/// Per pixel the mean-outlier score and the median temporal mean of its 5×5 neighbours (the
+/// pixel itself left out, so that they are independent of its own temporal noise); NaN for a
+/// pixel already excluded or without usable neighbours. The neighbour median is the binning
+/// variable; the score is z = (mean − neighbour median) / √(neighbour median variance / n),
+/// robustly rescaled by [`mark_mean_outliers`].
+fn neighbour_scores(st: &BurstStats, c: usize, status: &[u8]) -> (Vec<f32>, Vec<f32>) {
+    let (w, h) = (st.width, st.height);
+    let idx = |p: usize| p * 3 + c;
     let nf = st.frames as f64;
-    let (z, nb): (Vec<f32>, Vec<f32>) = (0..h)
+    (0..h)
         .into_par_iter()
         .flat_map_iter(|y| {
-            let status = &status;
             (0..w).map(move |x| {
                 let p = y * w + x;
                 if status[p] != OK {
@@ -266,97 +337,82 @@ fn channel_bins(
                 (z as f32, med_mean)
             })
         })
-        .unzip();
+        .unzip()
+}
+
+/// Mark as defective the pixels whose score `z` is more than [`DEFECT_SIGMAS`] robust σ
+/// (from the MAD, at least 0.5) from the median score.
+fn mark_mean_outliers(status: &mut [u8], z: &[f32]) {
     let mut finite: Vec<f64> = z
         .iter()
         .filter(|v| v.is_finite())
         .map(|&v| v as f64)
         .collect();
-    if !finite.is_empty() {
-        let med = median(&mut finite);
-        let mut dev: Vec<f64> = finite.iter().map(|v| (v - med).abs()).collect();
-        let sigma = (MAD_TO_SIGMA * median(&mut dev)).max(0.5);
-        for (s, &z) in status.iter_mut().zip(&z) {
-            if *s == OK && (z as f64 - med).abs() > DEFECT_SIGMAS * sigma {
-                *s = DEFECTIVE;
-            }
+    if finite.is_empty() {
+        return;
+    }
+    let med = median(&mut finite);
+    let mut dev: Vec<f64> = finite.iter().map(|v| (v - med).abs()).collect();
+    let sigma = (MAD_TO_SIGMA * median(&mut dev)).max(0.5);
+    for (s, &z) in status.iter_mut().zip(z) {
+        if *s == OK && (z as f64 - med).abs() > DEFECT_SIGMAS * sigma {
+            *s = DEFECTIVE;
         }
     }
-    for (p, s) in status.iter_mut().enumerate() {
-        if *s == OK && st.min[idx(p)] == 0 {
-            *s = CLIPPED_LOW;
-        }
-    }
+}
 
-    // Bins on the asinh grid of the neighbour-median signal; variance outliers and stuck
-    // pixels within each bin.
-    let mut counts = Counts::default();
-    let mut groups: BTreeMap<i64, Vec<usize>> = BTreeMap::new();
-    for p in 0..np {
-        if status[p] == OK {
-            if !nb[p].is_finite() {
-                counts.sparse += 1;
-                continue;
+/// The bin's pixels less its variance outliers (above the median by [`DEFECT_SIGMAS`] robust
+/// σ) and stuck pixels (variance 0 where the median is ≥ 1), which are marked defective.
+fn without_variance_outliers(
+    st: &BurstStats,
+    c: usize,
+    pixels: &[usize],
+    status: &mut [u8],
+) -> Vec<usize> {
+    let idx = |p: usize| p * 3 + c;
+    let mut vars: Vec<f64> = pixels.iter().map(|&p| st.var[idx(p)] as f64).collect();
+    let med = median(&mut vars);
+    let mut dev: Vec<f64> = vars.iter().map(|v| (v - med).abs()).collect();
+    let sigma = (MAD_TO_SIGMA * median(&mut dev)).max(0.1 * med).max(0.1);
+    let limit = med + DEFECT_SIGMAS * sigma;
+    pixels
+        .iter()
+        .copied()
+        .filter(|&p| {
+            let v = st.var[idx(p)] as f64;
+            let bad = v > limit || (v == 0.0 && med >= 1.0);
+            if bad {
+                status[p] = DEFECTIVE;
             }
-            let s = nb[p] as f64 - black;
-            let key = ((s / s_lin).asinh() / BIN_STEP).floor() as i64;
-            groups.entry(key).or_default().push(p);
-        }
+            !bad
+        })
+        .collect()
+}
+
+/// One bin of the fit: mean signal above black, mean temporal variance less quantisation, and
+/// the standard error of that mean.
+fn bin_of(st: &BurstStats, c: usize, keep: &[usize], burst: usize, black: f64) -> Bin {
+    let idx = |p: usize| p * 3 + c;
+    let n = keep.len() as f64;
+    let signal = keep
+        .iter()
+        .map(|&p| st.mean[idx(p)] as f64 - black)
+        .sum::<f64>()
+        / n;
+    let vmean = keep.iter().map(|&p| st.var[idx(p)] as f64).sum::<f64>() / n;
+    let vsd = (keep
+        .iter()
+        .map(|&p| (st.var[idx(p)] as f64 - vmean).powi(2))
+        .sum::<f64>()
+        / (n - 1.0))
+        .sqrt();
+    Bin {
+        burst,
+        signal,
+        variance: vmean - QUANTISATION_VARIANCE,
+        stderr: vsd / n.sqrt(),
+        pixels: keep.len(),
     }
-    let mut bins = Vec::new();
-    for pixels in groups.values() {
-        let mut vars: Vec<f64> = pixels.iter().map(|&p| st.var[idx(p)] as f64).collect();
-        let med = median(&mut vars);
-        let mut dev: Vec<f64> = vars.iter().map(|v| (v - med).abs()).collect();
-        let sigma = (MAD_TO_SIGMA * median(&mut dev)).max(0.1 * med).max(0.1);
-        let limit = med + DEFECT_SIGMAS * sigma;
-        let keep: Vec<usize> = pixels
-            .iter()
-            .copied()
-            .filter(|&p| {
-                let v = st.var[idx(p)] as f64;
-                let bad = v > limit || (v == 0.0 && med >= 1.0);
-                if bad {
-                    status[p] = DEFECTIVE;
-                }
-                !bad
-            })
-            .collect();
-        if keep.len() < MIN_BIN_PIXELS {
-            counts.sparse += keep.len();
-            continue;
-        }
-        let n = keep.len() as f64;
-        let signal = keep
-            .iter()
-            .map(|&p| st.mean[idx(p)] as f64 - black)
-            .sum::<f64>()
-            / n;
-        let vmean = keep.iter().map(|&p| st.var[idx(p)] as f64).sum::<f64>() / n;
-        let vsd = (keep
-            .iter()
-            .map(|&p| (st.var[idx(p)] as f64 - vmean).powi(2))
-            .sum::<f64>()
-            / (n - 1.0))
-            .sqrt();
-        counts.used += keep.len();
-        bins.push(Bin {
-            burst,
-            signal,
-            variance: vmean - QUANTISATION_VARIANCE,
-            stderr: vsd / n.sqrt(),
-            pixels: keep.len(),
-        });
-    }
-    for &s in &status {
-        match s {
-            SATURATED => counts.saturated += 1,
-            DEFECTIVE => counts.defective += 1,
-            CLIPPED_LOW => counts.clipped_low += 1,
-            _ => {}
-        }
-    }
-    (bins, counts)
 }
 
 /// The straight-line WLS of variance on signal over `bins` ([`stats::wls`]), with the reasons

@@ -20,217 +20,23 @@
 //!   linear space T · HDR · exposure (1 = the sensor's white level). Realism starts from the
 //!   frames' linear EXRs when present and meters each set with `sensor::metering`.
 
-use crate::config::{KeyError, Range, each_in_range, in_range, in_range_because, load_checked};
 use crate::data::ground_truth::{blend_classes_smoothed, triangle_merge};
 use crate::data::layout::{self, GroundTruthKind, SetInfo, read_set_image};
 use crate::error::{Error, Result};
 use crate::io::Image;
 use crate::rng::{Rng, hash};
-use crate::sensor::metering::Metering;
 use crate::sensor::profile::{Response, SensorProfile};
 use crate::sensor::realism::{NoiseModel, Realism, RealismOptions, TargetSpace};
-use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, sync_channel};
 use std::sync::{Arc, OnceLock};
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
-#[serde(rename_all = "lowercase")]
-pub enum SampleKind {
-    Network1,
-    Network2,
-}
-
-/// Which pixels the realism operator starts from.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Source {
-    /// The linear EXR of every frame when the dataset has them (hdrsynth's layout with
-    /// `write_linear`), else the display frames.
-    #[default]
-    Auto,
-    /// The frames' linear EXRs (float radiance: highlights keep their full precision).
-    Linear,
-    /// The display frames (8/16-bit, linearised with the profile's source response).
-    Display,
-}
-
-impl std::fmt::Display for Source {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            Source::Auto => "auto",
-            Source::Linear => "linear EXR frames",
-            Source::Display => "display frames linearised by the profile's source response",
-        })
-    }
-}
-
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct RealismConfig {
-    /// A sensor profile TOML; in a training config's `[data]`, "pure" for no realism.
-    pub profile: PathBuf,
-    /// ISO drawn uniformly per sample from this list (one entry = fixed ISO); the loader
-    /// refuses an empty one. Optional in the file for `[data]`'s "pure" profile.
-    #[serde(default)]
-    pub isos: Vec<f64>,
-    #[serde(default)]
-    pub noise: NoiseModel,
-    /// Extra factor on the metered exposure (1 = the auto-exposure rule's choice).
-    #[serde(default = "one")]
-    pub exposure: f64,
-    /// The auto-exposure rule (src/sensor/metering.rs; the same rule `testset` uses).
-    #[serde(default)]
-    pub metering: Metering,
-    /// Per-sample exposure jitter, uniform in ±`ev_jitter` stops around the metered exposure
-    /// (a phone's meter is not exact either).
-    #[serde(default = "half")]
-    pub ev_jitter: f64,
-    /// Linear EXR frames or display frames (`auto`: EXRs when every frame has one).
-    #[serde(default)]
-    pub source: Source,
-    /// Apply the profile's colour transform (false for the colour ablation).
-    #[serde(default = "yes")]
-    pub colour: bool,
-    /// Network-2's target space: `device` (default: T applied, as the inputs) or `scene`
-    /// (scene-linear Rec. 709, T on the inputs only).
-    #[serde(default, skip_serializing_if = "TargetSpace::is_device")]
-    pub target_space: TargetSpace,
-}
-
-/// `[data]`'s `profile` value for no sensor realism (the paper's Net_P).
-pub const PURE_PROFILE: &str = "pure";
-
-/// Largest `ev_jitter`, stops: a meter off by more is not a meter.
-pub const MAX_EV_JITTER: f64 = 4.0;
-
-impl RealismConfig {
-    /// The rules of these keys (relative to the table holding them): ISOs > 0 (and at least
-    /// one unless the profile is "pure"), exposure factor > 0, jitter in [0, 4] stops, the
-    /// metering rule's ranges.
-    pub fn validate(&self) -> std::result::Result<(), KeyError> {
-        if self.isos.is_empty() && self.profile != Path::new(PURE_PROFILE) {
-            return Err(KeyError::new(
-                "isos",
-                format!(
-                    "profile '{}' needs a non-empty `isos` list",
-                    self.profile.display()
-                ),
-            ));
-        }
-        each_in_range("isos", &self.isos, Range::POSITIVE)?;
-        in_range_because(
-            "exposure",
-            self.exposure,
-            Range::POSITIVE,
-            "a factor on the metered exposure",
-        )?;
-        in_range_because(
-            "ev_jitter",
-            self.ev_jitter,
-            Range::closed(0.0, MAX_EV_JITTER),
-            "stops",
-        )?;
-        self.metering.validate().map_err(|e| e.within("metering"))
-    }
-
-    /// `profile` at `isos`, every other key at its default.
-    pub fn new(profile: PathBuf, isos: Vec<f64>) -> Self {
-        RealismConfig {
-            profile,
-            isos,
-            noise: NoiseModel::default(),
-            exposure: one(),
-            metering: Metering::default(),
-            ev_jitter: half(),
-            source: Source::default(),
-            colour: yes(),
-            target_space: TargetSpace::Device,
-        }
-    }
-}
-
-fn one() -> f64 {
-    1.0
-}
-fn half() -> f64 {
-    0.5
-}
-fn yes() -> bool {
-    true
-}
-
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct LoaderConfig {
-    /// A dataset folder in any layout the readers know.
-    pub dataset: PathBuf,
-    pub kind: SampleKind,
-    /// Square crop side in pixels (rot90 needs square crops).
-    pub patch: usize,
-    pub batch_size: usize,
-    #[serde(default = "default_workers")]
-    pub workers: usize,
-    /// Samples computed ahead of the consumer, at most.
-    #[serde(default = "default_prefetch")]
-    pub prefetch: usize,
-    pub seed: u64,
-    /// Random horizontal/vertical flips and rot90.
-    #[serde(default = "yes")]
-    pub augment: bool,
-    /// Absent: "pure" mode, no sensor realism (the Net_P baseline).
-    #[serde(default)]
-    pub realism: Option<RealismConfig>,
-    /// Network-1 only: σ in pixels of the Gaussian that smooths each frame's Mertens weight
-    /// before the blend classes are taken (`ground_truth::blend_classes_smoothed`); 0 (the
-    /// default) gives the paper's per-pixel class maps.
-    #[serde(default)]
-    pub target_sigma: f32,
-    /// Network-1 only: which frames the Mertens weights behind the class targets come from.
-    #[serde(default)]
-    pub target_frames: TargetFrames,
-}
-
-/// Network-1's targets: the blend weights of the noise-free render of the sample's crop (what
-/// a network that sees through the noise should predict), or of the noisy frames it is given.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum TargetFrames {
-    /// The same crop, exposure, colour and quantisation, without the noise draw.
-    #[default]
-    Clean,
-    /// The noisy input frames themselves: noise inflates Mertens' contrast term, so the targets
-    /// carry noise-driven weights.
-    Noisy,
-}
-
-fn default_workers() -> usize {
-    2
-}
-fn default_prefetch() -> usize {
-    8
-}
-
-impl LoaderConfig {
-    pub fn load(path: &Path) -> Result<LoaderConfig> {
-        load_checked(path, LoaderConfig::validate)
-    }
-
-    /// Crop ≥ 8 px, batch, workers and prefetch ≥ 1, target σ ≥ 0, the realism keys' rules.
-    pub fn validate(&self) -> std::result::Result<(), KeyError> {
-        in_range("patch", self.patch, Range::at_least(8.0))?;
-        in_range("batch_size", self.batch_size, Range::at_least(1.0))?;
-        in_range("workers", self.workers, Range::at_least(1.0))?;
-        in_range("prefetch", self.prefetch, Range::at_least(1.0))?;
-        in_range("target_sigma", self.target_sigma, Range::NON_NEGATIVE)?;
-        match &self.realism {
-            Some(r) => r.validate().map_err(|e| e.within("realism")),
-            None => Ok(()),
-        }
-    }
-}
+pub mod config;
+pub use config::{
+    LoaderConfig, MAX_EV_JITTER, PURE_PROFILE, RealismConfig, SampleKind, Source, TargetFrames,
+};
 
 #[derive(Clone, Debug, PartialEq)]
 pub enum Target {
@@ -346,6 +152,51 @@ pub fn dihedral<T: Copy>(data: &[T], size: usize, c: usize, t: u8) -> Vec<T> {
         cur = remap(&cur, &|x, y| (y, n - x));
     }
     cur
+}
+
+/// One sample's random choices ([`Loader::draw`]) and the frame readers they fix.
+struct Draw<'a> {
+    loader: &'a Loader,
+    set: &'a SetInfo,
+    /// Crop origin.
+    x0: usize,
+    y0: usize,
+    /// Dihedral transform (0 without augmentation).
+    t: u8,
+    /// The ISO and its operator (None in pure mode), and the same without noise.
+    op: Option<&'a (f64, Realism)>,
+    clean: Option<&'a Realism>,
+    /// Factor on the linear frames: the sample's EV0 exposure.
+    exposure: f32,
+    /// Seed of the realism noise; frame k of the sample uses hash(noise_seed, [k]), so frames
+    /// of a sample get independent noise.
+    noise_seed: u64,
+}
+
+impl Draw<'_> {
+    /// The crop of a frame as linear values times the sample's exposure.
+    fn exposed(&self, frame: &Path) -> Result<Image> {
+        let p = self.loader.cfg.patch;
+        Ok(crop(
+            &self.loader.linear_frame(self.set, frame)?,
+            self.x0,
+            self.y0,
+            p,
+        )
+        .map(|v| v * self.exposure))
+    }
+
+    /// The crop of frame `k` of the sample as the network sees it: through the realism
+    /// operator, or in pure mode the display frame quantised to 8 bits.
+    fn realistic(&self, frame: &Path, k: u64) -> Result<Image> {
+        let p = self.loader.cfg.patch;
+        Ok(match self.op {
+            Some((_, r)) => r.apply(&self.exposed(frame)?, hash(self.noise_seed, &[k])),
+            // Pure mode still quantises to 8 bits, as the networks see 8-bit frames.
+            None => crop(&read_set_image(self.set, frame)?, self.x0, self.y0, p)
+                .map(|v| (v.clamp(0.0, 1.0) * 255.0).round() / 255.0),
+        })
+    }
 }
 
 impl Loader {
@@ -529,6 +380,28 @@ impl Loader {
     /// Sample `index` of `epoch`: a pure function of (config, epoch, index).
     pub fn sample(&self, epoch: u64, index: usize) -> Result<Sample> {
         let k = self.set_of(epoch, index);
+        let d = self.draw(k, epoch, index)?;
+        let (channels, input_hwc, target, times) = match self.cfg.kind {
+            SampleKind::Network1 => self.network1(&d)?,
+            SampleKind::Network2 => self.network2(&d)?,
+        };
+        let p = self.cfg.patch;
+        let input = to_chw(&dihedral(&input_hwc, p, channels, d.t), p, channels);
+        Ok(Sample {
+            input,
+            channels,
+            size: p,
+            target,
+            exposure_times: times,
+            set: d.set.name.clone(),
+            iso: d.op.map(|(iso, _)| *iso),
+        })
+    }
+
+    /// Sample `index` of `epoch`'s random choices, from the sample's own generator in a fixed
+    /// order (crop x, crop y, dihedral transform, ISO, exposure jitter: drawing them in another
+    /// order would change every sample), and its noise seed.
+    fn draw(&self, k: usize, epoch: u64, index: usize) -> Result<Draw<'_>> {
         let set = &self.sets[k];
         let mut rng = Rng::from_parts(self.cfg.seed, &[epoch, index as u64]);
         let p = self.cfg.patch;
@@ -540,8 +413,6 @@ impl Loader {
             0
         };
         let pick = (!self.realism.is_empty()).then(|| rng.int(0, self.realism.len() - 1));
-        let op = pick.map(|i| &self.realism[i]);
-        let clean_op = pick.and_then(|i| self.clean.get(i));
         // The sample's EV0 exposure: the metered key, the user's factor, a random jitter.
         let exposure = match &self.cfg.realism {
             Some(r) => {
@@ -550,147 +421,143 @@ impl Loader {
             }
             None => 1.0,
         };
-        let space = self
-            .cfg
-            .realism
-            .as_ref()
-            .map_or(TargetSpace::Device, |r| r.target_space);
-        let noise_seed = hash(self.cfg.seed, &[0x0153, epoch, index as u64]);
-        // One realism seed per frame, so frames of a sample get independent noise.
-        let exposed = |frame: &Path| -> Result<Image> {
-            Ok(crop(&self.linear_frame(set, frame)?, x0, y0, p).map(|v| v * exposure))
+        Ok(Draw {
+            loader: self,
+            set,
+            x0,
+            y0,
+            t,
+            op: pick.map(|i| &self.realism[i]),
+            clean: pick.and_then(|i| self.clean.get(i)),
+            exposure,
+            noise_seed: hash(self.cfg.seed, &[0x0153, epoch, index as u64]),
+        })
+    }
+
+    /// Network-1's sample: the EV−3 and EV0 frames interleaved (6 channels) and the blend
+    /// classes of the clean frames (noisy ones when there is no clean operator), transformed.
+    #[allow(clippy::type_complexity)]
+    fn network1(&self, d: &Draw) -> Result<(usize, Vec<f32>, Target, Vec<f32>)> {
+        let (set, p) = (d.set, self.cfg.patch);
+        let idx = frames_at(set, &[-3.0, 0.0])?;
+        let frames = if set.static_frames.is_empty() {
+            &set.dynamic_frames
+        } else {
+            &set.static_frames
         };
-        let realistic = |frame: &Path, k: u64| -> Result<Image> {
-            Ok(match op {
-                Some((_, r)) => r.apply(&exposed(frame)?, hash(noise_seed, &[k])),
-                // Pure mode still quantises to 8 bits, as the networks see 8-bit frames.
-                None => crop(&read_set_image(set, frame)?, x0, y0, p)
-                    .map(|v| (v.clamp(0.0, 1.0) * 255.0).round() / 255.0),
-            })
-        };
-        let (channels, input_hwc, target, times) = match self.cfg.kind {
-            SampleKind::Network1 => {
-                let idx = frames_at(set, &[-3.0, 0.0])?;
-                let frames = if set.static_frames.is_empty() {
-                    &set.dynamic_frames
-                } else {
-                    &set.static_frames
-                };
-                let sigma = self.cfg.target_sigma;
-                let (low, high, classes) = match (op, clean_op) {
-                    (Some((_, r)), Some(c)) => {
-                        let lin = [exposed(&frames[idx[0]])?, exposed(&frames[idx[1]])?];
-                        let classes = blend_classes_smoothed(
-                            &c.apply(&lin[0], 0),
-                            &c.apply(&lin[1], 0),
-                            sigma,
-                        )?;
-                        let low = r.apply(&lin[0], hash(noise_seed, &[0]));
-                        let high = r.apply(&lin[1], hash(noise_seed, &[1]));
-                        (low, high, classes)
-                    }
-                    _ => {
-                        let low = realistic(&frames[idx[0]], 0)?;
-                        let high = realistic(&frames[idx[1]], 1)?;
-                        let classes = blend_classes_smoothed(&low, &high, sigma)?;
-                        (low, high, classes)
-                    }
-                };
-                let mut hwc = Vec::with_capacity(p * p * 6);
-                for (l, h) in low.data.chunks_exact(3).zip(high.data.chunks_exact(3)) {
-                    hwc.extend_from_slice(l);
-                    hwc.extend_from_slice(h);
-                }
-                let classes = dihedral(&classes, p, 1, t);
-                (6, hwc, Target::Classes(classes), vec![0.125, 1.0])
+        let sigma = self.cfg.target_sigma;
+        let (low, high, classes) = match (d.op, d.clean) {
+            (Some((_, r)), Some(c)) => {
+                let lin = [d.exposed(&frames[idx[0]])?, d.exposed(&frames[idx[1]])?];
+                let classes =
+                    blend_classes_smoothed(&c.apply(&lin[0], 0), &c.apply(&lin[1], 0), sigma)?;
+                let low = r.apply(&lin[0], hash(d.noise_seed, &[0]));
+                let high = r.apply(&lin[1], hash(d.noise_seed, &[1]));
+                (low, high, classes)
             }
-            SampleKind::Network2 => {
-                let idx = frames_at(set, &[-2.0, 0.0, 2.0])?;
-                let stat = !set.static_frames.is_empty();
-                let pick = |i: usize| -> &Path {
-                    // The reference from the static set, the others from the dynamic set.
-                    if i == 1 && stat {
-                        &set.static_frames[idx[i]]
-                    } else {
-                        &set.dynamic_frames[idx[i]]
-                    }
-                };
-                let times = [0.25f32, 1.0, 4.0];
-                let mut frames = Vec::with_capacity(3);
-                for i in 0..3 {
-                    frames.push(realistic(pick(i), i as u64)?);
-                }
-                // The target in units of the reference frame's white (`white`), whatever the
-                // mode: 1 = EV0's clipping point, as the test ground truth. Kalantari/Wu files
-                // are first brought from their own unit into the reference's.
-                let (hdr, white) = match &set.ground_truth {
-                    Some(gt) if gt.kind == GroundTruthKind::Linear => (
-                        layout::to_reference_unit(
-                            set,
-                            gt,
-                            crop(&read_set_image(set, &gt.path)?, x0, y0, p),
-                        ),
-                        self.white,
+            _ => {
+                let low = d.realistic(&frames[idx[0]], 0)?;
+                let high = d.realistic(&frames[idx[1]], 1)?;
+                let classes = blend_classes_smoothed(&low, &high, sigma)?;
+                (low, high, classes)
+            }
+        };
+        let mut hwc = Vec::with_capacity(p * p * 6);
+        for (l, h) in low.data.chunks_exact(3).zip(high.data.chunks_exact(3)) {
+            hwc.extend_from_slice(l);
+            hwc.extend_from_slice(h);
+        }
+        let classes = dihedral(&classes, p, 1, d.t);
+        Ok((6, hwc, Target::Classes(classes), vec![0.125, 1.0]))
+    }
+
+    /// Network-2's sample: per frame (EV−2, 0, +2) LDR and LDR^2.2 / t (18 channels) and the
+    /// linear HDR target, transformed.
+    #[allow(clippy::type_complexity)]
+    fn network2(&self, d: &Draw) -> Result<(usize, Vec<f32>, Target, Vec<f32>)> {
+        let (set, p) = (d.set, self.cfg.patch);
+        let idx = frames_at(set, &[-2.0, 0.0, 2.0])?;
+        let stat = !set.static_frames.is_empty();
+        let pick = |i: usize| -> &Path {
+            // The reference from the static set, the others from the dynamic set.
+            if i == 1 && stat {
+                &set.static_frames[idx[i]]
+            } else {
+                &set.dynamic_frames[idx[i]]
+            }
+        };
+        let times = [0.25f32, 1.0, 4.0];
+        let mut frames = Vec::with_capacity(3);
+        for i in 0..3 {
+            frames.push(d.realistic(pick(i), i as u64)?);
+        }
+        let hdr = self.network2_target(d, &idx, times)?;
+        let mut hwc = Vec::with_capacity(p * p * 18);
+        for px in 0..p * p {
+            for (f, &ti) in frames.iter().zip(&times) {
+                let v = &f.data[px * 3..px * 3 + 3];
+                hwc.extend_from_slice(v);
+                hwc.extend(v.iter().map(|x| x.powf(2.2) / ti));
+            }
+        }
+        let hdr = dihedral(&hdr.data, p, 3, d.t);
+        Ok((18, hwc, Target::Hdr(to_chw(&hdr, p, 3)), times.to_vec()))
+    }
+
+    /// Network-2's target crop: the set's linear ground truth, else the triangle merge of its
+    /// static frames (`idx`: their indices, `times`: their exposure times), through the
+    /// sample's realism into the device's (or the scene's) linear space.
+    fn network2_target(&self, d: &Draw, idx: &[usize], times: [f32; 3]) -> Result<Image> {
+        let (set, x0, y0, p) = (d.set, d.x0, d.y0, self.cfg.patch);
+        // The target in units of the reference frame's white (`white`), whatever the mode:
+        // 1 = EV0's clipping point, as the test ground truth. Kalantari/Wu files are first
+        // brought from their own unit into the reference's.
+        let (hdr, white) = match &set.ground_truth {
+            Some(gt) if gt.kind == GroundTruthKind::Linear => (
+                layout::to_reference_unit(
+                    set,
+                    gt,
+                    crop(&read_set_image(set, &gt.path)?, x0, y0, p),
+                ),
+                self.white,
+            ),
+            _ if !set.static_frames.is_empty() => {
+                let s: Vec<Image> = idx
+                    .iter()
+                    .map(|&i| {
+                        read_set_image(set, &set.static_frames[i]).map(|f| crop(&f, x0, y0, p))
+                    })
+                    .collect::<Result<_>>()?;
+                // LDR^2.2 / t: the reference frame's white is 1.
+                let m = triangle_merge(&[s[0].clone(), s[1].clone(), s[2].clone()], times, 2.2)?;
+                (m, 1.0)
+            }
+            _ => {
+                return Err(Error::layout(
+                    &set.dir,
+                    format!(
+                        "set '{}' has no linear ground truth and no static frames",
+                        set.name
                     ),
-                    _ if stat => {
-                        let s: Vec<Image> = idx
-                            .iter()
-                            .map(|&i| {
-                                read_set_image(set, &set.static_frames[i])
-                                    .map(|f| crop(&f, x0, y0, p))
-                            })
-                            .collect::<Result<_>>()?;
-                        // LDR^2.2 / t: the reference frame's white is 1.
-                        let m = triangle_merge(
-                            &[s[0].clone(), s[1].clone(), s[2].clone()],
-                            times,
-                            2.2,
-                        )?;
-                        (m, 1.0)
-                    }
-                    _ => {
-                        return Err(Error::layout(
-                            &set.dir,
-                            format!(
-                                "set '{}' has no linear ground truth and no static frames",
-                                set.name
-                            ),
-                        ));
-                    }
-                };
-                let hdr = match op {
-                    // Linear source: frames and ground truth share the engine's unit; display
-                    // source: the frames are in units of the source's white, so is the target.
-                    Some((_, r)) => {
-                        let unit = match self.source {
-                            Source::Linear => exposure,
-                            _ => exposure / white,
-                        };
-                        r.target_linear(&hdr.map(|v| v * unit), space)
-                    }
-                    None => hdr.map(|v| v / white),
-                };
-                let mut hwc = Vec::with_capacity(p * p * 18);
-                for px in 0..p * p {
-                    for (f, &ti) in frames.iter().zip(&times) {
-                        let v = &f.data[px * 3..px * 3 + 3];
-                        hwc.extend_from_slice(v);
-                        hwc.extend(v.iter().map(|x| x.powf(2.2) / ti));
-                    }
-                }
-                let hdr = dihedral(&hdr.data, p, 3, t);
-                (18, hwc, Target::Hdr(to_chw(&hdr, p, 3)), times.to_vec())
+                ));
             }
         };
-        let input = to_chw(&dihedral(&input_hwc, p, channels, t), p, channels);
-        Ok(Sample {
-            input,
-            channels,
-            size: p,
-            target,
-            exposure_times: times,
-            set: set.name.clone(),
-            iso: op.map(|(iso, _)| *iso),
+        Ok(match d.op {
+            // Linear source: frames and ground truth share the engine's unit; display
+            // source: the frames are in units of the source's white, so is the target.
+            Some((_, r)) => {
+                let unit = match self.source {
+                    Source::Linear => d.exposure,
+                    _ => d.exposure / white,
+                };
+                let space = self
+                    .cfg
+                    .realism
+                    .as_ref()
+                    .map_or(TargetSpace::Device, |r| r.target_space);
+                r.target_linear(&hdr.map(|v| v * unit), space)
+            }
+            None => hdr.map(|v| v / white),
         })
     }
 

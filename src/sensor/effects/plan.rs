@@ -1,0 +1,378 @@
+//! What a profile's `[[effects]]` tables mean: each effect's parameters, their checks, and the
+//! [`Plan`] the realism operator applies, compiled from them.
+//!
+//! This is the plain-data part of the catalogue. The profile stores [`EffectSpec`]s and checks
+//! them here when it is loaded; the effect files above it (statistics, fits, adjustments of a
+//! profile, the fixed patterns' pixel values) use the profile. So the profile depends on this
+//! file and this file on nothing above it: only parameter parsing ([`super::params`]) and the
+//! response curve ([`super::curve`]).
+
+use super::curve::{Curve, curve};
+use super::params::{Finite, OffsetPattern, Seed, Triple, parse};
+use crate::config::KeyError;
+use serde::{Deserialize, Serialize};
+
+/// An extra physical effect, applied by the realism operator in physical order. Filled by the
+/// gap workflow; `id` must name an effect of the catalogue (src/sensor/effects/).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct EffectSpec {
+    pub id: String,
+    #[serde(flatten)]
+    pub params: toml::Table,
+}
+
+/// What the realism operator applies, compiled from a profile's effects. The default is the
+/// paper's model (nothing extra).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Plan {
+    /// Vignetting: gain 1 − k·r², r = distance from the centre / half-diagonal.
+    pub vignetting_k: f32,
+    /// PRNU: gain 1 + σ·z per value, (σ, seed).
+    pub prnu: Option<(f32, u64)>,
+    /// Nonlinear response: I → R·f(I/R), R = white − black.
+    pub response: Option<Curve>,
+    /// Channel noise: multipliers on a and b per channel.
+    pub a_scale: [f32; 3],
+    pub b_scale: [f32; 3],
+    /// Heavy-tailed read noise: Student-t degrees of freedom.
+    pub heavy_dof: Option<f32>,
+    /// Correlated noise: half kernels (k(0)..k(R)) filtering the normal draws horizontally
+    /// and vertically (separable, Σk² = 1 over each full kernel).
+    pub corr_kernels: Option<(Vec<f32>, Vec<f32>)>,
+    /// Black-level offset in DN.
+    pub black_offset: f32,
+    /// Row offsets: σ in DN, drawn anew in every frame.
+    pub row_sigma: f32,
+    /// Column offsets (σ DN, seed).
+    pub column: Option<(f32, u64)>,
+    /// DSNU (σ DN, seed).
+    pub dsnu: Option<(f32, u64)>,
+    /// Hot pixels (fraction of values, offset DN, seed).
+    pub hot: Option<(f32, f32, u64)>,
+}
+
+impl Default for Plan {
+    fn default() -> Self {
+        Plan {
+            vignetting_k: 0.0,
+            prnu: None,
+            response: None,
+            a_scale: [1.0; 3],
+            b_scale: [1.0; 3],
+            heavy_dof: None,
+            corr_kernels: None,
+            black_offset: 0.0,
+            row_sigma: 0.0,
+            column: None,
+            dsnu: None,
+            hot: None,
+        }
+    }
+}
+
+impl Plan {
+    pub fn from_effects(effects: &[EffectSpec]) -> Result<Plan, String> {
+        Self::compile(effects).map_err(|(_, m)| m)
+    }
+
+    /// [`Plan::from_effects`]'s checks as a profile's key rule: an error names the
+    /// `effects[i]` table and, in its message, the parameter.
+    pub fn check(effects: &[EffectSpec]) -> Result<(), KeyError> {
+        Self::compile(effects)
+            .map(|_| ())
+            .map_err(|(i, m)| KeyError::new(format!("effects[{i}]"), m))
+    }
+
+    /// The plan, or the index of the first effect refused and why.
+    fn compile(effects: &[EffectSpec]) -> Result<Plan, (usize, String)> {
+        let mut plan = Plan::default();
+        let mut seen = Vec::new();
+        for (i, e) in effects.iter().enumerate() {
+            let (_, install) = INSTALL.iter().find(|(id, _)| *id == e.id).ok_or_else(|| {
+                let m = format!(
+                    "effects: '{}' is not in this build's effect catalogue ({})",
+                    e.id,
+                    ids().join(", ")
+                );
+                (i, m)
+            })?;
+            if seen.contains(&e.id) {
+                return Err((i, format!("effects: '{}' is listed twice", e.id)));
+            }
+            seen.push(e.id.clone());
+            install(&e.params, &mut plan).map_err(|m| (i, format!("effect '{}': {m}", e.id)))?;
+        }
+        Ok(plan)
+    }
+
+    /// True when the plan changes nothing in the pixel loop (the realism fast path).
+    pub fn per_pixel_neutral(&self) -> bool {
+        let d = Plan::default();
+        Plan {
+            a_scale: d.a_scale,
+            b_scale: d.b_scale,
+            ..self.clone()
+        } == d
+    }
+}
+
+/// The effects' ids (each effect file's `ID`).
+pub mod id {
+    pub const VIGNETTING: &str = "vignetting";
+    pub const PRNU: &str = "prnu";
+    pub const NONLINEAR_RESPONSE: &str = "nonlinear_response";
+    pub const CHANNEL_NOISE: &str = "channel_noise";
+    pub const HEAVY_TAILED_READ_NOISE: &str = "heavy_tailed_read_noise";
+    pub const CORRELATED_NOISE: &str = "correlated_noise";
+    pub const BLACK_LEVEL: &str = "black_level";
+    pub const ROW_NOISE: &str = "row_noise";
+    pub const COLUMN_NOISE: &str = "column_noise";
+    pub const DSNU: &str = "dsnu";
+    pub const HOT_PIXELS: &str = "hot_pixels";
+}
+
+/// Check an effect's parameters and add it to the plan.
+type Install = fn(&toml::Table, &mut Plan) -> Result<(), String>;
+
+/// Every effect's install, in physical order (the order of `effects::CATALOGUE`).
+const INSTALL: [(&str, Install); 11] = [
+    (id::VIGNETTING, vignetting),
+    (id::PRNU, prnu),
+    (id::NONLINEAR_RESPONSE, nonlinear_response),
+    (id::CHANNEL_NOISE, channel_noise),
+    (id::HEAVY_TAILED_READ_NOISE, heavy_tailed_read_noise),
+    (id::CORRELATED_NOISE, correlated_noise),
+    (id::BLACK_LEVEL, black_level),
+    (id::ROW_NOISE, row_noise),
+    (id::COLUMN_NOISE, column_noise),
+    (id::DSNU, dsnu),
+    (id::HOT_PIXELS, hot_pixels),
+];
+
+/// Ids of the effects this build implements, in physical order.
+pub fn ids() -> Vec<&'static str> {
+    INSTALL.iter().map(|(id, _)| *id).collect()
+}
+
+// ---------------------------------------------------------------------------------------------
+// Each effect's parameters (the effect files' module docs say what they mean)
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Vignetting {
+    strength: Finite,
+}
+
+fn vignetting(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
+    let Vignetting {
+        strength: Finite(k),
+    } = parse(p)?;
+    if !(0.0..1.0).contains(&k) {
+        return Err(format!("strength {k} must be in [0, 1)"));
+    }
+    plan.vignetting_k = k as f32;
+    Ok(())
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Prnu {
+    sigma: Finite,
+    seed: Seed,
+}
+
+fn prnu(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
+    let Prnu {
+        sigma: Finite(s),
+        seed,
+    } = parse(p)?;
+    if !(0.0..0.5).contains(&s) {
+        return Err(format!("sigma {s} must be in [0, 0.5)"));
+    }
+    plan.prnu = Some((s as f32, seed.0));
+    Ok(())
+}
+
+fn nonlinear_response(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
+    plan.response = Some(curve(p)?);
+    Ok(())
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ChannelNoise {
+    a_scale: Triple,
+    b_scale: Triple,
+}
+
+fn channel_noise(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
+    let ChannelNoise {
+        a_scale: Triple(a),
+        b_scale: Triple(b),
+    } = parse(p)?;
+    for c in 0..3 {
+        plan.a_scale[c] *= a[c] as f32;
+        plan.b_scale[c] *= b[c] as f32;
+    }
+    Ok(())
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct HeavyTailedReadNoise {
+    dof: Finite,
+}
+
+fn heavy_tailed_read_noise(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
+    let HeavyTailedReadNoise { dof: Finite(d) } = parse(p)?;
+    if !(d > 4.0 && d.is_finite()) {
+        return Err(format!("dof {d} must be > 4 (finite kurtosis)"));
+    }
+    plan.heavy_dof = Some(d as f32);
+    Ok(())
+}
+
+/// Largest lag-1 correlation of the correlated-noise family (kernel radius 7).
+pub const RHO_MAX: f64 = 0.95;
+
+/// Half kernel (k(0), k(1), …, k(R)) of width `s`, normalised so the full kernel has Σk² = 1.
+pub fn kernel(s: f64) -> Vec<f64> {
+    if s <= 0.0 {
+        return vec![1.0];
+    }
+    let r = (3.0 * s).ceil().max(1.0) as usize;
+    let mut k: Vec<f64> = (0..=r)
+        .map(|i| (-((i * i) as f64) / (2.0 * s * s)).exp())
+        .collect();
+    let ss = k[0] * k[0] + 2.0 * k[1..].iter().map(|v| v * v).sum::<f64>();
+    for v in &mut k {
+        *v /= ss.sqrt();
+    }
+    k
+}
+
+/// Lag-`d` correlation of white noise filtered by the full kernel of half kernel `k`.
+pub fn lag_correlation(k: &[f64], d: usize) -> f64 {
+    let r = k.len() as isize - 1;
+    let at = |i: isize| {
+        if i.abs() <= r {
+            k[i.unsigned_abs()]
+        } else {
+            0.0
+        }
+    };
+    (-r..=r).map(|i| at(i) * at(i + d as isize)).sum()
+}
+
+/// Kernel width whose lag-1 correlation is `rho` (bisection; the correlation grows with s).
+pub fn width(rho: f64) -> f64 {
+    if rho <= 0.0 {
+        return 0.0;
+    }
+    let (mut lo, mut hi) = (0.0, 4.0);
+    for _ in 0..60 {
+        let mid = 0.5 * (lo + hi);
+        if lag_correlation(&kernel(mid), 1) < rho {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    0.5 * (lo + hi)
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CorrelatedNoise {
+    rho: Option<Finite>,
+    rho_h: Option<Finite>,
+    rho_v: Option<Finite>,
+}
+
+fn rho(r: Option<Finite>, key: &str) -> Result<Option<f64>, String> {
+    match r {
+        Some(Finite(r)) if !(0.0..=RHO_MAX).contains(&r) => {
+            Err(format!("{key} {r} must be in [0, {RHO_MAX}]"))
+        }
+        r => Ok(r.map(|r| r.0)),
+    }
+}
+
+fn correlated_noise(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
+    let CorrelatedNoise {
+        rho: r,
+        rho_h,
+        rho_v,
+    } = parse(p)?;
+    let both = rho(r, "rho")?;
+    let (h, v) = (rho(rho_h, "rho_h")?.or(both), rho(rho_v, "rho_v")?.or(both));
+    let (Some(h), Some(v)) = (h, v) else {
+        return Err("needs rho_h and rho_v (or rho for both axes)".into());
+    };
+    let f = |r: f64| kernel(width(r)).iter().map(|&x| x as f32).collect();
+    plan.corr_kernels = Some((f(h), f(v)));
+    Ok(())
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct BlackLevel {
+    offset_dn: Finite,
+}
+
+fn black_level(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
+    let BlackLevel { offset_dn } = parse(p)?;
+    plan.black_offset += offset_dn.0 as f32;
+    Ok(())
+}
+
+/// `row_noise`'s parameters (its adjustment of a profile reads them too).
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RowNoise {
+    pub sigma_dn: Finite,
+}
+
+fn row_noise(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
+    let RowNoise {
+        sigma_dn: Finite(s),
+    } = parse(p)?;
+    if s < 0.0 {
+        return Err(format!("sigma_dn {s} must be ≥ 0"));
+    }
+    plan.row_sigma = s as f32;
+    Ok(())
+}
+
+fn column_noise(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
+    plan.column = Some(parse::<OffsetPattern>(p)?.checked()?);
+    Ok(())
+}
+
+fn dsnu(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
+    plan.dsnu = Some(parse::<OffsetPattern>(p)?.checked()?);
+    Ok(())
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct HotPixels {
+    fraction: Finite,
+    offset_dn: Finite,
+    seed: Seed,
+}
+
+fn hot_pixels(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
+    let HotPixels {
+        fraction: Finite(f),
+        offset_dn: Finite(o),
+        seed,
+    } = parse(p)?;
+    if !(0.0..0.1).contains(&f) || o < 0.0 {
+        return Err(format!(
+            "fraction {f} must be in [0, 0.1) and offset_dn {o} ≥ 0"
+        ));
+    }
+    plan.hot = Some((f as f32, o as f32, seed.0));
+    Ok(())
+}
