@@ -114,36 +114,7 @@ pub fn calibrate_brackets(dir: &Path, opts: &BracketProfileOptions) -> Result<Br
         Linearise::Table(t) => bracket_testset::table_response(t),
     };
     let frames: Vec<&BracketFrame> = scan.sets.iter().flat_map(|s| &s.frames).collect();
-    let mut bins = Vec::new();
-    let mut by_iso: Vec<(f64, Vec<&BracketFrame>)> = Vec::new();
-    for f in &frames {
-        let iso = f.exif.iso.unwrap_or(100.0);
-        match by_iso.iter_mut().find(|(i, _)| *i == iso) {
-            Some((_, v)) => v.push(f),
-            None => by_iso.push((iso, vec![f])),
-        }
-    }
-    if frames.iter().any(|f| f.exif.iso.is_none()) {
-        notes.push("frames without EXIF ISO are taken as ISO 100".into());
-    }
-    by_iso.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let mut rows = Vec::new();
-    for (iso, group) in &by_iso {
-        let mut iso_bins = Vec::new();
-        for f in group {
-            let code = brackets::read_frame_image(f)?;
-            iso_bins.extend(noise_bins(&code, *iso, &response));
-        }
-        let merged = merge_bins(&iso_bins);
-        match fit_row(*iso, &merged) {
-            Some(row) => rows.push(row),
-            None => notes.push(format!(
-                "ISO {iso}: too few flat pixels at two or more code levels per channel for a \
-                 noise fit; no noise row"
-            )),
-        }
-        bins.extend(merged);
-    }
+    let (bins, rows) = measure_noise(&frames, &response, &mut notes)?;
     let metering = scan
         .sets
         .iter()
@@ -222,6 +193,45 @@ pub fn calibrate_brackets(dir: &Path, opts: &BracketProfileOptions) -> Result<Br
         metering,
         notes,
     })
+}
+
+/// The noise bins of every frame, pooled per ISO (EXIF; 100 where absent, noted), and each
+/// ISO's fitted row where two or more code levels per channel allow one.
+fn measure_noise(
+    frames: &[&BracketFrame],
+    response: &Response,
+    notes: &mut Vec<String>,
+) -> Result<(Vec<NoiseBin>, Vec<NoiseAtIso>)> {
+    let mut by_iso: Vec<(f64, Vec<&BracketFrame>)> = Vec::new();
+    for f in frames {
+        let iso = f.exif.iso.unwrap_or(100.0);
+        match by_iso.iter_mut().find(|(i, _)| *i == iso) {
+            Some((_, v)) => v.push(f),
+            None => by_iso.push((iso, vec![f])),
+        }
+    }
+    if frames.iter().any(|f| f.exif.iso.is_none()) {
+        notes.push("frames without EXIF ISO are taken as ISO 100".into());
+    }
+    by_iso.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let (mut bins, mut rows) = (Vec::new(), Vec::new());
+    for (iso, group) in &by_iso {
+        let mut iso_bins = Vec::new();
+        for f in group {
+            let code = brackets::read_frame_image(f)?;
+            iso_bins.extend(noise_bins(&code, *iso, response));
+        }
+        let merged = merge_bins(&iso_bins);
+        match fit_row(*iso, &merged) {
+            Some(row) => rows.push(row),
+            None => notes.push(format!(
+                "ISO {iso}: too few flat pixels at two or more code levels per channel for a \
+                 noise fit; no noise row"
+            )),
+        }
+        bins.extend(merged);
+    }
+    Ok((bins, rows))
 }
 
 /// One interior pixel of one channel: the scene's local gradient, Immerkær's residual, the

@@ -112,20 +112,13 @@ fn build_set(
     } = set_codes(set, &gt_idx, idx, ref_pos, lin, hat, how.encode)?;
     let mut gt_shifts: Vec<Option<[i32; 2]>> = vec![None; gt_idx.len()];
     if let Some(mtb) = opts.align {
-        // MTB on the γ-encoded frames: its median thresholds need no response.
-        let s: Vec<(i32, i32)> = codes
-            .iter()
-            .map(|c| align::mtb_shift(&codes[ref_pos], c, mtb))
-            .collect();
-        let region = align::common_region(codes[ref_pos].width, codes[ref_pos].height, &s);
-        codes = align::apply_shifts(&codes, &s);
-        if hat {
-            stored = align::apply_shifts(&stored, &s);
-        }
-        for (img, &i) in written.iter_mut().zip(&idx) {
-            let p = gt_idx.iter().position(|&g| g == i).unwrap_or(0);
-            *img = align::crop_shifted(img, s[p], region);
-        }
+        let s = align_codes(
+            &mut codes,
+            &mut stored,
+            &mut written,
+            (&gt_idx, idx, ref_pos),
+            mtb,
+        );
         if codes[ref_pos].width == 0 || codes[ref_pos].height == 0 {
             return Err(Error::layout(
                 &set.frames[idx[1]].path,
@@ -197,6 +190,32 @@ fn build_set(
         toml::to_string_pretty(&record).map_err(|e| Error::encode(set_dir.join(RECORD), e))?;
     crate::io::atomic::write_atomic(&set_dir.join(RECORD), toml.as_bytes())?;
     Ok(record)
+}
+
+/// MTB-align every ground-truth frame's codes to the reference (at `ref_pos`) and crop all
+/// kept images alike (the stored codes of the hat merge, the written inputs `idx`); returns
+/// the shifts. MTB runs on the γ-encoded frames: its median thresholds need no response.
+fn align_codes(
+    codes: &mut Vec<Image>,
+    stored: &mut Vec<Image>,
+    written: &mut [Image],
+    (gt_idx, idx, ref_pos): (&[usize], [usize; 3], usize),
+    mtb: MtbOptions,
+) -> Vec<(i32, i32)> {
+    let s: Vec<(i32, i32)> = codes
+        .iter()
+        .map(|c| align::mtb_shift(&codes[ref_pos], c, mtb))
+        .collect();
+    let region = align::common_region(codes[ref_pos].width, codes[ref_pos].height, &s);
+    *codes = align::apply_shifts(codes, &s);
+    if !stored.is_empty() {
+        *stored = align::apply_shifts(stored, &s);
+    }
+    for (img, &i) in written.iter_mut().zip(&idx) {
+        let p = gt_idx.iter().position(|&g| g == i).unwrap_or(0);
+        *img = align::crop_shifted(img, s[p], region);
+    }
+    s
 }
 
 /// Each ground-truth frame `gt_idx` of `set`: decode → (metering, for the reference, the
