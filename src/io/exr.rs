@@ -351,18 +351,23 @@ fn decode_planes(
     assemble_planes(path, header, selected, blocks)
 }
 
+/// A block's pixel bounds and, with subsampled channels, the `bytes_per_pixel` its decoder
+/// is told.
+type BlockGeometry = (IntegerBounds, Option<usize>);
+/// A header whose `bytes_per_pixel` is patched to the value beside it.
+type PatchedHeader = (usize, Header);
+
 /// Each block's pixel bounds in the data window (checked to lie inside it) and, when channels
 /// are subsampled, the `bytes_per_pixel` its decoder must be told; plus the headers whose
 /// `bytes_per_pixel` is patched so the crate accepts subsampled blocks, one per distinct value
 /// (at most a few: full blocks, the last block, odd/even single lines).
-#[allow(clippy::type_complexity)]
 fn block_geometry(
     path: &Path,
     header: &Header,
     subsampled: bool,
     chunks: &[Chunk],
-) -> Result<(Vec<(IntegerBounds, Option<usize>)>, Vec<(usize, Header)>)> {
-    let mut patched: Vec<(usize, Header)> = Vec::new();
+) -> Result<(Vec<BlockGeometry>, Vec<PatchedHeader>)> {
+    let mut patched: Vec<PatchedHeader> = Vec::new();
     let mut geometry = Vec::with_capacity(chunks.len());
     for chunk in chunks {
         let tile = header
@@ -418,8 +423,8 @@ fn decode_blocks(
     header: &Header,
     selected: &[usize],
     chunks: Vec<Chunk>,
-    geometry: Vec<(IntegerBounds, Option<usize>)>,
-    patched: &[(usize, Header)],
+    geometry: Vec<BlockGeometry>,
+    patched: &[PatchedHeader],
 ) -> Result<Vec<Block>> {
     chunks
         .into_par_iter()

@@ -309,7 +309,6 @@ fn families_of(rs: &[&DarktableRow]) -> Vec<String> {
 
 /// Rows numbered at each ISO in CSV order: set k = the k-th row at each ISO. Also each ISO
 /// with its row count.
-#[allow(clippy::type_complexity)]
 fn number_sets<'a>(picked: &[&'a DarktableRow]) -> (Vec<Vec<&'a DarktableRow>>, Vec<(f64, usize)>) {
     let mut sets: Vec<Vec<&DarktableRow>> = Vec::new();
     let mut seen: Vec<(f64, usize)> = Vec::new();

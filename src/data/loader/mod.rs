@@ -436,7 +436,6 @@ impl Loader {
 
     /// Network-1's sample: the EV−3 and EV0 frames interleaved (6 channels) and the blend
     /// classes of the clean frames (noisy ones when there is no clean operator), transformed.
-    #[allow(clippy::type_complexity)]
     fn network1(&self, d: &Draw) -> Result<(usize, Vec<f32>, Target, Vec<f32>)> {
         let (set, p) = (d.set, self.cfg.patch);
         let idx = frames_at(set, &[-3.0, 0.0])?;
@@ -473,7 +472,6 @@ impl Loader {
 
     /// Network-2's sample: per frame (EV−2, 0, +2) LDR and LDR^2.2 / t (18 channels) and the
     /// linear HDR target, transformed.
-    #[allow(clippy::type_complexity)]
     fn network2(&self, d: &Draw) -> Result<(usize, Vec<f32>, Target, Vec<f32>)> {
         let (set, p) = (d.set, self.cfg.patch);
         let idx = frames_at(set, &[-2.0, 0.0, 2.0])?;

@@ -110,7 +110,11 @@ impl CalibrationPlan {
                 frames,
                 counts,
             });
-            per_burst.push((i, bins, counts));
+            per_burst.push(BurstBins {
+                burst: i,
+                bins,
+                counts,
+            });
         }
 
         // Group by ISO and fit.
@@ -170,25 +174,27 @@ fn black_level(
     Ok((black_level, black_source, black_estimated))
 }
 
-/// The fit of one ISO: per channel, the bins and counts of its bursts (`per_burst`: burst,
-/// bins per channel, counts per channel) together.
-fn fit_iso(
-    set: &CaptureSet,
-    iso: f64,
-    per_burst: &[(usize, [Vec<Bin>; 3], [Counts; 3])],
-) -> Result<IsoFit> {
-    let group: Vec<_> = per_burst
+/// One burst's bins and exclusion counts, per channel.
+struct BurstBins {
+    burst: usize,
+    bins: [Vec<Bin>; 3],
+    counts: [Counts; 3],
+}
+
+/// The fit of one ISO: per channel, the bins and counts of its bursts together.
+fn fit_iso(set: &CaptureSet, iso: f64, per_burst: &[BurstBins]) -> Result<IsoFit> {
+    let group: Vec<&BurstBins> = per_burst
         .iter()
-        .filter(|(i, _, _)| set.bursts()[*i].iso == iso)
+        .filter(|b| set.bursts()[b.burst].iso == iso)
         .collect();
-    let bursts: Vec<usize> = group.iter().map(|(i, _, _)| *i).collect();
+    let bursts: Vec<usize> = group.iter().map(|b| b.burst).collect();
     let mut channels = Vec::new();
     for (c, cname) in CHANNELS.iter().enumerate() {
         let mut bins = Vec::new();
         let mut counts = Counts::default();
-        for (_, b, n) in &group {
-            bins.extend(b[c].iter().cloned());
-            counts.add(&n[c]);
+        for b in &group {
+            bins.extend(b.bins[c].iter().cloned());
+            counts.add(&b.counts[c]);
         }
         let fit = fit_bins(&bins).map_err(|m| {
             Error::config(
