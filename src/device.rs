@@ -210,7 +210,11 @@ mod heap_tests {
         let block = std::hint::black_box(vec![1u8; 48 << 20]);
         // SAFETY: as above.
         let info = unsafe { libc::mallinfo2() };
-        assert_eq!(info.hblks, before, "{} mmapped blocks, {before} before", info.hblks);
+        assert_eq!(
+            info.hblks, before,
+            "{} mmapped blocks, {before} before",
+            info.hblks
+        );
         assert!(info.arena + info.hblkhd >= block.len(), "block not counted");
         drop(block);
     }
