@@ -637,6 +637,26 @@ fn read_csv_rows(path: &Path) -> Vec<Vec<f64>> {
         .collect()
 }
 
+/// Linear per code and channel from a written crf_debevec.csv (exp g(z), OpenCV's convention),
+/// by hand: running maximum over codes, divided by the value at code 255.
+fn debevec_tables(path: &Path) -> Vec<Vec<f64>> {
+    let rows = read_csv_rows(path);
+    assert_eq!(rows.len(), 256);
+    (1..4)
+        .map(|c| {
+            let mut run = 0.0f64;
+            let raw: Vec<f64> = rows
+                .iter()
+                .map(|r| {
+                    run = run.max(r[c]);
+                    run
+                })
+                .collect();
+            raw.iter().map(|v| (v / raw[255]).min(1.0)).collect()
+        })
+        .collect()
+}
+
 #[test]
 fn debevec_response_matches_opencv_calibrate_debevec() {
     use hdrsynth::sensor::crf::{self, DebevecOptions};
@@ -2114,20 +2134,7 @@ fn canon_550d_room_builds_with_auto_inputs_and_the_ground_truth_from_all_frames(
     // The inputs hold the camera's own codes (`--encode auto`), linearised here per channel by
     // the Debevec estimate the ground truth was merged with (crf_debevec.csv: exp g(z),
     // running maximum, 1 at code 255).
-    let rows = read_csv_rows(&out.join("crf_debevec.csv"));
-    let tables: Vec<Vec<f64>> = (1..4)
-        .map(|c| {
-            let mut run = 0.0f64;
-            let raw: Vec<f64> = rows
-                .iter()
-                .map(|r| {
-                    run = run.max(r[c]);
-                    run
-                })
-                .collect();
-            raw.iter().map(|v| (v / raw[255]).min(1.0)).collect()
-        })
-        .collect();
+    let tables = debevec_tables(&out.join("crf_debevec.csv"));
     let (_, _, reference) = read_u16_tiff(&set.join("frame_2.tif"));
     let ref_src = frames[1]["source"].as_str().expect("source");
     let ref_codes = image::open(ref_src).expect("jpeg").to_rgb8().into_raw();
@@ -2311,21 +2318,7 @@ fn an_estimated_response_is_recorded_as_the_curve_of_the_device_codes() {
         .expect("read")
         .expect("some");
     assert!(e.source.contains("Debevec"), "{}", e.source);
-    let rows = read_csv_rows(&out.join("crf_debevec.csv"));
-    assert_eq!(rows.len(), 256);
-    let tables: Vec<Vec<f64>> = (1..4)
-        .map(|c| {
-            let mut run = 0.0f64;
-            let raw: Vec<f64> = rows
-                .iter()
-                .map(|r| {
-                    run = run.max(r[c]);
-                    run
-                })
-                .collect();
-            raw.iter().map(|v| (v / raw[255]).min(1.0)).collect()
-        })
-        .collect();
+    let tables = debevec_tables(&out.join("crf_debevec.csv"));
     let inverse = |t: &[f64], x: f64| -> f64 {
         if x <= t[0] {
             return 0.0;

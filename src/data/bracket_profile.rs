@@ -25,9 +25,7 @@ use crate::data::bracket_testset::{self, Linearise, ResponseChoice};
 use crate::data::brackets::{self, BracketFrame, FrameKind, ScanOptions};
 use crate::error::{Error, Result};
 use crate::io::Image;
-use crate::sensor::profile::{
-    Colour, Levels, NoiseAtIso, ProfileKind, Provenance, Response, SensorProfile,
-};
+use crate::sensor::profile::{Colour, Levels, NoiseAtIso, Provenance, Response, SensorProfile};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -151,11 +149,6 @@ pub fn calibrate_brackets(dir: &Path, opts: &BracketProfileOptions) -> Result<Br
             use_root_polynomial: false,
         });
     }
-    profile.kind = if existed {
-        profile.kind
-    } else {
-        ProfileKind::Measured
-    };
     profile.response = response;
     profile.provenance.response = format!(
         "{} of bracket folder {} (`hdrsynth calibrate brackets`)",
@@ -412,8 +405,7 @@ fn metered(set: &brackets::BracketSet, lin: &Linearise) -> Result<MeteredFrame> 
         .filter(|p| p.iter().any(|&v| f64::from(v) >= HIGH_CODE))
         .count() as f64
         / code.pixel_count().max(1) as f64;
-    let linear = bracket_testset::linear_frame(frame, lin)?;
-    let lum = linear.luminance();
+    let lum = bracket_testset::linearise(frame, code, lin).luminance();
     let log_mean = lum
         .iter()
         .map(|&l| (f64::from(l).max(1e-6)).ln())

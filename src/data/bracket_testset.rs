@@ -549,7 +549,7 @@ pub fn code_frame(frame: &BracketFrame) -> Result<Image> {
 }
 
 /// `code` ([`code_frame`] of `frame`) made linear: DNG values are already.
-fn linearise(frame: &BracketFrame, code: Image, lin: &Linearise) -> Image {
+pub fn linearise(frame: &BracketFrame, code: Image, lin: &Linearise) -> Image {
     if frame.kind == FrameKind::Dng {
         return code;
     }
