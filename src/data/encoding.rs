@@ -103,8 +103,9 @@ pub fn mismatch(trained: &FrameEncoding, test: &FrameEncoding) -> Option<String>
         format!(
             "the network was trained on frames encoded with {}, but the test set's frames are \
              encoded with {}: they differ by up to {:.1} 8-bit codes, so the network meets a \
-             curve it was not trained on (testset --brackets --encode chooses the test set's \
-             curve; docs/your_device.md)",
+             curve it was not trained on (a test set's curve is fixed when it is made: \
+             testset --brackets --encode, or the profile of testset --radiance; \
+             docs/your_device.md)",
             trained.describe(),
             test.describe(),
             d * 255.0
@@ -137,9 +138,14 @@ pub fn of_dataset(dir: &Path) -> Result<Option<FrameEncoding>> {
         return Ok(None);
     }
     let m = own::read_manifest(dir)?;
+    let name = match m.tone_curve {
+        ToneCurve::Filmic => "filmic",
+        ToneCurve::Srgb => "srgb",
+        ToneCurve::Linear => "linear",
+    };
     Ok(Some(FrameEncoding::of_tone_curve(
         m.tone_curve,
-        &format!("the display frames of dataset {}", dir.display()),
+        &format!("the {name} display curve of dataset {}", dir.display()),
     )))
 }
 
