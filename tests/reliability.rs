@@ -1692,13 +1692,16 @@ fn two_identical_runs_write_byte_identical_checkpoints() {
                 .collect::<std::collections::BTreeMap<_, _>>()
         };
         let (x, y) = (files("x"), files("y"));
-        for (path, bytes) in &x {
-            assert!(
-                y.get(path) == Some(bytes),
-                "{} differs between two identical runs",
-                path.display()
-            );
-        }
+        // Every differing file is named, not only the first.
+        let differ: Vec<String> = x
+            .iter()
+            .filter(|(path, bytes)| y.get(*path) != Some(*bytes))
+            .map(|(path, _)| path.display().to_string())
+            .collect();
+        assert!(
+            differ.is_empty(),
+            "{differ:?} differ between two identical runs (Network-2: {network2})"
+        );
         assert!(x.len() >= 4, "{:?}", x.keys());
     }
 }
