@@ -7,7 +7,7 @@
 
 use hdrsynth::data::bracket_testset::{self, BracketOptions, EncodeSpec, ResponseChoice};
 use hdrsynth::data::brackets::{self, ScanOptions};
-use hdrsynth::sensor::profile::Response;
+use hdrsynth::sensor::profile::{Response, SensorProfile};
 use image::ExtendedColorType;
 use image::codecs::jpeg::JpegEncoder;
 use std::path::{Path, PathBuf};
@@ -2421,23 +2421,75 @@ impl TestNoise {
     }
 }
 
+/// How the unit-variance draws of [`noisy_png_bracket`] are correlated in space.
+#[derive(Clone, Copy)]
+enum Spatial {
+    White,
+    /// The mean of 2×2 neighbouring draws times 2 (same variance, neighbours correlated as a
+    /// denoiser's or demosaicker's residual is).
+    Box2,
+    /// Draws filtered by a separable Gaussian kernel exp(−i²/2s²), |i| ≤ ⌈3s⌉, normalised to
+    /// Σk² = 1 per axis (unit variance), written out here from its definition.
+    Gauss(f64),
+}
+
+/// The test's own Gaussian kernel (k(−R) … k(R)) of [`Spatial::Gauss`].
+fn gauss_kernel(s: f64) -> Vec<f64> {
+    let r = (3.0 * s).ceil() as i64;
+    let k: Vec<f64> = (-r..=r)
+        .map(|i| (-(i * i) as f64 / (2.0 * s * s)).exp())
+        .collect();
+    let norm = k.iter().map(|v| v * v).sum::<f64>().sqrt();
+    k.iter().map(|v| v / norm).collect()
+}
+
 /// A bracket of 8-bit sRGB PNGs (exposure.txt stops) of a smooth scene with noise of variance
-/// a·L + b added to the linear signal L before the encoding: white, or (`correlated`) the mean
-/// of 2×2 neighbouring draws times 2 (same variance, neighbours correlated as a denoiser's or
-/// demosaicker's residual is).
-fn noisy_png_bracket(dir: &Path, a: f64, b: f64, stops: &[f64], correlated: bool) {
+/// a·L + b added to the linear signal L before the encoding, spatially `spatial`.
+fn noisy_png_bracket(dir: &Path, a: f64, b: f64, stops: &[f64], spatial: Spatial) {
     std::fs::create_dir_all(dir).expect("mkdir");
     let (w, h) = (192usize, 144usize);
+    let pad = 8usize;
+    let (fw, fh) = (w + 2 * pad, h + 2 * pad);
     let mut rng = TestNoise(7);
     for (i, s) in stops.iter().enumerate() {
         let mut img = image::RgbImage::new(w as u32, h as u32);
-        let field: Vec<f64> = (0..(w + 1) * (h + 1) * 3).map(|_| rng.normal()).collect();
+        let field: Vec<f64> = (0..fw * fh * 3).map(|_| rng.normal()).collect();
+        let f = |x: usize, y: usize, c: usize| field[(y * fw + x) * 3 + c];
+        let filtered: Vec<f64> = match spatial {
+            Spatial::Gauss(sigma) => {
+                let k = gauss_kernel(sigma);
+                let r = k.len() / 2;
+                let mut rows = vec![0.0; fw * fh * 3];
+                for y in 0..fh {
+                    for x in r..fw - r {
+                        for c in 0..3 {
+                            rows[(y * fw + x) * 3 + c] =
+                                (0..k.len()).map(|j| k[j] * f(x + j - r, y, c)).sum();
+                        }
+                    }
+                }
+                let mut out = vec![0.0; fw * fh * 3];
+                for y in r..fh - r {
+                    for x in 0..fw {
+                        for c in 0..3 {
+                            out[(y * fw + x) * 3 + c] = (0..k.len())
+                                .map(|j| k[j] * rows[((y + j - r) * fw + x) * 3 + c])
+                                .sum();
+                        }
+                    }
+                }
+                out
+            }
+            _ => Vec::new(),
+        };
         let draw = |x: usize, y: usize, c: usize| {
-            let f = |x: usize, y: usize| field[(y * (w + 1) + x) * 3 + c];
-            if correlated {
-                (f(x, y) + f(x + 1, y) + f(x, y + 1) + f(x + 1, y + 1)) / 2.0
-            } else {
-                f(x, y)
+            let (x, y) = (x + pad, y + pad);
+            match spatial {
+                Spatial::White => f(x, y, c),
+                Spatial::Box2 => {
+                    (f(x, y, c) + f(x + 1, y, c) + f(x, y + 1, c) + f(x + 1, y + 1, c)) / 2.0
+                }
+                Spatial::Gauss(_) => filtered[(y * fw + x) * 3 + c],
             }
         };
         for y in 0..h {
@@ -2463,7 +2515,13 @@ fn calibrate_brackets_recovers_a_known_output_noise_and_encodes_what_it_trains_o
     use hdrsynth::data::bracket_profile::{BracketProfileOptions, calibrate_brackets};
     let tmp = tempfile::tempdir().expect("tmp");
     let (a, b) = (4e-4, 1e-5);
-    noisy_png_bracket(&tmp.path().join("scene"), a, b, &[-2.0, 0.0, 2.0], false);
+    noisy_png_bracket(
+        &tmp.path().join("scene"),
+        a,
+        b,
+        &[-2.0, 0.0, 2.0],
+        Spatial::White,
+    );
     let beside = tempfile::tempdir().expect("tmp");
     let out = beside.path().join("phone.toml");
     let cal = calibrate_brackets(
@@ -2473,6 +2531,7 @@ fn calibrate_brackets_recovers_a_known_output_noise_and_encodes_what_it_trains_o
             response: ResponseChoice::Declared(Response::Srgb),
             out: out.clone(),
             name: Some("test phone".into()),
+            correlated: false,
         },
     )
     .expect("calibrate");
@@ -2540,7 +2599,7 @@ fn calibrate_brackets_sees_spatially_correlated_output_noise() {
         4e-4,
         1e-5,
         &[-2.0, 0.0, 2.0],
-        true,
+        Spatial::Box2,
     );
     let beside = tempfile::tempdir().expect("tmp");
     let out = beside.path().join("phone.toml");
@@ -2551,6 +2610,7 @@ fn calibrate_brackets_sees_spatially_correlated_output_noise() {
             response: ResponseChoice::Declared(Response::Srgb),
             out: out.clone(),
             name: None,
+            correlated: false,
         },
     )
     .expect("calibrate");
@@ -2560,4 +2620,251 @@ fn calibrate_brackets_sees_spatially_correlated_output_noise() {
     for r in cal.correlation_ratio {
         assert!(r > 1.5, "{:?}", cal.correlation_ratio);
     }
+}
+
+#[test]
+fn correlated_output_noise_is_fitted_as_the_catalogues_kernel_with_its_per_pixel_variance() {
+    use hdrsynth::data::bracket_profile::{BracketProfileOptions, calibrate_brackets};
+    let (a, b) = (4e-4, 1e-5);
+    let calibrate = |spatial: Spatial| {
+        let tmp = tempfile::tempdir().expect("tmp");
+        noisy_png_bracket(&tmp.path().join("scene"), a, b, &[-2.0, 0.0, 2.0], spatial);
+        let beside = tempfile::tempdir().expect("tmp");
+        let out = beside.path().join("phone.toml");
+        let cal = calibrate_brackets(
+            tmp.path(),
+            &BracketProfileOptions {
+                scan: ScanOptions::default(),
+                response: ResponseChoice::Declared(Response::Srgb),
+                out: out.clone(),
+                name: None,
+                correlated: true,
+            },
+        )
+        .expect("calibrate");
+        eprintln!("{}", cal.report(&out));
+        let written = SensorProfile::load(&out).expect("load");
+        assert_eq!(written, cal.profile);
+        cal
+    };
+    // Gaussian-filtered noise of width 0.8: its lag-1 correlation Σ k(i) k(i+1), from the
+    // test's own kernel.
+    let sigma = 0.8;
+    let k = gauss_kernel(sigma);
+    let rho_true: f64 = (0..k.len() - 1).map(|i| k[i] * k[i + 1]).sum();
+    let cal = calibrate(Spatial::Gauss(sigma));
+    let effect = cal
+        .profile
+        .effects
+        .iter()
+        .find(|e| e.id == "correlated_noise")
+        .expect("the correlation is written as an effect");
+    let rho = effect.params["rho"].as_float().expect("rho");
+    assert!(
+        (rho - rho_true).abs() < 0.06,
+        "fitted lag-1 correlation {rho}, true {rho_true:.3}"
+    );
+    // a is the per-pixel variance's again, not the fraction Immerkær's residual sees.
+    for c in 0..3 {
+        let got = cal.profile.noise[0].a[c];
+        assert!((got / a - 1.0).abs() < 0.25, "a[{c}] = {got:e}, true {a:e}");
+    }
+    // White noise: no effect is written and a stays the white estimate.
+    let white = calibrate(Spatial::White);
+    assert!(
+        white.correlation.rho < 0.02 && white.profile.effects.is_empty(),
+        "{:?} {:?}",
+        white.correlation,
+        white.profile.effects
+    );
+}
+
+#[test]
+fn halves_of_a_frame_share_no_pixel_and_are_read_as_cut() {
+    use hdrsynth::data::brackets::Region;
+    assert_eq!(Region::Left.bounds(5, 3), Some([0, 0, 2, 3]));
+    assert_eq!(Region::Right.bounds(5, 3), Some([2, 0, 5, 3]));
+    assert_eq!(Region::Top.bounds(4, 5), Some([0, 0, 4, 2]));
+    assert_eq!(Region::Bottom.bounds(4, 5), Some([0, 2, 4, 5]));
+    assert_eq!(
+        "1,2,3,4".parse::<Region>(),
+        Ok(Region::Rect {
+            x: 1,
+            y: 2,
+            w: 3,
+            h: 4
+        })
+    );
+    assert_eq!(
+        Region::Rect {
+            x: 3,
+            y: 0,
+            w: 3,
+            h: 1
+        }
+        .bounds(5, 3),
+        None
+    );
+    for bad in ["middle", "1,2,3", "1,2,0,4", "-1,0,2,2"] {
+        let e = bad.parse::<Region>().expect_err(bad);
+        assert!(e.contains(bad), "{e}");
+    }
+    // Read through a scan: the left half's pixels are the frame's first columns.
+    let tmp = tempfile::tempdir().expect("tmp");
+    noisy_png_bracket(
+        &tmp.path().join("scene"),
+        4e-4,
+        1e-5,
+        &[-1.0, 0.0, 1.0],
+        Spatial::White,
+    );
+    let whole = image::open(tmp.path().join("scene/f1.png"))
+        .expect("png")
+        .to_rgb8();
+    for (region, x0) in [(Region::Left, 0u32), (Region::Right, 96)] {
+        let scan = brackets::scan(
+            tmp.path(),
+            &ScanOptions {
+                region: Some(region),
+                ..ScanOptions::default()
+            },
+        )
+        .expect("scan");
+        let f = &scan.sets[0].frames[1];
+        let img = brackets::read_frame_image(f).expect("read");
+        assert_eq!((img.width, img.height), (96, 144));
+        for (x, y) in [(0u32, 0u32), (95, 143), (40, 70)] {
+            let want = whole.get_pixel(x0 + x, y).0;
+            let got = img.get(x as usize, y as usize);
+            for c in 0..3 {
+                assert!(
+                    (got[c] - want[c] as f32 / 255.0).abs() < 1e-6,
+                    "{region} ({x}, {y})"
+                );
+            }
+        }
+        let source = brackets::frame_source(f).expect("source");
+        assert_eq!(source.pixels, [x0 as usize, 0, x0 as usize + 96, 144]);
+    }
+}
+
+#[test]
+fn a_network_is_never_scored_on_captures_that_calibrated_its_profile() {
+    use hdrsynth::data::bracket_profile::{BracketProfileOptions, calibrate_brackets};
+    use hdrsynth::engine::method::from_checkpoint;
+    use hdrsynth::eval::evaluate::{self, EvalOptions};
+    use hdrsynth::eval::infer::NetworkOptions;
+    let tmp = tempfile::tempdir().expect("tmp");
+    noisy_png_bracket(
+        &tmp.path().join("scene"),
+        4e-4,
+        1e-5,
+        &[-2.0, 0.0, 2.0],
+        Spatial::White,
+    );
+    let beside = tempfile::tempdir().expect("tmp");
+    let scan = |region| ScanOptions {
+        region,
+        ..ScanOptions::default()
+    };
+    // Calibrated on the left half of the frames.
+    let profile = beside.path().join("phone.toml");
+    calibrate_brackets(
+        tmp.path(),
+        &BracketProfileOptions {
+            scan: scan(Some(brackets::Region::Left)),
+            response: ResponseChoice::Declared(Response::Srgb),
+            out: profile.clone(),
+            name: None,
+            correlated: false,
+        },
+    )
+    .expect("calibrate");
+    let p = SensorProfile::load(&profile).expect("load");
+    assert_eq!(p.calibrated_on.len(), 3);
+    assert!(p.calibrated_on.iter().all(|s| s.pixels == [0, 0, 96, 144]));
+    let run = beside.path().join("run");
+    train_tiny_with(
+        &run,
+        "kind = \"wu\"\nbase_width = 4\nres_blocks = 1",
+        "[-2.0, 0.0, 2.0]",
+        &format!("profile = {profile:?}\nisos = [100.0]"),
+    );
+    let testset = |region, name: &str| -> PathBuf {
+        let out = beside.path().join(name);
+        let opts = BracketOptions {
+            scan: scan(region),
+            response: ResponseChoice::Declared(Response::Srgb),
+            ..BracketOptions::default()
+        };
+        bracket_testset::build(tmp.path(), &opts, &out).expect("build");
+        out
+    };
+    let device = hdrsynth::device::device_from_name("flex").expect("flex");
+    let method = from_checkpoint(&run, &NetworkOptions::default(), &device).expect("load");
+    let eval = |set: &Path, name: &str| {
+        evaluate::evaluate(
+            set,
+            method.as_ref(),
+            &beside.path().join(name),
+            &EvalOptions::default(),
+        )
+    };
+    // The whole frames hold the calibration's pixels: refused, naming the set and the frame,
+    // and nothing is written.
+    let whole = testset(None, "whole");
+    let e = eval(&whole, "e_whole").expect_err("scored on its calibration captures");
+    let msg = e.to_string();
+    assert!(
+        msg.contains("scene") && msg.contains(".png") && msg.contains("calibrat"),
+        "{msg}"
+    );
+    assert!(!beside.path().join("e_whole").exists());
+    // The right half is other pixels of the same frames: scored.
+    let right = testset(Some(brackets::Region::Right), "right");
+    let scored = eval(&right, "e_right").expect("disjoint regions are scored");
+    assert_eq!(scored.rows.len(), 1);
+}
+
+#[test]
+fn the_loop_refuses_a_split_in_which_a_capture_both_calibrates_and_is_scored() {
+    use hdrsynth::data::brackets::Region;
+    use hdrsynth::experiments::device_loop::{LoopOptions, run};
+    let tmp = tempfile::tempdir().expect("tmp");
+    noisy_png_bracket(
+        &tmp.path().join("scene"),
+        4e-4,
+        1e-5,
+        &[-2.0, 0.0, 2.0],
+        Spatial::White,
+    );
+    let beside = tempfile::tempdir().expect("tmp");
+    let opts = |calibration: &[&str], cal: Option<Region>, test: Option<Region>| LoopOptions {
+        brackets: tmp.path().to_path_buf(),
+        calibration: calibration.iter().map(|s| s.to_string()).collect(),
+        calibration_region: cal,
+        test_region: test,
+        scan: ScanOptions::default(),
+        inputs: InputChoice::default(),
+        gt_frames: GtFrames::default(),
+        quickstart: beside.path().join("no_quickstart"),
+        seeds: vec![1],
+        out: beside.path().join("loop"),
+        progress: false,
+    };
+    let err = |o: LoopOptions| run(&o).err().expect("refused").to_string();
+    // One scene and no regions: nothing to score on.
+    let e = err(opts(&[], None, None));
+    assert!(e.contains("--calibration") && e.contains("scene"), "{e}");
+    let e = err(opts(&["scene"], None, None));
+    assert!(e.contains("every set"), "{e}");
+    // Overlapping regions of the same frames.
+    let e = err(opts(&[], Some(Region::Left), Some(Region::Top)));
+    assert!(e.contains("both calibrate") && e.contains(".png"), "{e}");
+    let e = err(opts(&["nowhere"], None, None));
+    assert!(e.contains("nowhere"), "{e}");
+    // Disjoint halves pass the split; the missing main job is what stops it then.
+    let e = err(opts(&[], Some(Region::Left), Some(Region::Right)));
+    assert!(e.contains("quickstart"), "{e}");
+    assert!(!beside.path().join("loop").exists());
 }

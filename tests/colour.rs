@@ -843,6 +843,7 @@ fn example_profile() -> SensorProfile {
         response: Response::Srgb,
         source_response: Response::Filmic,
         effects: Vec::new(),
+        calibrated_on: Vec::new(),
     }
 }
 

@@ -6,7 +6,7 @@
 
 use crate::data::bracket_captures::{self, BracketDiagnoseOptions};
 use crate::data::bracket_testset::{ResponseChoice, ResponseSpec};
-use crate::data::brackets::ScanOptions;
+use crate::data::brackets::{Region, ScanOptions};
 use crate::sensor::diagnose::{self, DiagnoseOptions};
 use anyhow::{Context, Result};
 use std::fmt::Write as _;
@@ -40,6 +40,10 @@ pub struct Args {
     /// --brackets: largest gap between capture times within one set, seconds.
     #[arg(long, default_value_t = ScanOptions::default().max_gap_s)]
     pub max_gap: f64,
+    /// --brackets: read only this part of every frame: left, right, top, bottom (halves of the upright
+    /// frame, split at ⌊w/2⌋ or ⌊h/2⌋) or x,y,w,h in pixels.
+    #[arg(long)]
+    pub region: Option<Region>,
     /// --brackets: a frame whose exposure ratio is off the common response by more than this
     /// many stops is named and left out.
     #[arg(long, default_value_t = BracketDiagnoseOptions::default().ratio_tolerance_stops)]
@@ -72,6 +76,8 @@ pub fn run(args: &Args) -> Result<String> {
                 scan: ScanOptions {
                     evs: args.declared_evs.clone(),
                     max_gap_s: args.max_gap,
+                    region: args.region,
+                    sets: Vec::new(),
                 },
                 response: ResponseChoice::new(args.profile.as_deref(), args.response.as_ref())?,
                 diagnose: opts,

@@ -3,6 +3,7 @@
 pub mod ablate;
 pub mod calibrate;
 pub mod dataset;
+pub mod device_loop;
 pub mod diagnose;
 pub mod eval;
 pub mod export;
@@ -68,6 +69,9 @@ pub enum Command {
     Ablate(crate::cli::ablate::Args),
     /// Sim-to-real gap: name, fit and add the effects a profile misses, from real captures.
     Diagnose(crate::cli::diagnose::Args),
+    /// The sim-to-real loop on a device's brackets: calibrate on some scenes, fine-tune once
+    /// per measured effect, score on the others; the gain of each step, every seed.
+    Loop(crate::cli::device_loop::Args),
     /// Export a trained network (ONNX; cargo feature `onnx`).
     Export {
         #[command(subcommand)]
@@ -141,6 +145,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Quickstart(args) => println!("{}", crate::cli::quickstart::run(&args)?),
         Command::Ablate(args) => println!("{}", crate::cli::ablate::run(&args)?),
         Command::Diagnose(args) => println!("{}", crate::cli::diagnose::run(&args)?),
+        Command::Loop(args) => println!("{}", crate::cli::device_loop::run(&args)?),
         Command::Export { command } => println!("{}", crate::cli::export::run(&command)?),
         Command::Dataset { command } => match command {
             DatasetCommand::Info { dir, verify } => {

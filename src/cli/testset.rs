@@ -7,7 +7,7 @@ use crate::data::align::MtbOptions;
 use crate::data::bracket_testset::{
     self, BracketOptions, EncodeSpec, GtFrames, InputChoice, ResponseChoice, ResponseSpec,
 };
-use crate::data::brackets::ScanOptions;
+use crate::data::brackets::{Region, ScanOptions};
 use crate::data::testset::{self, TestsetOptions, TestsetSummary};
 use crate::sensor::metering::Metering;
 use crate::sensor::profile::SensorProfile;
@@ -46,6 +46,10 @@ pub struct Args {
     /// --brackets: largest gap between capture times within one set, seconds.
     #[arg(long, default_value_t = ScanOptions::default().max_gap_s)]
     pub max_gap: f64,
+    /// --brackets: read only this part of every frame: left, right, top, bottom (halves of the upright
+    /// frame, split at ⌊w/2⌋ or ⌊h/2⌋) or x,y,w,h in pixels.
+    #[arg(long)]
+    pub region: Option<Region>,
     /// --brackets: the three inputs per set: auto (2-stop steps, the reference with the fewest
     /// clipped/dark pixels) or I,J,K (0-based, shortest exposure first). Default: the shortest,
     /// middle and longest.
@@ -150,6 +154,8 @@ pub fn bracket_options(args: &Args) -> Result<BracketOptions> {
         scan: ScanOptions {
             evs: args.declared_evs.clone(),
             max_gap_s: args.max_gap,
+            region: args.region,
+            sets: Vec::new(),
         },
         response,
         align: args.align.then(MtbOptions::default),

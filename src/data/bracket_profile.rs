@@ -12,7 +12,9 @@
 //! - the spatial correlation of that noise: per bin the ratio of the variance of a low-order
 //!   residual (pixel − 3×3 mean, 8/9 σ² for white noise) to Immerkær's, 1 for white noise and
 //!   above 1 where the device's processing (denoising, demosaicking, compression) correlates
-//!   it; reported, not modelled;
+//!   it; fitted as the catalogue's `correlated_noise` (an isotropic Gaussian kernel whose
+//!   ratio is the measured one, [`CorrelationFit`]) and, with `correlated`, written into the
+//!   profile with a and b raised to the per-pixel variance ([`with_correlation`]);
 //! - the exposure rule: the auto-exposed frame of each set (EXIF ExposureBiasValue 0, else the
 //!   middle frame) gives where the device put its log-average luminance (fraction of white)
 //!   and how much it let clip; reported beside the loader's `[realism.metering]` keys.
@@ -49,6 +51,129 @@ pub struct BracketProfileOptions {
     /// The profile to write (an existing one keeps its name, kind, colour and effects).
     pub out: PathBuf,
     pub name: Option<String>,
+    /// Write the measured spatial correlation into the profile ([`with_correlation`]) when it
+    /// reaches [`MIN_RHO`]; otherwise the profile's noise is white.
+    pub correlated: bool,
+}
+
+/// Smallest lag-1 correlation written as an effect: `diagnose`'s minimum effect size for noise
+/// correlations (docs/diagnose.md).
+pub const MIN_RHO: f64 = 0.02;
+
+/// 8-bit rounding's variance, codes² of 1.
+const ROUNDING: f64 = 1.0 / (12.0 * 255.0 * 255.0);
+
+/// The output noise's spatial correlation as the catalogue's `correlated_noise`: normal draws
+/// filtered by a separable Gaussian kernel of width `width` (effects::plan::kernel), whose
+/// low-order/Immerkær ratio equals the measured one.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CorrelationFit {
+    /// Per channel, the median over bins of the ratio with 8-bit rounding (white, in both
+    /// residuals) taken out.
+    pub ratio: [f64; 3],
+    /// The kernel width whose ratio is the channels' mean, and its lag-1 correlation.
+    pub width: f64,
+    pub rho: f64,
+    /// Immerkær's σ² as a fraction of the per-pixel variance under that kernel (1 for white
+    /// noise): the measured a, b are divided by it to give the per-pixel variance.
+    pub immerkaer_fraction: f64,
+}
+
+/// Σᵢⱼ hᵢ hⱼ c(i − j) of a 3-tap filter `h` on a field whose lag correlations are `c`.
+fn filtered_variance(h: [f64; 3], c: [f64; 3]) -> f64 {
+    let mut v = 0.0;
+    for i in 0..3 {
+        for j in 0..3 {
+            v += h[i] * h[j] * c[i.abs_diff(j)];
+        }
+    }
+    v
+}
+
+/// (low-order/Immerkær ratio, Immerkær fraction) of unit-variance noise filtered by the kernel
+/// of width `s`. Both residuals are separable: Immerkær's mask is m mᵀ, m = (1, −2, 1), so its
+/// variance is (Σ m m c)²; the low-order residual is δ − b bᵀ/9, b = (1, 1, 1).
+pub fn correlation_of_width(s: f64) -> (f64, f64) {
+    let k = crate::sensor::effects::plan::kernel(s);
+    let lag = |d| crate::sensor::effects::plan::lag_correlation(&k, d);
+    let c = [1.0, lag(1), lag(2)];
+    let imm = filtered_variance([1.0, -2.0, 1.0], c).powi(2) / 36.0;
+    let box3 = filtered_variance([1.0, 1.0, 1.0], c);
+    let low = (1.0 - 2.0 / 9.0 * (c[0] + 2.0 * c[1]).powi(2) + box3 * box3 / 81.0) / (8.0 / 9.0);
+    (low / imm, imm)
+}
+
+/// Fit [`CorrelationFit`] to the bins: the width by bisection (the ratio grows with it).
+fn fit_correlation(bins: &[NoiseBin]) -> CorrelationFit {
+    let ratio = [0, 1, 2].map(|c| {
+        let mut r: Vec<f64> = bins
+            .iter()
+            .filter(|b| b.channel == c && b.var_code > 0.0 && b.correlation_ratio.is_finite())
+            .map(|b| (b.correlation_ratio * (b.var_code + ROUNDING) - ROUNDING) / b.var_code)
+            .collect();
+        crate::stats::median(&mut r)
+    });
+    let finite: Vec<f64> = ratio.iter().copied().filter(|r| r.is_finite()).collect();
+    let target = finite.iter().sum::<f64>() / finite.len().max(1) as f64;
+    let top = crate::sensor::effects::plan::width(crate::sensor::effects::plan::RHO_MAX);
+    let width = if !(target > 1.0) {
+        0.0
+    } else if correlation_of_width(top).0 <= target {
+        top
+    } else {
+        let (mut lo, mut hi) = (0.0, top);
+        for _ in 0..60 {
+            let mid = 0.5 * (lo + hi);
+            if correlation_of_width(mid).0 < target {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        0.5 * (lo + hi)
+    };
+    let k = crate::sensor::effects::plan::kernel(width);
+    CorrelationFit {
+        ratio,
+        width,
+        rho: crate::sensor::effects::plan::lag_correlation(&k, 1),
+        immerkaer_fraction: correlation_of_width(width).1,
+    }
+}
+
+/// `profile` with the fitted correlation: the `correlated_noise` effect (lag-1 correlation
+/// `fit.rho` on both axes, replacing one it had) and every noise row of `isos` divided by the
+/// Immerkær fraction, so the per-pixel variance is what the correlated field has. `None`
+/// below [`MIN_RHO`].
+pub fn with_correlation(
+    profile: &SensorProfile,
+    fit: &CorrelationFit,
+    isos: &[f64],
+) -> Option<SensorProfile> {
+    if !(fit.rho >= MIN_RHO) {
+        return None;
+    }
+    let mut p = profile.clone();
+    for row in p.noise.iter_mut().filter(|r| isos.contains(&r.iso)) {
+        for c in 0..3 {
+            row.a[c] /= fit.immerkaer_fraction;
+            row.b[c] /= fit.immerkaer_fraction;
+        }
+    }
+    let id = crate::sensor::effects::plan::id::CORRELATED_NOISE;
+    p.effects.retain(|e| e.id != id);
+    let mut params = toml::Table::new();
+    params.insert("rho".into(), fit.rho.into());
+    p.effects.push(crate::sensor::effects::plan::EffectSpec {
+        id: id.into(),
+        params,
+    });
+    let _ = write!(
+        p.provenance.noise,
+        "; spatially correlated as measured (low-order/Immerkær ratio {:.3} {:.3} {:.3} →          Gaussian kernel width {:.3}, lag-1 correlation {:.3}; a, b divided by {:.4}, the          fraction of the per-pixel variance Immerkær's residual sees)",
+        fit.ratio[0], fit.ratio[1], fit.ratio[2], fit.width, fit.rho, fit.immerkaer_fraction
+    );
+    Some(p)
 }
 
 /// One code bin of one channel at one ISO.
@@ -86,6 +211,7 @@ pub struct BracketCalibration {
     pub bins: Vec<NoiseBin>,
     /// Per channel, the median over bins of [`NoiseBin::correlation_ratio`].
     pub correlation_ratio: [f64; 3],
+    pub correlation: CorrelationFit,
     pub metering: Vec<MeteredFrame>,
     pub notes: Vec<String>,
 }
@@ -166,6 +292,19 @@ pub fn calibrate_brackets(dir: &Path, opts: &BracketProfileOptions) -> Result<Br
          removed, carried to linear through the profile's response, σ² = a·x + b by WLS",
         dir.display()
     );
+    let correlation = fit_correlation(&bins);
+    if opts.correlated {
+        let isos: Vec<f64> = bins.iter().map(|b| b.iso).collect();
+        if let Some(p) = with_correlation(&profile, &correlation, &isos) {
+            profile = p;
+        }
+    }
+    for f in &frames {
+        let source = brackets::frame_source(f)?;
+        if !profile.calibrated_on.contains(&source) {
+            profile.calibrated_on.push(source);
+        }
+    }
     profile
         .validate()
         .map_err(|msg| Error::config(&opts.out, msg))?;
@@ -183,6 +322,7 @@ pub fn calibrate_brackets(dir: &Path, opts: &BracketProfileOptions) -> Result<Br
         existed,
         bins,
         correlation_ratio,
+        correlation,
         metering,
         notes,
     })
@@ -458,12 +598,32 @@ impl BracketCalibration {
             let _ = writeln!(s, "noise ISO {}: a {} b {}", r.iso, e(r.a), e(r.b));
         }
         let r = self.correlation_ratio;
+        let f = &self.correlation;
         let _ = writeln!(
             s,
             "spatial correlation: low/high-order residual variance ratio, median over bins: R \
-             {:.2}, G {:.2}, B {:.2} (1 = white noise; above 1: the device's processing \
-             correlates its noise, which the profile's white noise does not model)",
-            r[0], r[1], r[2]
+             {:.2}, G {:.2}, B {:.2} (1 = white noise); without 8-bit rounding {:.3}, {:.3}, \
+             {:.3} → Gaussian kernel width {:.3}, lag-1 correlation {:.3} ({})",
+            r[0],
+            r[1],
+            r[2],
+            f.ratio[0],
+            f.ratio[1],
+            f.ratio[2],
+            f.width,
+            f.rho,
+            if self
+                .profile
+                .effects
+                .iter()
+                .any(|e| e.id == crate::sensor::effects::plan::id::CORRELATED_NOISE)
+            {
+                "the profile's correlated_noise"
+            } else if f.rho >= MIN_RHO {
+                "not written: --correlated writes it"
+            } else {
+                "below 0.02: the profile's noise is white"
+            }
         );
         for m in &self.metering {
             let _ = writeln!(

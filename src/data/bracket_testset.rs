@@ -31,11 +31,12 @@ use crate::data::brackets::{self, BracketFrame, BracketScan, FrameKind, ScanOpti
 use crate::data::encoding::FrameEncoding;
 use crate::data::ground_truth;
 use crate::error::{Error, Result};
+use crate::io::source::Source;
 use crate::io::{BitDepth, Image, write_hdr, write_ldr};
 use crate::sensor::crf::{self, DebevecOptions, RobertsonOptions};
 use crate::sensor::profile::{Response, SensorProfile};
 use rayon::prelude::*;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -440,6 +441,26 @@ pub struct BuiltBracketSet {
     /// MTB shifts (dx, dy) applied to the three inputs (the reference's is 0); empty when not
     /// aligned.
     pub shifts: Vec<[i32; 2]>,
+    /// Every frame of the bracket (the scene a network is scored on): a profile calibrated on
+    /// any of them may not be scored here ([`set_sources`]).
+    pub sources: Vec<Source>,
+}
+
+/// The captures set folder `set_dir` was built from (its `brackets.toml`'s `sources`); `None`
+/// for a set not built from brackets or built before sources were recorded.
+pub fn set_sources(set_dir: &Path) -> Result<Option<Vec<Source>>> {
+    #[derive(Deserialize)]
+    struct Record {
+        #[serde(default)]
+        sources: Option<Vec<Source>>,
+    }
+    let path = set_dir.join(RECORD);
+    if !path.is_file() {
+        return Ok(None);
+    }
+    let text = crate::io::guard::read_text(&path)?;
+    let r: Record = toml::from_str(&text).map_err(|e| Error::decode(&path, e))?;
+    Ok(r.sources)
 }
 
 #[derive(Clone, Debug, PartialEq)]

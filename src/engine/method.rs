@@ -6,6 +6,8 @@ use super::{LoadedNetwork, Network};
 use crate::data::encoding::FrameEncoding;
 use crate::error::{Error, Result};
 use crate::eval::evaluate::{Method, Network1, Network2, NetworkOptions, Predictions};
+use crate::io::source::Source as Capture;
+use crate::train::config::TrainedOn;
 use burn::tensor::Device;
 use std::path::{Path, PathBuf};
 
@@ -23,27 +25,27 @@ pub fn from_checkpoint(
         .parent()
         .and_then(Path::parent)
         .map(Path::to_path_buf);
-    let encoding = match run {
+    let trained = match run {
         Some(run) if run.join(crate::train::RUN_CONFIG).is_file() => {
-            crate::train::config::run_frame_encoding(&run).map_err(|e| e.to_string())
+            crate::train::config::run_trained_on(&run).map_err(|e| e.to_string())
         }
-        _ => Ok(None),
+        _ => Ok(TrainedOn::default()),
     };
     Ok(Box::new(Trained {
         method: from_network(net, opts),
-        encoding,
+        trained,
     }))
 }
 
-/// A checkpoint's method with its run's training encoding (or why it could not be read).
+/// A checkpoint's method with what its run was trained on (or why it could not be read).
 struct Trained {
     method: Box<dyn Method>,
-    encoding: std::result::Result<Option<FrameEncoding>, String>,
+    trained: std::result::Result<TrainedOn, String>,
 }
 
 impl Method for Trained {
     fn describe(&self, opts: &crate::eval::evaluate::EvalOptions) -> String {
-        match &self.encoding {
+        match &self.trained {
             Ok(_) => self.method.describe(opts),
             Err(e) => format!(
                 "{}; its training frames' encoding could not be read: {e}",
@@ -65,7 +67,12 @@ impl Method for Trained {
     }
 
     fn trained_encoding(&self) -> Option<&FrameEncoding> {
-        self.encoding.as_ref().ok().and_then(Option::as_ref)
+        self.trained.as_ref().ok().and_then(|t| t.encoding.as_ref())
+    }
+
+    fn calibrated_on(&self) -> Option<(&Path, &[Capture])> {
+        let t = self.trained.as_ref().ok()?;
+        Some((t.profile.as_deref()?, &t.calibrated_on))
     }
 }
 

@@ -29,6 +29,7 @@ use crate::eval::infer;
 pub use crate::eval::infer::NetworkOptions;
 use crate::eval::metrics::{self, DarkMask, MetricOptions, Pu21Scale, Scores};
 use crate::eval::report::{self, Cell, MetricSummary, SetScore};
+use crate::io::source::Source;
 use crate::io::{BitDepth, ExrPrecision, Image, read_image, resize, write_exr, write_ldr};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
@@ -112,6 +113,11 @@ pub trait Method {
     /// The curve of the frames the method was trained on, where known (a checkpoint's run):
     /// compared with the test set's ([`crate::data::encoding`]).
     fn trained_encoding(&self) -> Option<&FrameEncoding> {
+        None
+    }
+    /// The profile the method was fine-tuned with and the captures it was calibrated on, where
+    /// known: no set built from any of them is scored ([`split_check`]).
+    fn calibrated_on(&self) -> Option<(&Path, &[Source])> {
         None
     }
 }
@@ -222,6 +228,7 @@ pub fn evaluate(
     }
     let began = Instant::now();
     let info = layout::detect(testset)?;
+    split_check(method, &info.sets)?;
     let (warnings, mut notes) = encoding_check(method, testset)?;
     let mut missing = Vec::new();
     let mut sets = Vec::new();
@@ -299,6 +306,37 @@ pub fn evaluate(
     report::write_text(&out.join(REPORT), &report_md(&result, testset, opts))?;
     staged.commit()?;
     Ok(result)
+}
+
+/// Refuse a method whose profile was calibrated on a capture that some set was built from: a
+/// scene never calibrates the model scored on it. Sets record their captures in
+/// `brackets.toml` (`testset --brackets`); sets without a record are not checked.
+fn split_check(method: &dyn Method, sets: &[SetInfo]) -> Result<()> {
+    let Some((profile, calibrated)) = method.calibrated_on() else {
+        return Ok(());
+    };
+    if calibrated.is_empty() {
+        return Ok(());
+    }
+    for set in sets {
+        let Some(sources) = crate::data::bracket_testset::set_sources(&set.dir)? else {
+            continue;
+        };
+        if let Some((c, t)) = crate::io::source::overlapping(calibrated, &sources).first() {
+            return Err(Error::layout(
+                &set.dir,
+                format!(
+                    "set '{}' was built from {} (pixels {:?}), which calibrated profile {}                      (pixels {:?}) that this network was fine-tuned with: a scene never                      calibrates the model scored on it; calibrate on other scenes (or other                      regions, `--region`) than the test set's",
+                    set.name,
+                    t.file,
+                    t.pixels,
+                    profile.display(),
+                    c.pixels
+                ),
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// The method's training encoding against the test set's: (warnings, notes).

@@ -1,5 +1,6 @@
-//! Experiments: the ablation grid, the main job and the full protocol. They generate data, train
+//! Experiments: the ablation grid, the main job, the full protocol and the sim-to-real loop. They generate data, train
 //! and evaluate through `data`, `train` and `eval`; `eval` itself only scores.
 pub mod ablate;
+pub mod device_loop;
 pub mod protocol;
 pub mod quickstart;

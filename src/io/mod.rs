@@ -14,6 +14,7 @@ mod ldr;
 pub mod limits;
 pub mod mu_law;
 mod resize;
+pub mod source;
 pub mod srgb;
 
 pub use image::{Image, dynamic_range_stops, luminance};
@@ -110,6 +111,15 @@ pub struct ReadInfo {
 
 /// Read any supported image; fails with the file named on missing, truncated, corrupt or
 /// unsupported files, and on NaN/Inf pixels.
+/// Lower-case hex SHA-256 of `bytes`, as `sha256sum` prints it.
+pub fn sha256_hex(bytes: &[u8]) -> String {
+    use sha2::{Digest, Sha256};
+    Sha256::digest(bytes)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
+}
+
 pub fn read_image(path: &Path) -> Result<Image> {
     read_image_info(path).map(|(img, _)| img)
 }

@@ -163,6 +163,10 @@ pub struct SensorProfile {
     pub source_response: Response,
     #[serde(default)]
     pub effects: Vec<EffectSpec>,
+    /// The captures this profile was measured on (`calibrate brackets`, `diagnose --brackets`):
+    /// a network fine-tuned with it is never scored on them (docs/your_device.md, "The loop").
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub calibrated_on: Vec<crate::io::source::Source>,
 }
 
 /// One ISO of [`SensorProfile::noise_table`]: σ per channel (R, G, B) at each signal fraction.
@@ -289,6 +293,7 @@ impl SensorProfile {
             response,
             source_response: Response::Filmic,
             effects: Vec::new(),
+            calibrated_on: Vec::new(),
         }
     }
 

@@ -383,15 +383,6 @@ pub fn optimizer_from_bytes(
     .map_err(|e| Error::decode(path, e))
 }
 
-/// Lower-case hex SHA-256 of `bytes`.
-fn sha256_hex(bytes: &[u8]) -> String {
-    use sha2::{Digest, Sha256};
-    Sha256::digest(bytes)
-        .iter()
-        .map(|b| format!("{b:02x}"))
-        .collect()
-}
-
 /// Write `checksums.sha256` into the checkpoint folder `dir`: one `HEX  NAME` line per file
 /// (every file but itself and dot-files, by name), the format `sha256sum -c` checks.
 fn write_checksums(dir: &Path) -> Result<()> {
@@ -408,7 +399,7 @@ fn write_checksums(dir: &Path) -> Result<()> {
     for name in names {
         let path = dir.join(&name);
         let bytes = crate::io::guard::read_file(&path)?;
-        text.push_str(&format!("{}  {name}\n", sha256_hex(&bytes)));
+        text.push_str(&format!("{}  {name}\n", crate::io::sha256_hex(&bytes)));
     }
     write_file(&dir.join(CHECKSUMS_FILE), text.as_bytes())
 }
@@ -482,7 +473,7 @@ pub fn verify(dir: &Path, name: &str, bytes: &[u8]) -> Result<()> {
             format!("not listed in {CHECKSUMS_FILE}: the checkpoint is incomplete or was altered"),
         ));
     };
-    let got = sha256_hex(bytes);
+    let got = crate::io::sha256_hex(bytes);
     if &got != want {
         return Err(Error::decode(
             &path,

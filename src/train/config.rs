@@ -296,10 +296,31 @@ impl DataConfig {
     }
 }
 
-/// [`DataConfig::frame_encoding`] of the run in folder `run` (its `config.toml`).
-pub fn run_frame_encoding(run: &Path) -> Result<Option<FrameEncoding>> {
+/// What a run's training frames came from, as evaluation checks it.
+#[derive(Clone, Debug, Default)]
+pub struct TrainedOn {
+    /// [`DataConfig::frame_encoding`].
+    pub encoding: Option<FrameEncoding>,
+    /// The run's sensor profile and the captures it was calibrated on (none for "pure").
+    pub profile: Option<PathBuf>,
+    pub calibrated_on: Vec<crate::io::source::Source>,
+}
+
+/// [`TrainedOn`] of the run in folder `run` (its `config.toml`).
+pub fn run_trained_on(run: &Path) -> Result<TrainedOn> {
     let cfg: TrainConfig = crate::config::load_toml(&run.join(super::RUN_CONFIG))?;
-    cfg.data.frame_encoding()
+    let p = &cfg.data.realism.profile;
+    let (profile, calibrated_on) = if p == Path::new(PURE_PROFILE) {
+        (None, Vec::new())
+    } else {
+        let profile = crate::sensor::profile::SensorProfile::load(p)?;
+        (Some(p.clone()), profile.calibrated_on)
+    };
+    Ok(TrainedOn {
+        encoding: cfg.data.frame_encoding()?,
+        profile,
+        calibrated_on,
+    })
 }
 
 /// Adam (Kingma and Ba) with decoupled-free L2 weight decay as Burn implements it.

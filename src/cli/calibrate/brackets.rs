@@ -3,7 +3,7 @@
 
 use crate::data::bracket_profile::{BracketProfileOptions, calibrate_brackets};
 use crate::data::bracket_testset::{ResponseChoice, ResponseSpec};
-use crate::data::brackets::ScanOptions;
+use crate::data::brackets::{Region, ScanOptions};
 use std::path::PathBuf;
 
 #[derive(clap::Args, Clone, Debug)]
@@ -28,6 +28,15 @@ pub struct Args {
     /// Largest gap between capture times within one set, seconds.
     #[arg(long, default_value_t = ScanOptions::default().max_gap_s)]
     pub max_gap: f64,
+    /// Read only this part of every frame: left, right, top, bottom (halves of the upright
+    /// frame, split at ⌊w/2⌋ or ⌊h/2⌋) or x,y,w,h in pixels.
+    #[arg(long)]
+    pub region: Option<Region>,
+    /// Write the measured spatial correlation of the noise into the profile (the catalogue's
+    /// correlated_noise, a and b raised to the per-pixel variance) when its lag-1 correlation
+    /// reaches 0.02; otherwise the noise is white.
+    #[arg(long)]
+    pub correlated: bool,
 }
 
 pub fn run(args: &Args) -> anyhow::Result<String> {
@@ -37,10 +46,13 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
             scan: ScanOptions {
                 evs: args.declared_evs.clone(),
                 max_gap_s: args.max_gap,
+                region: args.region,
+                sets: Vec::new(),
             },
             response: ResponseChoice::new(None, args.response.as_ref())?,
             out: args.out.clone(),
             name: args.name.clone(),
+            correlated: args.correlated,
         },
     )?;
     Ok(cal.report(&args.out))

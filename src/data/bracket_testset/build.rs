@@ -185,6 +185,11 @@ fn build_set(
         } else {
             Vec::new()
         },
+        sources: set
+            .frames
+            .iter()
+            .map(brackets::frame_source)
+            .collect::<Result<_>>()?,
     };
     let toml =
         toml::to_string_pretty(&record).map_err(|e| Error::encode(set_dir.join(RECORD), e))?;

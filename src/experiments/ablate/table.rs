@@ -247,6 +247,8 @@ pub struct TableEntry {
 #[derive(Clone, Debug)]
 pub struct DiffEntry {
     pub mean: f64,
+    /// Each seed's difference (the mean over scenes).
+    pub per_seed: Vec<(Option<u64>, f64)>,
     /// Seeds whose mean over scenes has the sign of `mean`, of `n_seeds`.
     pub sign_holds: usize,
     pub n_seeds: usize,
@@ -329,6 +331,33 @@ fn write_table_for(cfg: &AblateConfig, t: &TestsetSpec) -> Result<Table> {
         markdown: md,
         entries,
     })
+}
+
+/// Row `row` of the grid (one column) against row `versus` on the primary test set: each
+/// metric's [`TableEntry`], its `diff` the paired difference row − versus (within seed, scene
+/// and set), as the table computes its differences to the reference. Empty until both rows
+/// have finished runs.
+pub fn paired_rows(cfg: &AblateConfig, row: &str, versus: &str) -> Result<Vec<TableEntry>> {
+    let t = &cfg.testset;
+    let (done, _, _) = load_cells(cfg, t)?;
+    let find = |name: &str| {
+        done.iter()
+            .find(|d| d.c.is_none() && cfg.rows[d.r].name == name)
+    };
+    let (Some(d), Some(v)) = (find(row), find(versus)) else {
+        return Ok(Vec::new());
+    };
+    let set_names: std::collections::BTreeSet<&str> = done
+        .iter()
+        .flat_map(|d| d.runs.iter().flat_map(|(_, sets)| sets.keys()))
+        .map(String::as_str)
+        .collect();
+    let scenes = testset::scenes_of_sets(&t.dir_for(cfg.seeds.first().copied()), set_names)?;
+    Ok(TABLE_METRICS
+        .iter()
+        .filter_map(|(metric, _)| metric_stats(cfg, d, metric, Some(v), &scenes))
+        .map(|m| m.entry(cfg, d))
+        .collect())
 }
 
 /// The finished runs of every cell on test set `t` (their `per_image.csv`), and how many of
@@ -426,6 +455,7 @@ impl MetricStats {
             n_seeds: st.n_seeds,
             diff: self.diff.as_ref().map(|x| DiffEntry {
                 mean: x.mean,
+                per_seed: x.per_seed.clone(),
                 sign_holds: x.sign_holds(),
                 n_seeds: x.n_seeds,
                 t: tests.as_ref().map(|ts| ts.t),

@@ -132,6 +132,7 @@ fn each_heldout_simulator_changes_one_part_of_the_target_model() {
 fn diff(mean: f64, lo: f64, hi: f64, wilcoxon: f64, tost: f64, signs: usize) -> DiffEntry {
     DiffEntry {
         mean,
+        per_seed: Vec::new(),
         sign_holds: signs,
         n_seeds: 3,
         t: Some(crate::stats::PairedT {

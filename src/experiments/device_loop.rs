@@ -1,0 +1,435 @@
+//! The sim-to-real loop on a device's own captures (`hdrsynth loop`, docs/your_device.md,
+//! "The loop"): a bracket folder is split into calibration and test scenes (or, for a folder of
+//! one scene, into two regions of the same frames, which the report says is no scene split);
+//! a profile is measured from the calibration scenes alone (`calibrate brackets`); the test
+//! scenes become a test set linearised and encoded through that profile's response; the
+//! pretrained networks of a main job are fine-tuned once per loop step and seed, each step
+//! adding one measured effect to the model; every network is scored on the test scenes and the
+//! table gives the gain each step buys over the step before, paired within seed, scene and set,
+//! beside Net_O, the control and the fair baseline (the device's response alone).
+//!
+//! The split is checked twice: here, before any work, by the captures' SHA-256 and pixels, and
+//! by evaluation itself, which refuses to score a network fine-tuned with a profile calibrated
+//! on a capture a test set was built from (`eval::evaluate`).
+
+use crate::data::bracket_profile::{
+    BracketProfileOptions, CorrelationFit, MIN_RHO, calibrate_brackets, with_correlation,
+};
+use crate::data::bracket_testset::{self, BracketOptions, GtFrames, InputChoice, ResponseChoice};
+use crate::data::brackets::{self, Region, ScanOptions};
+use crate::error::{Error, Result};
+use crate::experiments::ablate::{self, AblateConfig, Axis, AxisKind, EvalSpec, TestsetSpec};
+use crate::io::source::{Source, overlapping};
+use crate::sensor::profile::SensorProfile;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// What a loop is asked for (the command's flags).
+#[derive(Clone, Debug)]
+pub struct LoopOptions {
+    /// The device's bracket folder (one set per scene, as `testset --brackets` reads it).
+    pub brackets: PathBuf,
+    /// The sets that calibrate; every other set is a test scene. Empty: every set does both,
+    /// each on its own region (`calibration_region`, `test_region`).
+    pub calibration: Vec<String>,
+    pub calibration_region: Option<Region>,
+    pub test_region: Option<Region>,
+    /// Declared EV steps and the largest capture gap of a set, as for `testset --brackets`.
+    pub scan: ScanOptions,
+    /// The test set's inputs and ground-truth frames (`testset --brackets`'s `--inputs`,
+    /// `--gt-frames`).
+    pub inputs: InputChoice,
+    pub gt_frames: GtFrames,
+    /// A finished (or at least pretrained) main job: its `pretrain/seed<k>` networks and
+    /// `configs/finetune.toml` are the loop's starting points.
+    pub quickstart: PathBuf,
+    pub seeds: Vec<u64>,
+    pub out: PathBuf,
+    pub progress: bool,
+}
+
+/// One step of the loop: a row of the table, fine-tuned with `profile` (noise as `noise`).
+struct Step {
+    name: &'static str,
+    label: String,
+    profile: PathBuf,
+    noise: bool,
+}
+
+/// The loop's result: the calibration/test split, the tables' Markdown and the report.
+pub struct LoopSummary {
+    pub calibration: Vec<String>,
+    pub test: Vec<String>,
+    pub report: String,
+}
+
+/// The calibration and test scans, their split checked: no capture region both calibrates
+/// and is scored.
+fn split(opts: &LoopOptions) -> Result<(ScanOptions, ScanOptions, Vec<String>, Vec<String>)> {
+    let all = brackets::scan(&opts.brackets, &opts.scan)?;
+    let names: Vec<String> = all.sets.iter().map(|s| s.name.clone()).collect();
+    let (cal, test) = if opts.calibration.is_empty() {
+        if opts.calibration_region.is_none() || opts.test_region.is_none() {
+            return Err(Error::Invalid(format!(
+                "{}: name the calibration sets (--calibration; the others are the test scenes), \
+                 or give --calibration-region and --test-region to split every set into two \
+                 regions (sets: {})",
+                opts.brackets.display(),
+                names.join(", ")
+            )));
+        }
+        (names.clone(), names.clone())
+    } else {
+        let test: Vec<String> = names
+            .iter()
+            .filter(|n| !opts.calibration.contains(n))
+            .cloned()
+            .collect();
+        if test.is_empty() && opts.test_region.is_none() {
+            return Err(Error::Invalid(format!(
+                "{}: every set ({}) calibrates; a test scene is needed that does not",
+                opts.brackets.display(),
+                names.join(", ")
+            )));
+        }
+        let test = if test.is_empty() { names.clone() } else { test };
+        (opts.calibration.clone(), test)
+    };
+    let scan_of = |sets: &[String], region| ScanOptions {
+        sets: sets.to_vec(),
+        region,
+        ..opts.scan.clone()
+    };
+    let (cal_scan, test_scan) = (
+        scan_of(&cal, opts.calibration_region),
+        scan_of(&test, opts.test_region),
+    );
+    let sources = |scan: &ScanOptions| -> Result<Vec<Source>> {
+        brackets::scan(&opts.brackets, scan)?
+            .sets
+            .iter()
+            .flat_map(|s| &s.frames)
+            .map(brackets::frame_source)
+            .collect()
+    };
+    let (a, b) = (sources(&cal_scan)?, sources(&test_scan)?);
+    if let Some((c, t)) = overlapping(&a, &b).first() {
+        return Err(Error::Invalid(format!(
+            "{}: {} would both calibrate (pixels {:?}) and be scored (pixels {:?}): a scene \
+             never calibrates the model scored on it; choose other calibration sets or \
+             disjoint regions",
+            opts.brackets.display(),
+            c.file,
+            c.pixels,
+            t.pixels
+        )));
+    }
+    Ok((cal_scan, test_scan, cal, test))
+}
+
+/// Run the loop (every stage resumes: a profile, test set or cell already made is kept).
+pub fn run(opts: &LoopOptions) -> Result<LoopSummary> {
+    if opts.seeds.is_empty() {
+        return Err(Error::Invalid("the loop needs at least one seed".into()));
+    }
+    crate::io::guard::refuse_output_inside(&opts.brackets, &opts.out)?;
+    let (cal_scan, test_scan, cal, test) = split(opts)?;
+    let base = opts.quickstart.join("configs/finetune.toml");
+    if !base.is_file() {
+        return Err(Error::layout(
+            &opts.quickstart,
+            "no configs/finetune.toml: run `hdrsynth quickstart --out` this folder first (its \
+             pretrained networks are the loop's starting point)",
+        ));
+    }
+    let _lock = crate::io::guard::OutputLock::acquire(&opts.out, "loop")?;
+    let profiles = opts.out.join("profiles");
+    std::fs::create_dir_all(&profiles).map_err(|e| Error::io(&profiles, e))?;
+
+    // Calibrated every run (deterministic: a rerun writes the same profile), so the fit that
+    // decides the correlated step is at hand.
+    let calibrated = profiles.join("calibrated.toml");
+    stage(opts, "calibrating the profile on the calibration scenes");
+    let cal_result = calibrate_brackets(
+        &opts.brackets,
+        &BracketProfileOptions {
+            scan: cal_scan,
+            response: ResponseChoice::new(None, None)?,
+            out: calibrated.clone(),
+            name: Some(format!("device of {}", opts.brackets.display())),
+            correlated: false,
+        },
+    )?;
+    let fit = &cal_result.correlation;
+    let isos: Vec<f64> = cal_result.profile.noise.iter().map(|r| r.iso).collect();
+    let correlated = match with_correlation(&cal_result.profile, fit, &isos) {
+        Some(p) => {
+            let path = profiles.join("correlated.toml");
+            p.save(&path)?;
+            Some(path)
+        }
+        None => None,
+    };
+    let profile = SensorProfile::load(&calibrated)?;
+    let testset = opts.out.join("testset");
+    if !testset.join(crate::data::encoding::ENCODING_FILE).is_file() {
+        stage(opts, "building the test set from the test scenes");
+        bracket_testset::build(
+            &opts.brackets,
+            &BracketOptions {
+                scan: test_scan,
+                // Linearised through the calibration's response: nothing is estimated on the
+                // test scenes, and the frames keep the device's own codes.
+                response: ResponseChoice::new(Some(&calibrated), None)?,
+                inputs: opts.inputs.clone(),
+                gt_frames: opts.gt_frames,
+                ..BracketOptions::default()
+            },
+            &testset,
+        )?;
+    }
+    let steps = steps(&calibrated, correlated.as_deref(), fit);
+    let isos: Vec<toml::Value> = profile.noise.iter().map(|r| r.iso.into()).collect();
+    let cfg = ablate_config(opts, &base, &testset, &steps, &isos);
+    let cfg_path = opts.out.join("loop_ablate.toml");
+    crate::io::atomic::write_atomic(
+        &cfg_path,
+        toml::to_string(&cfg)
+            .map_err(|e| Error::encode(&cfg_path, e))?
+            .as_bytes(),
+    )?;
+    stage(opts, "fine-tuning and scoring every step and seed");
+    ablate::run(&cfg, &cfg_path, opts.progress)?;
+    let tables = ablate::write_tables(&cfg)?;
+    let mut report = split_text(opts, &cal, &test);
+    let _ = writeln!(
+        report,
+        "Measured on the calibration scenes: {}; spatial correlation of the output noise: \
+         low/high-order ratio {:.3} {:.3} {:.3} → lag-1 correlation {:.3} ({}).\n",
+        cal_result
+            .profile
+            .noise
+            .iter()
+            .map(|r| format!(
+                "ISO {} a [{:.3e}, {:.3e}, {:.3e}] b [{:.3e}, {:.3e}, {:.3e}]",
+                r.iso, r.a[0], r.a[1], r.a[2], r.b[0], r.b[1], r.b[2]
+            ))
+            .collect::<Vec<_>>()
+            .join("; "),
+        fit.ratio[0],
+        fit.ratio[1],
+        fit.ratio[2],
+        fit.rho,
+        if correlated.is_some() {
+            "a step of the loop".to_string()
+        } else {
+            format!("below the minimum effect {MIN_RHO}: not a step")
+        }
+    );
+    report.push_str(&steps_table(&cfg, &steps)?);
+    report.push_str("\n## Every row against the fair baseline\n\n");
+    report.push_str(&tables[0].markdown);
+    crate::io::atomic::write_atomic(&opts.out.join("loop.md"), report.as_bytes())?;
+    Ok(LoopSummary {
+        calibration: cal,
+        test,
+        report,
+    })
+}
+
+fn stage(opts: &LoopOptions, what: &str) {
+    if opts.progress {
+        eprintln!("loop: {what}");
+    }
+}
+
+/// The loop's steps, each adding one measured effect to the one before: the response alone,
+/// its white output noise, and that noise's spatial correlation where it reaches the
+/// catalogue's minimum effect.
+fn steps(calibrated: &Path, correlated: Option<&Path>, fit: &CorrelationFit) -> Vec<Step> {
+    let mut steps = vec![
+        Step {
+            name: "response",
+            label: "device response only (the fair baseline)".into(),
+            profile: calibrated.to_path_buf(),
+            noise: false,
+        },
+        Step {
+            name: "noise",
+            label: "+ output-domain noise (σ² = a·x + b per ISO, white)".into(),
+            profile: calibrated.to_path_buf(),
+            noise: true,
+        },
+    ];
+    if let Some(p) = correlated {
+        steps.push(Step {
+            name: "correlated",
+            label: format!(
+                "+ its spatial correlation (correlated_noise, lag-1 {:.3}; a, b per pixel)",
+                fit.rho
+            ),
+            profile: p.to_path_buf(),
+            noise: true,
+        });
+    }
+    steps
+}
+
+fn ablate_config(
+    opts: &LoopOptions,
+    base: &Path,
+    testset: &Path,
+    steps: &[Step],
+    isos: &[toml::Value],
+) -> AblateConfig {
+    let row = |name: &str, label: &str, set: toml::Table, train: bool, kind: AxisKind| Axis {
+        name: name.into(),
+        label: Some(label.into()),
+        set,
+        train,
+        checkpoint: None,
+        kind,
+    };
+    let mut rows = vec![
+        row(
+            "net_o",
+            "Net_O (pretrained, no fine-tuning)",
+            toml::Table::new(),
+            false,
+            AxisKind::Finetune,
+        ),
+        row(
+            "control",
+            "control (Net_O trained on its own data, same steps)",
+            toml::Table::new(),
+            true,
+            AxisKind::Control,
+        ),
+    ];
+    for s in steps {
+        let mut data = toml::Table::new();
+        data.insert("profile".into(), s.profile.display().to_string().into());
+        data.insert("isos".into(), isos.to_vec().into());
+        data.insert("colour".into(), false.into());
+        if !s.noise {
+            data.insert("noise".into(), "none".into());
+        }
+        let set = toml::Table::from_iter([("data".to_string(), data.into())]);
+        rows.push(row(s.name, &s.label, set, true, AxisKind::Finetune));
+    }
+    AblateConfig {
+        title: format!(
+            "The sim-to-real loop on {}: each step's fine-tuned network on the test scenes",
+            opts.brackets.display()
+        ),
+        out: opts.out.join("experiment"),
+        base: base.to_path_buf(),
+        seeds: opts.seeds.clone(),
+        pretrained_per_seed: Some(
+            opts.quickstart
+                .join("pretrain/seed{seed}")
+                .display()
+                .to_string(),
+        ),
+        testset: TestsetSpec {
+            name: None,
+            label: Some("the device's test scenes".into()),
+            dir: testset.to_path_buf(),
+            radiance: None,
+            profile: None,
+            options: Default::default(),
+            noise_per_seed: false,
+            reference: None,
+        },
+        also: Vec::new(),
+        eval: EvalSpec {
+            reference: Some(steps[0].name.into()),
+            ..EvalSpec::default()
+        },
+        rows,
+        columns: Vec::new(),
+    }
+}
+
+/// What the split was, and what it allows.
+fn split_text(opts: &LoopOptions, cal: &[String], test: &[String]) -> String {
+    let mut s = String::from("# The sim-to-real loop\n\n");
+    let region =
+        |r: Option<Region>| r.map_or("whole frames".to_string(), |r| format!("region {r}"));
+    let _ = writeln!(
+        s,
+        "Calibration scenes ({}): {} ({}). Test scenes ({}): {} ({}).\n",
+        cal.len(),
+        cal.join(", "),
+        region(opts.calibration_region),
+        test.len(),
+        test.join(", "),
+        region(opts.test_region)
+    );
+    if cal.iter().any(|c| test.contains(c)) {
+        s.push_str(
+            "**Not a scene split.** The same captures calibrate and are scored, on disjoint \
+             regions: the test pixels never entered the profile, but the scene, its light, the \
+             device's settings and the moment are shared, so the table measures generalisation \
+             across pixels of one scene, not to new scenes.\n\n",
+        );
+    }
+    if test.len() < ablate::MIN_SCENES_FOR_TESTS {
+        let _ = writeln!(
+            s,
+            "With {} test scene(s) (fewer than {}) no interval or test over scenes is \
+             computed: each difference is the mean over seeds, with the seeds that share its \
+             sign. It says what these scenes show, not what the device's scenes in general \
+             would.\n",
+            test.len(),
+            ablate::MIN_SCENES_FOR_TESTS
+        );
+    }
+    s
+}
+
+/// The gain each step buys over the step before (and each step against Net_O and the
+/// control), PSNR-T and SSIM-T, every seed.
+fn steps_table(cfg: &AblateConfig, steps: &[Step]) -> Result<String> {
+    let mut s = String::from(
+        "## The gain of each step\n\n\
+         | step | versus | metric | mean Δ | seeds with its sign | per seed | 95 % t over scenes | TOST p |\n\
+         |---|---|---|---|---|---|---|---|\n",
+    );
+    let mut pairs: Vec<(&str, &str)> = steps.windows(2).map(|w| (w[1].name, w[0].name)).collect();
+    for st in steps {
+        pairs.push((st.name, "net_o"));
+        pairs.push((st.name, "control"));
+    }
+    for (row, versus) in pairs {
+        for e in ablate::paired_rows(cfg, row, versus)? {
+            if !matches!(e.metric, "psnr_t" | "ssim_t") {
+                continue;
+            }
+            let Some(d) = &e.diff else { continue };
+            let prec = if e.metric == "ssim_t" { 4 } else { 2 };
+            let per_seed: Vec<String> = d
+                .per_seed
+                .iter()
+                .map(|(k, v)| match k {
+                    Some(k) => format!("s{k} {v:+.prec$}"),
+                    None => format!("{v:+.prec$}"),
+                })
+                .collect();
+            let t = d.t.map_or("–".into(), |t| {
+                format!("[{:+.prec$}, {:+.prec$}]", t.ci_lower, t.ci_upper)
+            });
+            let tost = d.tost_p.map_or("–".into(), |p| ablate::format_p(p));
+            let _ = writeln!(
+                s,
+                "| {row} | {versus} | {} | {:+.prec$} | {}/{} | {} | {t} | {tost} |",
+                e.metric,
+                d.mean,
+                d.sign_holds,
+                d.n_seeds,
+                per_seed.join(", ")
+            );
+        }
+    }
+    Ok(s)
+}
