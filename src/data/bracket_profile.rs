@@ -32,7 +32,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 /// Code bins of the noise measurement (of the 3×3 mean code).
-const BINS: usize = 16;
+pub(crate) const BINS: usize = 16;
 /// Fewest flat pixels for a bin's σ.
 const MIN_PIXELS: usize = 200;
 /// Of each bin's pixels, the flattest fraction (smallest local gradient) is measured.
@@ -378,7 +378,7 @@ struct Residual {
 }
 
 /// The noise bins of one frame's codes (values of 1), per channel.
-fn noise_bins(code: &Image, iso: f64, response: &Response) -> Vec<NoiseBin> {
+pub(crate) fn noise_bins(code: &Image, iso: f64, response: &Response) -> Vec<NoiseBin> {
     let (w, h) = (code.width, code.height);
     let mut out = Vec::new();
     if w < 5 || h < 5 {
@@ -458,7 +458,7 @@ fn noise_bins(code: &Image, iso: f64, response: &Response) -> Vec<NoiseBin> {
 }
 
 /// Bins of several frames at one ISO pooled per channel and code bin (pixel-weighted).
-fn merge_bins(bins: &[NoiseBin]) -> Vec<NoiseBin> {
+pub(crate) fn merge_bins(bins: &[NoiseBin]) -> Vec<NoiseBin> {
     let mut out: Vec<NoiseBin> = Vec::new();
     for b in bins {
         let key = |o: &NoiseBin| {

@@ -12,8 +12,10 @@
 //! by evaluation itself, which refuses to score a network fine-tuned with a profile calibrated
 //! on a capture a test set was built from (`eval::evaluate`).
 
+use crate::data::bracket_output::{self, OutputCheck, OutputCheckOptions};
 use crate::data::bracket_profile::{
-    BracketProfileOptions, CorrelationFit, MIN_RHO, calibrate_brackets, with_correlation,
+    BracketCalibration, BracketProfileOptions, CorrelationFit, MIN_RHO, calibrate_brackets,
+    with_correlation,
 };
 use crate::data::bracket_testset::{self, BracketOptions, GtFrames, InputChoice, ResponseChoice};
 use crate::data::brackets::{self, Region, ScanOptions};
@@ -23,6 +25,9 @@ use crate::io::source::{Source, overlapping};
 use crate::sensor::profile::SensorProfile;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
+
+/// Simulated replicates of the device-output check of each step.
+const CHECK_REPLICATES: usize = 10;
 
 /// What a loop is asked for (the command's flags).
 #[derive(Clone, Debug)]
@@ -146,30 +151,8 @@ pub fn run(opts: &LoopOptions) -> Result<LoopSummary> {
     let profiles = opts.out.join("profiles");
     std::fs::create_dir_all(&profiles).map_err(|e| Error::io(&profiles, e))?;
 
-    // Calibrated every run (deterministic: a rerun writes the same profile), so the fit that
-    // decides the correlated step is at hand.
-    let calibrated = profiles.join("calibrated.toml");
-    stage(opts, "calibrating the profile on the calibration scenes");
-    let cal_result = calibrate_brackets(
-        &opts.brackets,
-        &BracketProfileOptions {
-            scan: cal_scan,
-            response: ResponseChoice::new(None, None)?,
-            out: calibrated.clone(),
-            name: Some(format!("device of {}", opts.brackets.display())),
-            correlated: false,
-        },
-    )?;
+    let (cal_result, calibrated, correlated) = calibrate(opts, &cal_scan, &profiles)?;
     let fit = &cal_result.correlation;
-    let isos: Vec<f64> = cal_result.profile.noise.iter().map(|r| r.iso).collect();
-    let correlated = match with_correlation(&cal_result.profile, fit, &isos) {
-        Some(p) => {
-            let path = profiles.join("correlated.toml");
-            p.save(&path)?;
-            Some(path)
-        }
-        None => None,
-    };
     let profile = SensorProfile::load(&calibrated)?;
     let testset = opts.out.join("testset");
     if !testset.join(crate::data::encoding::ENCODING_FILE).is_file() {
@@ -198,16 +181,92 @@ pub fn run(opts: &LoopOptions) -> Result<LoopSummary> {
             .map_err(|e| Error::encode(&cfg_path, e))?
             .as_bytes(),
     )?;
+    let checks = output_checks(opts, &cal_scan, &steps)?;
     stage(opts, "fine-tuning and scoring every step and seed");
     ablate::run(&cfg, &cfg_path, opts.progress)?;
     let tables = ablate::write_tables(&cfg)?;
     let mut report = split_text(opts, &cal, &test);
-    let _ = writeln!(
+    report.push_str(&measured_text(&cal_result, correlated.is_some()));
+    report.push_str(&checks_text(&steps, &checks));
+    report.push_str(&steps_table(&cfg, &steps)?);
+    report.push_str("\n## Every row against the fair baseline\n\n");
+    report.push_str(&tables[0].markdown);
+    crate::io::atomic::write_atomic(&opts.out.join("loop.md"), report.as_bytes())?;
+    Ok(LoopSummary {
+        calibration: cal,
+        test,
         report,
+    })
+}
+
+/// The profile measured on the calibration scenes (`profiles/calibrated.toml`) and, where the
+/// noise's spatial correlation reaches the catalogue's minimum effect, the same with it
+/// (`profiles/correlated.toml`). Calibrated on every run (deterministic: a rerun writes the
+/// same profile), so the fit that decides the correlated step is at hand.
+fn calibrate(
+    opts: &LoopOptions,
+    cal_scan: &ScanOptions,
+    profiles: &Path,
+) -> Result<(BracketCalibration, PathBuf, Option<PathBuf>)> {
+    let calibrated = profiles.join("calibrated.toml");
+    stage(opts, "calibrating the profile on the calibration scenes");
+    let cal = calibrate_brackets(
+        &opts.brackets,
+        &BracketProfileOptions {
+            scan: cal_scan.clone(),
+            response: ResponseChoice::new(None, None)?,
+            out: calibrated.clone(),
+            name: Some(format!("device of {}", opts.brackets.display())),
+            correlated: false,
+        },
+    )?;
+    let isos: Vec<f64> = cal.profile.noise.iter().map(|r| r.iso).collect();
+    let correlated = match with_correlation(&cal.profile, &cal.correlation, &isos) {
+        Some(p) => {
+            let path = profiles.join("correlated.toml");
+            p.save(&path)?;
+            Some(path)
+        }
+        None => None,
+    };
+    Ok((cal, calibrated, correlated))
+}
+
+/// Every step's device-output check on the calibration scenes.
+fn output_checks(
+    opts: &LoopOptions,
+    cal_scan: &ScanOptions,
+    steps: &[Step],
+) -> Result<Vec<OutputCheck>> {
+    stage(
+        opts,
+        "the device-output check of every step on the calibration scenes",
+    );
+    steps
+        .iter()
+        .map(|st| {
+            let p = SensorProfile::load(&st.profile)?;
+            bracket_output::check(
+                &opts.brackets,
+                &p,
+                &OutputCheckOptions {
+                    scan: cal_scan.clone(),
+                    replicates: CHECK_REPLICATES,
+                    seed: 1,
+                    noise: st.noise,
+                },
+            )
+        })
+        .collect()
+}
+
+/// What the calibration measured: the noise rows and the spatial correlation's fit.
+fn measured_text(cal: &BracketCalibration, correlated: bool) -> String {
+    let fit = &cal.correlation;
+    format!(
         "Measured on the calibration scenes: {}; spatial correlation of the output noise: \
-         low/high-order ratio {:.3} {:.3} {:.3} → lag-1 correlation {:.3} ({}).\n",
-        cal_result
-            .profile
+         low/high-order ratio {:.3} {:.3} {:.3} → lag-1 correlation {:.3} ({}).\n\n",
+        cal.profile
             .noise
             .iter()
             .map(|r| format!(
@@ -220,21 +279,12 @@ pub fn run(opts: &LoopOptions) -> Result<LoopSummary> {
         fit.ratio[1],
         fit.ratio[2],
         fit.rho,
-        if correlated.is_some() {
+        if correlated {
             "a step of the loop".to_string()
         } else {
             format!("below the minimum effect {MIN_RHO}: not a step")
         }
-    );
-    report.push_str(&steps_table(&cfg, &steps)?);
-    report.push_str("\n## Every row against the fair baseline\n\n");
-    report.push_str(&tables[0].markdown);
-    crate::io::atomic::write_atomic(&opts.out.join("loop.md"), report.as_bytes())?;
-    Ok(LoopSummary {
-        calibration: cal,
-        test,
-        report,
-    })
+    )
 }
 
 fn stage(opts: &LoopOptions, what: &str) {
@@ -349,6 +399,29 @@ fn ablate_config(
         rows,
         columns: Vec::new(),
     }
+}
+
+/// Each step's device-output check on the calibration scenes: the gap, what it names, and
+/// every statistic.
+fn checks_text(steps: &[Step], checks: &[OutputCheck]) -> String {
+    let mut s = String::from(
+        "## The device-output check of each step (calibration scenes)\n\n\
+         Each step's profile renders the calibration scenes back at every frame's exposure and \
+         ISO; its statistics are compared with the real frames' (docs/your_device.md, \
+         \"The device-output check\").\n\n\
+         | step | gap | largest significant statistic | closed by |\n|---|---|---|---|\n",
+    );
+    for (st, c) in steps.iter().zip(checks) {
+        let (stat, by) = c.named().map_or(("none".to_string(), "–"), |n| {
+            (format!("{} (z {:+.1})", n.name, n.z), n.names)
+        });
+        let _ = writeln!(s, "| {} | {:.1} | {stat} | {by} |", st.name, c.gap);
+    }
+    for (st, c) in steps.iter().zip(checks) {
+        let _ = write!(s, "\n### {}: {}\n\n{}", st.name, st.label, c.markdown());
+    }
+    s.push('\n');
+    s
 }
 
 /// What the split was, and what it allows.

@@ -185,11 +185,7 @@ fn build_set(
         } else {
             Vec::new()
         },
-        sources: set
-            .frames
-            .iter()
-            .map(brackets::frame_source)
-            .collect::<Result<_>>()?,
+        sources: brackets::set_sources(set)?,
     };
     let toml =
         toml::to_string_pretty(&record).map_err(|e| Error::encode(set_dir.join(RECORD), e))?;

@@ -1,0 +1,417 @@
+//! The device-output check: a profile's simulation of a device's own bracket frames against
+//! the frames, in the device's output domain (the codes a network sees). Each set's scene is
+//! estimated from its frames (the weighted merge of every frame, smoothed so that the
+//! estimate's own noise stays out), rendered back at every frame's exposure and ISO through
+//! the profile (`Realism`: noise, its effects, the response, 8-bit output), K times with
+//! different seeds; the same statistics are computed on the real and on every simulated frame
+//! by the same code, and compared as `diagnose` compares (z against the replicates' spread,
+//! a Bonferroni threshold and a minimum effect size per statistic, docs/diagnose.md).
+//!
+//! Statistics, per channel on flat pixels (the flattest half of each code bin, as
+//! `calibrate brackets` measures): the noise level (pixel-weighted mean over code bins of
+//! ln σ² of Immerkær's residual), its spatial correlation (the low/high-order residual
+//! ratio), and across channels the correlation of the three channels' Immerkær residuals
+//! (chroma noise: a device that denoises chroma harder than luma, or subsamples chroma as JPEG
+//! does, makes its channels' noise move together). Each names what would close it: the
+//! profile's noise (a, b), the catalogue's `correlated_noise`, and for the channel
+//! correlation no catalogue effect yet (named as unexplained).
+
+use crate::data::bracket_profile::{self, NoiseBin};
+use crate::data::bracket_testset::{self, FIELD_GAMMA, Linearise};
+use crate::data::brackets::{self, ScanOptions};
+use crate::error::Result;
+use crate::io::Image;
+use crate::sensor::profile::SensorProfile;
+use crate::sensor::realism::{NoiseModel, Realism, RealismOptions};
+use std::path::Path;
+
+/// Codes at or beyond these (of 255) are clipped or crushed (as `calibrate brackets`).
+const LOW_CODE: f32 = 3.0 / 255.0;
+const HIGH_CODE: f32 = 250.0 / 255.0;
+/// Width of the Gaussian that smooths the scene estimate, pixels.
+const SMOOTH_SIGMA: f64 = 1.5;
+
+/// How a check is run.
+#[derive(Clone, Debug)]
+pub struct OutputCheckOptions {
+    pub scan: ScanOptions,
+    /// Simulated replicates of the whole folder.
+    pub replicates: usize,
+    pub seed: u64,
+    /// Simulate without noise (the profile's response alone).
+    pub noise: bool,
+}
+
+/// One statistic compared.
+#[derive(Clone, Debug, PartialEq)]
+pub struct OutputStat {
+    pub name: String,
+    /// What would close a gap in it: a catalogue effect, the profile's noise, or none.
+    pub names: &'static str,
+    pub measured: f64,
+    pub sim_mean: f64,
+    pub sim_sd: f64,
+    pub z: f64,
+    pub min_effect: f64,
+    /// |z| over the threshold and |measured − simulated| over the minimum effect.
+    pub significant: bool,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct OutputCheck {
+    pub stats: Vec<OutputStat>,
+    pub threshold: f64,
+    /// The largest |z| of a significant statistic (0 when none is).
+    pub gap: f64,
+    pub replicates: usize,
+}
+
+/// Per channel the bins' (ln σ², correlation ratio, pixels) by code bin, and the channel
+/// correlation's moments (Σ rᵢ rⱼ for the pairs RG, GB, RB and Σ r² per channel).
+#[derive(Clone, Debug, Default)]
+struct FrameStats {
+    bins: Vec<NoiseBin>,
+    cross: [f64; 3],
+    square: [f64; 3],
+}
+
+/// What is measured on a set of frames (real, or one replicate).
+fn measure(frames: &[(Image, f64)], response: &crate::sensor::profile::Response) -> FrameStats {
+    let mut s = FrameStats::default();
+    for (code, iso) in frames {
+        s.bins
+            .extend(bracket_profile::noise_bins(code, *iso, response));
+        let (cross, square) = channel_moments(code);
+        for k in 0..3 {
+            s.cross[k] += cross[k];
+            s.square[k] += square[k];
+        }
+    }
+    s.bins = bracket_profile::merge_bins(&s.bins);
+    s
+}
+
+/// The channels' Immerkær residuals on the flattest half of the pixels whose 3×3 windows are
+/// unclipped in every channel: (Σ r_R r_G, Σ r_G r_B, Σ r_R r_B), (Σ r_R², Σ r_G², Σ r_B²).
+fn channel_moments(code: &Image) -> ([f64; 3], [f64; 3]) {
+    let (w, h) = (code.width, code.height);
+    let mut px: Vec<(f64, [f64; 3])> = Vec::new();
+    if w < 5 || h < 5 {
+        return ([0.0; 3], [0.0; 3]);
+    }
+    let v = |x: usize, y: usize, c: usize| code.data[(y * w + x) * 3 + c];
+    for y in 2..h - 2 {
+        'pixel: for x in 2..w - 2 {
+            let mut r = [0.0; 3];
+            let mut g = 0.0;
+            for (c, rc) in r.iter_mut().enumerate() {
+                for dy in 0..3 {
+                    for dx in 0..3 {
+                        let p = v(x + dx - 1, y + dy - 1, c);
+                        if p <= LOW_CODE || p >= HIGH_CODE {
+                            continue 'pixel;
+                        }
+                    }
+                }
+                let f = |x: usize, y: usize| f64::from(v(x, y, c));
+                *rc = 4.0 * f(x, y) - 2.0 * (f(x - 1, y) + f(x + 1, y) + f(x, y - 1) + f(x, y + 1))
+                    + f(x - 1, y - 1)
+                    + f(x + 1, y - 1)
+                    + f(x - 1, y + 1)
+                    + f(x + 1, y + 1);
+                g += (f(x + 2, y) - f(x - 2, y)).abs() + (f(x, y + 2) - f(x, y - 2)).abs();
+            }
+            px.push((g, r));
+        }
+    }
+    px.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let keep = &px[..px.len() / 2];
+    let mut cross = [0.0; 3];
+    let mut square = [0.0; 3];
+    for (_, r) in keep {
+        cross[0] += r[0] * r[1];
+        cross[1] += r[1] * r[2];
+        cross[2] += r[0] * r[2];
+        for c in 0..3 {
+            square[c] += r[c] * r[c];
+        }
+    }
+    (cross, square)
+}
+
+fn bin_of(b: &NoiseBin) -> usize {
+    ((b.code * bracket_profile::BINS as f64) as usize).min(bracket_profile::BINS - 1)
+}
+
+/// The statistics' values of `s` over the bins `keys` (channel, bin, weight): per channel the
+/// weighted mean ln σ² (weights: the real frames' pixels) and the median correlation ratio
+/// (as `calibrate brackets` takes it: a bin whose noise falls under the 8-bit step has a
+/// ratio without bound), then the mean channel correlation.
+fn values(s: &FrameStats, keys: &[(usize, usize, f64)]) -> Vec<f64> {
+    let mut out = Vec::new();
+    for c in 0..3 {
+        let (mut lv, mut wsum) = (0.0, 0.0);
+        let mut ratios = Vec::new();
+        for &(kc, kb, w) in keys.iter().filter(|k| k.0 == c) {
+            let Some(b) = s.bins.iter().find(|b| b.channel == kc && bin_of(b) == kb) else {
+                continue;
+            };
+            lv += w * b.var_code.max(1e-12).ln();
+            wsum += w;
+            ratios.push(b.correlation_ratio);
+        }
+        out.push(lv / wsum);
+        out.push(if ratios.is_empty() {
+            f64::NAN
+        } else {
+            crate::stats::median(&mut ratios)
+        });
+    }
+    let corr =
+        |k: usize, a: usize, b: usize| s.cross[k] / (s.square[a] * s.square[b]).sqrt().max(1e-30);
+    out.push((corr(0, 0, 1) + corr(1, 1, 2) + corr(2, 0, 2)) / 3.0);
+    out
+}
+
+/// The check of `profile` on the bracket folder `dir`.
+pub fn check(
+    dir: &Path,
+    profile: &SensorProfile,
+    opts: &OutputCheckOptions,
+) -> Result<OutputCheck> {
+    let scan = brackets::scan(dir, &opts.scan)?;
+    if let Some(f) = scan
+        .sets
+        .iter()
+        .flat_map(|s| &s.frames)
+        .find(|f| f.kind == brackets::FrameKind::Dng)
+    {
+        return Err(crate::error::Error::layout(
+            &f.path,
+            "a DNG is linear raw, not the device's output: the device-output check reads \
+             JPEG/PNG/TIFF frames",
+        ));
+    }
+    let lin = Linearise::Curve(profile.response.clone());
+    // Per set: the real frames' codes with their ISO, and the scene at each frame's exposure.
+    let mut real: Vec<(Image, f64)> = Vec::new();
+    let mut scenes: Vec<(Image, f64)> = Vec::new();
+    for set in &scan.sets {
+        let mut gamma = Vec::new();
+        let mut stored = Vec::new();
+        let mut times = Vec::new();
+        for f in &set.frames {
+            let code = bracket_testset::code_frame(f)?;
+            let linear = bracket_testset::linearise(f, code.clone(), &lin);
+            gamma.push(linear.map(|v| v.clamp(0.0, 1.0).powf(1.0 / FIELD_GAMMA)));
+            stored.push(code.clone());
+            times.push(f.stop.exp2());
+            real.push((code, f.exif.iso.unwrap_or(100.0)));
+        }
+        let radiance = smooth(&bracket_testset::hat_merge(
+            &gamma,
+            &stored,
+            &times,
+            FIELD_GAMMA,
+        )?);
+        for (f, t) in set.frames.iter().zip(&times) {
+            let k = *t as f32;
+            scenes.push((radiance.map(|v| v * k), f.exif.iso.unwrap_or(100.0)));
+        }
+    }
+    let measured = measure(&real, &profile.response);
+    let mut sims = Vec::with_capacity(opts.replicates);
+    for r in 0..opts.replicates {
+        let frames = scenes
+            .iter()
+            .enumerate()
+            .map(|(j, (scene, iso))| {
+                let realism = Realism::new(
+                    profile,
+                    &RealismOptions {
+                        iso: *iso,
+                        exposure: 1.0,
+                        noise: if opts.noise {
+                            NoiseModel::Gaussian
+                        } else {
+                            NoiseModel::None
+                        },
+                        colour: false,
+                        output_bits: 8,
+                    },
+                )?;
+                let seed = crate::rng::mix64(opts.seed ^ crate::rng::mix64((r * 7919 + j) as u64));
+                Ok((realism.apply(scene, seed), *iso))
+            })
+            .collect::<Result<Vec<_>>>()?;
+        sims.push(measure(&frames, &profile.response));
+    }
+    // The bins every replicate and the real frames have, weighted by the real pixels.
+    let keys: Vec<(usize, usize, f64)> = measured
+        .bins
+        .iter()
+        .filter(|b| b.var_code > 0.0 && b.correlation_ratio.is_finite())
+        .map(|b| (b.channel, bin_of(b), b.pixels as f64))
+        .filter(|&(c, k, _)| {
+            sims.iter()
+                .all(|s| s.bins.iter().any(|b| b.channel == c && bin_of(b) == k))
+        })
+        .collect();
+    Ok(compare(
+        &values(&measured, &keys),
+        &sims.iter().map(|s| values(s, &keys)).collect::<Vec<_>>(),
+    ))
+}
+
+/// (name, what closes it, minimum effect) of each value of [`values`].
+const STATS: [(&str, &str, f64); 7] = [
+    (
+        "R noise level (mean ln σ² over code bins)",
+        "noise a, b",
+        0.1,
+    ),
+    (
+        "R spatial correlation (median low/high-order ratio)",
+        "correlated_noise",
+        0.05,
+    ),
+    (
+        "G noise level (mean ln σ² over code bins)",
+        "noise a, b",
+        0.1,
+    ),
+    (
+        "G spatial correlation (median low/high-order ratio)",
+        "correlated_noise",
+        0.05,
+    ),
+    (
+        "B noise level (mean ln σ² over code bins)",
+        "noise a, b",
+        0.1,
+    ),
+    (
+        "B spatial correlation (median low/high-order ratio)",
+        "correlated_noise",
+        0.05,
+    ),
+    (
+        "channel correlation of the noise (mean of RG, GB, RB)",
+        "none in the catalogue: chroma noise",
+        0.05,
+    ),
+];
+
+fn compare(measured: &[f64], sims: &[Vec<f64>]) -> OutputCheck {
+    let k = sims.len().max(1) as f64;
+    let m = STATS.len() as f64;
+    let threshold = (crate::stats::normal_quantile(1.0 - 0.05 / (2.0 * m))).max(3.0);
+    let stats: Vec<OutputStat> = STATS
+        .iter()
+        .enumerate()
+        .map(|(i, &(name, names, min_effect))| {
+            let v: Vec<f64> = sims
+                .iter()
+                .map(|s| s[i])
+                .filter(|x| x.is_finite())
+                .collect();
+            let mean = v.iter().sum::<f64>() / v.len().max(1) as f64;
+            let sd = (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>()
+                / (v.len().max(2) - 1) as f64)
+                .sqrt()
+                .max(1e-4);
+            let z = (measured[i] - mean) / (sd * (1.0 + 1.0 / k).sqrt());
+            let significant =
+                z.abs() > threshold && (measured[i] - mean).abs() > min_effect && z.is_finite();
+            OutputStat {
+                name: name.into(),
+                names,
+                measured: measured[i],
+                sim_mean: mean,
+                sim_sd: sd,
+                z,
+                min_effect,
+                significant,
+            }
+        })
+        .collect();
+    let gap = stats
+        .iter()
+        .filter(|s| s.significant)
+        .map(|s| s.z.abs())
+        .fold(0.0, f64::max);
+    OutputCheck {
+        stats,
+        threshold,
+        gap,
+        replicates: sims.len(),
+    }
+}
+
+/// `img` smoothed by a separable Gaussian of width [`SMOOTH_SIGMA`] (edges clamped).
+fn smooth(img: &Image) -> Image {
+    let r = (3.0 * SMOOTH_SIGMA).ceil() as isize;
+    let k: Vec<f32> = (-r..=r)
+        .map(|i| (-((i * i) as f64) / (2.0 * SMOOTH_SIGMA * SMOOTH_SIGMA)).exp() as f32)
+        .collect();
+    let sum: f32 = k.iter().sum();
+    let k: Vec<f32> = k.iter().map(|v| v / sum).collect();
+    let (w, h) = (img.width as isize, img.height as isize);
+    let pass = |src: &Image, horizontal: bool| {
+        Image::from_fn(src.width, src.height, |x, y| {
+            let mut acc = [0.0f32; 3];
+            for (j, kv) in k.iter().enumerate() {
+                let d = j as isize - r;
+                let (sx, sy) = if horizontal {
+                    ((x as isize + d).clamp(0, w - 1), y as isize)
+                } else {
+                    (x as isize, (y as isize + d).clamp(0, h - 1))
+                };
+                let p = src.get(sx as usize, sy as usize);
+                for c in 0..3 {
+                    acc[c] += kv * p[c];
+                }
+            }
+            acc
+        })
+    };
+    pass(&pass(img, true), false)
+}
+
+impl OutputCheck {
+    /// The check as Markdown: one row per statistic, then what is named.
+    pub fn markdown(&self) -> String {
+        use std::fmt::Write as _;
+        let mut s = format!(
+            "| statistic | measured | simulated (mean ± sd, {} replicates) | z | significant | closed by |\n|---|---|---|---|---|---|\n",
+            self.replicates
+        );
+        for st in &self.stats {
+            let _ = writeln!(
+                s,
+                "| {} | {:.4} | {:.4} ± {:.4} | {:+.1} | {} | {} |",
+                st.name,
+                st.measured,
+                st.sim_mean,
+                st.sim_sd,
+                st.z,
+                if st.significant { "yes" } else { "no" },
+                st.names
+            );
+        }
+        let _ = writeln!(
+            s,
+            "\nGap (largest significant |z|; threshold {:.2}): {:.1}.",
+            self.threshold, self.gap
+        );
+        s
+    }
+
+    /// What the largest significant statistic names (None when nothing is significant).
+    pub fn named(&self) -> Option<&OutputStat> {
+        self.stats
+            .iter()
+            .filter(|s| s.significant)
+            .max_by(|a, b| a.z.abs().total_cmp(&b.z.abs()))
+    }
+}
