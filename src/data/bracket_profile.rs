@@ -116,7 +116,7 @@ fn fit_correlation(bins: &[NoiseBin]) -> CorrelationFit {
     let finite: Vec<f64> = ratio.iter().copied().filter(|r| r.is_finite()).collect();
     let target = finite.iter().sum::<f64>() / finite.len().max(1) as f64;
     let top = crate::sensor::effects::plan::width(crate::sensor::effects::plan::RHO_MAX);
-    let width = if !(target > 1.0) {
+    let width = if target.is_nan() || target <= 1.0 {
         0.0
     } else if correlation_of_width(top).0 <= target {
         top
@@ -150,7 +150,7 @@ pub fn with_correlation(
     fit: &CorrelationFit,
     isos: &[f64],
 ) -> Option<SensorProfile> {
-    if !(fit.rho >= MIN_RHO) {
+    if fit.rho.is_nan() || fit.rho < MIN_RHO {
         return None;
     }
     let mut p = profile.clone();

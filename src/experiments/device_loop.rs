@@ -492,7 +492,7 @@ fn steps_table(cfg: &AblateConfig, steps: &[Step]) -> Result<String> {
             let t = d.t.map_or("–".into(), |t| {
                 format!("[{:+.prec$}, {:+.prec$}]", t.ci_lower, t.ci_upper)
             });
-            let tost = d.tost_p.map_or("–".into(), |p| ablate::format_p(p));
+            let tost = d.tost_p.map_or("–".into(), ablate::format_p);
             let _ = writeln!(
                 s,
                 "| {row} | {versus} | {} | {:+.prec$} | {}/{} | {} | {t} | {tost} |",
