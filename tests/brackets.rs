@@ -2918,6 +2918,46 @@ fn the_device_output_check_finds_what_a_profile_misses_and_nothing_when_it_has_i
     };
     let white = run(Spatial::White, false);
     assert!(white.named().is_none(), "{}", white.markdown());
+    // The same check from `diagnose --brackets --device-output`, written beside its report.
+    {
+        let tmp = tempfile::tempdir().expect("tmp");
+        noisy_png_bracket(
+            &tmp.path().join("scene"),
+            4e-4,
+            1e-5,
+            &[-2.0, 0.0, 2.0],
+            Spatial::White,
+        );
+        let beside = tempfile::tempdir().expect("tmp");
+        let profile = beside.path().join("phone.toml");
+        calibrate_brackets(
+            tmp.path(),
+            &BracketProfileOptions {
+                scan: ScanOptions::default(),
+                response: ResponseChoice::Declared(Response::Srgb),
+                out: profile.clone(),
+                name: None,
+                correlated: false,
+            },
+        )
+        .expect("calibrate");
+        let out = beside.path().join("diag");
+        let d = bracket_captures::diagnose_brackets(
+            tmp.path(),
+            &BracketDiagnoseOptions {
+                response: ResponseChoice::new(Some(&profile), None).expect("profile"),
+                device_output: Some(profile.clone()),
+                ..BracketDiagnoseOptions::default()
+            },
+            &out,
+        )
+        .expect("diagnose");
+        let c = d.device_output.expect("checked");
+        assert_eq!((c.stats.len(), c.replicates), (7, 30));
+        assert!(c.named().is_none(), "{}", c.markdown());
+        let md = std::fs::read_to_string(out.join("device_output.md")).expect("written");
+        assert!(md.contains("channel correlation"), "{md}");
+    }
     let missed = run(Spatial::Gauss(0.8), false);
     assert_eq!(
         missed.named().map(|s| s.names),

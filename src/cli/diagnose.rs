@@ -26,6 +26,11 @@ pub struct Args {
     /// --brackets: its device response linearises the frames.
     #[arg(long)]
     pub profile: Option<PathBuf>,
+    /// --brackets --profile: also compare the frames with the profile's simulation of them in
+    /// the device's output domain (noise level, spatial and channel correlation;
+    /// OUT/device_output.md; docs/your_device.md, section 7).
+    #[arg(long, requires = "brackets", requires = "profile")]
+    pub device_output: bool,
     /// --brackets without --profile: srgb, linear, gamma:G, debevec (default) or robertson.
     #[arg(long, conflicts_with = "profile", requires = "brackets")]
     pub response: Option<ResponseSpec>,
@@ -82,11 +87,21 @@ pub fn run(args: &Args) -> Result<String> {
                 response: ResponseChoice::new(args.profile.as_deref(), args.response.as_ref())?,
                 diagnose: opts,
                 ratio_tolerance_stops: args.ratio_tolerance,
+                device_output: if args.device_output {
+                    args.profile.clone()
+                } else {
+                    None
+                },
             };
             let b = bracket_captures::diagnose_brackets(dir, &opts, &args.out)
                 .with_context(|| format!("diagnosing the brackets in {}", dir.display()))?;
-            let files = "brackets.md, brackets.toml, captures/, profile.toml, report.md, \
-                         report.json, *.png";
+            let files = if args.device_output {
+                "brackets.md, brackets.toml, captures/, device_output.md, profile.toml, \
+                 report.md, report.json, *.png"
+            } else {
+                "brackets.md, brackets.toml, captures/, profile.toml, report.md, report.json, \
+                 *.png"
+            };
             (b.summary(), files)
         }
         (None, Some(captures)) => {

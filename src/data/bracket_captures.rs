@@ -52,7 +52,13 @@ pub struct BracketDiagnoseOptions {
     /// exposure times are nominal values of a third-stop series (1/30 s for 1/32 s is 0.09
     /// stops), so the default is 0.15.
     pub ratio_tolerance_stops: f64,
+    /// Also compare the frames with this profile's simulation of them in the device's output
+    /// domain (`bracket_output::check`, written to `OUT/device_output.md`).
+    pub device_output: Option<PathBuf>,
 }
+
+/// The device-output check's report in the output folder.
+pub const DEVICE_OUTPUT_MD: &str = "device_output.md";
 
 impl Default for BracketDiagnoseOptions {
     fn default() -> Self {
@@ -61,6 +67,7 @@ impl Default for BracketDiagnoseOptions {
             response: ResponseChoice::Debevec(crate::sensor::crf::DebevecOptions::default()),
             diagnose: DiagnoseOptions::default(),
             ratio_tolerance_stops: 0.15,
+            device_output: None,
         }
     }
 }
@@ -112,6 +119,8 @@ pub struct BracketDiagnosis {
     pub ratios: RatioCheck,
     /// The capture set the workflow ran on (`OUT/captures`).
     pub captures: PathBuf,
+    /// The device-output check, when asked for.
+    pub device_output: Option<crate::data::bracket_output::OutputCheck>,
 }
 
 /// Linear frames of one set (1 = clipping white), upright, checked for one size.
@@ -301,7 +310,26 @@ pub fn diagnose_brackets(
     write_capture_set(&captures, &manifest, &frames)?;
     let set = CaptureSet::load(&captures)?;
     let diagnosis = diagnose::diagnose(&set, None, &opts.diagnose)?;
+    let device_output = match &opts.device_output {
+        Some(p) => Some(crate::data::bracket_output::check(
+            dir,
+            &crate::sensor::profile::SensorProfile::load(p)?,
+            &crate::data::bracket_output::OutputCheckOptions {
+                scan: opts.scan.clone(),
+                replicates: opts.diagnose.replicates,
+                seed: opts.diagnose.seed,
+                noise: true,
+            },
+        )?),
+        None => None,
+    };
     diagnosis.write(out)?;
+    if let Some(c) = &device_output {
+        crate::io::atomic::write_atomic(
+            &out.join(DEVICE_OUTPUT_MD),
+            format!("# The device-output check\n\n{}", c.markdown()).as_bytes(),
+        )?;
+    }
     let summary = BracketDiagnosis {
         diagnosis,
         linearisation,
@@ -319,6 +347,7 @@ pub fn diagnose_brackets(
             .collect(),
         ratios,
         captures,
+        device_output,
     };
     summary.write(out)?;
     Ok(summary)
@@ -362,6 +391,9 @@ impl BracketDiagnosis {
         s.push_str(&self.diagnosis.summary());
         for k in &self.diagnosis.skipped {
             let _ = writeln!(s, "  not tested: {k}");
+        }
+        if let Some(c) = &self.device_output {
+            let _ = write!(s, "device-output check:\n{}", c.markdown());
         }
         s
     }
