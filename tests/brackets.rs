@@ -2968,3 +2968,70 @@ fn the_device_output_check_finds_what_a_profile_misses_and_nothing_when_it_has_i
     let fitted = run(Spatial::Gauss(0.8), true);
     assert!(fitted.gap < missed.gap, "{} → {}", missed.gap, fitted.gap);
 }
+
+#[test]
+fn the_device_meter_is_read_from_the_frame_exif_marks_and_not_from_a_manual_bracket() {
+    use hdrsynth::data::bracket_profile::{
+        BracketProfileOptions, calibrate_brackets, metering_rule,
+    };
+    let calibrate = |bias: [Option<i32>; 3]| {
+        let tmp = tempfile::tempdir().expect("tmp");
+        let d = tmp.path().join("scene1");
+        std::fs::create_dir_all(&d).expect("mkdir");
+        for (i, (den, b)) in [100u32, 400, 25].iter().zip(bias).enumerate() {
+            let mut t = tags((1, *den), 100, "2026:11:24 10:00:00", &format!("{i}"));
+            t.bias = b.map(|b| (b, 1));
+            bracket_jpeg(&d.join(format!("IMG_{i}.jpg")), 1.0 / *den as f64, Some(&t));
+        }
+        let beside = tempfile::tempdir().expect("tmp");
+        let cal = calibrate_brackets(
+            tmp.path(),
+            &BracketProfileOptions {
+                scan: ScanOptions::default(),
+                response: ResponseChoice::Declared(Response::Srgb),
+                out: beside.path().join("p.toml"),
+                name: None,
+                correlated: false,
+            },
+        )
+        .expect("calibrate");
+        // The test's own log-average of the marked frame: sRGB-decoded codes, Rec. 709
+        // luminance, geometric mean over the pixels.
+        let marked = d.join("IMG_0.jpg");
+        let rgb = image::open(&marked).expect("jpeg").to_rgb8();
+        let dec = |c: u8| {
+            let v = c as f64 / 255.0;
+            if v <= 0.04045 {
+                v / 12.92
+            } else {
+                ((v + 0.055) / 1.055).powf(2.4)
+            }
+        };
+        let n = rgb.pixels().len() as f64;
+        let ln: f64 = rgb
+            .pixels()
+            .map(|p| {
+                let l = 0.2126 * dec(p[0]) + 0.7152 * dec(p[1]) + 0.0722 * dec(p[2]);
+                l.max(1e-6).ln()
+            })
+            .sum::<f64>()
+            / n;
+        (metering_rule(&cal.metering), cal.metering, ln.exp())
+    };
+    // An auto-exposure bracket: the 1/100 s frame records bias 0, the others −2 and +2.
+    let (rule, frames, want) = calibrate([Some(0), Some(-2), Some(2)]);
+    assert!(
+        frames[0].auto_exposed && frames[0].frame.ends_with("IMG_0.jpg"),
+        "{frames:?}"
+    );
+    let m = rule.expect("a marked frame gives the device's rule");
+    assert!(
+        (m.mid_grey / want - 1.0).abs() < 1e-3,
+        "{} vs {want}",
+        m.mid_grey
+    );
+    assert!((m.max_clipped - frames[0].clipped).abs() < 1e-12);
+    // Manual exposures (every bias 0, or none recorded) say nothing about the meter.
+    assert!(calibrate([Some(0), Some(0), Some(0)]).0.is_none());
+    assert!(calibrate([None, None, None]).0.is_none());
+}

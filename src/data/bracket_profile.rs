@@ -27,6 +27,7 @@ use crate::data::bracket_testset::{self, Linearise, ResponseChoice};
 use crate::data::brackets::{self, BracketFrame, FrameKind, ScanOptions};
 use crate::error::{Error, Result};
 use crate::io::Image;
+use crate::sensor::metering::Metering;
 use crate::sensor::profile::{Colour, Levels, NoiseAtIso, Provenance, Response, SensorProfile};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -202,6 +203,29 @@ pub struct MeteredFrame {
     pub log_average: f64,
     /// Fraction of pixels with a channel at or above 250/255.
     pub clipped: f64,
+    /// The frame is marked as the device's own exposure (EXIF ExposureBiasValue 0 beside the
+    /// others' offsets), not the middle frame of a manual bracket.
+    pub auto_exposed: bool,
+}
+
+/// The device's exposure rule as the loader's [`Metering`], from the sets whose auto-exposed
+/// frame EXIF marks: the geometric mean of their log-average luminances (`mid_grey`) and the
+/// most any of them let clip (`max_clipped`). `None` when no set marks one (a manual bracket
+/// says nothing about the device's meter).
+pub fn metering_rule(frames: &[MeteredFrame]) -> Option<Metering> {
+    let auto: Vec<&MeteredFrame> = frames.iter().filter(|m| m.auto_exposed).collect();
+    if auto.is_empty() {
+        return None;
+    }
+    let ln = auto
+        .iter()
+        .map(|m| m.log_average.max(1e-6).ln())
+        .sum::<f64>()
+        / auto.len() as f64;
+    Some(Metering {
+        mid_grey: ln.exp().clamp(1e-4, 0.99),
+        max_clipped: auto.iter().map(|m| m.clipped).fold(0.0, f64::max).min(0.49),
+    })
 }
 
 #[derive(Clone, Debug)]
@@ -556,6 +580,7 @@ fn metered(set: &brackets::BracketSet, lin: &Linearise) -> Result<MeteredFrame> 
         how: how.into(),
         log_average: log_mean.exp(),
         clipped,
+        auto_exposed: marked,
     })
 }
 

@@ -15,13 +15,14 @@
 use crate::data::bracket_output::{self, OutputCheck, OutputCheckOptions};
 use crate::data::bracket_profile::{
     BracketCalibration, BracketProfileOptions, CorrelationFit, MIN_RHO, calibrate_brackets,
-    with_correlation,
+    metering_rule, with_correlation,
 };
 use crate::data::bracket_testset::{self, BracketOptions, GtFrames, InputChoice, ResponseChoice};
 use crate::data::brackets::{self, Region, ScanOptions};
 use crate::error::{Error, Result};
 use crate::experiments::ablate::{self, AblateConfig, Axis, AxisKind, EvalSpec, TestsetSpec};
 use crate::io::source::{Source, overlapping};
+use crate::sensor::metering::Metering;
 use crate::sensor::profile::SensorProfile;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -59,6 +60,8 @@ struct Step {
     label: String,
     profile: PathBuf,
     noise: bool,
+    /// The device's exposure rule, where measured (`[data.metering]`).
+    metering: Option<Metering>,
 }
 
 /// The loop's result: the calibration/test split, the tables' Markdown and the report.
@@ -171,7 +174,12 @@ pub fn run(opts: &LoopOptions) -> Result<LoopSummary> {
             &testset,
         )?;
     }
-    let steps = steps(&calibrated, correlated.as_deref(), fit);
+    let steps = steps(
+        &calibrated,
+        correlated.as_deref(),
+        fit,
+        metering_rule(&cal_result.metering),
+    );
     let isos: Vec<toml::Value> = profile.noise.iter().map(|r| r.iso.into()).collect();
     let cfg = ablate_config(opts, &base, &testset, &steps, &isos);
     let cfg_path = opts.out.join("loop_ablate.toml");
@@ -284,7 +292,18 @@ fn measured_text(cal: &BracketCalibration, correlated: bool) -> String {
         } else {
             format!("below the minimum effect {MIN_RHO}: not a step")
         }
-    )
+    ) + &match metering_rule(&cal.metering) {
+        Some(m) => format!(
+            "Exposure rule of the auto-exposed frames: mid grey {:.4}, at most {:.2} % \
+             clipped (a step of the loop).\n\n",
+            m.mid_grey,
+            100.0 * m.max_clipped
+        ),
+        None => "Exposure rule: not measured — no set marks its auto-exposed frame by EXIF \
+                 ExposureBiasValue (a manual bracket says nothing about the device's meter); \
+                 the main job's rule stays.\n\n"
+            .to_string(),
+    }
 }
 
 fn stage(opts: &LoopOptions, what: &str) {
@@ -294,21 +313,28 @@ fn stage(opts: &LoopOptions, what: &str) {
 }
 
 /// The loop's steps, each adding one measured effect to the one before: the response alone,
-/// its white output noise, and that noise's spatial correlation where it reaches the
-/// catalogue's minimum effect.
-fn steps(calibrated: &Path, correlated: Option<&Path>, fit: &CorrelationFit) -> Vec<Step> {
+/// its white output noise, that noise's spatial correlation where it reaches the catalogue's
+/// minimum effect, and the device's exposure rule where EXIF marks its auto-exposed frames.
+fn steps(
+    calibrated: &Path,
+    correlated: Option<&Path>,
+    fit: &CorrelationFit,
+    metering: Option<Metering>,
+) -> Vec<Step> {
     let mut steps = vec![
         Step {
             name: "response",
             label: "device response only (the fair baseline)".into(),
             profile: calibrated.to_path_buf(),
             noise: false,
+            metering: None,
         },
         Step {
             name: "noise",
             label: "+ output-domain noise (σ² = a·x + b per ISO, white)".into(),
             profile: calibrated.to_path_buf(),
             noise: true,
+            metering: None,
         },
     ];
     if let Some(p) = correlated {
@@ -320,6 +346,21 @@ fn steps(calibrated: &Path, correlated: Option<&Path>, fit: &CorrelationFit) -> 
             ),
             profile: p.to_path_buf(),
             noise: true,
+            metering: None,
+        });
+    }
+    if let Some(m) = metering {
+        let last = steps.last().map(|s| s.profile.clone()).unwrap_or_default();
+        steps.push(Step {
+            name: "metering",
+            label: format!(
+                "+ the device's exposure rule (mid grey {:.4}, at most {:.1} % clipped)",
+                m.mid_grey,
+                100.0 * m.max_clipped
+            ),
+            profile: last,
+            noise: true,
+            metering: Some(m),
         });
     }
     steps
@@ -363,6 +404,12 @@ fn ablate_config(
         data.insert("colour".into(), false.into());
         if !s.noise {
             data.insert("noise".into(), "none".into());
+        }
+        if let Some(m) = &s.metering {
+            let mut t = toml::Table::new();
+            t.insert("mid_grey".into(), m.mid_grey.into());
+            t.insert("max_clipped".into(), m.max_clipped.into());
+            data.insert("metering".into(), t.into());
         }
         let set = toml::Table::from_iter([("data".to_string(), data.into())]);
         rows.push(row(s.name, &s.label, set, true, AxisKind::Finetune));
