@@ -2874,6 +2874,22 @@ fn the_loop_refuses_a_split_in_which_a_capture_both_calibrates_and_is_scored() {
     let e = err(opts(&[], Some(Region::Left), Some(Region::Right)));
     assert!(e.contains("quickstart"), "{e}");
     assert!(!beside.path().join("loop").exists());
+    // A folder keeps its split: a rerun asking for another is refused (the first run stops at
+    // the grid, whose main-job config is not one).
+    let configs = beside.path().join("qs/configs");
+    std::fs::create_dir_all(&configs).expect("mkdir");
+    std::fs::write(configs.join("finetune.toml"), "not a training config").expect("write");
+    let with_main_job = |cal, test| LoopOptions {
+        quickstart: beside.path().join("qs"),
+        ..opts(&[], Some(cal), Some(test))
+    };
+    let _ = run(&with_main_job(Region::Left, Region::Right))
+        .err()
+        .expect("no main job");
+    let split = std::fs::read_to_string(beside.path().join("loop/split.toml")).expect("split");
+    assert!(split.contains("left") && split.contains("right"), "{split}");
+    let e = err(with_main_job(Region::Right, Region::Left));
+    assert!(e.contains("another split"), "{e}");
 }
 
 #[test]

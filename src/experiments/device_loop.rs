@@ -151,6 +151,7 @@ pub fn run(opts: &LoopOptions) -> Result<LoopSummary> {
         ));
     }
     let _lock = crate::io::guard::OutputLock::acquire(&opts.out, "loop")?;
+    keep_split(opts, &cal, &test)?;
     let profiles = opts.out.join("profiles");
     std::fs::create_dir_all(&profiles).map_err(|e| Error::io(&profiles, e))?;
 
@@ -205,6 +206,42 @@ pub fn run(opts: &LoopOptions) -> Result<LoopSummary> {
         test,
         report,
     })
+}
+
+/// Record the split and the test set's options in `OUT/split.toml` on the first run, and
+/// refuse a rerun that asks for another: its profiles, test set and cells would be the first
+/// run's, silently.
+fn keep_split(opts: &LoopOptions, cal: &[String], test: &[String]) -> Result<()> {
+    let region = |r: Option<Region>| r.map_or("whole frames".to_string(), |r| r.to_string());
+    let text = format!(
+        "# What this loop folder was made with; another split needs another folder.\n\
+         brackets = {:?}\ncalibration = {:?}\ncalibration_region = {:?}\ntest = {:?}\n\
+         test_region = {:?}\ninputs = {:?}\ngt_frames = {:?}\ndeclared_evs = {:?}\n\
+         max_gap_s = {}\n",
+        opts.brackets.display().to_string(),
+        cal,
+        region(opts.calibration_region),
+        test,
+        region(opts.test_region),
+        format!("{:?}", opts.inputs),
+        format!("{:?}", opts.gt_frames),
+        format!("{:?}", opts.scan.evs),
+        opts.scan.max_gap_s
+    );
+    let path = opts.out.join("split.toml");
+    if path.is_file() {
+        let old = crate::io::guard::read_text(&path)?;
+        if old != text {
+            return Err(Error::layout(
+                &path,
+                "this loop folder was made with another split or test set (this file); give \
+                 another --out, or delete the folder to start over",
+            ));
+        }
+        return Ok(());
+    }
+    std::fs::create_dir_all(&opts.out).map_err(|e| Error::io(&opts.out, e))?;
+    crate::io::atomic::write_atomic(&path, text.as_bytes())
 }
 
 /// The profile measured on the calibration scenes (`profiles/calibrated.toml`) and, where the
