@@ -310,26 +310,8 @@ pub fn diagnose_brackets(
     write_capture_set(&captures, &manifest, &frames)?;
     let set = CaptureSet::load(&captures)?;
     let diagnosis = diagnose::diagnose(&set, None, &opts.diagnose)?;
-    let device_output = match &opts.device_output {
-        Some(p) => Some(crate::data::bracket_output::check(
-            dir,
-            &crate::sensor::profile::SensorProfile::load(p)?,
-            &crate::data::bracket_output::OutputCheckOptions {
-                scan: opts.scan.clone(),
-                replicates: opts.diagnose.replicates,
-                seed: opts.diagnose.seed,
-                noise: true,
-            },
-        )?),
-        None => None,
-    };
+    let device_output = device_output_check(dir, opts)?;
     diagnosis.write(out)?;
-    if let Some(c) = &device_output {
-        crate::io::atomic::write_atomic(
-            &out.join(DEVICE_OUTPUT_MD),
-            format!("# The device-output check\n\n{}", c.markdown()).as_bytes(),
-        )?;
-    }
     let summary = BracketDiagnosis {
         diagnosis,
         linearisation,
@@ -351,6 +333,27 @@ pub fn diagnose_brackets(
     };
     summary.write(out)?;
     Ok(summary)
+}
+
+/// The device-output check of `opts.device_output`'s profile on the folder, when asked for.
+fn device_output_check(
+    dir: &Path,
+    opts: &BracketDiagnoseOptions,
+) -> Result<Option<crate::data::bracket_output::OutputCheck>> {
+    let Some(p) = &opts.device_output else {
+        return Ok(None);
+    };
+    crate::data::bracket_output::check(
+        dir,
+        &crate::sensor::profile::SensorProfile::load(p)?,
+        &crate::data::bracket_output::OutputCheckOptions {
+            scan: opts.scan.clone(),
+            replicates: opts.diagnose.replicates,
+            seed: opts.diagnose.seed,
+            noise: true,
+        },
+    )
+    .map(Some)
 }
 
 #[derive(Serialize)]
@@ -450,6 +453,12 @@ impl BracketDiagnosis {
     /// `out/brackets.md` and `out/brackets.toml`, atomically.
     pub fn write(&self, out: &Path) -> Result<()> {
         crate::io::atomic::write_atomic(&out.join(REPORT_MD), self.report_md().as_bytes())?;
+        if let Some(c) = &self.device_output {
+            crate::io::atomic::write_atomic(
+                &out.join(DEVICE_OUTPUT_MD),
+                format!("# The device-output check\n\n{}", c.markdown()).as_bytes(),
+            )?;
+        }
         let rec = Record {
             linearisation: &self.linearisation,
             captures: &self.captures,
