@@ -260,6 +260,17 @@ fn hidden_correlated_noise() {
 }
 
 #[test]
+fn hidden_channel_correlation() {
+    // Chroma noise: every two channels' noise correlated by 0.4 (the truth's own construction,
+    // a fresh shared draw per pixel).
+    let mut t = Truth::new(64, 48, 12, 14);
+    t.channel_rho = 0.4;
+    let (d, _) = run(&t, "channel-correlation");
+    single(&d, "channel_correlation");
+    within(param(&d, "channel_correlation", "rho"), 0.4, "rho");
+}
+
+#[test]
 fn hidden_nonlinear_response() {
     // A tone curve baked into the frames: the 16:1 exposure pair measures 16^0.8 ≈ 9.2.
     let mut t = Truth::new(64, 48, 8, 12);

@@ -413,6 +413,17 @@ impl Realism {
                     Some((kh, kv)) => Self::filtered_normals(seed, row, n, kh, kv, &mut s.z),
                     None => Self::row_normals(seed, row as isize, height, n, &mut s.z),
                 }
+                // Channel correlation mixes a pixel's three draws (no new draws, so the draws
+                // of every other effect stay as they are).
+                if let Some((a, b)) = self.plan.channel_mix {
+                    let k = b / 3f32.sqrt();
+                    for z in s.z.chunks_exact_mut(3) {
+                        let sum = z[0] + z[1] + z[2];
+                        for v in z.iter_mut() {
+                            *v = a * *v + k * sum;
+                        }
+                    }
+                }
                 match &heavy {
                     None => {
                         for (((o, z), a), b) in out.iter_mut().zip(&s.z).zip(&s.a).zip(&s.b) {

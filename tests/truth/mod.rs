@@ -45,6 +45,9 @@ pub struct Truth {
     /// Noise filtered by a 2-D Gaussian kernel of this σ (pixels; 0 = off), applied directly
     /// (not separated) to draws padded beyond the frame, normalised to Σk² = 1 (variance kept).
     pub corr_gauss: f64,
+    /// Correlation of a pixel's three channels' noise: z_c' = √(1 − ρ)·z_c + √ρ·z_s with a
+    /// fresh shared draw z_s per pixel.
+    pub channel_rho: f64,
     pub exponent: f64,
     /// Response toe t (fraction of the range; 0 = none) and shoulder s (0 = none).
     pub toe: f64,
@@ -80,6 +83,7 @@ impl Truth {
             vignetting: 0.0,
             corr_rho: 0.0,
             corr_gauss: 0.0,
+            channel_rho: 0.0,
             exponent: 1.0,
             toe: 0.0,
             shoulder: 0.0,
@@ -169,6 +173,11 @@ impl Truth {
             let z: f64 = StandardNormal.sample(&mut rng);
             let row_off = self.row_sigma * z;
             for x in 0..w {
+                let shared: f64 = if self.channel_rho > 0.0 {
+                    StandardNormal.sample(&mut rng)
+                } else {
+                    0.0
+                };
                 for c in 0..3 {
                     let i = (y * w + x) * 3 + c;
                     let (ac, bc) = match self.channel {
@@ -188,6 +197,11 @@ impl Truth {
                     let z = match &gauss {
                         Some(g) => g[i],
                         None => (e[i] + beta * e[i + w * 3]) / norm,
+                    };
+                    let z = if self.channel_rho > 0.0 {
+                        (1.0 - self.channel_rho).sqrt() * z + self.channel_rho.sqrt() * shared
+                    } else {
+                        z
                     };
                     let noise = match &t {
                         None => (ac * s + bc).sqrt() * z,

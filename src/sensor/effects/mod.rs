@@ -25,6 +25,7 @@ use crate::sensor::captures::BurstKind;
 use crate::sensor::profile::SensorProfile;
 
 pub mod black_level;
+pub mod channel_correlation;
 pub mod channel_noise;
 pub mod column_noise;
 pub mod correlated_noise;
@@ -63,13 +64,14 @@ pub struct Entry {
 }
 
 /// The catalogue in physical order (the order `statistics` are listed in reports).
-pub const CATALOGUE: [Entry; 11] = [
+pub const CATALOGUE: [Entry; 12] = [
     vignetting::ENTRY,
     prnu::ENTRY,
     nonlinear_response::ENTRY,
     channel_noise::ENTRY,
     heavy_tailed_read_noise::ENTRY,
     correlated_noise::ENTRY,
+    channel_correlation::ENTRY,
     black_level::ENTRY,
     row_noise::ENTRY,
     column_noise::ENTRY,

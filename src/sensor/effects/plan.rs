@@ -39,6 +39,9 @@ pub struct Plan {
     /// Correlated noise: half kernels (k(0)..k(R)) filtering the normal draws horizontally
     /// and vertically (separable, Σk² = 1 over each full kernel).
     pub corr_kernels: Option<(Vec<f32>, Vec<f32>)>,
+    /// Channel correlation: each pixel's three normal draws mixed as a·z_c + b·z̄√3 (z̄ their
+    /// mean), which keeps unit variance and correlates every two channels by ρ.
+    pub channel_mix: Option<(f32, f32)>,
     /// Black-level offset in DN.
     pub black_offset: f32,
     /// Row offsets: σ in DN, drawn anew in every frame.
@@ -61,6 +64,7 @@ impl Default for Plan {
             b_scale: [1.0; 3],
             heavy_dof: None,
             corr_kernels: None,
+            channel_mix: None,
             black_offset: 0.0,
             row_sigma: 0.0,
             column: None,
@@ -124,6 +128,7 @@ pub mod id {
     pub const CHANNEL_NOISE: &str = "channel_noise";
     pub const HEAVY_TAILED_READ_NOISE: &str = "heavy_tailed_read_noise";
     pub const CORRELATED_NOISE: &str = "correlated_noise";
+    pub const CHANNEL_CORRELATION: &str = "channel_correlation";
     pub const BLACK_LEVEL: &str = "black_level";
     pub const ROW_NOISE: &str = "row_noise";
     pub const COLUMN_NOISE: &str = "column_noise";
@@ -135,13 +140,14 @@ pub mod id {
 type Install = fn(&toml::Table, &mut Plan) -> Result<(), String>;
 
 /// Every effect's install, in physical order (the order of `effects::CATALOGUE`).
-const INSTALL: [(&str, Install); 11] = [
+const INSTALL: [(&str, Install); 12] = [
     (id::VIGNETTING, vignetting),
     (id::PRNU, prnu),
     (id::NONLINEAR_RESPONSE, nonlinear_response),
     (id::CHANNEL_NOISE, channel_noise),
     (id::HEAVY_TAILED_READ_NOISE, heavy_tailed_read_noise),
     (id::CORRELATED_NOISE, correlated_noise),
+    (id::CHANNEL_CORRELATION, channel_correlation),
     (id::BLACK_LEVEL, black_level),
     (id::ROW_NOISE, row_noise),
     (id::COLUMN_NOISE, column_noise),
@@ -311,6 +317,32 @@ fn correlated_noise(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
     };
     let f = |r: f64| kernel(width(r)).iter().map(|&x| x as f32).collect();
     plan.corr_kernels = Some((f(h), f(v)));
+    Ok(())
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ChannelCorrelation {
+    rho: Finite,
+}
+
+/// The mix (a, b) of [`Plan::channel_mix`] for correlation `rho` between every two channels:
+/// with s = z̄√3 (unit variance, correlation 1/√3 with each z_c), a·z_c + b·s has variance
+/// a² + 2ab/√3 + b² = 1 and covariance 2ab/√3 + b² = ρ with the other channels' — so
+/// a = √(1 − ρ) and b = −a/√3 + √(a²/3 + ρ).
+pub fn channel_mix(rho: f64) -> (f64, f64) {
+    let a = (1.0 - rho).sqrt();
+    let r3 = 3f64.sqrt();
+    (a, -a / r3 + (a * a / 3.0 + rho).sqrt())
+}
+
+fn channel_correlation(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
+    let ChannelCorrelation { rho: Finite(r) } = parse(p)?;
+    if !(0.0..=RHO_MAX).contains(&r) {
+        return Err(format!("rho {r} must be in [0, {RHO_MAX}]"));
+    }
+    let (a, b) = channel_mix(r);
+    plan.channel_mix = Some((a as f32, b as f32));
     Ok(())
 }
 

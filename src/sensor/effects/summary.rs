@@ -116,6 +116,8 @@ pub struct Residuals {
     pub cov_v: [f64; 2],
     /// The same horizontally, r(x, y)·r(x + d, y), d = 1, 2.
     pub cov_h: [f64; 2],
+    /// The same between the channels of one pixel (R·G and G·B pooled).
+    pub cov_c: f64,
     /// Mean over rows of the covariance over frames of the left- and right-half row means (DN²).
     pub row_cov: f64,
 }
@@ -193,14 +195,14 @@ pub struct Accumulator {
     /// sums well conditioned.
     shift: f64,
     /// Dark bursts, per value: Σd³, Σd⁴ and the lag products Σd·d' (vertical lags 1, 2,
-    /// horizontal lags 1, 2), d = x − shift.
+    /// horizontal lags 1, 2, the next channel), d = x − shift.
     resid: Vec<f64>,
     /// Per frame, per row: (left-half mean, right-half mean).
     halves: Vec<[f64; 2]>,
 }
 
 /// Residual sums per value of a dark burst.
-const RESID: usize = 6;
+const RESID: usize = 7;
 
 impl Accumulator {
     /// `calibration`: the noise calibration will bin these sums too (`finish`'s second value),
@@ -269,6 +271,10 @@ impl Accumulator {
                     if let Some(&r2) = row.get(i + 6) {
                         s[5] += d * (r2 as f64 - c);
                     }
+                    // The next channel of the same pixel (R·G, G·B).
+                    if i % 3 < 2 {
+                        s[6] += d * (row[i + 1] as f64 - c);
+                    }
                 }
             });
         let half = (self.w / 2) * 3;
@@ -332,7 +338,7 @@ impl Accumulator {
             let w3 = self.w * 3;
             let (mut r2, mut r4) = ([0.0; 3], [0.0; 3]);
             // (sum, pairs) of residual products: vertical lags 1, 2, horizontal lags 1, 2.
-            let mut cv = [(0.0, 0usize); 4];
+            let mut cv = [(0.0, 0usize); 5];
             let mean = |j: usize| power[j].0 / n;
             for i in 0..nv {
                 let (s1, s2) = power[i];
@@ -347,6 +353,7 @@ impl Accumulator {
                     adjacent(&self.rows, r, 2).then_some(i + 2 * w3),
                     (x + 1 < self.w).then_some(i + 3),
                     (x + 2 < self.w).then_some(i + 6),
+                    (i % 3 < 2).then_some(i + 1),
                 ];
                 for (l, j) in partner.iter().enumerate() {
                     if let Some(j) = *j {
@@ -376,6 +383,7 @@ impl Accumulator {
                 m4,
                 cov_v: [cov(0), cov(1)],
                 cov_h: [cov(2), cov(3)],
+                cov_c: cov(4),
                 row_cov: row_cov / h as f64,
             });
         }
