@@ -2431,6 +2431,9 @@ enum Spatial {
     /// Draws filtered by a separable Gaussian kernel exp(−i²/2s²), |i| ≤ ⌈3s⌉, normalised to
     /// Σk² = 1 per axis (unit variance), written out here from its definition.
     Gauss(f64),
+    /// Every two channels of a pixel correlated by ρ: √(1 − ρ)·z_c + √ρ·z_s, z_s a fresh draw
+    /// per pixel (chroma noise).
+    Channel(f64),
 }
 
 /// The test's own Gaussian kernel (k(−R) … k(R)) of [`Spatial::Gauss`].
@@ -2454,6 +2457,10 @@ fn noisy_png_bracket(dir: &Path, a: f64, b: f64, stops: &[f64], spatial: Spatial
     for (i, s) in stops.iter().enumerate() {
         let mut img = image::RgbImage::new(w as u32, h as u32);
         let field: Vec<f64> = (0..fw * fh * 3).map(|_| rng.normal()).collect();
+        let shared: Vec<f64> = match spatial {
+            Spatial::Channel(_) => (0..fw * fh).map(|_| rng.normal()).collect(),
+            _ => Vec::new(),
+        };
         let f = |x: usize, y: usize, c: usize| field[(y * fw + x) * 3 + c];
         let filtered: Vec<f64> = match spatial {
             Spatial::Gauss(sigma) => {
@@ -2490,6 +2497,9 @@ fn noisy_png_bracket(dir: &Path, a: f64, b: f64, stops: &[f64], spatial: Spatial
                     (f(x, y, c) + f(x + 1, y, c) + f(x, y + 1, c) + f(x + 1, y + 1, c)) / 2.0
                 }
                 Spatial::Gauss(_) => filtered[(y * fw + x) * 3 + c],
+                Spatial::Channel(r) => {
+                    (1.0 - r).sqrt() * f(x, y, c) + r.sqrt() * shared[y * fw + x]
+                }
             }
         };
         for y in 0..h {
@@ -3050,4 +3060,78 @@ fn the_device_meter_is_read_from_the_frame_exif_marks_and_not_from_a_manual_brac
     // Manual exposures (every bias 0, or none recorded) say nothing about the meter.
     assert!(calibrate([Some(0), Some(0), Some(0)]).0.is_none());
     assert!(calibrate([None, None, None]).0.is_none());
+}
+
+#[test]
+fn chroma_noise_is_measured_fitted_and_closes_the_device_output_gap() {
+    use hdrsynth::data::bracket_output::{OutputCheckOptions, check};
+    use hdrsynth::data::bracket_profile::{BracketProfileOptions, calibrate_brackets};
+    let tmp = tempfile::tempdir().expect("tmp");
+    noisy_png_bracket(
+        &tmp.path().join("scene"),
+        4e-4,
+        1e-5,
+        &[-2.0, 0.0, 2.0],
+        Spatial::Channel(0.5),
+    );
+    let beside = tempfile::tempdir().expect("tmp");
+    let calibrate = |correlated: bool, name: &str| {
+        calibrate_brackets(
+            tmp.path(),
+            &BracketProfileOptions {
+                scan: ScanOptions::default(),
+                response: ResponseChoice::Declared(Response::Srgb),
+                out: beside.path().join(name),
+                name: None,
+                correlated,
+            },
+        )
+        .expect("calibrate")
+    };
+    let white = calibrate(false, "white.toml");
+    let fitted = calibrate(true, "fitted.toml");
+    eprintln!("{}", fitted.report(&beside.path().join("fitted.toml")));
+    assert!(
+        (fitted.channel_correlation - 0.5).abs() < 0.05,
+        "{}",
+        fitted.channel_correlation
+    );
+    let rho = fitted
+        .profile
+        .effects
+        .iter()
+        .find(|e| e.id == "channel_correlation")
+        .and_then(|e| e.params["rho"].as_float())
+        .expect("written");
+    assert_eq!(rho, fitted.channel_correlation);
+    // No spatial correlation was planted: none is written.
+    assert!(
+        fitted
+            .profile
+            .effects
+            .iter()
+            .all(|e| e.id != "correlated_noise")
+    );
+    let run = |profile: &hdrsynth::sensor::profile::SensorProfile| {
+        check(
+            tmp.path(),
+            profile,
+            &OutputCheckOptions {
+                scan: ScanOptions::default(),
+                replicates: 10,
+                seed: 1,
+                noise: true,
+            },
+        )
+        .expect("check")
+    };
+    let missed = run(&white.profile);
+    assert_eq!(
+        missed.named().map(|s| s.names),
+        Some("channel_correlation"),
+        "{}",
+        missed.markdown()
+    );
+    let closed = run(&fitted.profile);
+    assert!(closed.named().is_none(), "{}", closed.markdown());
 }

@@ -13,8 +13,7 @@
 //! ratio), and across channels the correlation of the three channels' Immerkær residuals
 //! (chroma noise: a device that denoises chroma harder than luma, or subsamples chroma as JPEG
 //! does, makes its channels' noise move together). Each names what would close it: the
-//! profile's noise (a, b), the catalogue's `correlated_noise`, and for the channel
-//! correlation no catalogue effect yet (named as unexplained).
+//! profile's noise (a, b), the catalogue's `correlated_noise` and `channel_correlation`.
 
 use crate::data::bracket_profile::{self, NoiseBin};
 use crate::data::bracket_testset::{self, FIELD_GAMMA, Linearise};
@@ -25,9 +24,6 @@ use crate::sensor::profile::SensorProfile;
 use crate::sensor::realism::{NoiseModel, Realism, RealismOptions};
 use std::path::Path;
 
-/// Codes at or beyond these (of 255) are clipped or crushed (as `calibrate brackets`).
-const LOW_CODE: f32 = 3.0 / 255.0;
-const HIGH_CODE: f32 = 250.0 / 255.0;
 /// Width of the Gaussian that smooths the scene estimate, pixels.
 const SMOOTH_SIGMA: f64 = 1.5;
 
@@ -81,7 +77,7 @@ fn measure(frames: &[(Image, f64)], response: &crate::sensor::profile::Response)
     for (code, iso) in frames {
         s.bins
             .extend(bracket_profile::noise_bins(code, *iso, response));
-        let (cross, square) = channel_moments(code);
+        let (cross, square, _) = bracket_profile::channel_moments(code);
         for k in 0..3 {
             s.cross[k] += cross[k];
             s.square[k] += square[k];
@@ -89,54 +85,6 @@ fn measure(frames: &[(Image, f64)], response: &crate::sensor::profile::Response)
     }
     s.bins = bracket_profile::merge_bins(&s.bins);
     s
-}
-
-/// The channels' Immerkær residuals on the flattest half of the pixels whose 3×3 windows are
-/// unclipped in every channel: (Σ r_R r_G, Σ r_G r_B, Σ r_R r_B), (Σ r_R², Σ r_G², Σ r_B²).
-fn channel_moments(code: &Image) -> ([f64; 3], [f64; 3]) {
-    let (w, h) = (code.width, code.height);
-    let mut px: Vec<(f64, [f64; 3])> = Vec::new();
-    if w < 5 || h < 5 {
-        return ([0.0; 3], [0.0; 3]);
-    }
-    let v = |x: usize, y: usize, c: usize| code.data[(y * w + x) * 3 + c];
-    for y in 2..h - 2 {
-        'pixel: for x in 2..w - 2 {
-            let mut r = [0.0; 3];
-            let mut g = 0.0;
-            for (c, rc) in r.iter_mut().enumerate() {
-                for dy in 0..3 {
-                    for dx in 0..3 {
-                        let p = v(x + dx - 1, y + dy - 1, c);
-                        if p <= LOW_CODE || p >= HIGH_CODE {
-                            continue 'pixel;
-                        }
-                    }
-                }
-                let f = |x: usize, y: usize| f64::from(v(x, y, c));
-                *rc = 4.0 * f(x, y) - 2.0 * (f(x - 1, y) + f(x + 1, y) + f(x, y - 1) + f(x, y + 1))
-                    + f(x - 1, y - 1)
-                    + f(x + 1, y - 1)
-                    + f(x - 1, y + 1)
-                    + f(x + 1, y + 1);
-                g += (f(x + 2, y) - f(x - 2, y)).abs() + (f(x, y + 2) - f(x, y - 2)).abs();
-            }
-            px.push((g, r));
-        }
-    }
-    px.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let keep = &px[..px.len() / 2];
-    let mut cross = [0.0; 3];
-    let mut square = [0.0; 3];
-    for (_, r) in keep {
-        cross[0] += r[0] * r[1];
-        cross[1] += r[1] * r[2];
-        cross[2] += r[0] * r[2];
-        for c in 0..3 {
-            square[c] += r[c] * r[c];
-        }
-    }
-    (cross, square)
 }
 
 fn bin_of(b: &NoiseBin) -> usize {
@@ -297,7 +245,7 @@ const STATS: [(&str, &str, f64); 7] = [
     ),
     (
         "channel correlation of the noise (mean of RG, GB, RB)",
-        "none in the catalogue: chroma noise",
+        "channel_correlation",
         0.05,
     ),
 ];

@@ -52,8 +52,9 @@ pub struct BracketProfileOptions {
     /// The profile to write (an existing one keeps its name, kind, colour and effects).
     pub out: PathBuf,
     pub name: Option<String>,
-    /// Write the measured spatial correlation into the profile ([`with_correlation`]) when it
-    /// reaches [`MIN_RHO`]; otherwise the profile's noise is white.
+    /// Write the measured spatial correlation ([`with_correlation`]) and the channels'
+    /// correlation ([`with_channel_correlation`]) into the profile where each reaches
+    /// [`MIN_RHO`]; otherwise the profile's noise is white and independent per channel.
     pub correlated: bool,
 }
 
@@ -102,6 +103,93 @@ pub fn correlation_of_width(s: f64) -> (f64, f64) {
     let box3 = filtered_variance([1.0, 1.0, 1.0], c);
     let low = (1.0 - 2.0 / 9.0 * (c[0] + 2.0 * c[1]).powi(2) + box3 * box3 / 81.0) / (8.0 / 9.0);
     (low / imm, imm)
+}
+
+/// The channels' Immerkær residuals on the flattest half of the pixels whose 3×3 windows are
+/// unclipped in every channel: (Σ r_R r_G, Σ r_G r_B, Σ r_R r_B), (Σ r_R², Σ r_G², Σ r_B²) and
+/// the pixel count.
+pub(crate) fn channel_moments(code: &Image) -> ([f64; 3], [f64; 3], usize) {
+    let (w, h) = (code.width, code.height);
+    let mut px: Vec<(f64, [f64; 3])> = Vec::new();
+    if w < 5 || h < 5 {
+        return ([0.0; 3], [0.0; 3], 0);
+    }
+    let v = |x: usize, y: usize, c: usize| code.data[(y * w + x) * 3 + c];
+    for y in 2..h - 2 {
+        'pixel: for x in 2..w - 2 {
+            let mut r = [0.0; 3];
+            let mut g = 0.0;
+            for (c, rc) in r.iter_mut().enumerate() {
+                for dy in 0..3 {
+                    for dx in 0..3 {
+                        let p = v(x + dx - 1, y + dy - 1, c);
+                        if f64::from(p) <= LOW_CODE || f64::from(p) >= HIGH_CODE {
+                            continue 'pixel;
+                        }
+                    }
+                }
+                let f = |x: usize, y: usize| f64::from(v(x, y, c));
+                *rc = 4.0 * f(x, y) - 2.0 * (f(x - 1, y) + f(x + 1, y) + f(x, y - 1) + f(x, y + 1))
+                    + f(x - 1, y - 1)
+                    + f(x + 1, y - 1)
+                    + f(x - 1, y + 1)
+                    + f(x + 1, y + 1);
+                g += (f(x + 2, y) - f(x - 2, y)).abs() + (f(x, y + 2) - f(x, y - 2)).abs();
+            }
+            px.push((g, r));
+        }
+    }
+    px.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let keep = &px[..px.len() / 2];
+    let mut cross = [0.0; 3];
+    let mut square = [0.0; 3];
+    for (_, r) in keep {
+        cross[0] += r[0] * r[1];
+        cross[1] += r[1] * r[2];
+        cross[2] += r[0] * r[2];
+        for c in 0..3 {
+            square[c] += r[c] * r[c];
+        }
+    }
+    (cross, square, keep.len())
+}
+
+/// The correlation of the channels' noise from [`channel_moments`] summed over frames, with
+/// 8-bit rounding (independent per channel, 36/12 code² in Immerkær's residual) taken out of
+/// each channel's variance: the mean over the pairs RG, GB, RB, in [0, RHO_MAX].
+pub fn channel_correlation_of(cross: [f64; 3], square: [f64; 3], n: usize) -> f64 {
+    let q = 36.0 * ROUNDING * n as f64;
+    let v = square.map(|s| (s - q).max(1e-30));
+    let pairs = [(0, 0, 1), (1, 1, 2), (2, 0, 2)];
+    let r = pairs
+        .iter()
+        .map(|&(k, a, b)| cross[k] / (v[a] * v[b]).sqrt())
+        .sum::<f64>()
+        / 3.0;
+    r.clamp(0.0, crate::sensor::effects::plan::RHO_MAX)
+}
+
+/// `profile` with the channels' noise correlated by `rho` (`channel_correlation`, replacing one
+/// it had); `None` below [`MIN_RHO`].
+pub fn with_channel_correlation(profile: &SensorProfile, rho: f64) -> Option<SensorProfile> {
+    if rho.is_nan() || rho < MIN_RHO {
+        return None;
+    }
+    let mut p = profile.clone();
+    let id = crate::sensor::effects::plan::id::CHANNEL_CORRELATION;
+    p.effects.retain(|e| e.id != id);
+    let mut params = toml::Table::new();
+    params.insert("rho".into(), rho.into());
+    p.effects.push(crate::sensor::effects::plan::EffectSpec {
+        id: id.into(),
+        params,
+    });
+    let _ = write!(
+        p.provenance.noise,
+        "; the channels' noise correlated by {rho:.3} as measured (Immerkær residuals of \
+         flat pixels, 8-bit rounding removed)"
+    );
+    Some(p)
 }
 
 /// Fit [`CorrelationFit`] to the bins: the width by bisection (the ratio grows with it).
@@ -236,6 +324,8 @@ pub struct BracketCalibration {
     /// Per channel, the median over bins of [`NoiseBin::correlation_ratio`].
     pub correlation_ratio: [f64; 3],
     pub correlation: CorrelationFit,
+    /// The correlation of the channels' noise ([`channel_correlation_of`]).
+    pub channel_correlation: f64,
     pub metering: Vec<MeteredFrame>,
     pub notes: Vec<String>,
 }
@@ -262,7 +352,7 @@ pub fn calibrate_brackets(dir: &Path, opts: &BracketProfileOptions) -> Result<Br
         Linearise::Table(t) => bracket_testset::table_response(t),
     };
     let frames: Vec<&BracketFrame> = scan.sets.iter().flat_map(|s| &s.frames).collect();
-    let (bins, rows) = measure_noise(&frames, &response, &mut notes)?;
+    let (bins, rows, channel_correlation) = measure_noise(&frames, &response, &mut notes)?;
     let metering = scan
         .sets
         .iter()
@@ -322,6 +412,9 @@ pub fn calibrate_brackets(dir: &Path, opts: &BracketProfileOptions) -> Result<Br
         if let Some(p) = with_correlation(&profile, &correlation, &isos) {
             profile = p;
         }
+        if let Some(p) = with_channel_correlation(&profile, channel_correlation) {
+            profile = p;
+        }
     }
     for f in &frames {
         let source = brackets::frame_source(f)?;
@@ -347,6 +440,7 @@ pub fn calibrate_brackets(dir: &Path, opts: &BracketProfileOptions) -> Result<Br
         bins,
         correlation_ratio,
         correlation,
+        channel_correlation,
         metering,
         notes,
     })
@@ -358,7 +452,8 @@ fn measure_noise(
     frames: &[&BracketFrame],
     response: &Response,
     notes: &mut Vec<String>,
-) -> Result<(Vec<NoiseBin>, Vec<NoiseAtIso>)> {
+) -> Result<(Vec<NoiseBin>, Vec<NoiseAtIso>, f64)> {
+    let (mut cross, mut square, mut count) = ([0.0; 3], [0.0; 3], 0);
     let mut by_iso: Vec<(f64, Vec<&BracketFrame>)> = Vec::new();
     for f in frames {
         let iso = f.exif.iso.unwrap_or(100.0);
@@ -377,6 +472,12 @@ fn measure_noise(
         for f in group {
             let code = brackets::read_frame_image(f)?;
             iso_bins.extend(noise_bins(&code, *iso, response));
+            let (c, q, n) = channel_moments(&code);
+            for k in 0..3 {
+                cross[k] += c[k];
+                square[k] += q[k];
+            }
+            count += n;
         }
         let merged = merge_bins(&iso_bins);
         match fit_row(*iso, &merged) {
@@ -388,7 +489,7 @@ fn measure_noise(
         }
         bins.extend(merged);
     }
-    Ok((bins, rows))
+    Ok((bins, rows, channel_correlation_of(cross, square, count)))
 }
 
 /// One interior pixel of one channel: the scene's local gradient, Immerkær's residual, the
@@ -648,6 +749,23 @@ impl BracketCalibration {
                 "not written: --correlated writes it"
             } else {
                 "below 0.02: the profile's noise is white"
+            }
+        );
+        let _ = writeln!(
+            s,
+            "channel correlation of the noise: {:.3} ({})",
+            self.channel_correlation,
+            if self
+                .profile
+                .effects
+                .iter()
+                .any(|e| e.id == crate::sensor::effects::plan::id::CHANNEL_CORRELATION)
+            {
+                "the profile's channel_correlation"
+            } else if self.channel_correlation >= MIN_RHO {
+                "not written: --correlated writes it"
+            } else {
+                "below 0.02: the channels' noise is independent"
             }
         );
         for m in &self.metering {

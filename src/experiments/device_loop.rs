@@ -15,7 +15,7 @@
 use crate::data::bracket_output::{self, OutputCheck, OutputCheckOptions};
 use crate::data::bracket_profile::{
     BracketCalibration, BracketProfileOptions, CorrelationFit, MIN_RHO, calibrate_brackets,
-    metering_rule, with_correlation,
+    metering_rule, with_channel_correlation, with_correlation,
 };
 use crate::data::bracket_testset::{self, BracketOptions, GtFrames, InputChoice, ResponseChoice};
 use crate::data::brackets::{self, Region, ScanOptions};
@@ -155,7 +155,7 @@ pub fn run(opts: &LoopOptions) -> Result<LoopSummary> {
     let profiles = opts.out.join("profiles");
     std::fs::create_dir_all(&profiles).map_err(|e| Error::io(&profiles, e))?;
 
-    let (cal_result, calibrated, correlated) = calibrate(opts, &cal_scan, &profiles)?;
+    let (cal_result, calibrated, extra) = calibrate(opts, &cal_scan, &profiles)?;
     let fit = &cal_result.correlation;
     let profile = SensorProfile::load(&calibrated)?;
     let testset = opts.out.join("testset");
@@ -177,8 +177,9 @@ pub fn run(opts: &LoopOptions) -> Result<LoopSummary> {
     }
     let steps = steps(
         &calibrated,
-        correlated.as_deref(),
+        &extra,
         fit,
+        cal_result.channel_correlation,
         metering_rule(&cal_result.metering),
     );
     let isos: Vec<toml::Value> = profile.noise.iter().map(|r| r.iso.into()).collect();
@@ -195,7 +196,7 @@ pub fn run(opts: &LoopOptions) -> Result<LoopSummary> {
     ablate::run(&cfg, &cfg_path, opts.progress)?;
     let tables = ablate::write_tables(&cfg)?;
     let mut report = split_text(opts, &cal, &test);
-    report.push_str(&measured_text(&cal_result, correlated.is_some()));
+    report.push_str(&measured_text(&cal_result, &extra));
     report.push_str(&checks_text(&steps, &checks));
     report.push_str(&steps_table(&cfg, &steps)?);
     report.push_str("\n## Every row against the fair baseline\n\n");
@@ -246,13 +247,13 @@ fn keep_split(opts: &LoopOptions, cal: &[String], test: &[String]) -> Result<()>
 
 /// The profile measured on the calibration scenes (`profiles/calibrated.toml`) and, where the
 /// noise's spatial correlation reaches the catalogue's minimum effect, the same with it
-/// (`profiles/correlated.toml`). Calibrated on every run (deterministic: a rerun writes the
+/// (`profiles/correlated.toml`), then with the channels' correlation (`profiles/chroma.toml`). Calibrated on every run (deterministic: a rerun writes the
 /// same profile), so the fit that decides the correlated step is at hand.
 fn calibrate(
     opts: &LoopOptions,
     cal_scan: &ScanOptions,
     profiles: &Path,
-) -> Result<(BracketCalibration, PathBuf, Option<PathBuf>)> {
+) -> Result<(BracketCalibration, PathBuf, Extra)> {
     let calibrated = profiles.join("calibrated.toml");
     stage(opts, "calibrating the profile on the calibration scenes");
     let cal = calibrate_brackets(
@@ -266,15 +267,29 @@ fn calibrate(
         },
     )?;
     let isos: Vec<f64> = cal.profile.noise.iter().map(|r| r.iso).collect();
-    let correlated = match with_correlation(&cal.profile, &cal.correlation, &isos) {
-        Some(p) => {
-            let path = profiles.join("correlated.toml");
-            p.save(&path)?;
-            Some(path)
-        }
-        None => None,
+    let spatial = with_correlation(&cal.profile, &cal.correlation, &isos);
+    let chroma = with_channel_correlation(
+        spatial.as_ref().unwrap_or(&cal.profile),
+        cal.channel_correlation,
+    );
+    let save = |p: Option<SensorProfile>, name: &str| -> Result<Option<PathBuf>> {
+        p.map(|p| {
+            let path = profiles.join(name);
+            p.save(&path).map(|()| path)
+        })
+        .transpose()
     };
-    Ok((cal, calibrated, correlated))
+    let steps = Extra {
+        correlated: save(spatial, "correlated.toml")?,
+        chroma: save(chroma, "chroma.toml")?,
+    };
+    Ok((cal, calibrated, steps))
+}
+
+/// The profiles of the steps that are taken only where their effect is measured.
+struct Extra {
+    correlated: Option<PathBuf>,
+    chroma: Option<PathBuf>,
 }
 
 /// Every step's device-output check on the calibration scenes.
@@ -306,11 +321,19 @@ fn output_checks(
 }
 
 /// What the calibration measured: the noise rows and the spatial correlation's fit.
-fn measured_text(cal: &BracketCalibration, correlated: bool) -> String {
+fn measured_text(cal: &BracketCalibration, extra: &Extra) -> String {
     let fit = &cal.correlation;
+    let step = |taken: bool| {
+        if taken {
+            "a step of the loop".to_string()
+        } else {
+            format!("below the minimum effect {MIN_RHO}: not a step")
+        }
+    };
     format!(
         "Measured on the calibration scenes: {}; spatial correlation of the output noise: \
-         low/high-order ratio {:.3} {:.3} {:.3} → lag-1 correlation {:.3} ({}).\n\n",
+         low/high-order ratio {:.3} {:.3} {:.3} → lag-1 correlation {:.3} ({}); correlation \
+         of the channels' noise {:.3} ({}).\n\n",
         cal.profile
             .noise
             .iter()
@@ -324,11 +347,9 @@ fn measured_text(cal: &BracketCalibration, correlated: bool) -> String {
         fit.ratio[1],
         fit.ratio[2],
         fit.rho,
-        if correlated {
-            "a step of the loop".to_string()
-        } else {
-            format!("below the minimum effect {MIN_RHO}: not a step")
-        }
+        step(extra.correlated.is_some()),
+        cal.channel_correlation,
+        step(extra.chroma.is_some()),
     ) + &match metering_rule(&cal.metering) {
         Some(m) => format!(
             "Exposure rule of the auto-exposed frames: mid grey {:.4}, at most {:.2} % \
@@ -350,12 +371,14 @@ fn stage(opts: &LoopOptions, what: &str) {
 }
 
 /// The loop's steps, each adding one measured effect to the one before: the response alone,
-/// its white output noise, that noise's spatial correlation where it reaches the catalogue's
-/// minimum effect, and the device's exposure rule where EXIF marks its auto-exposed frames.
+/// its white output noise, that noise's spatial correlation and the channels' correlation
+/// where each reaches the catalogue's minimum effect, and the device's exposure rule where
+/// EXIF marks its auto-exposed frames.
 fn steps(
     calibrated: &Path,
-    correlated: Option<&Path>,
+    extra: &Extra,
     fit: &CorrelationFit,
+    channel_rho: f64,
     metering: Option<Metering>,
 ) -> Vec<Step> {
     let mut steps = vec![
@@ -374,12 +397,23 @@ fn steps(
             metering: None,
         },
     ];
-    if let Some(p) = correlated {
+    if let Some(p) = &extra.correlated {
         steps.push(Step {
             name: "correlated",
             label: format!(
                 "+ its spatial correlation (correlated_noise, lag-1 {:.3}; a, b per pixel)",
                 fit.rho
+            ),
+            profile: p.to_path_buf(),
+            noise: true,
+            metering: None,
+        });
+    }
+    if let Some(p) = &extra.chroma {
+        steps.push(Step {
+            name: "chroma",
+            label: format!(
+                "+ the channels' noise correlation (channel_correlation, {channel_rho:.3})"
             ),
             profile: p.to_path_buf(),
             noise: true,
