@@ -2520,6 +2520,28 @@ fn noisy_png_bracket(dir: &Path, a: f64, b: f64, stops: &[f64], spatial: Spatial
     std::fs::write(dir.join("exposure.txt"), text).expect("exposure.txt");
 }
 
+/// `calibrate brackets` on `dir` as most tests call it: the frames declared sRGB, a new
+/// profile written to `out`.
+fn calibrate_srgb(
+    dir: &Path,
+    scan: ScanOptions,
+    out: &Path,
+    correlated: bool,
+) -> hdrsynth::data::bracket_profile::BracketCalibration {
+    use hdrsynth::data::bracket_profile::{BracketProfileOptions, calibrate_brackets};
+    calibrate_brackets(
+        dir,
+        &BracketProfileOptions {
+            scan,
+            response: ResponseChoice::Declared(Response::Srgb),
+            out: out.to_path_buf(),
+            name: None,
+            correlated,
+        },
+    )
+    .expect("calibrate")
+}
+
 #[test]
 fn calibrate_brackets_recovers_a_known_output_noise_and_encodes_what_it_trains_on() {
     use hdrsynth::data::bracket_profile::{BracketProfileOptions, calibrate_brackets};
@@ -2602,7 +2624,6 @@ fn calibrate_brackets_recovers_a_known_output_noise_and_encodes_what_it_trains_o
 
 #[test]
 fn calibrate_brackets_sees_spatially_correlated_output_noise() {
-    use hdrsynth::data::bracket_profile::{BracketProfileOptions, calibrate_brackets};
     let tmp = tempfile::tempdir().expect("tmp");
     noisy_png_bracket(
         &tmp.path().join("scene"),
@@ -2613,17 +2634,7 @@ fn calibrate_brackets_sees_spatially_correlated_output_noise() {
     );
     let beside = tempfile::tempdir().expect("tmp");
     let out = beside.path().join("phone.toml");
-    let cal = calibrate_brackets(
-        tmp.path(),
-        &BracketProfileOptions {
-            scan: ScanOptions::default(),
-            response: ResponseChoice::Declared(Response::Srgb),
-            out: out.clone(),
-            name: None,
-            correlated: false,
-        },
-    )
-    .expect("calibrate");
+    let cal = calibrate_srgb(tmp.path(), ScanOptions::default(), &out, false);
     eprintln!("{}", cal.report(&out));
     // 2×2-box noise: neighbours share half their draws. Immerkær's second differences cancel
     // much of it; the pixel − 3×3-mean residual far less, so the ratio rises well above 1.
@@ -2641,24 +2652,13 @@ fn calibrate_brackets_sees_spatially_correlated_output_noise() {
 
 #[test]
 fn correlated_output_noise_is_fitted_as_the_catalogues_kernel_with_its_per_pixel_variance() {
-    use hdrsynth::data::bracket_profile::{BracketProfileOptions, calibrate_brackets};
     let (a, b) = (4e-4, 1e-5);
     let calibrate = |spatial: Spatial| {
         let tmp = tempfile::tempdir().expect("tmp");
         noisy_png_bracket(&tmp.path().join("scene"), a, b, &[-2.0, 0.0, 2.0], spatial);
         let beside = tempfile::tempdir().expect("tmp");
         let out = beside.path().join("phone.toml");
-        let cal = calibrate_brackets(
-            tmp.path(),
-            &BracketProfileOptions {
-                scan: ScanOptions::default(),
-                response: ResponseChoice::Declared(Response::Srgb),
-                out: out.clone(),
-                name: None,
-                correlated: true,
-            },
-        )
-        .expect("calibrate");
+        let cal = calibrate_srgb(tmp.path(), ScanOptions::default(), &out, true);
         eprintln!("{}", cal.report(&out));
         let written = SensorProfile::load(&out).expect("load");
         assert_eq!(written, cal.profile);
@@ -2767,7 +2767,6 @@ fn halves_of_a_frame_share_no_pixel_and_are_read_as_cut() {
 
 #[test]
 fn a_network_is_never_scored_on_captures_that_calibrated_its_profile() {
-    use hdrsynth::data::bracket_profile::{BracketProfileOptions, calibrate_brackets};
     use hdrsynth::engine::method::from_checkpoint;
     use hdrsynth::eval::evaluate::{self, EvalOptions};
     use hdrsynth::eval::infer::NetworkOptions;
@@ -2786,17 +2785,12 @@ fn a_network_is_never_scored_on_captures_that_calibrated_its_profile() {
     };
     // Calibrated on the left half of the frames.
     let profile = beside.path().join("phone.toml");
-    calibrate_brackets(
+    calibrate_srgb(
         tmp.path(),
-        &BracketProfileOptions {
-            scan: scan(Some(brackets::Region::Left)),
-            response: ResponseChoice::Declared(Response::Srgb),
-            out: profile.clone(),
-            name: None,
-            correlated: false,
-        },
-    )
-    .expect("calibrate");
+        scan(Some(brackets::Region::Left)),
+        &profile,
+        false,
+    );
     let p = SensorProfile::load(&profile).expect("load");
     assert_eq!(p.calibrated_on.len(), 3);
     assert!(p.calibrated_on.iter().all(|s| s.pixels == [0, 0, 96, 144]));
@@ -2905,7 +2899,6 @@ fn the_loop_refuses_a_split_in_which_a_capture_both_calibrates_and_is_scored() {
 #[test]
 fn the_device_output_check_finds_what_a_profile_misses_and_nothing_when_it_has_it() {
     use hdrsynth::data::bracket_output::{OutputCheckOptions, check};
-    use hdrsynth::data::bracket_profile::{BracketProfileOptions, calibrate_brackets};
     let run = |spatial: Spatial, correlated: bool| {
         let tmp = tempfile::tempdir().expect("tmp");
         noisy_png_bracket(
@@ -2917,17 +2910,7 @@ fn the_device_output_check_finds_what_a_profile_misses_and_nothing_when_it_has_i
         );
         let beside = tempfile::tempdir().expect("tmp");
         let out = beside.path().join("phone.toml");
-        let cal = calibrate_brackets(
-            tmp.path(),
-            &BracketProfileOptions {
-                scan: ScanOptions::default(),
-                response: ResponseChoice::Declared(Response::Srgb),
-                out: out.clone(),
-                name: None,
-                correlated,
-            },
-        )
-        .expect("calibrate");
+        let cal = calibrate_srgb(tmp.path(), ScanOptions::default(), &out, correlated);
         let c = check(
             tmp.path(),
             &cal.profile,
@@ -2956,17 +2939,7 @@ fn the_device_output_check_finds_what_a_profile_misses_and_nothing_when_it_has_i
         );
         let beside = tempfile::tempdir().expect("tmp");
         let profile = beside.path().join("phone.toml");
-        calibrate_brackets(
-            tmp.path(),
-            &BracketProfileOptions {
-                scan: ScanOptions::default(),
-                response: ResponseChoice::Declared(Response::Srgb),
-                out: profile.clone(),
-                name: None,
-                correlated: false,
-            },
-        )
-        .expect("calibrate");
+        calibrate_srgb(tmp.path(), ScanOptions::default(), &profile, false);
         let out = beside.path().join("diag");
         let d = bracket_captures::diagnose_brackets(
             tmp.path(),
@@ -2997,9 +2970,7 @@ fn the_device_output_check_finds_what_a_profile_misses_and_nothing_when_it_has_i
 
 #[test]
 fn the_device_meter_is_read_from_the_frame_exif_marks_and_not_from_a_manual_bracket() {
-    use hdrsynth::data::bracket_profile::{
-        BracketProfileOptions, calibrate_brackets, metering_rule,
-    };
+    use hdrsynth::data::bracket_profile::metering_rule;
     let calibrate = |bias: [Option<i32>; 3]| {
         let tmp = tempfile::tempdir().expect("tmp");
         let d = tmp.path().join("scene1");
@@ -3010,17 +2981,12 @@ fn the_device_meter_is_read_from_the_frame_exif_marks_and_not_from_a_manual_brac
             bracket_jpeg(&d.join(format!("IMG_{i}.jpg")), 1.0 / *den as f64, Some(&t));
         }
         let beside = tempfile::tempdir().expect("tmp");
-        let cal = calibrate_brackets(
+        let cal = calibrate_srgb(
             tmp.path(),
-            &BracketProfileOptions {
-                scan: ScanOptions::default(),
-                response: ResponseChoice::Declared(Response::Srgb),
-                out: beside.path().join("p.toml"),
-                name: None,
-                correlated: false,
-            },
-        )
-        .expect("calibrate");
+            ScanOptions::default(),
+            &beside.path().join("p.toml"),
+            false,
+        );
         // The test's own log-average of the marked frame: sRGB-decoded codes, Rec. 709
         // luminance, geometric mean over the pixels.
         let marked = d.join("IMG_0.jpg");
@@ -3065,7 +3031,6 @@ fn the_device_meter_is_read_from_the_frame_exif_marks_and_not_from_a_manual_brac
 #[test]
 fn chroma_noise_is_measured_fitted_and_closes_the_device_output_gap() {
     use hdrsynth::data::bracket_output::{OutputCheckOptions, check};
-    use hdrsynth::data::bracket_profile::{BracketProfileOptions, calibrate_brackets};
     let tmp = tempfile::tempdir().expect("tmp");
     noisy_png_bracket(
         &tmp.path().join("scene"),
@@ -3076,17 +3041,12 @@ fn chroma_noise_is_measured_fitted_and_closes_the_device_output_gap() {
     );
     let beside = tempfile::tempdir().expect("tmp");
     let calibrate = |correlated: bool, name: &str| {
-        calibrate_brackets(
+        calibrate_srgb(
             tmp.path(),
-            &BracketProfileOptions {
-                scan: ScanOptions::default(),
-                response: ResponseChoice::Declared(Response::Srgb),
-                out: beside.path().join(name),
-                name: None,
-                correlated,
-            },
+            ScanOptions::default(),
+            &beside.path().join(name),
+            correlated,
         )
-        .expect("calibrate")
     };
     let white = calibrate(false, "white.toml");
     let fitted = calibrate(true, "fitted.toml");

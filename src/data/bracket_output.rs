@@ -43,7 +43,7 @@ fn window(img: Image) -> Image {
 }
 
 /// Width of the Gaussian that smooths the scene estimate, pixels.
-const SMOOTH_SIGMA: f64 = 1.5;
+const SMOOTH_SIGMA: f32 = 1.5;
 
 /// How a check is run.
 #[derive(Clone, Debug)]
@@ -314,34 +314,20 @@ fn compare(measured: &[f64], sims: &[Vec<f64>]) -> OutputCheck {
     }
 }
 
-/// `img` smoothed by a separable Gaussian of width [`SMOOTH_SIGMA`] (edges clamped).
+/// `img` smoothed per channel by [`crate::data::ground_truth::gaussian_blur`] of width
+/// [`SMOOTH_SIGMA`].
 fn smooth(img: &Image) -> Image {
-    let r = (3.0 * SMOOTH_SIGMA).ceil() as isize;
-    let k: Vec<f32> = (-r..=r)
-        .map(|i| (-((i * i) as f64) / (2.0 * SMOOTH_SIGMA * SMOOTH_SIGMA)).exp() as f32)
-        .collect();
-    let sum: f32 = k.iter().sum();
-    let k: Vec<f32> = k.iter().map(|v| v / sum).collect();
-    let (w, h) = (img.width as isize, img.height as isize);
-    let pass = |src: &Image, horizontal: bool| {
-        Image::from_fn(src.width, src.height, |x, y| {
-            let mut acc = [0.0f32; 3];
-            for (j, kv) in k.iter().enumerate() {
-                let d = j as isize - r;
-                let (sx, sy) = if horizontal {
-                    ((x as isize + d).clamp(0, w - 1), y as isize)
-                } else {
-                    (x as isize, (y as isize + d).clamp(0, h - 1))
-                };
-                let p = src.get(sx as usize, sy as usize);
-                for c in 0..3 {
-                    acc[c] += kv * p[c];
-                }
-            }
-            acc
+    let (w, h) = (img.width, img.height);
+    let planes: Vec<Vec<f32>> = (0..3)
+        .map(|c| {
+            let plane: Vec<f32> = img.data.iter().skip(c).step_by(3).copied().collect();
+            crate::data::ground_truth::gaussian_blur(&plane, w, h, SMOOTH_SIGMA)
         })
-    };
-    pass(&pass(img, true), false)
+        .collect();
+    Image::from_fn(w, h, |x, y| {
+        let i = y * w + x;
+        [planes[0][i], planes[1][i], planes[2][i]]
+    })
 }
 
 impl OutputCheck {

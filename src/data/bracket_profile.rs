@@ -27,6 +27,7 @@ use crate::data::bracket_testset::{self, Linearise, ResponseChoice};
 use crate::data::brackets::{self, BracketFrame, FrameKind, ScanOptions};
 use crate::error::{Error, Result};
 use crate::io::Image;
+use crate::sensor::effects::plan;
 use crate::sensor::metering::Metering;
 use crate::sensor::profile::{Colour, Levels, NoiseAtIso, Provenance, Response, SensorProfile};
 use std::fmt::Write as _;
@@ -96,8 +97,8 @@ fn filtered_variance(h: [f64; 3], c: [f64; 3]) -> f64 {
 /// of width `s`. Both residuals are separable: Immerkær's mask is m mᵀ, m = (1, −2, 1), so its
 /// variance is (Σ m m c)²; the low-order residual is δ − b bᵀ/9, b = (1, 1, 1).
 pub fn correlation_of_width(s: f64) -> (f64, f64) {
-    let k = crate::sensor::effects::plan::kernel(s);
-    let lag = |d| crate::sensor::effects::plan::lag_correlation(&k, d);
+    let k = plan::kernel(s);
+    let lag = |d| plan::lag_correlation(&k, d);
     let c = [1.0, lag(1), lag(2)];
     let imm = filtered_variance([1.0, -2.0, 1.0], c).powi(2) / 36.0;
     let box3 = filtered_variance([1.0, 1.0, 1.0], c);
@@ -166,7 +167,7 @@ pub fn channel_correlation_of(cross: [f64; 3], square: [f64; 3], n: usize) -> f6
         .map(|&(k, a, b)| cross[k] / (v[a] * v[b]).sqrt())
         .sum::<f64>()
         / 3.0;
-    r.clamp(0.0, crate::sensor::effects::plan::RHO_MAX)
+    r.clamp(0.0, plan::RHO_MAX)
 }
 
 /// `profile` with the channels' noise correlated by `rho` (`channel_correlation`, replacing one
@@ -176,20 +177,22 @@ pub fn with_channel_correlation(profile: &SensorProfile, rho: f64) -> Option<Sen
         return None;
     }
     let mut p = profile.clone();
-    let id = crate::sensor::effects::plan::id::CHANNEL_CORRELATION;
-    p.effects.retain(|e| e.id != id);
-    let mut params = toml::Table::new();
-    params.insert("rho".into(), rho.into());
-    p.effects.push(crate::sensor::effects::plan::EffectSpec {
-        id: id.into(),
-        params,
-    });
+    set_rho(&mut p, plan::id::CHANNEL_CORRELATION, rho);
     let _ = write!(
         p.provenance.noise,
         "; the channels' noise correlated by {rho:.3} as measured (Immerkær residuals of \
          flat pixels, 8-bit rounding removed)"
     );
     Some(p)
+}
+
+/// Effect `id` with parameter `rho` in `p`, replacing one it had.
+fn set_rho(p: &mut SensorProfile, id: &str, rho: f64) {
+    p.effects.retain(|e| e.id != id);
+    p.effects.push(plan::EffectSpec {
+        id: id.into(),
+        params: toml::Table::from_iter([("rho".to_string(), rho.into())]),
+    });
 }
 
 /// Fit [`CorrelationFit`] to the bins: the width by bisection (the ratio grows with it).
@@ -204,7 +207,7 @@ fn fit_correlation(bins: &[NoiseBin]) -> CorrelationFit {
     });
     let finite: Vec<f64> = ratio.iter().copied().filter(|r| r.is_finite()).collect();
     let target = finite.iter().sum::<f64>() / finite.len().max(1) as f64;
-    let top = crate::sensor::effects::plan::width(crate::sensor::effects::plan::RHO_MAX);
+    let top = plan::width(plan::RHO_MAX);
     let width = if target.is_nan() || target <= 1.0 {
         0.0
     } else if correlation_of_width(top).0 <= target {
@@ -221,11 +224,11 @@ fn fit_correlation(bins: &[NoiseBin]) -> CorrelationFit {
         }
         0.5 * (lo + hi)
     };
-    let k = crate::sensor::effects::plan::kernel(width);
+    let k = plan::kernel(width);
     CorrelationFit {
         ratio,
         width,
-        rho: crate::sensor::effects::plan::lag_correlation(&k, 1),
+        rho: plan::lag_correlation(&k, 1),
         immerkaer_fraction: correlation_of_width(width).1,
     }
 }
@@ -249,14 +252,7 @@ pub fn with_correlation(
             row.b[c] /= fit.immerkaer_fraction;
         }
     }
-    let id = crate::sensor::effects::plan::id::CORRELATED_NOISE;
-    p.effects.retain(|e| e.id != id);
-    let mut params = toml::Table::new();
-    params.insert("rho".into(), fit.rho.into());
-    p.effects.push(crate::sensor::effects::plan::EffectSpec {
-        id: id.into(),
-        params,
-    });
+    set_rho(&mut p, plan::id::CORRELATED_NOISE, fit.rho);
     let _ = write!(
         p.provenance.noise,
         "; spatially correlated as measured (low-order/Immerkær ratio {:.3} {:.3} {:.3} →          Gaussian kernel width {:.3}, lag-1 correlation {:.3}; a, b divided by {:.4}, the          fraction of the per-pixel variance Immerkær's residual sees)",
@@ -686,6 +682,17 @@ fn metered(set: &brackets::BracketSet, lin: &Linearise) -> Result<MeteredFrame> 
 }
 
 impl BracketCalibration {
+    /// Whether the measured correlation `value` of effect `id` is in the profile, and why not.
+    fn written(&self, id: &str, value: f64, otherwise: &str) -> String {
+        if self.profile.effects.iter().any(|e| e.id == id) {
+            format!("the profile's {id}")
+        } else if value >= MIN_RHO {
+            "not written: --correlated writes it".into()
+        } else {
+            format!("below {MIN_RHO}: {otherwise}")
+        }
+    }
+
     /// The command's report.
     pub fn report(&self, out: &Path) -> String {
         let mut s = String::new();
@@ -738,35 +745,21 @@ impl BracketCalibration {
             f.ratio[2],
             f.width,
             f.rho,
-            if self
-                .profile
-                .effects
-                .iter()
-                .any(|e| e.id == crate::sensor::effects::plan::id::CORRELATED_NOISE)
-            {
-                "the profile's correlated_noise"
-            } else if f.rho >= MIN_RHO {
-                "not written: --correlated writes it"
-            } else {
-                "below 0.02: the profile's noise is white"
-            }
+            self.written(
+                plan::id::CORRELATED_NOISE,
+                f.rho,
+                "the profile's noise is white"
+            )
         );
         let _ = writeln!(
             s,
             "channel correlation of the noise: {:.3} ({})",
             self.channel_correlation,
-            if self
-                .profile
-                .effects
-                .iter()
-                .any(|e| e.id == crate::sensor::effects::plan::id::CHANNEL_CORRELATION)
-            {
-                "the profile's channel_correlation"
-            } else if self.channel_correlation >= MIN_RHO {
-                "not written: --correlated writes it"
-            } else {
-                "below 0.02: the channels' noise is independent"
-            }
+            self.written(
+                plan::id::CHANNEL_CORRELATION,
+                self.channel_correlation,
+                "the channels' noise is independent"
+            )
         );
         for m in &self.metering {
             let _ = writeln!(

@@ -157,7 +157,6 @@ pub fn run(opts: &LoopOptions) -> Result<LoopSummary> {
 
     let (cal_result, calibrated, extra) = calibrate(opts, &cal_scan, &profiles)?;
     let fit = &cal_result.correlation;
-    let profile = SensorProfile::load(&calibrated)?;
     let testset = opts.out.join("testset");
     if !testset.join(crate::data::encoding::ENCODING_FILE).is_file() {
         stage(opts, "building the test set from the test scenes");
@@ -182,7 +181,12 @@ pub fn run(opts: &LoopOptions) -> Result<LoopSummary> {
         cal_result.channel_correlation,
         metering_rule(&cal_result.metering),
     );
-    let isos: Vec<toml::Value> = profile.noise.iter().map(|r| r.iso.into()).collect();
+    let isos: Vec<toml::Value> = cal_result
+        .profile
+        .noise
+        .iter()
+        .map(|r| r.iso.into())
+        .collect();
     let cfg = ablate_config(opts, &base, &testset, &steps, &isos);
     let cfg_path = opts.out.join("loop_ablate.toml");
     crate::io::atomic::write_atomic(
