@@ -68,6 +68,19 @@ fn bench(c: &mut Criterion) {
             pool.install(|| r.apply_into(&input, seed, &mut out))
         })
     });
+    // Chroma noise alone: the three draws of every pixel mixed.
+    let mut chroma = profile.clone();
+    chroma.effects.push(hdrsynth::sensor::profile::EffectSpec {
+        id: "channel_correlation".into(),
+        params: "rho = 0.3".parse().expect("params"),
+    });
+    let r = Realism::new(&chroma, &RealismOptions::new(800.0)).expect("realism");
+    g.bench_function("Gaussian+channel_correlation/4032x3024/1t", |b| {
+        b.iter(|| {
+            seed += 1;
+            pool.install(|| r.apply_into(&input, seed, &mut out))
+        })
+    });
     g.finish();
 }
 
