@@ -40,6 +40,11 @@ pub struct Args {
     /// Largest gap between capture times within one set, seconds.
     #[arg(long, default_value_t = ScanOptions::default().max_gap_s)]
     pub max_gap: f64,
+    /// Frames of one exposure within a set are repeated captures (as `calibrate brackets
+    /// --repeats`): the profile's noise is their temporal noise; the test sets use each
+    /// exposure's first capture.
+    #[arg(long)]
+    pub repeats: bool,
     /// Output folder: profiles/, testset/, experiment/ (the grid), loop.md.
     #[arg(long)]
     pub out: PathBuf,
@@ -54,6 +59,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         scan: ScanOptions {
             evs: args.declared_evs.clone(),
             max_gap_s: args.max_gap,
+            repeats: args.repeats,
             ..ScanOptions::default()
         },
         inputs: args.inputs.clone().unwrap_or_default(),

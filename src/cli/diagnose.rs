@@ -82,7 +82,7 @@ pub fn run(args: &Args) -> Result<String> {
                     evs: args.declared_evs.clone(),
                     max_gap_s: args.max_gap,
                     region: args.region,
-                    sets: Vec::new(),
+                    ..ScanOptions::default()
                 },
                 response: ResponseChoice::new(args.profile.as_deref(), args.response.as_ref())?,
                 diagnose: opts,

@@ -155,7 +155,7 @@ pub fn bracket_options(args: &Args) -> Result<BracketOptions> {
             evs: args.declared_evs.clone(),
             max_gap_s: args.max_gap,
             region: args.region,
-            sets: Vec::new(),
+            ..ScanOptions::default()
         },
         response,
         align: args.align.then(MtbOptions::default),

@@ -18,7 +18,7 @@
 //! does, makes its channels' noise move together). Each names what would close it: the
 //! profile's noise (a, b), the catalogue's `correlated_noise` and `channel_correlation`.
 
-use crate::data::bracket_profile::{self, NoiseBin};
+use crate::data::bracket_profile::{self, NoiseBin, Planes};
 use crate::data::bracket_testset::{self, FIELD_GAMMA, Linearise};
 use crate::data::brackets::{self, ScanOptions};
 use crate::error::Result;
@@ -93,9 +93,12 @@ struct FrameStats {
 fn measure(frames: &[(Image, f64)], response: &crate::sensor::profile::Response) -> FrameStats {
     let mut s = FrameStats::default();
     for (code, iso) in frames {
-        s.bins
-            .extend(bracket_profile::noise_bins(code, *iso, response));
-        let (cross, square, _) = bracket_profile::channel_moments(code);
+        s.bins.extend(bracket_profile::noise_bins(
+            Planes::frame(code),
+            *iso,
+            response,
+        ));
+        let (cross, square, _) = bracket_profile::channel_moments(Planes::frame(code));
         for k in 0..3 {
             s.cross[k] += cross[k];
             s.square[k] += square[k];

@@ -8,7 +8,10 @@
 //!   Σ mask² = 36, so σ² = σ²_residual / 36 for white noise), per code bin; less the 8-bit
 //!   rounding the simulation adds back (1/12 code²); carried to the linear domain through the
 //!   profile's own response (σ_lin = σ_code / R'(x)), so simulating with the profile puts the
-//!   measured σ back at each code; then σ² = a·x + b by weighted least squares;
+//!   measured σ back at each code; then σ² = a·x + b by weighted least squares. Where sets
+//!   hold repeated captures (`ScanOptions::repeats`), the same statistics are taken on the
+//!   difference of each pair of captures of one exposure, /√2, binned by their mean code:
+//!   temporal noise, with no scene texture in the residual (module `noise`);
 //! - the spatial correlation of that noise: per bin the ratio of the variance of a low-order
 //!   residual (pixel − 3×3 mean, 8/9 σ² for white noise) to Immerkær's, 1 for white noise and
 //!   above 1 where the device's processing (denoising, demosaicking, compression) correlates
@@ -26,24 +29,15 @@
 use crate::data::bracket_testset::{self, Linearise, ResponseChoice};
 use crate::data::brackets::{self, BracketFrame, FrameKind, ScanOptions};
 use crate::error::{Error, Result};
-use crate::io::Image;
 use crate::sensor::effects::plan;
 use crate::sensor::metering::Metering;
-use crate::sensor::profile::{Colour, Levels, NoiseAtIso, Provenance, Response, SensorProfile};
+use crate::sensor::profile::{Colour, Levels, Provenance, SensorProfile};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-/// Code bins of the noise measurement (of the 3×3 mean code).
-pub(crate) const BINS: usize = 16;
-/// Fewest flat pixels for a bin's σ.
-const MIN_PIXELS: usize = 200;
-/// Of each bin's pixels, the flattest fraction (smallest local gradient) is measured.
-const FLAT_FRACTION: f64 = 0.5;
-/// Codes at or beyond these (of 255) are clipped or crushed: no noise survives there.
-const LOW_CODE: f64 = 3.0 / 255.0;
-const HIGH_CODE: f64 = 250.0 / 255.0;
-/// MAD → σ for a normal distribution.
-const MAD_SIGMA: f64 = 1.482_602_218_505_602;
+mod noise;
+pub use noise::NoiseBin;
+pub(crate) use noise::{BINS, Planes, channel_moments, merge_bins, noise_bins};
 
 #[derive(Clone, Debug)]
 pub struct BracketProfileOptions {
@@ -104,55 +98,6 @@ pub fn correlation_of_width(s: f64) -> (f64, f64) {
     let box3 = filtered_variance([1.0, 1.0, 1.0], c);
     let low = (1.0 - 2.0 / 9.0 * (c[0] + 2.0 * c[1]).powi(2) + box3 * box3 / 81.0) / (8.0 / 9.0);
     (low / imm, imm)
-}
-
-/// The channels' Immerkær residuals on the flattest half of the pixels whose 3×3 windows are
-/// unclipped in every channel: (Σ r_R r_G, Σ r_G r_B, Σ r_R r_B), (Σ r_R², Σ r_G², Σ r_B²) and
-/// the pixel count.
-pub(crate) fn channel_moments(code: &Image) -> ([f64; 3], [f64; 3], usize) {
-    let (w, h) = (code.width, code.height);
-    let mut px: Vec<(f64, [f64; 3])> = Vec::new();
-    if w < 5 || h < 5 {
-        return ([0.0; 3], [0.0; 3], 0);
-    }
-    let v = |x: usize, y: usize, c: usize| code.data[(y * w + x) * 3 + c];
-    for y in 2..h - 2 {
-        'pixel: for x in 2..w - 2 {
-            let mut r = [0.0; 3];
-            let mut g = 0.0;
-            for (c, rc) in r.iter_mut().enumerate() {
-                for dy in 0..3 {
-                    for dx in 0..3 {
-                        let p = v(x + dx - 1, y + dy - 1, c);
-                        if f64::from(p) <= LOW_CODE || f64::from(p) >= HIGH_CODE {
-                            continue 'pixel;
-                        }
-                    }
-                }
-                let f = |x: usize, y: usize| f64::from(v(x, y, c));
-                *rc = 4.0 * f(x, y) - 2.0 * (f(x - 1, y) + f(x + 1, y) + f(x, y - 1) + f(x, y + 1))
-                    + f(x - 1, y - 1)
-                    + f(x + 1, y - 1)
-                    + f(x - 1, y + 1)
-                    + f(x + 1, y + 1);
-                g += (f(x + 2, y) - f(x - 2, y)).abs() + (f(x, y + 2) - f(x, y - 2)).abs();
-            }
-            px.push((g, r));
-        }
-    }
-    px.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let keep = &px[..px.len() / 2];
-    let mut cross = [0.0; 3];
-    let mut square = [0.0; 3];
-    for (_, r) in keep {
-        cross[0] += r[0] * r[1];
-        cross[1] += r[1] * r[2];
-        cross[2] += r[0] * r[2];
-        for c in 0..3 {
-            square[c] += r[c] * r[c];
-        }
-    }
-    (cross, square, keep.len())
 }
 
 /// The correlation of the channels' noise from [`channel_moments`] summed over frames, with
@@ -261,22 +206,6 @@ pub fn with_correlation(
     Some(p)
 }
 
-/// One code bin of one channel at one ISO.
-#[derive(Clone, Debug, PartialEq)]
-pub struct NoiseBin {
-    pub iso: f64,
-    pub channel: usize,
-    /// Mean code (of 1) and its linear value under the profile's response.
-    pub code: f64,
-    pub linear: f64,
-    /// σ² in codes² (of 1), quantisation removed, and carried to linear.
-    pub var_code: f64,
-    pub var_linear: f64,
-    /// Low-order over Immerkær residual variance (1 for white noise).
-    pub correlation_ratio: f64,
-    pub pixels: usize,
-}
-
 /// Where one set's auto-exposed frame put its signal.
 #[derive(Clone, Debug, PartialEq)]
 pub struct MeteredFrame {
@@ -322,6 +251,8 @@ pub struct BracketCalibration {
     pub correlation: CorrelationFit,
     /// The correlation of the channels' noise ([`channel_correlation_of`]).
     pub channel_correlation: f64,
+    /// Repeated-capture pairs the noise was measured on (0: each frame's flat regions).
+    pub repeated_pairs: usize,
     pub metering: Vec<MeteredFrame>,
     pub notes: Vec<String>,
 }
@@ -333,7 +264,7 @@ pub fn calibrate_brackets(dir: &Path, opts: &BracketProfileOptions) -> Result<Br
     if let Some(f) = scan
         .sets
         .iter()
-        .flat_map(|s| &s.frames)
+        .flat_map(|s| s.all_frames())
         .find(|f| f.kind == FrameKind::Dng)
     {
         return Err(Error::layout(
@@ -347,8 +278,12 @@ pub fn calibrate_brackets(dir: &Path, opts: &BracketProfileOptions) -> Result<Br
         Linearise::Curve(r) => r.clone(),
         Linearise::Table(t) => bracket_testset::table_response(t),
     };
-    let frames: Vec<&BracketFrame> = scan.sets.iter().flat_map(|s| &s.frames).collect();
-    let (bins, rows, channel_correlation) = measure_noise(&frames, &response, &mut notes)?;
+    let noise::Measured {
+        bins,
+        rows,
+        channel_correlation,
+        pairs,
+    } = noise::measure_noise(&scan.sets, &response, &mut notes)?;
     let metering = scan
         .sets
         .iter()
@@ -396,12 +331,7 @@ pub fn calibrate_brackets(dir: &Path, opts: &BracketProfileOptions) -> Result<Br
         profile.noise.push(row);
     }
     profile.noise.sort_by(|a, b| a.iso.total_cmp(&b.iso));
-    profile.provenance.noise = format!(
-        "output-domain noise of bracket folder {} (`hdrsynth calibrate brackets`): MAD σ of \
-         Immerkær's residual on the flattest half of each code bin's pixels, 8-bit rounding \
-         removed, carried to linear through the profile's response, σ² = a·x + b by WLS",
-        dir.display()
-    );
+    profile.provenance.noise = noise_provenance(dir, pairs);
     let correlation = fit_correlation(&bins);
     if opts.correlated {
         let isos: Vec<f64> = bins.iter().map(|b| b.iso).collect();
@@ -412,7 +342,7 @@ pub fn calibrate_brackets(dir: &Path, opts: &BracketProfileOptions) -> Result<Br
             profile = p;
         }
     }
-    for f in &frames {
+    for f in scan.sets.iter().flat_map(|s| s.all_frames()) {
         let source = brackets::frame_source(f)?;
         if !profile.calibrated_on.contains(&source) {
             profile.calibrated_on.push(source);
@@ -437,208 +367,28 @@ pub fn calibrate_brackets(dir: &Path, opts: &BracketProfileOptions) -> Result<Br
         correlation_ratio,
         correlation,
         channel_correlation,
+        repeated_pairs: pairs,
         metering,
         notes,
     })
 }
 
-/// The noise bins of every frame, pooled per ISO (EXIF; 100 where absent, noted), and each
-/// ISO's fitted row where two or more code levels per channel allow one.
-fn measure_noise(
-    frames: &[&BracketFrame],
-    response: &Response,
-    notes: &mut Vec<String>,
-) -> Result<(Vec<NoiseBin>, Vec<NoiseAtIso>, f64)> {
-    let (mut cross, mut square, mut count) = ([0.0; 3], [0.0; 3], 0);
-    let mut by_iso: Vec<(f64, Vec<&BracketFrame>)> = Vec::new();
-    for f in frames {
-        let iso = f.exif.iso.unwrap_or(100.0);
-        match by_iso.iter_mut().find(|(i, _)| *i == iso) {
-            Some((_, v)) => v.push(f),
-            None => by_iso.push((iso, vec![f])),
-        }
-    }
-    if frames.iter().any(|f| f.exif.iso.is_none()) {
-        notes.push("frames without EXIF ISO are taken as ISO 100".into());
-    }
-    by_iso.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let (mut bins, mut rows) = (Vec::new(), Vec::new());
-    for (iso, group) in &by_iso {
-        let mut iso_bins = Vec::new();
-        for f in group {
-            let code = brackets::read_frame_image(f)?;
-            iso_bins.extend(noise_bins(&code, *iso, response));
-            let (c, q, n) = channel_moments(&code);
-            for k in 0..3 {
-                cross[k] += c[k];
-                square[k] += q[k];
-            }
-            count += n;
-        }
-        let merged = merge_bins(&iso_bins);
-        match fit_row(*iso, &merged) {
-            Some(row) => rows.push(row),
-            None => notes.push(format!(
-                "ISO {iso}: too few flat pixels at two or more code levels per channel for a \
-                 noise fit; no noise row"
-            )),
-        }
-        bins.extend(merged);
-    }
-    Ok((bins, rows, channel_correlation_of(cross, square, count)))
-}
-
-/// One interior pixel of one channel: the scene's local gradient, Immerkær's residual, the
-/// low-order residual (pixel − 3×3 mean) and the 3×3 mean code.
-#[derive(Clone, Copy)]
-struct Residual {
-    gradient: f64,
-    immerkaer: f64,
-    low_order: f64,
-    mean: f64,
-}
-
-/// The noise bins of one frame's codes (values of 1), per channel.
-pub(crate) fn noise_bins(code: &Image, iso: f64, response: &Response) -> Vec<NoiseBin> {
-    let (w, h) = (code.width, code.height);
-    let mut out = Vec::new();
-    if w < 5 || h < 5 {
-        return out;
-    }
-    for c in 0..3 {
-        let v = |x: usize, y: usize| f64::from(code.data[(y * w + x) * 3 + c]);
-        let mut per_bin: Vec<Vec<Residual>> = vec![Vec::new(); BINS];
-        for y in 2..h - 2 {
-            for x in 2..w - 2 {
-                let mut sum = 0.0;
-                let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-                for dy in 0..3 {
-                    for dx in 0..3 {
-                        let p = v(x + dx - 1, y + dy - 1);
-                        sum += p;
-                        lo = lo.min(p);
-                        hi = hi.max(p);
-                    }
-                }
-                if lo <= LOW_CODE || hi >= HIGH_CODE {
-                    continue;
-                }
-                let mean = sum / 9.0;
-                let imm = 4.0 * v(x, y)
-                    - 2.0 * (v(x - 1, y) + v(x + 1, y) + v(x, y - 1) + v(x, y + 1))
-                    + v(x - 1, y - 1)
-                    + v(x + 1, y - 1)
-                    + v(x - 1, y + 1)
-                    + v(x + 1, y + 1);
-                // The local gradient of the scene, on 3-pixel baselines so noise weighs less.
-                let gx = (v(x + 2, y) - v(x - 2, y)).abs();
-                let gy = (v(x, y + 2) - v(x, y - 2)).abs();
-                let bin = ((mean * BINS as f64) as usize).min(BINS - 1);
-                per_bin[bin].push(Residual {
-                    gradient: gx + gy,
-                    immerkaer: imm,
-                    low_order: v(x, y) - mean,
-                    mean,
-                });
-            }
-        }
-        for px in per_bin.iter_mut() {
-            if px.len() < 2 * MIN_PIXELS {
-                continue;
-            }
-            px.sort_by(|a, b| a.gradient.total_cmp(&b.gradient));
-            let keep = &px[..(px.len() as f64 * FLAT_FRACTION) as usize];
-            let mad = |f: fn(&Residual) -> f64| {
-                let mut a: Vec<f64> = keep.iter().map(|p| f(p).abs()).collect();
-                MAD_SIGMA * crate::stats::median(&mut a)
-            };
-            let s_imm = mad(|p| p.immerkaer);
-            let s_low = mad(|p| p.low_order);
-            let var_imm = s_imm * s_imm / 36.0;
-            let mean = keep.iter().map(|p| p.mean).sum::<f64>() / keep.len() as f64;
-            let var_code = var_imm - 1.0 / (12.0 * 255.0 * 255.0);
-            let x = response.invert(mean);
-            let slope = response.slope(x.clamp(1e-6, 1.0 - 1e-6));
-            out.push(NoiseBin {
-                iso,
-                channel: c,
-                code: mean,
-                linear: x,
-                var_code,
-                var_linear: var_code / (slope * slope),
-                correlation_ratio: if var_imm > 0.0 {
-                    s_low * s_low / (8.0 / 9.0) / var_imm
-                } else {
-                    f64::NAN
-                },
-                pixels: keep.len(),
-            });
-        }
-    }
-    out
-}
-
-/// Bins of several frames at one ISO pooled per channel and code bin (pixel-weighted).
-pub(crate) fn merge_bins(bins: &[NoiseBin]) -> Vec<NoiseBin> {
-    let mut out: Vec<NoiseBin> = Vec::new();
-    for b in bins {
-        let key = |o: &NoiseBin| {
-            o.channel == b.channel
-                && ((o.code * BINS as f64) as usize).min(BINS - 1)
-                    == ((b.code * BINS as f64) as usize).min(BINS - 1)
-        };
-        match out.iter_mut().find(|o| key(o)) {
-            Some(o) => {
-                let (n0, n1) = (o.pixels as f64, b.pixels as f64);
-                let mix = |a: f64, c: f64| (a * n0 + c * n1) / (n0 + n1);
-                o.code = mix(o.code, b.code);
-                o.linear = mix(o.linear, b.linear);
-                o.var_code = mix(o.var_code, b.var_code);
-                o.var_linear = mix(o.var_linear, b.var_linear);
-                o.correlation_ratio = mix(o.correlation_ratio, b.correlation_ratio);
-                o.pixels += b.pixels;
-            }
-            None => out.push(b.clone()),
-        }
-    }
-    out.sort_by(|a, b| {
-        (a.channel, a.code)
-            .partial_cmp(&(b.channel, b.code))
-            .unwrap_or(std::cmp::Ordering::Equal)
-    });
-    out
-}
-
-/// σ²_lin = a·x + b per channel over the bins with positive variance; a, b ≥ 0.
-fn fit_row(iso: f64, bins: &[NoiseBin]) -> Option<NoiseAtIso> {
-    let mut a = [0.0; 3];
-    let mut b = [0.0; 3];
-    for c in 0..3 {
-        let points: Vec<crate::stats::Point> = bins
-            .iter()
-            .filter(|k| k.channel == c && k.var_linear > 0.0 && k.linear > 0.0)
-            .map(|k| crate::stats::Point {
-                x: k.linear,
-                y: k.var_linear,
-                // A MAD variance has about 2.7/n relative variance for normal data.
-                se: k.var_linear * (2.7 / k.pixels as f64).sqrt(),
-                n: k.pixels,
-            })
-            .collect();
-        if points.len() < 2 {
-            return None;
-        }
-        let fit = crate::stats::wls(&points)?;
-        a[c] = fit.a.max(0.0);
-        b[c] = fit.b.max(0.0);
-    }
-    Some(NoiseAtIso {
-        iso,
-        a,
-        b,
-        a_stderr: None,
-        b_stderr: None,
-    })
+/// How the noise of bracket folder `dir` was measured (`pairs` repeated-capture pairs).
+fn noise_provenance(dir: &Path, pairs: usize) -> String {
+    let residual = if pairs > 0 {
+        format!(
+            "temporal noise: MAD σ of Immerkær's residual of the differences of {pairs} \
+             repeated-capture pair(s), /√2, over each code bin's pixels"
+        )
+    } else {
+        "MAD σ of Immerkær's residual on the flattest half of each code bin's pixels".into()
+    };
+    format!(
+        "output-domain noise of bracket folder {} (`hdrsynth calibrate brackets`): {residual}, \
+         8-bit rounding removed, carried to linear through the profile's response, \
+         σ² = a·x + b by WLS",
+        dir.display()
+    )
 }
 
 /// The auto-exposed frame of `set` and where it put its signal.
@@ -663,7 +413,7 @@ fn metered(set: &brackets::BracketSet, lin: &Linearise) -> Result<MeteredFrame> 
     let clipped = code
         .data
         .chunks_exact(3)
-        .filter(|p| p.iter().any(|&v| f64::from(v) >= HIGH_CODE))
+        .filter(|p| p.iter().any(|&v| f64::from(v) >= noise::HIGH_CODE))
         .count() as f64
         / code.pixel_count().max(1) as f64;
     let lum = bracket_testset::linearise(frame, code, lin).luminance();
@@ -709,8 +459,16 @@ impl BracketCalibration {
         );
         let _ = writeln!(
             s,
-            "output-domain noise (per ISO, channel, code bin): code, linear, σ_code (8-bit \
-             codes), σ²_lin, low/high-order variance ratio (1 = white noise), pixels"
+            "output-domain noise (per ISO, channel, code bin) {}: code, linear, σ_code (8-bit \
+             codes), σ²_lin, low/high-order variance ratio (1 = white noise), pixels",
+            if self.repeated_pairs > 0 {
+                format!(
+                    "from the differences of {} repeated-capture pair(s)",
+                    self.repeated_pairs
+                )
+            } else {
+                "from each frame's flat regions".into()
+            }
         );
         for b in &self.bins {
             let _ = writeln!(

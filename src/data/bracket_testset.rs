@@ -614,11 +614,19 @@ pub fn resolve_linearisation(
         ResponseChoice::Debevec(_) => ("Debevec–Malik", CRF_FILE),
         ResponseChoice::Robertson(_) => ("Robertson", CRF_ROBERTSON_FILE),
     };
-    let ldr = sets
-        .iter()
-        .find(|s| s.frames.iter().all(|f| f.kind == FrameKind::Ldr));
-    let Some(set) = ldr else {
-        return Ok(Linearise::Curve(Response::Linear));
+    let is_ldr = |s: &&brackets::BracketSet| s.frames.iter().all(|f| f.kind == FrameKind::Ldr);
+    let Some(set) = sets.iter().filter(is_ldr).find(|s| s.frames.len() >= 2) else {
+        return match sets.iter().find(is_ldr) {
+            // Bursts of one exposure (repeated captures) say nothing about the response.
+            Some(burst) => Err(Error::layout(
+                &burst.frames[0].path,
+                format!(
+                    "no set has two or more exposures to estimate the {name} response from; \
+                     declare the response (--response srgb, gamma:G or a profile's)"
+                ),
+            )),
+            None => Ok(Linearise::Curve(Response::Linear)),
+        };
     };
     let frames = set
         .frames

@@ -17,8 +17,10 @@
 //! Grouping: each folder (the root and each direct sub-folder) is split into sets in capture
 //! order (EXIF DateTimeOriginal + SubSecTimeOriginal when every frame has it, else file-name
 //! order); a new set starts where an exposure repeats within the current set or where the
-//! capture times are more than `max_gap_s` apart. How each set was grouped, and anything
-//! ambiguous (sets of differing sizes, times missing on some frames), is reported.
+//! capture times are more than `max_gap_s` apart. With `repeats`, frames of one exposure and
+//! ISO stay in their set as repeated captures (a burst, for temporal noise); only time gaps,
+//! sub-folders and declared EVs split. How each set was grouped, and anything ambiguous (sets
+//! of differing sizes, times missing on some frames), is reported.
 //! Frames whose exposure cannot be determined are refused, named.
 //!
 //! Orientation: the EXIF/TIFF Orientation tag (1–8) is read with the exposure tags and applied
@@ -30,6 +32,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 mod frame;
+mod grouping;
 use frame::days_from_civil;
 pub use frame::{Region, frame_source, orient, read_frame_image, set_sources};
 
@@ -50,6 +53,9 @@ pub struct ScanOptions {
     pub region: Option<Region>,
     /// Keep only the sets of these names (empty: every set); a name not found is an error.
     pub sets: Vec<String>,
+    /// Frames of one exposure within a set are repeated captures ([`BracketSet::repeats`]),
+    /// not the start of a new set.
+    pub repeats: bool,
 }
 
 impl Default for ScanOptions {
@@ -59,6 +65,7 @@ impl Default for ScanOptions {
             max_gap_s: 5.0,
             region: None,
             sets: Vec::new(),
+            repeats: false,
         }
     }
 }
@@ -107,6 +114,16 @@ pub struct BracketSet {
     pub exposure_source: String,
     /// How the set was grouped.
     pub grouping: String,
+    /// Repeated captures (only with [`ScanOptions::repeats`]): each has the exposure and ISO
+    /// of one of `frames`; in capture order.
+    pub repeats: Vec<BracketFrame>,
+}
+
+impl BracketSet {
+    /// Every frame of the set: its exposures, then its repeated captures.
+    pub fn all_frames(&self) -> impl Iterator<Item = &BracketFrame> {
+        self.frames.iter().chain(&self.repeats)
+    }
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -518,8 +535,10 @@ pub fn scan(root: &Path, opts: &ScanOptions) -> Result<BracketScan> {
         }
         scan.sets.retain(|s| opts.sets.contains(&s.name));
     }
-    for f in scan.sets.iter_mut().flat_map(|s| s.frames.iter_mut()) {
-        f.region = opts.region;
+    for s in scan.sets.iter_mut() {
+        for f in s.frames.iter_mut().chain(s.repeats.iter_mut()) {
+            f.region = opts.region;
+        }
     }
     let sizes: Vec<usize> = scan.sets.iter().map(|s| s.frames.len()).collect();
     if sizes.iter().any(|&n| n != sizes[0]) {
@@ -583,8 +602,8 @@ fn scan_folder(
         ));
     }
 
-    let (groups, gaps) = group_sets(&frames, &order, &stops, timed, opts);
-    let how = grouping_text(groups.len(), prefix, timed, opts);
+    let (groups, gaps) = grouping::group_sets(&frames, &order, &stops, timed, opts);
+    let how = grouping::grouping_text(groups.len(), prefix, timed, opts);
     if gaps > 0 {
         out.notes.push(format!(
             "{where_}: {gaps} set boundar{} from capture-time gaps alone (no repeated exposure)",
@@ -597,12 +616,14 @@ fn scan_folder(
             (false, _) => format!("{prefix}_{:03}", k + 1),
             (true, _) => format!("set_{:03}", k + 1),
         };
-        let set_frames = set_frames(&name, &how, g, &frames, &stops)?;
+        let (set_frames, repeats) =
+            grouping::set_frames(&name, &how, g, &frames, &stops, opts.repeats)?;
         out.sets.push(BracketSet {
             name,
             frames: set_frames,
             exposure_source: source.clone(),
             grouping: how.clone(),
+            repeats,
         });
     }
     Ok(Ok(()))
@@ -660,137 +681,4 @@ fn folder_stops(
         .map(|(p, e, _)| (p.clone(), e.clone()))
         .collect();
     Ok(exif_stops(&exif))
-}
-
-/// Split into sets in capture order: a new set where an exposure repeats (or the declared EVs
-/// are used up) or, with capture times, where they are more than `max_gap_s` apart. Returns
-/// the sets and how many boundaries came from time gaps alone.
-fn group_sets(
-    frames: &Frames,
-    order: &[usize],
-    stops: &[f64],
-    timed: bool,
-    opts: &ScanOptions,
-) -> (Vec<Vec<usize>>, usize) {
-    let mut groups: Vec<Vec<usize>> = Vec::new();
-    let mut gaps = 0;
-    for &i in order {
-        let start_new = match groups.last() {
-            None => true,
-            Some(g) => {
-                let repeat = opts.evs.as_ref().map_or_else(
-                    || g.iter().any(|&j| (stops[j] - stops[i]).abs() < SAME_STOP),
-                    |evs| g.len() == evs.len(),
-                );
-                let gap = timed && {
-                    let prev = frames[*g.last().unwrap_or(&i)].1.captured_s.unwrap_or(0.0);
-                    frames[i].1.captured_s.unwrap_or(0.0) - prev > opts.max_gap_s
-                };
-                if gap && !repeat {
-                    gaps += 1;
-                }
-                repeat || gap
-            }
-        };
-        if start_new {
-            groups.push(vec![i]);
-        } else if let Some(g) = groups.last_mut() {
-            g.push(i);
-        }
-    }
-    (groups, gaps)
-}
-
-/// How the folder was grouped, in words (the sets' `grouping`).
-fn grouping_text(n_groups: usize, prefix: &str, timed: bool, opts: &ScanOptions) -> String {
-    let order_what = if timed {
-        "EXIF capture time"
-    } else {
-        "file name"
-    };
-    if n_groups == 1 {
-        if prefix.is_empty() {
-            format!("all frames of the folder ({order_what} order)")
-        } else {
-            format!("sub-folder {prefix}")
-        }
-    } else {
-        format!(
-            "{}: in {order_what} order, a new set where an exposure repeats{}",
-            if prefix.is_empty() {
-                "the folder".to_string()
-            } else {
-                format!("sub-folder {prefix}")
-            },
-            if timed {
-                format!(" or capture times are > {} s apart", opts.max_gap_s)
-            } else {
-                String::new()
-            }
-        )
-    }
-}
-
-/// The frames `g` of set `name` (grouped `how`) in ascending stop; an error for a set of one
-/// frame, of mixed EXIF orientations or with a repeated exposure.
-fn set_frames(
-    name: &str,
-    how: &str,
-    g: &[usize],
-    frames: &Frames,
-    stops: &[f64],
-) -> Result<Vec<BracketFrame>> {
-    if g.len() < 2 {
-        return Err(Error::layout(
-            &frames[g[0]].0,
-            format!(
-                "set '{name}' ({how}) holds only this frame; a bracket needs at least two \
-                 exposures"
-            ),
-        ));
-    }
-    let mut set_frames: Vec<BracketFrame> = g
-        .iter()
-        .map(|&i| BracketFrame {
-            path: frames[i].0.clone(),
-            kind: frames[i].2,
-            exif: frames[i].1.clone(),
-            stop: stops[i],
-            region: None,
-        })
-        .collect();
-    set_frames.sort_by(|a, b| a.stop.total_cmp(&b.stop));
-    let orient_of = |f: &BracketFrame| f.exif.orientation.unwrap_or(1);
-    if set_frames
-        .iter()
-        .any(|f| orient_of(f) != orient_of(&set_frames[0]))
-    {
-        return Err(Error::layout(
-            &set_frames[0].path,
-            format!(
-                "set '{name}': its frames have different EXIF orientations ({}); the frames \
-                 of one bracket must be captured in one orientation",
-                set_frames
-                    .iter()
-                    .map(|f| format!("{} {}", f.path.display(), orient_of(f)))
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            ),
-        ));
-    }
-    if let Some(w) = set_frames
-        .windows(2)
-        .find(|w| (w[1].stop - w[0].stop).abs() < SAME_STOP)
-    {
-        return Err(Error::layout(
-            &w[1].path,
-            format!(
-                "set '{name}': same exposure as {} (stop {:.3}); a bracket needs distinct \
-                 exposures",
-                w[0].path.display(),
-                w[0].stop
-            ),
-        ));
-    }
-    Ok(set_frames)
 }

@@ -116,7 +116,7 @@ fn split(opts: &LoopOptions) -> Result<(ScanOptions, ScanOptions, Vec<String>, V
         brackets::scan(&opts.brackets, scan)?
             .sets
             .iter()
-            .flat_map(|s| &s.frames)
+            .flat_map(|s| s.all_frames())
             .map(brackets::frame_source)
             .collect()
     };
@@ -218,7 +218,7 @@ pub fn run(opts: &LoopOptions) -> Result<LoopSummary> {
 /// run's, silently.
 fn keep_split(opts: &LoopOptions, cal: &[String], test: &[String]) -> Result<()> {
     let region = |r: Option<Region>| r.map_or("whole frames".to_string(), |r| r.to_string());
-    let text = format!(
+    let mut text = format!(
         "# What this loop folder was made with; another split needs another folder.\n\
          brackets = {:?}\ncalibration = {:?}\ncalibration_region = {:?}\ntest = {:?}\n\
          test_region = {:?}\ninputs = {:?}\ngt_frames = {:?}\ndeclared_evs = {:?}\n\
@@ -233,6 +233,10 @@ fn keep_split(opts: &LoopOptions, cal: &[String], test: &[String]) -> Result<()>
         format!("{:?}", opts.scan.evs),
         opts.scan.max_gap_s
     );
+    // Written only when set, so folders made before the option read the same.
+    if opts.scan.repeats {
+        text += "repeats = true\n";
+    }
     let path = opts.out.join("split.toml");
     if path.is_file() {
         let old = crate::io::guard::read_text(&path)?;

@@ -37,6 +37,12 @@ pub struct Args {
     /// reaches 0.02; otherwise the noise is white.
     #[arg(long)]
     pub correlated: bool,
+    /// Frames of one exposure within a set are repeated captures of a static scene on a
+    /// tripod (a burst): the noise is measured from the differences of repeated frames
+    /// (temporal noise) instead of from each frame's flat regions. Only capture-time gaps and
+    /// sub-folders then split sets.
+    #[arg(long)]
+    pub repeats: bool,
 }
 
 pub fn run(args: &Args) -> anyhow::Result<String> {
@@ -48,6 +54,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
                 max_gap_s: args.max_gap,
                 region: args.region,
                 sets: Vec::new(),
+                repeats: args.repeats,
             },
             response: ResponseChoice::new(None, args.response.as_ref())?,
             out: args.out.clone(),
