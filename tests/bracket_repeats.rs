@@ -339,3 +339,47 @@ fn a_burst_of_one_exposure_needs_a_declared_response() {
         assert!((r - 1.0).abs() < 0.1, "channel {c}: σ² ratio {r}");
     }
 }
+
+#[test]
+fn the_device_output_check_on_repeats_compares_noise_without_the_scene() {
+    use hdrsynth::data::bracket_output::{OutputCheckOptions, check};
+    let tmp = tempfile::tempdir().expect("tmp");
+    folder(tmp.path(), &STOPS, 2, Noise::White, &|_, _| Take::default());
+    let cal = calibrate(tmp.path(), repeats_scan(), srgb_choice(), false).expect("calibrate");
+    let opts = |scan| OutputCheckOptions {
+        scan,
+        replicates: 12,
+        seed: 5,
+        noise: true,
+    };
+    // On repeated pairs the profile's own noise reproduces the frames': nothing to name.
+    let temporal = check(tmp.path(), &cal.profile, &opts(repeats_scan())).expect("check");
+    for s in &temporal.stats {
+        eprintln!(
+            "{} {:.4} vs {:.4} z {:.2}",
+            s.name, s.measured, s.sim_mean, s.z
+        );
+    }
+    assert!(
+        temporal.stats.iter().all(|s| !s.significant),
+        "{temporal:?}"
+    );
+    assert_eq!(temporal.gap, 0.0);
+
+    // The first capture of each exposure alone: the scene's fine texture is in the real
+    // frames' residuals and not in the smoothed estimate the simulation renders, so the same
+    // profile looks far too quiet — the bias the pairs remove.
+    let single = tempfile::tempdir().expect("tmp");
+    for i in 0..3 {
+        let from = tmp.path().join(format!("f{i}_0.png"));
+        std::fs::copy(&from, single.path().join(format!("f{i}.png"))).expect("copy");
+    }
+    std::fs::write(single.path().join("exposure.txt"), "-2\n0\n2\n").expect("write");
+    let frames = check(single.path(), &cal.profile, &opts(ScanOptions::default())).expect("check");
+    let level = frames
+        .stats
+        .iter()
+        .find(|s| s.name.starts_with("G noise level"))
+        .expect("G level");
+    assert!(level.significant && level.z > 0.0, "{frames:?}");
+}

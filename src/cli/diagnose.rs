@@ -31,6 +31,11 @@ pub struct Args {
     /// OUT/device_output.md; docs/your_device.md, section 7).
     #[arg(long, requires = "brackets", requires = "profile")]
     pub device_output: bool,
+    /// --brackets: frames of one exposure within a set are repeated captures (as `calibrate
+    /// brackets --repeats`); the device-output check then compares the differences of
+    /// repeated pairs, which hold no scene.
+    #[arg(long, requires = "brackets")]
+    pub repeats: bool,
     /// --brackets without --profile: srgb, linear, gamma:G, debevec (default) or robertson.
     #[arg(long, conflicts_with = "profile", requires = "brackets")]
     pub response: Option<ResponseSpec>,
@@ -82,6 +87,7 @@ pub fn run(args: &Args) -> Result<String> {
                     evs: args.declared_evs.clone(),
                     max_gap_s: args.max_gap,
                     region: args.region,
+                    repeats: args.repeats,
                     ..ScanOptions::default()
                 },
                 response: ResponseChoice::new(args.profile.as_deref(), args.response.as_ref())?,

@@ -10,6 +10,12 @@
 //! Every frame is read in its central 640×480 window (all of a smaller frame), the same window
 //! for every frame of a set.
 //!
+//! Where the sets hold repeated captures (`ScanOptions::repeats`), the statistics are taken on
+//! each pair of captures of one exposure (their difference, binned by their mean, as
+//! `calibrate brackets` measures temporal noise), and each pair is simulated as two renders of
+//! the same scene estimate with different seeds: the scene cancels on both sides, so texture
+//! the smoothed estimate lacks cannot bias the comparison as it does for single frames.
+//!
 //! Statistics, per channel on flat pixels (the flattest half of each code bin, as
 //! `calibrate brackets` measures): the noise level (pixel-weighted mean over code bins of
 //! ln σ² of Immerkær's residual), its spatial correlation (the low/high-order residual
@@ -18,7 +24,7 @@
 //! does, makes its channels' noise move together). Each names what would close it: the
 //! profile's noise (a, b), the catalogue's `correlated_noise` and `channel_correlation`.
 
-use crate::data::bracket_profile::{self, NoiseBin, Planes};
+use crate::data::bracket_profile::{self, NoiseBin, Pair, Planes};
 use crate::data::bracket_testset::{self, FIELD_GAMMA, Linearise};
 use crate::data::brackets::{self, ScanOptions};
 use crate::error::Result;
@@ -89,16 +95,30 @@ struct FrameStats {
     square: [f64; 3],
 }
 
-/// What is measured on a set of frames (real, or one replicate).
-fn measure(frames: &[(Image, f64)], response: &crate::sensor::profile::Response) -> FrameStats {
+/// What the statistics are taken on: a frame, or, where the sets hold repeated captures, a
+/// pair of captures of one exposure (their difference: no scene, so the scene estimate's
+/// smoothing cannot bias the comparison).
+enum Unit {
+    Frame(Image),
+    Pair(Pair),
+}
+
+impl Unit {
+    fn planes(&self) -> Planes<'_> {
+        match self {
+            Unit::Frame(code) => Planes::frame(code),
+            Unit::Pair(p) => p.planes(),
+        }
+    }
+}
+
+/// What is measured on a set of units (real, or one replicate), each with its ISO.
+fn measure(units: &[(Unit, f64)], response: &crate::sensor::profile::Response) -> FrameStats {
     let mut s = FrameStats::default();
-    for (code, iso) in frames {
-        s.bins.extend(bracket_profile::noise_bins(
-            Planes::frame(code),
-            *iso,
-            response,
-        ));
-        let (cross, square, _) = bracket_profile::channel_moments(Planes::frame(code));
+    for (unit, iso) in units {
+        s.bins
+            .extend(bracket_profile::noise_bins(unit.planes(), *iso, response));
+        let (cross, square, _) = bracket_profile::channel_moments(unit.planes());
         for k in 0..3 {
             s.cross[k] += cross[k];
             s.square[k] += square[k];
@@ -162,9 +182,11 @@ pub fn check(
         ));
     }
     let lin = Linearise::Curve(profile.response.clone());
-    // Per set: the real frames' codes with their ISO, and the scene at each frame's exposure.
-    let mut real: Vec<(Image, f64)> = Vec::new();
-    let mut scenes: Vec<(Image, f64)> = Vec::new();
+    let temporal = scan.sets.iter().any(|s| !s.repeats.is_empty());
+    // Per set: the real units with their ISO, and the scene at each unit's exposure (a pair:
+    // rendered twice).
+    let mut real: Vec<(Unit, f64)> = Vec::new();
+    let mut scenes: Vec<(Image, f64, bool)> = Vec::new();
     for set in &scan.sets {
         let mut gamma = Vec::new();
         let mut stored = Vec::new();
@@ -173,9 +195,8 @@ pub fn check(
             let code = window(bracket_testset::code_frame(f)?);
             let linear = bracket_testset::linearise(f, code.clone(), &lin);
             gamma.push(linear.map(|v| v.clamp(0.0, 1.0).powf(1.0 / FIELD_GAMMA)));
-            stored.push(code.clone());
+            stored.push(code);
             times.push(f.stop.exp2());
-            real.push((code, f.exif.iso.unwrap_or(100.0)));
         }
         let radiance = smooth(&bracket_testset::hat_merge(
             &gamma,
@@ -183,18 +204,31 @@ pub fn check(
             &times,
             FIELD_GAMMA,
         )?);
-        for (f, t) in set.frames.iter().zip(&times) {
-            let k = *t as f32;
-            scenes.push((radiance.map(|v| v * k), f.exif.iso.unwrap_or(100.0)));
+        for ((f, t), code) in set.frames.iter().zip(&times).zip(stored) {
+            let iso = f.exif.iso.unwrap_or(100.0);
+            let scene = radiance.map(|v| v * *t as f32);
+            if !temporal {
+                real.push((Unit::Frame(code), iso));
+                scenes.push((scene, iso, false));
+                continue;
+            }
+            let mut prev = (code, &f.path);
+            for r in set.repeats_of(f) {
+                let next = window(bracket_testset::code_frame(r)?);
+                let pair = bracket_profile::checked_pair(&prev.0, &next, prev.1, &r.path)?;
+                real.push((Unit::Pair(pair), iso));
+                scenes.push((scene.clone(), iso, true));
+                prev = (next, &r.path);
+            }
         }
     }
     let measured = measure(&real, &profile.response);
     let mut sims = Vec::with_capacity(opts.replicates);
     for r in 0..opts.replicates {
-        let frames = scenes
+        let units = scenes
             .iter()
             .enumerate()
-            .map(|(j, (scene, iso))| {
+            .map(|(j, (scene, iso, pair))| {
                 let realism = Realism::new(
                     profile,
                     &RealismOptions {
@@ -209,11 +243,19 @@ pub fn check(
                         output_bits: 8,
                     },
                 )?;
-                let seed = crate::rng::mix64(opts.seed ^ crate::rng::mix64((r * 7919 + j) as u64));
-                Ok((realism.apply(scene, seed), *iso))
+                let seed = |k: u64| {
+                    crate::rng::mix64(opts.seed ^ crate::rng::mix64((r * 7919 + j) as u64) ^ k)
+                };
+                let a = realism.apply(scene, seed(0));
+                let unit = if *pair {
+                    Unit::Pair(Pair::new(&a, &realism.apply(scene, seed(1 << 40))))
+                } else {
+                    Unit::Frame(a)
+                };
+                Ok((unit, *iso))
             })
             .collect::<Result<Vec<_>>>()?;
-        sims.push(measure(&frames, &profile.response));
+        sims.push(measure(&units, &profile.response));
     }
     // The bins every replicate and the real frames have, weighted by the real pixels.
     let keys: Vec<(usize, usize, f64)> = measured

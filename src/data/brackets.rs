@@ -124,6 +124,16 @@ impl BracketSet {
     pub fn all_frames(&self) -> impl Iterator<Item = &BracketFrame> {
         self.frames.iter().chain(&self.repeats)
     }
+
+    /// The repeated captures of `frame`'s exposure, in capture order.
+    pub fn repeats_of<'a>(
+        &'a self,
+        frame: &'a BracketFrame,
+    ) -> impl Iterator<Item = &'a BracketFrame> + 'a {
+        self.repeats
+            .iter()
+            .filter(move |r| (r.stop - frame.stop).abs() < SAME_STOP)
+    }
 }
 
 #[derive(Clone, Debug, PartialEq)]

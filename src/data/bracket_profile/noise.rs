@@ -7,6 +7,7 @@ use crate::data::brackets::{self, BracketFrame, BracketSet};
 use crate::error::{Error, Result};
 use crate::io::Image;
 use crate::sensor::profile::{NoiseAtIso, Response};
+use std::path::Path;
 
 /// Code bins of the noise measurement (of the 3×3 mean code).
 pub(crate) const BINS: usize = 16;
@@ -75,10 +76,15 @@ pub(crate) fn repeated_pair(a: &BracketFrame, b: &BracketFrame) -> Result<Pair> 
         brackets::read_frame_image(a)?,
         brackets::read_frame_image(b)?,
     );
-    let both = || format!("{} and {}", a.path.display(), b.path.display());
+    checked_pair(&ia, &ib, &a.path, &b.path)
+}
+
+/// [`repeated_pair`] of two frames already read (from files `pa`, `pb`).
+pub(crate) fn checked_pair(ia: &Image, ib: &Image, pa: &Path, pb: &Path) -> Result<Pair> {
+    let both = || format!("{} and {}", pa.display(), pb.display());
     if (ia.width, ia.height) != (ib.width, ib.height) {
         return Err(Error::layout(
-            &b.path,
+            pb,
             format!(
                 "repeated captures {} differ in size ({}×{} and {}×{})",
                 both(),
@@ -89,9 +95,9 @@ pub(crate) fn repeated_pair(a: &BracketFrame, b: &BracketFrame) -> Result<Pair> 
             ),
         ));
     }
-    if let Some((dx, dy, gain)) = better_shift(&ia, &ib) {
+    if let Some((dx, dy, gain)) = better_shift(ia, ib) {
         return Err(Error::layout(
-            &b.path,
+            pb,
             format!(
                 "repeated captures {} are not aligned: shifted by ({dx}, {dy}) px they match \
                  {:.1} % better than as taken; temporal noise needs a static scene from a \
@@ -101,10 +107,10 @@ pub(crate) fn repeated_pair(a: &BracketFrame, b: &BracketFrame) -> Result<Pair> 
             ),
         ));
     }
-    let share = block_share(&ia, &ib);
+    let share = block_share(ia, ib);
     if share > MAX_BLOCK_SHARE {
         return Err(Error::layout(
-            &b.path,
+            pb,
             format!(
                 "repeated captures {} differ by more than noise: {:.0} % of their difference \
                  is smooth over 32×32 blocks (noise alone puts a few per cent there); the \
@@ -114,24 +120,31 @@ pub(crate) fn repeated_pair(a: &BracketFrame, b: &BracketFrame) -> Result<Pair> 
             ),
         ));
     }
-    let mut signal = ia.clone();
-    let mut noise = ia.clone();
-    for ((s, n), (&x, &y)) in signal
-        .data
-        .iter_mut()
-        .zip(noise.data.iter_mut())
-        .zip(ia.data.iter().zip(&ib.data))
-    {
-        let (x, y) = (f64::from(x), f64::from(y));
-        let inside = |v: f64| v > LOW_CODE && v < HIGH_CODE;
-        *s = if inside(x) && inside(y) {
-            (0.5 * (x + y)) as f32
-        } else {
-            0.0
-        };
-        *n = ((x - y) / std::f64::consts::SQRT_2) as f32;
+    Ok(Pair::new(ia, ib))
+}
+
+impl Pair {
+    /// The planes of two captures of one exposure, unchecked (simulated pairs are aligned).
+    pub fn new(ia: &Image, ib: &Image) -> Pair {
+        let mut signal = ia.clone();
+        let mut noise = ia.clone();
+        for ((s, n), (&x, &y)) in signal
+            .data
+            .iter_mut()
+            .zip(noise.data.iter_mut())
+            .zip(ia.data.iter().zip(&ib.data))
+        {
+            let (x, y) = (f64::from(x), f64::from(y));
+            let inside = |v: f64| v > LOW_CODE && v < HIGH_CODE;
+            *s = if inside(x) && inside(y) {
+                (0.5 * (x + y)) as f32
+            } else {
+                0.0
+            };
+            *n = ((x - y) / std::f64::consts::SQRT_2) as f32;
+        }
+        Pair { signal, noise }
     }
-    Ok(Pair { signal, noise })
 }
 
 /// The central window (at most 640×480) over which the pair checks run: x0, y0, w, h.
@@ -325,11 +338,7 @@ pub(crate) fn measure_noise(
         }
         for f in &set.frames {
             let mut chain = vec![f];
-            chain.extend(
-                set.repeats
-                    .iter()
-                    .filter(|r| (r.stop - f.stop).abs() < 0.05),
-            );
+            chain.extend(set.repeats_of(f));
             units.extend(chain.windows(2).map(|w| (iso_of(w[0]), w[0], Some(w[1]))));
         }
     }
