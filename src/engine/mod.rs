@@ -1,8 +1,9 @@
 //! Which engine runs a trained network on whole images. A checkpoint runs in Burn on the
-//! run's device, or — `Engine::Auto` on a CPU device, in a build with the `onnx` feature and
-//! ONNX Runtime's library present — in ONNX Runtime on the same network exported in memory:
-//! it agrees with flex within 1e-4 (tests/onnx.rs); BENCHMARKS.md has the two engines' times,
-//! which are close on the CPU. An exported file (`infer --onnx`) always runs in ONNX
+//! run's device, or — `Engine::Auto` for Network-1 on a CPU device, in a build with the `onnx`
+//! feature and ONNX Runtime's library present — in ONNX Runtime on the same network exported
+//! in memory: it agrees with flex within 1e-4 (tests/onnx.rs); BENCHMARKS.md has the two
+//! engines' times (ONNX Runtime a few per cent faster for Network-1, flex 12–19 % faster for
+//! Network-2). An exported file (`infer --onnx`) always runs in ONNX
 //! Runtime. The tiling is the same for every engine, so only kernel rounding differs.
 
 use crate::device::is_cpu;
@@ -52,11 +53,10 @@ impl LoadedNetwork {
     pub fn from_checkpoint(path: &Path, opts: &NetworkOptions, device: &Device) -> Result<Self> {
         let dir = checkpoint::resolve(path)?;
         let state = checkpoint::read_state(&dir)?;
-        let onnx = use_onnx(opts.engine, device)?;
         let (network, tiling, hdr_input_scale, runner) = match &state.model {
             ModelConfig::BlendUnet(cfg) => {
                 let model = checkpoint::load_model(cfg.init(device)?, &dir)?.valid();
-                let runner = if onnx {
+                let runner = if use_onnx(opts.engine, device, Network::Network1)? {
                     in_onnx(&model, &dir)?
                 } else {
                     Runner::Network1(model, device.clone())
@@ -65,7 +65,7 @@ impl LoadedNetwork {
             }
             ModelConfig::Wu(cfg) => {
                 let model = checkpoint::load_model(cfg.init(device)?, &dir)?.valid();
-                let runner = if onnx {
+                let runner = if use_onnx(opts.engine, device, Network::Network2)? {
                     in_onnx(&model, &dir)?
                 } else {
                     Runner::Network2(model, device.clone())
@@ -183,12 +183,16 @@ impl LoadedNetwork {
     }
 }
 
-/// Whether `engine` on `device` means ONNX Runtime.
-fn use_onnx(engine: Engine, device: &Device) -> Result<bool> {
+/// Whether `engine` on `device` means ONNX Runtime for `network`. `Auto` takes the faster
+/// engine on the CPU as BENCHMARKS.md measured it: ONNX Runtime for Network-1 (flex
+/// 1.01–1.03× its time), flex for Network-2 (0.81–0.88×).
+fn use_onnx(engine: Engine, device: &Device, network: Network) -> Result<bool> {
     match engine {
         Engine::Burn => Ok(false),
         Engine::Onnx => onnx_available().map(|_| true),
-        Engine::Auto => Ok(is_cpu(device) && onnx_available().is_ok()),
+        Engine::Auto => {
+            Ok(network == Network::Network1 && is_cpu(device) && onnx_available().is_ok())
+        }
     }
 }
 

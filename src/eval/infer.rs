@@ -44,8 +44,8 @@ pub struct NetworkOptions {
     /// Network-1's tone curve k: T(x) = (1 − e^(−kx)) / (1 − e^(−k)); 0 = none.
     #[arg(long, default_value_t = DEFAULT_TONE_K)]
     pub tone_k: f32,
-    /// Inference engine for a checkpoint: auto (ONNX Runtime on CPU when built with `onnx`
-    /// and ORT_DYLIB_PATH is set, else Burn), burn or onnx.
+    /// Inference engine for a checkpoint: auto (Network-1 in ONNX Runtime on CPU when built
+    /// with `onnx` and ORT_DYLIB_PATH is set, else Burn; Network-2 in Burn), burn or onnx.
     #[arg(long, value_enum, default_value_t = Engine::Auto)]
     pub engine: Engine,
 }
