@@ -45,6 +45,29 @@ where
     }
 }
 
+/// The median of |r| for values r of a continuous variable rounded to a lattice of step `q`
+/// (integer codes and their integer combinations): the plain median of such data jumps by a
+/// whole step, which for a noise of about one step biases a MAD σ by up to ±25 %. Each |r| is
+/// a class — [0, q/2) for 0, [(k − ½)q, (k + ½)q) for k ≥ 1 — and the median is interpolated
+/// within its class, as for grouped data. NaN for no values.
+pub fn lattice_abs_median(values: impl Iterator<Item = f64>, q: f64) -> f64 {
+    let mut k: Vec<u64> = values.map(|r| (r.abs() / q).round() as u64).collect();
+    if k.is_empty() {
+        return f64::NAN;
+    }
+    k.sort_unstable();
+    let half = k.len() as f64 / 2.0;
+    let class = k[(k.len() / 2).min(k.len() - 1)];
+    let below = k.partition_point(|&v| v < class) as f64;
+    let within = (k.partition_point(|&v| v <= class) as f64 - below).max(1.0);
+    let (lower, width) = if class == 0 {
+        (0.0, 0.5)
+    } else {
+        (class as f64 - 0.5, 1.0)
+    };
+    q * (lower + (half - below) / within * width)
+}
+
 /// Inverse of the standard normal CDF (Acklam's rational approximation, |error| < 1.2e-9).
 pub fn normal_quantile(p: f64) -> f64 {
     const A: [f64; 6] = [

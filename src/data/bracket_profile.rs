@@ -7,8 +7,10 @@
 //!   robust (MAD) σ of Immerkær's noise-estimation residual (mask [1 −2 1; −2 4 −2; 1 −2 1],
 //!   Σ mask² = 36, so σ² = σ²_residual / 36 for white noise), per code bin; less the 8-bit
 //!   rounding the simulation adds back (1/12 code²); carried to the linear domain through the
-//!   profile's own response (σ_lin = σ_code / R'(x)), so simulating with the profile puts the
-//!   measured σ back at each code; then σ² = a·x + b by weighted least squares. Where sets
+//!   profile's own response as the simulation would carry it back (the linear variance v
+//!   whose Var R(x + √v·z) over the bin's pixels is the measured code variance), so
+//!   simulating with the profile puts the measured σ back at each code; then σ² = a·x + b by
+//!   weighted least squares. Where sets
 //!   hold repeated captures (`ScanOptions::repeats`), the same statistics are taken on the
 //!   difference of each pair of captures of one exposure, /√2, binned by their mean code:
 //!   temporal noise, with no scene texture in the residual (module `noise`);

@@ -18,6 +18,8 @@ const FLAT_FRACTION: f64 = 0.5;
 /// Codes at or beyond these (of 255) are clipped or crushed: no noise survives there.
 const LOW_CODE: f64 = 3.0 / 255.0;
 pub(super) const HIGH_CODE: f64 = 250.0 / 255.0;
+/// One 8-bit code step (frames of more bits are measured as if 8-bit).
+const CODE: f64 = 1.0 / 255.0;
 /// MAD → σ for a normal distribution.
 const MAD_SIGMA: f64 = 1.482_602_218_505_602;
 /// Largest share of a repeated pair's difference variance in 32×32 block means: white noise
@@ -37,6 +39,8 @@ pub(crate) struct Planes<'a> {
     pub noise: &'a Image,
     /// Of each bin, the flattest fraction of `signal` is measured (1: every pixel).
     pub flat_fraction: f64,
+    /// The lattice `noise` lies on: 8-bit codes (1/255), a pair's difference over √2.
+    pub quantum: f64,
 }
 
 impl<'a> Planes<'a> {
@@ -46,6 +50,7 @@ impl<'a> Planes<'a> {
             signal: code,
             noise: code,
             flat_fraction: FLAT_FRACTION,
+            quantum: CODE,
         }
     }
 }
@@ -63,6 +68,7 @@ impl Pair {
             signal: &self.signal,
             noise: &self.noise,
             flat_fraction: 1.0,
+            quantum: CODE / std::f64::consts::SQRT_2,
         }
     }
 }
@@ -454,24 +460,23 @@ pub(crate) fn noise_bins(p: Planes, iso: f64, response: &Response) -> Vec<NoiseB
             }
             px.sort_by(|a, b| a.gradient.total_cmp(&b.gradient));
             let keep = &px[..(px.len() as f64 * p.flat_fraction) as usize];
-            let mad = |f: fn(&Residual) -> f64| {
-                let mut a: Vec<f64> = keep.iter().map(|p| f(p).abs()).collect();
-                MAD_SIGMA * crate::stats::median(&mut a)
+            // Immerkær's residual of codes on the lattice q is on q; the low-order one on q/9.
+            let mad = |f: fn(&Residual) -> f64, q: f64| {
+                MAD_SIGMA * crate::stats::lattice_abs_median(keep.iter().map(f), q)
             };
-            let s_imm = mad(|p| p.immerkaer);
-            let s_low = mad(|p| p.low_order);
+            let s_imm = mad(|p| p.immerkaer, p.quantum);
+            let s_low = mad(|p| p.low_order, p.quantum / 9.0);
             let var_imm = s_imm * s_imm / 36.0;
             let mean = keep.iter().map(|p| p.mean).sum::<f64>() / keep.len() as f64;
             let var_code = var_imm - 1.0 / (12.0 * 255.0 * 255.0);
-            let x = response.invert(mean);
-            let slope = response.slope(x.clamp(1e-6, 1.0 - 1e-6));
+            let (x, var_linear) = linear_variance(response, keep, var_code);
             out.push(NoiseBin {
                 iso,
                 channel: c,
                 code: mean,
                 linear: x,
                 var_code,
-                var_linear: var_code / (slope * slope),
+                var_linear,
                 correlation_ratio: if var_imm > 0.0 {
                     s_low * s_low / (8.0 / 9.0) / var_imm
                 } else {
@@ -482,6 +487,59 @@ pub(crate) fn noise_bins(p: Planes, iso: f64, response: &Response) -> Vec<NoiseB
         }
     }
     out
+}
+
+/// Gauss–Hermite nodes and weights for E[f(z)], z ~ N(0, 1) (five points, exact to degree 9).
+const HERMITE: [(f64, f64); 5] = [
+    (0.0, 0.533_333_333_333_333_3),
+    (1.355_626_179_974_265_9, 0.222_075_922_005_612_6),
+    (-1.355_626_179_974_265_9, 0.222_075_922_005_612_6),
+    (2.856_970_013_872_805_7, 0.011_257_411_327_720_69),
+    (-2.856_970_013_872_805_7, 0.011_257_411_327_720_69),
+];
+
+/// The bin's mean linear value and the linear noise variance v whose simulation gives the
+/// measured code variance: over (up to 256 of) the bin's pixels x = R⁻¹(3×3 mean code), the
+/// mean of Var R(x + √v·z), z ~ N(0, 1), equals `var_code` (v by bisection in log v). This
+/// is what the realism operator does with the profile (noise in linear, then the response),
+/// so the profile reproduces the measured code variance even where the curve's slope varies
+/// within the noise's span — as an estimated curve's does from one code to the next, which a
+/// single slope at the bin's mean code turns into errors of 2–4× per bin.
+fn linear_variance(response: &Response, keep: &[Residual], var_code: f64) -> (f64, f64) {
+    let step = keep.len().div_ceil(256).max(1);
+    let xs: Vec<f64> = keep
+        .iter()
+        .step_by(step)
+        .map(|p| response.invert(p.mean))
+        .collect();
+    let n = xs.len() as f64;
+    let x_mean = xs.iter().sum::<f64>() / n;
+    if var_code <= 0.0 {
+        return (x_mean, var_code);
+    }
+    let simulated = |v: f64| {
+        let sd = v.sqrt();
+        xs.iter()
+            .map(|&x| {
+                let (m1, m2) = HERMITE.iter().fold((0.0, 0.0), |(m1, m2), &(z, w)| {
+                    let c = response.apply(x + sd * z);
+                    (m1 + w * c, m2 + w * c * c)
+                });
+                m2 - m1 * m1
+            })
+            .sum::<f64>()
+            / n
+    };
+    let (mut lo, mut hi) = (1e-16f64.ln(), 0.25f64.ln());
+    for _ in 0..50 {
+        let mid = 0.5 * (lo + hi);
+        if simulated(mid.exp()) < var_code {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    (x_mean, (0.5 * (lo + hi)).exp())
 }
 
 /// Bins of several frames at one ISO pooled per channel and code bin (pixel-weighted).
