@@ -807,7 +807,10 @@ fn a_two_seed_grid_trains_every_trained_cell_per_seed_and_a_control_on_the_pretr
     // (config.toml blanks run.steps, so it is read without validation.)
     let got: TrainConfig =
         hdrsynth::config::load_toml(&control_run.join("config.toml")).expect("control config");
-    assert_eq!(got.data, pre_cfg.data, "the pretraining data");
+    // As the pretraining run recorded it (its exposure rule resolved, as every run records).
+    let pre_saved: TrainConfig =
+        hdrsynth::config::load_toml(&pre.join("config.toml")).expect("pretraining config");
+    assert_eq!(got.data, pre_saved.data, "the pretraining data");
     assert_eq!(got.model, pre_cfg.model);
     assert_eq!(got.optim.lr, 4e-3, "the base's learning rate");
     assert_eq!(got.run.seed, 1);

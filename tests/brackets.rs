@@ -2971,7 +2971,11 @@ fn the_device_output_check_finds_what_a_profile_misses_and_nothing_when_it_has_i
 #[test]
 fn the_device_meter_is_read_from_the_frame_exif_marks_and_not_from_a_manual_bracket() {
     use hdrsynth::data::bracket_profile::metering_rule;
-    let calibrate = |bias: [Option<i32>; 3]| {
+    use hdrsynth::sensor::profile::SensorProfile;
+    let beside = tempfile::tempdir().expect("tmp");
+    // A bracket of 1/100, 1/400 and 1/25 s whose frames record these biases, calibrated into
+    // `out`; with the test's own log-average of the 1/100 s frame.
+    let calibrate = |bias: [Option<i32>; 3], out: &Path| {
         let tmp = tempfile::tempdir().expect("tmp");
         let d = tmp.path().join("scene1");
         std::fs::create_dir_all(&d).expect("mkdir");
@@ -2980,15 +2984,8 @@ fn the_device_meter_is_read_from_the_frame_exif_marks_and_not_from_a_manual_brac
             t.bias = b.map(|b| (b, 1));
             bracket_jpeg(&d.join(format!("IMG_{i}.jpg")), 1.0 / *den as f64, Some(&t));
         }
-        let beside = tempfile::tempdir().expect("tmp");
-        let cal = calibrate_srgb(
-            tmp.path(),
-            ScanOptions::default(),
-            &beside.path().join("p.toml"),
-            false,
-        );
-        // The test's own log-average of the marked frame: sRGB-decoded codes, Rec. 709
-        // luminance, geometric mean over the pixels.
+        let cal = calibrate_srgb(tmp.path(), ScanOptions::default(), out, false);
+        // sRGB-decoded codes, Rec. 709 luminance, geometric mean over the pixels.
         let marked = d.join("IMG_0.jpg");
         let rgb = image::open(&marked).expect("jpeg").to_rgb8();
         let dec = |c: u8| {
@@ -3008,24 +3005,145 @@ fn the_device_meter_is_read_from_the_frame_exif_marks_and_not_from_a_manual_brac
             })
             .sum::<f64>()
             / n;
-        (metering_rule(&cal.metering), cal.metering, ln.exp())
+        let report = cal.report(out);
+        (cal, ln.exp(), report)
     };
     // An auto-exposure bracket: the 1/100 s frame records bias 0, the others −2 and +2.
-    let (rule, frames, want) = calibrate([Some(0), Some(-2), Some(2)]);
+    let out = beside.path().join("p.toml");
+    let (cal, want, report) = calibrate([Some(0), Some(-2), Some(2)], &out);
+    let frames = &cal.metering;
     assert!(
         frames[0].auto_exposed && frames[0].frame.ends_with("IMG_0.jpg"),
         "{frames:?}"
     );
-    let m = rule.expect("a marked frame gives the device's rule");
+    let m = metering_rule(frames).expect("a marked frame gives the device's rule");
     assert!(
         (m.mid_grey / want - 1.0).abs() < 1e-3,
         "{} vs {want}",
         m.mid_grey
     );
     assert!((m.max_clipped - frames[0].clipped).abs() < 1e-12);
-    // Manual exposures (every bias 0, or none recorded) say nothing about the meter.
-    assert!(calibrate([Some(0), Some(0), Some(0)]).0.is_none());
-    assert!(calibrate([None, None, None]).0.is_none());
+    // Written into the profile, with where it was measured.
+    let saved = SensorProfile::load(&out).expect("profile");
+    let rule = saved.metering.expect("the rule is in the profile");
+    assert!((rule.mid_grey / want - 1.0).abs() < 1e-3, "{rule:?}");
+    assert_eq!(rule.max_clipped, frames[0].clipped);
+    let why = saved.provenance.metering.clone().expect("provenance");
+    assert!(
+        why.contains("IMG_0.jpg") && !why.contains("IMG_1.jpg") && why.contains("ExposureBias"),
+        "{why}"
+    );
+    assert!(report.contains("written into the profile"), "{report}");
+    // Recalibrating the same profile from a manual bracket removes the rule, and says so.
+    let (cal, _, report) = calibrate([Some(0), Some(0), Some(0)], &out);
+    assert!(metering_rule(&cal.metering).is_none());
+    let saved = SensorProfile::load(&out).expect("profile");
+    assert_eq!((saved.metering, saved.provenance.metering), (None, None));
+    assert!(
+        cal.notes.iter().any(|n| n.contains("was removed")),
+        "{:?}",
+        cal.notes
+    );
+    assert!(report.contains("exposure rule: none"), "{report}");
+    // Manual exposures (every bias 0, or none recorded) say nothing about the meter: a new
+    // profile holds no rule.
+    for bias in [[Some(0); 3], [None; 3]] {
+        let fresh = beside.path().join("manual.toml");
+        let (cal, _, _) = calibrate(bias, &fresh);
+        assert!(metering_rule(&cal.metering).is_none());
+        assert!(!cal.notes.iter().any(|n| n.contains("was removed")));
+        let text = std::fs::read_to_string(&fresh).expect("written");
+        assert!(!text.contains("metering"), "{text}");
+        std::fs::remove_file(&fresh).expect("rm");
+    }
+}
+
+/// The loop's steps are an ablation: the profiles of the steps before "metering" hold no
+/// exposure rule and their rows give none (they train with the default), the metering row gives
+/// the device's rule measured on the calibration scene.
+#[test]
+fn the_loop_trains_the_device_rule_in_its_metering_step_only() {
+    use hdrsynth::data::bracket_profile::metering_rule;
+    use hdrsynth::experiments::device_loop::{LoopOptions, run};
+    use hdrsynth::sensor::profile::SensorProfile;
+    let tmp = tempfile::tempdir().expect("tmp");
+    // Two scenes (another light, another time), each an auto-exposure bracket.
+    for (scene, light, time) in [("park", 1.0, "10:00:00"), ("kitchen", 0.5, "11:00:00")] {
+        let d = tmp.path().join(scene);
+        std::fs::create_dir_all(&d).expect("mkdir");
+        for (i, (den, b)) in [(100u32, 0), (400, -2), (25, 2)].iter().enumerate() {
+            let date = format!("2026:11:24 {time}");
+            let mut t = tags((1, *den), 100, &date, &format!("{i}"));
+            t.bias = Some((*b, 1));
+            let file = d.join(format!("IMG_{i}.jpg"));
+            bracket_jpeg(&file, light / *den as f64, Some(&t));
+        }
+    }
+    let beside = tempfile::tempdir().expect("tmp");
+    // The main job's config is not one: the loop stops at the grid, after writing its profiles
+    // and `loop_ablate.toml`.
+    let configs = beside.path().join("qs/configs");
+    std::fs::create_dir_all(&configs).expect("mkdir");
+    std::fs::write(configs.join("finetune.toml"), "not a training config").expect("write");
+    let out = beside.path().join("loop");
+    let stopped = run(&LoopOptions {
+        brackets: tmp.path().to_path_buf(),
+        calibration: vec!["park".into()],
+        calibration_region: None,
+        test_region: None,
+        scan: ScanOptions::default(),
+        inputs: InputChoice::default(),
+        gt_frames: GtFrames::default(),
+        quickstart: beside.path().join("qs"),
+        seeds: vec![1],
+        out: out.clone(),
+        progress: false,
+    })
+    .err()
+    .expect("no main job")
+    .to_string();
+    // The rule of the calibration scene, as `calibrate brackets` measures it.
+    let cal = calibrate_srgb(
+        tmp.path(),
+        ScanOptions {
+            sets: vec!["park".into()],
+            ..ScanOptions::default()
+        },
+        &beside.path().join("park.toml"),
+        false,
+    );
+    let rule = metering_rule(&cal.metering).expect("marked");
+    let calibrated = SensorProfile::load(&out.join("profiles/calibrated.toml"))
+        .unwrap_or_else(|e| panic!("{e}; the loop stopped: {stopped}"));
+    assert_eq!(
+        (calibrated.metering, calibrated.provenance.metering),
+        (None, None)
+    );
+    let text = std::fs::read_to_string(out.join("loop_ablate.toml")).expect("grid");
+    let grid: toml::Table = toml::from_str(&text).expect("toml");
+    let rows = grid["rows"].as_array().expect("rows");
+    let metering_of = |name: &str| {
+        let row = rows
+            .iter()
+            .find(|r| r["name"].as_str() == Some(name))
+            .unwrap_or_else(|| panic!("row {name}: {text}"));
+        row.get("set")
+            .and_then(|s| s.get("data"))
+            .and_then(|d| d.get("metering"))
+            .cloned()
+    };
+    assert_eq!(metering_of("response"), None, "{text}");
+    assert_eq!(metering_of("noise"), None, "{text}");
+    let m = metering_of("metering").expect("the metering step gives the rule");
+    // The loop measures on the Debevec-linearised frames, this calibration on sRGB ones: the
+    // clipped fraction is of the codes and agrees; mid grey is the same order.
+    assert_eq!(
+        m["max_clipped"].as_float(),
+        Some(rule.max_clipped),
+        "{text}"
+    );
+    let mid = m["mid_grey"].as_float().expect("mid_grey");
+    assert!(mid > 0.0 && mid < 1.0, "{text}");
 }
 
 #[test]

@@ -825,6 +825,7 @@ fn example_profile() -> SensorProfile {
             noise: "invented".into(),
             levels: "invented".into(),
             response: "invented".into(),
+            metering: None,
             notes: None,
         },
         colour: None,
@@ -842,6 +843,7 @@ fn example_profile() -> SensorProfile {
         }],
         response: Response::Srgb,
         source_response: Response::Filmic,
+        metering: None,
         effects: Vec::new(),
         calibrated_on: Vec::new(),
     }

@@ -244,3 +244,107 @@ fn responses_named_on_the_command_line() {
     assert!(err("gamma:x").contains("gamma 'x' is not a number"));
     assert!(err("filmic").contains("expected srgb, linear or gamma:G"));
 }
+
+/// A profile written before profiles held an exposure rule (`calibrate brackets` of the
+/// Canon 550D stack, `--response srgb`, by the previous build) reads and writes back to the
+/// same bytes; with a rule it gains exactly its `[metering]` table and provenance line, and
+/// without it again is the old file.
+#[test]
+fn a_profile_round_trips_with_and_without_its_exposure_rule() {
+    use hdrsynth::sensor::metering::Metering;
+    let fixture = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data/profiles/written_before_metering.toml");
+    let old = std::fs::read_to_string(&fixture).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("p.toml");
+    let mut p = SensorProfile::load(&fixture).unwrap();
+    assert_eq!(p.metering, None);
+    assert_eq!(p.provenance.metering, None);
+    p.save(&path).unwrap();
+    assert_eq!(std::fs::read_to_string(&path).unwrap(), old);
+
+    let rule = Metering {
+        mid_grey: 0.125,
+        max_clipped: 0.03,
+    };
+    assert_eq!(p.set_metering(Some((rule, "by hand".into()))), None);
+    p.save(&path).unwrap();
+    // The old text with the provenance line after `response = …` and the table after
+    // `[source_response]`, before the first `[[calibrated_on]]`.
+    let response_line = old.lines().find(|l| l.starts_with("response = ")).unwrap();
+    let want = old
+        .replacen(
+            &format!("{response_line}\n"),
+            &format!("{response_line}\nmetering = \"by hand\"\n"),
+            1,
+        )
+        .replacen(
+            "[[calibrated_on]]",
+            "[metering]\nmid_grey = 0.125\nmax_clipped = 0.03\n\n[[calibrated_on]]",
+            1,
+        );
+    assert_ne!(want, old);
+    assert_eq!(std::fs::read_to_string(&path).unwrap(), want);
+    let back = SensorProfile::load(&path).unwrap();
+    assert_eq!(back, p);
+    assert_eq!(back.metering, Some(rule));
+    assert_eq!(back.provenance.metering.as_deref(), Some("by hand"));
+
+    let mut q = back;
+    assert_eq!(q.set_metering(None), Some(rule));
+    q.save(&path).unwrap();
+    assert_eq!(std::fs::read_to_string(&path).unwrap(), old);
+}
+
+/// The rule's ranges are the training config's (one check), keyed as the file spells them;
+/// a rule without its provenance, or provenance without a rule, is refused naming the file.
+#[test]
+fn a_profile_exposure_rule_is_checked_like_a_config_one() {
+    let fixture = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data/profiles/written_before_metering.toml");
+    let old = std::fs::read_to_string(&fixture).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("edited.toml");
+    let with = |provenance: &str, table: &str| {
+        let response_line = old.lines().find(|l| l.starts_with("response = ")).unwrap();
+        let text = old
+            .replacen(
+                &format!("{response_line}\n"),
+                &format!("{response_line}\n{provenance}"),
+                1,
+            )
+            .replacen("[[calibrated_on]]", &format!("{table}[[calibrated_on]]"), 1);
+        std::fs::write(&path, text).unwrap();
+        SensorProfile::load(&path).map_err(|e| e.to_string())
+    };
+    let line = "metering = \"by hand\"\n";
+    let ok = with(line, "[metering]\nmid_grey = 0.2\n\n").unwrap();
+    // A key left out takes the default, as in a config's `[data.metering]`.
+    let m = ok.metering.unwrap();
+    assert_eq!((m.mid_grey, m.max_clipped), (0.2, 0.02));
+    for (table, key) in [
+        ("[metering]\nmid_grey = 1.0\n\n", "metering.mid_grey"),
+        ("[metering]\nmid_grey = 0.0\n\n", "metering.mid_grey"),
+        ("[metering]\nmax_clipped = 0.5\n\n", "metering.max_clipped"),
+        (
+            "[metering]\nmax_clipped = -0.01\n\n",
+            "metering.max_clipped",
+        ),
+    ] {
+        let e = with(line, table).unwrap_err();
+        assert!(e.contains("edited.toml") && e.contains(key), "{table}: {e}");
+    }
+    let e = with("", "[metering]\nmid_grey = 0.2\n\n").unwrap_err();
+    assert!(
+        e.contains("edited.toml") && e.contains("provenance.metering"),
+        "{e}"
+    );
+    assert!(e.contains("missing"), "{e}");
+    let e = with(line, "").unwrap_err();
+    assert!(
+        e.contains("provenance.metering") && e.contains("no [metering]"),
+        "{e}"
+    );
+    let e = with(line, "[metering]\nmid_gray = 0.2\n\n").unwrap_err();
+    assert!(e.contains("mid_gray"), "{e}");
+}

@@ -269,6 +269,94 @@ fn resume_refuses_a_changed_config_and_a_missing_run() {
     assert_eq!((s.start_step, s.steps), (4, 6));
 }
 
+/// The exposure rule a run trains with: `[data.metering]` where the config gives it (whole:
+/// a key it leaves out is the default, not the profile's), else the profile's measured rule,
+/// else the default. The run's `config.toml` holds the rule's values (as every run recorded
+/// the default before), `data_source.txt` where it came from, and a profile whose rule changed
+/// is a changed config on resume.
+#[test]
+fn the_exposure_rule_is_the_configs_else_the_profiles_else_the_default() {
+    use hdrsynth::sensor::metering::{Metering, RuleOrigin};
+    use hdrsynth::sensor::profile::SensorProfile;
+    let tmp = tempfile::tempdir().expect("tmp");
+    let mut p = SensorProfile::load(&SensorProfile::shipped_dir().join("canon_eos_550d.toml"))
+        .expect("profile");
+    let plain = tmp.path().join("plain.toml");
+    p.save(&plain).expect("save");
+    let rule = Metering {
+        mid_grey: 0.2,
+        max_clipped: 0.05,
+    };
+    p.set_metering(Some((rule, "by hand".into())));
+    let measured = tmp.path().join("measured.toml");
+    p.save(&measured).expect("save");
+    let run = tmp.path().join("r");
+    let cfg = |profile: &Path, metering: &str| {
+        parse(&config_text(&run, 1, "", 1e-3, false).replace(
+            "profile = \"pure\"\n",
+            &format!("profile = {profile:?}\nisos = [100.0]\nnoise = \"none\"\n{metering}"),
+        ))
+    };
+    let resolved = |c: &TrainConfig| {
+        let r = c.data.metering().expect("resolve");
+        (r.rule.mid_grey, r.rule.max_clipped, r.origin)
+    };
+    let given = "metering = { mid_grey = 0.1 }\n";
+    assert_eq!(
+        resolved(&cfg(&measured, given)),
+        (0.1, 0.02, RuleOrigin::Given)
+    );
+    assert_eq!(
+        resolved(&cfg(&measured, "")),
+        (0.2, 0.05, RuleOrigin::Profile)
+    );
+    assert_eq!(
+        resolved(&cfg(&plain, "")),
+        (0.128, 0.02, RuleOrigin::Default)
+    );
+    assert_eq!(
+        resolved(&parse(&config_text(&run, 1, "", 1e-3, false))),
+        (0.128, 0.02, RuleOrigin::Default)
+    );
+    // What a run records: the default exactly as runs always wrote it.
+    let text =
+        toml::to_string(&cfg(&plain, "").with_resolved_metering().expect("resolve")).expect("toml");
+    assert!(
+        text.contains("[data.metering]\nmid_grey = 0.128\nmax_clipped = 0.02\n"),
+        "{text}"
+    );
+    // A run with the profile's rule.
+    let c = cfg(&measured, "");
+    hdrsynth::train::run(&c, &TrainOptions::default()).expect("train");
+    let saved = std::fs::read_to_string(run.join("config.toml")).expect("config");
+    assert!(
+        saved.contains("[data.metering]\nmid_grey = 0.2\nmax_clipped = 0.05\n"),
+        "{saved}"
+    );
+    let source = std::fs::read_to_string(run.join("data_source.txt")).expect("source");
+    assert!(
+        source.contains("mid grey 0.2000, at most 5.00 % clipped; the profile's measured rule"),
+        "{source}"
+    );
+    // The profile's rule changes: resuming would train with another rule.
+    p.set_metering(Some((
+        Metering {
+            mid_grey: 0.15,
+            ..rule
+        },
+        "by hand, again".into(),
+    )));
+    p.save(&measured).expect("save");
+    let mut longer = c.clone();
+    longer.run.steps = 2;
+    let resume = TrainOptions {
+        resume: true,
+        progress: false,
+    };
+    let err = hdrsynth::train::run(&longer, &resume).expect_err("another rule");
+    assert!(err.to_string().contains("different config"), "{err}");
+}
+
 #[test]
 fn unknown_keys_and_bad_values_are_config_errors_naming_the_line() {
     let text = config_text(Path::new("/tmp/x"), 4, "colour = true", 1e-3, true);
@@ -384,9 +472,17 @@ fn omitted_keys_take_the_documented_defaults() {
         (d.realism.noise, d.realism.exposure, d.realism.ev_jitter),
         (NoiseModel::default(), 1.0, 0.5)
     );
+    // No `[data.metering]`: not given, so the profile's rule or the default applies.
     assert_eq!(
         (d.realism.metering, d.realism.source, d.realism.colour),
-        (Metering::default(), Source::Auto, true)
+        (None, Source::Auto, true)
+    );
+    assert_eq!(
+        Metering::default(),
+        Metering {
+            mid_grey: 0.128,
+            max_clipped: 0.02
+        }
     );
     assert_eq!(d.target_sigma, 4.0);
     let o = &cfg.optim;

@@ -243,3 +243,88 @@ fn a_scene_referred_ground_truth_is_the_metered_radiance_and_the_device_one_t_of
             .any(|(a, b)| (a - b).abs() > 1e-3)
     );
 }
+
+/// `testset` exposes with the profile's measured rule unless one is given (the options'
+/// `metering`, the `--mid-grey`/`--max-clipped` flags, which replace it whole), else the
+/// default; the recipe records the rule used. A flat radiance of 0.5 never clips, so the key is
+/// mid_grey / 0.5 by hand.
+#[test]
+fn testset_takes_the_given_rule_else_the_profiles_else_the_default() {
+    use hdrsynth::sensor::metering::Metering;
+    use std::process::Command;
+    let tmp = tempfile::tempdir().expect("tmp");
+    let mut rad = Image::new(32, 24);
+    rad.data.fill(0.5);
+    let file = tmp.path().join("flat.exr");
+    write_exr(&file, &rad, ExrPrecision::Float).expect("exr");
+    let plain = SensorProfile::load(&SensorProfile::shipped_dir().join("example_synthetic.toml"))
+        .expect("profile");
+    let mut measured = plain.clone();
+    let rule = Metering {
+        mid_grey: 0.2,
+        max_clipped: 0.05,
+    };
+    measured.set_metering(Some((rule, "by hand".into())));
+    let measured_path = tmp.path().join("measured.toml");
+    measured.save(&measured_path).expect("save");
+    let build = |profile: &SensorProfile, given: Option<Metering>, name: &str| {
+        let opts = TestsetOptions {
+            isos: vec![100.0],
+            noise: NoiseModel::None,
+            metering: given,
+            ..TestsetOptions::default()
+        };
+        let out = tmp.path().join(name);
+        let s = testset::build(&file, profile, &opts, &out).expect("testset");
+        let recipe = std::fs::read_to_string(out.join(testset::RECIPE)).expect("recipe");
+        (s.sets[0].key as f64, s.notes.join("\n"), recipe)
+    };
+    let (key, notes, recipe) = build(&measured, None, "profile");
+    assert!((key - 0.2 / 0.5).abs() < 1e-6, "{key}");
+    assert!(notes.contains("the profile's measured rule"), "{notes}");
+    assert!(
+        recipe.contains("[options.metering]\nmid_grey = 0.2\nmax_clipped = 0.05\n"),
+        "{recipe}"
+    );
+    let given = Metering {
+        mid_grey: 0.1,
+        ..Metering::default()
+    };
+    let (key, notes, _) = build(&measured, Some(given), "given");
+    assert!((key - 0.1 / 0.5).abs() < 1e-6, "{key}");
+    assert!(notes.contains("given explicitly"), "{notes}");
+    // No rule anywhere: the default, recorded as test sets always recorded it.
+    let (key, notes, recipe) = build(&plain, None, "default");
+    assert!((key - 0.128 / 0.5).abs() < 1e-6, "{key}");
+    assert!(notes.contains("the default rule"), "{notes}");
+    assert!(
+        recipe.contains("[options.metering]\nmid_grey = 0.128\nmax_clipped = 0.02\n"),
+        "{recipe}"
+    );
+    // The command: no flag takes the profile's rule; one flag replaces it whole, the other
+    // key at its default.
+    let cli = |flags: &[&str], name: &str| {
+        let out = tmp.path().join(name);
+        let o = Command::new(env!("CARGO_BIN_EXE_hdrsynth"))
+            .args(["testset", "--radiance"])
+            .arg(&file)
+            .arg("--profile")
+            .arg(&measured_path)
+            .args(["--isos", "100", "--noise", "none", "--out"])
+            .arg(&out)
+            .args(flags)
+            .output()
+            .expect("run");
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let recipe: toml::Table =
+            toml::from_str(&std::fs::read_to_string(out.join(testset::RECIPE)).expect("recipe"))
+                .expect("toml");
+        let m = &recipe["options"]["metering"];
+        (m["mid_grey"].as_float(), m["max_clipped"].as_float())
+    };
+    assert_eq!(cli(&[], "cli_profile"), (Some(0.2), Some(0.05)));
+    assert_eq!(
+        cli(&["--max-clipped", "0.04"], "cli_flag"),
+        (Some(0.128), Some(0.04))
+    );
+}

@@ -79,11 +79,13 @@ pub struct Args {
     #[arg(long, default_value_t = 1.0)]
     pub exposure: f64,
     /// Auto-exposure: fraction of sensor white the scene's log-average luminance lands at.
-    #[arg(long, default_value_t = Metering::default().mid_grey)]
-    pub mid_grey: f64,
-    /// Auto-exposure: largest fraction of pixels allowed to clip at EV0.
-    #[arg(long, default_value_t = Metering::default().max_clipped)]
-    pub max_clipped: f64,
+    /// Either flag replaces the profile's measured rule (the other flag at its default,
+    /// 0.128 / 0.02); without both, the profile's rule, else the default.
+    #[arg(long)]
+    pub mid_grey: Option<f64>,
+    /// Auto-exposure: largest fraction of pixels allowed to clip at EV0 (see --mid-grey).
+    #[arg(long)]
+    pub max_clipped: Option<f64>,
     /// gaussian (the paper's N(0, aI+b)), poisson-gaussian (exact), none.
     #[arg(long, value_enum, default_value = "gaussian")]
     pub noise: NoiseModel,
@@ -117,10 +119,14 @@ impl Args {
             evs: self.evs.clone(),
             seed: self.seed,
             exposure: self.exposure,
-            metering: Metering {
-                mid_grey: self.mid_grey,
-                max_clipped: self.max_clipped,
-            },
+            // Not given: `testset::build` takes the profile's rule, else the default.
+            metering: (self.mid_grey.is_some() || self.max_clipped.is_some()).then(|| {
+                let d = Metering::default();
+                Metering {
+                    mid_grey: self.mid_grey.unwrap_or(d.mid_grey),
+                    max_clipped: self.max_clipped.unwrap_or(d.max_clipped),
+                }
+            }),
             noise: self.noise,
             colour: !self.no_colour,
             output_bits: self.bits,

@@ -22,7 +22,8 @@
 //!   profile with a and b raised to the per-pixel variance ([`with_correlation`]);
 //! - the exposure rule: the auto-exposed frame of each set (EXIF ExposureBiasValue 0, else the
 //!   middle frame) gives where the device put its log-average luminance (fraction of white)
-//!   and how much it let clip; reported beside the loader's `[realism.metering]` keys.
+//!   and how much it let clip; where EXIF marks it, the rule is written into the profile's
+//!   `[metering]` (and a rule measured before is removed where it marks none).
 //!
 //! Levels are 16-bit 0 … 65535 (the processed frames carry no raw levels; 16 bits add no
 //! visible quantisation); colour is identity unless the profile already has one (the frames
@@ -32,7 +33,7 @@ use crate::data::bracket_testset::{self, Linearise, ResponseChoice};
 use crate::data::brackets::{self, BracketFrame, FrameKind, ScanOptions};
 use crate::error::{Error, Result};
 use crate::sensor::effects::plan;
-use crate::sensor::metering::Metering;
+pub use crate::sensor::metering::{MeteredFrame, metering_rule};
 use crate::sensor::profile::{Colour, Levels, Provenance, SensorProfile};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -208,41 +209,6 @@ pub fn with_correlation(
     Some(p)
 }
 
-/// Where one set's auto-exposed frame put its signal.
-#[derive(Clone, Debug, PartialEq)]
-pub struct MeteredFrame {
-    pub frame: PathBuf,
-    /// How the frame was taken to be the auto-exposed one.
-    pub how: String,
-    /// exp(mean ln luminance) of the linear frame, fraction of white.
-    pub log_average: f64,
-    /// Fraction of pixels with a channel at or above 250/255.
-    pub clipped: f64,
-    /// The frame is marked as the device's own exposure (EXIF ExposureBiasValue 0 beside the
-    /// others' offsets), not the middle frame of a manual bracket.
-    pub auto_exposed: bool,
-}
-
-/// The device's exposure rule as the loader's [`Metering`], from the sets whose auto-exposed
-/// frame EXIF marks: the geometric mean of their log-average luminances (`mid_grey`) and the
-/// most any of them let clip (`max_clipped`). `None` when no set marks one (a manual bracket
-/// says nothing about the device's meter).
-pub fn metering_rule(frames: &[MeteredFrame]) -> Option<Metering> {
-    let auto: Vec<&MeteredFrame> = frames.iter().filter(|m| m.auto_exposed).collect();
-    if auto.is_empty() {
-        return None;
-    }
-    let ln = auto
-        .iter()
-        .map(|m| m.log_average.max(1e-6).ln())
-        .sum::<f64>()
-        / auto.len() as f64;
-    Some(Metering {
-        mid_grey: ln.exp().clamp(1e-4, 0.99),
-        max_clipped: auto.iter().map(|m| m.clipped).fold(0.0, f64::max).min(0.49),
-    })
-}
-
 #[derive(Clone, Debug)]
 pub struct BracketCalibration {
     pub profile: SensorProfile,
@@ -311,6 +277,7 @@ pub fn calibrate_brackets(dir: &Path, opts: &BracketProfileOptions) -> Result<Br
                          levels; 16 bits add no visible quantisation)"
                     .into(),
                 response: String::new(),
+                metering: None,
                 notes: None,
             },
         ))
@@ -334,6 +301,8 @@ pub fn calibrate_brackets(dir: &Path, opts: &BracketProfileOptions) -> Result<Br
     }
     profile.noise.sort_by(|a, b| a.iso.total_cmp(&b.iso));
     profile.provenance.noise = noise_provenance(dir, pairs);
+    // These frames' rule or none: a rule measured on other captures is not kept beside them.
+    notes.extend(profile.record_measured_rule(dir, &metering));
     let correlation = fit_correlation(&bins);
     if opts.correlated {
         let isos: Vec<f64> = bins.iter().map(|b| b.iso).collect();
@@ -532,6 +501,14 @@ impl BracketCalibration {
                 100.0 * m.clipped
             );
         }
+        let _ = writeln!(
+            s,
+            "exposure rule: {}",
+            self.profile.metering.map_or(
+                "none: no set marks its auto-exposed frame by EXIF ExposureBiasValue".into(),
+                |m| format!("{m}, written into the profile's [metering]")
+            )
+        );
         s
     }
 }

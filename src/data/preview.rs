@@ -72,7 +72,8 @@ pub fn preview(args: &PreviewOptions) -> Result<String> {
         isos: vec![args.iso],
         noise: NoiseModel::Gaussian,
         exposure: 1.0,
-        metering: Default::default(),
+        // The profile's measured rule, else the default: as training meters.
+        metering: None,
         ev_jitter: 0.0,
         source: Default::default(),
         colour: true,

@@ -61,7 +61,10 @@ pub struct TestsetOptions {
     /// Extra factor on the automatic exposure key (1 = the metering rule's choice).
     pub exposure: f64,
     /// The auto-exposure rule (src/sensor/metering.rs), the same one training realism uses.
-    pub metering: Metering,
+    /// Absent: the profile's measured rule, else the default ([`Metering::resolve`]); the
+    /// recipe records the rule used.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub metering: Option<Metering>,
     pub noise: NoiseModel,
     /// Apply the profile's colour transform T (frames and ground truth alike).
     pub colour: bool,
@@ -82,7 +85,7 @@ impl Default for TestsetOptions {
             evs: vec![-3.0, 0.0],
             seed: 0,
             exposure: 1.0,
-            metering: Metering::default(),
+            metering: None,
             noise: NoiseModel::Gaussian,
             colour: true,
             output_bits: 8,
@@ -304,7 +307,9 @@ impl TestsetOptions {
                 format!("{:?} must be distinct", self.evs),
             ));
         }
-        self.metering.validate().map_err(|e| e.within("metering"))?;
+        if let Some(m) = &self.metering {
+            m.validate().map_err(|e| e.within("metering"))?;
+        }
         in_range("exposure", self.exposure, Range::POSITIVE)?;
         if BitDepth::from_bits(self.output_bits).is_none() {
             return Err(KeyError::new(
@@ -340,6 +345,10 @@ pub fn build(
     let mut opts = opts.clone();
     opts.evs.sort_by(f32::total_cmp);
     validate(&opts, profile)?;
+    // The recipe holds the rule itself, wherever it came from: a test set from a profile whose
+    // measured rule changed is another test set.
+    let metering = Metering::resolve(opts.metering, profile.metering);
+    opts.metering = Some(metering.rule);
     let files = radiance_files(input)?;
     let scenes: Vec<SceneEntry> = files
         .iter()
@@ -409,7 +418,7 @@ pub fn build(
     write_atomic(&recipe_path, text.as_bytes())?;
 
     let mut sets = Vec::new();
-    let mut notes = Vec::new();
+    let mut notes = vec![format!("exposure rule: {metering}")];
     let mut manifest_written = false;
     for (si, scene) in scenes.iter().enumerate() {
         let (radiance, note) = load_radiance(&scene.file, opts.resize)?;
@@ -647,9 +656,11 @@ fn clip_fractions(frame: &Image) -> (f32, f32) {
 }
 
 /// k (radiance → EV0 linear signal, 1 = sensor white): the metering rule's key
-/// (src/sensor/metering.rs) times the user's `exposure` factor.
+/// (src/sensor/metering.rs) times the user's `exposure` factor. The rule is `opts.metering` as
+/// [`build`] resolved it against the profile; absent, the default.
 pub fn exposure_key(radiance: &Image, opts: &TestsetOptions) -> std::result::Result<f32, String> {
-    Ok(opts.metering.key(radiance)?.key * opts.exposure as f32)
+    let rule = Metering::resolve(opts.metering, None).rule;
+    Ok(rule.key(radiance)?.key * opts.exposure as f32)
 }
 
 /// Read a radiance map as linear Rec. 709 RGB (negatives clamped to 0), resized if asked.

@@ -264,7 +264,7 @@ fn calibrate(
 ) -> Result<(BracketCalibration, PathBuf, Extra)> {
     let calibrated = profiles.join("calibrated.toml");
     stage(opts, "calibrating the profile on the calibration scenes");
-    let cal = calibrate_brackets(
+    let mut cal = calibrate_brackets(
         &opts.brackets,
         &BracketProfileOptions {
             scan: cal_scan.clone(),
@@ -274,6 +274,12 @@ fn calibrate(
             correlated: false,
         },
     )?;
+    // The steps are an ablation: those before "metering" train without the device's rule, so
+    // their profiles hold none (as the loop wrote them before profiles held one); the metering
+    // step gives the rule in its config.
+    if cal.profile.set_metering(None).is_some() {
+        cal.profile.save(&calibrated)?;
+    }
     let isos: Vec<f64> = cal.profile.noise.iter().map(|r| r.iso).collect();
     let spatial = with_correlation(&cal.profile, &cal.correlation, &isos);
     let chroma = with_channel_correlation(
@@ -513,7 +519,12 @@ fn ablate_config(
             dir: testset.to_path_buf(),
             radiance: None,
             profile: None,
-            options: Default::default(),
+            // Unused (the test set is built from brackets); the rule pinned keeps
+            // `loop_ablate.toml` as the loop wrote it before a profile could hold one.
+            options: crate::data::testset::TestsetOptions {
+                metering: Some(Metering::default()),
+                ..Default::default()
+            },
             noise_per_seed: false,
             reference: None,
         },

@@ -12,11 +12,16 @@
 //!    maximum channel sits at white).
 //!
 //! k = min(mid_grey / L_log-avg, 1 / Q_{1 − max_clipped}(max channel)), times a user factor.
+//!
+//! A device's own rule is measured from the frames its camera exposed itself
+//! ([`metering_rule`], `hdrsynth calibrate brackets`) and kept in its profile; which rule
+//! applies where a config or the command line also gives one is [`Metering::resolve`]'s.
 
 use crate::config::{KeyError, Range, in_range};
 use crate::io::{Image, luminance};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
 
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -45,7 +50,72 @@ pub struct Exposure {
     pub highlight_limited: bool,
 }
 
+/// Where the rule in use came from, in the order [`Metering::resolve`] tries them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RuleOrigin {
+    /// Given explicitly: a config's `metering` table, `testset`'s `--mid-grey`/`--max-clipped`.
+    Given,
+    /// The profile's measured rule (its `[metering]`).
+    Profile,
+    /// Neither: [`Metering::default`].
+    Default,
+}
+
+impl std::fmt::Display for RuleOrigin {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            RuleOrigin::Given => "given explicitly",
+            RuleOrigin::Profile => "the profile's measured rule",
+            RuleOrigin::Default => "the default rule",
+        })
+    }
+}
+
+/// The rule that applies, and where it came from.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Resolved {
+    pub rule: Metering,
+    pub origin: RuleOrigin,
+}
+
+impl std::fmt::Display for Resolved {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}; {}", self.rule, self.origin)
+    }
+}
+
+impl std::fmt::Display for Metering {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "mid grey {:.4}, at most {:.2} % clipped",
+            self.mid_grey,
+            self.max_clipped * 100.0
+        )
+    }
+}
+
 impl Metering {
+    /// The rule that applies: the one `given` explicitly, else the `profile`'s measured rule,
+    /// else the default. A given rule replaces the profile's whole (keys it leaves out are the
+    /// defaults), so two halves of different rules are never mixed.
+    pub fn resolve(given: Option<Metering>, profile: Option<Metering>) -> Resolved {
+        match (given, profile) {
+            (Some(rule), _) => Resolved {
+                rule,
+                origin: RuleOrigin::Given,
+            },
+            (None, Some(rule)) => Resolved {
+                rule,
+                origin: RuleOrigin::Profile,
+            },
+            (None, None) => Resolved {
+                rule: Metering::default(),
+                origin: RuleOrigin::Default,
+            },
+        }
+    }
+
     /// mid_grey in (0, 1) (a fraction of white), max_clipped in [0, 0.5) (clipping half the
     /// frame is not highlight protection); keys relative to the `metering` table.
     pub fn validate(&self) -> Result<(), KeyError> {
@@ -91,6 +161,61 @@ impl Metering {
             highlight_limited: protect < average,
         })
     }
+}
+
+/// Where one set's auto-exposed frame put its signal.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MeteredFrame {
+    pub frame: PathBuf,
+    /// How the frame was taken to be the auto-exposed one.
+    pub how: String,
+    /// exp(mean ln luminance) of the linear frame, fraction of white.
+    pub log_average: f64,
+    /// Fraction of pixels with a channel at or above 250/255.
+    pub clipped: f64,
+    /// The frame is marked as the device's own exposure (EXIF ExposureBiasValue 0 beside the
+    /// others' offsets), not the middle frame of a manual bracket.
+    pub auto_exposed: bool,
+}
+
+/// The device's exposure rule as a [`Metering`], from the sets whose auto-exposed frame EXIF
+/// marks: the geometric mean of their log-average luminances (`mid_grey`) and the most any of
+/// them let clip (`max_clipped`). `None` when no set marks one (a manual bracket says nothing
+/// about the device's meter).
+pub fn metering_rule(frames: &[MeteredFrame]) -> Option<Metering> {
+    let auto: Vec<&MeteredFrame> = frames.iter().filter(|m| m.auto_exposed).collect();
+    if auto.is_empty() {
+        return None;
+    }
+    let ln = auto
+        .iter()
+        .map(|m| m.log_average.max(1e-6).ln())
+        .sum::<f64>()
+        / auto.len() as f64;
+    Some(Metering {
+        mid_grey: ln.exp().clamp(1e-4, 0.99),
+        max_clipped: auto.iter().map(|m| m.clipped).fold(0.0, f64::max).min(0.49),
+    })
+}
+
+/// [`metering_rule`] with the provenance line a profile keeps for it: the bracket folder, the
+/// frames it was measured on and how.
+pub fn measured_rule(dir: &Path, frames: &[MeteredFrame]) -> Option<(Metering, String)> {
+    let rule = metering_rule(frames)?;
+    let names: Vec<String> = frames
+        .iter()
+        .filter(|m| m.auto_exposed)
+        .map(|m| m.frame.display().to_string())
+        .collect();
+    let why = format!(
+        "the device's auto-exposed frames (EXIF ExposureBiasValue 0 beside the other frames' \
+         offsets) of bracket folder {} (`hdrsynth calibrate brackets`): {}; mid_grey = the \
+         geometric mean of their log-average luminance (fraction of white), max_clipped = the \
+         largest fraction of pixels any of them clipped",
+        dir.display(),
+        names.join(", ")
+    );
+    Some((rule, why))
 }
 
 #[cfg(test)]

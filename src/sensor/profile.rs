@@ -21,6 +21,7 @@ use crate::config::{KeyError, Range, each_in_range, in_range, in_range_because, 
 use crate::error::{Error, Result};
 pub use crate::sensor::effects::plan::EffectSpec;
 use crate::sensor::effects::plan::Plan;
+use crate::sensor::metering::{MeteredFrame, Metering, measured_rule};
 use crate::sensor::response::ToneCurve;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -34,6 +35,9 @@ pub struct Provenance {
     pub noise: String,
     pub levels: String,
     pub response: String,
+    /// Where the exposure rule `[metering]` was measured; present exactly when it is.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub metering: Option<String>,
     #[serde(default)]
     pub notes: Option<String>,
 }
@@ -161,6 +165,11 @@ pub struct SensorProfile {
     pub response: Response,
     /// Source response: how to linearise the pure synthetic frames fed to this profile.
     pub source_response: Response,
+    /// The device's own exposure rule, measured from the frames its camera exposed itself
+    /// (`calibrate brackets`): training and `testset` expose with it unless told otherwise
+    /// ([`Metering::resolve`]). Absent where none was measured.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub metering: Option<Metering>,
     #[serde(default)]
     pub effects: Vec<EffectSpec>,
     /// The captures this profile was measured on (`calibrate brackets`, `diagnose --brackets`):
@@ -292,6 +301,7 @@ impl SensorProfile {
             noise: Vec::new(),
             response,
             source_response: Response::Filmic,
+            metering: None,
             effects: Vec::new(),
             calibrated_on: Vec::new(),
         }
@@ -318,6 +328,7 @@ impl SensorProfile {
                 response: "defaults, not measured: response = srgb, source_response = filmic \
                            (the scene engine's display curve)"
                     .into(),
+                metering: None,
                 notes: None,
             },
         );
@@ -436,8 +447,48 @@ impl SensorProfile {
         self.source_response
             .validate()
             .map_err(|e| e.within("source_response"))?;
+        if let Some(m) = &self.metering {
+            m.validate().map_err(|e| e.within("metering"))?;
+        }
+        match (&self.metering, &self.provenance.metering) {
+            (Some(_), None) => {
+                return Err(KeyError::new(
+                    "provenance.metering",
+                    "missing: [metering] needs the line saying where the rule was measured",
+                ));
+            }
+            (None, Some(_)) => {
+                return Err(KeyError::new(
+                    "provenance.metering",
+                    "given, but the profile has no [metering]: add the rule or remove the line",
+                ));
+            }
+            _ => {}
+        }
         // Ids and parameters: the same check the realism operator makes.
         Plan::check(&self.effects)
+    }
+
+    /// Set the exposure rule with its provenance line, or remove both (`None`); the rule the
+    /// profile held before.
+    pub fn set_metering(&mut self, rule: Option<(Metering, String)>) -> Option<Metering> {
+        let before = self.metering.take();
+        (self.metering, self.provenance.metering) = rule.unzip();
+        before
+    }
+
+    /// Write the exposure rule a bracket folder's metered frames show ([`measured_rule`]), or
+    /// remove the profile's where they mark no auto-exposed frame: a note when one was removed.
+    pub fn record_measured_rule(&mut self, dir: &Path, frames: &[MeteredFrame]) -> Option<String> {
+        let before = self.set_metering(measured_rule(dir, frames));
+        match (before, self.metering) {
+            (Some(old), None) => Some(format!(
+                "the profile's exposure rule ({old}) was removed: no frame of {} marks the \
+                 device's meter",
+                dir.display()
+            )),
+            _ => None,
+        }
     }
 
     /// Noise parameters (a, b) per channel at `iso`, interpolated linearly in log(ISO).

@@ -6,6 +6,7 @@ use crate::data::encoding::{self, FrameEncoding};
 use crate::data::loader::{LoaderConfig, PURE_PROFILE, RealismConfig, SampleKind, TargetFrames};
 use crate::error::Result;
 use crate::models::ModelConfig;
+use crate::sensor::metering::{Metering, Resolved};
 use crate::train::loss::Network1Reading;
 use serde::{Deserialize, Serialize, de};
 use std::path::{Path, PathBuf};
@@ -281,6 +282,19 @@ impl DataConfig {
 }
 
 impl DataConfig {
+    /// The exposure rule training meters with, and where it came from: `[data.metering]` where
+    /// the config gives it, else the profile's measured rule, else the default
+    /// ([`Metering::resolve`]; pure mode has no profile).
+    pub fn metering(&self) -> Result<Resolved> {
+        let p = &self.realism.profile;
+        let measured = if p == Path::new(PURE_PROFILE) {
+            None
+        } else {
+            crate::sensor::profile::SensorProfile::load(p)?.metering
+        };
+        Ok(Metering::resolve(self.realism.metering, measured))
+    }
+
     /// The curve the training frames were encoded with: the profile's device response, or in
     /// pure mode the dataset's display curve (None where its layout does not record one).
     pub fn frame_encoding(&self) -> Result<Option<FrameEncoding>> {
@@ -562,6 +576,15 @@ fn default_val_samples() -> usize {
 impl TrainConfig {
     pub fn load(path: &Path) -> Result<TrainConfig> {
         load_checked(path, TrainConfig::validate)
+    }
+
+    /// This config with the exposure rule it trains with written in (`[data.metering]`,
+    /// [`DataConfig::metering`]): what a run records as its config, so that its identity holds
+    /// the rule itself, wherever it came from.
+    pub fn with_resolved_metering(&self) -> Result<TrainConfig> {
+        let mut c = self.clone();
+        c.data.realism.metering = Some(self.data.metering()?.rule);
+        Ok(c)
     }
 
     /// Every value rule of the config (ranges, and the rules between keys); keys as the file

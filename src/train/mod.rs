@@ -235,7 +235,10 @@ pub const DATA_SOURCE_FILE: &str = "data_source.txt";
 pub fn run(cfg: &TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
     cfg.validate()?;
     let kind = cfg.model.sample_kind();
+    // The loader resolves the exposure rule itself, so `data_source.txt` says where it came
+    // from; the run's recorded config holds the rule's values.
     let loader = Arc::new(Loader::new(&cfg.data.loader(kind, cfg.run.seed)?)?);
+    let cfg = &cfg.with_resolved_metering()?;
     match &cfg.model {
         ModelConfig::BlendUnet(m) => {
             let alpha = network1_alpha(cfg, opts, &loader)?;

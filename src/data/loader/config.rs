@@ -53,9 +53,10 @@ pub struct RealismConfig {
     /// Extra factor on the metered exposure (1 = the auto-exposure rule's choice).
     #[serde(default = "one")]
     pub exposure: f64,
-    /// The auto-exposure rule (src/sensor/metering.rs; the same rule `testset` uses).
-    #[serde(default)]
-    pub metering: Metering,
+    /// The auto-exposure rule (src/sensor/metering.rs; the same rule `testset` uses). Absent:
+    /// the profile's measured rule, else the default ([`Metering::resolve`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub metering: Option<Metering>,
     /// Per-sample exposure jitter, uniform in ±`ev_jitter` stops around the metered exposure
     /// (a phone's meter is not exact either).
     #[serde(default = "half")]
@@ -105,7 +106,10 @@ impl RealismConfig {
             Range::closed(0.0, MAX_EV_JITTER),
             "stops",
         )?;
-        self.metering.validate().map_err(|e| e.within("metering"))
+        match &self.metering {
+            Some(m) => m.validate().map_err(|e| e.within("metering")),
+            None => Ok(()),
+        }
     }
 
     /// `profile` at `isos`, every other key at its default.
@@ -115,7 +119,7 @@ impl RealismConfig {
             isos,
             noise: NoiseModel::default(),
             exposure: one(),
-            metering: Metering::default(),
+            metering: None,
             ev_jitter: half(),
             source: Source::default(),
             colour: yes(),

@@ -25,6 +25,7 @@ use crate::data::layout::{self, GroundTruthKind, SetInfo, read_set_image};
 use crate::error::{Error, Result};
 use crate::io::Image;
 use crate::rng::{Rng, hash};
+use crate::sensor::metering::{Metering, Resolved};
 use crate::sensor::profile::{Response, SensorProfile};
 use crate::sensor::realism::{NoiseModel, Realism, RealismOptions, TargetSpace};
 use std::collections::BTreeMap;
@@ -77,6 +78,8 @@ pub struct Loader {
     white: f32,
     /// Per set: the metered EV0 key, computed once on first use.
     keys: Vec<OnceLock<std::result::Result<f32, String>>>,
+    /// The exposure rule the keys are metered with and where it came from (pure mode: none).
+    metering: Option<Resolved>,
 }
 
 /// Indices of the frames with the wanted EVs (error naming the set when one is missing).
@@ -224,8 +227,10 @@ impl Loader {
         let mut clean = Vec::new();
         let mut source = Source::Display;
         let mut linearise = None;
+        let mut metering = None;
         if let Some(r) = &cfg.realism {
             let mut profile = SensorProfile::load(&r.profile)?;
+            metering = Some(Metering::resolve(r.metering, profile.metering));
             let missing = info.sets.iter().find_map(|s| {
                 let idx = frames_at(s, need).ok()?;
                 [&s.static_frames, &s.dynamic_frames]
@@ -286,7 +291,13 @@ impl Loader {
             source,
             linearise,
             white,
+            metering,
         })
+    }
+
+    /// The exposure rule the sets are metered with and where it came from; `None` in pure mode.
+    pub fn metering(&self) -> Option<Resolved> {
+        self.metering
     }
 
     /// The EVs a sample kind reads.
@@ -312,20 +323,17 @@ impl Loader {
 
     /// What the training frames are made from, for logs and reports.
     pub fn describe_source(&self) -> String {
-        match &self.cfg.realism {
-            None => "pure synthetic display frames (no sensor realism), targets in units of \
-                     the reference frame's white"
-                .into(),
-            Some(r) => format!(
-                "sensor realism ({}) from {}; exposure metered per set (mid grey {}, at most \
-                 {:.0} % clipped) × {} ± {} EV",
+        match (&self.cfg.realism, self.metering) {
+            (Some(r), Some(m)) => format!(
+                "sensor realism ({}) from {}; exposure metered per set ({m}) × {} ± {} EV",
                 r.profile.display(),
                 self.source,
-                r.metering.mid_grey,
-                r.metering.max_clipped * 100.0,
                 r.exposure,
                 r.ev_jitter
             ),
+            _ => "pure synthetic display frames (no sensor realism), targets in units of \
+                  the reference frame's white"
+                .into(),
         }
     }
 
@@ -352,7 +360,7 @@ impl Loader {
     /// The metered EV0 key of set `k` in realism's starting unit (cached).
     fn key(&self, k: usize) -> Result<f32> {
         let set = &self.sets[k];
-        let r = self.cfg.realism.as_ref().ok_or_else(|| {
+        let rule = self.metering.map(|m| m.rule).ok_or_else(|| {
             Error::Invalid("loader: exposure metering needs a realism config".into())
         })?;
         self.keys[k]
@@ -371,7 +379,7 @@ impl Loader {
                     }
                 }
                 .map_err(|e| e.to_string())?;
-                r.metering.key(&radiance).map(|e| e.key)
+                rule.key(&radiance).map(|e| e.key)
             })
             .clone()
             .map_err(|m| Error::layout(&set.dir, format!("set '{}': {m}", set.name)))

@@ -267,7 +267,18 @@ fn run_cell(
     progress: bool,
 ) -> Result<CellStatus> {
     let plan_path = dir.join(CELL_PLAN);
-    let plan_text = toml::to_string(plan).map_err(|e| Error::encode(&plan_path, e))?;
+    // Recorded with the exposure rule the cell trains with (as a run records its config): a
+    // profile whose measured rule changed is another cell. Trained as written, so the run
+    // says where its rule came from.
+    let recorded = CellPlan {
+        train: plan
+            .train
+            .as_ref()
+            .map(TrainConfig::with_resolved_metering)
+            .transpose()?,
+        ..plan.clone()
+    };
+    let plan_text = toml::to_string(&recorded).map_err(|e| Error::encode(&plan_path, e))?;
     match std::fs::read_to_string(&plan_path) {
         Ok(saved) if saved != plan_text => {
             return Err(Error::config(

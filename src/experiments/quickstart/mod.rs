@@ -382,7 +382,7 @@ fn heldout_testsets(
                 ..Default::default()
             };
             if let Some(m) = h.metering {
-                options.metering = m;
+                options.metering = Some(m);
             }
             Ok(TestsetSpec {
                 name: Some(h.name.into()),

@@ -594,6 +594,7 @@ fn new_profile(opts: &CalibrateOptions, inputs: &InputsInfo) -> Result<SensorPro
                  source_response filmic: the default display curve of `hdrsynth generate` \
                  (docs/scene.md); change it if the synthetic frames use another curve"
             ),
+            metering: None,
             notes: None,
         },
     ))

@@ -227,6 +227,7 @@ fn new_profile(name: &str, first: &DngFile) -> SensorProfile {
             response: "not in DNG tags: defaults, not measured: response = srgb, \
                        source_response = filmic (the scene engine's display curve)"
                 .into(),
+            metering: None,
             notes: None,
         },
     )
