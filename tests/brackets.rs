@@ -12,6 +12,8 @@ use image::ExtendedColorType;
 use image::codecs::jpeg::JpegEncoder;
 use std::path::{Path, PathBuf};
 
+use common::{TestNoise, srgb};
+
 // ---------------------------------------------------------------------------------------------
 // A minimal EXIF writer (little-endian TIFF in an APP1 segment).
 
@@ -139,16 +141,6 @@ fn radiance(x: usize, y: usize) -> [f64; 3] {
     let l = (-7.0 + 10.0 * x as f64 / (W - 1) as f64).exp2();
     let c = y as f64 / (H - 1) as f64;
     [l * (0.6 + 0.4 * c), l, l * (1.0 - 0.5 * c)]
-}
-
-/// IEC 61966-2-1 encoding by hand.
-fn srgb(x: f64) -> f64 {
-    let x = x.clamp(0.0, 1.0);
-    if x <= 0.003_130_8 {
-        12.92 * x
-    } else {
-        1.055 * x.powf(1.0 / 2.4) - 0.055
-    }
 }
 
 /// An sRGB JPEG of the scene exposed for `t` seconds (exposure scale t · 16).
@@ -2401,25 +2393,6 @@ fn eval_warns_when_a_network_meets_a_curve_it_was_not_trained_on() {
 // ---------------------------------------------------------------------------------------------
 // A profile from brackets (`calibrate brackets`): the device's output-domain noise and
 // response, and the encoding it makes agree by construction.
-
-/// Gaussian draws from a fixed LCG (Box–Muller): the test's own noise, independent of the
-/// library's generator.
-struct TestNoise(u64);
-
-impl TestNoise {
-    fn uniform(&mut self) -> f64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6_364_136_223_846_793_005)
-            .wrapping_add(1_442_695_040_888_963_407);
-        ((self.0 >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    }
-
-    fn normal(&mut self) -> f64 {
-        let (u, v) = (self.uniform(), self.uniform());
-        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
-    }
-}
 
 /// How the unit-variance draws of [`noisy_png_bracket`] are correlated in space.
 #[derive(Clone, Copy)]

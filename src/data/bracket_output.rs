@@ -33,18 +33,13 @@ use crate::sensor::profile::SensorProfile;
 use crate::sensor::realism::{NoiseModel, Realism, RealismOptions};
 use std::path::Path;
 
-/// The check reads the central window of at most this many pixels of every frame: the
-/// statistics need the native resolution, not every pixel of a 12-megapixel phone frame
-/// (memory and time grow with the frames × replicates the check renders).
-const WINDOW: (usize, usize) = (640, 480);
-
-/// The central [`WINDOW`] of `img` (all of a smaller frame), the same for every frame of a set.
+/// The central window of `img` (`bracket_profile::window`, at most 640×480), the same for
+/// every frame of a set.
 fn window(img: Image) -> Image {
-    let (w, h) = (img.width.min(WINDOW.0), img.height.min(WINDOW.1));
+    let (x0, y0, w, h) = bracket_profile::window(&img);
     if (w, h) == (img.width, img.height) {
         return img;
     }
-    let (x0, y0) = ((img.width - w) / 2, (img.height - h) / 2);
     Image::from_fn(w, h, |x, y| img.get(x0 + x, y0 + y))
 }
 

@@ -40,7 +40,9 @@ use std::path::{Path, PathBuf};
 
 mod noise;
 pub use noise::NoiseBin;
-pub(crate) use noise::{BINS, Pair, Planes, channel_moments, checked_pair, merge_bins, noise_bins};
+pub(crate) use noise::{
+    BINS, Pair, Planes, channel_moments, checked_pair, merge_bins, noise_bins, window,
+};
 
 #[derive(Clone, Debug)]
 pub struct BracketProfileOptions {

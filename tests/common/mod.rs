@@ -173,3 +173,32 @@ pub fn value_and_grad(
     let g = (y.clone() * r).sum().backward();
     (to_vec(y), to_vec(x.grad(&g).expect("dx")))
 }
+
+/// Gaussian draws from a fixed LCG (Box–Muller): the test's own noise, independent of the
+/// library's generator.
+pub struct TestNoise(pub u64);
+
+impl TestNoise {
+    pub fn uniform(&mut self) -> f64 {
+        self.0 = self
+            .0
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        ((self.0 >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+    }
+
+    pub fn normal(&mut self) -> f64 {
+        let (u, v) = (self.uniform(), self.uniform());
+        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+    }
+}
+
+/// IEC 61966-2-1 encoding by hand.
+pub fn srgb(x: f64) -> f64 {
+    let x = x.clamp(0.0, 1.0);
+    if x <= 0.003_130_8 {
+        12.92 * x
+    } else {
+        1.055 * x.powf(1.0 / 2.4) - 0.055
+    }
+}

@@ -153,9 +153,13 @@ impl Pair {
     }
 }
 
-/// The central window (at most 640×480) over which the pair checks run: x0, y0, w, h.
-fn window(img: &Image) -> (usize, usize, usize, usize) {
-    let (w, h) = (img.width.min(640), img.height.min(480));
+/// The pair checks and the device-output check read at most this central window of a frame:
+/// their statistics need the native resolution, not every pixel of a 12-megapixel phone frame.
+const WINDOW: (usize, usize) = (640, 480);
+
+/// The central [`WINDOW`] of `img` (all of a smaller frame): x0, y0, w, h.
+pub(crate) fn window(img: &Image) -> (usize, usize, usize, usize) {
+    let (w, h) = (img.width.min(WINDOW.0), img.height.min(WINDOW.1));
     ((img.width - w) / 2, (img.height - h) / 2, w, h)
 }
 
