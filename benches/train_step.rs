@@ -108,6 +108,7 @@ fn bench(c: &mut Criterion) {
     };
     bench_task(c, "network1/b4/128px", &net1, &samples(6, 128, false));
     let net2 = Network2 {
+        unit: Default::default(),
         config: WuConfig::default(),
     };
     bench_task(c, "network2/b4/256px", &net2, &samples(18, 256, true));

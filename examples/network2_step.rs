@@ -23,7 +23,8 @@ fn main() -> Result<()> {
         || PathBuf::from("examples/network2_step.toml"),
         PathBuf::from,
     );
-    let cfg = TrainConfig::load(&path)?;
+    // As the trainer: Network-2's input curve resolved (linearise = "data").
+    let cfg = TrainConfig::load(&path)?.with_resolved_model()?;
     let ModelConfig::Wu(model) = &cfg.model else {
         bail!(
             "{}: [model] kind must be \"wu\" (Network-2)",
@@ -32,13 +33,12 @@ fn main() -> Result<()> {
     };
     // The dataset the config names, generated first when it has a `generate` config.
     hdrsynth::cli::train::ensure_data(&cfg, true)?;
-    let loader = Arc::new(Loader::new(
-        &cfg.data.loader(cfg.model.sample_kind(), cfg.run.seed)?,
-    )?);
+    let loader = Arc::new(Loader::new(&cfg.loader(cfg.model.sample_kind())?)?);
 
     let device = device_from_name(&cfg.run.backend)?.autodiff();
     let task = Network2 {
         config: model.clone(),
+        unit: cfg.loss.hdr_unit,
     };
     // As the trainer starts a new run: seeded weights, then [init]'s weights if any; Adam as
     // [optim] says.

@@ -598,7 +598,7 @@ fn the_ground_truth_is_clipped_at_the_shortest_frames_white() {
 /// the ground truth (up to 8-bit quantisation); noisy frames at ISO 3200 score lower.
 #[test]
 fn the_triangle_merge_with_the_true_response_recovers_the_ground_truth() {
-    use hdrsynth::eval::evaluate::{self, TriangleMerge};
+    use hdrsynth::eval::evaluate::{self, Classical, ClassicalMerge};
     let tmp = tempfile::tempdir().expect("tmp");
     let src = tmp.path().join("ramp.exr");
     write_exr(&src, &radiance_map(64, 32), ExrPrecision::Float).expect("write");
@@ -611,7 +611,8 @@ fn the_triangle_merge_with_the_true_response_recovers_the_ground_truth() {
     };
     testset::build(&src, &profile, &opts, &out).expect("build");
     let score = |clean: bool| {
-        let m = TriangleMerge {
+        let m = ClassicalMerge {
+            kind: Classical::Triangle,
             response: profile.response.clone(),
             clean,
         };

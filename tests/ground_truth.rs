@@ -1,8 +1,9 @@
 //! Ground truth: pyramids against hand-computed values (OpenCV pyrDown/pyrUp semantics with
 //! reflect-101 borders), Mertens fusion against OpenCV 5.0 `MergeMertens` oracles, the triangle
 //! merge against its oracle (on the committed crops in tests/data/oracle_crops, and full size
-//! where ../shared/data exists), the blend-class sign convention on hand examples, the class
-//! weights on hand histograms, and `dataset weights` on a small generated dataset.
+//! where ../shared/data exists), `debevec_merge` against OpenCV 5.0 `MergeDebevec` on the
+//! committed crops, the blend-class sign convention on hand examples, the class weights on hand
+//! histograms, and `dataset weights` on a small generated dataset.
 
 use hdrsynth::config::parse_toml;
 use hdrsynth::data::generate::GenerateConfig;
@@ -15,7 +16,9 @@ use hdrsynth::data::pyramid::{
     Plane, collapse, gaussian_pyramid, laplacian_blend, laplacian_pyramid, max_level, pyr_down,
     pyr_up, reflect101,
 };
+use hdrsynth::eval::evaluate::debevec_merge;
 use hdrsynth::io::{Image, read_image};
+use hdrsynth::sensor::profile::Response;
 use std::path::{Path, PathBuf};
 
 mod common;
@@ -324,6 +327,60 @@ fn triangle_merge_matches_oracles() {
 fn triangle_merge_matches_oracle_on_committed_crops() {
     // The oracle is f64 rounded to f32; ours is f32 (max ~2.4e-7 = 1 ulp at 4).
     check_triangle_oracles(&crops(), 2e-6);
+}
+
+/// Runs our `debevec_merge` with the known γ 2.2 response on every MergeDebevec case of
+/// `DIR/oracles.json` (Desk and Carrots, EV −2/0/+2, t = 0.25, 1, 4; written by
+/// tools/debevec_oracle.py with OpenCV 5.0) and checks the largest relative difference per value
+/// against OpenCV's output.
+fn check_debevec_oracles(dir: &Path, limit: f64) {
+    let cases = oracle_cases(dir, "debevec_merge");
+    let names: Vec<&str> = cases.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(names, ["carrots_3exp_debevec", "desk_3exp_debevec"]);
+    for (name, case) in &cases {
+        let f = frames(dir, name, case);
+        let t: Vec<f32> = case["exposure_times"]
+            .as_array()
+            .expect("exposure_times")
+            .iter()
+            .map(|v| v.as_f64().expect("time") as f32)
+            .collect();
+        assert_eq!(t, [0.25, 1.0, 4.0], "{name}: exposure times");
+        assert_eq!(case["gamma"].as_f64(), Some(2.2), "{name}: gamma");
+        // The crops clip (codes 0 and 255 in every frame), so the weights at the ends count.
+        let clipped = f
+            .iter()
+            .flat_map(|i| &i.data)
+            .filter(|&&v| v == 0.0 || v == 1.0)
+            .count();
+        assert!(clipped > 100, "{name}: only {clipped} clipped values");
+        let output = case["output"].as_str().expect("output");
+        let want = read_image(&dir.join(output)).expect("oracle exr");
+        let got = debevec_merge(&f, &t, &Response::Gamma { gamma: 2.2 }).expect("merge");
+        assert_eq!((got.width, got.height), (want.width, want.height), "{name}");
+        let (mut max, mut sum) = (0f64, 0f64);
+        for (g, w) in got.data.iter().zip(&want.data) {
+            assert!(*w > 0.0 && w.is_finite(), "{name}: oracle value {w}");
+            let r = ((*g as f64) - (*w as f64)).abs() / *w as f64;
+            max = max.max(r);
+            sum += r;
+        }
+        let mean = sum / got.data.len() as f64;
+        println!("{name}: max relative error {max:.3e}, mean {mean:.3e}");
+        assert!(
+            max <= limit,
+            "{name}: max relative error {max:.3e} (limit {limit:e}), mean {mean:.3e}"
+        );
+    }
+}
+
+#[test]
+fn debevec_merge_matches_opencv_on_committed_crops() {
+    // OpenCV computes in f32 (its log/exp, f32 sums), ours in f64: ~7e-7 relative at most. The
+    // pre-#27270 weights (z + 1, 256 − z) are up to 0.5 (Carrots) and 0.71 (Desk) off at
+    // clipped pixels, and a linear-domain weighted mean Σ w·R(z)/t / Σ w up to 0.75 off, with
+    // 19% (Carrots) and 51% (Desk) of the values beyond 1e-4: either mistake fails here.
+    check_debevec_oracles(&crops(), 1e-4);
 }
 
 #[test]

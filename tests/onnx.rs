@@ -275,7 +275,14 @@ fn network2_exports_match_burn_in_onnx_runtime() {
             for (k, f) in frames.iter().enumerate() {
                 ldr.data[k * 3 * w * h..(k + 1) * 3 * w * h].copy_from_slice(&f.data);
             }
-            x.extend(hdrsynth::eval::infer::network2_input(&ldr, times[b]).data);
+            x.extend(
+                hdrsynth::eval::infer::network2_input(
+                    &ldr,
+                    times[b],
+                    &hdrsynth::models::wu::wu_input_response(),
+                )
+                .data,
+            );
         }
         let x = burn::tensor::Tensor::<4>::from_data(
             burn::tensor::TensorData::new(x, [2, 18, h, w]),

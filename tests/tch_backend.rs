@@ -71,6 +71,7 @@ fn seeded_training_on_tch_is_repeatable_and_learns() {
     };
     check("Network-1", &net1, &batch(6, 32, false));
     let net2 = Network2 {
+        unit: Default::default(),
         config: WuConfig {
             base_width: 4,
             res_blocks: 1,

@@ -447,8 +447,10 @@ fn data_section_errors_name_the_key_line_and_the_valid_keys() {
 #[test]
 fn omitted_keys_take_the_documented_defaults() {
     use hdrsynth::data::loader::Source;
+    use hdrsynth::models::wu::{Linearise, WuOutput};
     use hdrsynth::models::{DeconvAlignment, WuConfig, WuVariant};
     use hdrsynth::sensor::metering::Metering;
+    use hdrsynth::sensor::profile::Response;
     use hdrsynth::sensor::realism::NoiseModel;
     use hdrsynth::train::loss::Network1Reading;
     let minimal = |model: &str| {
@@ -518,6 +520,9 @@ fn omitted_keys_take_the_documented_defaults() {
             unet_merger_widths: vec![4, 8, 8],
             deconv_alignment: DeconvAlignment::Tensorflow,
             hdr_input_scale: 0.25,
+            output: WuOutput::Image,
+            linearise: Linearise::Fixed,
+            input_response: Response::Gamma { gamma: 2.2 },
         })
     );
     let with_validation = format!(

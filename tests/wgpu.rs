@@ -363,6 +363,7 @@ fn network2_forward(batch: &[Sample]) -> impl Fn(&hdrsynth::models::WuNet, &Devi
 #[test]
 fn network2_resnet_step_agrees_with_flex() {
     let task = Network2 {
+        unit: Default::default(),
         config: WuConfig {
             res_blocks: 2,
             ..WuConfig::resnet(8)
@@ -375,6 +376,7 @@ fn network2_resnet_step_agrees_with_flex() {
 #[test]
 fn network2_unet_step_agrees_with_flex() {
     let task = Network2 {
+        unit: Default::default(),
         config: WuConfig::unet(4),
     };
     let batch = common::samples(2, 18, 64, true);

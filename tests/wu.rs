@@ -649,3 +649,63 @@ fn import_follows_the_documented_names_and_checks_the_file() {
         .to_string();
     assert!(e.contains("absent.safetensors"), "{e}");
 }
+
+/// The merge head (`output = "merge"`) before training is the triangle merge of its inputs:
+/// the last convolution starts at zero, so the weights are the triangle's (each + ε, then
+/// normalised). Hand values: a reference code I = 0.25 gives the short, middle and long frames
+/// triangle weights 0, 0.5, 0.5; I = 0.75 gives 0.5, 0.5, 0; I = 1 gives 1, 0, 0.
+#[test]
+fn the_untrained_merge_head_is_the_triangle_merge() {
+    let dev = Device::flex();
+    let cfg = WuConfig {
+        output: wu::WuOutput::Merge,
+        ..WuConfig::resnet(2)
+    };
+    assert_eq!(
+        cfg.trainable_parameters(),
+        WuConfig::resnet(2).trainable_parameters() + 6 * 25 * 2 + 6,
+        "the head predicts 9 channels instead of 3"
+    );
+    let net = seeded_init(&cfg, &dev, 7);
+    let (h, w) = (8, 8);
+    // Per pixel column x: a reference code, and HDR channels of each frame chosen by hand
+    // (the head reads them as given: any curve, any noise).
+    let cases: [(f32, [f32; 3]); 3] = [
+        (0.25, [0.8, 0.10, 0.14]),
+        (0.75, [0.6, 0.50, 0.40]),
+        (1.0, [0.9, 1.00, 0.25]),
+    ];
+    let want = [
+        (0.5 + 1e-3) * 0.10 / (1.0 + 3e-3)
+            + (0.5 + 1e-3) * 0.14 / (1.0 + 3e-3)
+            + 1e-3 * 0.8 / (1.0 + 3e-3),
+        (0.5 + 1e-3) * 0.6 / (1.0 + 3e-3)
+            + (0.5 + 1e-3) * 0.50 / (1.0 + 3e-3)
+            + 1e-3 * 0.40 / (1.0 + 3e-3),
+        (1.0 + 1e-3) * 0.9 / (1.0 + 3e-3) + 1e-3 * 1.00 / (1.0 + 3e-3) + 1e-3 * 0.25 / (1.0 + 3e-3),
+    ];
+    let n = h * w;
+    let mut x = vec![0.0f32; 18 * n];
+    for px in 0..n {
+        let (code, hdr) = cases[(px % w) % 3];
+        for f in 0..3 {
+            for c in 0..3 {
+                x[(6 * f + c) * n + px] = if f == 1 { code } else { 0.5 };
+                x[(6 * f + 3 + c) * n + px] = hdr[f];
+            }
+        }
+    }
+    let y = to_vec(net.forward(Tensor::from_data(TensorData::new(x, [1, 18, h, w]), &dev)));
+    for px in 0..n {
+        let k = (px % w) % 3;
+        for c in 0..3 {
+            // The output unit is HDR × hdr_input_scale (0.25).
+            let got = y[c * n + px] / 0.25;
+            assert!(
+                (got - want[k]).abs() < 1e-5,
+                "pixel {px} channel {c}: {got} vs the triangle merge's {}",
+                want[k]
+            );
+        }
+    }
+}

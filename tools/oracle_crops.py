@@ -4,7 +4,8 @@
 Small reference data that the tests use without ../shared/data: crops of two real HDR scenes
 (openexr-images, BSD-3), 8-bit brackets made from them, and the outputs of OpenCV MergeMertens,
 a numpy triangle merge, scikit-image PSNR/SSIM (plus the PU21 numpy transcription of
-tools/metrics_reference.py), colour-science CIEDE2000 and colour-science colour correction.
+tools/metrics_reference.py), colour-science CIEDE2000 and colour-science colour correction;
+then OpenCV MergeDebevec on the three-frame PNGs (tools/debevec_oracle.py, `add_cases`).
 Conventions are those of ../shared/data/oracles/oracles.json; PROVENANCE.md in the output
 folder lists them with the tool versions. Deterministic: the crop windows are chosen by a fixed
 score, the noise and the random pairs come from fixed seeds.
@@ -28,6 +29,7 @@ sys.path.insert(0, HERE)
 import metrics_reference  # noqa: E402  (PU21 transcription and the field's PSNR/SSIM calls)
 
 import colour  # noqa: E402
+import debevec_oracle  # noqa: E402  (the MergeDebevec cases, added to oracles.json at the end)
 
 # (name in the output, source file in ../shared/data/real_hdr)
 SCENES = [("desk", "Desk.exr"), ("carrots", "Carrots.exr")]
@@ -217,6 +219,7 @@ def main():
     with open(os.path.join(out, "oracles.json"), "w") as f:
         json.dump(doc, f, indent=1)
         f.write("\n")
+    debevec_oracle.add_cases(out)
     print(json.dumps(dict(tools=tools, crops=crops), indent=1))
 
 

@@ -4,7 +4,9 @@
 //! summary tables with bootstrap intervals, outputs, previews and a report (docs/evaluation.md).
 
 use crate::engine::method::{Source, method_for};
-use crate::eval::evaluate::{EvalOptions, Network1Reference, NetworkOptions, ScoreUnit, evaluate};
+use crate::eval::evaluate::{
+    Classical, EvalOptions, Network1Reference, NetworkOptions, ScoreUnit, evaluate,
+};
 use crate::eval::metrics::{MetricOptions, Pu21Scale};
 use crate::eval::report;
 use crate::train::config::TrainConfig;
@@ -13,7 +15,7 @@ use std::fmt::Write as _;
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug, Clone)]
-#[command(group(clap::ArgGroup::new("source").required(true).args(["predictions", "checkpoint", "config"])))]
+#[command(group(clap::ArgGroup::new("source").required(true).args(["predictions", "checkpoint", "config", "baseline"])))]
 pub struct Args {
     /// Test set folder in any known layout (hdrsynth, Kalantari, Wu, paper Dataset-1).
     #[arg(long)]
@@ -31,6 +33,11 @@ pub struct Args {
     /// (unless --checkpoint or --backend say otherwise).
     #[arg(long)]
     pub config: Option<PathBuf>,
+    /// A classical baseline instead of a network: copy (the reference frame linearised),
+    /// triangle (Kalantari's triangle merge) or debevec (OpenCV's MergeDebevec), each with the
+    /// curve the test set records for its frames (refused where it records none).
+    #[arg(long)]
+    pub baseline: Option<Classical>,
     /// Skip sets without a prediction (listed in the summary) instead of failing.
     #[arg(long)]
     pub allow_missing: bool,
@@ -102,6 +109,16 @@ impl Args {
             .clone()
             .or_else(|| train.as_ref().map(|t| t.run.out.clone()));
         Ok(match (&self.predictions, checkpoint) {
+            _ if self.baseline.is_some()
+                && (self.predictions.is_some() || self.config.is_some()) =>
+            {
+                bail!(
+                    "--baseline scores a classical merge: give it without --predictions, --checkpoint or --config"
+                )
+            }
+            (None, None) if self.baseline.is_some() => {
+                Source::Baseline(self.baseline.expect("checked"), self.testset.clone())
+            }
             (Some(dir), None) => Source::Predictions(dir.clone()),
             (None, Some(path)) => Source::Checkpoint {
                 path,

@@ -66,7 +66,7 @@ impl Default for MertensWeights {
     }
 }
 
-fn check_frames(what: &str, frames: &[&Image]) -> Result<(usize, usize)> {
+pub fn check_frames(what: &str, frames: &[&Image]) -> Result<(usize, usize)> {
     let Some(first) = frames.first() else {
         return Err(Error::Invalid(format!("{what}: no frames")));
     };

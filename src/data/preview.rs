@@ -65,6 +65,7 @@ pub fn preview(args: &PreviewOptions) -> Result<String> {
         realism: None,
         target_sigma: 0.0,
         target_frames: Default::default(),
+        input_response: None,
     };
     let mut real_cfg = base.clone();
     real_cfg.realism = Some(RealismConfig {

@@ -5,7 +5,9 @@
 use super::{LoadedNetwork, Network};
 use crate::data::encoding::FrameEncoding;
 use crate::error::{Error, Result};
-use crate::eval::evaluate::{Method, Network1, Network2, NetworkOptions, Predictions};
+use crate::eval::evaluate::{
+    Classical, ClassicalMerge, Method, Network1, Network2, NetworkOptions, Predictions,
+};
 use crate::io::source::Source as Capture;
 use crate::train::config::TrainedOn;
 use burn::tensor::Device;
@@ -88,6 +90,8 @@ pub enum Source {
         backend: String,
         network: NetworkOptions,
     },
+    /// A classical merge of the test set in the folder, with the curve it records.
+    Baseline(Classical, PathBuf),
 }
 
 /// The method that scores `source`.
@@ -109,6 +113,9 @@ pub fn method_for(source: &Source) -> Result<Box<dyn Method>> {
         } => {
             let device = crate::device::device_from_name(backend)?;
             from_checkpoint(path, network, &device)
+        }
+        Source::Baseline(kind, testset) => {
+            Ok(Box::new(ClassicalMerge::for_testset(*kind, testset)?))
         }
     }
 }

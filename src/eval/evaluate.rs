@@ -31,6 +31,7 @@ use crate::eval::metrics::{self, DarkMask, MetricOptions, Pu21Scale, Scores};
 use crate::eval::report::{self, Cell, MetricSummary, SetScore};
 use crate::io::source::Source;
 use crate::io::{BitDepth, ExrPrecision, Image, read_image, resize, write_exr, write_ldr};
+use crate::sensor::profile::Response;
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use std::fmt::Write as _;

@@ -10,6 +10,7 @@ use crate::eval::metrics::mu_law;
 use crate::eval::tiling::{Planar, Tiling, run_tiled};
 use crate::io::{BitDepth, ExrPrecision, Image, read_image, write_exr, write_ldr};
 use crate::models::{BlendUNet, BlendUNetConfig, WuConfig, WuNet};
+use crate::sensor::profile::Response;
 use burn::tensor::{Device, Tensor, TensorData};
 use std::path::Path;
 
@@ -236,8 +237,9 @@ pub fn network2_frames(set: &SetInfo) -> Result<([Image; 3], [f32; 3])> {
 
 /// Network-2's 18-channel input from three frames stacked planar (9 channels: RGB of each
 /// frame, shortest first) and their exposure times relative to the reference: per frame 3 LDR
-/// channels, then LDR^2.2 / t (the loader's layout).
-pub fn network2_input(ldr: &Planar, times: [f32; 3]) -> Planar {
+/// channels, then response⁻¹(LDR) / t with the network's input curve (the loader's layout;
+/// Wu's LDR^2.2 for γ 2.2).
+pub fn network2_input(ldr: &Planar, times: [f32; 3], curve: &Response) -> Planar {
     let (w, h) = (ldr.width, ldr.height);
     let mut input = Planar::new(18, w, h);
     let plane = w * h;
@@ -247,7 +249,7 @@ pub fn network2_input(ldr: &Planar, times: [f32; 3]) -> Planar {
             input.data[(6 * k + c) * plane..(6 * k + c + 1) * plane].copy_from_slice(src);
             let dst = &mut input.data[(6 * k + 3 + c) * plane..(6 * k + 4 + c) * plane];
             for (d, &v) in dst.iter_mut().zip(src) {
-                *d = v.powf(2.2) / t;
+                *d = curve.invert_f32(v) / t;
             }
         }
     }
@@ -266,7 +268,11 @@ pub fn network2_hdr(
     device: &Device,
 ) -> Result<Image> {
     let (w, h) = (frames[0].width, frames[0].height);
-    let input = network2_input(&planar_from_images(&frames)?, times);
+    let input = network2_input(
+        &planar_from_images(&frames)?,
+        times,
+        &model.config().input_response,
+    );
     let plane = w * h;
     let unit = 1.0 / model.config().hdr_input_scale as f32;
     let out = run_tiled(&input, 3, tiling, |win| {

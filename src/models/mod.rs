@@ -44,6 +44,29 @@ impl ModelConfig {
         }
     }
 
+    /// Network-2's input curve (`None` for Network-1), for the loader.
+    pub fn input_response(&self) -> Option<crate::sensor::profile::Response> {
+        match self {
+            ModelConfig::BlendUnet(_) => None,
+            ModelConfig::Wu(m) => Some(m.input_response.clone()),
+        }
+    }
+
+    /// Whether a checkpoint of `other` holds weights this network can start from: the same
+    /// layers. Network-2's input curve is not a weight (fine-tuning for another device's curve
+    /// starts from a network trained on another one).
+    pub fn same_layers(&self, other: &ModelConfig) -> bool {
+        let plain = |m: &ModelConfig| match m {
+            ModelConfig::Wu(w) => ModelConfig::Wu(crate::models::wu::WuConfig {
+                input_response: crate::models::wu::wu_input_response(),
+                linearise: Default::default(),
+                ..w.clone()
+            }),
+            m => m.clone(),
+        };
+        plain(self) == plain(other)
+    }
+
     /// H and W of an input must be multiples of this.
     pub fn size_multiple(&self) -> usize {
         match self {

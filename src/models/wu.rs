@@ -33,6 +33,7 @@ use crate::kernels::activation::leaky_relu;
 use crate::kernels::batch_norm::{batch_norm, batch_norm_relu};
 use crate::kernels::conv::{conv_transpose2d, conv2d};
 use crate::kernels::pad::reflect_pad;
+use crate::sensor::profile::Response;
 use burn::module::Module;
 use burn::nn::conv::{Conv2d, Conv2dConfig, ConvTranspose2d, ConvTranspose2dConfig};
 use burn::nn::{BatchNorm, BatchNormConfig, Initializer, PaddingConfig2d};
@@ -58,6 +59,38 @@ pub const BN_EPSILON: f64 = 1e-5;
 pub const TF_BN_DECAY: f64 = 0.9;
 /// Standard deviation of the authors' weight initialisation (`ops.conv2d`, stddev 0.02).
 pub const INIT_STD: f64 = 0.02;
+
+/// What the last convolution predicts.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum WuOutput {
+    /// The HDR image itself, (tanh + 1) / 2: Wu et al.'s network as released.
+    #[default]
+    Image,
+    /// Per pixel and colour channel, corrections to the triangle weights of the three
+    /// linearised input frames (Kalantari & Ramamoorthi's "weight estimator" reading of the
+    /// merge): out = Σᵢ softmaxᵢ(ln(wᵢ + ε) + zᵢ)·HDRᵢ, wᵢ the triangle weights of the
+    /// reference frame's code. The last convolution starts at zero, so an untrained network is
+    /// the triangle merge of its inputs; training can only move it from there.
+    Merge,
+}
+
+/// Where the curve of the HDR input channels (LDR → linear, then / t) comes from.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Linearise {
+    /// `input_response` as configured (γ 2.2 by default: Wu et al.'s LDR^2.2).
+    #[default]
+    Fixed,
+    /// The training frames' own curve (the profile's device response, or a pure dataset's
+    /// display curve), written into `input_response` by the trainer, so the checkpoint keeps it
+    /// and inference linearises as training did.
+    Data,
+}
+
+/// ε of the triangle prior of [`WuOutput::Merge`]: a frame the triangle gives no weight keeps
+/// a weight of about ε until training moves it.
+pub const MERGE_PRIOR_EPS: f32 = 1e-3;
 
 /// Which of the paper's two structures.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -115,6 +148,30 @@ pub struct WuConfig {
     /// reference's). 1: t relative to the reference; the output then cannot exceed the
     /// reference's white.
     pub hdr_input_scale: f64,
+    /// What the last convolution predicts (`"image"`, Wu's; or `"merge"`). Defaults are not
+    /// written, so configs and checkpoints of Wu's form read as they always have.
+    #[serde(skip_serializing_if = "is_default")]
+    pub output: WuOutput,
+    /// Where `input_response` comes from (`"fixed"`, or `"data"`: the training frames' curve).
+    #[serde(skip_serializing_if = "is_default")]
+    pub linearise: Linearise,
+    /// The curve the HDR input channels invert: HDRᵢ = response⁻¹(LDRᵢ) / tᵢ. Default γ 2.2
+    /// (Wu et al.'s LDR^2.2).
+    #[serde(skip_serializing_if = "is_wu_curve")]
+    pub input_response: Response,
+}
+
+fn is_default<T: Default + PartialEq>(v: &T) -> bool {
+    *v == T::default()
+}
+
+/// Wu et al.'s input curve, LDR^2.2.
+pub fn wu_input_response() -> Response {
+    Response::Gamma { gamma: 2.2 }
+}
+
+fn is_wu_curve(r: &Response) -> bool {
+    *r == wu_input_response()
 }
 
 /// Most residual blocks of the ResNet merger.
@@ -129,6 +186,9 @@ impl Default for WuConfig {
             unet_merger_widths: vec![4, 8, 8],
             deconv_alignment: DeconvAlignment::Tensorflow,
             hdr_input_scale: 0.25,
+            output: WuOutput::Image,
+            linearise: Linearise::Fixed,
+            input_response: wu_input_response(),
         }
     }
 }
@@ -229,6 +289,21 @@ impl WuConfig {
         1 << (2 + self.merger_widths().len())
     }
 
+    /// Channels of the last convolution: 3 (the image) or 9 (a weight correction per frame
+    /// and colour channel).
+    pub fn head_channels(&self) -> usize {
+        match self.output {
+            WuOutput::Image => OUTPUT_CHANNELS,
+            WuOutput::Merge => FRAMES * OUTPUT_CHANNELS,
+        }
+    }
+
+    /// An HDR input channel's value: the code `v` through the inverse input response, over the
+    /// frame's exposure time `t` (relative to the reference).
+    pub fn hdr_input(&self, v: f32, t: f32) -> f32 {
+        self.input_response.invert_f32(v) / t
+    }
+
     /// The decoder levels, deepest first.
     fn decoder_plan(&self) -> Vec<UpPlan> {
         let b = self.base_width;
@@ -271,7 +346,7 @@ impl WuConfig {
         for up in self.decoder_plan() {
             n += conv(up.cin, up.cout, 5) + bn(up.cout);
         }
-        n + conv(b, OUTPUT_CHANNELS, 5)
+        n + conv(b, self.head_channels(), 5)
     }
 
     /// A freshly initialised network on `device`, initialised as the authors do: weights
@@ -305,11 +380,21 @@ impl WuConfig {
             merger: Merger { down, res },
             decoder: Decoder {
                 up,
-                out: conv(b, OUTPUT_CHANNELS, 5, 1, device),
+                out: match self.output {
+                    WuOutput::Image => conv(b, OUTPUT_CHANNELS, 5, 1, device),
+                    WuOutput::Merge => zero_conv(conv(b, self.head_channels(), 5, 1, device)),
+                },
             },
             config: self.clone(),
         })
     }
+}
+
+/// The merge head's last convolution starts at zero (weights and bias): the untrained network
+/// is the triangle merge.
+fn zero_conv(mut c: Conv2d) -> Conv2d {
+    c.weight = c.weight.map(zeros_keeping_grad);
+    c
 }
 
 fn normal_init() -> Initializer {
@@ -584,6 +669,7 @@ impl WuNet {
         if let Err(e) = self.check_input(c, h, w) {
             panic!("{e}");
         }
+        let raw = x.clone();
         let x = self.map_input(x);
         let (e1, e2): (Vec<_>, Vec<_>) = self
             .encoders
@@ -621,8 +707,44 @@ impl WuNet {
                 None => y,
             };
         }
-        let out = tanh(conv_same(&self.decoder.out, relu(cur)));
-        out.add_scalar(1.0).mul_scalar(0.5)
+        let head = conv_same(&self.decoder.out, relu(cur));
+        match self.config.output {
+            WuOutput::Image => tanh(head).add_scalar(1.0).mul_scalar(0.5),
+            WuOutput::Merge => self.merge(raw, head),
+        }
+    }
+
+    /// [`WuOutput::Merge`]: the triangle weights of the reference frame's code (clamped to
+    /// [0, 1]) corrected by `z` ([B, 9, H, W], frame-major) through a softmax over the frames,
+    /// applied to the HDR input channels of `x` (the unmapped input), in the output unit
+    /// (× `hdr_input_scale`).
+    fn merge(&self, x: Tensor<4>, z: Tensor<4>) -> Tensor<4> {
+        let mid = x.clone().narrow(1, FRAME_CHANNELS, 3).clamp(0.0, 1.0);
+        let short = mid.clone().sub_scalar(0.5).clamp_min(0.0).mul_scalar(2.0);
+        let long = mid.neg().add_scalar(0.5).clamp_min(0.0).mul_scalar(2.0);
+        let middle = (short.clone() + long.clone()).neg().add_scalar(1.0);
+        let logits: Vec<Tensor<4>> = [short, middle, long]
+            .into_iter()
+            .enumerate()
+            .map(|(i, w)| {
+                w.add_scalar(MERGE_PRIOR_EPS).log()
+                    + z.clone().narrow(1, i * OUTPUT_CHANNELS, OUTPUT_CHANNELS)
+            })
+            .collect();
+        let top = logits[1]
+            .clone()
+            .max_pair(logits[0].clone())
+            .max_pair(logits[2].clone());
+        let (mut num, mut den) = (None::<Tensor<4>>, None::<Tensor<4>>);
+        for (i, l) in logits.into_iter().enumerate() {
+            let e = (l - top.clone()).exp();
+            let h = x.clone().narrow(1, i * FRAME_CHANNELS + 3, 3);
+            let term = e.clone() * h;
+            num = Some(num.map_or(term.clone(), |n| n + term));
+            den = Some(den.map_or(e.clone(), |d| d + e));
+        }
+        let (num, den) = (num.expect("three frames"), den.expect("three frames"));
+        (num / den).mul_scalar(self.config.hdr_input_scale)
     }
 
     /// [`forward`](Self::forward) for any H×W ≥ 1: pads bottom and right by reflection to the

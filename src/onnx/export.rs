@@ -5,8 +5,9 @@ use super::graph::{Dim, GraphBuilder, int, ints, module_weights};
 use super::proto::{ModelProto, OperatorSetIdProto, StringStringEntryProto};
 use crate::error::{Error, Result};
 use crate::io::atomic::write_atomic;
-use crate::models::wu::{self, DeconvAlignment, WuVariant};
+use crate::models::wu::{self, DeconvAlignment, WuOutput, WuVariant};
 use crate::models::{BlendUNet, WuNet};
+use crate::sensor::profile::Response;
 use burn::nn::BatchNormConfig;
 use prost::Message;
 use std::path::Path;
@@ -255,6 +256,18 @@ pub fn network2_min_size(cfg: &wu::WuConfig) -> usize {
 /// [0, 1] output divided by `hdr_input_scale`, as `eval::infer::network2_hdr`).
 pub fn network2(model: &WuNet, opts: &ExportOptions) -> Result<ModelProto> {
     let cfg = model.config().clone();
+    // The graph forms Wu's inputs (LDR^γ) and his image head only.
+    let gamma = match (&cfg.input_response, cfg.output) {
+        (Response::Gamma { gamma }, WuOutput::Image) => *gamma as f32,
+        _ => {
+            return Err(Error::Invalid(format!(
+                "ONNX export of Network-2 supports Wu's form only (model.output = \"image\", a \
+                 gamma input_response); this network has output = {:?}, input_response = {}",
+                cfg.output,
+                cfg.input_response.label()
+            )));
+        }
+    };
     let m = cfg.size_multiple();
     check_size(opts.size, m, network2_min_size(&cfg), "Network-2")?;
     let mut g = GraphBuilder::new(module_weights(model)?);
@@ -290,7 +303,7 @@ pub fn network2(model: &WuNet, opts: &ExportOptions) -> Result<ModelProto> {
         );
         let shape = g.const_i64(&format!("{p}.t_shape"), &[4], vec![-1, 1, 1, 1]);
         let t = g.node("Reshape", &format!("{p}.t4"), &[&t, &shape], vec![]);
-        let lin = g.with_scalar("Pow", &format!("{p}.linear"), ldr, 2.2);
+        let lin = g.with_scalar("Pow", &format!("{p}.linear"), ldr, gamma);
         let hdr = g.node("Div", &format!("{p}.hdr"), &[&lin, &t], vec![]);
         let ldr_m = g.with_scalar("Mul", &format!("{p}.ldr_x2"), ldr, 2.0);
         let ldr_m = g.with_scalar("Sub", &format!("{p}.ldr_in"), &ldr_m, 1.0);

@@ -173,7 +173,7 @@ pub fn compare(
             if frames.len() != 3 {
                 return Err(Error::Invalid("Network-2 takes three frames".into()));
             }
-            let x = network2_input(&stacked(frames), times);
+            let x = network2_input(&stacked(frames), times, &m.config().input_response);
             let unit = 1.0 / m.config().hdr_input_scale as f32;
             let hdr = to_vec(m.forward(tensor(&x)).mul_scalar(unit))?;
             let out = onnx.network2(

@@ -239,6 +239,15 @@ impl Response {
         }
     }
 
+    /// [`invert`](Self::invert) in f32 for network inputs; γ curves as Wu's LDR^γ (computed
+    /// in f32, unclamped), so γ 2.2 gives exactly the values Network-2 has always been fed.
+    pub fn invert_f32(&self, v: f32) -> f32 {
+        match self {
+            Response::Gamma { gamma } => v.powf(*gamma as f32),
+            r => r.invert(v as f64) as f32,
+        }
+    }
+
     /// d(code)/d(linear) at x in (0, 1): exact for linear, sRGB and gamma; a central
     /// difference for filmic and LUT curves (their `apply` is only piecewise smooth).
     pub fn slope(&self, x: f64) -> f64 {

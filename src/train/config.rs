@@ -4,7 +4,7 @@
 use crate::config::{KeyError, Range, in_range, in_range_because, load_checked};
 use crate::data::encoding::{self, FrameEncoding};
 use crate::data::loader::{LoaderConfig, PURE_PROFILE, RealismConfig, SampleKind, TargetFrames};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::models::ModelConfig;
 use crate::sensor::metering::{Metering, Resolved};
 use crate::train::loss::Network1Reading;
@@ -277,6 +277,7 @@ impl DataConfig {
             realism,
             target_sigma: self.target_sigma,
             target_frames: self.target_frames,
+            input_response: None,
         })
     }
 }
@@ -504,6 +505,28 @@ pub struct LossConfig {
     pub reading: Network1Reading,
     /// Network-1, `reading = "soft"`: σ of the soft labels, in classes.
     pub label_sigma: f32,
+    /// Network-2: the unit its μ-law L2 is taken in — "output" (Wu's: the network's [0, 1]
+    /// output, HDR × hdr_input_scale) or "reference" (HDR in units of the reference frame's
+    /// white, the unit PSNR-T scores). The default is not written.
+    #[serde(skip_serializing_if = "HdrUnit::is_output")]
+    pub hdr_unit: HdrUnit,
+}
+
+impl HdrUnit {
+    fn is_output(&self) -> bool {
+        *self == HdrUnit::Output
+    }
+}
+
+/// The unit of Network-2's μ-law loss.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum HdrUnit {
+    /// The network's output unit, HDR × hdr_input_scale clipped to [0, 1] (Wu et al.).
+    #[default]
+    Output,
+    /// HDR relative to the reference frame's white (as scored), clipped to the output's range.
+    Reference,
 }
 
 /// Default σ of the soft labels, in classes (docs/network1.md).
@@ -532,6 +555,7 @@ impl Default for LossConfig {
             alpha_samples: 64,
             reading: Network1Reading::default(),
             label_sigma: DEFAULT_LABEL_SIGMA,
+            hdr_unit: HdrUnit::Output,
         }
     }
 }
@@ -581,6 +605,34 @@ impl TrainConfig {
     /// This config with the exposure rule it trains with written in (`[data.metering]`,
     /// [`DataConfig::metering`]): what a run records as its config, so that its identity holds
     /// the rule itself, wherever it came from.
+    /// The config with Network-2's `linearise = "data"` resolved: `input_response` set to the
+    /// training frames' curve ([`DataConfig::frame_encoding`]), so the run's config and every
+    /// checkpoint hold the curve inference must use.
+    pub fn with_resolved_model(&self) -> Result<TrainConfig> {
+        let mut c = self.clone();
+        if let ModelConfig::Wu(m) = &mut c.model
+            && m.linearise == crate::models::wu::Linearise::Data
+        {
+            let enc = self.data.frame_encoding()?.ok_or_else(|| {
+                Error::config(
+                    &self.data.dataset,
+                    "model.linearise = \"data\" needs the training frames' curve, and this \
+                     dataset's layout does not record one (set model.input_response, or \
+                     linearise = \"fixed\")",
+                )
+            })?;
+            m.input_response = enc.response;
+        }
+        Ok(c)
+    }
+
+    /// The loader of this run's training data (its seed, and Network-2's input curve).
+    pub fn loader(&self, kind: SampleKind) -> Result<LoaderConfig> {
+        let mut lc = self.data.loader(kind, self.run.seed)?;
+        lc.input_response = self.model.input_response();
+        Ok(lc)
+    }
+
     pub fn with_resolved_metering(&self) -> Result<TrainConfig> {
         let mut c = self.clone();
         c.data.realism.metering = Some(self.data.metering()?.rule);

@@ -237,7 +237,8 @@ pub fn run(cfg: &TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
     let kind = cfg.model.sample_kind();
     // The loader resolves the exposure rule itself, so `data_source.txt` says where it came
     // from; the run's recorded config holds the rule's values.
-    let loader = Arc::new(Loader::new(&cfg.data.loader(kind, cfg.run.seed)?)?);
+    let cfg = &cfg.with_resolved_model()?;
+    let loader = Arc::new(Loader::new(&cfg.loader(kind)?)?);
     let cfg = &cfg.with_resolved_metering()?;
     match &cfg.model {
         ModelConfig::BlendUnet(m) => {
@@ -250,7 +251,13 @@ pub fn run(cfg: &TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
             };
             train(&task, cfg, opts, loader)
         }
-        ModelConfig::Wu(m) => train(&Network2 { config: m.clone() }, cfg, opts, loader),
+        ModelConfig::Wu(m) => {
+            let task = Network2 {
+                config: m.clone(),
+                unit: cfg.loss.hdr_unit,
+            };
+            train(&task, cfg, opts, loader)
+        }
     }
 }
 
@@ -469,7 +476,7 @@ pub fn initial_model<T: Task>(task: &T, cfg: &TrainConfig, device: &Device) -> R
         }
         let dir = checkpoint::resolve(init)?;
         let state = checkpoint::read_state(&dir)?;
-        if state.model != task.model_config() {
+        if !state.model.same_layers(&task.model_config()) {
             return Err(Error::config(
                 dir.join(checkpoint::STATE_FILE),
                 format!(
@@ -502,7 +509,7 @@ fn validation_set<T: Task>(
     let Some(v) = &cfg.validation else {
         return Ok(None);
     };
-    let mut lc: LoaderConfig = cfg.data.loader(loader.config().kind, cfg.run.seed)?;
+    let mut lc: LoaderConfig = cfg.loader(loader.config().kind)?;
     lc.dataset = v.dataset.clone();
     lc.augment = false;
     lc.patch = v.patch.unwrap_or(cfg.data.patch);

@@ -7,6 +7,7 @@ use crate::data::loader::{Sample, Target};
 use crate::error::Result;
 use crate::io::Image;
 use crate::models::{BlendUNet, BlendUNetConfig, ModelConfig, WuConfig, WuNet};
+use crate::train::config::HdrUnit;
 use crate::train::loss::{
     MU, Network1Reading, alpha_tensor, expected_weight, mu_law, mu_law_l2, network1_batch,
     network1_loss, network2_batch, weighted_l1,
@@ -198,13 +199,24 @@ impl Task for Network1 {
 /// `hdr_input_scale` (its output unit) and clipped to [0, 1], the range of its tanh output.
 pub struct Network2 {
     pub config: WuConfig,
+    /// The unit the loss and the validation scores are taken in.
+    pub unit: HdrUnit,
 }
 
 impl Network2 {
+    /// Input and target, the target in the network's output unit clipped to its range.
     fn batch(&self, batch: &[Sample], device: &Device) -> Result<(Tensor<4>, Tensor<4>)> {
         let (x, t) = network2_batch(batch, device)?;
         let t = t.mul_scalar(self.config.hdr_input_scale).clamp(0.0, 1.0);
         Ok((x, t))
+    }
+
+    /// A prediction or target in the output unit, in the loss's unit.
+    fn in_unit(&self, y: Tensor<4>) -> Tensor<4> {
+        match self.unit {
+            HdrUnit::Output => y,
+            HdrUnit::Reference => y.div_scalar(self.config.hdr_input_scale),
+        }
     }
 }
 
@@ -234,11 +246,11 @@ impl Task for Network2 {
 
     fn loss(&self, model: &WuNet, batch: &[Sample], device: &Device) -> Result<Tensor<1>> {
         let (x, t) = self.batch(batch, device)?;
-        Ok(mu_law_l2(model.forward(x), t))
+        Ok(mu_law_l2(self.in_unit(model.forward(x)), self.in_unit(t)))
     }
 
-    /// `loss`, `psnr_t` (μ-law, per sample, dB) and `psnr_l` (linear, in the network's output
-    /// unit), each summed over the batch's samples.
+    /// `loss`, `psnr_t` (μ-law, per sample, dB) and `psnr_l` (linear), in the loss's unit,
+    /// each summed over the batch's samples.
     fn validate(
         &self,
         model: &WuNet,
@@ -247,7 +259,7 @@ impl Task for Network2 {
     ) -> Result<Vec<(&'static str, f64)>> {
         let (x, t) = self.batch(batch, device)?;
         let b = batch.len() as f64;
-        let y = model.forward(x);
+        let (y, t) = (self.in_unit(model.forward(x)), self.in_unit(t));
         let loss = mu_law_l2(y.clone(), t.clone()).into_scalar::<f32>() as f64;
         let psnr_t = psnr_sum(mu_law(y.clone(), MU), mu_law(t.clone(), MU))?;
         let psnr_l = psnr_sum(y, t)?;

@@ -4,6 +4,7 @@
 use crate::config::{KeyError, Range, each_in_range, in_range, in_range_because, load_checked};
 use crate::error::Result;
 use crate::sensor::metering::Metering;
+use crate::sensor::profile::Response;
 use crate::sensor::realism::{NoiseModel, TargetSpace};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -167,6 +168,10 @@ pub struct LoaderConfig {
     /// Network-1 only: which frames the Mertens weights behind the class targets come from.
     #[serde(default)]
     pub target_frames: TargetFrames,
+    /// Network-2 only: the curve its HDR input channels invert (the network's
+    /// `input_response`, set by the trainer); None: LDR^2.2, Wu et al.'s.
+    #[serde(skip)]
+    pub input_response: Option<Response>,
 }
 
 /// Network-1's targets: the blend weights of the noise-free render of the sample's crop (what

@@ -478,7 +478,8 @@ impl Loader {
         Ok((6, hwc, Target::Classes(classes), vec![0.125, 1.0]))
     }
 
-    /// Network-2's sample: per frame (EV−2, 0, +2) LDR and LDR^2.2 / t (18 channels) and the
+    /// Network-2's sample: per frame (EV−2, 0, +2) LDR and response⁻¹(LDR) / t (18 channels;
+    /// the network's input curve, LDR^2.2 by default) and the
     /// linear HDR target, transformed.
     fn network2(&self, d: &Draw) -> Result<(usize, Vec<f32>, Target, Vec<f32>)> {
         let (set, p) = (d.set, self.cfg.patch);
@@ -493,6 +494,9 @@ impl Loader {
             }
         };
         let times = [0.25f32, 1.0, 4.0];
+        let wu = Response::Gamma { gamma: 2.2 };
+        // None: Wu et al.'s LDR^2.2.
+        let curve = self.cfg.input_response.as_ref().unwrap_or(&wu);
         let mut frames = Vec::with_capacity(3);
         for i in 0..3 {
             frames.push(d.realistic(pick(i), i as u64)?);
@@ -503,7 +507,7 @@ impl Loader {
             for (f, &ti) in frames.iter().zip(&times) {
                 let v = &f.data[px * 3..px * 3 + 3];
                 hwc.extend_from_slice(v);
-                hwc.extend(v.iter().map(|x| x.powf(2.2) / ti));
+                hwc.extend(v.iter().map(|&x| curve.invert_f32(x) / ti));
             }
         }
         let hdr = dihedral(&hdr.data, p, 3, d.t);

@@ -313,25 +313,156 @@ impl Method for Network2 {
 // ---------------------------------------------------------------------------------------------
 // A classical merge that knows the device
 
-/// The paper's ground-truth merge ([`ground_truth::triangle_merge_with`], Kalantari's weights)
-/// of each set's three frames, linearised with the device's true response: the noise ceiling
-/// beside the networks (docs/protocol.md). With `clean`, the set's noise-free renderings
-/// (`static/clean_<ev>.png`, written by `hdrsynth testset`) instead of its noisy frames, so
-/// the two rows differ only by the test noise.
-pub struct TriangleMerge {
-    /// The device response the frames were rendered with: code = response(signal), signal 1
-    /// at the sensor's white.
-    pub response: crate::sensor::profile::Response,
+/// A classical way to get HDR from a set's three inputs (shortest, reference, longest), each
+/// linearised through the curve the frames were made with: what a user has without a network.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Classical {
+    /// The reference frame alone, linearised: what a network that copies its input scores.
+    Copy,
+    /// Kalantari's triangle merge (`ground_truth::triangle_merge_with`).
+    Triangle,
+    /// OpenCV's `MergeDebevec` with the known response ([`debevec_merge`]).
+    Debevec,
+}
+
+impl Classical {
+    pub const ALL: [Classical; 3] = [Classical::Copy, Classical::Triangle, Classical::Debevec];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Classical::Copy => "copy",
+            Classical::Triangle => "triangle",
+            Classical::Debevec => "debevec",
+        }
+    }
+
+    pub fn label(self) -> &'static str {
+        match self {
+            Classical::Copy => "reference frame, linearised (copy)",
+            Classical::Triangle => "triangle merge of the inputs",
+            Classical::Debevec => "Debevec merge of the inputs (OpenCV MergeDebevec)",
+        }
+    }
+
+    /// Linear HDR, 1 = the reference frame's white, of three frames (values in [0, 1]) with
+    /// exposure times relative to the reference, linearised by `response`.
+    pub fn merge(self, frames: &[Image; 3], times: [f32; 3], response: &Response) -> Result<Image> {
+        let mut out = match self {
+            Classical::Copy => frames[1].map(|v| response.invert(v as f64) as f32 / times[1]),
+            Classical::Triangle => {
+                ground_truth::triangle_merge_with(frames, times, |v| response.invert(v))?
+            }
+            Classical::Debevec => debevec_merge(frames, &times, response)?,
+        };
+        out.data.par_iter_mut().for_each(|v| *v = v.max(0.0));
+        Ok(out)
+    }
+}
+
+impl std::str::FromStr for Classical {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Classical, String> {
+        Classical::ALL
+            .into_iter()
+            .find(|c| c.name() == s.trim())
+            .ok_or_else(|| format!("'{s}': expected copy, triangle or debevec"))
+    }
+}
+
+/// OpenCV's `MergeDebevec::process` (photo/src/merge.cpp; OpenCV 5.0, and 4.x since
+/// opencv/opencv#27270) with a given response: frames as 8-bit codes z = round(255·v); per
+/// pixel and frame the weight w = mean over channels of OpenCV's `triangleWeights`
+/// (photo/src/hdr_common.cpp: z for 1 ≤ z ≤ 127, 255 − z for 128 ≤ z ≤ 254, and 1e-6 at the
+/// clipped codes 0 and 255; z + 1 below 128, else 256 − z, before that change); per channel
+/// H = exp(Σ w·(ln R(z) − ln t) / Σ w), the weighted mean in the log domain, R(z) = the
+/// response's inverse at z/255 (OpenCV takes `log` of the response table it is given; code 0
+/// is read as the value at half a code, since OpenCV's calibrated responses are positive and a
+/// known curve's is 0 there). 1 = the reference's white when the times are relative to the
+/// reference. Computed in f64 (OpenCV in f32: they agree to ~1e-6 relative).
+pub fn debevec_merge(frames: &[Image], times: &[f32], response: &Response) -> Result<Image> {
+    let refs: Vec<&Image> = frames.iter().collect();
+    let (w, h) = crate::data::ground_truth::check_frames("Debevec merge", &refs)?;
+    if times.len() != frames.len() || times.iter().any(|t| !(t.is_finite() && *t > 0.0)) {
+        return Err(Error::Invalid(format!(
+            "Debevec merge: exposure times {times:?} must be finite, positive and one per frame"
+        )));
+    }
+    let floor = response.invert(0.5 / 255.0).max(f64::MIN_POSITIVE);
+    let log_r: Vec<f64> = (0..256)
+        .map(|z| response.invert(z as f64 / 255.0).max(floor).ln())
+        .collect();
+    // OpenCV's triangleWeights: a hat 1..127, 127..1, with 1e-6 (f32) at the clipped codes.
+    let weight = |z: usize| match z {
+        0 | 255 => 1e-6f32 as f64,
+        1..=127 => z as f64,
+        _ => 255.0 - z as f64,
+    };
+    let log_t: Vec<f64> = times.iter().map(|&t| (t as f64).ln()).collect();
+    let code = |v: f32| (v.clamp(0.0, 1.0) * 255.0).round() as usize;
+    let mut out = Image::new(w, h);
+    out.data
+        .par_chunks_exact_mut(3)
+        .enumerate()
+        .for_each(|(px, o)| {
+            let mut acc = [0.0f64; 3];
+            let mut sum = 0.0;
+            for (f, lt) in frames.iter().zip(&log_t) {
+                let z = [0, 1, 2].map(|c| code(f.data[px * 3 + c]));
+                let wt = z.iter().map(|&z| weight(z)).sum::<f64>() / 3.0;
+                for c in 0..3 {
+                    acc[c] += wt * (log_r[z[c]] - lt);
+                }
+                sum += wt;
+            }
+            for c in 0..3 {
+                o[c] = (acc[c] / sum).exp() as f32;
+            }
+        });
+    Ok(out)
+}
+
+/// A [`Classical`] method on a test set whose frames' curve is known (the true device
+/// response of a rendered set, a bracket set's recorded encoding); `clean` merges the
+/// noise-free frames of a rendered set instead of the noisy inputs.
+pub struct ClassicalMerge {
+    pub kind: Classical,
+    /// The curve the frames were made with: code = response(signal), signal 1 at the white.
+    pub response: Response,
     pub clean: bool,
 }
 
-impl Method for TriangleMerge {
+impl ClassicalMerge {
+    /// `kind` on the test set in `dir`, with the curve its frames record; refused, naming the
+    /// set, where no curve is recorded.
+    pub fn for_testset(kind: Classical, dir: &Path) -> Result<ClassicalMerge> {
+        let enc = encoding::of_testset(dir)?.ok_or_else(|| {
+            Error::layout(
+                dir,
+                format!(
+                    "the {} baseline needs the curve the frames were made with, and this test \
+                     set records none (Kalantari's and Wu's camera JPEGs do not; build the \
+                     set with hdrsynth testset, which records it)",
+                    kind.name()
+                ),
+            )
+        })?;
+        Ok(ClassicalMerge {
+            kind,
+            response: enc.response,
+            clean: false,
+        })
+    }
+}
+
+impl Method for ClassicalMerge {
     fn describe(&self, _opts: &EvalOptions) -> String {
         format!(
-            "triangle merge of the {} frames, linearised with the true device response ({:?}); \
-             scored against each set's linear ground truth (T = μ-law, μ = 5000)",
+            "{} of the {} frames, linearised with the frames' own curve ({}); scored against \
+             each set's linear ground truth (T = μ-law, μ = 5000)",
+            self.kind.label(),
             if self.clean { "noise-free" } else { "noisy" },
-            self.response
+            self.response.label()
         )
     }
 
@@ -352,9 +483,7 @@ impl Method for TriangleMerge {
                 *f = layout::read_set_image(set, &set.clean_frames[i])?;
             }
         }
-        let response = self.response.clone();
-        let mut output = ground_truth::triangle_merge_with(&frames, times, |v| response.invert(v))?;
-        output.data.par_iter_mut().for_each(|v| *v = v.max(0.0));
+        let output = self.kind.merge(&frames, times, &self.response)?;
         let reference = layout::read_linear_ground_truth(set)?;
         Ok(Outcome {
             output,

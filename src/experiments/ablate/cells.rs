@@ -333,8 +333,10 @@ fn run_cell(
             )?;
         }
     }
-    let method = match (&plan.checkpoint, plan.baseline) {
-        (_, Some(b)) => b.method(),
+    // A network is loaded once; a baseline is built per test set (a classical merge reads the
+    // set's curve).
+    let network = match (&plan.checkpoint, plan.baseline) {
+        (_, Some(_)) => None,
         (Some(ckpt), None) => {
             if progress {
                 eprintln!("  evaluating {}", ckpt.display());
@@ -345,7 +347,7 @@ fn run_cell(
                 tile: cfg.eval.tile,
                 ..NetworkOptions::default()
             };
-            from_checkpoint(ckpt, &net, &device)?
+            Some(from_checkpoint(ckpt, &net, &device)?)
         }
         (None, None) => {
             return Err(Error::Invalid(format!(
@@ -366,7 +368,16 @@ fn run_cell(
         if partial.exists() {
             std::fs::remove_dir_all(&partial).map_err(|e| Error::io(&partial, e))?;
         }
-        evaluate::evaluate(testset, method.as_ref(), &partial, &opts)?;
+        let built;
+        let method = match (&network, plan.baseline) {
+            (Some(m), _) => m.as_ref(),
+            (None, Some(b)) => {
+                built = b.method(testset)?;
+                built.as_ref()
+            }
+            (None, None) => unreachable!("checked above"),
+        };
+        evaluate::evaluate(testset, method, &partial, &opts)?;
         let done = dir.join(&eval_dir);
         std::fs::rename(&partial, &done).map_err(|e| Error::io(&done, e))?;
     }

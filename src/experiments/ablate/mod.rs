@@ -257,6 +257,14 @@ pub enum AxisKind {
     /// Network-1's pair fused with the Mertens weights of the noisy pair itself (OpenCV's
     /// defaults): what the network's targets would be without a noise-free render.
     Mertens,
+    /// Network-2's classical rows, with the curve each test set records for its frames
+    /// (`evaluate::Classical`): the reference frame linearised, what a network that copies
+    /// its input scores;
+    Copy,
+    /// the triangle merge of the three inputs;
+    Triangle,
+    /// OpenCV's MergeDebevec of the three inputs.
+    Debevec,
 }
 
 /// A method scored without a network (a cell whose row or column has a baseline kind).
@@ -265,6 +273,9 @@ pub enum AxisKind {
 pub enum Baseline {
     Constant,
     Mertens,
+    Copy,
+    Triangle,
+    Debevec,
 }
 
 /// The constant baseline's blend weight: no preference between the two frames, chosen a
@@ -276,14 +287,29 @@ impl AxisKind {
         match self {
             AxisKind::Constant => Some(Baseline::Constant),
             AxisKind::Mertens => Some(Baseline::Mertens),
+            AxisKind::Copy => Some(Baseline::Copy),
+            AxisKind::Triangle => Some(Baseline::Triangle),
+            AxisKind::Debevec => Some(Baseline::Debevec),
             AxisKind::Finetune | AxisKind::Control => None,
         }
     }
 }
 
 impl Baseline {
-    /// The method: Network-1's own fusion (Laplacian blend, tone curve) with these weights.
-    fn method(self) -> Box<dyn evaluate::Method> {
+    /// The method on the test set in `testset`: Network-1's own fusion (Laplacian blend, tone
+    /// curve) with these weights, or a classical merge with the set's recorded curve.
+    fn method(self, testset: &Path) -> Result<Box<dyn evaluate::Method>> {
+        let classical = match self {
+            Baseline::Copy => Some(evaluate::Classical::Copy),
+            Baseline::Triangle => Some(evaluate::Classical::Triangle),
+            Baseline::Debevec => Some(evaluate::Classical::Debevec),
+            Baseline::Constant | Baseline::Mertens => None,
+        };
+        if let Some(kind) = classical {
+            return Ok(Box::new(evaluate::ClassicalMerge::for_testset(
+                kind, testset,
+            )?));
+        }
         let tone_k = NetworkOptions::default().tone_k;
         let (description, weights): (String, evaluate::BlendInference) = match self {
             Baseline::Constant => (
@@ -294,12 +320,13 @@ impl Baseline {
                 "Mertens weights of the noisy pair (no network)".into(),
                 Box::new(crate::data::ground_truth::blend_weights_high),
             ),
+            _ => unreachable!("the classical merges returned above"),
         };
-        Box::new(evaluate::Network1 {
+        Ok(Box::new(evaluate::Network1 {
             description,
             weights,
             tone_k,
-        })
+        }))
     }
 }
 

@@ -17,8 +17,9 @@ use crate::config::parse_checked;
 use crate::data::generate::{GenerateConfig, generate};
 use crate::data::loader::RealismConfig;
 use crate::error::{Error, Result};
-use crate::eval::evaluate::{self, EvalOptions, TriangleMerge};
+use crate::eval::evaluate::{self, Classical, ClassicalMerge, EvalOptions};
 use crate::experiments::ablate::{self, AblateConfig, Axis, AxisKind, EvalSpec, TestsetSpec};
+use crate::models::wu::{Linearise, WuOutput};
 use crate::models::{ModelConfig, WuConfig, WuVariant};
 use crate::sensor::metering::Metering;
 use crate::sensor::profile::Response;
@@ -26,7 +27,8 @@ use crate::sensor::profile::SensorProfile;
 use crate::sensor::realism::NoiseModel;
 use crate::train;
 use crate::train::config::{
-    DataConfig, InitConfig, LossConfig, OptimConfig, RunConfig, Schedule, ScheduleKind, TrainConfig,
+    DataConfig, HdrUnit, InitConfig, LossConfig, OptimConfig, RunConfig, Schedule, ScheduleKind,
+    TrainConfig,
 };
 use crate::train::{TrainOptions, checkpoint};
 use serde::Serialize;
@@ -184,6 +186,16 @@ pub(crate) fn generate_config(
     cfg
 }
 
+/// The main job's training sets: static (subjects, no motion between the frames), as its
+/// primary test scenes are. Trained on moving subjects, a merging network learns to distrust
+/// the other frames where they disagree with the reference, which costs it on static scenes
+/// (docs/experiments.md, "Recipe").
+pub(crate) fn train_data_config(s: &Sizes) -> GenerateConfig {
+    let mut cfg = generate_config(s, TRAIN_SCENE_SEED, s.train_sets, s.train_size);
+    cfg.scene.motion_scale = 0.0;
+    cfg
+}
+
 /// The primary test scenes: the scene engine at another seed, static, with the dynamic range
 /// a bracket can hold (docs/protocol.md, "Data").
 fn test_scene_config(s: &Sizes) -> GenerateConfig {
@@ -219,11 +231,16 @@ pub(crate) fn train_config(s: &Sizes, backend: &str, data: &Path, st: &Stage) ->
             keep_checkpoints: 2,
             log_every: 10,
         },
+        // Wu's network with the recipe measured in docs/experiments.md ("Recipe"): the merge
+        // head, inputs linearised through the training frames' own curve, the loss in the unit
+        // PSNR-T scores.
         model: ModelConfig::Wu(WuConfig {
             variant: WuVariant::Resnet,
             base_width: s.base_width,
             res_blocks: s.res_blocks,
             hdr_input_scale: 0.25,
+            output: WuOutput::Merge,
+            linearise: Linearise::Data,
             ..WuConfig::default()
         }),
         data: DataConfig::new(data.to_path_buf(), s.patch, s.batch, realism),
@@ -241,7 +258,10 @@ pub(crate) fn train_config(s: &Sizes, backend: &str, data: &Path, st: &Stage) ->
             checkpoint: Some(i.to_path_buf()),
             safetensors: None,
         }),
-        loss: LossConfig::default(),
+        loss: LossConfig {
+            hdr_unit: HdrUnit::Reference,
+            ..LossConfig::default()
+        },
         validation: None,
     }
 }
@@ -263,6 +283,24 @@ pub(crate) fn row(name: &str, label: &str, set: toml::Table) -> Axis {
         train: true,
         checkpoint: None,
         kind: AxisKind::Finetune,
+    }
+}
+
+/// A classical row of the grid (no network): the inputs of each test set merged with the
+/// curve the set records.
+pub(crate) fn classical_row(kind: AxisKind) -> Axis {
+    let (name, label) = match kind {
+        AxisKind::Copy => ("copy", "copy: the reference frame, linearised (no network)"),
+        AxisKind::Triangle => ("triangle", "triangle merge of the inputs (no network)"),
+        _ => (
+            "debevec",
+            "Debevec merge of the inputs, OpenCV's recipe (no network)",
+        ),
+    };
+    Axis {
+        train: false,
+        kind,
+        ..row(name, label, toml::Table::new())
     }
 }
 
@@ -496,6 +534,9 @@ fn experiment_config(
                 "Net_S (full target model: colour, noise, levels, response)",
                 &[],
             ),
+            classical_row(AxisKind::Copy),
+            classical_row(AxisKind::Triangle),
+            classical_row(AxisKind::Debevec),
         ],
         columns: Vec::new(),
     }
@@ -626,10 +667,7 @@ fn prepare(opts: &Options, s: &Sizes, backend: &str, began: Instant) -> Result<P
     stage(progress, began, "1/5 synthetic training sets (EV −2/0/+2)");
     let data = out.join("data/train");
     let gen_path = configs.join("train_data.toml");
-    write_config(
-        &gen_path,
-        &generate_config(s, TRAIN_SCENE_SEED, s.train_sets, s.train_size),
-    )?;
+    write_config(&gen_path, &train_data_config(s))?;
     generate(&GenerateConfig::load(&gen_path)?, &data, progress)?;
 
     stage(

@@ -107,7 +107,8 @@ pub(super) fn noise_ceiling(
         let testset = cfg.testset.dir_for(Some(k));
         let mut pair = [0.0f64; 8];
         for (ci, clean) in [false, true].into_iter().enumerate() {
-            let method = TriangleMerge {
+            let method = ClassicalMerge {
+                kind: Classical::Triangle,
                 response: response.clone(),
                 clean,
             };

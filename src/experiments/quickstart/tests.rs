@@ -36,7 +36,7 @@ fn the_configs_follow_the_protocol_and_read_back() {
     let target = root.join(TARGET_PROFILE.0);
     for preset in [Preset::Cpu, Preset::Gpu] {
         let s = sizes(preset);
-        let gen_cfg = generate_config(&s, TRAIN_SCENE_SEED, s.train_sets, s.train_size);
+        let gen_cfg = train_data_config(&s);
         assert_eq!(round_trip(&gen_cfg), gen_cfg);
         gen_cfg.validate().expect("valid generate config");
         let test_cfg = test_scene_config(&s);
