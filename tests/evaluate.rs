@@ -594,6 +594,52 @@ fn the_ground_truth_is_clipped_at_the_shortest_frames_white() {
     }
 }
 
+/// The classical rows need the curve the frames were made with: a rendered test set records
+/// it (its recipe's profile); a folder that records none is refused, named, before any work.
+/// On clean frames the triangle merge, which also reads the frames the reference clips or
+/// crushes, scores at least as well as the copied reference.
+#[test]
+fn classical_rows_read_the_sets_curve_or_refuse() {
+    use hdrsynth::eval::evaluate::{self, Classical, ClassicalMerge};
+    let tmp = tempfile::tempdir().expect("tmp");
+    let plain = tmp.path().join("plain");
+    common::generate(&plain, 3, 1, (64, 48), "[-2.0, 0.0, 2.0]");
+    let e = ClassicalMerge::for_testset(Classical::Copy, &plain)
+        .err()
+        .expect("refused")
+        .to_string();
+    assert!(
+        e.contains("plain") && e.contains("records none"),
+        "names the folder: {e}"
+    );
+    let src = tmp.path().join("ramp.exr");
+    write_exr(&src, &radiance_map(64, 32), ExrPrecision::Float).expect("write");
+    let out = tmp.path().join("ts");
+    let opts = TestsetOptions {
+        isos: vec![100.0],
+        evs: vec![-2.0, 0.0, 2.0],
+        ..TestsetOptions::default()
+    };
+    testset::build(&src, &canon(), &opts, &out).expect("build");
+    let score = |kind: Classical| {
+        let mut m = ClassicalMerge::for_testset(kind, &out).expect("curve recorded");
+        m.clean = true;
+        let dir = tmp.path().join(kind.name());
+        evaluate::evaluate(&out, &m, &dir, &EvalOptions::default())
+            .expect("eval")
+            .rows[0]
+            .scores
+            .clone()
+    };
+    let (copy, triangle) = (score(Classical::Copy), score(Classical::Triangle));
+    assert!(
+        triangle.psnr_t >= copy.psnr_t,
+        "triangle {} vs copy {}",
+        triangle.psnr_t,
+        copy.psnr_t
+    );
+}
+
 /// The noise ceiling's merge: with the true device response and noise-free frames it recovers
 /// the ground truth (up to 8-bit quantisation); noisy frames at ISO 3200 score lower.
 #[test]

@@ -339,6 +339,37 @@ fn network2_exports_match_burn_in_onnx_runtime() {
     assert_eq!(export::network2_min_size(&WuConfig::unet(64)), 64);
 }
 
+/// The graph forms Wu's inputs and image head only: a merge head, or an input curve other
+/// than a gamma, is refused with what the network has, not exported wrong.
+#[test]
+fn export_refuses_what_the_graph_cannot_form() {
+    use hdrsynth::models::wu::WuOutput;
+    use hdrsynth::sensor::profile::Response;
+    let dev = Device::flex();
+    for (cfg, names) in [
+        (
+            WuConfig {
+                output: WuOutput::Merge,
+                ..WuConfig::resnet(2)
+            },
+            "Merge",
+        ),
+        (
+            WuConfig {
+                input_response: Response::Srgb,
+                ..WuConfig::resnet(2)
+            },
+            "srgb",
+        ),
+    ] {
+        let net = seeded_init(&dev, 0, || cfg.init(&dev)).expect("init");
+        let e = export::network2(&net, &ExportOptions::default())
+            .expect_err("refused")
+            .to_string();
+        assert!(e.contains("Wu's form") && e.contains(names), "{e}");
+    }
+}
+
 fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_hdrsynth"))
 }

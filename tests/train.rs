@@ -828,3 +828,64 @@ fn two_device_training_matches_one_device_and_resumes_bit_identically() {
         );
     }
 }
+
+/// `[model] linearise = "data"`: the trainer writes the training frames' curve (the profile's
+/// sRGB response) into the network's input curve, the checkpoint keeps it, and the loader's
+/// HDR channels are that curve's inverse over t (sRGB decoding by hand, IEC 61966-2-1).
+#[test]
+fn linearise_data_records_the_training_curve_and_the_loader_feeds_it() {
+    use hdrsynth::data::loader::{Loader, SampleKind};
+    use hdrsynth::sensor::profile::{Response, SensorProfile};
+    let tmp = tempfile::tempdir().expect("tmp");
+    let data = tmp.path().join("n2");
+    common::generate(&data, 5, 3, (64, 64), "[-2.0, 0.0, 2.0]");
+    let profile = SensorProfile::shipped_dir().join("example_synthetic.toml");
+    let run = tmp.path().join("run");
+    let cfg = parse(&format!(
+        "[run]\nout = {run:?}\nseed = 1\nsteps = 2\ncheckpoint_every = 2\nlog_every = 1\n\
+         [model]\nkind = \"wu\"\nbase_width = 2\nres_blocks = 0\noutput = \"merge\"\n\
+         linearise = \"data\"\n\
+         [data]\ndataset = {data:?}\npatch = 32\nbatch_size = 2\nworkers = 1\n\
+         profile = {profile:?}\nisos = [100.0]\n\
+         [optim]\nlr = 1e-3\n[loss]\nhdr_unit = \"reference\"\n"
+    ));
+    hdrsynth::train::run(&cfg, &TrainOptions::default()).expect("train");
+    let state = checkpoint::read_state(&checkpoint::resolve(&run).expect("ckpt")).expect("state");
+    let ModelConfig::Wu(m) = state.model else {
+        panic!("a Network-2 checkpoint expected");
+    };
+    assert_eq!(
+        m.input_response,
+        Response::Srgb,
+        "the profile's device curve"
+    );
+    let lc = cfg
+        .with_resolved_model()
+        .and_then(|c| c.loader(SampleKind::Network2))
+        .expect("loader config");
+    let s = Loader::new(&lc)
+        .and_then(|l| l.stream_sample(0))
+        .expect("sample");
+    let n = 32 * 32;
+    let mut checked = 0;
+    for (f, t) in [0.25f32, 1.0, 4.0].into_iter().enumerate() {
+        for c in 0..3 {
+            for px in (0..n).step_by(7) {
+                let v = s.input[(6 * f + c) * n + px];
+                let lin = if v <= 0.04045 {
+                    v / 12.92
+                } else {
+                    ((v + 0.055) / 1.055).powf(2.4)
+                };
+                let h = s.input[(6 * f + 3 + c) * n + px];
+                assert!(
+                    (h - lin / t).abs() <= 1e-5 * (1.0 + lin / t),
+                    "frame {f} channel {c} pixel {px}: code {v} gave {h}, sRGB⁻¹/t = {}",
+                    lin / t
+                );
+                checked += usize::from(v > 0.05 && v < 0.95);
+            }
+        }
+    }
+    assert!(checked > 100, "mid-range codes checked: {checked}");
+}
