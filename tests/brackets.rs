@@ -569,7 +569,7 @@ fn the_bracket_test_set_reads_as_kalantari_and_eval_scores_it() {
     // the field's unit is the stop-0 frame's, 4× the reference's, and eval must convert.
     let method = Network2 {
         description: "hand triangle merge".into(),
-        infer: Box::new(|f: [&Image; 3], times: [f32; 3]| {
+        infer: Box::new(|f: [&Image; 3], times: [f32; 3], _| {
             assert_eq!(times, [0.25, 1.0, 4.0]);
             let data = (0..f[1].data.len())
                 .map(|k| {
@@ -601,7 +601,7 @@ fn the_bracket_test_set_reads_as_kalantari_and_eval_scores_it() {
     // The same stand-in off by the field's unit factor 4 scores far lower: the unit matters.
     let wrong = Network2 {
         description: "field unit".into(),
-        infer: Box::new(|f: [&Image; 3], _| Ok(f[1].map(|v| v.powf(2.2) / 4.0))),
+        infer: Box::new(|f: [&Image; 3], _, _| Ok(f[1].map(|v| v.powf(2.2) / 4.0))),
     };
     let r2 = evaluate::evaluate(
         &out,

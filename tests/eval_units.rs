@@ -63,7 +63,7 @@ fn wu(dir: &Path, stops: &str, gt: &Image) {
 fn merge_network() -> Network2 {
     Network2 {
         description: "triangle merge".into(),
-        infer: Box::new(|frames: [&Image; 3], times: [f32; 3]| {
+        infer: Box::new(|frames: [&Image; 3], times: [f32; 3], _| {
             assert_eq!(
                 times,
                 [0.25, 1.0, 4.0],

@@ -640,6 +640,76 @@ fn classical_rows_read_the_sets_curve_or_refuse() {
     );
 }
 
+/// A network trained with `linearise = "data"` merges its inputs through the curve a test set
+/// records for its frames (here γ 2.2, where it was trained on sRGB frames), as the classical
+/// rows do. Checked with an untrained merge head (1 step at lr 1e-12), which is the triangle
+/// merge: it scores as the triangle merge through the set's curve, not through its own.
+#[test]
+fn a_data_linearised_network_takes_the_test_sets_curve() {
+    use hdrsynth::engine::method::{Source, method_for};
+    use hdrsynth::eval::evaluate::{self, Classical, ClassicalMerge, NetworkOptions};
+    use hdrsynth::sensor::profile::Response;
+    let tmp = tempfile::tempdir().expect("tmp");
+    let data = tmp.path().join("train");
+    common::generate(&data, 5, 2, (64, 64), "[-2.0, 0.0, 2.0]");
+    let run = tmp.path().join("run");
+    let srgb = SensorProfile::shipped_dir().join("example_synthetic.toml");
+    let cfg: hdrsynth::train::config::TrainConfig = hdrsynth::config::parse_toml(
+        &format!(
+            "[run]\nout = {run:?}\nseed = 1\nsteps = 1\ncheckpoint_every = 1\n\
+             [model]\nkind = \"wu\"\nbase_width = 2\nres_blocks = 0\noutput = \"merge\"\n\
+             linearise = \"data\"\n\
+             [data]\ndataset = {data:?}\npatch = 32\nbatch_size = 1\nworkers = 1\n\
+             profile = {srgb:?}\nisos = [100.0]\n[optim]\nlr = 1e-12\n"
+        ),
+        Path::new("t.toml"),
+    )
+    .expect("config");
+    hdrsynth::train::run(&cfg, &Default::default()).expect("train");
+    let src = tmp.path().join("ramp.exr");
+    write_exr(&src, &radiance_map(64, 32), ExrPrecision::Float).expect("write");
+    let out = tmp.path().join("ts");
+    let gamma =
+        SensorProfile::load(&SensorProfile::shipped_dir().join("dslr_canon_550d_gamma22.toml"))
+            .expect("profile");
+    let opts = TestsetOptions {
+        isos: vec![100.0],
+        evs: vec![-2.0, 0.0, 2.0],
+        ..TestsetOptions::default()
+    };
+    testset::build(&src, &gamma, &opts, &out).expect("build");
+    let psnr_t = |m: &dyn evaluate::Method, name: &str| {
+        let dir = tmp.path().join(name);
+        evaluate::evaluate(&out, m, &dir, &EvalOptions::default())
+            .expect("eval")
+            .rows[0]
+            .scores
+            .psnr_t
+    };
+    let net = method_for(&Source::Checkpoint {
+        path: run,
+        backend: "flex".into(),
+        network: NetworkOptions::default(),
+    })
+    .expect("network");
+    let merge = |response: Response| ClassicalMerge {
+        kind: Classical::Triangle,
+        response,
+        clean: false,
+    };
+    let got = psnr_t(net.as_ref(), "net");
+    let set_curve = psnr_t(&merge(Response::Gamma { gamma: 2.2 }), "gamma");
+    let own_curve = psnr_t(&merge(Response::Srgb), "srgb");
+    assert!(
+        (got - set_curve).abs() < 0.05,
+        "network {got} vs the triangle merge through the set's curve {set_curve}"
+    );
+    assert!(
+        (got - own_curve).abs() > 0.5,
+        "the network's own sRGB curve would score {own_curve}, it scored {got}"
+    );
+}
+
 /// The noise ceiling's merge: with the true device response and noise-free frames it recovers
 /// the ground truth (up to 8-bit quantisation); noisy frames at ISO 3200 score lower.
 #[test]
@@ -744,7 +814,7 @@ fn a_multi_frame_hdr_network_is_scored_against_the_linear_ground_truth() {
     let data = dataset3();
     let method = Network2 {
         description: "stand-in".into(),
-        infer: Box::new(|frames: [&Image; 3], times: [f32; 3]| {
+        infer: Box::new(|frames: [&Image; 3], times: [f32; 3], _| {
             assert_eq!(times, [0.25, 1.0, 4.0]);
             Ok(frames[1].map(|v| v.powf(2.2) / times[1]))
         }),

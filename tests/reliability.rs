@@ -504,7 +504,7 @@ fn eval_refuses_a_locked_output() {
     let (_held, before) = locked_output(&out);
     let method = Network2 {
         description: "identity".into(),
-        infer: Box::new(|frames: [&Image; 3], _| Ok(frames[1].clone())),
+        infer: Box::new(|frames: [&Image; 3], _, _| Ok(frames[1].clone())),
     };
     let opts = EvalOptions {
         progress: false,
@@ -640,7 +640,7 @@ fn a_failed_eval_leaves_no_output_folder() {
     // Scores the first set, fails on the second: the first set's files must not be left.
     let method = Network2 {
         description: "fails on the second set".into(),
-        infer: Box::new(move |frames: [&Image; 3], _| {
+        infer: Box::new(move |frames: [&Image; 3], _, _| {
             if calls.fetch_add(1, std::sync::atomic::Ordering::SeqCst) == 1 {
                 return Err(hdrsynth::error::Error::Invalid("crafted failure".into()));
             }

@@ -94,6 +94,7 @@ impl Args {
             allow_missing: self.allow_missing,
             thumb: self.thumb.max(16),
             progress: !self.quiet,
+            frame_curve: None,
         }
     }
 

@@ -133,7 +133,7 @@ pub fn from_network(net: LoadedNetwork, opts: &NetworkOptions) -> Box<dyn Method
         }
         Network::Network2 => Box::new(Network2 {
             description: net.describe(),
-            infer: Box::new(move |frames, times| net.network2_hdr(frames, times)),
+            infer: Box::new(move |frames, times, curve| net.network2_hdr_on(frames, times, curve)),
         }),
     }
 }

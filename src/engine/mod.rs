@@ -11,11 +11,13 @@ use crate::error::{Error, Result};
 use crate::eval::blend::BlendWeight;
 pub use crate::eval::infer::Engine;
 use crate::eval::infer::{
-    NetworkOptions, network1_tiling, network1_weight, network2_hdr, network2_tiling,
+    NetworkOptions, network1_tiling, network1_weight, network2_hdr_with, network2_tiling,
 };
 use crate::eval::tiling::Tiling;
 use crate::io::Image;
+use crate::models::wu::Linearise;
 use crate::models::{BlendUNet, ModelConfig, WuNet};
+use crate::sensor::profile::Response;
 use crate::train::checkpoint;
 use burn::module::Module;
 use burn::tensor::Device;
@@ -170,9 +172,26 @@ impl LoadedNetwork {
 
     /// Network-2's linear HDR (1 = the reference exposure's white) of three frames.
     pub fn network2_hdr(&self, frames: [&Image; 3], times: [f32; 3]) -> Result<Image> {
+        self.network2_hdr_on(frames, times, None)
+    }
+
+    /// [`network2_hdr`](Self::network2_hdr) of frames whose curve is known (`frame_curve`, a
+    /// test set's record): a network with `linearise = "data"` was trained to merge its inputs
+    /// through the curve they were encoded with, so it takes that curve; any other network
+    /// keeps its own.
+    pub fn network2_hdr_on(
+        &self,
+        frames: [&Image; 3],
+        times: [f32; 3],
+        frame_curve: Option<&Response>,
+    ) -> Result<Image> {
         match &self.runner {
             Runner::Network2(model, device) => {
-                network2_hdr(model, frames, times, self.tiling, device)
+                let curve = match frame_curve {
+                    Some(c) if model.config().linearise == Linearise::Data => c,
+                    _ => &model.config().input_response,
+                };
+                network2_hdr_with(model, frames, times, curve, self.tiling, device)
             }
             #[cfg(feature = "onnx")]
             Runner::Onnx(m) if self.network == Network::Network2 => {

@@ -173,6 +173,10 @@ pub struct EvalOptions {
     /// Largest side of a grid thumbnail.
     pub thumb: usize,
     pub progress: bool,
+    /// The curve the test set records for its frames: set by [`evaluate`] from the set (a
+    /// network with `linearise = "data"` linearises its inputs with it, as the classical rows
+    /// do); what a caller puts here is replaced.
+    pub frame_curve: Option<Response>,
 }
 
 impl Default for EvalOptions {
@@ -187,6 +191,7 @@ impl Default for EvalOptions {
             allow_missing: false,
             thumb: 512,
             progress: false,
+            frame_curve: None,
         }
     }
 }
@@ -231,6 +236,10 @@ pub fn evaluate(
     let info = layout::detect(testset)?;
     split_check(method, &info.sets)?;
     let (warnings, mut notes) = encoding_check(method, testset)?;
+    let opts = &EvalOptions {
+        frame_curve: encoding::of_testset(testset)?.map(|e| e.response),
+        ..opts.clone()
+    };
     let mut missing = Vec::new();
     let mut sets = Vec::new();
     for set in &info.sets {

@@ -267,12 +267,28 @@ pub fn network2_hdr(
     tiling: Tiling,
     device: &Device,
 ) -> Result<Image> {
-    let (w, h) = (frames[0].width, frames[0].height);
-    let input = network2_input(
-        &planar_from_images(&frames)?,
+    network2_hdr_with(
+        model,
+        frames,
         times,
         &model.config().input_response,
-    );
+        tiling,
+        device,
+    )
+}
+
+/// [`network2_hdr`] with the HDR input channels formed through `curve` instead of the
+/// network's own input curve.
+pub fn network2_hdr_with(
+    model: &WuNet,
+    frames: [&Image; 3],
+    times: [f32; 3],
+    curve: &Response,
+    tiling: Tiling,
+    device: &Device,
+) -> Result<Image> {
+    let (w, h) = (frames[0].width, frames[0].height);
+    let input = network2_input(&planar_from_images(&frames)?, times, curve);
     let plane = w * h;
     let unit = 1.0 / model.config().hdr_input_scale as f32;
     let out = run_tiled(&input, 3, tiling, |win| {

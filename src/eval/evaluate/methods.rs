@@ -245,9 +245,9 @@ impl Method for Network1 {
 
 /// A network's full-resolution inference on three frames (shortest, reference, longest; LDR
 /// code values in [0, 1]) with exposure times relative to the reference (how the networks are
-/// trained) → linear HDR of the frames' size in hdrsynth's unit, 1 = the reference exposure's
-/// white.
-pub type HdrInference = Box<dyn Fn([&Image; 3], [f32; 3]) -> Result<Image>>;
+/// trained), and the curve the test set records for its frames where it records one → linear
+/// HDR of the frames' size in hdrsynth's unit, 1 = the reference exposure's white.
+pub type HdrInference = Box<dyn Fn([&Image; 3], [f32; 3], Option<&Response>) -> Result<Image>>;
 
 /// Network-2 (or any three-frame HDR network) on each set's frames as
 /// [`infer::network2_frames`] picks them (the frames `hdrsynth infer --set` uses), scored
@@ -266,7 +266,7 @@ impl Method for Network2 {
         )
     }
 
-    fn run(&self, set: &SetInfo, _opts: &EvalOptions) -> Result<Outcome> {
+    fn run(&self, set: &SetInfo, opts: &EvalOptions) -> Result<Outcome> {
         let (frames, times) = infer::network2_frames(set)?;
         let evs = [0, set.reference, set.evs.len() - 1].map(|i| set.evs[i]);
         for (f, ev) in frames.iter().zip(evs) {
@@ -286,7 +286,7 @@ impl Method for Network2 {
             }
         }
         let [a, b, c] = &frames;
-        let mut output = (self.infer)([a, b, c], times)?;
+        let mut output = (self.infer)([a, b, c], times, opts.frame_curve.as_ref())?;
         let reference = layout::read_linear_ground_truth(set)?;
         if (output.width, output.height) != (reference.width, reference.height) {
             return Err(Error::Invalid(format!(
