@@ -499,6 +499,7 @@ fn ablate_config(
         let set = toml::Table::from_iter([("data".to_string(), data.into())]);
         rows.push(row(s.name, &s.label, set, true, AxisKind::Finetune));
     }
+    rows.extend(Axis::classical_rows());
     AblateConfig {
         title: format!(
             "The sim-to-real loop on {}: each step's fine-tuned network on the test scenes",
@@ -608,8 +609,7 @@ fn steps_table(cfg: &AblateConfig, steps: &[Step]) -> Result<String> {
     );
     let mut pairs: Vec<(&str, &str)> = steps.windows(2).map(|w| (w[1].name, w[0].name)).collect();
     for st in steps {
-        pairs.push((st.name, "net_o"));
-        pairs.push((st.name, "control"));
+        pairs.extend(["net_o", "control", "copy", "triangle"].map(|v| (st.name, v)));
     }
     for (row, versus) in pairs {
         for e in ablate::paired_rows(cfg, row, versus)? {

@@ -338,6 +338,38 @@ impl Axis {
     fn label(&self) -> &str {
         self.label.as_deref().unwrap_or(&self.name)
     }
+
+    /// Network-2's classical rows (no network): the copied reference, the triangle merge and
+    /// OpenCV's Debevec merge of each test set's inputs, through the curve the set records.
+    pub fn classical_rows() -> Vec<Axis> {
+        [
+            (
+                "copy",
+                "copy: the reference frame, linearised (no network)",
+                AxisKind::Copy,
+            ),
+            (
+                "triangle",
+                "triangle merge of the inputs (no network)",
+                AxisKind::Triangle,
+            ),
+            (
+                "debevec",
+                "Debevec merge of the inputs, OpenCV's recipe (no network)",
+                AxisKind::Debevec,
+            ),
+        ]
+        .into_iter()
+        .map(|(name, label, kind)| Axis {
+            name: name.into(),
+            label: Some(label.into()),
+            set: toml::Table::new(),
+            train: false,
+            checkpoint: None,
+            kind,
+        })
+        .collect()
+    }
 }
 
 impl AblateConfig {

@@ -286,24 +286,6 @@ pub(crate) fn row(name: &str, label: &str, set: toml::Table) -> Axis {
     }
 }
 
-/// A classical row of the grid (no network): the inputs of each test set merged with the
-/// curve the set records.
-pub(crate) fn classical_row(kind: AxisKind) -> Axis {
-    let (name, label) = match kind {
-        AxisKind::Copy => ("copy", "copy: the reference frame, linearised (no network)"),
-        AxisKind::Triangle => ("triangle", "triangle merge of the inputs (no network)"),
-        _ => (
-            "debevec",
-            "Debevec merge of the inputs, OpenCV's recipe (no network)",
-        ),
-    };
-    Axis {
-        train: false,
-        kind,
-        ..row(name, label, toml::Table::new())
-    }
-}
-
 /// Net_O as a grid row: the per-seed pretraining scored as it is.
 pub(crate) fn net_o_row() -> Axis {
     Axis {
@@ -534,10 +516,10 @@ fn experiment_config(
                 "Net_S (full target model: colour, noise, levels, response)",
                 &[],
             ),
-            classical_row(AxisKind::Copy),
-            classical_row(AxisKind::Triangle),
-            classical_row(AxisKind::Debevec),
-        ],
+        ]
+        .into_iter()
+        .chain(Axis::classical_rows())
+        .collect(),
         columns: Vec::new(),
     }
 }
