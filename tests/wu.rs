@@ -709,3 +709,55 @@ fn the_untrained_merge_head_is_the_triangle_merge() {
         }
     }
 }
+
+/// The kernel head (`output = "kernel"`) before training: the triangle weights on each frame's
+/// centre tap and ε on its 8 neighbours, one softmax over the 27. On a uniform image every tap
+/// holds the centre's value, so by hand out = (Σᵢ (wᵢ + ε)·Hᵢ + 8ε·Σᵢ Hᵢ) / (1 + 27ε); a lone
+/// bright pixel leaks ε / (1 + 27ε) of its value into each neighbour, no more.
+#[test]
+fn the_untrained_kernel_head_is_the_triangle_merge_with_eps_neighbours() {
+    let dev = Device::flex();
+    let cfg = WuConfig {
+        output: wu::WuOutput::Kernel,
+        ..WuConfig::resnet(2)
+    };
+    let net = seeded_init(&cfg, &dev, 7);
+    let (h, w) = (8, 8);
+    let n = h * w;
+    let (code, hdr) = (0.25f32, [0.8f32, 0.10, 0.14]);
+    let eps = 1e-3f32;
+    let tri = [0.0f32, 0.5, 0.5];
+    let want = ((0..3).map(|i| (tri[i] + eps) * hdr[i]).sum::<f32>()
+        + 8.0 * eps * hdr.iter().sum::<f32>())
+        / (1.0 + 27.0 * eps);
+    let mut x = vec![0.0f32; 18 * n];
+    for px in 0..n {
+        for f in 0..3 {
+            for c in 0..3 {
+                x[(6 * f + c) * n + px] = if f == 1 { code } else { 0.5 };
+                x[(6 * f + 3 + c) * n + px] = hdr[f];
+            }
+        }
+    }
+    let run = |x: Vec<f32>| {
+        to_vec(net.forward(Tensor::from_data(TensorData::new(x, [1, 18, h, w]), &dev)))
+    };
+    let y = run(x.clone());
+    for (i, v) in y.iter().enumerate() {
+        assert!(
+            (v / 0.25 - want).abs() < 1e-5,
+            "value {i}: {} vs {want}",
+            v / 0.25
+        );
+    }
+    // A lone bright long-frame pixel at (4, 4): its right neighbour gains ε/(1 + 27ε) of it.
+    let bump = 10.0f32;
+    let mut x2 = x;
+    for c in 0..3 {
+        x2[(6 * 2 + 3 + c) * n + 4 * w + 4] += bump;
+    }
+    let y2 = run(x2);
+    let gain = (y2[4 * w + 5] - y[4 * w + 5]) / 0.25;
+    let by_hand = eps * bump / (1.0 + 27.0 * eps);
+    assert!((gain - by_hand).abs() < 1e-5, "{gain} vs {by_hand}");
+}

@@ -73,6 +73,11 @@ pub enum WuOutput {
     /// reference frame's code. The last convolution starts at zero, so an untrained network is
     /// the triangle merge of its inputs; training can only move it from there.
     Merge,
+    /// As `Merge` over each frame's 3×3 neighbourhood (a kernel-predicting merge, after
+    /// Mildenhall et al.'s burst denoising): 27 weights per pixel and colour channel, the
+    /// centre taps' prior the triangle weights and the others' ε, so the untrained network is
+    /// again the triangle merge; spatial averaging lets it denoise as well as weigh.
+    Kernel,
 }
 
 /// Where the curve of the HDR input channels (LDR → linear, then / t) comes from.
@@ -87,6 +92,9 @@ pub enum Linearise {
     /// and inference linearises as training did.
     Data,
 }
+
+/// Taps of [`WuOutput::Kernel`]'s neighbourhood (3×3).
+pub const TAPS: usize = 9;
 
 /// ε of the triangle prior of [`WuOutput::Merge`]: a frame the triangle gives no weight keeps
 /// a weight of about ε until training moves it.
@@ -295,6 +303,7 @@ impl WuConfig {
         match self.output {
             WuOutput::Image => OUTPUT_CHANNELS,
             WuOutput::Merge => FRAMES * OUTPUT_CHANNELS,
+            WuOutput::Kernel => FRAMES * TAPS * OUTPUT_CHANNELS,
         }
     }
 
@@ -382,7 +391,9 @@ impl WuConfig {
                 up,
                 out: match self.output {
                     WuOutput::Image => conv(b, OUTPUT_CHANNELS, 5, 1, device),
-                    WuOutput::Merge => zero_conv(conv(b, self.head_channels(), 5, 1, device)),
+                    WuOutput::Merge | WuOutput::Kernel => {
+                        zero_conv(conv(b, self.head_channels(), 5, 1, device))
+                    }
                 },
             },
             config: self.clone(),
@@ -710,36 +721,56 @@ impl WuNet {
         let head = conv_same(&self.decoder.out, relu(cur));
         match self.config.output {
             WuOutput::Image => tanh(head).add_scalar(1.0).mul_scalar(0.5),
-            WuOutput::Merge => self.merge(raw, head),
+            WuOutput::Merge | WuOutput::Kernel => self.merge(raw, head),
         }
     }
 
-    /// [`WuOutput::Merge`]: the triangle weights of the reference frame's code (clamped to
-    /// [0, 1]) corrected by `z` ([B, 9, H, W], frame-major) through a softmax over the frames,
-    /// applied to the HDR input channels of `x` (the unmapped input), in the output unit
-    /// (× `hdr_input_scale`).
+    /// [`WuOutput::Merge`] and [`WuOutput::Kernel`]: the triangle weights of the reference
+    /// frame's code (clamped to [0, 1]) corrected by `z` ([B, head_channels, H, W]; frame, then
+    /// tap, then colour) through one softmax over all frames and taps, applied to the HDR input
+    /// channels of `x` (the unmapped input), in the output unit (× `hdr_input_scale`).
     fn merge(&self, x: Tensor<4>, z: Tensor<4>) -> Tensor<4> {
+        let [b, _, h, w] = x.dims();
         let mid = x.clone().narrow(1, FRAME_CHANNELS, 3).clamp(0.0, 1.0);
         let short = mid.clone().sub_scalar(0.5).clamp_min(0.0).mul_scalar(2.0);
         let long = mid.neg().add_scalar(0.5).clamp_min(0.0).mul_scalar(2.0);
         let middle = (short.clone() + long.clone()).neg().add_scalar(1.0);
-        let logits: Vec<Tensor<4>> = [short, middle, long]
-            .into_iter()
-            .enumerate()
-            .map(|(i, w)| {
-                w.add_scalar(MERGE_PRIOR_EPS).log()
-                    + z.clone().narrow(1, i * OUTPUT_CHANNELS, OUTPUT_CHANNELS)
-            })
-            .collect();
-        let top = logits[1]
-            .clone()
-            .max_pair(logits[0].clone())
-            .max_pair(logits[2].clone());
+        let prior = [short, middle, long].map(|w| w.add_scalar(MERGE_PRIOR_EPS).log());
+        // (logit, HDR values) per frame and tap: the centre taps only for `Merge`; for
+        // `Kernel` each frame's 3×3 neighbourhood (reflected at the border), the centre tap
+        // first, the others with the prior ε.
+        let taps: Vec<(usize, usize)> = match self.config.output {
+            WuOutput::Kernel => std::iter::once((1, 1))
+                .chain((0..TAPS).map(|k| (k / 3, k % 3)).filter(|&t| t != (1, 1)))
+                .collect(),
+            _ => vec![(1, 1)],
+        };
+        let (mut logits, mut values) = (Vec::new(), Vec::new());
+        for (i, p) in prior.iter().enumerate() {
+            let hdr = x.clone().narrow(1, i * FRAME_CHANNELS + 3, 3);
+            let padded = (taps.len() > 1).then(|| reflect_pad(hdr.clone(), (1, 1), (1, 1)));
+            for (k, &(dy, dx)) in taps.iter().enumerate() {
+                let zi = z
+                    .clone()
+                    .narrow(1, (i * taps.len() + k) * OUTPUT_CHANNELS, 3);
+                let (l, v) = match &padded {
+                    Some(pd) if (dy, dx) != (1, 1) => (
+                        zi.add_scalar(MERGE_PRIOR_EPS.ln()),
+                        pd.clone().slice([0..b, 0..3, dy..dy + h, dx..dx + w]),
+                    ),
+                    _ => (zi + p.clone(), hdr.clone()),
+                };
+                logits.push(l);
+                values.push(v);
+            }
+        }
+        let top = logits[1..]
+            .iter()
+            .fold(logits[0].clone(), |m, l| m.max_pair(l.clone()));
         let (mut num, mut den) = (None::<Tensor<4>>, None::<Tensor<4>>);
-        for (i, l) in logits.into_iter().enumerate() {
+        for (l, v) in logits.into_iter().zip(values) {
             let e = (l - top.clone()).exp();
-            let h = x.clone().narrow(1, i * FRAME_CHANNELS + 3, 3);
-            let term = e.clone() * h;
+            let term = e.clone() * v;
             num = Some(num.map_or(term.clone(), |n| n + term));
             den = Some(den.map_or(e.clone(), |d| d + e));
         }
