@@ -95,6 +95,7 @@ pub(super) fn report(
     );
     let _ = write!(report, "\n\n## Reading (docs/protocol.md)\n\n");
     primary_reading(&mut report, primary, alpha);
+    classical_reading(&mut report, exp);
     descriptive(&mut report, exp, tables);
     heldout_matrix(&mut report, exp, tables);
     if let Err(why) = real_radiance {
@@ -149,6 +150,40 @@ fn primary_reading(report: &mut String, primary: &ablate::Table, alpha: f64) {
     ] {
         if let Some(d) = primary.entry(name, "psnr_t").and_then(|e| e.diff.as_ref()) {
             let _ = writeln!(report, "- Secondary, {what}: {}.", describe_diff(d));
+        }
+    }
+}
+
+/// Whether the networks beat what a user has without one: Net_S and Net_R against the copied
+/// reference and the triangle merge on the primary test set, paired within seed and set.
+fn classical_reading(report: &mut String, exp: &AblateConfig) {
+    for row in ["net_s", "net_r"] {
+        for versus in ["copy", "triangle"] {
+            let Ok(entries) = ablate::paired_rows(exp, row, versus) else {
+                continue;
+            };
+            let Some(d) = entries
+                .iter()
+                .find(|e| e.metric == "psnr_t")
+                .and_then(|e| e.diff.as_ref())
+            else {
+                continue;
+            };
+            let per_seed: Vec<String> =
+                d.per_seed.iter().map(|(_, v)| format!("{v:+.2}")).collect();
+            let beats = d.per_seed.iter().filter(|(_, v)| *v > 0.0).count();
+            let _ = writeln!(
+                report,
+                "- {row} − {versus}, PSNR-T: {} (per seed {}): {} in {beats} of {} seeds.",
+                describe_diff(d),
+                per_seed.join(", "),
+                if beats == d.per_seed.len() {
+                    "better"
+                } else {
+                    "not better"
+                },
+                d.per_seed.len()
+            );
         }
     }
 }
