@@ -629,7 +629,6 @@ fn classical_rows_read_the_sets_curve_or_refuse() {
             .expect("eval")
             .rows[0]
             .scores
-            .clone()
     };
     let (copy, triangle) = (score(Classical::Copy), score(Classical::Triangle));
     assert!(

@@ -10,6 +10,7 @@
 
 pub mod blend_unet;
 pub mod import;
+mod merge_head;
 pub mod wu;
 
 use crate::data::loader::SampleKind;

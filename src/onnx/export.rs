@@ -248,6 +248,20 @@ pub fn network2_min_size(cfg: &wu::WuConfig) -> usize {
         .expect("some multiple works")
 }
 
+/// The γ of the network's input curve, where the network has Wu's form: the graph forms his
+/// inputs (LDR^γ) and his image head only.
+fn wu_form_gamma(cfg: &wu::WuConfig) -> Result<f32> {
+    match (&cfg.input_response, cfg.output) {
+        (Response::Gamma { gamma }, WuOutput::Image) => Ok(*gamma as f32),
+        _ => Err(Error::Invalid(format!(
+            "ONNX export of Network-2 supports Wu's form only (model.output = \"image\", a \
+             gamma input_response); this network has output = {:?}, input_response = {}",
+            cfg.output,
+            cfg.input_response.label()
+        ))),
+    }
+}
+
 /// Network-2 as ONNX. Inputs `frame_short`, `frame_reference`, `frame_long`: `[N, 3, H, W]`
 /// LDR frames in [0, 1] (EV −2, 0, +2); `exposure_times` `[N, 3]`: their exposure times
 /// relative to the reference (2^(EV − EV_ref), e.g. 0.25, 1, 4). The graph forms the model's
@@ -256,18 +270,7 @@ pub fn network2_min_size(cfg: &wu::WuConfig) -> usize {
 /// [0, 1] output divided by `hdr_input_scale`, as `eval::infer::network2_hdr`).
 pub fn network2(model: &WuNet, opts: &ExportOptions) -> Result<ModelProto> {
     let cfg = model.config().clone();
-    // The graph forms Wu's inputs (LDR^γ) and his image head only.
-    let gamma = match (&cfg.input_response, cfg.output) {
-        (Response::Gamma { gamma }, WuOutput::Image) => *gamma as f32,
-        _ => {
-            return Err(Error::Invalid(format!(
-                "ONNX export of Network-2 supports Wu's form only (model.output = \"image\", a \
-                 gamma input_response); this network has output = {:?}, input_response = {}",
-                cfg.output,
-                cfg.input_response.label()
-            )));
-        }
-    };
+    let gamma = wu_form_gamma(&cfg)?;
     let m = cfg.size_multiple();
     check_size(opts.size, m, network2_min_size(&cfg), "Network-2")?;
     let mut g = GraphBuilder::new(module_weights(model)?);
@@ -278,8 +281,7 @@ pub fn network2(model: &WuNet, opts: &ExportOptions) -> Result<ModelProto> {
         .collect();
     let [n, h, w] = axes(opts.size);
     let times = g.input(N2_TIMES, &[n.clone(), Dim::Fixed(wu::FRAMES)]);
-    let s = cfg.hdr_input_scale;
-    let hdr_scale = if s == 1.0 { 2.0 } else { (2.0 * s) as f32 };
+    let hdr_scale = (2.0 * cfg.hdr_input_scale) as f32;
     // TensorFlow-'SAME' reflection pads depend on the size only through its parity under a
     // stride 2, and every stride-2 convolution sees an even size (H and W are multiples of
     // 2^(stride-2 steps) = m): so they are fixed, stride-2 5×5 (1, 2), 3×3 (1, 1), 5×5 (2, 2),
@@ -372,7 +374,7 @@ pub fn network2(model: &WuNet, opts: &ExportOptions) -> Result<ModelProto> {
     let out = g.node("Tanh", "decoder.tanh", &[&out], vec![]);
     let out = g.with_scalar("Add", "decoder.plus1", &out, 1.0);
     let out = g.with_scalar("Mul", "decoder.half", &out, 0.5);
-    let out = g.with_scalar("Mul", "hdr_unit", &out, (1.0 / s) as f32);
+    let out = g.with_scalar("Mul", "hdr_unit", &out, (1.0 / cfg.hdr_input_scale) as f32);
     g.output(&out, N2_OUTPUT, &[n, Dim::Fixed(wu::OUTPUT_CHANNELS), h, w])?;
     let graph = g.finish("hdrsynth_network2")?;
     Ok(model_proto(
@@ -382,7 +384,7 @@ pub fn network2(model: &WuNet, opts: &ExportOptions) -> Result<ModelProto> {
             (META_SIZE_MULTIPLE, m.to_string()),
             (META_MIN_SIZE, network2_min_size(&cfg).to_string()),
             (META_RADIUS, cfg.receptive_radius().to_string()),
-            (META_HDR_SCALE, s.to_string()),
+            (META_HDR_SCALE, cfg.hdr_input_scale.to_string()),
         ],
     ))
 }

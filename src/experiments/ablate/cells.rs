@@ -333,28 +333,7 @@ fn run_cell(
             )?;
         }
     }
-    // A network is loaded once; a baseline is built per test set (a classical merge reads the
-    // set's curve).
-    let network = match (&plan.checkpoint, plan.baseline) {
-        (_, Some(_)) => None,
-        (Some(ckpt), None) => {
-            if progress {
-                eprintln!("  evaluating {}", ckpt.display());
-            }
-            let backend = cfg.eval.backend.as_ref().unwrap_or(&plan.backend);
-            let device = device_from_name(backend)?;
-            let net = NetworkOptions {
-                tile: cfg.eval.tile,
-                ..NetworkOptions::default()
-            };
-            Some(from_checkpoint(ckpt, &net, &device)?)
-        }
-        (None, None) => {
-            return Err(Error::Invalid(format!(
-                "cell '{id}' has neither a checkpoint nor a baseline"
-            )));
-        }
-    };
+    let network = cell_network(cfg, id, plan, progress)?;
     let opts = EvalOptions {
         resamples: cfg.eval.resamples,
         seed: cfg.eval.seed,
@@ -375,13 +354,45 @@ fn run_cell(
                 built = b.method(testset)?;
                 built.as_ref()
             }
-            (None, None) => unreachable!("checked above"),
+            (None, None) => {
+                return Err(Error::Invalid(format!(
+                    "cell '{id}' has neither a checkpoint nor a baseline"
+                )));
+            }
         };
         evaluate::evaluate(testset, method, &partial, &opts)?;
         let done = dir.join(&eval_dir);
         std::fs::rename(&partial, &done).map_err(|e| Error::io(&done, e))?;
     }
     Ok(CellStatus::Ran { resumed_at })
+}
+
+/// The network a cell scores, loaded once (None for a baseline, which is built per test set: a
+/// classical merge reads the set's curve).
+fn cell_network(
+    cfg: &AblateConfig,
+    id: &str,
+    plan: &CellPlan,
+    progress: bool,
+) -> Result<Option<Box<dyn evaluate::Method>>> {
+    match (&plan.checkpoint, plan.baseline) {
+        (_, Some(_)) => Ok(None),
+        (Some(ckpt), None) => {
+            if progress {
+                eprintln!("  evaluating {}", ckpt.display());
+            }
+            let backend = cfg.eval.backend.as_ref().unwrap_or(&plan.backend);
+            let device = device_from_name(backend)?;
+            let net = NetworkOptions {
+                tile: cfg.eval.tile,
+                ..NetworkOptions::default()
+            };
+            Ok(Some(from_checkpoint(ckpt, &net, &device)?))
+        }
+        (None, None) => Err(Error::Invalid(format!(
+            "cell '{id}' has neither a checkpoint nor a baseline"
+        ))),
+    }
 }
 
 /// The command's report: the table, then what each cell did and where the results are.

@@ -320,7 +320,9 @@ impl Baseline {
                 "Mertens weights of the noisy pair (no network)".into(),
                 Box::new(crate::data::ground_truth::blend_weights_high),
             ),
-            _ => unreachable!("the classical merges returned above"),
+            Baseline::Copy | Baseline::Triangle | Baseline::Debevec => {
+                unreachable!("the classical merges returned above")
+            }
         };
         Ok(Box::new(evaluate::Network1 {
             description,
