@@ -33,11 +33,11 @@ def main():
     base = sys.argv[3] if len(sys.argv) > 3 else None
     seeds = [1, 2, 3]
     full = {k: per_image(f"{qs}/experiment/cells/net_s/seed{k}/eval/per_image.csv") for k in seeds}
-    rows = [("full recipe (main job's Net_S)", full)]
+    rows = [("the main job's recipe (its Net_S)", full)]
     for name, kind in [
         ("image", "image head (Wu's) instead of the merge head"),
         ("gamma22", "inputs LDR^2.2 for every device (Wu's) instead of the training curve"),
-        ("output_unit", "loss in Wu's output unit (0.25·H) instead of the reference unit"),
+        ("reference_unit", "the loss in the reference unit (option) instead of Wu's 0.25·H"),
         ("dynamic", "training scenes with moving subjects instead of static ones"),
         ("kernel", "the kernel head (option) instead of the merge head"),
     ]:
@@ -45,14 +45,14 @@ def main():
         if all(os.path.isfile(p) for p in paths.values()):
             rows.append((kind, {k: per_image(p) for k, p in paths.items()}))
     if base:
-        rows.append(("Wu's recipe as released (all four undone)",
+        rows.append(("Wu's recipe as released (all three undone)",
                      {k: per_image(f"{base}/experiment/cells/net_s/seed{k}/eval/per_image.csv")
                       for k in seeds}))
     for cls in ["copy", "triangle", "debevec"]:
         paths = {k: f"{qs}/experiment/cells/{cls}/seed{k}/eval/per_image.csv" for k in seeds}
         if all(os.path.isfile(p) for p in paths.values()):
             rows.append((f"{cls} (no network)", {k: per_image(p) for k, p in paths.items()}))
-    print("| Net_S trained with | PSNR-T | per seed | Δ to the full recipe [95 % t over scenes] | per seed |")
+    print("| Net_S trained with | PSNR-T | per seed | Δ to the main job's recipe [95 % t over scenes] | per seed |")
     print("|---|---|---|---|---|")
     for label, v in rows:
         mean = statistics.mean(statistics.mean(v[k].values()) for k in seeds)

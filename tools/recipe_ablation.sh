@@ -1,8 +1,8 @@
 #!/bin/bash
 # The Network-2 recipe ablation of docs/experiments.md ("Recipe"): the main job's Net_S with
-# one change of its recipe undone at a time (Wu's image head, LDR^2.2 inputs, the loss in Wu's
-# output unit, training scenes with moving subjects) or the kernel head instead of the merge
-# head, per seed: the DSLR pretraining, then
+# one change of its recipe undone at a time (Wu's image head, LDR^2.2 inputs, training scenes
+# with moving subjects) or one option added (the loss in the reference unit, the kernel head
+# instead of the merge head), per seed: the DSLR pretraining, then
 # Net_S's fine-tuning, scored on the main job's test sets. Resumable: a finished variant and
 # seed is kept. Analyse with tools/recipe_ablation.py.
 #
@@ -17,7 +17,7 @@ if [ ! -d "$OUT/dynamic_train" ]; then
   "$B" generate --config "$OUT/dynamic_train.toml" --out "$OUT/dynamic_train"
 fi
 target=$(ls "$Q"/configs/sensors/*.toml | grep -v dslr_canon_550d_gamma22 | head -1)
-for v in image gamma22 output_unit dynamic kernel; do
+for v in image gamma22 reference_unit dynamic kernel; do
   for k in 1 2 3; do
     d=$OUT/$v/seed$k; mkdir -p "$d"
     [ -f "$d/ev_primary/summary.csv" ] && continue
@@ -28,7 +28,7 @@ for v in image gamma22 output_unit dynamic kernel; do
       case $v in
         image) sed -i 's/^output = "merge"/output = "image"/' "$f";;
         gamma22) sed -i 's/^linearise = "data"/linearise = "fixed"/' "$f";;
-        output_unit) sed -i 's/^hdr_unit = "reference"/hdr_unit = "output"/' "$f";;
+        reference_unit) sed -i 's/^\[loss\]$/[loss]\nhdr_unit = "reference"/' "$f";;
         dynamic) sed -i "s#$Q/data/train#$OUT/dynamic_train#" "$f";;
         kernel) sed -i 's/^output = "merge"/output = "kernel"/' "$f";;
       esac

@@ -27,8 +27,7 @@ use crate::sensor::profile::SensorProfile;
 use crate::sensor::realism::NoiseModel;
 use crate::train;
 use crate::train::config::{
-    DataConfig, HdrUnit, InitConfig, LossConfig, OptimConfig, RunConfig, Schedule, ScheduleKind,
-    TrainConfig,
+    DataConfig, InitConfig, LossConfig, OptimConfig, RunConfig, Schedule, ScheduleKind, TrainConfig,
 };
 use crate::train::{TrainOptions, checkpoint};
 use serde::Serialize;
@@ -232,8 +231,8 @@ pub(crate) fn train_config(s: &Sizes, backend: &str, data: &Path, st: &Stage) ->
             log_every: 10,
         },
         // Wu's network with the recipe measured in docs/experiments.md ("Recipe"): the merge
-        // head, inputs linearised through the training frames' own curve, the loss in the unit
-        // PSNR-T scores.
+        // head and inputs linearised through the training frames' own curve (the loss stays in
+        // Wu's unit: the reference unit measured no gain).
         model: ModelConfig::Wu(WuConfig {
             variant: WuVariant::Resnet,
             base_width: s.base_width,
@@ -258,10 +257,7 @@ pub(crate) fn train_config(s: &Sizes, backend: &str, data: &Path, st: &Stage) ->
             checkpoint: Some(i.to_path_buf()),
             safetensors: None,
         }),
-        loss: LossConfig {
-            hdr_unit: HdrUnit::Reference,
-            ..LossConfig::default()
-        },
+        loss: LossConfig::default(),
         validation: None,
     }
 }
