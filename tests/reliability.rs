@@ -1382,6 +1382,12 @@ fn a_finished_run_resumes_to_success_and_leftovers_are_removed() {
     for p in leftovers.iter().chain(&temps) {
         assert!(!p.exists(), "{} should be gone", p.display());
     }
+    // The `step-` folder without a state file is incomplete: moved aside whole, not deleted.
+    let aside = root
+        .join("incomplete")
+        .join("step-00000001")
+        .join("model.mpk");
+    assert_eq!(std::fs::read(&aside).unwrap(), b"partial");
     assert_eq!(
         hdrsynth::train::checkpoint::latest(&run).unwrap().unwrap(),
         last
@@ -1817,7 +1823,8 @@ fn flipped_bytes_anywhere_in_any_checkpoint_file_are_an_error_naming_the_file() 
 }
 
 #[test]
-fn a_corrupted_checkpoint_is_refused_by_resume_eval_infer_and_export() {
+fn a_corrupted_checkpoint_is_refused_by_eval_infer_and_export_and_set_aside_by_resume() {
+    use hdrsynth::train::checkpoint;
     let tmp = tempfile::tempdir().unwrap();
     let (cfg, ckpt) = one_step_run(tmp.path());
     let model = ckpt.join("model.bpk");
@@ -1828,14 +1835,7 @@ fn a_corrupted_checkpoint_is_refused_by_resume_eval_infer_and_export() {
         *b = !*b;
     }
     std::fs::write(&model, &bad).unwrap();
-    // train --resume (raising the step count so it has work to do).
-    let mut longer = cfg.clone();
-    longer.run.steps = 4;
-    let e = hdrsynth::train::run(&longer, &quiet(true))
-        .expect_err("resume from a damaged checkpoint")
-        .to_string();
-    assert!(e.contains("model.bpk") && e.contains("checksum"), "{e}");
-    // infer and export through the binary.
+    // infer and export through the binary, the damaged checkpoint named explicitly.
     let set = common::first_set(resume_dataset(false));
     let o = bin()
         .args(["infer", "--checkpoint"])
@@ -1864,10 +1864,167 @@ fn a_corrupted_checkpoint_is_refused_by_resume_eval_infer_and_export() {
         e.contains("model.bpk") && e.contains("checksum"),
         "eval: {e}"
     );
+    // train --resume (raising the step count): the damaged step 2 is moved aside, bytes kept,
+    // and the run continues from step 1.
+    let mut longer = cfg.clone();
+    longer.run.steps = 4;
+    let s = hdrsynth::train::run(&longer, &quiet(true)).expect("resume past a damaged checkpoint");
+    assert!(s.start_step == 1 && s.steps == 4, "{s:?}");
+    let aside = checkpoint::dir_of(&cfg.run.out)
+        .join("incomplete")
+        .join("step-00000002");
+    assert_eq!(std::fs::read(aside.join("model.bpk")).unwrap(), bad);
+    let e = checkpoint::resolve(&aside).unwrap_err().to_string();
+    assert!(
+        e.contains("step-00000002") && e.contains("model.bpk fails its checksum"),
+        "{e}"
+    );
     // Without a checksums file (a checkpoint from before them): loads, with a warning.
-    std::fs::write(&model, &good).unwrap();
-    std::fs::remove_file(ckpt.join("checksums.sha256")).unwrap();
-    load_checkpoint_file("model.bpk", &ckpt).expect("an unverifiable checkpoint still loads");
+    std::fs::write(aside.join("model.bpk"), &good).unwrap();
+    std::fs::remove_file(aside.join("checksums.sha256")).unwrap();
+    load_checkpoint_file("model.bpk", &aside).expect("an unverifiable checkpoint still loads");
+}
+
+/// A finished tiny Network-1 run of 4 steps with checkpoints at steps 2 and 4; its config is
+/// also written to a file for the binary. Returns (run folder, config file).
+fn two_checkpoint_run(dir: &Path) -> (PathBuf, PathBuf) {
+    let run = dir.join("run");
+    let text = resume_config(ResumeCase::plain(false), &run, 4, 2);
+    hdrsynth::train::run(&train_cfg(&text), &quiet(false)).expect("train");
+    let cfg = dir.join("train.toml");
+    std::fs::write(&cfg, text).unwrap();
+    (run, cfg)
+}
+
+/// The files of a folder by name, with their bytes.
+fn files_by_name(dir: &Path) -> std::collections::BTreeMap<String, Vec<u8>> {
+    snapshot(dir)
+        .into_iter()
+        .map(|(p, b)| (p.file_name().unwrap().to_string_lossy().into_owned(), b))
+        .collect()
+}
+
+/// `file` removed from a finished run's newest checkpoint (step 4), then `train --resume`
+/// through the binary: exit 0; the step-4 folder is moved whole into `incomplete/`, its other
+/// files byte for byte; stderr names it, what is missing, where it went and the checkpoint
+/// resumed from (step 2); the run trains steps 2..4 and writes a new, complete step 4 with
+/// the weights the damaged one held (resume is bit-identical).
+fn assert_incomplete_latest_is_set_aside_on_resume(file: &str) {
+    use hdrsynth::train::checkpoint;
+    let tmp = tempfile::tempdir().unwrap();
+    let (run, cfg) = two_checkpoint_run(tmp.path());
+    let root = checkpoint::dir_of(&run);
+    let (step2, step4) = (root.join("step-00000002"), root.join("step-00000004"));
+    let weights = std::fs::read(step4.join("model.bpk")).unwrap();
+    std::fs::remove_file(step4.join(file)).unwrap();
+    let kept = files_by_name(&step4);
+    let o = bin()
+        .args(["train", "--quiet", "--resume", "--config"])
+        .arg(&cfg)
+        .output()
+        .unwrap();
+    let (out, err) = (
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr),
+    );
+    assert!(o.status.success(), "{file}: {out}\n{err}");
+    let aside = root.join("incomplete").join("step-00000004");
+    for want in [
+        format!("checkpoint {} is incomplete", step4.display()),
+        format!("{file} is missing"),
+        format!("moved aside to {}", aside.display()),
+        format!("resuming from {}", step2.display()),
+    ] {
+        assert!(err.contains(&want), "{file}: no '{want}' in: {err}");
+    }
+    assert_eq!(
+        files_by_name(&aside),
+        kept,
+        "{file}: the set-aside files changed"
+    );
+    assert!(!aside.join(file).exists(), "{file}");
+    assert!(out.contains("trained steps 2..4"), "{file}: {out}");
+    let last = checkpoint::latest(&run).unwrap().unwrap();
+    assert_eq!(last, step4, "{file}");
+    assert_eq!(checkpoint::read_state(&last).unwrap().step, 4, "{file}");
+    assert_eq!(checkpoint::incomplete(&last), None, "{file}");
+    assert_eq!(
+        std::fs::read(last.join("model.bpk")).unwrap(),
+        weights,
+        "{file}: the resumed run's step 4 differs from the uninterrupted one's"
+    );
+}
+
+#[test]
+fn resume_sets_aside_a_latest_checkpoint_without_its_state_file_and_continues() {
+    assert_incomplete_latest_is_set_aside_on_resume("state.toml");
+}
+
+#[test]
+fn resume_sets_aside_a_latest_checkpoint_without_its_optimizer_and_continues() {
+    assert_incomplete_latest_is_set_aside_on_resume("optimizer.bpk");
+}
+
+/// Readers of a run whose newest checkpoint lacks its state file: `checkpoint::resolve` and
+/// `latest` give step 2, `infer` and `export` use it and name the skipped step 4 on stderr,
+/// the step-4 folder named explicitly is an error naming it, and nothing on disk changes.
+#[test]
+fn readers_of_a_run_with_an_incomplete_latest_checkpoint_use_the_previous_and_say_so() {
+    use hdrsynth::train::checkpoint;
+    let tmp = tempfile::tempdir().unwrap();
+    let (run, _) = two_checkpoint_run(tmp.path());
+    let root = checkpoint::dir_of(&run);
+    let (step2, step4) = (root.join("step-00000002"), root.join("step-00000004"));
+    std::fs::remove_file(step4.join("state.toml")).unwrap();
+    let before = snapshot(&root);
+    assert_eq!(checkpoint::resolve(&run).unwrap(), step2);
+    assert_eq!(checkpoint::latest(&run).unwrap().unwrap(), step2);
+    let (used, skipped) = checkpoint::newest_complete(&run).unwrap();
+    assert_eq!(used.as_deref(), Some(step2.as_path()));
+    assert_eq!(
+        skipped,
+        vec![checkpoint::Skipped {
+            dir: step4.clone(),
+            why: "state.toml is missing".into()
+        }]
+    );
+    let e = checkpoint::resolve(&step4).unwrap_err().to_string();
+    assert!(
+        e.contains("step-00000004") && e.contains("state.toml is missing"),
+        "{e}"
+    );
+    let set = common::first_set(resume_dataset(false));
+    let mut readers = vec![{
+        let mut c = bin();
+        c.args(["infer", "--engine", "burn", "--checkpoint"])
+            .arg(&run)
+            .arg("--set")
+            .arg(&set)
+            .arg("--out")
+            .arg(tmp.path().join("inferred"));
+        ("infer", c)
+    }];
+    if cfg!(feature = "onnx") {
+        let mut c = bin();
+        c.args(["export", "onnx", "--checkpoint"])
+            .arg(&run)
+            .arg("--out")
+            .arg(tmp.path().join("m.onnx"));
+        readers.push(("export", c));
+    }
+    for (what, mut c) in readers {
+        let o = c.output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{what}: {err}");
+        for want in [
+            format!("checkpoint {} is incomplete", step4.display()),
+            "state.toml is missing".to_string(),
+            format!("using {} instead", step2.display()),
+        ] {
+            assert!(err.contains(&want), "{what}: no '{want}' in: {err}");
+        }
+    }
+    assert_eq!(snapshot(&root), before, "a reader changed the checkpoints");
 }
 
 // ---------------------------------------------------------------------------------------------

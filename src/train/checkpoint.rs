@@ -15,6 +15,12 @@
 //! Every read of a checkpoint file ([`read_verified`]) checks it against `checksums.sha256`,
 //! so a damaged file is an error naming it, never weights used silently; a checkpoint without
 //! the file (written before checksums existed) loads with a warning.
+//!
+//! A checkpoint is complete or it is not used ([`incomplete`]: a required file missing or
+//! failing its checksum). A run folder's readers ([`latest`], [`resolve`]) pass over
+//! incomplete ones to the newest complete one and say so on stderr; a step folder named
+//! explicitly is refused if incomplete. `train --resume` moves incomplete checkpoints aside
+//! into `RUN/checkpoints/incomplete/` ([`set_aside_incomplete`]); nothing is deleted.
 //! The data stream and the learning-rate schedule are pure functions of (seed, step), so the
 //! step is the whole random state: `rng_seed` and `samples` record it.
 
@@ -34,6 +40,8 @@ pub const OPTIMIZER_FILE: &str = "optimizer.bpk";
 pub const STATE_FILE: &str = "state.toml";
 pub const CHECKSUMS_FILE: &str = "checksums.sha256";
 const LATEST: &str = "latest";
+/// The folder of a run's checkpoints folder that incomplete checkpoints are moved into.
+pub const INCOMPLETE_DIR: &str = "incomplete";
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -118,8 +126,13 @@ pub fn save<M: Module>(
     Ok(fin)
 }
 
-/// Complete checkpoint folders of a checkpoints root, oldest first.
-fn list(root: &Path) -> Result<Vec<(u64, PathBuf)>> {
+/// The step of a checkpoint folder name `step-N`.
+fn step_of(name: &str) -> Option<u64> {
+    name.strip_prefix("step-")?.parse().ok()
+}
+
+/// Every `step-N` folder of a checkpoints root, complete or not, oldest first.
+fn step_folders(root: &Path) -> Result<Vec<(u64, PathBuf)>> {
     let mut out = Vec::new();
     let entries = match std::fs::read_dir(root) {
         Ok(e) => e,
@@ -129,16 +142,30 @@ fn list(root: &Path) -> Result<Vec<(u64, PathBuf)>> {
     for entry in entries {
         let entry = entry.map_err(|e| Error::io(root, e))?;
         let name = entry.file_name().to_string_lossy().into_owned();
-        if let Some(step) = name
-            .strip_prefix("step-")
-            .and_then(|s| s.parse::<u64>().ok())
-            && entry.path().join(STATE_FILE).is_file()
+        if let Some(step) = step_of(&name)
+            && entry.path().is_dir()
         {
             out.push((step, entry.path()));
         }
     }
     out.sort();
     Ok(out)
+}
+
+/// Every checkpoint folder (`step-N`) of a run, complete or not, oldest first.
+pub fn all_steps(run: &Path) -> Result<Vec<PathBuf>> {
+    Ok(step_folders(&dir_of(run))?
+        .into_iter()
+        .map(|(_, d)| d)
+        .collect())
+}
+
+/// Checkpoint folders with a state file, oldest first: what [`prune`] may remove (the trainer
+/// sets incomplete ones aside before it writes any).
+fn list(root: &Path) -> Result<Vec<(u64, PathBuf)>> {
+    let mut all = step_folders(root)?;
+    all.retain(|(_, d)| d.join(STATE_FILE).is_file());
+    Ok(all)
 }
 
 fn prune(root: &Path, keep: usize) -> Result<()> {
@@ -156,9 +183,10 @@ fn prune(root: &Path, keep: usize) -> Result<()> {
 }
 
 /// Remove what a killed run left in its checkpoints folder: `.tmp-step-…` (a save cut short),
-/// `.prune-…` (a prune cut short), `step-…` folders without a state file (a prune cut short
-/// by an older version, which deleted in place) and `write_atomic` temp files in the run
-/// folder. Returns how many entries were removed. The caller holds the run's writer lock.
+/// `.prune-…` (a prune cut short) and `write_atomic` temp files in the run folder, all the
+/// trainer's own temporaries. A `step-…` folder is never removed here, complete or not
+/// ([`set_aside_incomplete`] moves incomplete ones aside). Returns how many entries were
+/// removed. The caller holds the run's writer lock.
 pub fn clean_leftovers(run: &Path) -> Result<usize> {
     let root = dir_of(run);
     let mut n = 0;
@@ -167,9 +195,7 @@ pub fn clean_leftovers(run: &Path) -> Result<usize> {
             let entry = entry.map_err(|e| Error::io(&root, e))?;
             let path = entry.path();
             let name = entry.file_name().to_string_lossy().into_owned();
-            let leftover = name.starts_with(".tmp-step-")
-                || name.starts_with(".prune-")
-                || (name.starts_with("step-") && !path.join(STATE_FILE).is_file());
+            let leftover = name.starts_with(".tmp-step-") || name.starts_with(".prune-");
             if leftover && path.is_dir() {
                 std::fs::remove_dir_all(&path).map_err(|e| Error::io(&path, e))?;
                 n += 1;
@@ -179,34 +205,263 @@ pub fn clean_leftovers(run: &Path) -> Result<usize> {
     Ok(n + crate::io::atomic::remove_stale_temps(run)?)
 }
 
-/// The newest complete checkpoint of a run, if any (`latest`, else the highest step folder).
-pub fn latest(run: &Path) -> Result<Option<PathBuf>> {
-    let root = dir_of(run);
-    if let Ok(name) = crate::io::guard::read_text(&root.join(LATEST)) {
-        let dir = root.join(name.trim());
-        if dir.join(STATE_FILE).is_file() {
-            return Ok(Some(dir));
+/// Why the checkpoint folder `dir` is incomplete, or None when it is complete: `state.toml`
+/// and `model.bpk` present, and every file `checksums.sha256` lists present with the recorded
+/// SHA-256 (so a missing `optimizer.bpk` or `class_weights.toml` counts). A checkpoint
+/// written before checksums needs only the first two.
+pub fn incomplete(dir: &Path) -> Option<String> {
+    let mut why = Vec::new();
+    for name in [STATE_FILE, MODEL_FILE] {
+        if !dir.join(name).exists() {
+            why.push(format!("{name} is missing"));
         }
     }
-    Ok(list(&root)?.pop().map(|(_, d)| d))
+    match recorded_checksums(dir) {
+        Err(e) => why.push(format!("{CHECKSUMS_FILE} is unreadable ({e})")),
+        Ok(None) => {}
+        Ok(Some(sums)) => {
+            for (name, want) in sums {
+                let path = dir.join(&name);
+                if !path.exists() {
+                    if !why.iter().any(|w| w.starts_with(&format!("{name} "))) {
+                        why.push(format!("{name} is missing"));
+                    }
+                    continue;
+                }
+                match crate::io::guard::read_file(&path) {
+                    Err(e) => why.push(format!("{name} is unreadable ({e})")),
+                    Ok(bytes) if crate::io::sha256_hex(&bytes) != want => {
+                        why.push(format!("{name} fails its checksum in {CHECKSUMS_FILE}"))
+                    }
+                    Ok(_) => {}
+                }
+            }
+        }
+    }
+    (!why.is_empty()).then(|| why.join(", "))
 }
 
-/// A checkpoint folder from a path naming either a checkpoint or a run folder (its latest).
-pub fn resolve(path: &Path) -> Result<PathBuf> {
-    if path.join(STATE_FILE).is_file() {
-        return Ok(path.to_path_buf());
+/// A checkpoint passed over because it is [`incomplete`], and why.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Skipped {
+    pub dir: PathBuf,
+    pub why: String,
+}
+
+/// The newest complete checkpoint of a run (the one `latest` names, else the highest step),
+/// and the incomplete ones passed over to reach it, newest first. Prints nothing.
+pub fn newest_complete(run: &Path) -> Result<(Option<PathBuf>, Vec<Skipped>)> {
+    let root = dir_of(run);
+    let mut candidates: Vec<PathBuf> = step_folders(&root)?
+        .into_iter()
+        .rev()
+        .map(|(_, d)| d)
+        .collect();
+    if let Ok(name) = crate::io::guard::read_text(&root.join(LATEST))
+        && let Some(at) = candidates
+            .iter()
+            .position(|d| d.file_name().is_some_and(|n| n == name.trim()))
+    {
+        let named = candidates.remove(at);
+        candidates.insert(0, named);
     }
+    let mut skipped = Vec::new();
+    for dir in candidates {
+        match incomplete(&dir) {
+            None => return Ok((Some(dir), skipped)),
+            Some(why) => skipped.push(Skipped { dir, why }),
+        }
+    }
+    Ok((None, skipped))
+}
+
+/// What a reader of `run` says on stderr about a checkpoint it passed over (once per folder
+/// and process): which one it uses instead, and why.
+fn warn_skipped(run: &Path, s: &Skipped, used: Option<&Path>) {
+    static WARNED: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+    let mut warned = WARNED.lock().unwrap_or_else(|e| e.into_inner());
+    if warned.iter().any(|d| d == &s.dir) {
+        return;
+    }
+    warned.push(s.dir.clone());
+    let instead = match used {
+        Some(d) => format!(
+            "using {} instead, the newest complete checkpoint of {}",
+            d.display(),
+            run.display()
+        ),
+        None => format!("{} has no complete checkpoint", run.display()),
+    };
+    eprintln!(
+        "warning: checkpoint {} is incomplete ({}) and is not used; {instead}",
+        s.dir.display(),
+        s.why
+    );
+}
+
+/// The newest complete checkpoint of a run, if any ([`newest_complete`]); each incomplete
+/// one passed over is named on stderr with the one used instead.
+pub fn latest(run: &Path) -> Result<Option<PathBuf>> {
+    let (dir, skipped) = newest_complete(run)?;
+    for s in &skipped {
+        warn_skipped(run, s, dir.as_deref());
+    }
+    Ok(dir)
+}
+
+/// An incomplete checkpoint moved aside by [`set_aside_incomplete`]: from, to, and why.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SetAside {
+    pub from: PathBuf,
+    pub to: PathBuf,
+    pub why: String,
+}
+
+/// Move every [`incomplete`] checkpoint of `run` into `RUN/checkpoints/incomplete/` (as
+/// `step-N`, or `step-N.2`, … when that name is taken), byte for byte; nothing is deleted.
+/// `latest` is then rewritten to name the newest complete checkpoint if it named a moved one.
+/// The caller (the trainer, on resume) holds the run's writer lock and reports the moves.
+pub fn set_aside_incomplete(run: &Path) -> Result<Vec<SetAside>> {
+    let root = dir_of(run);
+    let aside = root.join(INCOMPLETE_DIR);
+    let mut moved = Vec::new();
+    for (_, dir) in step_folders(&root)?.into_iter().rev() {
+        let Some(why) = incomplete(&dir) else {
+            continue;
+        };
+        std::fs::create_dir_all(&aside).map_err(|e| Error::io(&aside, e))?;
+        let name = dir
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let mut to = aside.join(&name);
+        let mut k = 2;
+        while to.exists() {
+            to = aside.join(format!("{name}.{k}"));
+            k += 1;
+        }
+        std::fs::rename(&dir, &to).map_err(|e| Error::io(&dir, e))?;
+        moved.push(SetAside { from: dir, to, why });
+    }
+    if moved.is_empty() {
+        return Ok(moved);
+    }
+    sync_dir(&aside);
+    sync_dir(&root);
+    let named = crate::io::guard::read_text(&root.join(LATEST)).unwrap_or_default();
+    let stale = moved
+        .iter()
+        .any(|m| m.from.file_name().is_some_and(|n| n == named.trim()));
+    if stale && let Some((_, dir)) = list(&root)?.pop() {
+        let name = dir.file_name().map(|n| n.to_string_lossy().into_owned());
+        write_atomic(&root.join(LATEST), name.unwrap_or_default().as_bytes())?;
+    }
+    Ok(moved)
+}
+
+/// The checkpoint a run continues from (the trainer calls it under the run's writer lock).
+/// On `resume`, every incomplete checkpoint is first moved aside into
+/// `RUN/checkpoints/incomplete/` ([`set_aside_incomplete`]; never deleted), each named on
+/// stderr, and the run continues from the newest complete one, named on stderr with why. A
+/// new run gets the newest checkpoint folder, complete or not, so that the trainer refuses a
+/// folder holding any.
+pub fn resume_point(run: &Path, resume: bool) -> Result<Option<PathBuf>> {
+    if !resume {
+        return Ok(all_steps(run)?.pop());
+    }
+    let moved = set_aside_incomplete(run)?;
+    for m in &moved {
+        eprintln!(
+            "warning: checkpoint {} is incomplete ({}): moved aside to {} (nothing deleted)",
+            m.from.display(),
+            m.why,
+            m.to.display()
+        );
+    }
+    let (existing, _) = newest_complete(run)?;
+    if moved.is_empty() {
+        return Ok(existing);
+    }
+    let names = moved
+        .iter()
+        .filter_map(|m| m.from.file_name().map(|n| n.to_string_lossy().into_owned()))
+        .collect::<Vec<_>>()
+        .join(", ");
+    match &existing {
+        Some(dir) => eprintln!(
+            "resuming from {}, the newest complete checkpoint ({names} set aside as \
+             incomplete)",
+            dir.display()
+        ),
+        None => {
+            return Err(Error::layout(
+                run,
+                format!(
+                    "--resume: the run has no complete checkpoint ({names} set aside as \
+                     incomplete, in {}); start a new run folder",
+                    dir_of(run).join(INCOMPLETE_DIR).display()
+                ),
+            ));
+        }
+    }
+    Ok(existing)
+}
+
+/// Whether `path` is meant as one checkpoint folder rather than a run folder: no
+/// `checkpoints` folder in it, and a checkpoint file in it or a `step-N` name.
+fn names_a_checkpoint(path: &Path) -> bool {
+    if dir_of(path).is_dir() {
+        return false;
+    }
+    [STATE_FILE, MODEL_FILE, CHECKSUMS_FILE]
+        .iter()
+        .any(|f| path.join(f).is_file())
+        || path
+            .file_name()
+            .and_then(|n| step_of(&n.to_string_lossy()))
+            .is_some()
+}
+
+/// A checkpoint folder from a path naming either a checkpoint or a run folder. A checkpoint
+/// folder named explicitly must be complete ([`incomplete`]), else it is an error naming it
+/// and what is wrong; a run folder gives its newest complete checkpoint ([`latest`]: each
+/// incomplete one passed over is named on stderr with the one used instead).
+pub fn resolve(path: &Path) -> Result<PathBuf> {
     if !path.exists() {
         return Err(Error::io(
             path,
             std::io::Error::new(std::io::ErrorKind::NotFound, "no such checkpoint or run"),
         ));
     }
-    latest(path)?.ok_or_else(|| {
-        Error::layout(
+    if names_a_checkpoint(path) {
+        return match incomplete(path) {
+            None => Ok(path.to_path_buf()),
+            Some(why) => Err(Error::layout(
+                path,
+                format!(
+                    "incomplete checkpoint ({why}); it is not used: give an earlier step \
+                     folder, or the run folder to use its newest complete checkpoint"
+                ),
+            )),
+        };
+    }
+    let (dir, skipped) = newest_complete(path)?;
+    for s in &skipped {
+        warn_skipped(path, s, dir.as_deref());
+    }
+    dir.ok_or_else(|| match skipped.first() {
+        Some(s) => Error::layout(
+            path,
+            format!(
+                "the run has no complete checkpoint: {} is incomplete ({})",
+                s.dir.display(),
+                s.why
+            ),
+        ),
+        None => Error::layout(
             path,
             format!("neither a checkpoint (no {STATE_FILE}) nor a run with checkpoints"),
-        )
+        ),
     })
 }
 

@@ -267,8 +267,9 @@ fn network1_alpha(cfg: &TrainConfig, opts: &TrainOptions, loader: &Loader) -> Re
         let text = checkpoint::read_verified_text(dir, CHECKPOINT_ALPHA_FILE)?;
         ClassWeights::parse(&text, &dir.join(CHECKPOINT_ALPHA_FILE))
     };
+    // The checkpoint `train` resumes from: the newest complete one (it reports the choice).
     if opts.resume
-        && let Some(dir) = checkpoint::latest(&cfg.run.out)?
+        && let (Some(dir), _) = checkpoint::newest_complete(&cfg.run.out)?
     {
         return from_checkpoint(&dir);
     }
@@ -350,7 +351,7 @@ pub fn train<T: Task + Sync>(
     {
         eprintln!("wgpu adapter: {adapter}");
     }
-    let existing = checkpoint::latest(run)?;
+    let existing = checkpoint::resume_point(run, opts.resume)?;
     let (model, optim, start) =
         start_or_resume(task, cfg, opts.resume, &devices[0], existing.as_deref())?;
     if start >= cfg.run.steps {
@@ -434,9 +435,12 @@ fn start_or_resume<T: Task>(
         (Some(dir), false) => Err(Error::layout(
             run,
             format!(
-                "the run folder already holds checkpoints ({}): pass --resume to continue it, \
-                 or set run.out to a new folder",
-                dir.display()
+                "the run folder already holds checkpoints ({}{}): pass --resume to continue \
+                 it, or set run.out to a new folder",
+                dir.display(),
+                checkpoint::incomplete(dir)
+                    .map(|why| format!(", incomplete: {why}"))
+                    .unwrap_or_default()
             ),
         )),
         (None, false) => Ok((initial_model(task, cfg, device)?, optim, 0)),
