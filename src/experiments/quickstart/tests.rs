@@ -67,7 +67,35 @@ fn the_configs_follow_the_protocol_and_read_back() {
         assert_eq!(round_trip(&exp), exp);
         assert_eq!(exp.eval.reference.as_deref(), Some(REFERENCE));
         let names: Vec<&str> = exp.rows.iter().map(|r| r.name.as_str()).collect();
-        assert_eq!(names, ["net_o", "control", "net_r", "net_p", "net_s"]);
+        assert_eq!(
+            names,
+            [
+                "net_o", "control", "net_r", "net_p", "net_s", "copy", "triangle", "debevec"
+            ]
+        );
+        // The classical rows train nothing and are scored per seed (the test noise is).
+        for r in &exp.rows[5..] {
+            assert!(!r.train && r.set.is_empty(), "{}", r.name);
+        }
+        // The recipe: the merge head, inputs through the training frames' own curve, static
+        // training scenes.
+        let st = Stage {
+            run: root,
+            seed: 1,
+            profile: &target,
+            isos: &TARGET_ISOS,
+            steps: 1,
+            lr: 1e-3,
+            init: None,
+        };
+        let ModelConfig::Wu(m) = train_config(&s, s.backend, root, &st).model else {
+            panic!("Network-2");
+        };
+        assert_eq!(
+            (m.output, m.linearise),
+            (crate::models::wu::WuOutput::Merge, Linearise::Data)
+        );
+        assert_eq!(train_data_config(&s).scene.motion_scale, 0.0);
         let net_r = &exp.rows[2].set["data"];
         assert_eq!(net_r["noise"].as_str(), Some("none"));
         assert_eq!(net_r["colour"].as_bool(), Some(false));
