@@ -272,18 +272,23 @@ fn check_mertens_oracles(dir: &Path, max_limit: f32, mean_limit: f64) {
 
 /// Runs our `triangle_merge` on every triangle-merge case of `DIR/oracles.json` (Desk and
 /// Carrots, EV −2/0/+2) and checks the largest absolute difference against the oracle.
+/// An oracle case's `exposure_times`.
+fn exposure_times(case: &serde_json::Value) -> Vec<f32> {
+    case["exposure_times"]
+        .as_array()
+        .expect("exposure_times")
+        .iter()
+        .map(|v| v.as_f64().expect("time") as f32)
+        .collect()
+}
+
 fn check_triangle_oracles(dir: &Path, limit: f32) {
     let cases = oracle_cases(dir, "triangle_merge");
     let names: Vec<&str> = cases.iter().map(|(n, _)| n.as_str()).collect();
     assert_eq!(names, ["carrots_3exp_triangle", "desk_3exp_triangle"]);
     for (name, case) in &cases {
         let f: [Image; 3] = frames(dir, name, case).try_into().expect("three frames");
-        let t: Vec<f32> = case["exposure_times"]
-            .as_array()
-            .expect("exposure_times")
-            .iter()
-            .map(|v| v.as_f64().expect("time") as f32)
-            .collect();
+        let t = exposure_times(case);
         let gamma = weight(name, case, "gamma");
         let output = case["output"].as_str().expect("output");
         let want = read_image(&dir.join(output)).expect("oracle exr");
@@ -339,12 +344,7 @@ fn check_debevec_oracles(dir: &Path, limit: f64) {
     assert_eq!(names, ["carrots_3exp_debevec", "desk_3exp_debevec"]);
     for (name, case) in &cases {
         let f = frames(dir, name, case);
-        let t: Vec<f32> = case["exposure_times"]
-            .as_array()
-            .expect("exposure_times")
-            .iter()
-            .map(|v| v.as_f64().expect("time") as f32)
-            .collect();
+        let t = exposure_times(case);
         assert_eq!(t, [0.25, 1.0, 4.0], "{name}: exposure times");
         assert_eq!(case["gamma"].as_f64(), Some(2.2), "{name}: gamma");
         // The crops clip (codes 0 and 255 in every frame), so the weights at the ends count.

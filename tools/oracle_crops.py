@@ -30,6 +30,7 @@ import metrics_reference  # noqa: E402  (PU21 transcription and the field's PSNR
 
 import colour  # noqa: E402
 import debevec_oracle  # noqa: E402  (the MergeDebevec cases, added to oracles.json at the end)
+from debevec_oracle import write_exr  # noqa: E402  (one EXR writer for every oracle output)
 
 # (name in the output, source file in ../shared/data/real_hdr)
 SCENES = [("desk", "Desk.exr"), ("carrots", "Carrots.exr")]
@@ -52,13 +53,6 @@ def read_radiance(path):
         key = "RGBA" if "RGBA" in ch else "RGB"
         a = ch[key].pixels[..., :3]
     return np.asarray(a, dtype=np.float64)
-
-
-def write_exr(path, rgb):
-    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-    rgb = np.ascontiguousarray(rgb, dtype=np.float32)
-    with OpenEXR.File(header, {"RGB": rgb}) as f:
-        f.write(path)
 
 
 def read_exr(path):
