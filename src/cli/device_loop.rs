@@ -32,7 +32,7 @@ pub struct Args {
     #[arg(long)]
     pub inputs: Option<InputChoice>,
     /// The test set's ground truth: from the inputs or all frames of the set.
-    #[arg(long, default_value = "inputs")]
+    #[arg(long, default_value = "all")]
     pub gt_frames: GtFrames,
     /// Declared EV steps in capture order, for frames without EXIF or sidecar.
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]

@@ -36,7 +36,8 @@ pub struct Args {
     /// repeated pairs, which hold no scene.
     #[arg(long, requires = "brackets")]
     pub repeats: bool,
-    /// --brackets without --profile: srgb, linear, gamma:G, debevec (default) or robertson.
+    /// --brackets without --profile: srgb, linear, gamma:G, debevec (default: one curve for the
+    /// three channels), debevec-per-channel or robertson.
     #[arg(long, conflicts_with = "profile", requires = "brackets")]
     pub response: Option<ResponseSpec>,
     /// --brackets: declared EV steps in capture order, for frames without EXIF or sidecar.

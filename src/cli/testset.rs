@@ -33,8 +33,9 @@ pub struct Args {
     #[arg(long, required_unless_present = "brackets")]
     pub profile: Option<PathBuf>,
     /// --brackets: the frames' response when no profile is given: srgb, linear, gamma:G,
-    /// debevec or robertson (estimated from the brackets as OpenCV's CalibrateDebevec /
-    /// CalibrateRobertson).
+    /// debevec (default: one curve for the three channels, OpenCV's CalibrateDebevec on the
+    /// channels side by side), debevec-per-channel or robertson (OpenCV's CalibrateDebevec /
+    /// CalibrateRobertson per channel).
     #[arg(long, conflicts_with = "profile")]
     pub response: Option<ResponseSpec>,
     /// --brackets: declared EV steps in capture order, for frames without EXIF or sidecar.
@@ -56,7 +57,7 @@ pub struct Args {
     #[arg(long)]
     pub inputs: Option<InputChoice>,
     /// --brackets: ground truth from the inputs (Kalantari's merge) or all frames of the set.
-    #[arg(long, default_value = "inputs")]
+    #[arg(long, default_value = "all")]
     pub gt_frames: GtFrames,
     /// --brackets: how the written inputs encode their linear signal: auto (device for
     /// JPEG/PNG/TIFF, field for DNG), device (the frames' own codes), field (linear^(1/2.2)) or

@@ -64,7 +64,7 @@ impl Default for BracketDiagnoseOptions {
     fn default() -> Self {
         BracketDiagnoseOptions {
             scan: ScanOptions::default(),
-            response: ResponseChoice::Debevec(crate::sensor::crf::DebevecOptions::default()),
+            response: ResponseChoice::Debevec(crate::sensor::crf::DebevecOptions::one_curve()),
             diagnose: DiagnoseOptions::default(),
             ratio_tolerance_stops: 0.15,
             device_output: None,

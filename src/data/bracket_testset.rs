@@ -41,8 +41,10 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 mod build;
+mod encode;
 mod merge;
 use build::build_sets;
+pub use encode::*;
 pub use merge::*;
 
 /// γ of the written frames (the field's linearisation LDR^γ, Kalantari/Wu: 2.2).
@@ -73,7 +75,10 @@ pub enum ResponseChoice {
 #[derive(Clone, Debug, PartialEq)]
 pub enum ResponseSpec {
     Curve(Response),
+    /// One curve for the three channels ([`DebevecOptions::one_curve`]).
     Debevec,
+    /// OpenCV's recipe as it is: a curve per channel.
+    DebevecPerChannel,
     Robertson,
 }
 
@@ -83,9 +88,13 @@ impl std::str::FromStr for ResponseSpec {
     fn from_str(s: &str) -> std::result::Result<ResponseSpec, String> {
         match s {
             "debevec" => Ok(ResponseSpec::Debevec),
+            "debevec-per-channel" => Ok(ResponseSpec::DebevecPerChannel),
             "robertson" => Ok(ResponseSpec::Robertson),
             _ => s.parse::<Response>().map(ResponseSpec::Curve).map_err(|e| {
-                format!("{e}, or an estimator: debevec (Debevec–Malik) or robertson (Robertson)")
+                format!(
+                    "{e}, or an estimator: debevec (Debevec–Malik, one curve for the three \
+                     channels), debevec-per-channel or robertson (Robertson, per channel)"
+                )
             }),
         }
     }
@@ -106,8 +115,11 @@ impl ResponseChoice {
             (None, Some(ResponseSpec::Robertson)) => {
                 ResponseChoice::Robertson(RobertsonOptions::default())
             }
-            (None, Some(ResponseSpec::Debevec)) | (None, None) => {
+            (None, Some(ResponseSpec::DebevecPerChannel)) => {
                 ResponseChoice::Debevec(DebevecOptions::default())
+            }
+            (None, Some(ResponseSpec::Debevec)) | (None, None) => {
+                ResponseChoice::Debevec(DebevecOptions::one_curve())
             }
         })
     }
@@ -133,8 +145,14 @@ impl ResponseChoice {
             ResponseChoice::Declared(r) => format!("declared response {}", r.label()),
             ResponseChoice::Debevec(o) => format!(
                 "Debevec–Malik response estimated from the brackets (OpenCV's CalibrateDebevec \
-                 recipe: {} samples, λ {})",
-                o.samples, o.lambda
+                 recipe: {} samples, λ {}; {})",
+                o.samples,
+                o.lambda,
+                if o.shared {
+                    "one curve for the three channels, their samples pooled"
+                } else {
+                    "a curve per channel"
+                }
             ),
             ResponseChoice::Robertson(o) => format!(
                 "Robertson response estimated from the brackets (OpenCV's CalibrateRobertson \
@@ -167,162 +185,12 @@ impl Default for BracketOptions {
     fn default() -> Self {
         BracketOptions {
             scan: ScanOptions::default(),
-            response: ResponseChoice::Debevec(DebevecOptions::default()),
+            response: ResponseChoice::Debevec(DebevecOptions::one_curve()),
             align: None,
             inputs: InputChoice::default(),
             gt_frames: GtFrames::default(),
             encode: EncodeSpec::default(),
         }
-    }
-}
-
-/// How the three written inputs encode their linear signal (`--encode`). The ground truth
-/// does not depend on it: it is merged from the linearised frames.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub enum EncodeSpec {
-    /// `device` for JPEG/PNG/TIFF frames; `field` for DNG frames (linear raw has no device
-    /// curve).
-    #[default]
-    Auto,
-    /// linear^(1/2.2), the field's convention (Kalantari, Wu: LDR^γ recovers the linear frame).
-    Field,
-    /// The device's own codes as stored; their response is the linearisation's.
-    Device,
-    /// Re-encoded with a profile's device response (the curve a network was fine-tuned on).
-    Profile(PathBuf),
-}
-
-impl std::str::FromStr for EncodeSpec {
-    type Err = String;
-
-    fn from_str(s: &str) -> std::result::Result<EncodeSpec, String> {
-        match s.trim() {
-            "auto" => Ok(EncodeSpec::Auto),
-            "field" => Ok(EncodeSpec::Field),
-            "device" => Ok(EncodeSpec::Device),
-            t => match t.strip_prefix("profile:") {
-                Some(p) if !p.is_empty() => Ok(EncodeSpec::Profile(PathBuf::from(p))),
-                _ => Err(format!(
-                    "'{s}': expected auto, device (the frames' own codes), field (linear^(1/2.2)) \
-                     or profile:PATH (a sensor profile's device response)"
-                )),
-            },
-        }
-    }
-}
-
-/// [`EncodeSpec`] resolved against the scanned frames.
-#[derive(Clone, Debug, PartialEq)]
-pub enum Encode {
-    Field,
-    Device,
-    Curve(Response),
-}
-
-/// The encoding `spec` asks for on `sets` linearised by `lin` (chosen by `choice`), and its
-/// record. Device codes of DNG frames do not exist: refused, naming a frame.
-pub fn resolve_encoding(
-    spec: &EncodeSpec,
-    sets: &[brackets::BracketSet],
-    lin: &Linearise,
-    choice: &ResponseChoice,
-) -> Result<(Encode, FrameEncoding)> {
-    let frames = || sets.iter().flat_map(|s| &s.frames);
-    let dng = frames().find(|f| f.kind == FrameKind::Dng);
-    let ldr = frames().find(|f| f.kind == FrameKind::Ldr);
-    let field = || {
-        (
-            Encode::Field,
-            FrameEncoding::new(
-                "linear^(1/2.2), the field's convention",
-                Response::Gamma {
-                    gamma: 2.2, // FIELD_GAMMA, exactly as written in f64
-                },
-            ),
-        )
-    };
-    let refuse_dng = |f: &BracketFrame, asked: &str| {
-        Error::layout(
-            &f.path,
-            format!(
-                "{asked}: a DNG holds linear raw values, not a device's codes; give --encode \
-                 field (linear^(1/2.2)) or --encode profile:PATH (a profile's response)"
-            ),
-        )
-    };
-    Ok(match spec {
-        EncodeSpec::Field => field(),
-        EncodeSpec::Auto => match (dng, ldr) {
-            (Some(d), Some(_)) => {
-                return Err(refuse_dng(
-                    d,
-                    "--encode auto on a folder of DNG and JPEG/PNG/TIFF sets",
-                ));
-            }
-            (Some(_), None) => field(),
-            _ => device_encoding(lin, choice),
-        },
-        EncodeSpec::Device => match dng {
-            Some(d) => return Err(refuse_dng(d, "--encode device")),
-            None => device_encoding(lin, choice),
-        },
-        EncodeSpec::Profile(p) => {
-            let response = SensorProfile::load(p)
-                .map_err(|e| Error::context(format!("loading profile {}", p.display()), e))?
-                .response;
-            (
-                Encode::Curve(response.clone()),
-                FrameEncoding::new(
-                    format!(
-                        "re-encoded with the device response of profile {}",
-                        p.display()
-                    ),
-                    response,
-                ),
-            )
-        }
-    })
-}
-
-fn device_encoding(lin: &Linearise, choice: &ResponseChoice) -> (Encode, FrameEncoding) {
-    let response = match lin {
-        Linearise::Curve(r) => r.clone(),
-        Linearise::Table(t) => table_response(t),
-    };
-    (
-        Encode::Device,
-        FrameEncoding::new(
-            format!("the device's own codes; response: {}", choice.describe()),
-            response,
-        ),
-    )
-}
-
-/// A linearisation table (linear per 8-bit code and channel, non-decreasing, 1 at code 255)
-/// as one response: code per linear value, 1024 + 1 samples, the mean of the channels'
-/// inverses.
-pub fn table_response(t: &[Vec<f64>; 3]) -> Response {
-    let n = 1024;
-    let inverse = |t: &[f64], x: f64| -> f64 {
-        let top = t.len() - 1;
-        let z = t.partition_point(|&v| v < x);
-        if z == 0 {
-            return 0.0;
-        }
-        if z > top {
-            return 1.0;
-        }
-        let (a, b) = (t[z - 1], t[z]);
-        let f = if b > a { (x - a) / (b - a) } else { 1.0 };
-        ((z - 1) as f64 + f.clamp(0.0, 1.0)) / top as f64
-    };
-    Response::Lut {
-        lut: (0..=n)
-            .map(|i| {
-                let x = i as f64 / n as f64;
-                (t.iter().map(|c| inverse(c, x)).sum::<f64>() / 3.0).clamp(0.0, 1.0)
-            })
-            .collect(),
     }
 }
 
@@ -366,11 +234,13 @@ impl std::str::FromStr for InputChoice {
 /// Which frames the ground truth is merged from (`--gt-frames`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum GtFrames {
-    /// The three inputs, Kalantari's triangle merge (no `--gt-frames`).
-    #[default]
+    /// The three inputs, Kalantari's triangle merge: it holds the inputs' own noise, so a
+    /// network that denoises is scored down and one that copies is scored up.
     Inputs,
-    /// Every frame of the set: [`hat_merge`] (the triangle merge, exactly as `Inputs`, when the
-    /// set holds only the three inputs: there is nothing to add).
+    /// Every frame of the set (no `--gt-frames`): [`hat_merge`] (the triangle merge, exactly as
+    /// `Inputs`, when the set holds only the three inputs: there is nothing to add, and the
+    /// build says so).
+    #[default]
     All,
 }
 
@@ -667,7 +537,8 @@ pub fn resolve_linearisation(
     ));
     if matches!(choice, ResponseChoice::Robertson(_)) {
         // Robertson's I(255) is the mean exposure of all clipped observations, far above the
-        // clipping point; the clipping white is taken one code step beyond 254 instead.
+        // clipping point; where the table cannot fit the white (crf::linearisation_table), it
+        // is taken one code step beyond 254 instead.
         for r in &mut response {
             r[255] = r[254] + (r[254] - r[253]).max(0.0);
         }

@@ -135,21 +135,71 @@ fn split(opts: &LoopOptions) -> Result<(ScanOptions, ScanOptions, Vec<String>, V
     Ok((cal_scan, test_scan, cal, test))
 }
 
+/// The main job's pieces the loop starts from, checked before any work: its fine-tune config
+/// (readable, its training set and profile present) and a complete pretrained network per
+/// seed. The config's path.
+fn check_quickstart(q: &Path, seeds: &[u64]) -> Result<PathBuf> {
+    let base = q.join("configs/finetune.toml");
+    if !base.is_file() {
+        return Err(Error::layout(
+            q,
+            "no configs/finetune.toml: run `hdrsynth quickstart --out` this folder first (its \
+             pretrained networks are the loop's starting point)",
+        ));
+    }
+    let cfg = crate::train::config::TrainConfig::load(&base).map_err(|e| {
+        Error::context(
+            format!("the main job's fine-tune config {}", base.display()),
+            e,
+        )
+    })?;
+    let mut needed = vec![("training set", cfg.data.dataset.clone())];
+    let profile = &cfg.data.realism.profile;
+    if profile != Path::new(crate::data::loader::PURE_PROFILE) {
+        needed.push(("sensor profile", profile.clone()));
+    }
+    for (what, p) in needed {
+        if !p.exists() {
+            return Err(Error::layout(
+                &base,
+                format!(
+                    "its {what} {} is missing (was the main job's folder moved or deleted?)",
+                    p.display()
+                ),
+            ));
+        }
+    }
+    for seed in seeds {
+        let run = q.join(format!("pretrain/seed{seed}"));
+        crate::train::checkpoint::resolve(&run).map_err(|e| {
+            Error::context(
+                format!(
+                    "the main job's pretrained network for seed {seed} ({})",
+                    run.display()
+                ),
+                e,
+            )
+        })?;
+    }
+    Ok(base)
+}
+
 /// Run the loop (every stage resumes: a profile, test set or cell already made is kept).
 pub fn run(opts: &LoopOptions) -> Result<LoopSummary> {
     if opts.seeds.is_empty() {
         return Err(Error::Invalid("the loop needs at least one seed".into()));
     }
+    // Folders by what they are, not how they are spelled: the cells record these paths.
+    let resolve = crate::io::guard::resolve;
+    let opts = &LoopOptions {
+        brackets: resolve(&opts.brackets)?,
+        quickstart: resolve(&opts.quickstart)?,
+        out: resolve(&opts.out)?,
+        ..opts.clone()
+    };
     crate::io::guard::refuse_output_inside(&opts.brackets, &opts.out)?;
     let (cal_scan, test_scan, cal, test) = split(opts)?;
-    let base = opts.quickstart.join("configs/finetune.toml");
-    if !base.is_file() {
-        return Err(Error::layout(
-            &opts.quickstart,
-            "no configs/finetune.toml: run `hdrsynth quickstart --out` this folder first (its \
-             pretrained networks are the loop's starting point)",
-        ));
-    }
+    let base = check_quickstart(&opts.quickstart, &opts.seeds)?;
     let _lock = crate::io::guard::OutputLock::acquire(&opts.out, "loop")?;
     keep_split(opts, &cal, &test)?;
     let profiles = opts.out.join("profiles");
@@ -274,6 +324,21 @@ fn calibrate(
             correlated: false,
         },
     )?;
+    // Every step past the response trains with the measured noise: without it there is no loop.
+    if cal.profile.noise.is_empty() {
+        return Err(Error::layout(
+            &opts.brackets,
+            format!(
+                "the calibration scenes gave no noise measurement ({}); the loop needs the \
+                 device's noise",
+                if cal.notes.is_empty() {
+                    "no note".to_string()
+                } else {
+                    cal.notes.join("; ")
+                }
+            ),
+        ));
+    }
     // The steps are an ablation: those before "metering" train without the device's rule, so
     // their profiles hold none (as the loop wrote them before profiles held one); the metering
     // step gives the rule in its config.

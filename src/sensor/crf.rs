@@ -27,6 +27,12 @@ pub struct DebevecOptions {
     pub samples: usize,
     /// Smoothness weight λ (OpenCV default 10).
     pub lambda: f64,
+    /// One curve for the three channels: OpenCV's recipe on the frames' channels laid side by
+    /// side as one grey image three times as wide, with three times the samples (a camera's
+    /// JPEG engine applies one tone curve after white balance; per channel, the estimates of
+    /// a real bracket differ by 10–40 % from code to code, which tints neutral grey). False:
+    /// OpenCV's default, a curve per channel.
+    pub shared: bool,
 }
 
 impl Default for DebevecOptions {
@@ -34,6 +40,17 @@ impl Default for DebevecOptions {
         DebevecOptions {
             samples: 70,
             lambda: 10.0,
+            shared: false,
+        }
+    }
+}
+
+impl DebevecOptions {
+    /// OpenCV's recipe with one curve for the three channels ([`DebevecOptions::shared`]).
+    pub fn one_curve() -> Self {
+        DebevecOptions {
+            shared: true,
+            ..DebevecOptions::default()
         }
     }
 }
@@ -93,49 +110,91 @@ fn sample_points(w: usize, h: usize, samples: usize) -> Vec<(usize, usize)> {
 }
 
 /// The response exp(g(z)) for z = 0..255 per channel (R, G, B) from frames of one static scene
-/// (code values in [0, 1], quantised to 8 bits here) and their exposure times.
+/// (code values in [0, 1], quantised to 8 bits here) and their exposure times. With
+/// `opts.shared` the three entries are one curve.
 pub fn calibrate_debevec(
     frames: &[Image],
     times: &[f64],
     opts: DebevecOptions,
 ) -> Result<[Vec<f64>; 3]> {
     let (w, h) = check_frames("Debevec", frames, times)?;
-    let pts = sample_points(w, h, opts.samples.max(1));
-    let code =
-        |f: &Image, x: usize, y: usize, c: usize| -> usize { code8(f.data[(y * w + x) * 3 + c]) };
-    let cols = LDR_SIZE + pts.len();
+    let plane = |f: &Image, c: usize| -> Vec<u8> {
+        f.data
+            .iter()
+            .skip(c)
+            .step_by(3)
+            .map(|&v| code8(v) as u8)
+            .collect()
+    };
+    if opts.shared {
+        // The channels side by side, one grey image 3w wide, with three times the samples.
+        let tiled: Vec<Vec<u8>> = frames
+            .iter()
+            .map(|f| {
+                let planes = [plane(f, 0), plane(f, 1), plane(f, 2)];
+                (0..h)
+                    .flat_map(|y| planes.iter().flat_map(move |p| &p[y * w..(y + 1) * w]))
+                    .copied()
+                    .collect()
+            })
+            .collect();
+        let g = solve_debevec(
+            &tiled,
+            3 * w,
+            h,
+            times,
+            opts.samples.max(1) * 3,
+            opts.lambda,
+        )?;
+        return Ok([g.clone(), g.clone(), g]);
+    }
     let mut out: [Vec<f64>; 3] = Default::default();
     for (c, o) in out.iter_mut().enumerate() {
-        let mut a: Vec<Vec<f64>> = Vec::new();
-        let mut b: Vec<[f64; 1]> = Vec::new();
-        for (i, &(x, y)) in pts.iter().enumerate() {
-            for (f, t) in frames.iter().zip(times) {
-                let z = code(f, x, y, c);
-                let wz = weight(z);
-                let mut row = vec![0.0; cols];
-                row[z] = wz;
-                row[LDR_SIZE + i] = -wz;
-                a.push(row);
-                b.push([wz * t.ln()]);
-            }
-        }
-        let mut row = vec![0.0; cols];
-        row[LDR_SIZE / 2] = 1.0;
-        a.push(row);
-        b.push([0.0]);
-        for z in 0..LDR_SIZE - 2 {
-            let lw = opts.lambda * weight(z + 1);
-            let mut row = vec![0.0; cols];
-            row[z] = lw;
-            row[z + 1] = -2.0 * lw;
-            row[z + 2] = lw;
-            a.push(row);
-            b.push([0.0]);
-        }
-        let x = crate::linalg::least_squares("Debevec response", &a, &b)?;
-        *o = x[..LDR_SIZE].iter().map(|g| g[0].exp()).collect();
+        let planes: Vec<Vec<u8>> = frames.iter().map(|f| plane(f, c)).collect();
+        *o = solve_debevec(&planes, w, h, times, opts.samples.max(1), opts.lambda)?;
     }
     Ok(out)
+}
+
+/// Debevec's system for one plane of codes per frame (`w`×`h`): exp(g(z)) for z = 0..255.
+fn solve_debevec(
+    planes: &[Vec<u8>],
+    w: usize,
+    h: usize,
+    times: &[f64],
+    samples: usize,
+    lambda: f64,
+) -> Result<Vec<f64>> {
+    let pts = sample_points(w, h, samples);
+    let cols = LDR_SIZE + pts.len();
+    let mut a: Vec<Vec<f64>> = Vec::new();
+    let mut b: Vec<[f64; 1]> = Vec::new();
+    for (i, &(x, y)) in pts.iter().enumerate() {
+        for (p, t) in planes.iter().zip(times) {
+            let z = usize::from(p[y * w + x]);
+            let wz = weight(z);
+            let mut row = vec![0.0; cols];
+            row[z] = wz;
+            row[LDR_SIZE + i] = -wz;
+            a.push(row);
+            b.push([wz * t.ln()]);
+        }
+    }
+    let mut row = vec![0.0; cols];
+    row[LDR_SIZE / 2] = 1.0;
+    a.push(row);
+    b.push([0.0]);
+    for z in 0..LDR_SIZE - 2 {
+        let lw = lambda * weight(z + 1);
+        let mut row = vec![0.0; cols];
+        row[z] = lw;
+        row[z + 1] = -2.0 * lw;
+        row[z + 2] = lw;
+        a.push(row);
+        b.push([0.0]);
+    }
+    let x = crate::linalg::least_squares("Debevec response", &a, &b)?;
+    Ok(x[..LDR_SIZE].iter().map(|g| g[0].exp()).collect())
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -265,16 +324,93 @@ fn fill_unseen(r: &mut [f64], card: &[usize; LDR_SIZE]) {
     }
 }
 
-/// Code value → linear per channel from a response (exp g): normalised to 1 at code 255 and made
-/// non-decreasing (the least-squares curve can wiggle where no sample constrains it).
+/// The codes, as fractions of the top code, over which each channel's white is fitted
+/// ([`linearisation_table`]): 128/255 to 224/255.
+pub const WHITE_FIT: (f64, f64) = (128.0 / 255.0, 224.0 / 255.0);
+
+/// The highest code whose estimate the common white is set from ([`linearisation_table`]):
+/// 249, one below the code from which the ground-truth merges treat a frame as clipped
+/// (`data::bracket_testset::CLIPPED_CODE`, 250).
+pub const TRUSTED_TOP: usize = 249;
+
+/// A channel's white fitted on its response `r` (exposure per code, any unit): least squares of
+/// ln r(z) = ln W + γ·ln(z / top) over the codes of [`WHITE_FIT`]; W. None where the fit is
+/// undefined (too few codes, a non-positive value, a curve that does not rise).
+fn fit_white(r: &[f64]) -> Option<f64> {
+    let top = r.len().checked_sub(1)?;
+    let (lo, hi) = (
+        (WHITE_FIT.0 * top as f64).round() as usize,
+        (WHITE_FIT.1 * top as f64).round() as usize,
+    );
+    if lo == 0 || hi <= lo || hi >= top || r[lo..=hi].iter().any(|v| !(v.is_finite() && *v > 0.0)) {
+        return None;
+    }
+    let pts: Vec<(f64, f64)> = (lo..=hi)
+        .map(|z| ((z as f64 / top as f64).ln(), r[z].ln()))
+        .collect();
+    let n = pts.len() as f64;
+    let (mx, my) = (
+        pts.iter().map(|p| p.0).sum::<f64>() / n,
+        pts.iter().map(|p| p.1).sum::<f64>() / n,
+    );
+    let sxy: f64 = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+    let sxx: f64 = pts.iter().map(|p| (p.0 - mx) * (p.0 - mx)).sum();
+    let gamma = sxy / sxx;
+    let white = (my - gamma * mx).exp();
+    (gamma.is_finite() && gamma > 0.0 && white.is_finite() && white > 0.0).then_some(white)
+}
+
+/// Code value → linear per channel from an estimated response (exp g, or Robertson's I):
+/// non-decreasing, in [0, 1], 1 at the top code in every channel (the clipping white, the unit
+/// of [`linear_frame`](crate::data::bracket_testset::linear_frame)).
+///
+/// The estimators fix each channel's unit at code 128 (g(128) = 0, I(128) = 1), which says
+/// nothing about how the channels compare. The frames' encoding clips every channel at one
+/// white, so the channels are compared there; but an estimate at the clipping code is set by
+/// no unclipped sample (Debevec: the smoothness term and the clipped samples' pull, 11–33×
+/// code 128's exposure on real JPEGs and different in each channel; Robertson: the mean
+/// exposure of everything clipped), and dividing each channel by its own value at code 255
+/// tinted every neutral grey (R/G 1.73 on a phone). So:
+/// 1. each channel's white W is extrapolated from where data constrain its estimate:
+///    ln r(z) = ln W + γ·ln(z/255) fitted over codes 128–224 ([`WHITE_FIT`]), exact for any
+///    power-law curve whatever its γ per channel; a device whose channels share one tone
+///    curve keeps equal codes equal in linear. Each channel becomes r/W, made non-decreasing;
+/// 2. one common factor then brings the brightest value of any channel up to code 249
+///    ([`TRUSTED_TOP`]) down to 1 where it exceeds 1 (a highlight shoulder above the fitted
+///    power law, as in camera JPEGs, keeps its shape; the channels keep their ratios);
+/// 3. values are capped at 1 and the top code is 1 (clipped) in every channel.
+///
+/// Where the fit is undefined (a flat curve) a channel's W is its value at the top code, the
+/// rule before this one.
 pub fn linearisation_table(response: &[Vec<f64>; 3]) -> [Vec<f64>; 3] {
-    response.clone().map(|r| {
-        let top = r.last().copied().unwrap_or(1.0);
+    let over_white = response.clone().map(|r| {
+        let white = fit_white(&r)
+            .or_else(|| r.last().copied().filter(|w| w.is_finite() && *w > 0.0))
+            .unwrap_or(1.0);
         let mut run = 0.0f64;
         r.iter()
             .map(|&e| {
-                run = run.max(e / top);
-                run.min(1.0)
+                run = run.max(e / white);
+                run
+            })
+            .collect::<Vec<f64>>()
+    });
+    let brightest = over_white
+        .iter()
+        .flat_map(|t| t.iter().take(TRUSTED_TOP + 1))
+        .copied()
+        .filter(|v| v.is_finite())
+        .fold(1.0, f64::max);
+    over_white.map(|t| {
+        let top = t.len().saturating_sub(1);
+        t.iter()
+            .enumerate()
+            .map(|(z, v)| {
+                if z == top {
+                    1.0
+                } else {
+                    (v / brightest).min(1.0)
+                }
             })
             .collect()
     })

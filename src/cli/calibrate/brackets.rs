@@ -18,8 +18,9 @@ pub struct Args {
     /// Name of a new profile.
     #[arg(long)]
     pub name: Option<String>,
-    /// The frames' response: debevec (default) or robertson, estimated from the brackets, or a
-    /// declared srgb, linear or gamma:G.
+    /// The frames' response: debevec (default: one curve for the three channels),
+    /// debevec-per-channel or robertson, estimated from the brackets, or a declared srgb,
+    /// linear or gamma:G.
     #[arg(long)]
     pub response: Option<ResponseSpec>,
     /// Declared EV steps in capture order, for frames without EXIF or sidecar.

@@ -40,11 +40,18 @@ fn selection_note(
     n_dropped: usize,
 ) -> String {
     format!(
-        "set '{}': {} frames; inputs {:?} ({}); ground truth from {n_gt} frame(s){}",
+        "set '{}': {} frames; inputs {:?} ({}); ground truth from {n_gt} frame(s){}{}",
         set.name,
         set.frames.len(),
         sel.indices,
         sel.how,
+        if n_gt == sel.indices.len() {
+            " (the inputs' own merge: it holds their noise, so a network that denoises them is \
+             scored down; capture more frames per set for a ground truth independent of the \
+             inputs)"
+        } else {
+            ""
+        },
         if n_dropped == 0 {
             String::new()
         } else {
@@ -92,7 +99,7 @@ fn build_set(
         .filter(|i| !gt_idx.contains(i))
         .map(|i| set.frames[i].path.clone())
         .collect();
-    if n > 3 || opts.inputs != InputChoice::Spread {
+    if n > 3 || opts.inputs != InputChoice::Spread || gt_idx.len() == idx.len() {
         notes.push(selection_note(set, sel, gt_idx.len(), dropped.len()));
     }
     // Position of the reference among the merged frames.

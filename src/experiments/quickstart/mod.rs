@@ -571,6 +571,11 @@ struct Prepared {
 
 /// Run the main job (every stage resumes) and return its report.
 pub fn run(opts: &Options) -> Result<String> {
+    // The configs it writes name files by absolute path: usable from any working directory.
+    let opts = &Options {
+        out: crate::io::guard::resolve(&opts.out)?,
+        ..opts.clone()
+    };
     let began = Instant::now();
     let progress = opts.progress;
     let s = sizes(opts.preset);
