@@ -2658,3 +2658,73 @@ fn every_parameter_of_both_networks_gets_a_gradient_before_and_after_a_reload() 
     let net1 = seeded_init(&ad, 1, || bu.init(&ad)).unwrap();
     check("Network-1", &net1, net1.forward(input(6)).sum());
 }
+
+/// Three 8-bit sRGB PNGs of a ramp, 1/4, 1 and 4 s (OpenCV's list.txt: inverse times).
+fn png_bracket(dir: &Path) {
+    std::fs::create_dir_all(dir).unwrap();
+    for (i, t) in [0.25f64, 1.0, 4.0].iter().enumerate() {
+        let img = image::RgbImage::from_fn(48, 32, |x, y| {
+            let l = (-6.0 + 8.0 * f64::from(x) / 47.0).exp2() * t * (1.0 + f64::from(y) / 64.0);
+            let v = (common::srgb(l.min(1.0)) * 255.0).round() as u8;
+            image::Rgb([v, v, v])
+        });
+        img.save(dir.join(format!("f{i}.png"))).unwrap();
+    }
+    std::fs::write(dir.join("list.txt"), "f0.png 4\nf1.png 1\nf2.png 0.25\n").unwrap();
+}
+
+#[test]
+fn a_bracket_testset_appears_whole_or_not_at_all_and_refuses_before_any_work() {
+    use hdrsynth::data::bracket_testset::{self, BracketOptions, EncodeSpec, InputChoice};
+    let dir = tempfile::tempdir().unwrap();
+    let brackets = dir.path().join("brackets");
+    png_bracket(&brackets.join("a"));
+    png_bracket(&brackets.join("b"));
+    let out = dir.path().join("ts");
+    let nothing_left = |what: &str| {
+        assert!(!out.exists(), "{what}: {out:?} was left");
+        let partial = dir.path().join(".ts.partial");
+        assert!(!partial.exists(), "{what}: {partial:?} was left");
+    };
+    // A corrupt frame in the second scene: the first scene, complete, is not left behind,
+    // nor the response estimated before it.
+    std::fs::write(brackets.join("b/f1.png"), b"not a png").unwrap();
+    let e = bracket_testset::build(&brackets, &BracketOptions::default(), &out)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("f1.png"), "{e}");
+    nothing_left("a corrupt frame");
+    png_bracket(&brackets.join("b"));
+    // Refusals known from the options come before the response is estimated.
+    let opts = BracketOptions {
+        inputs: InputChoice::Indices([0, 1, 1]),
+        ..BracketOptions::default()
+    };
+    let e = bracket_testset::build(&brackets, &opts, &out)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("--inputs 0,1,1"), "{e}");
+    nothing_left("--inputs 0,1,1");
+    let missing = dir.path().join("missing.toml");
+    let opts = BracketOptions {
+        encode: EncodeSpec::Profile(missing.clone()),
+        ..BracketOptions::default()
+    };
+    let e = bracket_testset::build(&brackets, &opts, &out)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains(&missing.display().to_string()), "{e}");
+    nothing_left("--encode profile: of a missing file");
+    // Whole: both scenes, the response table and the record, and nothing staged left.
+    let built = bracket_testset::build(&brackets, &BracketOptions::default(), &out).unwrap();
+    assert_eq!(built.sets.len(), 2);
+    for f in ["a/HDRImg.hdr", "b/HDRImg.hdr", "crf_debevec.csv", "encoding.toml"] {
+        assert!(out.join(f).is_file(), "{f}");
+    }
+    assert!(!dir.path().join(".ts.partial").exists());
+    assert!(
+        built.notes.iter().any(|n| n.contains("written as crf_debevec.csv")),
+        "{:?}",
+        built.notes
+    );
+}

@@ -43,7 +43,6 @@ use std::path::{Path, PathBuf};
 mod build;
 mod encode;
 mod merge;
-use build::build_sets;
 pub use encode::*;
 pub use merge::*;
 
@@ -528,7 +527,8 @@ pub fn resolve_linearisation(
         std::fs::create_dir_all(crf_dir).map_err(|e| Error::io(crf_dir, e))?;
         let path = crf_dir.join(file);
         crate::io::atomic::write_atomic(&path, csv.as_bytes())?;
-        written = format!(", written to {}", path.display());
+        // Named by file: it is written where the output will appear.
+        written = format!(", written as {file}");
     }
     notes.push(format!(
         "response: {name} estimated from set '{}' ({} frames){written}",
@@ -546,18 +546,30 @@ pub fn resolve_linearisation(
     Ok(Linearise::Table(crf::linearisation_table(&response)))
 }
 
-/// Scan `dir` and write every set to `out` in Kalantari's layout.
+/// Scan `dir` and write every set to `out` in Kalantari's layout. What can be refused without
+/// the response (the inputs of every set, `--encode`) is refused before any work; the test set
+/// is staged and appears in `out` whole, or not at all.
 pub fn build(dir: &Path, opts: &BracketOptions, out: &Path) -> Result<BracketSummary> {
     // A test set inside the bracket folder would be scanned as brackets by the next run.
     crate::io::guard::refuse_output_inside(dir, out)?;
     // One writer per output, held to the end.
-    let _lock = crate::io::guard::OutputLock::acquire(out, "testset --brackets")?;
+    let lock = crate::io::guard::OutputLock::acquire(out, "testset --brackets")?;
     let BracketScan { sets, mut notes } = brackets::scan(dir, &opts.scan)?;
-    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
-    let lin = resolve_linearisation(&sets, &opts.response, Some(out), &mut notes)?;
-    let (encode, record) = resolve_encoding(&opts.encode, &sets, &lin, &opts.response)?;
-    let summary = build_sets(&sets, &lin, &encode, &record, opts, out, notes)?;
-    record.save(out)?;
+    let selections = sets
+        .iter()
+        .map(|set| select_inputs(set, &opts.inputs))
+        .collect::<Result<Vec<_>>>()?;
+    let plan = plan_encoding(&opts.encode, &sets)?;
+    let staged = lock.stage(false)?;
+    let lin = resolve_linearisation(&sets, &opts.response, Some(staged.path()), &mut notes)?;
+    let (encode, record) = plan.resolve(&lin, &opts.response);
+    let how = build::Encoding {
+        encode: &encode,
+        record: &record,
+    };
+    let summary = build::build_sets(&sets, &selections, &lin, how, opts, staged.path(), notes)?;
+    record.save(staged.path())?;
+    staged.commit()?;
     Ok(summary)
 }
 

@@ -11,21 +11,15 @@ fn written_stop(s: f64) -> f64 {
 
 pub(super) fn build_sets(
     sets: &[brackets::BracketSet],
+    selections: &[InputSelection],
     lin: &Linearise,
-    encode: &Encode,
-    record: &FrameEncoding,
+    how: Encoding,
     opts: &BracketOptions,
     out: &Path,
     mut notes: Vec<String>,
 ) -> Result<BracketSummary> {
-    // Every set's inputs first: a bad --inputs leaves nothing written.
-    let selections = sets
-        .iter()
-        .map(|set| select_inputs(set, &opts.inputs))
-        .collect::<Result<Vec<_>>>()?;
     let mut built = Vec::with_capacity(sets.len());
-    for (set, sel) in sets.iter().zip(&selections) {
-        let how = Encoding { encode, record };
+    for (set, sel) in sets.iter().zip(selections) {
         built.push(build_set(set, sel, lin, how, opts, out, &mut notes)?);
     }
     Ok(BracketSummary { sets: built, notes })
@@ -62,9 +56,9 @@ fn selection_note(
 
 /// The resolved `--encode` and its record.
 #[derive(Clone, Copy)]
-struct Encoding<'a> {
-    encode: &'a Encode,
-    record: &'a FrameEncoding,
+pub(super) struct Encoding<'a> {
+    pub(super) encode: &'a Encode,
+    pub(super) record: &'a FrameEncoding,
 }
 
 /// One set's frames as the merge takes them: the 16-bit γ codes of the ground-truth frames,

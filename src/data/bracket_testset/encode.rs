@@ -14,7 +14,7 @@ pub enum EncodeSpec {
     /// linear^(1/2.2), the field's convention (Kalantari, Wu: LDR^γ recovers the linear frame).
     Field,
     /// The device's own codes as stored; their response is the linearisation's (an estimated
-    /// response's codes are mapped onto one curve channel by channel: [`resolve_encoding`]).
+    /// response's codes are mapped onto one curve channel by channel: [`EncodePlan::resolve`]).
     Device,
     /// Re-encoded with a profile's device response (the curve a network was fine-tuned on).
     Profile(PathBuf),
@@ -47,28 +47,13 @@ pub enum Encode {
     Curve(Response),
 }
 
-/// The encoding `spec` asks for on `sets` linearised by `lin` (chosen by `choice`), and its
-/// record. Device codes of DNG frames do not exist: refused, naming a frame.
-pub fn resolve_encoding(
-    spec: &EncodeSpec,
-    sets: &[brackets::BracketSet],
-    lin: &Linearise,
-    choice: &ResponseChoice,
-) -> Result<(Encode, FrameEncoding)> {
+/// The encoding `spec` asks for on `sets`, checked before any work (a profile that does not
+/// load, device codes of DNG frames: refused, naming the file); [`EncodePlan::resolve`] finishes
+/// it once the linearisation is known.
+pub fn plan_encoding(spec: &EncodeSpec, sets: &[brackets::BracketSet]) -> Result<EncodePlan> {
     let frames = || sets.iter().flat_map(|s| &s.frames);
     let dng = frames().find(|f| f.kind == FrameKind::Dng);
     let ldr = frames().find(|f| f.kind == FrameKind::Ldr);
-    let field = || {
-        (
-            Encode::Field,
-            FrameEncoding::new(
-                "linear^(1/2.2), the field's convention",
-                Response::Gamma {
-                    gamma: 2.2, // FIELD_GAMMA, exactly as written in f64
-                },
-            ),
-        )
-    };
     let refuse_dng = |f: &BracketFrame, asked: &str| {
         Error::layout(
             &f.path,
@@ -79,7 +64,7 @@ pub fn resolve_encoding(
         )
     };
     Ok(match spec {
-        EncodeSpec::Field => field(),
+        EncodeSpec::Field => EncodePlan::Field,
         EncodeSpec::Auto => match (dng, ldr) {
             (Some(d), Some(_)) => {
                 return Err(refuse_dng(
@@ -87,29 +72,56 @@ pub fn resolve_encoding(
                     "--encode auto on a folder of DNG and JPEG/PNG/TIFF sets",
                 ));
             }
-            (Some(_), None) => field(),
-            _ => device_encoding(lin, choice),
+            (Some(_), None) => EncodePlan::Field,
+            _ => EncodePlan::Device,
         },
         EncodeSpec::Device => match dng {
             Some(d) => return Err(refuse_dng(d, "--encode device")),
-            None => device_encoding(lin, choice),
+            None => EncodePlan::Device,
         },
         EncodeSpec::Profile(p) => {
             let response = SensorProfile::load(p)
                 .map_err(|e| Error::context(format!("loading profile {}", p.display()), e))?
                 .response;
-            (
+            EncodePlan::Profile(p.clone(), response)
+        }
+    })
+}
+
+/// A checked `--encode` ([`plan_encoding`]).
+#[derive(Clone, Debug)]
+pub enum EncodePlan {
+    Field,
+    Device,
+    Profile(PathBuf, Response),
+}
+
+impl EncodePlan {
+    /// The encoding on frames linearised by `lin` (chosen by `choice`), and its record.
+    pub fn resolve(&self, lin: &Linearise, choice: &ResponseChoice) -> (Encode, FrameEncoding) {
+        match self {
+            EncodePlan::Field => (
+                Encode::Field,
+                FrameEncoding::new(
+                    "linear^(1/2.2), the field's convention",
+                    Response::Gamma {
+                        gamma: 2.2, // FIELD_GAMMA, exactly as written in f64
+                    },
+                ),
+            ),
+            EncodePlan::Device => device_encoding(lin, choice),
+            EncodePlan::Profile(p, response) => (
                 Encode::Curve(response.clone()),
                 FrameEncoding::new(
                     format!(
                         "re-encoded with the device response of profile {}",
                         p.display()
                     ),
-                    response,
+                    response.clone(),
                 ),
-            )
+            ),
         }
-    })
+    }
 }
 
 /// `--encode device`: the device's codes under one recorded curve. An estimated response has
