@@ -3429,6 +3429,24 @@ fn the_loop_trains_the_device_rule_in_its_metering_step_only() {
     ] {
         assert!(report.contains(row), "{row}: {report}");
     }
+    // Its reading names, for each network, whether it beats what the user has; one seed and
+    // one scene: by the sign of that seed's difference. Copying the reference loses to every
+    // network here (the test's frames are clean and the merge head starts as the triangle
+    // merge): every row is listed as beating it.
+    let reading = report
+        .lines()
+        .find(|l| l.starts_with("- Against the copied reference frame:"))
+        .unwrap_or_else(|| panic!("{report}"));
+    assert!(
+        reading.contains("beat it net_o (+") && reading.ends_with("no difference shown none."),
+        "{reading}"
+    );
+    assert!(
+        report
+            .lines()
+            .any(|l| l.starts_with("- Against the triangle merge of the inputs: beat it")),
+        "{report}"
+    );
     // The same folders spelled another way resume it (every cell kept); another split is
     // refused.
     let respelled = LoopOptions {

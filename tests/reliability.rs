@@ -2718,12 +2718,20 @@ fn a_bracket_testset_appears_whole_or_not_at_all_and_refuses_before_any_work() {
     // Whole: both scenes, the response table and the record, and nothing staged left.
     let built = bracket_testset::build(&brackets, &BracketOptions::default(), &out).unwrap();
     assert_eq!(built.sets.len(), 2);
-    for f in ["a/HDRImg.hdr", "b/HDRImg.hdr", "crf_debevec.csv", "encoding.toml"] {
+    for f in [
+        "a/HDRImg.hdr",
+        "b/HDRImg.hdr",
+        "crf_debevec.csv",
+        "encoding.toml",
+    ] {
         assert!(out.join(f).is_file(), "{f}");
     }
     assert!(!dir.path().join(".ts.partial").exists());
     assert!(
-        built.notes.iter().any(|n| n.contains("written as crf_debevec.csv")),
+        built
+            .notes
+            .iter()
+            .any(|n| n.contains("written as crf_debevec.csv")),
         "{:?}",
         built.notes
     );

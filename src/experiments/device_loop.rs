@@ -253,6 +253,7 @@ pub fn run(opts: &LoopOptions) -> Result<LoopSummary> {
     report.push_str(&measured_text(&cal_result, &extra));
     report.push_str(&checks_text(&steps, &checks));
     report.push_str(&steps_table(&cfg, &steps)?);
+    report.push_str(&what_a_user_gets(&cfg, &steps)?);
     report.push_str("\n## Every row against the fair baseline\n\n");
     report.push_str(&tables[0].markdown);
     crate::io::atomic::write_atomic(&opts.out.join("loop.md"), report.as_bytes())?;
@@ -666,6 +667,63 @@ fn split_text(opts: &LoopOptions, cal: &[String], test: &[String]) -> String {
 
 /// The gain each step buys over the step before (and each step against Net_O and the
 /// control), PSNR-T and SSIM-T, every seed.
+/// The table's reading for a user: which networks beat what they already have (the copied
+/// reference frame, the triangle merge of the same inputs) in PSNR-T, paired within seed and
+/// scene. "Beats" needs the 95 % t interval over scenes above 0 where there is one, else the
+/// same sign in every seed.
+fn what_a_user_gets(cfg: &AblateConfig, steps: &[Step]) -> Result<String> {
+    let mut s = String::from(
+        "\n## What a user gets\n\nPSNR-T of each network against what the user already has, \
+         paired within seed and scene; \"beats\" and \"loses to\" need the 95 % t interval over \
+         scenes on one side of 0 where there is one (10 or more scenes), else the same sign in \
+         every seed; otherwise \"no difference shown\".\n\n",
+    );
+    let names: Vec<&str> = ["net_o", "control"]
+        .into_iter()
+        .chain(steps.iter().map(|st| st.name))
+        .collect();
+    for (versus, what) in [
+        ("copy", "the copied reference frame"),
+        ("triangle", "the triangle merge of the inputs"),
+    ] {
+        let (mut beats, mut loses, mut neither) = (Vec::new(), Vec::new(), Vec::new());
+        for row in &names {
+            let entries = ablate::paired_rows(cfg, row, versus)?;
+            let Some(d) = entries
+                .iter()
+                .find(|e| e.metric == "psnr_t")
+                .and_then(|e| e.diff.as_ref())
+            else {
+                continue;
+            };
+            let text = format!("{row} ({:+.2} dB)", d.mean);
+            let every_seed = d.sign_holds == d.n_seeds;
+            match d.t {
+                Some(t) if t.ci_lower > 0.0 => beats.push(text),
+                Some(t) if t.ci_upper < 0.0 => loses.push(text),
+                None if every_seed && d.mean > 0.0 => beats.push(text),
+                None if every_seed && d.mean < 0.0 => loses.push(text),
+                _ => neither.push(text),
+            }
+        }
+        let list = |v: &[String]| {
+            if v.is_empty() {
+                "none".to_string()
+            } else {
+                v.join(", ")
+            }
+        };
+        let _ = writeln!(
+            s,
+            "- Against {what}: beat it {}; lose to it {}; no difference shown {}.",
+            list(&beats),
+            list(&loses),
+            list(&neither)
+        );
+    }
+    Ok(s)
+}
+
 fn steps_table(cfg: &AblateConfig, steps: &[Step]) -> Result<String> {
     let mut s = String::from(
         "## The gain of each step\n\n\
