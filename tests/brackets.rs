@@ -3652,3 +3652,70 @@ fn against_the_default_ground_truth_a_denoised_reference_beats_the_noisy_one() {
         in_clean - in_noisy
     );
 }
+
+#[test]
+fn an_exif_exposure_time_no_camera_gives_is_refused_naming_the_file() {
+    for (bad, shown) in [((0u32, 1u32), "0e0 s"), ((u32::MAX, 1), "4.294967295e9 s")] {
+        let tmp = tempfile::tempdir().expect("tmp");
+        for (i, t) in [(1u32, 400u32), bad, (1, 25)].iter().enumerate() {
+            let tg = tags(*t, 100, "2026:11:24 10:00:00", &format!("{i}"));
+            let t = if t.0 == 0 {
+                1e-3
+            } else {
+                (f64::from(t.0) / f64::from(t.1)).min(1.0)
+            };
+            bracket_jpeg(&tmp.path().join(format!("IMG_{i}.jpg")), t, Some(&tg));
+        }
+        let e = brackets::scan(tmp.path(), &ScanOptions::default())
+            .err()
+            .expect("refused")
+            .to_string();
+        assert!(
+            e.contains("IMG_1.jpg") && e.contains("ExposureTime") && e.contains(shown),
+            "{e}"
+        );
+    }
+}
+
+#[test]
+fn the_loop_refuses_calibration_scenes_that_give_no_noise_naming_why() {
+    use hdrsynth::experiments::device_loop::{LoopOptions, run};
+    let tmp = tempfile::tempdir().expect("tmp");
+    // Noise-free frames of a steep ramp: no flat pixels, no noise to measure.
+    for (scene, light) in [("park", 1.0), ("kitchen", 0.5)] {
+        let d = tmp.path().join(scene);
+        std::fs::create_dir_all(&d).expect("mkdir");
+        for (i, den) in [400u32, 100, 25].iter().enumerate() {
+            let t = tags((1, *den), 100, "2026:11:24 10:00:00", &format!("{i}"));
+            bracket_jpeg(
+                &d.join(format!("IMG_{i}.jpg")),
+                light / *den as f64,
+                Some(&t),
+            );
+        }
+    }
+    let beside = tempfile::tempdir().expect("tmp");
+    let q = tiny_main_job(&beside.path().join("qs"), &[1]);
+    let out = beside.path().join("loop");
+    let e = run(&LoopOptions {
+        brackets: tmp.path().to_path_buf(),
+        calibration: vec!["park".into()],
+        calibration_region: None,
+        test_region: None,
+        scan: ScanOptions::default(),
+        inputs: InputChoice::default(),
+        gt_frames: GtFrames::default(),
+        quickstart: q,
+        seeds: vec![1],
+        out: out.clone(),
+        progress: false,
+    })
+    .err()
+    .expect("no noise")
+    .to_string();
+    assert!(
+        e.contains("gave no noise measurement") && e.contains("too few flat pixels"),
+        "{e}"
+    );
+    assert!(!out.join("testset").exists() && !out.join("experiment").exists());
+}

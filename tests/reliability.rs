@@ -2736,3 +2736,51 @@ fn a_bracket_testset_appears_whole_or_not_at_all_and_refuses_before_any_work() {
         built.notes
     );
 }
+
+#[test]
+fn absurd_or_duplicated_exposures_are_refused_naming_the_file_and_line() {
+    use hdrsynth::data::brackets::{self, ScanOptions};
+    let dir = tempfile::tempdir().unwrap();
+    let set = dir.path().join("b");
+    png_bracket(&set);
+    let scan_err = |opts: &ScanOptions| {
+        brackets::scan(dir.path(), opts)
+            .err()
+            .expect("refused")
+            .to_string()
+    };
+    let list = set.join("list.txt");
+    // 1e-30 as 1/t: an exposure of 1e30 s.
+    std::fs::write(&list, "f0.png 4\nf1.png 1\nf2.png 1e-30\n").unwrap();
+    let e = scan_err(&ScanOptions::default());
+    assert!(
+        e.contains("list.txt") && e.contains("line 3") && e.contains("not an exposure time"),
+        "{e}"
+    );
+    std::fs::write(&list, "f0.png 4\nf1.png 1\nf2.png 0.25\nf1.png 2\n").unwrap();
+    let e = scan_err(&ScanOptions::default());
+    assert!(
+        e.contains("'f1.png' is listed twice (lines 2 and 4)"),
+        "{e}"
+    );
+    std::fs::remove_file(&list).unwrap();
+    std::fs::write(set.join("exposure.txt"), "0\n4\n105.66\n").unwrap();
+    let e = scan_err(&ScanOptions::default());
+    assert!(e.contains("exposure.txt") && e.contains("105.66"), "{e}");
+    std::fs::remove_file(set.join("exposure.txt")).unwrap();
+    let e = scan_err(&ScanOptions {
+        evs: Some(vec![-1000.0, 0.0, 1000.0]),
+        ..ScanOptions::default()
+    });
+    assert!(e.contains("--declared-evs") && e.contains("at most"), "{e}");
+    // In range: the same folder scans.
+    let ok = brackets::scan(
+        dir.path(),
+        &ScanOptions {
+            evs: Some(vec![-2.0, 0.0, 2.0]),
+            ..ScanOptions::default()
+        },
+    )
+    .expect("scan");
+    assert_eq!(ok.sets.len(), 1);
+}

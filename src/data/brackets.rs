@@ -42,6 +42,23 @@ pub const LIST_TXT: &str = "list.txt";
 pub const EXPOSURE_TXT: &str = "exposure.txt";
 /// Two exposures closer than this (in stops) are the same exposure.
 const SAME_STOP: f64 = 0.05;
+/// Exposure times a camera can give, in seconds (1 µs to about 2.8 hours): a time outside is
+/// a damaged tag or sidecar, refused rather than merged into a constant ground truth.
+pub const EXPOSURE_TIME_RANGE_S: (f64, f64) = (1e-6, 1e4);
+/// The most a set's declared exposures may span, in stops (the range above).
+const MAX_SPAN_STOPS: f64 = 33.3;
+
+/// `t` (seconds) inside [`EXPOSURE_TIME_RANGE_S`], else why not.
+fn physical_time(t: f64) -> std::result::Result<f64, String> {
+    let (lo, hi) = EXPOSURE_TIME_RANGE_S;
+    if t.is_finite() && (lo..=hi).contains(&t) {
+        Ok(t)
+    } else {
+        Err(format!(
+            "{t:e} s is not an exposure time a camera gives ({lo:e} … {hi:e} s)"
+        ))
+    }
+}
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct ScanOptions {
@@ -235,7 +252,12 @@ pub fn read_exif(path: &Path) -> Result<ExifExposure> {
     };
     Ok(ExifExposure {
         orientation,
-        exposure_time: real(Tag::ExposureTime).filter(|&t| t > 0.0),
+        exposure_time: real(Tag::ExposureTime)
+            .map(|t| {
+                physical_time(t)
+                    .map_err(|why| Error::decode(path, format!("EXIF ExposureTime: {why}")))
+            })
+            .transpose()?,
         shutter_speed_apex: real(Tag::ShutterSpeedValue),
         iso: real(Tag::PhotographicSensitivity).filter(|&s| s > 0.0),
         f_number: real(Tag::FNumber).filter(|&n| n > 0.0),
@@ -279,14 +301,25 @@ fn sidecar_stops(dir: &Path, files: &[PathBuf]) -> Result<Option<(Vec<f64>, Stri
                         ),
                     )
                 })?;
-            by_name.insert(name.to_string(), (1.0 / v).log2());
+            let t = physical_time(1.0 / v)
+                .map_err(|why| Error::layout(&list, format!("line {}: 1/{val}: {why}", n + 1)))?;
+            if let Some((first, _)) = by_name.insert(name.to_string(), (n + 1, t.log2())) {
+                return Err(Error::layout(
+                    &list,
+                    format!(
+                        "'{name}' is listed twice (lines {first} and {}); give one exposure per \
+                         image",
+                        n + 1
+                    ),
+                ));
+            }
         }
         let mut stops = Vec::new();
         let mut missing = Vec::new();
         for f in files {
             let name = file_name(f);
             match by_name.get(&name) {
-                Some(&s) => stops.push(s),
+                Some(&(_, s)) => stops.push(s),
                 None => missing.push(name),
             }
         }
@@ -311,6 +344,23 @@ fn sidecar_stops(dir: &Path, files: &[PathBuf]) -> Result<Option<(Vec<f64>, Stri
             files.len(),
             "log2 exposure stops, one per image in file-name order",
         )?;
+        let (lo, hi) = stops
+            .iter()
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(l, h), &v| {
+                (l.min(v), h.max(v))
+            });
+        if f64::from(hi - lo) > MAX_SPAN_STOPS {
+            return Err(Error::layout(
+                &expo,
+                format!(
+                    "the stops span {} stops; the exposure times a camera gives ({:e} … {:e} s) \
+                     span at most {MAX_SPAN_STOPS}",
+                    hi - lo,
+                    EXPOSURE_TIME_RANGE_S.0,
+                    EXPOSURE_TIME_RANGE_S.1
+                ),
+            ));
+        }
         return Ok(Some((
             stops.into_iter().map(f64::from).collect(),
             format!("{EXPOSURE_TXT} (log2 stops in file-name order)"),
@@ -480,12 +530,16 @@ pub fn scan(root: &Path, opts: &ScanOptions) -> Result<BracketScan> {
             opts.max_gap_s
         )));
     }
-    if let Some(evs) = &opts.evs
-        && (evs.len() < 2 || evs.iter().any(|e| !e.is_finite()))
-    {
-        return Err(Error::Invalid(format!(
-            "declared EVs {evs:?}: need at least two finite values"
-        )));
+    if let Some(evs) = &opts.evs {
+        let span = evs.iter().fold(f64::NEG_INFINITY, |m, &e| m.max(e))
+            - evs.iter().fold(f64::INFINITY, |m, &e| m.min(e));
+        if evs.len() < 2 || evs.iter().any(|e| !e.is_finite()) || !(span <= MAX_SPAN_STOPS) {
+            return Err(Error::Invalid(format!(
+                "--declared-evs {evs:?}: need at least two finite values spanning at most \
+                 {MAX_SPAN_STOPS} stops (the exposure times a camera gives, {:e} … {:e} s)",
+                EXPOSURE_TIME_RANGE_S.0, EXPOSURE_TIME_RANGE_S.1
+            )));
+        }
     }
     let (files, dirs) = list_dir(root)?;
     let mut folders = vec![(root.to_path_buf(), files, String::new())];
