@@ -3447,6 +3447,18 @@ fn the_loop_trains_the_device_rule_in_its_metering_step_only() {
             .any(|l| l.starts_with("- Against the triangle merge of the inputs: beat it")),
         "{report}"
     );
+    // A picture per test scene, linked from the report.
+    assert!(
+        report.contains("- [kitchen](pictures/kitchen.png)"),
+        "{report}"
+    );
+    let strip = image::open(out.join("pictures/kitchen.png")).expect("picture");
+    assert!(
+        strip.width() > 2 * 96 && strip.height() > 96,
+        "{}×{}",
+        strip.width(),
+        strip.height()
+    );
     // The same folders spelled another way resume it (every cell kept); another split is
     // refused.
     let respelled = LoopOptions {

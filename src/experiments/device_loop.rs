@@ -27,6 +27,8 @@ use crate::sensor::profile::SensorProfile;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
+mod pictures;
+
 /// Simulated replicates of the device-output check of each step.
 const CHECK_REPLICATES: usize = 10;
 
@@ -254,6 +256,7 @@ pub fn run(opts: &LoopOptions) -> Result<LoopSummary> {
     report.push_str(&checks_text(&steps, &checks));
     report.push_str(&steps_table(&cfg, &steps)?);
     report.push_str(&what_a_user_gets(&cfg, &steps)?);
+    report.push_str(&pictures_text(&cfg, &testset, &steps, &opts.out)?);
     report.push_str("\n## Every row against the fair baseline\n\n");
     report.push_str(&tables[0].markdown);
     crate::io::atomic::write_atomic(&opts.out.join("loop.md"), report.as_bytes())?;
@@ -667,6 +670,31 @@ fn split_text(opts: &LoopOptions, cal: &[String], test: &[String]) -> String {
 
 /// The gain each step buys over the step before (and each step against Net_O and the
 /// control), PSNR-T and SSIM-T, every seed.
+/// `OUT/pictures/<set>.png` for every test scene and the report's links to them.
+fn pictures_text(cfg: &AblateConfig, testset: &Path, steps: &[Step], out: &Path) -> Result<String> {
+    let rows: Vec<(String, &str)> = [("triangle merge", "triangle"), ("Net_O", "net_o")]
+        .into_iter()
+        .map(|(l, n)| (l.to_string(), n))
+        .chain(steps.iter().map(|st| (st.name.to_string(), st.name)))
+        .collect();
+    let written = pictures::write(cfg, testset, &rows, &out.join(PICTURES))?;
+    let mut s = format!(
+        "\n## Pictures\n\nPer test scene, the crop (up to {0}×{0}) of the ground truth with the widest \
+         range: the reference frame as the device wrote it, the triangle merge, Net_O and every \
+         step's network (seed {1}), then the ground truth, the HDR images tone-mapped alike \
+         (μ-law, the T of PSNR-T).\n\n",
+        pictures::CROP,
+        cfg.seeds.first().map_or("–".to_string(), u64::to_string)
+    );
+    for (set, _) in &written {
+        let _ = writeln!(s, "- [{set}]({PICTURES}/{set}.png)");
+    }
+    Ok(s)
+}
+
+/// The loop's folder of per-scene pictures.
+pub const PICTURES: &str = "pictures";
+
 /// The table's reading for a user: which networks beat what they already have (the copied
 /// reference frame, the triangle merge of the same inputs) in PSNR-T, paired within seed and
 /// scene. "Beats" needs the 95 % t interval over scenes above 0 where there is one, else the

@@ -605,4 +605,10 @@ impl AblateConfig {
             Some(k) => self.cell_dir(r, c).join(format!("seed{k}")),
         }
     }
+
+    /// Where one run of a cell wrote its evaluation on the config's test set (`<set>.exr`,
+    /// `per_image.csv`, ...).
+    pub fn eval_dir(&self, r: usize, c: Option<usize>, seed: Option<u64>) -> PathBuf {
+        self.unit_dir(r, c, seed).join(self.testset.eval_dir())
+    }
 }
