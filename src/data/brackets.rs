@@ -533,7 +533,7 @@ pub fn scan(root: &Path, opts: &ScanOptions) -> Result<BracketScan> {
     if let Some(evs) = &opts.evs {
         let span = evs.iter().fold(f64::NEG_INFINITY, |m, &e| m.max(e))
             - evs.iter().fold(f64::INFINITY, |m, &e| m.min(e));
-        if evs.len() < 2 || evs.iter().any(|e| !e.is_finite()) || !(span <= MAX_SPAN_STOPS) {
+        if evs.len() < 2 || evs.iter().any(|e| !e.is_finite()) || span > MAX_SPAN_STOPS {
             return Err(Error::Invalid(format!(
                 "--declared-evs {evs:?}: need at least two finite values spanning at most \
                  {MAX_SPAN_STOPS} stops (the exposure times a camera gives, {:e} … {:e} s)",
