@@ -3679,8 +3679,7 @@ fn an_exif_exposure_time_no_camera_gives_is_refused_naming_the_file() {
             bracket_jpeg(&tmp.path().join(format!("IMG_{i}.jpg")), t, Some(&tg));
         }
         let e = brackets::scan(tmp.path(), &ScanOptions::default())
-            .err()
-            .expect("refused")
+            .expect_err("refused")
             .to_string();
         assert!(
             e.contains("IMG_1.jpg") && e.contains("ExposureTime") && e.contains(shown),

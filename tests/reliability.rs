@@ -2745,8 +2745,7 @@ fn absurd_or_duplicated_exposures_are_refused_naming_the_file_and_line() {
     png_bracket(&set);
     let scan_err = |opts: &ScanOptions| {
         brackets::scan(dir.path(), opts)
-            .err()
-            .expect("refused")
+            .expect_err("refused")
             .to_string()
     };
     let list = set.join("list.txt");
