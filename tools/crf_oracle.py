@@ -7,8 +7,9 @@ AlignMTB shifts on small deterministic brackets. Writes tests/data/brackets/:
                       (samples 70, lambda 10, random false)
   crf_debevec_one_curve.csv
                       OpenCV's response of the same frames' three channels laid side by side as
-                      one grey image three times as wide, samples 210 (hdrsynth's one curve for
-                      the three channels), 256 rows "v"
+                      one grey image three times as wide, samples 210, lambda 30 (hdrsynth's
+                      one curve for the three channels: 3x OpenCV's samples and lambda),
+                      256 rows "v"
   crf_robertson.csv   OpenCV's CalibrateRobertson response of the same frames, 256 rows
                       "r,g,b" (I(z), I(128) = 1; "nan" for codes never observed), defaults
                       (max_iter 30, threshold 0.01)
@@ -54,7 +55,7 @@ with open(os.path.join(OUT, "crf_debevec.csv"), "w") as f:
         f.write(",".join(f"{v:.7g}" for v in r) + "\n")
 
 tiled = [np.concatenate([fr[:, :, c] for c in range(3)], axis=1) for fr in frames]
-one = cv2.createCalibrateDebevec(samples=210).process(tiled, np.array(times, dtype=np.float32))
+one = cv2.createCalibrateDebevec(samples=210, lambda_=30.0).process(tiled, np.array(times, dtype=np.float32))
 with open(os.path.join(OUT, "crf_debevec_one_curve.csv"), "w") as f:
     f.write("v\n")
     for r in one.reshape(256):

@@ -148,9 +148,13 @@ impl ResponseChoice {
                 o.samples,
                 o.lambda,
                 if o.shared {
-                    "one curve for the three channels, their samples pooled"
+                    format!(
+                        "one curve for the three channels: their {} samples pooled, λ {}",
+                        3 * o.samples,
+                        3.0 * o.lambda
+                    )
                 } else {
-                    "a curve per channel"
+                    "a curve per channel".to_string()
                 }
             ),
             ResponseChoice::Robertson(o) => format!(

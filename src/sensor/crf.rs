@@ -28,7 +28,7 @@ pub struct DebevecOptions {
     /// Smoothness weight λ (OpenCV default 10).
     pub lambda: f64,
     /// One curve for the three channels: OpenCV's recipe on the frames' channels laid side by
-    /// side as one grey image three times as wide, with three times the samples (a camera's
+    /// side as one grey image three times as wide, with three times the samples and λ (a camera's
     /// JPEG engine applies one tone curve after white balance; per channel, the estimates of
     /// a real bracket differ by 10–40 % from code to code, which tints neutral grey). False:
     /// OpenCV's default, a curve per channel.
@@ -127,7 +127,12 @@ pub fn calibrate_debevec(
             .collect()
     };
     if opts.shared {
-        // The channels side by side, one grey image 3w wide, with three times the samples.
+        // The channels side by side, one grey image 3w wide, with three times the samples and
+        // three times the smoothness weight: OpenCV's balance of the data term (one row per
+        // sample and frame) against the smoothness term (one row per code). With λ alone the
+        // pooled samples outweigh it and leave near-flat stretches where few samples fall (on
+        // the Canon 550D stack codes 97–103 and 205–209, which carried its noise to linear
+        // wrongly); with 3λ none.
         let tiled: Vec<Vec<u8>> = frames
             .iter()
             .map(|f| {
@@ -144,7 +149,7 @@ pub fn calibrate_debevec(
             h,
             times,
             opts.samples.max(1) * 3,
-            opts.lambda,
+            opts.lambda * 3.0,
         )?;
         return Ok([g.clone(), g.clone(), g]);
     }
