@@ -3190,6 +3190,19 @@ fn the_loop_refuses_a_split_in_which_a_capture_both_calibrates_and_is_scored() {
     assert!(!beside.path().join("loop").exists(), "nothing written");
 }
 
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).expect("mkdir");
+    for e in std::fs::read_dir(from).expect("read_dir") {
+        let e = e.expect("entry");
+        let dst = to.join(e.file_name());
+        if e.file_type().expect("type").is_dir() {
+            copy_dir(&e.path(), &dst);
+        } else {
+            std::fs::copy(e.path(), &dst).expect("copy");
+        }
+    }
+}
+
 /// A main job the loop can start from, made small: a generated training set, a Network-2
 /// (merge head, the training curve) pretrained for 1 step per seed in `seeds`, and its
 /// fine-tune config (2 steps). The folder.
@@ -3405,8 +3418,13 @@ fn the_loop_trains_the_device_rule_in_its_metering_step_only() {
         }
     }
     let beside = tempfile::tempdir().expect("tmp");
-    // The whole loop, from a main job made small.
+    // The whole loop, from a main job made small; its Net_S here is its pretrained network,
+    // where the main job's grid keeps it.
     let q = tiny_main_job(&beside.path().join("qs"), &[1]);
+    copy_dir(
+        &q.join("pretrain/seed1"),
+        &q.join("experiment/cells/net_s/seed1/run"),
+    );
     let out = beside.path().join("loop");
     let opts = LoopOptions {
         brackets: tmp.path().to_path_buf(),
@@ -3426,6 +3444,7 @@ fn the_loop_trains_the_device_rule_in_its_metering_step_only() {
     for row in [
         "| copy: the reference frame, linearised (no network) |",
         "| triangle merge of the inputs (no network) |",
+        "| Net_S (the main job's network for a stock sRGB phone profile; no calibration) |",
     ] {
         assert!(report.contains(row), "{row}: {report}");
     }

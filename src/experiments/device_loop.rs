@@ -33,6 +33,9 @@ use report::*;
 
 /// Simulated replicates of the device-output check of each step.
 const CHECK_REPLICATES: usize = 10;
+/// The row of the main job's Net_S, and where its run of seed k lies in the main job's folder.
+const NET_S: &str = "net_s";
+const NET_S_RUN: &str = "experiment/cells/net_s/seed{seed}/run";
 
 /// What a loop is asked for (the command's flags).
 #[derive(Clone, Debug)]
@@ -509,6 +512,26 @@ fn ablate_config(
             AxisKind::Control,
         ),
     ];
+    // No calibration: the main job's network for its stock sRGB phone (the shipped composite
+    // profile), where the main job's grid has it for every seed.
+    let net_s = opts.quickstart.join(NET_S_RUN);
+    if opts.seeds.iter().all(|k| {
+        let run = net_s
+            .to_string_lossy()
+            .replace(ablate::SEED_FIELD, &k.to_string());
+        crate::train::checkpoint::resolve(Path::new(&run)).is_ok()
+    }) {
+        rows.push(Axis {
+            checkpoint: Some(net_s),
+            ..row(
+                NET_S,
+                "Net_S (the main job's network for a stock sRGB phone profile; no calibration)",
+                toml::Table::new(),
+                false,
+                AxisKind::Finetune,
+            )
+        });
+    }
     for s in steps {
         let mut data = toml::Table::new();
         data.insert("profile".into(), s.profile.display().to_string().into());

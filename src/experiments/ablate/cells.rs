@@ -145,7 +145,7 @@ fn plan_cell(
     {
         t.insert(
             "checkpoint".into(),
-            toml::Value::String(path.replace("{seed}", &k.to_string())),
+            toml::Value::String(path.replace(SEED_FIELD, &k.to_string())),
         );
     }
     let mut merged = if axes.iter().any(|a| a.kind == AxisKind::Control) {
@@ -186,7 +186,10 @@ fn plan_cell(
     let baseline = cfg.cell_baseline(r, c);
     let checkpoint = match (explicit.first(), trains) {
         _ if baseline.is_some() => None,
-        (Some(p), _) => Some((*p).clone()),
+        (Some(p), _) => Some(match seed {
+            Some(k) => PathBuf::from(p.to_string_lossy().replace(SEED_FIELD, &k.to_string())),
+            None => (*p).clone(),
+        }),
         (None, true) => Some(run_dir),
         (None, false) => Some(
             train_cfg

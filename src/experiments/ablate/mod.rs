@@ -39,6 +39,9 @@ mod table;
 pub use cells::*;
 pub use table::*;
 
+/// Stands for the seed in a per-seed path (`pretrained_per_seed`, an axis's `checkpoint`).
+pub const SEED_FIELD: &str = "{seed}";
+
 /// The `ablate` config (TOML). Paths are relative to the working directory.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -234,7 +237,9 @@ pub struct Axis {
     /// the pretrained network (the paper's Net_O).
     #[serde(default = "yes")]
     pub train: bool,
-    /// Evaluate this checkpoint instead of training (implies `train = false`).
+    /// Evaluate this checkpoint instead of training (implies `train = false`); `{seed}` in it
+    /// stands for the cell's seed (a network trained per seed elsewhere, e.g. the main job's
+    /// Net_S), and such a cell runs per seed.
     #[serde(default)]
     pub checkpoint: Option<PathBuf>,
     /// `"finetune"` (default): the base config with `set` laid over it. `"control"`: the
@@ -587,9 +592,16 @@ impl AblateConfig {
     /// The seeds a cell runs at: `None` = once (no `seeds`, or a cell that does not train and
     /// therefore does not depend on the seed: it is evaluated once and serves every seed).
     pub fn cell_seeds(&self, r: usize, c: Option<usize>) -> Vec<Option<u64>> {
+        let per_seed_checkpoint = std::iter::once(&self.rows[r])
+            .chain(c.map(|c| &self.columns[c]))
+            .any(|a| {
+                a.checkpoint
+                    .as_ref()
+                    .is_some_and(|p| p.to_string_lossy().contains(SEED_FIELD))
+            });
         let seeded = match self.cell_baseline(r, c) {
             Some(_) => self.testsets().any(|t| t.noise_per_seed),
-            None => self.cell_trains(r, c) || self.seeded_eval(),
+            None => self.cell_trains(r, c) || self.seeded_eval() || per_seed_checkpoint,
         };
         if self.seeds.is_empty() || !seeded {
             vec![None]

@@ -114,11 +114,15 @@ pub(super) fn pictures_text(
     steps: &[Step],
     out: &Path,
 ) -> Result<String> {
-    let rows: Vec<(String, &str)> = [("triangle merge", "triangle"), ("Net_O", "net_o")]
-        .into_iter()
-        .map(|(l, n)| (l.to_string(), n))
-        .chain(steps.iter().map(|st| (st.name.to_string(), st.name)))
-        .collect();
+    let rows: Vec<(String, &str)> = [
+        ("triangle merge", "triangle"),
+        ("Net_O", "net_o"),
+        ("Net_S", NET_S),
+    ]
+    .into_iter()
+    .map(|(l, n)| (l.to_string(), n))
+    .chain(steps.iter().map(|st| (st.name.to_string(), st.name)))
+    .collect();
     let written = pictures::write(cfg, testset, &rows, &out.join(PICTURES))?;
     let mut s = format!(
         "\n## Pictures\n\nPer test scene, the crop (up to {0}×{0}) of the ground truth with the widest \
@@ -148,7 +152,7 @@ pub(super) fn what_a_user_gets(cfg: &AblateConfig, steps: &[Step]) -> Result<Str
          scenes on one side of 0 where there is one (10 or more scenes), else the same sign in \
          every seed; otherwise \"no difference shown\".\n\n",
     );
-    let names: Vec<&str> = ["net_o", "control"]
+    let names: Vec<&str> = ["net_o", "control", NET_S]
         .into_iter()
         .chain(steps.iter().map(|st| st.name))
         .collect();
