@@ -2783,3 +2783,90 @@ fn absurd_or_duplicated_exposures_are_refused_naming_the_file_and_line() {
     .expect("scan");
     assert_eq!(ok.sets.len(), 1);
 }
+
+/// A bracket of three 8-bit PNGs of `w`×`h` filled by `code(frame, x, y)`, with list.txt.
+fn png_bracket_of(dir: &Path, w: u32, h: u32, code: impl Fn(usize, u32, u32) -> u8) {
+    std::fs::create_dir_all(dir).unwrap();
+    for i in 0..3 {
+        let img = image::RgbImage::from_fn(w, h, |x, y| image::Rgb([code(i, x, y); 3]));
+        img.save(dir.join(format!("f{i}.png"))).unwrap();
+    }
+    std::fs::write(dir.join("list.txt"), "f0.png 4\nf1.png 1\nf2.png 0.25\n").unwrap();
+}
+
+#[test]
+fn brackets_without_signal_are_refused_before_a_response_is_estimated() {
+    use hdrsynth::data::bracket_testset::{self, BracketOptions};
+    let dir = tempfile::tempdir().unwrap();
+    type Codes = fn(usize, u32, u32) -> u8;
+    let cases: [(&str, u32, u32, Codes); 3] = [
+        ("black", 48, 32, |_, _, _| 0),
+        ("white", 48, 32, |_, _, _| 255),
+        // 3×2 pixels: a response from six pixels.
+        ("tiny", 3, 2, |i, x, y| {
+            (40 + 60 * i as u32 + 7 * x + 11 * y) as u8
+        }),
+    ];
+    for (name, w, h, code) in cases {
+        let brackets = dir.path().join(name);
+        png_bracket_of(&brackets.join("s"), w, h, code);
+        let out = dir.path().join(format!("{name}_ts"));
+        let e = bracket_testset::build(&brackets, &BracketOptions::default(), &out)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("holds no signal") && e.contains(&brackets.join("s").display().to_string()),
+            "{name}: {e}"
+        );
+        assert!(!out.exists(), "{name}: output left");
+    }
+    // A ramp of the same size passes.
+    let brackets = dir.path().join("ramp");
+    png_bracket_of(&brackets.join("s"), 48, 32, |i, x, _| {
+        (10 + 4 * x + 20 * i as u32).min(255) as u8
+    });
+    bracket_testset::build(
+        &brackets,
+        &BracketOptions::default(),
+        &dir.path().join("ok"),
+    )
+    .expect("a ramp has signal");
+}
+
+#[cfg(unix)]
+#[test]
+fn a_link_back_to_a_folder_already_read_is_refused_naming_it() {
+    use hdrsynth::data::brackets::{self, ScanOptions};
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path().join("b");
+    png_bracket(&root);
+    std::os::unix::fs::symlink(".", root.join("loop")).unwrap();
+    let e = brackets::scan(&root, &ScanOptions::default())
+        .expect_err("refused")
+        .to_string();
+    assert!(e.contains("loop") && e.contains("a link"), "{e}");
+}
+
+#[test]
+fn calibrate_brackets_refuses_a_profile_inside_its_bracket_folder() {
+    use hdrsynth::data::bracket_profile::{BracketProfileOptions, calibrate_brackets};
+    use hdrsynth::data::bracket_testset::ResponseChoice;
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path().join("b");
+    png_bracket(&root);
+    let before = snapshot(&root);
+    let e = calibrate_brackets(
+        &root,
+        &BracketProfileOptions {
+            scan: Default::default(),
+            response: ResponseChoice::new(None, None).unwrap(),
+            out: root.join("prof.toml"),
+            name: None,
+            correlated: false,
+        },
+    )
+    .expect_err("refused")
+    .to_string();
+    assert!(e.contains("inside the input"), "{e}");
+    assert_eq!(snapshot(&root), before, "the bracket folder changed");
+}

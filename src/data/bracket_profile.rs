@@ -229,6 +229,8 @@ pub struct BracketCalibration {
 
 /// Calibrate a profile from the bracket folder `dir` and write it to `opts.out`.
 pub fn calibrate_brackets(dir: &Path, opts: &BracketProfileOptions) -> Result<BracketCalibration> {
+    // The profile is an output: never written into the folder it is measured from.
+    crate::io::guard::refuse_output_inside(dir, &opts.out)?;
     let scan = brackets::scan(dir, &opts.scan)?;
     let mut notes = scan.notes;
     if let Some(f) = scan

@@ -506,6 +506,7 @@ pub fn resolve_linearisation(
         .iter()
         .map(brackets::read_frame_image)
         .collect::<Result<Vec<Image>>>()?;
+    refuse_no_signal(set, &frames, name)?;
     // Only ratios matter: times relative to the shortest frame.
     let times: Vec<f64> = set
         .frames
@@ -548,6 +549,38 @@ pub fn resolve_linearisation(
         }
     }
     Ok(Linearise::Table(crf::linearisation_table(&response)))
+}
+
+/// Fewest pixels per frame, and distinct codes between dark and clipped over a set's frames
+/// and channels, that a response is estimated from (OpenCV's Debevec samples 70 pixels).
+const MIN_RESPONSE_PIXELS: usize = 70;
+const MIN_RESPONSE_CODES: usize = 16;
+
+/// Refuse to estimate a response from frames that hold no signal: too few pixels, or too few
+/// distinct codes between the dark and clipped limits (all-black, all-white or flat frames).
+fn refuse_no_signal(set: &brackets::BracketSet, frames: &[Image], name: &str) -> Result<()> {
+    let pixels = frames.iter().map(|f| f.width * f.height).min().unwrap_or(0);
+    let mut codes = [false; 256];
+    for v in frames.iter().flat_map(|f| &f.data) {
+        codes[crf::code8(*v)] = true;
+    }
+    let (dark, clipped) = (5, 250);
+    let distinct = codes[dark + 1..clipped].iter().filter(|&&c| c).count();
+    if pixels < MIN_RESPONSE_PIXELS || distinct < MIN_RESPONSE_CODES {
+        return Err(Error::layout(
+            set_folder(set),
+            format!(
+                "set '{}' holds no signal to estimate the {name} response from: {pixels} \
+                 pixel(s) per frame (at least {MIN_RESPONSE_PIXELS}), {distinct} distinct \
+                 code(s) between {dark} and {clipped} over its frames (at least \
+                 {MIN_RESPONSE_CODES}); all-dark, all-clipped or flat frames? Declare the \
+                 response (--response srgb, gamma:G or a profile's) or capture a scene with \
+                 mid tones",
+                set.name
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// Scan `dir` and write every set to `out` in Kalantari's layout. What can be refused without

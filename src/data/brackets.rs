@@ -543,7 +543,22 @@ pub fn scan(root: &Path, opts: &ScanOptions) -> Result<BracketScan> {
     }
     let (files, dirs) = list_dir(root)?;
     let mut folders = vec![(root.to_path_buf(), files, String::new())];
+    // A link back to a folder already read (`loop -> .`) would make its frames a second scene.
+    let canonical = |d: &Path| d.canonicalize().map_err(|e| Error::io(d, e));
+    let mut seen = vec![canonical(root)?];
     for d in dirs {
+        let real = canonical(&d)?;
+        if let Some(first) = seen.iter().find(|s| **s == real) {
+            return Err(Error::layout(
+                &d,
+                format!(
+                    "is {} again (a link); its frames would be read twice, as two scenes: \
+                     remove the link or give the folder it points to",
+                    first.display()
+                ),
+            ));
+        }
+        seen.push(real);
         let (f, _) = list_dir(&d)?;
         folders.push((d.clone(), f, file_name(&d)));
     }

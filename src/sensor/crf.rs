@@ -79,7 +79,7 @@ fn check_frames(what: &str, frames: &[Image], times: &[f64]) -> Result<(usize, u
 }
 
 /// An 8-bit code of a [0, 1] value (as the frames were stored).
-fn code8(v: f32) -> usize {
+pub(crate) fn code8(v: f32) -> usize {
     (v.clamp(0.0, 1.0) * 255.0).round() as usize
 }
 
