@@ -2374,12 +2374,18 @@ fn written_inputs_keep_the_device_codes_or_take_a_named_curve_and_the_ground_tru
             );
         }
     }
-    // The ground truth comes from the linearised frames, whatever the inputs' encoding.
-    let gt = std::fs::read(field.join("scene1/HDRImg.hdr")).expect("gt");
+    // The ground truth merges the linearised frames whatever the inputs' encoding; only
+    // Kalantari's weights follow the reference as written (three frames: the inputs' merge),
+    // so the encodings' ground truths differ where the frames disagree (8-bit rounding here).
+    let read_gt =
+        |dir: &Path| hdrsynth::io::read_image(&dir.join("scene1/HDRImg.hdr")).expect("gt");
+    let gt = read_gt(&field);
     for dir in [&auto, &g18, &same] {
-        assert_eq!(
-            std::fs::read(dir.join("scene1/HDRImg.hdr")).expect("gt"),
-            gt
+        let p = hdrsynth::eval::metrics::psnr_mu(&gt, &read_gt(dir)).expect("psnr");
+        assert!(
+            p > 50.0,
+            "{}: PSNR-T {p} against the field encoding's",
+            dir.display()
         );
     }
     // The record: the curve each set of inputs holds.

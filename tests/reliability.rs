@@ -2870,3 +2870,41 @@ fn calibrate_brackets_refuses_a_profile_inside_its_bracket_folder() {
     assert!(e.contains("inside the input"), "{e}");
     assert_eq!(snapshot(&root), before, "the bracket folder changed");
 }
+
+#[test]
+fn a_checkpoint_with_a_nan_weight_is_refused_naming_the_file_and_the_parameter() {
+    use burn::module::{Module, ModuleMapper, Param};
+    use burn::tensor::Tensor;
+    use hdrsynth::models::ModelConfig;
+    use hdrsynth::train::checkpoint;
+    let dir = tempfile::tempdir().unwrap();
+    let (_, ckpt) = one_step_run(dir.path());
+    let state = checkpoint::read_state(&ckpt).unwrap();
+    let ModelConfig::BlendUnet(m) = state.model else {
+        panic!("Network-1 expected")
+    };
+    let dev = burn::tensor::Device::flex();
+    let model = checkpoint::load_model(m.init(&dev).unwrap(), &ckpt).expect("finite loads");
+    // The first float parameter's tensor times NaN, as a diverged run leaves it.
+    struct FirstNan(bool);
+    impl ModuleMapper for FirstNan {
+        fn map_float<const D: usize>(&mut self, p: Param<Tensor<D>>) -> Param<Tensor<D>> {
+            if std::mem::replace(&mut self.0, false) {
+                p.map(|t| t.mul_scalar(f32::NAN))
+            } else {
+                p
+            }
+        }
+    }
+    let bad = model.map(&mut FirstNan(true));
+    let path = ckpt.join("model.bpk");
+    let bytes = checkpoint::model_to_bytes(&bad, &path).unwrap();
+    let e = checkpoint::model_from_bytes(m.init(&dev).unwrap(), bytes, &path)
+        .expect_err("refused")
+        .to_string();
+    assert!(
+        e.contains("model.bpk") && e.contains("holds a NaN") && e.contains("parameter '"),
+        "{e}"
+    );
+    eprintln!("{e}");
+}

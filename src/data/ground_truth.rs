@@ -526,7 +526,22 @@ pub fn triangle_merge_with(
     times: [f32; 3],
     linear: impl Fn(f64) -> f64 + Sync,
 ) -> Result<Image> {
-    let (w, h) = check_frames("triangle merge", &[&frames[0], &frames[1], &frames[2]])?;
+    triangle_merge_weighted(frames, &frames[1], times, linear)
+}
+
+/// [`triangle_merge_with`] with the weights from `reference`'s values instead of the middle
+/// frame's: the reference as the inputs store it, where `frames` encode the same light
+/// another way (a test set's merge codes beside inputs written in the device's codes).
+pub fn triangle_merge_weighted(
+    frames: &[Image; 3],
+    reference: &Image,
+    times: [f32; 3],
+    linear: impl Fn(f64) -> f64 + Sync,
+) -> Result<Image> {
+    let (w, h) = check_frames(
+        "triangle merge",
+        &[&frames[0], &frames[1], &frames[2], reference],
+    )?;
     if times.iter().any(|t| !(t.is_finite() && *t > 0.0)) {
         return Err(Error::Invalid(format!(
             "triangle merge: exposure times {times:?} must be finite and positive"
@@ -538,11 +553,12 @@ pub fn triangle_merge_with(
         .par_iter()
         .zip(&frames[1].data)
         .zip(&frames[2].data)
-        .map(|((&l0, &l1), &l2)| {
-            let i = l1 as f64;
+        .zip(&reference.data)
+        .map(|(((&l0, &l1), &l2), &r)| {
+            let i = r as f64;
             let hdr = [
                 linear(l0 as f64) / t[0],
-                linear(i) / t[1],
+                linear(l1 as f64) / t[1],
                 linear(l2 as f64) / t[2],
             ];
             let wt = [

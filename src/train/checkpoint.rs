@@ -497,10 +497,50 @@ pub fn model_from_bytes<M: Module>(model: M, bytes: Vec<u8>, path: &Path) -> Res
     // float parameter is (found by tests/fuzz.rs: one byte "F32" → "U32" in the header), and
     // the record's dtypes are not public to check first; a crafted checkpoint must give an
     // error naming the file, not take the process down.
-    without_panic(path, "the record does not fit the model", || {
+    let model = without_panic(path, "the record does not fit the model", || {
         model.try_load_record(record)
     })?
-    .map_err(|e| Error::decode(path, e))
+    .map_err(|e| Error::decode(path, e))?;
+    // A diverged run's or a damaged file's NaN would be written as images and scored as zeros.
+    match non_finite_parameter(&model) {
+        Some(name) => Err(Error::decode(
+            path,
+            format!(
+                "parameter '{name}' holds a NaN or an infinity: the weights are not usable \
+                 (a diverged run or a damaged file; use an earlier checkpoint)"
+            ),
+        )),
+        None => Ok(model),
+    }
+}
+
+/// The module path of the first float parameter of `model` holding a NaN or an infinity.
+fn non_finite_parameter<M: Module>(model: &M) -> Option<String> {
+    use burn::module::{ModuleVisitor, Param};
+    use burn::tensor::Tensor;
+    struct Finder {
+        path: Vec<String>,
+        found: Option<String>,
+    }
+    impl ModuleVisitor for Finder {
+        fn enter_module(&mut self, name: &str, _: &str) {
+            self.path.push(name.to_string());
+        }
+        fn exit_module(&mut self, _: &str, _: &str) {
+            self.path.pop();
+        }
+        fn visit_float<const D: usize>(&mut self, p: &Param<Tensor<D>>) {
+            if self.found.is_none() && p.val().into_data().iter::<f32>().any(|v| !v.is_finite()) {
+                self.found = Some(self.path.join("."));
+            }
+        }
+    }
+    let mut finder = Finder {
+        path: Vec::new(),
+        found: None,
+    };
+    model.visit(&mut finder);
+    finder.found
 }
 
 /// `f()`, a Burn record load, with a panic inside it turned into an error naming `path`.

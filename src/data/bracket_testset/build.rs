@@ -130,7 +130,9 @@ fn build_set(
     }
     let (w, h) = (codes[ref_pos].width, codes[ref_pos].height);
     let pos = idx.map(|i| gt_idx.iter().position(|&g| g == i).unwrap_or(0));
-    let (hdr, gt_merge) = merge_set(&codes, &stored, &stops, pos, hat)?;
+    // Kalantari's weights come from the reference as the inputs store it.
+    let weights = written.get(1).unwrap_or(&codes[pos[1]]);
+    let (hdr, gt_merge) = merge_set(&codes, &stored, &stops, pos, weights, hat)?;
 
     let set_dir = out.join(&set.name);
     let inputs: [&Image; 3] = if written.is_empty() {
@@ -283,20 +285,28 @@ fn set_codes(
 }
 
 /// The ground truth and how it was merged: Kalantari's triangle merge of the three inputs at
-/// positions `pos`, or (`hat`) the weighted merge of every frame.
+/// positions `pos` (weights from `weights`, the reference as written), or (`hat`) the weighted
+/// merge of every frame.
 fn merge_set(
     codes: &[Image],
     stored: &[Image],
     stops: &[f64],
     pos: [usize; 3],
+    weights: &Image,
     hat: bool,
 ) -> Result<(Image, String)> {
     Ok(if !hat {
         let times = pos.map(|p| stops[p].exp2() as f32);
+        let g = f64::from(FIELD_GAMMA);
         (
-            ground_truth::triangle_merge(&pos.map(|p| codes[p].clone()), times, FIELD_GAMMA)?,
+            ground_truth::triangle_merge_weighted(
+                &pos.map(|p| codes[p].clone()),
+                weights,
+                times,
+                |v| v.powf(g),
+            )?,
             "Kalantari's triangle merge of the three inputs (weights from the reference's \
-             value)"
+             value as written)"
                 .to_string(),
         )
     } else {

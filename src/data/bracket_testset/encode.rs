@@ -3,8 +3,9 @@
 
 use super::*;
 
-/// How the three written inputs encode their linear signal (`--encode`). The ground truth
-/// does not depend on it: it is merged from the linearised frames.
+/// How the three written inputs encode their linear signal (`--encode`). The ground truth is
+/// merged from the linearised frames; only the inputs' merge takes its weights from the
+/// reference as written.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub enum EncodeSpec {
     /// `device` for JPEG/PNG/TIFF frames; `field` for DNG frames (linear raw has no device
