@@ -130,16 +130,14 @@ fn build_set(
     }
     let (w, h) = (codes[ref_pos].width, codes[ref_pos].height);
     let pos = idx.map(|i| gt_idx.iter().position(|&g| g == i).unwrap_or(0));
-    // Kalantari's weights come from the reference as the inputs store it.
-    let weights = written.get(1).unwrap_or(&codes[pos[1]]);
-    let (hdr, gt_merge) = merge_set(&codes, &stored, &stops, pos, weights, hat)?;
-
-    let set_dir = out.join(&set.name);
     let inputs: [&Image; 3] = if written.is_empty() {
         pos.map(|p| &codes[p])
     } else {
         [&written[0], &written[1], &written[2]]
     };
+    // Kalantari's weights come from the reference as the inputs store it.
+    let (hdr, gt_merge) = merge_set(&codes, &stored, &stops, pos, inputs[1], hat)?;
+    let set_dir = out.join(&set.name);
     write_set_files(&set_dir, inputs, &stops, pos, &hdr)?;
     let record = BuiltBracketSet {
         name: set.name.clone(),
