@@ -2908,3 +2908,39 @@ fn a_checkpoint_with_a_nan_weight_is_refused_naming_the_file_and_the_parameter()
     );
     eprintln!("{e}");
 }
+
+#[test]
+fn a_bracket_folder_that_is_a_file_or_missing_is_named_as_such_once() {
+    use hdrsynth::data::brackets::{self, ScanOptions};
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("f.png");
+    std::fs::write(&file, b"x").unwrap();
+    let e = brackets::scan(&file, &ScanOptions::default())
+        .expect_err("a file")
+        .to_string();
+    assert!(
+        e.contains("f.png") && e.contains("is a file, not a bracket folder"),
+        "{e}"
+    );
+    let e = brackets::scan(&dir.path().join("none"), &ScanOptions::default())
+        .expect_err("missing")
+        .to_string();
+    assert!(
+        e.contains("none") && e.contains("no such bracket folder"),
+        "{e}"
+    );
+    // Through the binary: one message, no "Caused by" repeating it.
+    let out = bin()
+        .args(["testset", "--brackets"])
+        .arg(&file)
+        .arg("--out")
+        .arg(dir.path().join("ts"))
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stderr).to_string();
+    assert!(!out.status.success());
+    assert!(
+        text.contains("is a file, not a bracket folder") && !text.contains("Caused by"),
+        "{text}"
+    );
+}

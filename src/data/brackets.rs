@@ -519,9 +519,14 @@ fn exif_stops(
 /// Find the bracketed sets under `root` (the root's own frames and each direct sub-folder's).
 pub fn scan(root: &Path, opts: &ScanOptions) -> Result<BracketScan> {
     if !root.is_dir() {
-        return Err(Error::io(
+        return Err(Error::layout(
             root,
-            std::io::Error::new(std::io::ErrorKind::NotFound, "bracket folder not found"),
+            if root.exists() {
+                "is a file, not a bracket folder: give the folder that holds the frames (or \
+                 their sets' sub-folders)"
+            } else {
+                "no such bracket folder"
+            },
         ));
     }
     if opts.max_gap_s.is_nan() || opts.max_gap_s <= 0.0 {
