@@ -2064,44 +2064,6 @@ fn ground_truth_from_all_frames_of_a_three_frame_set_is_the_inputs_merge() {
 }
 
 #[test]
-fn the_hat_merge_matches_hand_values() {
-    use hdrsynth::data::bracket_testset::{code_weight, hat_merge};
-    use hdrsynth::io::Image;
-    let px = |v: [f32; 3]| Image::from_vec(1, 1, v.to_vec());
-    // Weights: the hat of the code, 0 at codes ≤ 5 and ≥ 250 (of 255).
-    assert_eq!(code_weight(0.5), 1.0);
-    assert_eq!(code_weight(250.0 / 255.0), 0.0);
-    assert_eq!(code_weight(5.0 / 255.0), 0.0);
-    assert!((code_weight(249.0 / 255.0) - 12.0 / 255.0).abs() < 1e-6);
-    assert!((code_weight(6.0 / 255.0) - 12.0 / 255.0).abs() < 1e-6);
-    // γ 1, times 0.5 and 4. Channel 0: codes 0.25 and 0.75 (hat 0.5 each), so w = 0.5 · 0.5
-    // and 0.5 · 4: H = (0.25 · 0.25/0.5 + 2 · 0.75/4) / 2.25 = 0.5 / 2.25. Channel 1: clipped
-    // in both: the shortest's white over its time, 1/0.5 = 2. Channel 2: dark in both (codes 0
-    // and 0.01 · 255 = 2.55): the longest frame not clipped, 0.01/4.
-    let v = [px([0.25, 1.0, 0.0]), px([0.75, 1.0, 0.01])];
-    let h = hat_merge(&v, &v, &[0.5, 4.0], 1.0).expect("merge");
-    assert!((h.data[0] as f64 - 0.5 / 2.25).abs() < 1e-7, "{:?}", h.data);
-    assert_eq!(h.data[1], 2.0);
-    assert!((h.data[2] - 0.0025).abs() < 1e-9, "{:?}", h.data);
-    // γ 2.2, codes apart from the written values: codes 0.5 and 0.9 weigh 1 · 1 and 0.2 · 2;
-    // values 0.5 and 0.9: H = (0.5^2.2 / 1 + 0.4 · 0.9^2.2 / 2) / 1.4.
-    let h = hat_merge(
-        &[px([0.5; 3]), px([0.9; 3])],
-        &[px([0.5; 3]), px([0.9; 3])],
-        &[1.0, 2.0],
-        2.2,
-    )
-    .expect("merge");
-    let want = (0.5f64.powf(2.2) + 0.4 * 0.9f64.powf(2.2) / 2.0) / 1.4;
-    assert!(
-        (h.data[0] as f64 - want).abs() < 1e-6,
-        "{} vs {want}",
-        h.data[0]
-    );
-    assert!(hat_merge(&v, &v, &[1.0], 1.0).is_err());
-}
-
-#[test]
 fn bad_input_indices_are_refused_naming_the_folder_and_nothing_is_written() {
     let tmp = tempfile::tempdir().expect("tmp");
     let dir = tmp.path().join("five");

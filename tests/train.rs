@@ -229,20 +229,44 @@ fn non_finite_loss_stops_with_a_clear_message_and_keeps_the_last_checkpoint() {
     let tmp = tempfile::tempdir().expect("tmp");
     let run = tmp.path().join("nan");
     // Without BatchNorm, a huge learning rate overflows the activations within a few steps.
+    // A checkpoint every step: the step whose update leaves NaN weights behind a finite loss
+    // would be saved if the weights were not checked.
     let mut cfg = parse(&config_text(&run, 60, "", 1e30, false));
+    cfg.run.checkpoint_every = 1;
     cfg.schedule.warmup_steps = 0;
     cfg.schedule.kind = ScheduleKind::Constant;
     let err = hdrsynth::train::run(&cfg, &TrainOptions::default()).expect_err("NaN stop");
     let msg = err.to_string();
     assert!(msg.contains("non-finite"), "{msg}");
     let log = std::fs::read_to_string(run.join("log.jsonl")).expect("log");
-    assert!(log.contains("\"error\":\"non-finite loss\""), "{log}");
-    // Whatever checkpoint exists is complete and from before the failure.
+    assert!(log.contains("\"error\":\"non-finite"), "{log}");
+    // Whatever checkpoint exists is complete, from before the failure, and loads: the one the
+    // message calls good holds finite weights.
     if let Some(dir) = checkpoint::latest(&run).expect("latest") {
         let s = checkpoint::read_state(&dir).expect("state");
         assert!(msg.contains(&dir.display().to_string()), "{msg}");
-        assert!(s.loss.is_some_and(f64::is_finite));
+        let ModelConfig::BlendUnet(m) = s.model else {
+            panic!("a Network-1 checkpoint expected");
+        };
+        let init = seeded_init(&Device::flex(), 0, || m.init(&Device::flex())).expect("init");
+        checkpoint::load_model(init, &dir).expect("the last good checkpoint loads");
     }
+    // lr 1e39 (infinite in f32): the first update leaves infinite weights behind a finite
+    // loss; the run stops there, naming the parameter, and writes no checkpoint.
+    let run = tmp.path().join("inf");
+    cfg.run.out = run.clone();
+    cfg.optim.lr = 1e39;
+    let msg = hdrsynth::train::run(&cfg, &TrainOptions::default())
+        .expect_err("inf stop")
+        .to_string();
+    assert!(
+        msg.contains("step 0: parameter 'encoder.0.conv1.weight'")
+            && msg.contains("no checkpoint was written yet"),
+        "{msg}"
+    );
+    assert_eq!(checkpoint::latest(&run).expect("latest"), None);
+    let log = std::fs::read_to_string(run.join("log.jsonl")).expect("log");
+    assert!(log.contains("\"error\":\"non-finite weights\""), "{log}");
 }
 
 #[test]

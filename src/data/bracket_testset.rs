@@ -18,8 +18,8 @@
 //! - `HDRImg.hdr` ([`GtFrames`]): from the three inputs, the triangle merge
 //!   ([`ground_truth::triangle_merge`], Kalantari's weights from the reference's TIFF value);
 //!   from every frame of the set (`--gt-frames all`, when the set has more than the inputs),
-//!   the weighted merge [`hat_merge`] — each frame weighted by the hat of its own code value and
-//!   its exposure time. In
+//!   the weighted merge [`hat_merge`] — each frame weighted by the hat of the code it is
+//!   expected to record at the merged value, and by its exposure time. In
 //!   the field's unit either way: a frame at stop 0 (the shortest input) has white 1;
 //!   `hdrsynth eval` converts it to its own unit (1 = the reference's white);
 //! - `brackets.toml`: where every frame came from, its exposure, which frames are the inputs

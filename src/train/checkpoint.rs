@@ -515,7 +515,7 @@ pub fn model_from_bytes<M: Module>(model: M, bytes: Vec<u8>, path: &Path) -> Res
 }
 
 /// The module path of the first float parameter of `model` holding a NaN or an infinity.
-fn non_finite_parameter<M: Module>(model: &M) -> Option<String> {
+pub fn non_finite_parameter<M: Module>(model: &M) -> Option<String> {
     use burn::module::{ModuleVisitor, Param};
     use burn::tensor::Tensor;
     struct Finder {

@@ -615,7 +615,7 @@ fn train_loop<T: Task + Sync>(
         model = next;
         if !value.is_finite() {
             let last = last_checkpoint.as_deref();
-            return Err(stop_non_finite(&mut log, &bar, step, value, lr, last));
+            return Err(stop_non_finite(&mut log, &bar, step, value, None, lr, last));
         }
         interval.add(value);
         let done = step + 1;
@@ -631,6 +631,13 @@ fn train_loop<T: Task + Sync>(
             last_validation = validate_and_log(&mut log, &model, done)?;
         }
         if done % cfg.run.checkpoint_every == 0 || done == total {
+            // A step can leave NaN weights behind a finite loss (the loss is taken before the
+            // update): such a checkpoint is never written, so the one named below is usable.
+            if let Some(name) = checkpoint::non_finite_parameter(&model) {
+                let last = last_checkpoint.as_deref();
+                let what = Some(name.as_str());
+                return Err(stop_non_finite(&mut log, &bar, step, value, what, lr, last));
+            }
             let dir = checkpoint::save(
                 run,
                 &state_at(done, Some(interval.last_mean).filter(|l| l.is_finite())),
@@ -715,20 +722,26 @@ impl Interval {
     }
 }
 
-/// A non-finite loss at `step`: logged, the bar abandoned, and the error that stops the run
+/// A non-finite loss `value` at `step`, or (`weight`) a parameter of the updated model
+/// holding a NaN or an infinity: logged, the bar abandoned, and the error that stops the run
 /// naming the last good checkpoint (nothing after it is saved).
 fn stop_non_finite(
     log: &mut Log,
     bar: &indicatif::ProgressBar,
     step: u64,
     value: f64,
+    weight: Option<&str>,
     lr: f64,
     last_checkpoint: Option<&Path>,
 ) -> Error {
     let logged = log.write(&LogLine::Stopped {
         step,
         loss: Number(value),
-        error: "non-finite loss",
+        error: if weight.is_some() {
+            "non-finite weights"
+        } else {
+            "non-finite loss"
+        },
     });
     if let Err(e) = logged {
         return e;
@@ -738,10 +751,13 @@ fn stop_non_finite(
         Some(d) => format!("the last good checkpoint is {}", d.display()),
         None => "no checkpoint was written yet".into(),
     };
+    let what = match weight {
+        Some(name) => format!("parameter '{name}' of the updated model holds a NaN or an infinity"),
+        None => format!("the training loss is {value}"),
+    };
     Error::Invalid(format!(
-        "step {step}: the training loss is {value} (non-finite; lr {lr:e}); training \
-         stopped and nothing after the last checkpoint was saved: {kept}. Lower \
-         optim.lr or check the data"
+        "step {step}: {what} (non-finite; lr {lr:e}); training stopped and nothing after the \
+         last checkpoint was saved: {kept}. Lower optim.lr or check the data"
     ))
 }
 

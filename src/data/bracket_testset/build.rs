@@ -312,9 +312,11 @@ fn merge_set(
         (
             hat_merge(codes, stored, &times, FIELD_GAMMA)?,
             format!(
-                "weighted merge of all {} frames: w = (1 − |2z − 1|) · t per frame and \
-                 channel from its own code z, 0 where z ≤ {DARK_CODE}/255 or ≥ \
-                 {CLIPPED_CODE}/255",
+                "weighted merge of all {} frames: w = (1 − |2ẑ − 1|) · t per frame and \
+                 channel, ẑ the code the frame is expected to record at the merged value \
+                 ({HAT_REFINEMENTS} refinements of the merge weighted by the recorded codes), \
+                 0 where ẑ ≤ {DARK_CODE}/255 or ≥ {CLIPPED_CODE}/255 and where the recorded \
+                 code is clipped",
                 codes.len()
             ),
         )
