@@ -3158,6 +3158,65 @@ fn the_loop_refuses_a_split_in_which_a_capture_both_calibrates_and_is_scored() {
     assert!(!beside.path().join("loop").exists(), "nothing written");
 }
 
+#[test]
+fn the_loop_refuses_a_calibration_frame_resaved_under_another_name_in_a_test_scene() {
+    use hdrsynth::experiments::device_loop::{LoopOptions, run};
+    let tmp = tempfile::tempdir().expect("tmp");
+    let white = Spatial::White;
+    noisy_png_bracket(
+        &tmp.path().join("cal"),
+        4e-4,
+        1e-5,
+        &[-2.0, 0.0, 2.0],
+        white,
+    );
+    noisy_png_bracket(
+        &tmp.path().join("test"),
+        4e-4,
+        1e-5,
+        &[-3.0, -1.0, 1.0],
+        white,
+    );
+    let beside = tempfile::tempdir().expect("tmp");
+    let opts = LoopOptions {
+        brackets: tmp.path().to_path_buf(),
+        calibration: vec!["cal".to_string()],
+        calibration_region: None,
+        test_region: None,
+        scan: ScanOptions::default(),
+        inputs: InputChoice::default(),
+        gt_frames: GtFrames::default(),
+        quickstart: beside.path().join("no_quickstart"),
+        seeds: vec![1],
+        out: beside.path().join("loop"),
+        progress: false,
+    };
+    // Different captures pass the split; the missing main job is what stops the loop then.
+    let e = run(&opts).err().expect("refused").to_string();
+    assert!(e.contains("quickstart"), "{e}");
+    // The test scene's f0.png becomes the calibration scene's f1.png, re-encoded losslessly
+    // (other compression and filter, so other bytes, the same pixels).
+    let src = image::open(tmp.path().join("cal/f1.png"))
+        .expect("png")
+        .to_rgb8();
+    let dst = tmp.path().join("test/f0.png");
+    let file = std::fs::File::create(&dst).expect("create");
+    let encoder = image::codecs::png::PngEncoder::new_with_quality(
+        file,
+        image::codecs::png::CompressionType::Fast,
+        image::codecs::png::FilterType::NoFilter,
+    );
+    src.write_with_encoder(encoder).expect("re-encode");
+    let (a, b) = (
+        std::fs::read(tmp.path().join("cal/f1.png")).expect("read"),
+        std::fs::read(&dst).expect("read"),
+    );
+    assert_ne!(a, b, "the re-save must differ byte for byte");
+    let e = run(&opts).err().expect("refused").to_string();
+    assert!(e.contains("f0.png") && e.contains("both calibrate"), "{e}");
+    assert!(!beside.path().join("loop").exists(), "nothing written");
+}
+
 fn copy_dir(from: &Path, to: &Path) {
     std::fs::create_dir_all(to).expect("mkdir");
     for e in std::fs::read_dir(from).expect("read_dir") {

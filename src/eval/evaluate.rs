@@ -336,10 +336,18 @@ fn split_check(method: &dyn Method, sets: &[SetInfo]) -> Result<()> {
             return Err(Error::layout(
                 &set.dir,
                 format!(
-                    "set '{}' was built from {} (pixels {:?}), which calibrated profile {}                      (pixels {:?}) that this network was fine-tuned with: a scene never                      calibrates the model scored on it; calibrate on other scenes (or other                      regions, `--region`) than the test set's",
+                    "set '{}' was built from {} (pixels {:?}), which{} calibrated profile {} \
+                     (pixels {:?}) that this network was fine-tuned with: a scene never \
+                     calibrates the model scored on it; calibrate on other scenes (or other \
+                     regions, `--region`) than the test set's",
                     set.name,
                     t.file,
                     t.pixels,
+                    if c.sha256 == t.sha256 {
+                        String::new()
+                    } else {
+                        format!(" (the same pixels as {})", c.file)
+                    },
                     profile.display(),
                     c.pixels
                 ),

@@ -129,12 +129,19 @@ fn split(opts: &LoopOptions) -> Result<(ScanOptions, ScanOptions, Vec<String>, V
     };
     let (a, b) = (sources(&cal_scan)?, sources(&test_scan)?);
     if let Some((c, t)) = overlapping(&a, &b).first() {
+        let what = if c.sha256 == t.sha256 {
+            c.file.clone()
+        } else {
+            format!(
+                "{} (a calibration frame) and {} (a test frame) hold the same pixels: the capture",
+                c.file, t.file
+            )
+        };
         return Err(Error::Invalid(format!(
-            "{}: {} would both calibrate (pixels {:?}) and be scored (pixels {:?}): a scene \
-             never calibrates the model scored on it; choose other calibration sets or \
+            "{}: {what} would both calibrate (pixels {:?}) and be scored (pixels {:?}): a \
+             scene never calibrates the model scored on it; choose other calibration sets or \
              disjoint regions",
             opts.brackets.display(),
-            c.file,
             c.pixels,
             t.pixels
         )));

@@ -151,8 +151,28 @@ pub fn frame_source(frame: &BracketFrame) -> Result<Source> {
     Ok(Source {
         file: file_name(&frame.path),
         sha256: crate::io::sha256_hex(&bytes),
+        pixels_sha256: Some(pixels_sha256(frame, &bytes)?),
         pixels,
     })
+}
+
+/// SHA-256 of a frame's decoded pixels as stored (width, height, then every value as an f32,
+/// little-endian): the same for a lossless re-save under another name or format.
+fn pixels_sha256(frame: &BracketFrame, bytes: &[u8]) -> Result<String> {
+    let img = match frame.kind {
+        FrameKind::Dng => crate::sensor::dng::read_dng_bytes(bytes, &frame.path)?.image,
+        FrameKind::Ldr => {
+            let format = crate::io::Format::from_path(&frame.path)?;
+            crate::io::read_image_bytes(bytes, format, &frame.path)?.0
+        }
+    };
+    let mut raw = Vec::with_capacity(16 + 4 * img.data.len());
+    raw.extend_from_slice(&(img.width as u64).to_le_bytes());
+    raw.extend_from_slice(&(img.height as u64).to_le_bytes());
+    for v in &img.data {
+        raw.extend_from_slice(&v.to_le_bytes());
+    }
+    Ok(crate::io::sha256_hex(&raw))
 }
 
 /// The sources of every frame of `set`.
