@@ -913,3 +913,41 @@ fn linearise_data_records_the_training_curve_and_the_loader_feeds_it() {
     }
     assert!(checked > 100, "mid-range codes checked: {checked}");
 }
+
+#[test]
+fn a_step_that_cannot_fit_in_memory_is_refused_naming_the_key_before_anything_is_written() {
+    use hdrsynth::train::budget;
+    let tmp = tempfile::tempdir().expect("tmp");
+    // The lower bound against hand values and Burn's own count of the materialised network:
+    // Network-1 base width 4, depth 2, batch 2 of 32² crops; its first convolution takes the
+    // two frames' 3 channels each.
+    let cfg = parse(&config_text(&tmp.path().join("small"), 4, "", 1e-3, false));
+    let need = budget::step_memory(&cfg.model, 2, 32).expect("estimate");
+    let ModelConfig::BlendUnet(m) = &cfg.model else {
+        panic!("Network-1 expected")
+    };
+    let net = seeded_init(&Device::flex(), 0, || m.init(&Device::flex())).expect("init");
+    assert_eq!(need.parameters, net.num_params() as u64);
+    assert_eq!(need.optimiser_bytes, 16.0 * net.num_params() as f64);
+    assert_eq!(need.input_bytes, 4.0 * 2.0 * 32.0 * 32.0 * 6.0);
+    // Over any machine's memory: the key is named and the run folder never appears.
+    for (key, from, to) in [
+        (
+            "data.batch_size",
+            "batch_size = 2",
+            "batch_size = 100000000",
+        ),
+        ("model.base_width", "base_width = 4", "base_width = 100000"),
+    ] {
+        let run = tmp.path().join(key);
+        let cfg = parse(&config_text(&run, 4, "", 1e-3, false).replace(from, to));
+        let err = hdrsynth::train::run(&cfg, &TrainOptions::default())
+            .expect_err("refused")
+            .to_string();
+        assert!(err.contains(key) && err.contains("GB available"), "{err}");
+        assert!(!run.exists(), "{key}: the run folder was created");
+    }
+    // A budget check against a given amount: 1 kB refuses even the small network.
+    assert!(budget::check(&need, 1e3, "model.base_width").is_err());
+    assert!(budget::check(&need, 1e12, "model.base_width").is_ok());
+}

@@ -1,0 +1,105 @@
+//! A lower bound on a training step's memory, checked against the host's available memory
+//! before a run allocates anything: a config whose batch or network cannot fit is refused,
+//! naming the key, instead of aborting in the allocator ("memory allocation of … failed").
+
+use crate::error::{Error, Result};
+use crate::models::ModelConfig;
+use burn::module::{Module, ModuleVisitor, Param};
+use burn::tensor::{Device, Tensor};
+
+/// What a training step holds at least, in bytes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StepMemory {
+    /// Trainable values of the network.
+    pub parameters: u64,
+    /// Weights, their gradients and Adam's two moments: 4 f32 per parameter.
+    pub optimiser_bytes: f64,
+    /// One batch of inputs at the first layer's channels (f32): every activation is extra.
+    pub input_bytes: f64,
+    /// The batch of `patch`² crops it was computed for.
+    pub batch: usize,
+    pub patch: usize,
+}
+
+impl StepMemory {
+    pub fn total(&self) -> f64 {
+        self.optimiser_bytes + self.input_bytes
+    }
+}
+
+/// Counts parameters by their declared shapes: Burn initialises parameters lazily, so a
+/// network too large to allocate can still be measured.
+#[derive(Default)]
+struct Count {
+    parameters: u64,
+    first_in_channels: Option<usize>,
+}
+
+impl ModuleVisitor for Count {
+    fn visit_float<const D: usize>(&mut self, param: &Param<Tensor<D>>) {
+        let shape = param.lazy_shape();
+        self.parameters = self
+            .parameters
+            .saturating_add(shape.dims::<D>().iter().map(|&d| d as u64).product::<u64>());
+        if D == 4 && self.first_in_channels.is_none() {
+            self.first_in_channels = Some(shape.dims::<D>()[1]);
+        }
+    }
+}
+
+/// The lower bound for `model` trained on batches of `batch` crops of `patch`².
+pub fn step_memory(model: &ModelConfig, batch: usize, patch: usize) -> Result<StepMemory> {
+    let device = Device::flex();
+    let mut count = Count::default();
+    match model {
+        ModelConfig::BlendUnet(m) => m.init(&device)?.visit(&mut count),
+        ModelConfig::Wu(m) => m.init(&device)?.visit(&mut count),
+    }
+    let channels = count.first_in_channels.unwrap_or(3) as f64;
+    Ok(StepMemory {
+        parameters: count.parameters,
+        optimiser_bytes: 16.0 * count.parameters as f64,
+        input_bytes: 4.0 * batch as f64 * (patch as f64).powi(2) * channels,
+        batch,
+        patch,
+    })
+}
+
+/// The host's available memory (Linux `/proc/meminfo` MemAvailable), bytes; `None` elsewhere.
+pub fn available_memory() -> Option<f64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024.0)
+}
+
+/// Refuse a step whose lower bound `need` exceeds `available` bytes, naming the key that
+/// dominates it (the network's width and depth, or the batch and crop size).
+pub fn check(need: &StepMemory, available: f64, model_keys: &str) -> Result<()> {
+    if need.total() <= available {
+        return Ok(());
+    }
+    let gb = |b: f64| b / 1e9;
+    let culprit = if need.optimiser_bytes >= need.input_bytes {
+        format!(
+            "{model_keys}: the network has {} parameters, {:.1} GB with their gradients and \
+             Adam's moments",
+            need.parameters,
+            gb(need.optimiser_bytes)
+        )
+    } else {
+        format!(
+            "data.batch_size = {} crops of data.patch = {}²: one batch of inputs alone is \
+             {:.1} GB",
+            need.batch,
+            need.patch,
+            gb(need.input_bytes)
+        )
+    };
+    Err(Error::Invalid(format!(
+        "{culprit}; a training step needs at least {:.1} GB and this machine has {:.1} GB \
+         available: lower it (docs/training.md, \"Memory\")",
+        gb(need.total()),
+        gb(available)
+    )))
+}
