@@ -2,6 +2,8 @@
 //! before a run allocates anything: a config whose batch or network cannot fit is refused,
 //! naming the key, instead of aborting in the allocator ("memory allocation of … failed").
 
+use super::config::TrainConfig;
+use crate::device::device_from_name;
 use crate::error::{Error, Result};
 use crate::models::ModelConfig;
 use burn::module::{Module, ModuleVisitor, Param};
@@ -102,4 +104,28 @@ pub fn check(need: &StepMemory, available: f64, model_keys: &str) -> Result<()> 
         gb(need.total()),
         gb(available)
     )))
+}
+
+/// On a CPU backend, refuse a config whose training step cannot fit in the host's available
+/// memory, before anything is read or allocated.
+pub fn check_config(cfg: &TrainConfig) -> Result<()> {
+    let names = if cfg.run.devices.is_empty() {
+        std::slice::from_ref(&cfg.run.backend)
+    } else {
+        cfg.run.devices.as_slice()
+    };
+    for name in names {
+        if !crate::device::is_cpu(&device_from_name(name)?) {
+            return Ok(());
+        }
+    }
+    let Some(available) = available_memory() else {
+        return Ok(());
+    };
+    let keys = match &cfg.model {
+        ModelConfig::BlendUnet(_) => "model.base_width and model.depth",
+        ModelConfig::Wu(_) => "model.base_width and model.res_blocks",
+    };
+    let need = step_memory(&cfg.model, cfg.data.batch_size, cfg.data.patch)?;
+    check(&need, available, keys)
 }

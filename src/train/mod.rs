@@ -235,7 +235,7 @@ pub const DATA_SOURCE_FILE: &str = "data_source.txt";
 /// last good checkpoint in place.
 pub fn run(cfg: &TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
     cfg.validate()?;
-    check_memory(cfg)?;
+    budget::check_config(cfg)?;
     let kind = cfg.model.sample_kind();
     // The loader resolves the exposure rule itself, so `data_source.txt` says where it came
     // from; the run's recorded config holds the rule's values.
@@ -261,30 +261,6 @@ pub fn run(cfg: &TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
             train(&task, cfg, opts, loader)
         }
     }
-}
-
-/// On a CPU backend, refuse a config whose training step cannot fit in the host's available
-/// memory ([`budget`]), before anything is read or allocated.
-fn check_memory(cfg: &TrainConfig) -> Result<()> {
-    let names = if cfg.run.devices.is_empty() {
-        std::slice::from_ref(&cfg.run.backend)
-    } else {
-        cfg.run.devices.as_slice()
-    };
-    for name in names {
-        if !crate::device::is_cpu(&device_from_name(name)?) {
-            return Ok(());
-        }
-    }
-    let Some(available) = budget::available_memory() else {
-        return Ok(());
-    };
-    let keys = match &cfg.model {
-        ModelConfig::BlendUnet(_) => "model.base_width and model.depth",
-        ModelConfig::Wu(_) => "model.base_width and model.res_blocks",
-    };
-    let need = budget::step_memory(&cfg.model, cfg.data.batch_size, cfg.data.patch)?;
-    budget::check(&need, available, keys)
 }
 
 /// Network-1's α as `loss.alpha` asks (see `config::LossConfig`); on resume, the checkpoint's.
@@ -763,11 +739,7 @@ fn stop_non_finite(
     let logged = log.write(&LogLine::Stopped {
         step,
         loss: Number(value),
-        error: if weight.is_some() {
-            "non-finite weights"
-        } else {
-            "non-finite loss"
-        },
+        error: weight.map_or("non-finite loss", |_| "non-finite weights"),
     });
     if let Err(e) = logged {
         return e;
