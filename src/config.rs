@@ -346,6 +346,11 @@ pub fn parse_toml<T: DeserializeOwned>(text: &str, path: &Path) -> Result<T> {
         let Some(span) = e.span() else {
             return Error::config(path, msg);
         };
+        if msg == "duplicate key"
+            && let Some(twice) = duplicate_key(text, span.start)
+        {
+            return Error::config(at(span.start), twice);
+        }
         let key = doc
             .as_ref()
             .and_then(|d| key_of_error(d.get_ref(), &span, &msg));
@@ -356,6 +361,33 @@ pub fn parse_toml<T: DeserializeOwned>(text: &str, path: &Path) -> Result<T> {
             _ => Error::config(at(span.start), msg),
         }
     })
+}
+
+/// toml's "duplicate key" at byte `offset`, said with the key and both lines: "key 'run.steps'
+/// is given twice (lines 3 and 4); give it once". `None` when the line is not `key = value`.
+fn duplicate_key(text: &str, offset: usize) -> Option<String> {
+    let lines: Vec<&str> = text.lines().collect();
+    let n = text[..offset.min(text.len())].matches('\n').count();
+    let key_of = |l: &str| l.split_once('=').map(|(k, _)| k.trim().to_string());
+    let key = key_of(lines.get(n)?)?;
+    // The table the line is in, and the key's first line within it.
+    let start = (0..n)
+        .rev()
+        .find(|&i| lines[i].trim_start().starts_with('['))
+        .map_or(0, |i| i + 1);
+    let table = start
+        .checked_sub(1)
+        .map(|i| lines[i].trim().trim_matches(['[', ']']).trim().to_string());
+    let first = (start..n).find(|&i| key_of(lines[i]).as_deref() == Some(key.as_str()))?;
+    let full = match table {
+        Some(t) if !t.is_empty() => format!("{t}.{key}"),
+        _ => key,
+    };
+    Some(format!(
+        "key '{full}' is given twice (lines {} and {}); give it once",
+        first + 1,
+        n + 1
+    ))
 }
 
 /// The key a deserialisation error is about: the deepest key whose value spans the error's

@@ -2944,3 +2944,27 @@ fn a_bracket_folder_that_is_a_file_or_missing_is_named_as_such_once() {
         "{text}"
     );
 }
+
+#[test]
+fn an_empty_or_text_file_named_as_a_frame_is_called_not_an_image() {
+    use hdrsynth::data::brackets::read_exif;
+    let dir = tempfile::tempdir().unwrap();
+    let empty = dir.path().join("a.png");
+    std::fs::write(&empty, b"").unwrap();
+    let e = read_exif(&empty).expect_err("empty").to_string();
+    assert!(
+        e.contains("a.png") && e.contains("an empty file (0 bytes), not an image"),
+        "{e}"
+    );
+    let text = dir.path().join("b.jpg");
+    std::fs::write(&text, b"hello\n").unwrap();
+    let e = read_exif(&text).expect_err("text").to_string();
+    assert!(
+        e.contains("b.jpg") && e.contains("not an image: its 6 bytes") && !e.contains("EXIF"),
+        "{e}"
+    );
+    // A real image without EXIF still reads as "no tags".
+    let png = dir.path().join("c.png");
+    write_ldr(&png, &Image::new(4, 4), BitDepth::Eight).unwrap();
+    assert_eq!(read_exif(&png).expect("png").exposure_time, None);
+}

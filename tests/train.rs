@@ -391,6 +391,24 @@ fn unknown_keys_and_bad_values_are_config_errors_naming_the_line() {
     let cfg: TrainConfig = parse_toml(&text, Path::new("train.toml")).expect("parses");
     let err = cfg.validate().expect_err("patch not a multiple of 4");
     assert!(err.to_string().contains("multiple"), "{err}");
+    // A key given twice: both lines and the key in its table.
+    let text = config_text(Path::new("/tmp/x"), 4, "", 1e-3, true)
+        .replace("patch = 32\n", "patch = 32\nworkers = 1\n");
+    let line = |k: &str| 1 + text.lines().position(|l| l.starts_with(k)).expect("line");
+    let lines: Vec<&str> = text.lines().collect();
+    let second = 1 + lines
+        .iter()
+        .rposition(|l| l.starts_with("workers"))
+        .expect("line");
+    let err = parse_toml::<TrainConfig>(&text, Path::new("train.toml")).expect_err("twice");
+    assert_eq!(
+        err.to_string(),
+        format!(
+            "train.toml:{second}: key 'data.workers' is given twice (lines {} and {second}); give \
+             it once",
+            line("workers")
+        )
+    );
 }
 
 /// `[data]` embeds the loader's `RealismConfig` (its keys written in `[data]` itself) and still
@@ -696,6 +714,27 @@ fn a_short_run_learns_the_blend_weights() {
         .expect("infer");
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && err.contains("ev-9.png"), "{err}");
+    assert!(!failed.exists(), "a failed infer left {}", failed.display());
+    // LOW and HIGH of different sizes: refused naming both and their sizes.
+    let small = tmp.path().join("small.png");
+    let ev0 = hdrsynth::io::read_image(&set.join("static/ev+0.png")).expect("png");
+    let crop = hdrsynth::io::Image::from_vec(1, 1, ev0.data[..3].to_vec());
+    hdrsynth::io::write_ldr(&small, &crop, hdrsynth::io::BitDepth::Eight).expect("write");
+    let o = bin()
+        .args(["infer", "--checkpoint"])
+        .arg(&run)
+        .arg("--inputs")
+        .arg(&small)
+        .arg(set.join("static/ev+0.png"))
+        .arg("--out")
+        .arg(&failed)
+        .output()
+        .expect("infer");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("small.png is 1×1 but") && err.contains("96×80"),
+        "{err}"
+    );
     assert!(!failed.exists(), "a failed infer left {}", failed.display());
     let whole = infer(&tmp.path().join("whole"), "384");
     let tiled = infer(&tmp.path().join("tiled"), "32");

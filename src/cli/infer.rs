@@ -68,7 +68,20 @@ pub fn run(args: &Args) -> Result<String> {
                     let read = |p: &PathBuf| -> Result<Image> {
                         read_image(p).with_context(|| format!("reading input {}", p.display()))
                     };
-                    (read(low)?, read(high)?)
+                    let (l, h) = (read(low)?, read(high)?);
+                    if (l.width, l.height) != (h.width, h.height) {
+                        bail!(
+                            "--inputs: {} is {}×{} but {} is {}×{}: LOW and HIGH must be one \
+                             size (the same view at two exposures)",
+                            low.display(),
+                            l.width,
+                            l.height,
+                            high.display(),
+                            h.width,
+                            h.height
+                        );
+                    }
+                    (l, h)
                 }
                 _ => bail!("Network-1 needs --inputs LOW HIGH (the EV−3 and EV0 frames) or --set"),
             };

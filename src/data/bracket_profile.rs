@@ -465,25 +465,34 @@ impl BracketCalibration {
         }
         let r = self.correlation_ratio;
         let f = &self.correlation;
-        let _ = writeln!(
-            s,
-            "spatial correlation: low/high-order residual variance ratio, median over bins: R \
-             {:.2}, G {:.2}, B {:.2} (1 = white noise); without 8-bit rounding {:.3}, {:.3}, \
-             {:.3} → Gaussian kernel width {:.3}, lag-1 correlation {:.3} ({})",
-            r[0],
-            r[1],
-            r[2],
-            f.ratio[0],
-            f.ratio[1],
-            f.ratio[2],
-            f.width,
-            f.rho,
-            self.written(
-                plan::id::CORRELATED_NOISE,
+        if r.iter().chain(&f.ratio).all(|v| v.is_finite()) {
+            let _ = writeln!(
+                s,
+                "spatial correlation: low/high-order residual variance ratio, median over \
+                 bins: R {:.2}, G {:.2}, B {:.2} (1 = white noise); without 8-bit rounding \
+                 {:.3}, {:.3}, {:.3} → Gaussian kernel width {:.3}, lag-1 correlation {:.3} \
+                 ({})",
+                r[0],
+                r[1],
+                r[2],
+                f.ratio[0],
+                f.ratio[1],
+                f.ratio[2],
+                f.width,
                 f.rho,
-                "the profile's noise is white"
-            )
-        );
+                self.written(
+                    plan::id::CORRELATED_NOISE,
+                    f.rho,
+                    "the profile's noise is white"
+                )
+            );
+        } else {
+            let _ = writeln!(
+                s,
+                "spatial correlation: not measured (no code bin with enough flat pixels in \
+                 every channel); none written"
+            );
+        }
         let _ = writeln!(
             s,
             "channel correlation of the noise: {:.3} ({})",

@@ -470,6 +470,25 @@ pub fn linearise(frame: &BracketFrame, code: Image, lin: &Linearise) -> Image {
     }
 }
 
+/// Refuse a set whose frames (as read, upright) differ in size, naming the first that
+/// differs from the set's first frame.
+fn same_size(set: &brackets::BracketSet, frames: &[Image]) -> Result<()> {
+    let (w, h) = (frames[0].width, frames[0].height);
+    match frames.iter().position(|f| (f.width, f.height) != (w, h)) {
+        None => Ok(()),
+        Some(i) => Err(Error::layout(
+            &set.frames[i].path,
+            format!(
+                "{}×{}, but {} of the same set is {w}×{h}: every frame of a bracket must have \
+                 one size",
+                frames[i].width,
+                frames[i].height,
+                set.frames[0].path.display()
+            ),
+        )),
+    }
+}
+
 /// The linearisation of LDR frames for the scanned `sets` under `choice`: a curve as given, or
 /// a response estimated from the first set whose frames are all LDR (all its frames, times
 /// from their stops), written to `crf_dir` when given (OpenCV's convention) and noted. With no
@@ -506,6 +525,7 @@ pub fn resolve_linearisation(
         .iter()
         .map(brackets::read_frame_image)
         .collect::<Result<Vec<Image>>>()?;
+    same_size(set, &frames)?;
     refuse_no_signal(set, &frames, name)?;
     // Only ratios matter: times relative to the shortest frame.
     let times: Vec<f64> = set

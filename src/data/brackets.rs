@@ -185,6 +185,20 @@ fn list_dir(dir: &Path) -> Result<(Vec<PathBuf>, Vec<PathBuf>)> {
     Ok((files, dirs))
 }
 
+/// Whether `path` begins with a JPEG, PNG or TIFF (DNG) signature.
+fn looks_like_an_image(path: &Path) -> bool {
+    use std::io::Read;
+    let mut head = [0u8; 8];
+    let n = crate::io::guard::open_input(path)
+        .and_then(|mut f| f.read(&mut head))
+        .unwrap_or(0);
+    let head = &head[..n];
+    head.starts_with(&[0xFF, 0xD8, 0xFF])
+        || head.starts_with(b"\x89PNG\r\n\x1a\n")
+        || head.starts_with(b"II*\0")
+        || head.starts_with(b"MM\0*")
+}
+
 /// Read the exposure tags of one file; a file without EXIF gives all `None`.
 pub fn read_exif(path: &Path) -> Result<ExifExposure> {
     use exif::{In, Tag, Value};
@@ -195,6 +209,21 @@ pub fn read_exif(path: &Path) -> Result<ExifExposure> {
             return Ok(ExifExposure::default());
         }
         Err(exif::Error::Io(e)) => return Err(Error::io(path, e)),
+        // The EXIF reader meets a file that is not an image first: say that, not its words.
+        Err(exif::Error::InvalidFormat(_)) if !looks_like_an_image(path) => {
+            let size = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
+            return Err(Error::decode(
+                path,
+                if size == 0 {
+                    "an empty file (0 bytes), not an image".to_string()
+                } else {
+                    format!(
+                        "not an image: its {size} bytes do not begin as a JPEG, PNG, TIFF or \
+                         DNG does"
+                    )
+                },
+            ));
+        }
         Err(e) => return Err(Error::decode(path, format!("EXIF: {e}"))),
     };
     let field = |tag: Tag| exif.get_field(tag, In::PRIMARY).map(|f| &f.value);

@@ -34,7 +34,7 @@ pub const DEFAULT_TILE: usize = 384;
 #[derive(clap::Args, Clone, Debug)]
 pub struct NetworkOptions {
     /// Core tile side (a multiple of the network's 2^depth); default 384.
-    #[arg(long)]
+    #[arg(long, value_parser = tile_side)]
     pub tile: Option<usize>,
     /// Context per tile side; default: the network's receptive-field radius (exact tiling).
     #[arg(long)]
@@ -71,6 +71,16 @@ impl NetworkOptions {
             overlap: self.overlap.unwrap_or(default.overlap),
             ..default
         }
+    }
+}
+
+/// `--tile`: a whole number of pixels, at least 1.
+fn tile_side(s: &str) -> std::result::Result<usize, String> {
+    match s.parse::<usize>() {
+        Ok(n) if n >= 1 => Ok(n),
+        _ => Err(format!(
+            "'{s}' is not a tile side: give a whole number of pixels ≥ 1"
+        )),
     }
 }
 
