@@ -437,7 +437,16 @@ fn a_second_writer_is_refused_and_a_killed_holder_does_not_block() {
     }
     child.kill().unwrap(); // SIGKILL
     child.wait().unwrap();
-    OutputLock::acquire(&out, "after kill").expect("a dead holder's lock is released");
+    // flock forks its `sleep` before that child closes the inherited descriptor: killed in
+    // that window, the child still shares the lock for the moment it takes to close it.
+    let t0 = std::time::Instant::now();
+    while let Err(e) = OutputLock::acquire(&out, "after kill") {
+        assert!(
+            t0.elapsed().as_secs() < 5,
+            "a dead holder's lock is released: {e}"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
 }
 
 // Every writer refuses an output folder another holds. The test holds the lock through the
@@ -2967,4 +2976,28 @@ fn an_empty_or_text_file_named_as_a_frame_is_called_not_an_image() {
     let png = dir.path().join("c.png");
     write_ldr(&png, &Image::new(4, 4), BitDepth::Eight).unwrap();
     assert_eq!(read_exif(&png).expect("png").exposure_time, None);
+}
+
+#[test]
+fn radiance_flags_given_with_brackets_are_refused_not_ignored() {
+    let dir = tempfile::tempdir().unwrap();
+    for flag in [["--isos", "100"], ["--bits", "16"], ["--evs", "-2,0,2"]] {
+        let out = bin()
+            .args(["testset", "--brackets"])
+            .arg(dir.path())
+            .args(flag)
+            .arg("--out")
+            .arg(dir.path().join("ts"))
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&out.stderr).to_string();
+        assert_eq!(out.status.code(), Some(2), "{text}");
+        assert!(
+            text.contains(flag[0])
+                && text.contains("--brackets")
+                && text.contains("cannot be used"),
+            "{text}"
+        );
+        assert!(!dir.path().join("ts").exists());
+    }
 }

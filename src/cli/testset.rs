@@ -69,39 +69,49 @@ pub struct Args {
     #[arg(long)]
     pub out: PathBuf,
     /// ISOs, one set per scene and ISO.
-    #[arg(long, value_delimiter = ',', default_values_t = [100.0, 800.0, 3200.0])]
+    #[arg(long, conflicts_with = "brackets", value_delimiter = ',', default_values_t = [100.0, 800.0, 3200.0])]
     pub isos: Vec<f64>,
     /// Bracket EVs (must include 0): -3,0 for Network-1, -2,0,2 for Network-2.
-    #[arg(long, value_delimiter = ',', allow_hyphen_values = true, default_values_t = [-3.0, 0.0])]
+    #[arg(long, conflicts_with = "brackets", value_delimiter = ',', allow_hyphen_values = true, default_values_t = [-3.0, 0.0])]
     pub evs: Vec<f32>,
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, conflicts_with = "brackets", default_value_t = 0)]
     pub seed: u64,
     /// Factor on the automatic exposure key.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, conflicts_with = "brackets", default_value_t = 1.0)]
     pub exposure: f64,
     /// Auto-exposure: fraction of sensor white the scene's log-average luminance lands at.
     /// Either flag replaces the profile's measured rule (the other flag at its default,
     /// 0.128 / 0.02); without both, the profile's rule, else the default.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "brackets")]
     pub mid_grey: Option<f64>,
     /// Auto-exposure: largest fraction of pixels allowed to clip at EV0 (see --mid-grey).
-    #[arg(long)]
+    #[arg(long, conflicts_with = "brackets")]
     pub max_clipped: Option<f64>,
     /// gaussian (the paper's N(0, aI+b)), poisson-gaussian (exact), none.
-    #[arg(long, value_enum, default_value = "gaussian")]
+    #[arg(
+        long,
+        conflicts_with = "brackets",
+        value_enum,
+        default_value = "gaussian"
+    )]
     pub noise: NoiseModel,
     /// Skip the colour transform T (frames and ground truth).
-    #[arg(long)]
+    #[arg(long, conflicts_with = "brackets")]
     pub no_colour: bool,
     /// The ground truth's space: device (T applied, as in the frames) or scene (scene-linear
     /// Rec. 709; T on the frames only, as a device's ISP renders).
-    #[arg(long, value_enum, default_value = "device")]
+    #[arg(
+        long,
+        conflicts_with = "brackets",
+        value_enum,
+        default_value = "device"
+    )]
     pub ground_truth: TargetSpace,
     /// Frame bits: 8 or 16.
-    #[arg(long, default_value_t = 8)]
+    #[arg(long, conflicts_with = "brackets", default_value_t = 8)]
     pub bits: u32,
     /// Resample each radiance map to WIDTHxHEIGHT first (e.g. 4032x3024).
-    #[arg(long, value_parser = parse_size)]
+    #[arg(long, conflicts_with = "brackets", value_parser = parse_size)]
     pub resize: Option<(usize, usize)>,
 }
 
