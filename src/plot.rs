@@ -4,9 +4,10 @@
 
 use crate::io::Image;
 use embedded_graphics::mono_font::MonoTextStyle;
+use embedded_graphics::mono_font::iso_8859_1::FONT_6X10;
 use embedded_graphics::pixelcolor::Rgb888;
 use embedded_graphics::prelude::*;
-use embedded_graphics::primitives::{Line, PrimitiveStyle};
+use embedded_graphics::primitives::{Line, PrimitiveStyle, Rectangle};
 use embedded_graphics::text::{Alignment, Text};
 
 pub struct Canvas {
@@ -93,4 +94,62 @@ pub fn x_tick(
         .into_styled(PrimitiveStyle::with_stroke(grid, 1))
         .draw(cv);
     let _ = Text::with_alignment(label, Point::new(x, y1 + 13), text, Alignment::Center).draw(cv);
+}
+
+/// The size and margins (left, top, right, bottom) of the report plots drawn in a [`frame`].
+pub const W: i32 = 520;
+pub const H: i32 = 340;
+pub const L: i32 = 60;
+pub const T: i32 = 30;
+pub const R: i32 = 20;
+pub const B: i32 = 60;
+
+/// The plot area's box and the title above it.
+pub fn frame(c: &mut Canvas, title: &str) {
+    let black = MonoTextStyle::new(&FONT_6X10, Rgb888::BLACK);
+    let _ = Rectangle::new(
+        Point::new(L, T),
+        Size::new((W - L - R) as u32, (H - T - B) as u32),
+    )
+    .into_styled(PrimitiveStyle::with_stroke(Rgb888::BLACK, 1))
+    .draw(c);
+    let _ = Text::new(title, Point::new(L, 18), black).draw(c);
+}
+
+/// One bar per value on a log axis (0.1 up), each labelled with its value and (shortened) its
+/// label, and a red line at `threshold`.
+pub fn log_bars(values: &[f64], labels: &[String], threshold: f64, title: &str) -> Image {
+    let mut c = Canvas::new(W as usize, H as usize);
+    frame(&mut c, title);
+    let text = MonoTextStyle::new(&FONT_6X10, Rgb888::BLACK);
+    let top = values.iter().copied().fold(threshold, f64::max).max(1.0) * 1.2;
+    let ly = |v: f64| {
+        let f = (v.max(0.1).log10() + 1.0) / (top.log10() + 1.0);
+        H - B - (f * (H - T - B) as f64) as i32
+    };
+    let n = values.len().max(1) as i32;
+    let bw = (W - L - R) / n;
+    for (i, (g, l)) in values.iter().zip(labels).enumerate() {
+        let x0 = L + i as i32 * bw + bw / 6;
+        let y = ly(*g);
+        let _ = Rectangle::new(
+            Point::new(x0, y),
+            Size::new((bw * 2 / 3) as u32, (H - B - y).max(1) as u32),
+        )
+        .into_styled(PrimitiveStyle::with_fill(Rgb888::new(70, 110, 200)))
+        .draw(&mut c);
+        let _ = Text::new(&format!("{g:.1}"), Point::new(x0, y - 3), text).draw(&mut c);
+        let short: String = l.chars().take((bw / 6).max(4) as usize).collect();
+        let _ = Text::new(&short, Point::new(x0, H - B + 14), text).draw(&mut c);
+    }
+    let yt = ly(threshold);
+    let _ = Line::new(Point::new(L, yt), Point::new(W - R, yt))
+        .into_styled(PrimitiveStyle::with_stroke(Rgb888::RED, 1))
+        .draw(&mut c);
+    let mut v = 0.1;
+    while v <= top {
+        let _ = Text::new(&format!("{v}"), Point::new(8, ly(v) + 3), text).draw(&mut c);
+        v *= 10.0;
+    }
+    c.into_image()
 }

@@ -3505,6 +3505,17 @@ fn the_loop_trains_the_device_rule_in_its_metering_step_only() {
         strip.width(),
         strip.height()
     );
+    // The device-output check's plots: the gap per step, and each step's statistics.
+    assert!(
+        report.contains("[the gap of every step](pictures/device_output_gap.png)"),
+        "{report}"
+    );
+    for name in ["gap", "response", "noise"] {
+        let file = out.join(format!("pictures/device_output_{name}.png"));
+        let plot = image::open(&file).expect("plot");
+        assert_eq!((plot.width(), plot.height()), (520, 340), "{}", file.display());
+        assert!(report.contains(&format!("(pictures/device_output_{name}.png)")), "{report}");
+    }
     // The same folders spelled another way resume it (every cell kept); another split is
     // refused.
     let respelled = LoopOptions {

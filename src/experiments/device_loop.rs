@@ -265,7 +265,7 @@ pub fn run(opts: &LoopOptions) -> Result<LoopSummary> {
     let tables = ablate::write_tables(&cfg)?;
     let mut report = split_text(opts, &cal, &test);
     report.push_str(&measured_text(&cal_result, &extra));
-    report.push_str(&checks_text(&steps, &checks));
+    report.push_str(&checks_text(&steps, &checks, &opts.out)?);
     report.push_str(&steps_table(&cfg, &steps)?);
     report.push_str(&what_a_user_gets(&cfg, &steps)?);
     report.push_str(&pictures_text(&cfg, &testset, &steps, &opts.out)?);

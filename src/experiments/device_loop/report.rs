@@ -2,6 +2,7 @@
 //! check, the gain of each step, what a user gets, the pictures.
 
 use super::*;
+use crate::io::{BitDepth, Image, write_ldr};
 
 /// What the calibration measured: the noise rows and the spatial correlation's fit.
 pub(super) fn measured_text(cal: &BracketCalibration, extra: &Extra) -> String {
@@ -49,14 +50,24 @@ pub(super) fn measured_text(cal: &BracketCalibration, extra: &Extra) -> String {
 
 /// Each step's device-output check on the calibration scenes: the gap, what it names, and
 /// every statistic.
-pub(super) fn checks_text(steps: &[Step], checks: &[OutputCheck]) -> String {
+pub(super) fn checks_text(steps: &[Step], checks: &[OutputCheck], out: &Path) -> Result<String> {
+    let plots = check_plots(steps, checks, &out.join(PICTURES))?;
     let mut s = String::from(
         "## The device-output check of each step (calibration scenes)\n\n\
          Each step's profile renders the calibration scenes back at every frame's exposure and \
          ISO; its statistics are compared with the real frames' (docs/your_device.md, \
-         \"The device-output check\").\n\n\
-         | step | gap | largest significant statistic | closed by |\n|---|---|---|---|\n",
+         \"The device-output check\").\n\n",
     );
+    let links: Vec<String> = plots
+        .iter()
+        .map(|(what, file)| format!("[{what}]({PICTURES}/{file})"))
+        .collect();
+    let _ = writeln!(
+        s,
+        "Plots (|z| on a log axis, red: the threshold): {}.\n",
+        links.join(", ")
+    );
+    s.push_str("| step | gap | largest significant statistic | closed by |\n|---|---|---|---|\n");
     for (st, c) in steps.iter().zip(checks) {
         let (stat, by) = c.named().map_or(("none".to_string(), "–"), |n| {
             (format!("{} (z {:+.1})", n.name, n.z), n.names)
@@ -67,7 +78,62 @@ pub(super) fn checks_text(steps: &[Step], checks: &[OutputCheck]) -> String {
         let _ = write!(s, "\n### {}: {}\n\n{}", st.name, st.label, c.markdown());
     }
     s.push('\n');
-    s
+    Ok(s)
+}
+
+/// The check's plots in `dir`: the gap of every step, and each step's |z| per statistic.
+/// Returns (what, file name) per plot.
+fn check_plots(
+    steps: &[Step],
+    checks: &[OutputCheck],
+    dir: &Path,
+) -> Result<Vec<(String, String)>> {
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    let threshold = checks.first().map_or(3.0, |c| c.threshold);
+    let mut written = Vec::new();
+    let mut plot = |what: String, file: String, img: Image| -> Result<()> {
+        write_ldr(&dir.join(&file), &img, BitDepth::Eight)?;
+        written.push((what, file));
+        Ok(())
+    };
+    let names: Vec<String> = steps.iter().map(|st| st.name.to_string()).collect();
+    let gaps: Vec<f64> = checks.iter().map(|c| c.gap).collect();
+    let title = "device-output check: gap (largest significant |z|) per step";
+    plot(
+        "the gap of every step".to_string(),
+        "device_output_gap.png".to_string(),
+        crate::plot::log_bars(&gaps, &names, threshold, title),
+    )?;
+    for (st, c) in steps.iter().zip(checks) {
+        let z: Vec<f64> = c.stats.iter().map(|x| x.z.abs()).collect();
+        let labels: Vec<String> = c.stats.iter().map(|x| short_statistic(&x.name)).collect();
+        plot(
+            format!("{}'s statistics", st.name),
+            format!("device_output_{}.png", st.name),
+            crate::plot::log_bars(
+                &z,
+                &labels,
+                threshold,
+                &format!("{}: |z| per statistic", st.name),
+            ),
+        )?;
+    }
+    Ok(written)
+}
+
+/// A statistic's name in a few characters, for a plot's axis: "R level", "G spatial",
+/// "chroma".
+fn short_statistic(name: &str) -> String {
+    let channel = name.split_whitespace().next().unwrap_or("");
+    if name.contains("channel correlation") {
+        "chroma".to_string()
+    } else if name.contains("noise level") {
+        format!("{channel} level")
+    } else if name.contains("spatial correlation") {
+        format!("{channel} spatial")
+    } else {
+        name.chars().take(10).collect()
+    }
 }
 
 /// What the split was, and what it allows.

@@ -1,13 +1,13 @@
 //! The gap and radial-profile plots of a diagnosis.
 
 use crate::io::Image;
-use crate::plot::Canvas;
+use crate::plot::{B, Canvas, H, L, R, T, W, frame};
 use crate::sensor::effects::{Protocol, Summary};
 use embedded_graphics::mono_font::MonoTextStyle;
 use embedded_graphics::mono_font::iso_8859_1::FONT_6X10;
 use embedded_graphics::pixelcolor::Rgb888;
 use embedded_graphics::prelude::*;
-use embedded_graphics::primitives::{Circle, Line, PrimitiveStyle, Rectangle};
+use embedded_graphics::primitives::{Circle, Line, PrimitiveStyle};
 use embedded_graphics::text::Text;
 
 /// Mean flat signal (relative to its centre) in 16 bins of r².
@@ -34,59 +34,14 @@ pub(super) fn radial_profile(s: &Summary, proto: &Protocol) -> Vec<(f64, f64)> {
     pts.iter().map(|p| (p.0, p.1 / c)).collect()
 }
 
-const W: i32 = 520;
-const H: i32 = 340;
-const L: i32 = 60;
-const T: i32 = 30;
-const R: i32 = 20;
-const B: i32 = 60;
-
-fn frame(c: &mut Canvas, title: &str) {
-    let black = MonoTextStyle::new(&FONT_6X10, Rgb888::BLACK);
-    let _ = Rectangle::new(
-        Point::new(L, T),
-        Size::new((W - L - R) as u32, (H - T - B) as u32),
-    )
-    .into_styled(PrimitiveStyle::with_stroke(Rgb888::BLACK, 1))
-    .draw(c);
-    let _ = Text::new(title, Point::new(L, 18), black).draw(c);
-}
-
 /// Gap after each step (log scale bars) with the threshold line.
 pub fn gap(gaps: &[f64], labels: &[String], threshold: f64) -> Image {
-    let mut c = Canvas::new(W as usize, H as usize);
-    frame(&mut c, "gap (largest |z|) per step; red: threshold");
-    let text = MonoTextStyle::new(&FONT_6X10, Rgb888::BLACK);
-    let top = gaps.iter().copied().fold(threshold, f64::max).max(1.0) * 1.2;
-    let ly = |v: f64| {
-        let f = (v.max(0.1).log10() + 1.0) / (top.log10() + 1.0);
-        H - B - (f * (H - T - B) as f64) as i32
-    };
-    let n = gaps.len().max(1) as i32;
-    let bw = (W - L - R) / n;
-    for (i, (g, l)) in gaps.iter().zip(labels).enumerate() {
-        let x0 = L + i as i32 * bw + bw / 6;
-        let y = ly(*g);
-        let _ = Rectangle::new(
-            Point::new(x0, y),
-            Size::new((bw * 2 / 3) as u32, (H - B - y).max(1) as u32),
-        )
-        .into_styled(PrimitiveStyle::with_fill(Rgb888::new(70, 110, 200)))
-        .draw(&mut c);
-        let _ = Text::new(&format!("{g:.1}"), Point::new(x0, y - 3), text).draw(&mut c);
-        let short: String = l.chars().take((bw / 6).max(4) as usize).collect();
-        let _ = Text::new(&short, Point::new(x0, H - B + 14), text).draw(&mut c);
-    }
-    let yt = ly(threshold);
-    let _ = Line::new(Point::new(L, yt), Point::new(W - R, yt))
-        .into_styled(PrimitiveStyle::with_stroke(Rgb888::RED, 1))
-        .draw(&mut c);
-    for v in [0.1, 1.0, 10.0, 100.0, 1000.0] {
-        if v <= top {
-            let _ = Text::new(&format!("{v}"), Point::new(8, ly(v) + 3), text).draw(&mut c);
-        }
-    }
-    c.into_image()
+    crate::plot::log_bars(
+        gaps,
+        labels,
+        threshold,
+        "gap (largest |z|) per step; red: threshold",
+    )
 }
 
 /// Flat signal relative to the centre against r², per flat burst, with the model's
