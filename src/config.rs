@@ -363,6 +363,59 @@ pub fn parse_toml<T: DeserializeOwned>(text: &str, path: &Path) -> Result<T> {
     })
 }
 
+/// The dotted keys whose values differ between two TOML documents `old` and `new` (at most 5,
+/// then a count), each as "key: old → new" ("(absent)" for a missing side).
+pub fn differing_keys(old: &str, new: &str) -> Vec<String> {
+    fn flatten(
+        prefix: &str,
+        t: &toml::Table,
+        out: &mut std::collections::BTreeMap<String, String>,
+    ) {
+        for (k, v) in t {
+            let key = if prefix.is_empty() {
+                k.clone()
+            } else {
+                format!("{prefix}.{k}")
+            };
+            match v {
+                toml::Value::Table(inner) => flatten(&key, inner, out),
+                other => {
+                    out.insert(key, other.to_string());
+                }
+            }
+        }
+    }
+    let table = |text: &str| {
+        let mut m = std::collections::BTreeMap::new();
+        if let Ok(t) = text.parse::<toml::Table>() {
+            flatten("", &t, &mut m);
+        }
+        m
+    };
+    let (a, b) = (table(old), table(new));
+    let absent = "(absent)".to_string();
+    let mut keys: Vec<&String> = a.keys().chain(b.keys()).collect();
+    keys.sort();
+    keys.dedup();
+    let diffs: Vec<String> = keys
+        .into_iter()
+        .filter(|k| a.get(*k) != b.get(*k))
+        .map(|k| {
+            format!(
+                "{k}: {} → {}",
+                a.get(k).unwrap_or(&absent),
+                b.get(k).unwrap_or(&absent)
+            )
+        })
+        .collect();
+    let n = diffs.len();
+    let mut shown: Vec<String> = diffs.into_iter().take(5).collect();
+    if n > 5 {
+        shown.push(format!("and {} more", n - 5));
+    }
+    shown
+}
+
 /// toml's "duplicate key" at byte `offset`, said with the key and both lines: "key 'run.steps'
 /// is given twice (lines 3 and 4); give it once". `None` when the line is not `key = value`.
 fn duplicate_key(text: &str, offset: usize) -> Option<String> {

@@ -3513,8 +3513,16 @@ fn the_loop_trains_the_device_rule_in_its_metering_step_only() {
     for name in ["gap", "response", "noise"] {
         let file = out.join(format!("pictures/device_output_{name}.png"));
         let plot = image::open(&file).expect("plot");
-        assert_eq!((plot.width(), plot.height()), (520, 340), "{}", file.display());
-        assert!(report.contains(&format!("(pictures/device_output_{name}.png)")), "{report}");
+        assert_eq!(
+            (plot.width(), plot.height()),
+            (520, 340),
+            "{}",
+            file.display()
+        );
+        assert!(
+            report.contains(&format!("(pictures/device_output_{name}.png)")),
+            "{report}"
+        );
     }
     // The same folders spelled another way resume it (every cell kept); another split is
     // refused.

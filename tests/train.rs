@@ -285,7 +285,26 @@ fn resume_refuses_a_changed_config_and_a_missing_run() {
     changed.optim.lr = 2e-3;
     changed.run.steps = 8;
     let err = hdrsynth::train::run(&changed, &resume).expect_err("changed config");
-    assert!(err.to_string().contains("different config"), "{err}");
+    assert!(
+        err.to_string()
+            .contains("different config (optim.lr: 0.001 → 0.002; only run.steps"),
+        "{err}"
+    );
+    // A moved run folder: the key that differs is the run's own folder.
+    let moved = tmp.path().join("moved");
+    std::fs::rename(&run, &moved).expect("move");
+    let mut there = cfg.clone();
+    there.run.out = moved.clone();
+    let err = hdrsynth::train::run(&there, &resume).expect_err("moved");
+    assert!(
+        err.to_string().contains(&format!(
+            "run.out: {:?} → {:?}",
+            run.display().to_string(),
+            moved.display().to_string()
+        )),
+        "{err}"
+    );
+    std::fs::rename(&moved, &run).expect("move back");
     // Only the step count may change: extending a finished run continues it.
     let mut longer = cfg.clone();
     longer.run.steps = 6;

@@ -413,10 +413,13 @@ fn start_or_resume<T: Task>(
         (Some(dir), true) => {
             let saved = crate::io::guard::read_text(&run.join(RUN_CONFIG))?;
             if saved != identity {
+                let keys = crate::config::differing_keys(&saved, &identity).join("; ");
                 return Err(Error::config(
                     run.join(RUN_CONFIG),
-                    "the run was started with a different config (only run.steps may change on \
-                     resume); start a new run folder instead",
+                    format!(
+                        "the run was started with a different config ({keys}; only run.steps \
+                         may change on resume); start a new run folder instead"
+                    ),
                 ));
             }
             let state = checkpoint::read_state(dir)?;
