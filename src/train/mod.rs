@@ -414,13 +414,11 @@ fn start_or_resume<T: Task>(
             let saved = crate::io::guard::read_text(&run.join(RUN_CONFIG))?;
             if saved != identity {
                 let keys = crate::config::differing_keys(&saved, &identity).join("; ");
-                return Err(Error::config(
-                    run.join(RUN_CONFIG),
-                    format!(
-                        "the run was started with a different config ({keys}; only run.steps \
-                         may change on resume); start a new run folder instead"
-                    ),
-                ));
+                let msg = format!(
+                    "the run was started with a different config ({keys}; only run.steps may \
+                     change on resume); start a new run folder instead"
+                );
+                return Err(Error::config(run.join(RUN_CONFIG), msg));
             }
             let state = checkpoint::read_state(dir)?;
             if state.model != task.model_config() {
