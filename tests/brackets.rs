@@ -2039,6 +2039,61 @@ fn a_short_frames_black_floor_does_not_lift_the_dark_regions_of_the_merge() {
     assert!(worst < 0.05, "largest relative error {worst}");
 }
 
+/// `--gt-frames others` keeps the inputs' noise out of the ground truth: on a noisy 5-frame
+/// ramp (every column one radiance), the ground truth's deviation from its column mean is
+/// correlated with the reference input's under `all` (the reference is merged in) and not
+/// under `others`.
+#[test]
+fn ground_truth_from_the_other_frames_is_independent_of_the_inputs_noise() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let set = tmp.path().join("ramp");
+    noisy_png_bracket(
+        &set,
+        4e-4,
+        1e-5,
+        &[-2.0, -1.0, 0.0, 1.0, 2.0],
+        Spatial::White,
+    );
+    let beside = tempfile::tempdir().expect("tmp");
+    let correlation = |gt: GtFrames, name: &str| {
+        let out = beside.path().join(name);
+        let opts = srgb_opts(InputChoice::Indices([0, 2, 4]), gt);
+        bracket_testset::build(tmp.path(), &opts, &out).expect("build");
+        let read = |f: &str| hdrsynth::io::read_image(&out.join("ramp").join(f)).expect(f);
+        let (hdr, reference) = (read("HDRImg.hdr"), read("frame_2.tif"));
+        let (w, h) = (hdr.width, hdr.height);
+        let lin = |v: f32| f64::from(v).powf(2.2);
+        // Green deviations from each column's mean, where the reference reads mid codes.
+        let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
+        for x in 0..w {
+            let g = |img: &hdrsynth::io::Image, y: usize, f: &dyn Fn(f32) -> f64| {
+                f(img.data[(y * w + x) * 3 + 1])
+            };
+            let id = |v: f32| f64::from(v);
+            let code = (0..h).map(|y| g(&reference, y, &id)).sum::<f64>() / h as f64;
+            if !(0.2..0.8).contains(&code) {
+                continue;
+            }
+            let mh = (0..h).map(|y| g(&hdr, y, &id)).sum::<f64>() / h as f64;
+            let mr = (0..h).map(|y| g(&reference, y, &lin)).sum::<f64>() / h as f64;
+            for y in 0..h {
+                let (a, b) = (g(&hdr, y, &id) - mh, g(&reference, y, &lin) - mr);
+                (sab, saa, sbb) = (sab + a * b, saa + a * a, sbb + b * b);
+            }
+        }
+        let gt_merge = std::fs::read_to_string(out.join("ramp/brackets.toml")).expect("toml");
+        (sab / (saa * sbb).sqrt(), gt_merge)
+    };
+    let (all, _) = correlation(GtFrames::All, "all");
+    let (others, record) = correlation(GtFrames::Others, "others");
+    assert!(
+        all > 0.2,
+        "all: the reference's noise in the ground truth, r = {all:.3}"
+    );
+    assert!(others.abs() < 0.05, "others: r = {others:.3}");
+    assert!(record.contains("2 frames that are not inputs"), "{record}");
+}
+
 #[test]
 fn ground_truth_from_all_frames_of_a_three_frame_set_is_the_inputs_merge() {
     let tmp = tempfile::tempdir().expect("tmp");

@@ -31,7 +31,8 @@ pub struct Args {
     /// The test set's three inputs per set (as `testset --brackets --inputs`).
     #[arg(long)]
     pub inputs: Option<InputChoice>,
-    /// The test set's ground truth: from the inputs or all frames of the set.
+    /// The test set's ground truth: from the inputs, all frames of the set, or the others
+    /// (the frames that are not inputs, where they reach).
     #[arg(long, default_value = "all")]
     pub gt_frames: GtFrames,
     /// Declared EV steps in capture order, for frames without EXIF or sidecar.

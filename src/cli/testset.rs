@@ -56,7 +56,8 @@ pub struct Args {
     /// middle and longest.
     #[arg(long)]
     pub inputs: Option<InputChoice>,
-    /// --brackets: ground truth from the inputs (Kalantari's merge) or all frames of the set.
+    /// --brackets: ground truth from the inputs (Kalantari's merge), all frames of the set, or
+    /// the others (the frames that are not inputs, where they reach; all frames elsewhere).
     #[arg(long, default_value = "all")]
     pub gt_frames: GtFrames,
     /// --brackets: how the written inputs encode their linear signal: auto (device for

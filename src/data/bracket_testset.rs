@@ -245,6 +245,10 @@ pub enum GtFrames {
     /// build says so).
     #[default]
     All,
+    /// The frames that are not inputs, where they record the pixel (some weight of
+    /// [`hat_merge`] above 0); elsewhere every frame. Independent of the inputs' noise
+    /// wherever the other frames reach; a set of exactly three frames has only `Inputs`.
+    Others,
 }
 
 impl std::str::FromStr for GtFrames {
@@ -254,8 +258,10 @@ impl std::str::FromStr for GtFrames {
         match s.trim() {
             "inputs" => Ok(GtFrames::Inputs),
             "all" => Ok(GtFrames::All),
+            "others" => Ok(GtFrames::Others),
             _ => Err(format!(
-                "'{s}': expected inputs (the three input frames) or all (every frame of the set)"
+                "'{s}': expected inputs (the three input frames), all (every frame of the set) \
+                 or others (the frames that are not inputs, where they reach)"
             )),
         }
     }

@@ -86,7 +86,7 @@ fn build_set(
     let idx = sel.indices;
     let gt_idx: Vec<usize> = match opts.gt_frames {
         GtFrames::Inputs => idx.to_vec(),
-        GtFrames::All => (0..n).collect(),
+        GtFrames::All | GtFrames::Others => (0..n).collect(),
     };
     let chosen: Vec<&BracketFrame> = idx.iter().map(|&i| &set.frames[i]).collect();
     let dropped: Vec<PathBuf> = (0..n)
@@ -136,6 +136,11 @@ fn build_set(
         [&written[0], &written[1], &written[2]]
     };
     // Kalantari's weights come from the reference as the inputs store it.
+    let hat = match (hat, opts.gt_frames) {
+        (false, _) => Hat::No,
+        (true, GtFrames::Others) => Hat::Others,
+        (true, _) => Hat::All,
+    };
     let (hdr, gt_merge) = merge_set(&codes, &stored, &stops, pos, inputs[1], hat)?;
     let set_dir = out.join(&set.name);
     write_set_files(&set_dir, inputs, &stops, pos, &hdr)?;
@@ -282,18 +287,55 @@ fn set_codes(
     })
 }
 
+/// Which weighted merge a set's ground truth is, when it is not the inputs' triangle merge.
+#[derive(Clone, Copy, PartialEq)]
+enum Hat {
+    No,
+    All,
+    /// The frames that are not inputs where they reach, every frame elsewhere.
+    Others,
+}
+
 /// The ground truth and how it was merged: Kalantari's triangle merge of the three inputs at
 /// positions `pos` (weights from `weights`, the reference as written), or (`hat`) the weighted
-/// merge of every frame.
+/// merge of every frame, or of the frames that are not inputs where they reach.
 fn merge_set(
     codes: &[Image],
     stored: &[Image],
     stops: &[f64],
     pos: [usize; 3],
     weights: &Image,
-    hat: bool,
+    hat: Hat,
 ) -> Result<(Image, String)> {
-    Ok(if !hat {
+    if hat == Hat::Others {
+        let times: Vec<f64> = stops.iter().map(|s| s.exp2()).collect();
+        let all = hat_merge(codes, stored, &times, FIELD_GAMMA)?;
+        let keep: Vec<usize> = (0..codes.len()).filter(|i| !pos.contains(i)).collect();
+        let pick = |v: &[Image]| keep.iter().map(|&i| v[i].clone()).collect::<Vec<_>>();
+        let kept_times: Vec<f64> = keep.iter().map(|&i| times[i]).collect();
+        let (others, covered) =
+            hat_merge_covered(&pick(codes), &pick(stored), &kept_times, FIELD_GAMMA)?;
+        let data: Vec<f32> = others
+            .data
+            .iter()
+            .zip(&all.data)
+            .zip(&covered)
+            .map(|((&o, &a), &c)| if c { o } else { a })
+            .collect();
+        let share = covered.iter().filter(|&&c| c).count() as f64 / covered.len().max(1) as f64;
+        let hdr = Image::from_vec(all.width, all.height, data);
+        return Ok((
+            hdr,
+            format!(
+                "weighted merge (as `all`) of the {} frames that are not inputs where they \
+                 record the value ({:.1} % of the values), of all {} frames elsewhere",
+                keep.len(),
+                100.0 * share,
+                codes.len()
+            ),
+        ));
+    }
+    Ok(if hat == Hat::No {
         let times = pos.map(|p| stops[p].exp2() as f32);
         let g = f64::from(FIELD_GAMMA);
         (

@@ -146,6 +146,17 @@ pub const HAT_REFINEMENTS: usize = 2;
 /// lower bound), else the longest frame's that is not clipped; a refinement keeps the previous
 /// pass's value there.
 pub fn hat_merge(frames: &[Image], codes: &[Image], times: &[f64], gamma: f32) -> Result<Image> {
+    hat_merge_covered(frames, codes, times, gamma).map(|(img, _)| img)
+}
+
+/// [`hat_merge`] and, per value, whether some frame carried weight in its last pass (`false`
+/// where the value is the all-weights-zero fallback).
+pub fn hat_merge_covered(
+    frames: &[Image],
+    codes: &[Image],
+    times: &[f64],
+    gamma: f32,
+) -> Result<(Image, Vec<bool>)> {
     let Some(first) = frames.first() else {
         return Err(Error::Invalid("hat merge: no frames".to_string()));
     };
@@ -179,7 +190,7 @@ pub fn hat_merge(frames: &[Image], codes: &[Image], times: &[f64], gamma: f32) -
     order.sort_by(|&a, &b| times[a].total_cmp(&times[b]));
     let hdr = |i: usize, k: usize| f64::from(frames[i].data[k]).clamp(0.0, 1.0).powf(g) / times[i];
     let clipped = |i: usize, k: usize| codes[i].data[k] * 255.0 >= CLIPPED_CODE - 1e-3;
-    let mut merged: Vec<f32> = (0..first.data.len())
+    let (mut merged, mut covered): (Vec<f32>, Vec<bool>) = (0..first.data.len())
         .into_par_iter()
         .map(|k| {
             let (mut num, mut den) = (0.0f64, 0.0f64);
@@ -189,9 +200,9 @@ pub fn hat_merge(frames: &[Image], codes: &[Image], times: &[f64], gamma: f32) -
                 den += wt;
             }
             if den > 0.0 {
-                (num / den) as f32
+                ((num / den) as f32, true)
             } else if clipped(order[0], k) {
-                hdr(order[0], k) as f32
+                (hdr(order[0], k) as f32, false)
             } else {
                 let i = order
                     .iter()
@@ -199,14 +210,14 @@ pub fn hat_merge(frames: &[Image], codes: &[Image], times: &[f64], gamma: f32) -
                     .copied()
                     .find(|&i| !clipped(i, k))
                     .unwrap_or(order[0]);
-                hdr(i, k) as f32
+                (hdr(i, k) as f32, false)
             }
         })
-        .collect();
+        .unzip();
     let tables = expected_code_tables(frames, codes);
     let inv_g = 1.0 / g;
     for _ in 0..HAT_REFINEMENTS {
-        merged = merged
+        (merged, covered) = merged
             .par_iter()
             .enumerate()
             .map(|(k, &prev)| {
@@ -220,11 +231,15 @@ pub fn hat_merge(frames: &[Image], codes: &[Image], times: &[f64], gamma: f32) -
                     num += wt * hdr(i, k);
                     den += wt;
                 }
-                if den > 0.0 { (num / den) as f32 } else { prev }
+                if den > 0.0 {
+                    ((num / den) as f32, true)
+                } else {
+                    (prev, false)
+                }
             })
-            .collect();
+            .unzip();
     }
-    Ok(Image::from_vec(w, h, merged))
+    Ok((Image::from_vec(w, h, merged), covered))
 }
 
 /// A frame's code as stored against its value as written, per channel: the mean stored code
