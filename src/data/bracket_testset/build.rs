@@ -136,11 +136,7 @@ fn build_set(
         [&written[0], &written[1], &written[2]]
     };
     // Kalantari's weights come from the reference as the inputs store it.
-    let hat = match (hat, opts.gt_frames) {
-        (false, _) => Hat::No,
-        (true, GtFrames::Others) => Hat::Others,
-        (true, _) => Hat::All,
-    };
+    let hat = Hat::of(hat, opts.gt_frames);
     let (hdr, gt_merge) = merge_set(&codes, &stored, &stops, pos, inputs[1], hat)?;
     let set_dir = out.join(&set.name);
     write_set_files(&set_dir, inputs, &stops, pos, &hdr)?;
@@ -294,6 +290,17 @@ enum Hat {
     All,
     /// The frames that are not inputs where they reach, every frame elsewhere.
     Others,
+}
+
+impl Hat {
+    /// The merge for a set whose ground-truth frames are more than its inputs (`more`).
+    fn of(more: bool, gt: GtFrames) -> Hat {
+        match (more, gt) {
+            (false, _) => Hat::No,
+            (true, GtFrames::Others) => Hat::Others,
+            (true, _) => Hat::All,
+        }
+    }
 }
 
 /// The ground truth and how it was merged: Kalantari's triangle merge of the three inputs at
