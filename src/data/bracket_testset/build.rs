@@ -104,13 +104,13 @@ fn build_set(
         .map(|&i| written_stop(set.frames[i].stop - chosen[0].stop))
         .collect();
     // The hat merge weighs each frame by its code values as stored: kept, aligned alike.
-    let hat = gt_idx != idx;
+    let hat = Hat::of(gt_idx != idx, opts.gt_frames);
     let SetCodes {
         mut codes,
         mut stored,
         mut written,
         reference_bad,
-    } = set_codes(set, &gt_idx, idx, ref_pos, lin, hat, how.encode)?;
+    } = set_codes(set, &gt_idx, idx, ref_pos, lin, hat != Hat::No, how.encode)?;
     let mut gt_shifts: Vec<Option<[i32; 2]>> = vec![None; gt_idx.len()];
     if let Some(mtb) = opts.align {
         let s = align_codes(
@@ -136,7 +136,6 @@ fn build_set(
         [&written[0], &written[1], &written[2]]
     };
     // Kalantari's weights come from the reference as the inputs store it.
-    let hat = Hat::of(hat, opts.gt_frames);
     let (hdr, gt_merge) = merge_set(&codes, &stored, &stops, pos, inputs[1], hat)?;
     let set_dir = out.join(&set.name);
     write_set_files(&set_dir, inputs, &stops, pos, &hdr)?;
