@@ -3001,3 +3001,48 @@ fn radiance_flags_given_with_brackets_are_refused_not_ignored() {
         assert!(!dir.path().join("ts").exists());
     }
 }
+
+#[test]
+fn frames_of_one_set_in_different_sizes_are_refused_naming_both() {
+    use hdrsynth::data::bracket_profile::{BracketProfileOptions, calibrate_brackets};
+    use hdrsynth::data::bracket_testset::{self, BracketOptions, ResponseChoice};
+    use hdrsynth::sensor::profile::Response;
+    let dir = tempfile::tempdir().unwrap();
+    let b = dir.path().join("b");
+    let ramp = |w: usize, h: usize, k: f32| {
+        let data = (0..w * h * 3)
+            .map(|i| ((i % 97) as f32 / 97.0 * k).min(1.0))
+            .collect();
+        Image::from_vec(w, h, data)
+    };
+    write_ldr(&b.join("a.png"), &ramp(32, 24, 0.3), BitDepth::Eight).unwrap();
+    write_ldr(&b.join("b.png"), &ramp(32, 24, 0.6), BitDepth::Eight).unwrap();
+    write_ldr(&b.join("c.png"), &ramp(30, 24, 1.0), BitDepth::Eight).unwrap();
+    std::fs::write(b.join("list.txt"), "a.png 4\nb.png 1\nc.png 0.25\n").unwrap();
+    let want = |e: &str| {
+        assert!(
+            e.contains("c.png: 30×24, but") && e.contains("a.png of the same set is 32×24"),
+            "{e}"
+        );
+    };
+    // A declared response (no estimate to stop it): the calibration refuses, writing nothing.
+    let out = dir.path().join("p.toml");
+    let opts = BracketProfileOptions {
+        scan: Default::default(),
+        response: ResponseChoice::Declared(Response::Srgb),
+        out: out.clone(),
+        name: None,
+        correlated: false,
+    };
+    want(
+        &calibrate_brackets(&b, &opts)
+            .expect_err("sizes")
+            .to_string(),
+    );
+    assert!(!out.exists());
+    // An estimated response: the test set refuses before estimating it.
+    let ts = dir.path().join("ts");
+    let e = bracket_testset::build(&b, &BracketOptions::default(), &ts).expect_err("sizes");
+    want(&e.to_string());
+    assert!(!ts.exists());
+}

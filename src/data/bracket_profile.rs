@@ -227,6 +227,36 @@ pub struct BracketCalibration {
     pub notes: Vec<String>,
 }
 
+/// The sources of every frame of `sets`, refusing a set whose frames (the pixels read) differ
+/// in size, naming the frame and the set's first.
+fn one_size_sources(sets: &[brackets::BracketSet]) -> Result<Vec<crate::io::source::Source>> {
+    let mut all = Vec::new();
+    for set in sets {
+        let frames: Vec<&BracketFrame> = set.all_frames().collect();
+        let size = |p: [usize; 4]| (p[2] - p[0], p[3] - p[1]);
+        let start = all.len();
+        for f in &frames {
+            all.push((f.path.clone(), brackets::frame_source(f)?));
+        }
+        let Some((p0, s0)) = all.get(start) else {
+            continue;
+        };
+        let (w, h) = size(s0.pixels);
+        if let Some((p, s)) = all[start..].iter().find(|(_, s)| size(s.pixels) != (w, h)) {
+            let (fw, fh) = size(s.pixels);
+            return Err(Error::layout(
+                p,
+                format!(
+                    "{fw}×{fh}, but {} of the same set is {w}×{h}: every frame of a bracket \
+                     must have one size",
+                    p0.display()
+                ),
+            ));
+        }
+    }
+    Ok(all.into_iter().map(|(_, s)| s).collect())
+}
+
 /// Calibrate a profile from the bracket folder `dir` and write it to `opts.out`.
 pub fn calibrate_brackets(dir: &Path, opts: &BracketProfileOptions) -> Result<BracketCalibration> {
     // The profile is an output: never written into the folder it is measured from.
@@ -245,6 +275,9 @@ pub fn calibrate_brackets(dir: &Path, opts: &BracketProfileOptions) -> Result<Br
              tags",
         ));
     }
+    // What the profile records it was calibrated on; read first, so a set whose frames differ
+    // in size is refused before any measurement.
+    let sources = one_size_sources(&scan.sets)?;
     let lin = bracket_testset::resolve_linearisation(&scan.sets, &opts.response, None, &mut notes)?;
     let response = match &lin {
         Linearise::Curve(r) => r.clone(),
@@ -317,8 +350,7 @@ pub fn calibrate_brackets(dir: &Path, opts: &BracketProfileOptions) -> Result<Br
             profile = p;
         }
     }
-    for f in scan.sets.iter().flat_map(|s| s.all_frames()) {
-        let source = brackets::frame_source(f)?;
+    for source in sources {
         if !profile.calibrated_on.contains(&source) {
             profile.calibrated_on.push(source);
         }
