@@ -275,8 +275,7 @@ pub fn calibrate_brackets(dir: &Path, opts: &BracketProfileOptions) -> Result<Br
              tags",
         ));
     }
-    // What the profile records it was calibrated on; read first, so a set whose frames differ
-    // in size is refused before any measurement.
+    // Read first: a set whose frames differ in size is refused before any measurement.
     let sources = one_size_sources(&scan.sets)?;
     let lin = bracket_testset::resolve_linearisation(&scan.sets, &opts.response, None, &mut notes)?;
     let response = match &lin {
