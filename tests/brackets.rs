@@ -3152,6 +3152,27 @@ fn a_network_is_never_scored_on_captures_that_calibrated_its_profile() {
     assert_eq!(scored.rows.len(), 1);
 }
 
+/// The loop on `brackets` with every option at its default, seed 1, writing into `beside`
+/// and pointed at a main job that does not exist there (what a split refusal comes before).
+fn loop_without_main_job(
+    brackets: &Path,
+    beside: &Path,
+) -> hdrsynth::experiments::device_loop::LoopOptions {
+    hdrsynth::experiments::device_loop::LoopOptions {
+        brackets: brackets.to_path_buf(),
+        calibration: Vec::new(),
+        calibration_region: None,
+        test_region: None,
+        scan: ScanOptions::default(),
+        inputs: InputChoice::default(),
+        gt_frames: GtFrames::default(),
+        quickstart: beside.join("no_quickstart"),
+        seeds: vec![1],
+        out: beside.join("loop"),
+        progress: false,
+    }
+}
+
 #[test]
 fn the_loop_refuses_a_split_in_which_a_capture_both_calibrates_and_is_scored() {
     use hdrsynth::data::brackets::Region;
@@ -3166,17 +3187,10 @@ fn the_loop_refuses_a_split_in_which_a_capture_both_calibrates_and_is_scored() {
     );
     let beside = tempfile::tempdir().expect("tmp");
     let opts = |calibration: &[&str], cal: Option<Region>, test: Option<Region>| LoopOptions {
-        brackets: tmp.path().to_path_buf(),
         calibration: calibration.iter().map(|s| s.to_string()).collect(),
         calibration_region: cal,
         test_region: test,
-        scan: ScanOptions::default(),
-        inputs: InputChoice::default(),
-        gt_frames: GtFrames::default(),
-        quickstart: beside.path().join("no_quickstart"),
-        seeds: vec![1],
-        out: beside.path().join("loop"),
-        progress: false,
+        ..loop_without_main_job(tmp.path(), beside.path())
     };
     let err = |o: LoopOptions| run(&o).err().expect("refused").to_string();
     // One scene and no regions: nothing to score on.
@@ -3234,17 +3248,8 @@ fn the_loop_refuses_a_calibration_frame_resaved_under_another_name_in_a_test_sce
     );
     let beside = tempfile::tempdir().expect("tmp");
     let opts = LoopOptions {
-        brackets: tmp.path().to_path_buf(),
         calibration: vec!["cal".to_string()],
-        calibration_region: None,
-        test_region: None,
-        scan: ScanOptions::default(),
-        inputs: InputChoice::default(),
-        gt_frames: GtFrames::default(),
-        quickstart: beside.path().join("no_quickstart"),
-        seeds: vec![1],
-        out: beside.path().join("loop"),
-        progress: false,
+        ..loop_without_main_job(tmp.path(), beside.path())
     };
     // Different captures pass the split; the missing main job is what stops the loop then.
     let e = run(&opts).err().expect("refused").to_string();

@@ -721,37 +721,34 @@ fn a_short_run_learns_the_blend_weights() {
     // A missing input is an error naming it, and leaves no output folder behind.
     let missing = set.join("static/ev-9.png");
     let failed = tmp.path().join("failed");
-    let o = bin()
-        .args(["infer", "--checkpoint"])
-        .arg(&run)
-        .arg("--inputs")
-        .arg(&missing)
-        .arg(set.join("static/ev+0.png"))
-        .arg("--out")
-        .arg(&failed)
-        .output()
-        .expect("infer");
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(!o.status.success() && err.contains("ev-9.png"), "{err}");
+    // `infer` on LOW and the set's EV0 frame into `failed`: (success, stderr).
+    let infer_low = |low: &Path| {
+        let o = bin()
+            .args(["infer", "--checkpoint"])
+            .arg(&run)
+            .arg("--inputs")
+            .arg(low)
+            .arg(set.join("static/ev+0.png"))
+            .arg("--out")
+            .arg(&failed)
+            .output()
+            .expect("infer");
+        (
+            o.status.success(),
+            String::from_utf8_lossy(&o.stderr).to_string(),
+        )
+    };
+    let (ok, err) = infer_low(&missing);
+    assert!(!ok && err.contains("ev-9.png"), "{err}");
     assert!(!failed.exists(), "a failed infer left {}", failed.display());
     // LOW and HIGH of different sizes: refused naming both and their sizes.
     let small = tmp.path().join("small.png");
     let ev0 = hdrsynth::io::read_image(&set.join("static/ev+0.png")).expect("png");
     let crop = hdrsynth::io::Image::from_vec(1, 1, ev0.data[..3].to_vec());
     hdrsynth::io::write_ldr(&small, &crop, hdrsynth::io::BitDepth::Eight).expect("write");
-    let o = bin()
-        .args(["infer", "--checkpoint"])
-        .arg(&run)
-        .arg("--inputs")
-        .arg(&small)
-        .arg(set.join("static/ev+0.png"))
-        .arg("--out")
-        .arg(&failed)
-        .output()
-        .expect("infer");
-    let err = String::from_utf8_lossy(&o.stderr);
+    let (ok, err) = infer_low(&small);
     assert!(
-        !o.status.success() && err.contains("small.png is 1×1 but") && err.contains("96×80"),
+        !ok && err.contains("small.png is 1×1 but") && err.contains("96×80"),
         "{err}"
     );
     assert!(!failed.exists(), "a failed infer left {}", failed.display());

@@ -118,26 +118,21 @@ impl std::str::FromStr for Region {
     }
 }
 
-/// The [`Source`] of a frame: its file hashed, the region's pixels in its upright size (read
-/// from the header, not decoded).
+/// The [`Source`] of a frame: its file and its decoded pixels hashed, the region's pixels in
+/// its upright size. The frame is read and decoded once.
 pub fn frame_source(frame: &BracketFrame) -> Result<Source> {
     let bytes = crate::io::guard::read_input(&frame.path).map_err(|e| Error::io(&frame.path, e))?;
-    let (w, h) = match frame.kind {
-        FrameKind::Dng => {
-            let info = crate::sensor::dng::read_dng_info(&frame.path)?;
-            (info.width, info.height)
+    let img = match frame.kind {
+        FrameKind::Dng => crate::sensor::dng::read_dng_bytes(&bytes, &frame.path)?.image,
+        FrameKind::Ldr => {
+            let format = crate::io::Format::from_path(&frame.path)?;
+            crate::io::read_image_bytes(&bytes, format, &frame.path)?.0
         }
-        FrameKind::Ldr => image::ImageReader::new(std::io::Cursor::new(&bytes))
-            .with_guessed_format()
-            .map_err(|e| Error::io(&frame.path, e))?
-            .into_dimensions()
-            .map(|(w, h)| (w as usize, h as usize))
-            .map_err(|e| Error::decode(&frame.path, e))?,
     };
     let (w, h) = if frame.exif.orientation.unwrap_or(1) >= 5 {
-        (h, w)
+        (img.height, img.width)
     } else {
-        (w, h)
+        (img.width, img.height)
     };
     let pixels = match frame.region {
         None => [0, 0, w, h],
@@ -151,28 +146,22 @@ pub fn frame_source(frame: &BracketFrame) -> Result<Source> {
     Ok(Source {
         file: file_name(&frame.path),
         sha256: crate::io::sha256_hex(&bytes),
-        pixels_sha256: Some(pixels_sha256(frame, &bytes)?),
+        pixels_sha256: Some(pixels_sha256(&img)),
         pixels,
     })
 }
 
-/// SHA-256 of a frame's decoded pixels as stored (width, height, then every value as an f32,
+/// SHA-256 of decoded pixels as stored (width, height, then every value as an f32,
 /// little-endian): the same for a lossless re-save under another name or format.
-fn pixels_sha256(frame: &BracketFrame, bytes: &[u8]) -> Result<String> {
-    let img = match frame.kind {
-        FrameKind::Dng => crate::sensor::dng::read_dng_bytes(bytes, &frame.path)?.image,
-        FrameKind::Ldr => {
-            let format = crate::io::Format::from_path(&frame.path)?;
-            crate::io::read_image_bytes(bytes, format, &frame.path)?.0
-        }
-    };
-    let mut raw = Vec::with_capacity(16 + 4 * img.data.len());
-    raw.extend_from_slice(&(img.width as u64).to_le_bytes());
-    raw.extend_from_slice(&(img.height as u64).to_le_bytes());
+fn pixels_sha256(img: &crate::io::Image) -> String {
+    use sha2::{Digest, Sha256};
+    let mut hash = Sha256::new();
+    hash.update((img.width as u64).to_le_bytes());
+    hash.update((img.height as u64).to_le_bytes());
     for v in &img.data {
-        raw.extend_from_slice(&v.to_le_bytes());
+        hash.update(v.to_le_bytes());
     }
-    Ok(crate::io::sha256_hex(&raw))
+    hash.finalize().iter().map(|b| format!("{b:02x}")).collect()
 }
 
 /// The sources of every frame of `set`.
