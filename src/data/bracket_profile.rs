@@ -243,15 +243,7 @@ fn one_size_sources(sets: &[brackets::BracketSet]) -> Result<Vec<crate::io::sour
         };
         let (w, h) = size(s0.pixels);
         if let Some((p, s)) = all[start..].iter().find(|(_, s)| size(s.pixels) != (w, h)) {
-            let (fw, fh) = size(s.pixels);
-            return Err(Error::layout(
-                p,
-                format!(
-                    "{fw}×{fh}, but {} of the same set is {w}×{h}: every frame of a bracket \
-                     must have one size",
-                    p0.display()
-                ),
-            ));
+            return Err(brackets::size_mismatch(p, size(s.pixels), p0, (w, h)));
         }
     }
     Ok(all.into_iter().map(|(_, s)| s).collect())

@@ -482,15 +482,11 @@ fn same_size(set: &brackets::BracketSet, frames: &[Image]) -> Result<()> {
     let (w, h) = (frames[0].width, frames[0].height);
     match frames.iter().position(|f| (f.width, f.height) != (w, h)) {
         None => Ok(()),
-        Some(i) => Err(Error::layout(
+        Some(i) => Err(brackets::size_mismatch(
             &set.frames[i].path,
-            format!(
-                "{}×{}, but {} of the same set is {w}×{h}: every frame of a bracket must have \
-                 one size",
-                frames[i].width,
-                frames[i].height,
-                set.frames[0].path.display()
-            ),
+            (frames[i].width, frames[i].height),
+            &set.frames[0].path,
+            (w, h),
         )),
     }
 }

@@ -34,7 +34,7 @@ use std::path::{Path, PathBuf};
 mod frame;
 mod grouping;
 use frame::days_from_civil;
-pub use frame::{Region, frame_source, orient, read_frame_image, set_sources};
+pub use frame::{Region, frame_source, orient, read_frame_image, set_sources, size_mismatch};
 
 /// OpenCV's sidecar (`samples/cpp/tutorial_code/photo/hdr_imaging`): "name 1/t" per line.
 pub const LIST_TXT: &str = "list.txt";

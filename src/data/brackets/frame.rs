@@ -164,6 +164,24 @@ fn pixels_sha256(img: &crate::io::Image) -> String {
     hash.finalize().iter().map(|b| format!("{b:02x}")).collect()
 }
 
+/// The error for a frame of another size than its set's first frame: every reader of a set
+/// that needs one size says it alike.
+pub fn size_mismatch(
+    frame: &Path,
+    (fw, fh): (usize, usize),
+    first: &Path,
+    (w, h): (usize, usize),
+) -> Error {
+    Error::layout(
+        frame,
+        format!(
+            "{fw}×{fh}, but {} of the same set is {w}×{h}: every frame of a bracket must have \
+             one size",
+            first.display()
+        ),
+    )
+}
+
 /// The sources of every frame of `set`.
 pub fn set_sources(set: &BracketSet) -> Result<Vec<Source>> {
     set.frames.iter().map(frame_source).collect()
