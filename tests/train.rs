@@ -1011,3 +1011,28 @@ fn a_step_that_cannot_fit_in_memory_is_refused_naming_the_key_before_anything_is
     assert!(budget::check(&need, 1e3, "model.base_width").is_err());
     assert!(budget::check(&need, 1e12, "model.base_width").is_ok());
 }
+
+#[test]
+fn a_fine_tune_draws_a_fresh_stream_not_its_pretrainings_first_samples() {
+    use hdrsynth::data::loader::{Loader, SampleKind};
+    let tmp = tempfile::tempdir().expect("tmp");
+    let pre = parse(&config_text(&tmp.path().join("pre"), 4, "", 1e-3, false));
+    let fine = parse(&format!(
+        "{}[init]\ncheckpoint = {:?}\n",
+        config_text(&tmp.path().join("fine"), 4, "", 1e-3, false),
+        tmp.path().join("pre")
+    ));
+    let first = |cfg: &TrainConfig| {
+        let l = Loader::new(&cfg.loader(SampleKind::Network1).expect("loader config"))
+            .expect("loader");
+        (0..4)
+            .map(|g| l.stream_sample(g).expect("sample").input)
+            .collect::<Vec<_>>()
+    };
+    let (p, f) = (first(&pre), first(&fine));
+    for (g, (a, b)) in p.iter().zip(&f).enumerate() {
+        assert_ne!(a, b, "sample {g}: the fine-tune replays the pretraining's crop");
+    }
+    assert_eq!(f, first(&fine), "the fine-tune's stream is a function of its seed");
+    assert_eq!(pre.stream_seed(), 3, "a run without [init] streams from run.seed itself");
+}

@@ -30,12 +30,16 @@ pub struct TrainConfig {
     pub validation: Option<ValidationConfig>,
 }
 
+/// Tag of a fine-tuning run's training stream ([`TrainConfig::stream_seed`]).
+const FINE_TUNE_STREAM: u64 = 0xf17e;
+
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RunConfig {
     /// Run folder: checkpoints, log, the resolved config.
     pub out: PathBuf,
-    /// Seeds the initialisation and the data stream (crops, flips, ISO, noise).
+    /// Seeds the initialisation and the data stream (crops, flips, ISO, noise); a fine-tuning
+    /// run's stream is derived from it ([`TrainConfig::stream_seed`]).
     pub seed: u64,
     /// Optimisation steps in total (one batch each).
     pub steps: u64,
@@ -626,11 +630,22 @@ impl TrainConfig {
         Ok(c)
     }
 
-    /// The loader of this run's training data (its seed, and Network-2's input curve).
+    /// The loader of this run's training data (its stream seed, and Network-2's input curve).
     pub fn loader(&self, kind: SampleKind) -> Result<LoaderConfig> {
-        let mut lc = self.data.loader(kind, self.run.seed)?;
+        let mut lc = self.data.loader(kind, self.stream_seed())?;
         lc.input_response = self.model.input_response();
         Ok(lc)
+    }
+
+    /// Seed of the training stream (crops, flips, ISO, noise). A fine-tuning run (`[init]`)
+    /// draws from a stream of its own: with `run.seed` itself it would replay the crops of
+    /// its pretraining's first steps (the same scenes, same positions, same noise draws).
+    pub fn stream_seed(&self) -> u64 {
+        if self.init.is_some() {
+            crate::rng::hash(self.run.seed, &[FINE_TUNE_STREAM])
+        } else {
+            self.run.seed
+        }
     }
 
     pub fn with_resolved_metering(&self) -> Result<TrainConfig> {

@@ -507,7 +507,8 @@ struct ValidationSet {
 }
 
 /// The `[validation]` samples: the training data's loader config on the validation dataset,
-/// without augmentation, at the validation patch and target smoothing.
+/// without augmentation, at the validation patch and target smoothing, seeded by `run.seed`
+/// (not the stream's seed), so a pretraining and its fine-tuning score the same samples.
 fn validation_set<T: Task>(
     task: &T,
     cfg: &TrainConfig,
@@ -517,11 +518,11 @@ fn validation_set<T: Task>(
         return Ok(None);
     };
     let mut lc: LoaderConfig = cfg.loader(loader.config().kind)?;
+    lc.seed = cfg.run.seed;
     lc.dataset = v.dataset.clone();
     lc.augment = false;
     lc.patch = v.patch.unwrap_or(cfg.data.patch);
-    // Validation targets are the configured ones (default: the paper's per-pixel maps), not
-    // the training smoothing, so runs with different targets compare.
+    // The configured targets (default: per-pixel maps), not the training smoothing.
     lc.target_sigma = v.target_sigma;
     // Network-1 is always scored against the noise-free render's weights: what it should
     // predict, whichever frames its training targets came from.
