@@ -6,7 +6,7 @@
 
 use hdrsynth::error::Error;
 use hdrsynth::eval::metrics::{
-    self, DARK_CODE, DarkMask, MU, MetricOptions, Pu21Scale, mu_law, psnr, pu21_encode, score,
+    self, DARK_CODE, PixelMask, MU, MetricOptions, Pu21Scale, mu_law, psnr, pu21_encode, score,
     score_pair, ssim,
 };
 use hdrsynth::io::{Image, read_image};
@@ -275,7 +275,7 @@ fn frame_with_dark(n_dark: usize) -> Image {
 #[test]
 fn psnr_t_dark_is_the_hand_computed_psnr_over_the_masked_pixels() {
     let n_dark = 40;
-    let dark = DarkMask::from_frame(&frame_with_dark(n_dark)).unwrap();
+    let dark = PixelMask::from_frame(&frame_with_dark(n_dark)).unwrap();
     assert_eq!(dark.count(), n_dark);
     assert_eq!(dark.fraction(), 0.1);
     let gt = Image::new(20, 20);
@@ -326,7 +326,7 @@ fn psnr_t_dark_is_absent_below_one_percent_of_dark_pixels() {
     let pred = gt.map(|v| v * 0.8);
     let opts = MetricOptions::default();
     let at = |n: usize| {
-        let dark = DarkMask::from_frame(&frame_with_dark(n)).unwrap();
+        let dark = PixelMask::from_frame(&frame_with_dark(n)).unwrap();
         score(&gt, &pred, Some(&dark), &opts).unwrap()
     };
     let none = at(0);
@@ -342,14 +342,14 @@ fn psnr_t_dark_is_absent_below_one_percent_of_dark_pixels() {
     let unmasked = score(&gt, &pred, None, &opts).unwrap();
     assert_eq!((unmasked.psnr_t_dark, unmasked.dark_fraction), (None, None));
     // Identical images over the mask: +inf, as PSNR-T.
-    let dark = DarkMask::from_frame(&frame_with_dark(40)).unwrap();
+    let dark = PixelMask::from_frame(&frame_with_dark(40)).unwrap();
     let same = score(&gt, &gt, Some(&dark), &opts).unwrap();
     assert_eq!(same.psnr_t_dark, Some(f64::INFINITY));
 }
 
 #[test]
 fn a_mask_of_another_size_is_an_error_naming_both_sizes() {
-    let dark = DarkMask::from_frame(&frame_with_dark(40)).unwrap();
+    let dark = PixelMask::from_frame(&frame_with_dark(40)).unwrap();
     let gt = ramp(24, 20);
     let msg = score(&gt, &gt, Some(&dark), &MetricOptions::default())
         .unwrap_err()

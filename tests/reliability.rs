@@ -2212,7 +2212,7 @@ fn fifos_given_as_configs_profiles_images_or_checkpoints_are_refused_not_waited_
             hdrsynth::data::brackets::read_exif(p).map(|_| ())
         }),
         ("radiance.exr", |p| {
-            hdrsynth::data::testset::to_rec709_matrix(p).map(|_| ())
+            hdrsynth::data::testset::radiance::to_rec709_matrix(p).map(|_| ())
         }),
         #[cfg(feature = "onnx")]
         ("model.onnx", |p| {

@@ -1,5 +1,6 @@
-//! Static test sets from real HDR radiance rendered through a measured sensor model
-//! (`hdrsynth testset`, docs/evaluation.md).
+//! Test sets from HDR radiance rendered through a measured sensor model (`hdrsynth testset`,
+//! docs/evaluation.md): static ones from radiance maps, dynamic ones from a generated dataset's
+//! moving scenes ([`dynamic`]).
 //!
 //! Per radiance map (scene) and ISO one set named `<scene>_iso<N>` in hdrsynth's own layout
 //! (docs/layout.md), so `layout::detect`, the loader and `hdrsynth eval` read it back:
@@ -21,27 +22,33 @@
 //!   frame; a ground truth holding it would score every method on values no input carries (and
 //!   the Network-2 loader clips its targets at the same point).
 //!
-//! The scene is static: the dynamic frames are copies of the static ones and every motion mask
-//! is 0. This is real scene radiance through a measured sensor model, not a real bracketed
-//! capture: real brackets in a known layout are evaluated directly.
+//! From a radiance map the scene is static: the dynamic frames are copies of the static ones
+//! and every motion mask is 0. From a generated dataset each non-reference frame's dynamic
+//! rendering sees the subjects where they were at its time, with the generator's motion mask;
+//! the static frames and the ground truth are the reference's. Either way this is radiance
+//! through a measured sensor model, not a real bracketed capture: real brackets in a known
+//! layout are evaluated directly.
 
 use crate::config::{KeyError, Range, each_in_range, in_range};
 use crate::data::layout::hdrsynth::{self as own, Manifest, SET_META, SetMeta};
 use crate::data::scene::{Camera, SampleStats, ev_tag};
 use crate::error::{Error, Result};
 use crate::io::atomic::write_atomic;
-use crate::io::{BitDepth, ExrPrecision, Image, read_image, resize, write_exr, write_ldr};
-use crate::linalg::{Mat3, inverse3, mul3};
+use crate::io::{BitDepth, ExrPrecision, Image, write_exr, write_ldr};
 use crate::rng::hash;
-use crate::sensor::colour::cie::{bradford, xy_to_xyz};
 use crate::sensor::metering::Metering;
 use crate::sensor::profile::{Response, SensorProfile};
 use crate::sensor::realism::{NoiseModel, Realism, RealismOptions, TargetSpace};
 use crate::sensor::response::ToneCurve;
+use dynamic::SceneRadiance;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+
+pub mod dynamic;
+pub mod radiance;
+use radiance::{load_radiance, radiance_files};
 
 /// The recipe, written to `OUT/testset.toml` (read by nothing else; provenance and resume).
 pub const RECIPE: &str = "testset.toml";
@@ -132,6 +139,8 @@ pub struct BuiltSet {
 #[derive(Clone, Debug)]
 pub struct TestsetSummary {
     pub sets: Vec<BuiltSet>,
+    /// The scenes were a generated dataset's moving ones ([`dynamic`]), not radiance maps.
+    pub dynamic: bool,
     /// Notes for the user (e.g. primaries converted).
     pub notes: Vec<String>,
 }
@@ -160,51 +169,19 @@ impl TestsetSummary {
         }
         let _ = write!(
             text,
-            "{} set(s) in {} (hdrsynth layout; real radiance through the '{}' sensor model, not \
-             a real bracketed capture)",
+            "{} set(s) in {} (hdrsynth layout; {} through the '{}' sensor model, not a real \
+             bracketed capture)",
             self.sets.len(),
             out.display(),
+            if self.dynamic {
+                "generated scenes with moving subjects"
+            } else {
+                "real radiance"
+            },
             profile.display()
         );
         text
     }
-}
-
-/// The radiance files of `input`: the file itself, or every .exr/.hdr directly in the folder,
-/// sorted by name.
-pub fn radiance_files(input: &Path) -> Result<Vec<PathBuf>> {
-    let is_hdr = |p: &Path| {
-        matches!(
-            p.extension()
-                .and_then(|e| e.to_str())
-                .map(str::to_ascii_lowercase)
-                .as_deref(),
-            Some("exr" | "hdr" | "pic")
-        )
-    };
-    if input.is_file() {
-        return if is_hdr(input) {
-            Ok(vec![input.to_path_buf()])
-        } else {
-            Err(Error::unsupported(
-                input,
-                "radiance must be linear HDR (.exr or .hdr)",
-            ))
-        };
-    }
-    let mut files: Vec<PathBuf> = std::fs::read_dir(input)
-        .map_err(|e| Error::io(input, e))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.is_file() && is_hdr(p))
-        .collect();
-    files.sort();
-    if files.is_empty() {
-        return Err(Error::layout(
-            input,
-            "holds no radiance maps (.exr or .hdr files)",
-        ));
-    }
-    Ok(files)
 }
 
 /// Scene name from a file stem: characters other than ASCII letters, digits, '-' and '_'
@@ -349,7 +326,12 @@ pub fn build(
     // measured rule changed is another test set.
     let metering = Metering::resolve(opts.metering, profile.metering);
     opts.metering = Some(metering.rule);
-    let files = radiance_files(input)?;
+    let dynamic = dynamic::is_generated(input);
+    let files = if dynamic {
+        dynamic::scene_dirs(input)?
+    } else {
+        radiance_files(input)?
+    };
     let scenes: Vec<SceneEntry> = files
         .iter()
         .map(|f| SceneEntry {
@@ -375,9 +357,14 @@ pub fn build(
     device.source_response = Response::Linear;
     let recipe = Recipe {
         format: RECIPE_FORMAT.into(),
-        note: "real scene radiance rendered through a measured sensor model (colour, noise, \
-               levels, response); not a real bracketed capture"
-            .into(),
+        note: if dynamic {
+            "generated scenes with moving subjects rendered through a measured sensor model \
+             (colour, noise, levels, response); the ground truth is the reference frame's"
+        } else {
+            "real scene radiance rendered through a measured sensor model (colour, noise, \
+             levels, response); not a real bracketed capture"
+        }
+        .into(),
         profile: device.clone(),
         options: opts.clone(),
         scenes: scenes.clone(),
@@ -421,13 +408,25 @@ pub fn build(
     let mut notes = vec![format!("exposure rule: {metering}")];
     let mut manifest_written = false;
     for (si, scene) in scenes.iter().enumerate() {
-        let (radiance, note) = load_radiance(&scene.file, opts.resize)?;
-        notes.extend(note);
-        let key = exposure_key(&radiance, &opts).map_err(|m| Error::layout(&scene.file, m))?;
+        let radiance = if dynamic {
+            let (r, n) = dynamic::load(&scene.file, &opts.evs, opts.resize)?;
+            notes.extend(n);
+            r
+        } else {
+            let (r, n) = load_radiance(&scene.file, opts.resize)?;
+            notes.extend(n);
+            SceneRadiance {
+                reference: r,
+                moving: None,
+            }
+        };
+        let key = exposure_key(&radiance.reference, &opts)
+            .map_err(|m| Error::layout(&scene.file, m))?;
         if !manifest_written {
             // Sets may differ in size; each set's meta.toml has its own. The manifest carries
             // the first one for tools that want a nominal size.
-            write_manifest(out, &device, &opts, radiance.width, radiance.height)?;
+            let r = &radiance.reference;
+            write_manifest(out, &device, &opts, r.width, r.height)?;
             manifest_written = true;
         }
         for (ii, &iso) in opts.isos.iter().enumerate() {
@@ -440,7 +439,11 @@ pub fn build(
     if let Some(s) = staged {
         s.commit()?;
     }
-    Ok(TestsetSummary { sets, notes })
+    Ok(TestsetSummary {
+        sets,
+        dynamic,
+        notes,
+    })
 }
 
 fn write_manifest(
@@ -492,13 +495,14 @@ fn write_set(
     scene: &SceneEntry,
     index: u64,
     iso: f64,
-    radiance: &Image,
+    scene_radiance: &SceneRadiance,
     key: f32,
     device: &SensorProfile,
     opts: &TestsetOptions,
 ) -> Result<BuiltSet> {
     let name = set_name(&scene.name, iso);
     let dir = out.join(&name);
+    let radiance = &scene_radiance.reference;
     let (w, h) = (radiance.width, radiance.height);
     if dir.join(SET_META).is_file() {
         let meta = own::read_set_meta(&dir)?;
@@ -530,13 +534,20 @@ fn write_set(
         )
     };
     let (mut over, mut under) = (0.0, 0.0);
-    for &ev in &opts.evs {
-        let frame =
-            realism(ev, opts.noise)?.apply(radiance, frame_seed(opts.seed, &scene.name, iso, ev));
+    for (i, &ev) in opts.evs.iter().enumerate() {
+        let seed = frame_seed(opts.seed, &scene.name, iso, ev);
+        let frame = realism(ev, opts.noise)?.apply(radiance, seed);
         if ev == 0.0 {
             (over, under) = clip_fractions(&frame);
         }
-        write_frame(&dir, ev, frame, depth)?;
+        match &scene_radiance.moving {
+            // The same noise seed as the static frame: outside the mask the two agree.
+            Some(m) if ev != 0.0 => {
+                let moving = realism(ev, opts.noise)?.apply(&m.radiance[i], seed);
+                write_moving_frame(&dir, ev, frame, moving, &m.masks[i], depth)?
+            }
+            _ => write_frame(&dir, ev, frame, depth)?,
+        }
         // The same frame without noise (same exposure, colour, levels, response and
         // quantisation): Network-1's reference takes its blend weights from these, so it does
         // not reward imitating noise-driven weights (docs/evaluation.md).
@@ -553,7 +564,12 @@ fn write_set(
     gt.data.iter_mut().for_each(|v| *v = v.min(white));
     write_exr(&dir.join("hdr_gt.exr"), &gt, ExrPrecision::Float)?;
     drop(gt);
-    let meta = set_meta(&name, index, scene, radiance, key, (over, under), opts);
+    let mut meta = set_meta(&name, index, scene, radiance, key, (over, under), opts);
+    if let Some(m) = &scene_radiance.moving {
+        meta.times = m.times.clone();
+        meta.stats.subjects = m.subjects;
+        meta.stats.articulated = m.articulated;
+    }
     let path = dir.join(SET_META);
     let text = toml::to_string(&meta).map_err(|e| Error::encode(&path, e))?;
     write_atomic(&path, text.as_bytes())?;
@@ -584,6 +600,27 @@ fn write_frame(dir: &Path, ev: f32, frame: Image, depth: BitDepth) -> Result<()>
     write_ldr(
         &dir.join("dynamic").join(format!("mask_{tag}.png")),
         &Image::new(w, h),
+        BitDepth::Eight,
+    )
+}
+
+/// One frame of a dynamic scene at `ev`: the static rendering, the moving one and its mask.
+fn write_moving_frame(
+    dir: &Path,
+    ev: f32,
+    still: Image,
+    moving: Image,
+    mask: &[u8],
+    depth: BitDepth,
+) -> Result<()> {
+    let (w, h) = (still.width, still.height);
+    let tag = ev_tag(ev);
+    write_ldr(&dir.join("static").join(format!("{tag}.png")), &still, depth)?;
+    write_ldr(&dir.join("dynamic").join(format!("{tag}.png")), &moving, depth)?;
+    let m = Image::from_vec(w, h, mask.iter().flat_map(|&v| [v as f32; 3]).collect());
+    write_ldr(
+        &dir.join("dynamic").join(format!("mask_{tag}.png")),
+        &m,
         BitDepth::Eight,
     )
 }
@@ -661,84 +698,4 @@ fn clip_fractions(frame: &Image) -> (f32, f32) {
 pub fn exposure_key(radiance: &Image, opts: &TestsetOptions) -> std::result::Result<f32, String> {
     let rule = Metering::resolve(opts.metering, None).rule;
     Ok(rule.key(radiance)?.key * opts.exposure as f32)
-}
-
-/// Read a radiance map as linear Rec. 709 RGB (negatives clamped to 0), resized if asked.
-/// Returns a note when the primaries were converted.
-pub fn load_radiance(
-    path: &Path,
-    resize_to: Option<(usize, usize)>,
-) -> Result<(Image, Option<String>)> {
-    let mut img = read_image(path)?;
-    let mut note = None;
-    if let Some(m) = to_rec709_matrix(path)? {
-        img.data.par_chunks_exact_mut(3).for_each(|p| {
-            let v = [p[0], p[1], p[2]];
-            for (o, row) in p.iter_mut().zip(&m) {
-                *o = row[0] * v[0] + row[1] * v[1] + row[2] * v[2];
-            }
-        });
-        note = Some(format!(
-            "{}: converted from the file's chromaticities to linear Rec. 709 (Bradford to D65)",
-            path.display()
-        ));
-    }
-    img.data.par_iter_mut().for_each(|v| *v = v.max(0.0));
-    if let Some((w, h)) = resize_to
-        && (w, h) != (img.width, img.height)
-    {
-        img = resize(&img, w, h);
-    }
-    Ok((img, note))
-}
-
-/// Rec. 709 primaries and D65 white, as (x, y): red, green, blue, white.
-const REC709: [[f64; 2]; 4] = [[0.64, 0.33], [0.30, 0.60], [0.15, 0.06], [0.3127, 0.3290]];
-
-/// RGB → XYZ of a set of primaries (columns scaled so RGB (1,1,1) is the white at Y = 1).
-fn rgb_to_xyz(c: [[f64; 2]; 4]) -> Option<Mat3> {
-    let cols = [xy_to_xyz(c[0]), xy_to_xyz(c[1]), xy_to_xyz(c[2])];
-    let p: Mat3 = std::array::from_fn(|i| std::array::from_fn(|j| cols[j][i]));
-    let w = xy_to_xyz(c[3]);
-    let inv = inverse3(&p)?;
-    let s: [f64; 3] = std::array::from_fn(|i| (0..3).map(|k| inv[i][k] * w[k]).sum());
-    Some(std::array::from_fn(|i| {
-        std::array::from_fn(|j| p[i][j] * s[j])
-    }))
-}
-
-/// The file's RGB → linear Rec. 709 RGB (Bradford adaptation of its white to D65), or None
-/// when the file has no chromaticities attribute (OpenEXR's default is Rec. 709) or already
-/// has Rec. 709 / D65 ones, or is not an EXR (Radiance .hdr: Rec. 709 assumed).
-pub fn to_rec709_matrix(path: &Path) -> Result<Option<[[f32; 3]; 3]>> {
-    if crate::io::Format::from_path(path)? != crate::io::Format::Exr {
-        return Ok(None);
-    }
-    let file = crate::io::guard::open_input(path).map_err(|e| Error::io(path, e))?;
-    let mut reader = std::io::BufReader::new(file);
-    // Unvalidated header read, as the image reader does (it accepts subsampled chroma).
-    let meta = exr::meta::MetaData::read_from_buffered(&mut reader, false)
-        .map_err(|e| Error::decode(path, format!("EXR header: {e}")))?;
-    let Some(ch) = meta
-        .headers
-        .first()
-        .and_then(|h| h.shared_attributes.chromaticities)
-    else {
-        return Ok(None);
-    };
-    let c = [ch.red, ch.green, ch.blue, ch.white].map(|v| [v.x() as f64, v.y() as f64]);
-    if c.iter()
-        .flatten()
-        .zip(REC709.iter().flatten())
-        .all(|(a, b)| (a - b).abs() < 1e-4)
-    {
-        return Ok(None);
-    }
-    let bad = || Error::unsupported(path, format!("degenerate chromaticities {c:?}"));
-    let src = rgb_to_xyz(c).ok_or_else(bad)?;
-    let dst_inv = inverse3(&rgb_to_xyz(REC709).expect("Rec. 709 is well formed"))
-        .expect("Rec. 709 is invertible");
-    let adapt = bradford(xy_to_xyz(c[3]), xy_to_xyz(REC709[3])).ok_or_else(bad)?;
-    let m = mul3(&dst_inv, &mul3(&adapt, &src));
-    Ok(Some(m.map(|r| r.map(|v| v as f32))))
 }

@@ -13,7 +13,8 @@
 //!   for sets without them) the Mertens fusion of the noisy pair itself; L = before the tone
 //!   curve, T = after it (the same curve for both), scored with [`metrics::score_pair`].
 //! - PSNR-T dark's mask ([`dark_mask`]) comes from the set's reference input frame as read,
-//!   the same for every method scored on the set; ΔE2000 reads each path's T images (μ-law,
+//!   the same for every method scored on the set, as is PSNR-T moving's ([`moving_mask`], the
+//!   union of the set's motion masks); ΔE2000 reads each path's T images (μ-law,
 //!   or Network-1's tone curve) as sRGB display values.
 //!
 //! Memory: one set at a time; per set at most about four full-size images live at once (output,
@@ -27,7 +28,7 @@ use crate::error::{Error, Result};
 use crate::eval::blend::{blend_pair, tone_curve};
 use crate::eval::infer;
 pub use crate::eval::infer::NetworkOptions;
-use crate::eval::metrics::{self, DarkMask, MetricOptions, Pu21Scale, Scores};
+use crate::eval::metrics::{self, PixelMask, MetricOptions, Pu21Scale, Scores};
 use crate::eval::report::{self, Cell, MetricSummary, SetScore};
 use crate::io::source::Source;
 use crate::io::{BitDepth, ExrPrecision, Image, read_image, resize, write_exr, write_ldr};
@@ -64,7 +65,7 @@ impl Scoring {
         self,
         reference: &Image,
         output: &Image,
-        dark: Option<&DarkMask>,
+        dark: Option<&PixelMask>,
         opts: &MetricOptions,
     ) -> Result<Scores> {
         match self {
@@ -76,6 +77,23 @@ impl Scoring {
                 );
                 metrics::score_pair(reference, output, &rt, &ot, dark, opts)
             }
+        }
+    }
+
+    /// PSNR-T over the pixels of `mask`: μ-law for HDR, the tone curve for Network-1.
+    pub fn psnr_t_masked(
+        self,
+        reference: &Image,
+        output: &Image,
+        mask: &PixelMask,
+    ) -> Result<Option<f64>> {
+        match self {
+            Scoring::Hdr => metrics::psnr_mu_masked(reference, output, mask),
+            Scoring::Network1 { .. } => metrics::psnr_masked(
+                &reference.map(|v| self.display(v)),
+                &output.map(|v| self.display(v)),
+                mask,
+            ),
         }
     }
 }
@@ -378,14 +396,33 @@ fn encoding_check(method: &dyn Method, testset: &Path) -> Result<(Vec<String>, V
     })
 }
 
-/// The set's under-exposed pixels ([`DarkMask`]) from its reference input frame as read (the
+/// The pixels where a subject moved in any frame of the set (the union of its motion masks);
+/// None for a set without motion masks or where nothing moved (a static scene).
+pub fn moving_mask(set: &SetInfo) -> Result<Option<PixelMask>> {
+    let mut union: Option<Vec<bool>> = None;
+    for path in set.masks.iter().filter(|p| p.is_file()) {
+        let m = layout::read_set_image(set, path)?;
+        let u = union.get_or_insert_with(|| vec![false; m.pixel_count()]);
+        for (a, p) in u.iter_mut().zip(m.data.chunks_exact(3)) {
+            *a |= p[0].max(p[1]).max(p[2]) > 0.5;
+        }
+    }
+    match union {
+        Some(u) if u.iter().any(|&m| m) => PixelMask::from_flags(set.width, set.height, u)
+            .map(Some)
+            .map_err(|e| Error::layout(&set.dir, e.to_string())),
+        _ => Ok(None),
+    }
+}
+
+/// The set's under-exposed pixels ([`PixelMask`]) from its reference input frame as read (the
 /// same mask for every method scored on the set); None for a set without one.
-pub fn dark_mask(set: &SetInfo) -> Result<Option<DarkMask>> {
+pub fn dark_mask(set: &SetInfo) -> Result<Option<PixelMask>> {
     let Some(path) = set.reference_frame() else {
         return Ok(None);
     };
     let frame = layout::read_set_image(set, path)?;
-    DarkMask::from_frame(&frame)
+    PixelMask::from_frame(&frame)
         .map(Some)
         .map_err(|e| Error::layout(path, e.to_string()))
 }
@@ -400,6 +437,7 @@ fn evaluate_set(
     let t0 = Instant::now();
     // Before the method runs: only the mask (a byte per pixel) stays alive, not the frame.
     let dark = dark_mask(set)?;
+    let moving = moving_mask(set)?;
     let outcome = method.run(set, opts)?;
     let Outcome {
         mut output,
@@ -424,9 +462,15 @@ fn evaluate_set(
             file => (label, file),
         })
         .collect();
-    let scores = scoring
+    let mut scores = scoring
         .score(&reference, &output, dark.as_ref(), &opts.metrics)
         .map_err(Error::within(format!("set '{}'", set.name)))?;
+    if let Some(m) = &moving {
+        scores.psnr_t_moving = scoring
+            .psnr_t_masked(&reference, &output, m)
+            .map_err(Error::within(format!("set '{}'", set.name)))?;
+        scores.moving_fraction = Some(m.fraction());
+    }
     let seconds = t0.elapsed().as_secs_f64();
     notes.extend(set_notes);
 
@@ -534,7 +578,8 @@ fn setup_lines(r: &EvalSummary, testset: &Path, opts: &EvalOptions) -> String {
          - delta_e2000: mean CIEDE2000 of the T images read as sRGB display values (lower is \
          better); psnr_t_dark: PSNR-T over the pixels whose reference input frame has its \
          largest channel below {} (a code in [0, 1]), absent (no value) where under {} % of \
-         the pixels are such\n\
+         the pixels are such; psnr_t_moving: PSNR-T over the pixels a subject covers in any \
+         frame (the union of the set's motion masks), for sets with moving subjects\n\
          - mean and confidence intervals over scenes (a scene's sets at several ISOs are one \
          cluster: its mean counts once): percentile bootstrap resampling scenes, {} resamples, \
          seed {}, level {}; +inf values (identical images) are left out of mean and CI and \
@@ -549,7 +594,7 @@ fn setup_lines(r: &EvalSummary, testset: &Path, opts: &EvalOptions) -> String {
             format!(" ({} skipped: no output)", r.missing.len())
         },
         metrics::DARK_CODE,
-        metrics::DARK_MIN_FRACTION * 100.0,
+        metrics::MASK_MIN_FRACTION * 100.0,
         opts.resamples,
         opts.seed,
         opts.level,

@@ -18,7 +18,9 @@
 //!   method='CIE 2000')` (oracle: tools/delta_e_reference.py, to 1e-6).
 //! - PSNR-T dark: PSNR (range 1) of the T images over the pixels where the set's reference input
 //!   frame is under-exposed (largest channel below [`DARK_CODE`]), all three channels; absent
-//!   when fewer than [`DARK_MIN_FRACTION`] of the pixels are masked.
+//!   when fewer than [`MASK_MIN_FRACTION`] of the pixels are masked.
+//! - PSNR-T moving: the same over the pixels a subject covers in any frame of the set, at its
+//!   own time or the reference's (the union of the set's motion masks).
 
 use crate::error::{Error, Result};
 use crate::io::Image;
@@ -225,22 +227,25 @@ pub fn pu21_ssim(gt: &Image, pred: &Image, opts: &MetricOptions) -> Result<f64> 
 /// A pixel of the reference input frame is under-exposed when its largest channel, as an LDR
 /// code in [0, 1], is below this (8-bit codes 0..=25).
 pub const DARK_CODE: f32 = 0.1;
-/// PSNR-T dark is reported only when at least this fraction of the pixels is masked.
-pub const DARK_MIN_FRACTION: f64 = 0.01;
+/// PSNR-T over a mask (dark, moving) is reported only when at least this fraction of the
+/// pixels is masked.
+pub const MASK_MIN_FRACTION: f64 = 0.01;
 
-/// The pixels where a set's reference input frame is under-exposed (largest channel below
-/// [`DARK_CODE`]), the region where sensor noise dominates a reconstruction.
+/// A set of pixels a metric is restricted to: where the set's reference input frame is
+/// under-exposed (largest channel below [`DARK_CODE`], where sensor noise dominates a
+/// reconstruction: [`PixelMask::from_frame`]), or where a subject moved between the frames
+/// ([`PixelMask::from_flags`] of the set's motion masks).
 #[derive(Clone, Debug, PartialEq)]
-pub struct DarkMask {
+pub struct PixelMask {
     pub width: usize,
     pub height: usize,
     mask: Vec<bool>,
     count: usize,
 }
 
-impl DarkMask {
+impl PixelMask {
     /// The mask of a reference frame's display codes as read.
-    pub fn from_frame(frame: &Image) -> Result<DarkMask> {
+    pub fn from_frame(frame: &Image) -> Result<PixelMask> {
         check_image(frame, "reference frame")?;
         let mask: Vec<bool> = frame
             .data
@@ -248,9 +253,27 @@ impl DarkMask {
             .map(|p| p[0].max(p[1]).max(p[2]) < DARK_CODE)
             .collect();
         let count = mask.iter().filter(|&&m| m).count();
-        Ok(DarkMask {
+        Ok(PixelMask {
             width: frame.width,
             height: frame.height,
+            mask,
+            count,
+        })
+    }
+
+    /// A mask of one flag per pixel, row-major.
+    pub fn from_flags(width: usize, height: usize, mask: Vec<bool>) -> Result<PixelMask> {
+        if mask.len() != width * height {
+            return Err(Error::Invalid(format!(
+                "a {width}x{height} mask needs {} flags, got {}",
+                width * height,
+                mask.len()
+            )));
+        }
+        let count = mask.iter().filter(|&&m| m).count();
+        Ok(PixelMask {
+            width,
+            height,
             mask,
             count,
         })
@@ -269,7 +292,7 @@ impl DarkMask {
     fn check(&self, img: &Image) -> Result<()> {
         if (self.width, self.height) != (img.width, img.height) {
             return Err(Error::Invalid(format!(
-                "the reference frame is {}x{}, the images scored are {}x{}",
+                "the pixel mask is {}x{}, the images scored are {}x{}",
                 self.width, self.height, img.width, img.height
             )));
         }
@@ -293,20 +316,20 @@ pub fn delta_e2000_mu(gt: &Image, pred: &Image) -> Result<f64> {
 }
 
 /// PSNR (range 1) of display images over the masked pixels, all three channels; None when fewer
-/// than [`DARK_MIN_FRACTION`] of the pixels are masked. +inf when they agree there.
-pub fn psnr_dark(gt_t: &Image, pred_t: &Image, dark: &DarkMask) -> Result<Option<f64>> {
+/// than [`MASK_MIN_FRACTION`] of the pixels are masked. +inf when they agree there.
+pub fn psnr_masked(gt_t: &Image, pred_t: &Image, mask: &PixelMask) -> Result<Option<f64>> {
     check_pair(gt_t, pred_t)?;
-    dark.check(gt_t)?;
-    Ok(masked_psnr_by(&gt_t.data, &pred_t.data, dark, |v| v as f64))
+    mask.check(gt_t)?;
+    Ok(masked_psnr_by(&gt_t.data, &pred_t.data, mask, |v| v as f64))
 }
 
-/// [`psnr_dark`] of the μ-law tonemapped images: PSNR-T over the under-exposed pixels.
-pub fn psnr_mu_dark(gt: &Image, pred: &Image, dark: &DarkMask) -> Result<Option<f64>> {
+/// [`psnr_masked`] of the μ-law tonemapped images: PSNR-T over the under-exposed pixels.
+pub fn psnr_mu_masked(gt: &Image, pred: &Image, mask: &PixelMask) -> Result<Option<f64>> {
     check_pair(gt, pred)?;
-    dark.check(gt)?;
+    mask.check(gt)?;
     check_mu_domain(gt, "ground truth")?;
     check_mu_domain(pred, "prediction")?;
-    Ok(masked_psnr_by(&gt.data, &pred.data, dark, |v| {
+    Ok(masked_psnr_by(&gt.data, &pred.data, mask, |v| {
         mu_law(v as f64)
     }))
 }
@@ -325,10 +348,18 @@ pub struct Scores {
     /// Mean CIEDE2000 of the T images read as sRGB display values; lower is better.
     pub delta_e2000: f64,
     /// PSNR-T over the pixels where the reference input frame is under-exposed; None without a
-    /// reference frame or when fewer than [`DARK_MIN_FRACTION`] of the pixels are masked.
+    /// reference frame or when fewer than [`MASK_MIN_FRACTION`] of the pixels are masked.
     pub psnr_t_dark: Option<f64>,
     /// Fraction of the pixels in that mask; None without a reference frame.
     pub dark_fraction: Option<f64>,
+    /// PSNR-T over the pixels where a subject moved between the frames (the set's motion
+    /// masks); None for a set without motion masks or with fewer than [`MASK_MIN_FRACTION`]
+    /// of its pixels moving.
+    #[serde(default)]
+    pub psnr_t_moving: Option<f64>,
+    /// Fraction of the pixels in that mask; None for a set without motion masks.
+    #[serde(default)]
+    pub moving_fraction: Option<f64>,
 }
 
 /// All metrics of a linear prediction against its linear ground truth; T is the μ-law
@@ -336,7 +367,7 @@ pub struct Scores {
 pub fn score(
     gt: &Image,
     pred: &Image,
-    dark: Option<&DarkMask>,
+    dark: Option<&PixelMask>,
     opts: &MetricOptions,
 ) -> Result<Scores> {
     check_pair(gt, pred)?;
@@ -344,7 +375,7 @@ pub fn score(
     check_mu_domain(gt, "ground truth")?;
     check_mu_domain(pred, "prediction")?;
     let psnr_t_dark = match dark {
-        Some(d) => psnr_mu_dark(gt, pred, d)?,
+        Some(d) => psnr_mu_masked(gt, pred, d)?,
         None => None,
     };
     Ok(Scores {
@@ -356,7 +387,9 @@ pub fn score(
         pu21_ssim: pu21_ssim(gt, pred, opts)?,
         delta_e2000: delta_e2000_mu(gt, pred)?,
         psnr_t_dark,
-        dark_fraction: dark.map(DarkMask::fraction),
+        dark_fraction: dark.map(PixelMask::fraction),
+        psnr_t_moving: None,
+        moving_fraction: None,
     })
 }
 
@@ -369,7 +402,7 @@ pub fn score_pair(
     pred_l: &Image,
     gt_t: &Image,
     pred_t: &Image,
-    dark: Option<&DarkMask>,
+    dark: Option<&PixelMask>,
     opts: &MetricOptions,
 ) -> Result<Scores> {
     check_pair(gt_l, pred_l)?;
@@ -381,7 +414,7 @@ pub fn score_pair(
         )));
     }
     let psnr_t_dark = match dark {
-        Some(d) => psnr_dark(gt_t, pred_t, d)?,
+        Some(d) => psnr_masked(gt_t, pred_t, d)?,
         None => None,
     };
     Ok(Scores {
@@ -393,7 +426,9 @@ pub fn score_pair(
         pu21_ssim: pu21_ssim(gt_l, pred_l, opts)?,
         delta_e2000: delta_e2000(gt_t, pred_t)?,
         psnr_t_dark,
-        dark_fraction: dark.map(DarkMask::fraction),
+        dark_fraction: dark.map(PixelMask::fraction),
+        psnr_t_moving: None,
+        moving_fraction: None,
     })
 }
 
@@ -514,21 +549,21 @@ fn mean_delta_e_by(a: &[f32], b: &[f32], f: impl Fn(f32) -> f64 + Sync) -> f64 {
 }
 
 /// PSNR (range 1) of `f(a) − f(b)` over the masked pixels' three channels, summed like
-/// [`mse_by`]; None below [`DARK_MIN_FRACTION`].
+/// [`mse_by`]; None below [`MASK_MIN_FRACTION`].
 fn masked_psnr_by(
     a: &[f32],
     b: &[f32],
-    dark: &DarkMask,
+    mask: &PixelMask,
     f: impl Fn(f32) -> f64 + Sync,
 ) -> Option<f64> {
-    if dark.count == 0 || dark.fraction() < DARK_MIN_FRACTION {
+    if mask.count == 0 || mask.fraction() < MASK_MIN_FRACTION {
         return None;
     }
     const CHUNK: usize = 1 << 14;
     let sums: Vec<f64> = a
         .par_chunks(3 * CHUNK)
         .zip(b.par_chunks(3 * CHUNK))
-        .zip(dark.mask.par_chunks(CHUNK))
+        .zip(mask.mask.par_chunks(CHUNK))
         .map(|((ca, cb), cm)| {
             ca.chunks_exact(3)
                 .zip(cb.chunks_exact(3))
@@ -545,7 +580,7 @@ fn masked_psnr_by(
                 .sum::<f64>()
         })
         .collect();
-    let mse = sums.iter().sum::<f64>() / (3 * dark.count) as f64;
+    let mse = sums.iter().sum::<f64>() / (3 * mask.count) as f64;
     Some(psnr_from_mse(mse, 1.0))
 }
 

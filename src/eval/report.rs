@@ -41,15 +41,29 @@ pub fn metric_values(s: &Scores) -> [f64; 6] {
 
 /// Columns appended to `per_image.csv` after `seconds` (so the columns before them keep their
 /// positions): ΔE2000 of T (lower is better), PSNR-T over the under-exposed pixels (empty when
-/// absent) and the fraction of pixels in that mask (empty without a reference frame).
-pub const APPENDED: [&str; 3] = ["delta_e2000", "psnr_t_dark", "dark_fraction"];
+/// absent) and the fraction of pixels in that mask (empty without a reference frame), PSNR-T
+/// over the moving pixels and their fraction (empty for a set without motion masks).
+pub const APPENDED: [&str; 5] = [
+    "delta_e2000",
+    "psnr_t_dark",
+    "dark_fraction",
+    "psnr_t_moving",
+    "moving_fraction",
+];
 
-pub fn appended_values(s: &Scores) -> [Option<f64>; 3] {
-    [Some(s.delta_e2000), s.psnr_t_dark, s.dark_fraction]
+pub fn appended_values(s: &Scores) -> [Option<f64>; 5] {
+    [
+        Some(s.delta_e2000),
+        s.psnr_t_dark,
+        s.dark_fraction,
+        s.psnr_t_moving,
+        s.moving_fraction,
+    ]
 }
 
-/// Metrics of the summary, in its order: [`METRICS`], then ΔE2000 and PSNR-T dark.
-pub const SUMMARY_METRICS: [&str; 8] = [
+/// Metrics of the summary, in its order: [`METRICS`], then ΔE2000, PSNR-T dark and PSNR-T
+/// moving.
+pub const SUMMARY_METRICS: [&str; 9] = [
     "psnr_l",
     "psnr_t",
     "ssim_l",
@@ -58,10 +72,11 @@ pub const SUMMARY_METRICS: [&str; 8] = [
     "pu21_ssim",
     "delta_e2000",
     "psnr_t_dark",
+    "psnr_t_moving",
 ];
 
 /// A set's values of [`SUMMARY_METRICS`]; None where the metric is absent for the set.
-pub fn summary_values(s: &Scores) -> [Option<f64>; 8] {
+pub fn summary_values(s: &Scores) -> [Option<f64>; 9] {
     let m = metric_values(s).map(Some);
     [
         m[0],
@@ -72,6 +87,7 @@ pub fn summary_values(s: &Scores) -> [Option<f64>; 8] {
         m[5],
         Some(s.delta_e2000),
         s.psnr_t_dark,
+        s.psnr_t_moving,
     ]
 }
 
@@ -204,11 +220,13 @@ pub struct PerImageRow {
     pub delta_e2000: Option<f64>,
     #[serde(default)]
     pub psnr_t_dark: Option<f64>,
+    #[serde(default)]
+    pub psnr_t_moving: Option<f64>,
 }
 
 impl PerImageRow {
     /// The row's values of [`SUMMARY_METRICS`], as [`summary_values`] gives them for scores.
-    pub fn summary_values(&self) -> [Option<f64>; 8] {
+    pub fn summary_values(&self) -> [Option<f64>; 9] {
         [
             Some(self.psnr_l),
             Some(self.psnr_t),
@@ -218,6 +236,7 @@ impl PerImageRow {
             Some(self.pu21_ssim),
             self.delta_e2000,
             self.psnr_t_dark,
+            self.psnr_t_moving,
         ]
     }
 }
@@ -255,7 +274,7 @@ pub fn summary_csv(summary: &[MetricSummary]) -> String {
 fn fmt_value(metric: &str, v: f64) -> String {
     if v.is_infinite() || v.is_nan() {
         format!("{v}")
-    } else if metric.contains("ssim") || metric == "dark_fraction" {
+    } else if metric.contains("ssim") || metric.ends_with("_fraction") {
         format!("{v:.4}")
     } else {
         format!("{v:.2}")
@@ -430,6 +449,8 @@ mod tests {
                 delta_e2000: v,
                 psnr_t_dark: Some(v),
                 dark_fraction: Some(0.5),
+                psnr_t_moving: None,
+                moving_fraction: None,
             },
             width: 1,
             height: 1,
@@ -504,11 +525,13 @@ mod tests {
                 "seconds",
                 "delta_e2000",
                 "psnr_t_dark",
-                "dark_fraction"
+                "dark_fraction",
+                "psnr_t_moving",
+                "moving_fraction"
             ]
         );
         let last: Vec<&str> = lines.next_back().expect("row").split(',').collect();
-        assert_eq!(last[10..], ["40", "", "0.004"]);
+        assert_eq!(last[10..], ["40", "", "0.004", "", ""]);
         // All absent: NaN mean, every set counted as absent.
         for r in &mut rows {
             r.scores.psnr_t_dark = None;

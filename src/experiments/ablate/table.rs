@@ -23,14 +23,16 @@ fn read_per_image(path: &Path) -> Result<SetScores> {
 
 /// The metrics of the tables, in their order: the paper's four, then ΔE2000 of the tone-mapped
 /// output (lower is better) and PSNR-T over the reference frame's under-exposed pixels, where
-/// colour and noise can matter (docs/protocol.md).
-const TABLE_METRICS: [(&str, &str); 6] = [
+/// colour and noise can matter (docs/protocol.md), and PSNR-T over the pixels where subjects
+/// moved (test sets with moving subjects only: a metric no cell has gets no column).
+const TABLE_METRICS: [(&str, &str); 7] = [
     ("psnr_t", "PSNR-T"),
     ("psnr_l", "PSNR-L"),
     ("ssim_t", "SSIM-T"),
     ("ssim_l", "SSIM-L"),
     ("delta_e2000", "ΔE2000"),
     ("psnr_t_dark", "PSNR-T dark"),
+    ("psnr_t_moving", "PSNR-T moving"),
 ];
 
 fn metric_index(m: &str) -> usize {
@@ -676,20 +678,27 @@ fn table_body(
     ref_label: &str,
 ) {
     let missing = "(not run yet)".to_string();
+    let shown: Vec<usize> = (0..TABLE_METRICS.len())
+        .filter(|&mi| {
+            let mut texts = cell_text.iter().filter(|(&(m, _, _), _)| m == mi).peekable();
+            texts.peek().is_none() || texts.any(|(_, (v, _))| v != "–")
+        })
+        .collect();
     if cfg.columns.is_empty() {
         let rows = cfg.rows.iter().enumerate();
-        metric_rows(md, "| method |", "", rows.clone(), |r, mi| {
+        metric_rows(md, "| method |", "", &shown, rows.clone(), |r, mi| {
             let t = cell_text.get(&(mi, r, None));
             t.map(|t| &t.0).unwrap_or(&missing).clone()
         });
         let head = format!("\n| Δ to {ref_label} |");
         let others = rows.filter(|(r, _)| *r != reference_row);
-        metric_rows(md, &head, "Δ ", others, |r, mi| {
+        metric_rows(md, &head, "Δ ", &shown, others, |r, mi| {
             let t = cell_text.get(&(mi, r, None));
             t.map(|t| &t.1).unwrap_or(&missing).clone()
         });
     } else {
-        for (mi, (_, name)) in TABLE_METRICS.iter().enumerate() {
+        for &mi in &shown {
+            let name = TABLE_METRICS[mi].1;
             let _ = write!(md, "## {name}\n\n| |");
             for col in &cfg.columns {
                 let _ = write!(md, " {} |", col.label());
@@ -717,27 +726,28 @@ fn table_body(
     }
 }
 
-/// One Markdown table of rows × [`TABLE_METRICS`]: `head` then each metric's name after
-/// `prefix`, then one line per row with `text(row, metric index)`.
+/// One Markdown table of rows × the `shown` [`TABLE_METRICS`]: `head` then each metric's name
+/// after `prefix`, then one line per row with `text(row, metric index)`.
 fn metric_rows<'a>(
     md: &mut String,
     head: &str,
     prefix: &str,
+    shown: &[usize],
     rows: impl Iterator<Item = (usize, &'a Axis)>,
     text: impl Fn(usize, usize) -> String,
 ) {
     let _ = write!(md, "{head}");
-    for (_, name) in TABLE_METRICS {
-        let _ = write!(md, " {prefix}{name} |");
+    for &mi in shown {
+        let _ = write!(md, " {prefix}{} |", TABLE_METRICS[mi].1);
     }
     let _ = write!(md, "\n|---|");
-    for _ in TABLE_METRICS {
+    for _ in shown {
         let _ = write!(md, "---|");
     }
     md.push('\n');
     for (r, row) in rows {
         let _ = write!(md, "| {} |", row.label());
-        for mi in 0..TABLE_METRICS.len() {
+        for &mi in shown {
             let _ = write!(md, " {} |", text(r, mi));
         }
         md.push('\n');
