@@ -680,7 +680,7 @@ fn table_body(
     let missing = "(not run yet)".to_string();
     let shown: Vec<usize> = (0..TABLE_METRICS.len())
         .filter(|&mi| {
-            let mut texts = cell_text.iter().filter(|(&(m, _, _), _)| m == mi).peekable();
+            let mut texts = cell_text.iter().filter(|(k, _)| k.0 == mi).peekable();
             texts.peek().is_none() || texts.any(|(_, (v, _))| v != "–")
         })
         .collect();
