@@ -340,7 +340,16 @@ fn write_table_for(cfg: &AblateConfig, t: &TestsetSpec) -> Result<Table> {
 /// and set), as the table computes its differences to the reference. Empty until both rows
 /// have finished runs.
 pub fn paired_rows(cfg: &AblateConfig, row: &str, versus: &str) -> Result<Vec<TableEntry>> {
-    let t = &cfg.testset;
+    paired_rows_on(cfg, &cfg.testset, row, versus)
+}
+
+/// [`paired_rows`] on test set `t` (the primary or one of `also`).
+pub fn paired_rows_on(
+    cfg: &AblateConfig,
+    t: &TestsetSpec,
+    row: &str,
+    versus: &str,
+) -> Result<Vec<TableEntry>> {
     let (done, _, _) = load_cells(cfg, t)?;
     let find = |name: &str| {
         done.iter()

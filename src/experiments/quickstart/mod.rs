@@ -6,8 +6,9 @@
 //! device's response, levels and exposure rule only (Net_R, the fair pure baseline and the
 //! reference), the scene engine's display frames (Net_P) and, as a control, its own DSLR data;
 //! score every network on the primary test set (24 held-out scene-engine scenes through the
-//! target model, test noise redrawn per seed), on real radiance and on a real capture where
-//! they exist; print the tables with paired tests, the noise ceiling and the protocol's decision.
+//! target model, test noise redrawn per seed), on a dynamic test set (16 scenes with moving
+//! subjects), on real radiance and on a real capture where they exist; print the tables with
+//! paired tests, the noise ceiling and the protocol's decision.
 //!
 //! Nothing is tuned on the test scenes (scene seed 7 is used for nothing else). Every stage
 //! resumes: rerunning the command after an interruption keeps what is finished. The configs it
@@ -76,6 +77,8 @@ pub(crate) struct Sizes {
     pub(crate) train_size: (usize, usize),
     pub(crate) test_scenes: usize,
     pub(crate) test_size: (usize, usize),
+    /// Test scenes with moving subjects (the dynamic test set).
+    pub(crate) dynamic_scenes: usize,
     pub(crate) base_width: usize,
     pub(crate) res_blocks: usize,
     pub(crate) patch: usize,
@@ -96,6 +99,7 @@ pub(crate) fn sizes(p: Preset) -> Sizes {
             train_size: (160, 128),
             test_scenes: 24,
             test_size: (192, 144),
+            dynamic_scenes: 16,
             base_width: 8,
             res_blocks: 2,
             patch: 64,
@@ -113,6 +117,7 @@ pub(crate) fn sizes(p: Preset) -> Sizes {
             train_size: (512, 384),
             test_scenes: 48,
             test_size: (512, 384),
+            dynamic_scenes: 48,
             base_width: 64,
             res_blocks: 9,
             patch: 256,
@@ -131,6 +136,8 @@ pub(crate) fn sizes(p: Preset) -> Sizes {
 /// Seed of the training scenes, and of the primary test scenes (used for nothing else).
 pub(crate) const TRAIN_SCENE_SEED: u64 = 2026;
 pub(crate) const TEST_SCENE_SEED: u64 = 7;
+/// Seed of the dynamic test scenes (used for nothing else).
+const TEST_DYNAMIC_SCENE_SEED: u64 = 77;
 /// Test scenes need at least this range (stops); an EV −2/0/+2 bracket holds about 12.
 const TEST_MIN_DYNAMIC_RANGE: f32 = 10.0;
 
@@ -418,6 +425,8 @@ fn heldout_testsets(
 struct TestSources {
     /// Generated scenes' radiance (the primary test set).
     scenes: PathBuf,
+    /// Generated scenes with moving subjects (the dynamic test set).
+    dynamic: PathBuf,
     /// Real radiance maps, if any.
     real_radiance: Option<PathBuf>,
     /// A built real-capture test set, if any.
@@ -446,7 +455,13 @@ fn experiment_config(
         noise_per_seed: true,
         reference: None,
     };
-    let mut also = Vec::new();
+    let mut also = vec![TestsetSpec {
+        name: Some(reading::DYNAMIC.into()),
+        label: Some("moving subjects (ground truth: the reference frame's radiance)".into()),
+        dir: out.join("data/testset_dynamic"),
+        radiance: Some(src.dynamic.clone()),
+        ..testset.clone()
+    }];
     if let Some(r) = &src.real_radiance {
         options.seed = 0;
         also.push(TestsetSpec {
@@ -664,8 +679,8 @@ fn prepare(opts: &Options, s: &Sizes, backend: &str, began: Instant) -> Result<P
     stage(
         progress,
         began,
-        "3/5 test sets (held-out generated scenes; real radiance and a real capture where \
-         present)",
+        "3/5 test sets (held-out generated scenes, static and with moving subjects; real \
+         radiance and a real capture where present)",
     );
     let real_radiance = optional_source(
         opts.radiance.as_ref(),
@@ -684,6 +699,7 @@ fn prepare(opts: &Options, s: &Sizes, backend: &str, began: Instant) -> Result<P
     };
     let sources = TestSources {
         scenes: test_scenes(opts, s)?,
+        dynamic: test_sets::dynamic_scenes(opts, s)?,
         real_radiance: real_radiance.as_ref().ok().cloned(),
         real_capture: real_capture_dir.as_ref().ok().cloned(),
     };

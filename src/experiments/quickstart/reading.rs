@@ -1,9 +1,12 @@
 //! The main job's report after its grid: the noise ceiling, the protocol's reading of the
 //! primary comparison, the secondary and descriptive rows and the held-out-simulator matrix.
 
-use crate::experiments::ablate::{self, AblateConfig, AblateSummary, DiffEntry};
+use crate::experiments::ablate::{self, AblateConfig, AblateSummary, DiffEntry, TestsetSpec};
 use std::fmt::Write as _;
 use std::path::PathBuf;
+
+/// Name of the dynamic test set among the grid's `also` sets.
+pub(super) const DYNAMIC: &str = "dynamic";
 
 /// The protocol's decision on the primary comparison (docs/protocol.md).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -95,7 +98,8 @@ pub(super) fn report(
     );
     let _ = write!(report, "\n\n## Reading (docs/protocol.md)\n\n");
     primary_reading(&mut report, primary, alpha);
-    classical_reading(&mut report, exp);
+    classical_reading(&mut report, exp, &exp.testset, "");
+    dynamic_reading(&mut report, exp, tables);
     descriptive(&mut report, exp, tables);
     heldout_matrix(&mut report, exp, tables);
     if let Err(why) = real_radiance {
@@ -155,11 +159,12 @@ fn primary_reading(report: &mut String, primary: &ablate::Table, alpha: f64) {
 }
 
 /// Whether the networks beat what a user has without one: Net_S and Net_R against the copied
-/// reference and the triangle merge on the primary test set, paired within seed and set.
-fn classical_reading(report: &mut String, exp: &AblateConfig) {
+/// reference and the triangle merge on test set `t`, paired within seed and set; `what` names
+/// a test set other than the primary.
+fn classical_reading(report: &mut String, exp: &AblateConfig, t: &TestsetSpec, what: &str) {
     for row in ["net_s", "net_r"] {
         for versus in ["copy", "triangle"] {
-            let Ok(entries) = ablate::paired_rows(exp, row, versus) else {
+            let Ok(entries) = ablate::paired_rows_on(exp, t, row, versus) else {
                 continue;
             };
             let Some(d) = entries
@@ -174,7 +179,7 @@ fn classical_reading(report: &mut String, exp: &AblateConfig) {
             let beats = d.per_seed.iter().filter(|(_, v)| *v > 0.0).count();
             let _ = writeln!(
                 report,
-                "- {row} − {versus}, PSNR-T: {} (per seed {}): {} in {beats} of {} seeds.",
+                "- {what}{row} − {versus}, PSNR-T: {} (per seed {}): {} in {beats} of {} seeds.",
                 describe_diff(d),
                 per_seed.join(", "),
                 if beats == d.per_seed.len() {
@@ -192,12 +197,40 @@ fn seeds_mean(t: &ablate::Table, row: &str) -> Option<f64> {
     t.entry(row, "psnr_t").map(|e| e.mean)
 }
 
+/// The dynamic test set: the networks against the classical rows where subjects move between
+/// the frames (the triangle merge ghosts there), and every row's PSNR-T over the moving pixels.
+fn dynamic_reading(report: &mut String, exp: &AblateConfig, tables: &[ablate::Table]) {
+    let spec = exp.also.iter().find(|a| a.name.as_deref() == Some(DYNAMIC));
+    let table = tables.iter().find(|t| t.testset.as_deref() == Some(DYNAMIC));
+    let (Some(spec), Some(table)) = (spec, table) else {
+        return;
+    };
+    classical_reading(report, exp, spec, "Dynamic test set, ");
+    let cells: Vec<String> = exp
+        .rows
+        .iter()
+        .filter_map(|r| {
+            let all = table.entry(&r.name, "psnr_t")?.mean;
+            let moving = table.entry(&r.name, "psnr_t_moving")?.mean;
+            Some(format!("{} {all:.2} ({moving:.2})", r.name))
+        })
+        .collect();
+    if !cells.is_empty() {
+        let _ = writeln!(
+            report,
+            "- Dynamic test set, PSNR-T over the image (over the moving pixels), mean over \
+             seeds: {}.",
+            cells.join(", ")
+        );
+    }
+}
+
 /// The real test sets' means (too few scenes for a test).
 fn descriptive(report: &mut String, exp: &AblateConfig, tables: &[ablate::Table]) {
     let descriptive = tables.iter().skip(1).filter(|t| {
         !t.testset
             .as_deref()
-            .is_some_and(|n| n.starts_with("heldout_"))
+            .is_some_and(|n| n.starts_with("heldout_") || n == DYNAMIC)
     });
     for (t, what) in descriptive.map(|t| {
         (

@@ -38,6 +38,18 @@ pub(super) fn test_scenes(opts: &Options, s: &Sizes) -> Result<PathBuf> {
     Ok(dir)
 }
 
+/// The dynamic test scenes: the scene engine at a seed of their own with moving subjects (its
+/// default motion), the dynamic range of the static ones, and the linear frames `testset`
+/// renders each frame from at its own time.
+pub(super) fn dynamic_scenes(opts: &Options, s: &Sizes) -> Result<PathBuf> {
+    let mut cfg = generate_config(s, TEST_DYNAMIC_SCENE_SEED, s.dynamic_scenes, s.test_size);
+    cfg.scene.min_dynamic_range = TEST_MIN_DYNAMIC_RANGE;
+    cfg.write_linear = true;
+    let dir = opts.out.join("data/test_scenes_dynamic");
+    generate(&cfg, &dir, opts.progress)?;
+    Ok(dir)
+}
+
 /// A flag's folder, else the shared data's default when it exists. Returns the folder or why
 /// there is none.
 pub(super) fn optional_source(
