@@ -43,8 +43,11 @@ fn moving_scenes_render_each_frame_at_its_own_time_and_agree_with_the_static_bui
     std::fs::create_dir_all(&maps).expect("mkdir");
     let sets = layout::detect(&generated).expect("generated").sets;
     for s in &sets {
-        std::fs::copy(s.dir.join("hdr_gt.exr"), maps.join(format!("{}.exr", s.name)))
-            .expect("copy");
+        std::fs::copy(
+            s.dir.join("hdr_gt.exr"),
+            maps.join(format!("{}.exr", s.name)),
+        )
+        .expect("copy");
     }
     let (dyn_out, static_out) = (tmp.path().join("dyn"), tmp.path().join("static"));
     let built = testset::build(&generated, &canon(), &options(), &dyn_out).expect("dynamic build");

@@ -6,7 +6,7 @@
 
 use hdrsynth::error::Error;
 use hdrsynth::eval::metrics::{
-    self, DARK_CODE, PixelMask, MU, MetricOptions, Pu21Scale, mu_law, psnr, pu21_encode, score,
+    self, DARK_CODE, MU, MetricOptions, PixelMask, Pu21Scale, mu_law, psnr, pu21_encode, score,
     score_pair, ssim,
 };
 use hdrsynth::io::{Image, read_image};

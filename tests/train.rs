@@ -1023,16 +1023,27 @@ fn a_fine_tune_draws_a_fresh_stream_not_its_pretrainings_first_samples() {
         tmp.path().join("pre")
     ));
     let first = |cfg: &TrainConfig| {
-        let l = Loader::new(&cfg.loader(SampleKind::Network1).expect("loader config"))
-            .expect("loader");
+        let l =
+            Loader::new(&cfg.loader(SampleKind::Network1).expect("loader config")).expect("loader");
         (0..4)
             .map(|g| l.stream_sample(g).expect("sample").input)
             .collect::<Vec<_>>()
     };
     let (p, f) = (first(&pre), first(&fine));
     for (g, (a, b)) in p.iter().zip(&f).enumerate() {
-        assert_ne!(a, b, "sample {g}: the fine-tune replays the pretraining's crop");
+        assert_ne!(
+            a, b,
+            "sample {g}: the fine-tune replays the pretraining's crop"
+        );
     }
-    assert_eq!(f, first(&fine), "the fine-tune's stream is a function of its seed");
-    assert_eq!(pre.stream_seed(), 3, "a run without [init] streams from run.seed itself");
+    assert_eq!(
+        f,
+        first(&fine),
+        "the fine-tune's stream is a function of its seed"
+    );
+    assert_eq!(
+        pre.stream_seed(),
+        3,
+        "a run without [init] streams from run.seed itself"
+    );
 }

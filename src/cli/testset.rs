@@ -1,5 +1,6 @@
-//! `hdrsynth testset --radiance DIR --profile P --out OUT`: a static test set from real HDR
-//! radiance rendered through a sensor profile (`data::testset`, docs/evaluation.md).
+//! `hdrsynth testset --radiance DIR --profile P --out OUT`: a test set from HDR radiance
+//! rendered through a sensor profile (`data::testset`, docs/evaluation.md): static from radiance
+//! maps, dynamic from a generated dataset's moving scenes.
 //! `hdrsynth testset --brackets DIR --out OUT`: a Kalantari-layout test set from the user's own
 //! bracket folders (`data::bracket_testset`, docs/your_device.md).
 
@@ -17,7 +18,9 @@ use std::path::PathBuf;
 
 #[derive(clap::Args, Debug, Clone)]
 pub struct Args {
-    /// A linear HDR radiance map (.exr/.hdr) or a folder of them (one scene each).
+    /// A linear HDR radiance map (.exr/.hdr) or a folder of them (one scene each), or a
+    /// dataset `hdrsynth generate` wrote with its linear frames (moving scenes: a dynamic test
+    /// set).
     #[arg(
         long,
         required_unless_present = "brackets",

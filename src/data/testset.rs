@@ -420,8 +420,8 @@ pub fn build(
                 moving: None,
             }
         };
-        let key = exposure_key(&radiance.reference, &opts)
-            .map_err(|m| Error::layout(&scene.file, m))?;
+        let key =
+            exposure_key(&radiance.reference, &opts).map_err(|m| Error::layout(&scene.file, m))?;
         if !manifest_written {
             // Sets may differ in size; each set's meta.toml has its own. The manifest carries
             // the first one for tools that want a nominal size.
@@ -615,8 +615,16 @@ fn write_moving_frame(
 ) -> Result<()> {
     let (w, h) = (still.width, still.height);
     let tag = ev_tag(ev);
-    write_ldr(&dir.join("static").join(format!("{tag}.png")), &still, depth)?;
-    write_ldr(&dir.join("dynamic").join(format!("{tag}.png")), &moving, depth)?;
+    write_ldr(
+        &dir.join("static").join(format!("{tag}.png")),
+        &still,
+        depth,
+    )?;
+    write_ldr(
+        &dir.join("dynamic").join(format!("{tag}.png")),
+        &moving,
+        depth,
+    )?;
     let m = Image::from_vec(w, h, mask.iter().flat_map(|&v| [v as f32; 3]).collect());
     write_ldr(
         &dir.join("dynamic").join(format!("mask_{tag}.png")),

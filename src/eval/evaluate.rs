@@ -28,7 +28,7 @@ use crate::error::{Error, Result};
 use crate::eval::blend::{blend_pair, tone_curve};
 use crate::eval::infer;
 pub use crate::eval::infer::NetworkOptions;
-use crate::eval::metrics::{self, PixelMask, MetricOptions, Pu21Scale, Scores};
+use crate::eval::metrics::{self, MetricOptions, PixelMask, Pu21Scale, Scores};
 use crate::eval::report::{self, Cell, MetricSummary, SetScore};
 use crate::io::source::Source;
 use crate::io::{BitDepth, ExrPrecision, Image, read_image, resize, write_exr, write_ldr};

@@ -256,6 +256,9 @@ pub struct DiffEntry {
     pub n_seeds: usize,
     /// The tests over scenes; `None` with fewer than [`MIN_SCENES_FOR_TESTS`] scenes.
     pub t: Option<stats::PairedT>,
+    /// The t interval over the per-seed differences: the training run as the unit, so it says
+    /// whether a newly trained network would differ, not only these runs (None under 2 seeds).
+    pub seed_t: Option<stats::PairedT>,
     pub wilcoxon_p: Option<f64>,
     pub margin: f64,
     pub tost_p: Option<f64>,
@@ -470,6 +473,10 @@ impl MetricStats {
                 sign_holds: x.sign_holds(),
                 n_seeds: x.n_seeds,
                 t: tests.as_ref().map(|ts| ts.t),
+                seed_t: {
+                    let v: Vec<f64> = x.per_seed.iter().map(|(_, v)| *v).collect();
+                    stats::paired_t(&v, cfg.eval.level)
+                },
                 wilcoxon_p: tests
                     .as_ref()
                     .and_then(|ts| ts.wilcoxon.as_ref().map(|w| w.p)),

@@ -5,6 +5,9 @@ use crate::experiments::ablate::{self, AblateConfig, AblateSummary, DiffEntry, T
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
+/// Seeds a claim about newly trained networks needs (docs/protocol.md, "Statistics").
+pub(super) const MIN_SEEDS_FOR_RUNS: usize = 5;
+
 /// Name of the dynamic test set among the grid's `also` sets.
 pub(super) const DYNAMIC: &str = "dynamic";
 
@@ -53,7 +56,7 @@ fn signed_db(v: f64) -> String {
 }
 
 /// One comparison for the reading: "+x dB [lo, hi], Wilcoxon p …, TOST p …, sign in k/n seeds".
-fn describe_diff(d: &DiffEntry) -> String {
+pub(super) fn describe_diff(d: &DiffEntry) -> String {
     let mut text = format!("{} dB", signed_db(d.mean));
     if let Some(t) = &d.t {
         let _ = write!(
@@ -70,6 +73,22 @@ fn describe_diff(d: &DiffEntry) -> String {
         let _ = write!(text, ", TOST (±{} dB) p {}", d.margin, ablate::format_p(p));
     }
     let _ = write!(text, ", sign in {}/{} seeds", d.sign_holds, d.n_seeds);
+    if let Some(t) = &d.seed_t {
+        // The training run as the unit: what a newly trained network would do.
+        let _ = write!(
+            text,
+            "; over training runs [{}, {}] (t over the {} seeds' means, run-to-run sd {:.2} dB{})",
+            signed_db(t.ci_lower),
+            signed_db(t.ci_upper),
+            t.n,
+            t.sd,
+            if t.n < MIN_SEEDS_FOR_RUNS {
+                format!("; under {MIN_SEEDS_FOR_RUNS} seeds, these runs only")
+            } else {
+                String::new()
+            }
+        );
+    }
     text
 }
 
@@ -201,7 +220,9 @@ fn seeds_mean(t: &ablate::Table, row: &str) -> Option<f64> {
 /// the frames (the triangle merge ghosts there), and every row's PSNR-T over the moving pixels.
 fn dynamic_reading(report: &mut String, exp: &AblateConfig, tables: &[ablate::Table]) {
     let spec = exp.also.iter().find(|a| a.name.as_deref() == Some(DYNAMIC));
-    let table = tables.iter().find(|t| t.testset.as_deref() == Some(DYNAMIC));
+    let table = tables
+        .iter()
+        .find(|t| t.testset.as_deref() == Some(DYNAMIC));
     let (Some(spec), Some(table)) = (spec, table) else {
         return;
     };

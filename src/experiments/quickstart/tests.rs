@@ -60,6 +60,7 @@ fn the_configs_follow_the_protocol_and_read_back() {
         }
         let src = TestSources {
             scenes: root.join("scenes"),
+            dynamic: root.join("moving"),
             real_radiance: Some(root.join("hdr")),
             real_capture: Some(root.join("capture")),
         };
@@ -105,13 +106,24 @@ fn the_configs_follow_the_protocol_and_read_back() {
         );
         assert!(exp.rows[4].set["data"].get("noise").is_none());
         assert!(exp.testset.noise_per_seed);
+        // The dynamic test set: the primary's options and per-seed noise, its own scenes.
+        let dynamic = &exp.also[0];
+        assert_eq!(dynamic.name.as_deref(), Some(reading::DYNAMIC));
+        assert_eq!(
+            dynamic.radiance.as_deref(),
+            Some(root.join("moving").as_path())
+        );
+        assert_eq!(
+            (&dynamic.options, dynamic.noise_per_seed, &dynamic.profile),
+            (&exp.testset.options, true, &exp.testset.profile)
+        );
         assert!(
             exp.pretrained_per_seed
                 .as_deref()
                 .is_some_and(|p| p.contains("{seed}"))
         );
         let also: Vec<_> = exp.also.iter().filter_map(|t| t.name.as_deref()).collect();
-        assert_eq!(also, ["real_radiance", "real_capture"]);
+        assert_eq!(also, ["dynamic", "real_radiance", "real_capture"]);
     }
 }
 
@@ -174,6 +186,7 @@ fn diff(mean: f64, lo: f64, hi: f64, wilcoxon: f64, tost: f64, signs: usize) -> 
             ci_lower: lo,
             ci_upper: hi,
         }),
+        seed_t: None,
         wilcoxon_p: Some(wilcoxon),
         margin: 0.2,
         tost_p: Some(tost),
@@ -203,4 +216,27 @@ fn the_decision_follows_the_protocol() {
         ..diff(3.0, 2.0, 4.0, 0.001, 0.9, 3)
     };
     assert_eq!(d(few), Decision::Inconclusive);
+}
+
+/// The reading states the interval over training runs, and that under 5 seeds it describes
+/// these runs only.
+#[test]
+fn the_reading_gives_the_interval_over_training_runs() {
+    let with_seeds = |per_seed: &[f64]| DiffEntry {
+        per_seed: per_seed.iter().map(|&v| (None, v)).collect(),
+        seed_t: crate::stats::paired_t(per_seed, 0.95),
+        ..diff(0.5, 0.2, 0.8, 0.01, 0.9, 3)
+    };
+    let three = reading::describe_diff(&with_seeds(&[0.4, 0.5, 0.6]));
+    // mean 0.5, sd 0.1, se 0.1/√3, t_{0.975, 2} = 4.3027: ±0.248.
+    assert!(
+        three.contains("over training runs [+0.25, +0.75]") && three.contains("sd 0.10"),
+        "{three}"
+    );
+    assert!(three.contains("these runs only"), "{three}");
+    let five = reading::describe_diff(&with_seeds(&[0.4, 0.5, 0.6, 0.45, 0.55]));
+    assert!(
+        five.contains("over training runs") && !five.contains("these runs only"),
+        "{five}"
+    );
 }
