@@ -4,7 +4,7 @@
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use hdrsynth::eval::metrics::{
-    DarkMask, MetricOptions, delta_e2000_mu, psnr, psnr_mu, psnr_mu_dark, pu21_psnr, pu21_ssim,
+    PixelMask, MetricOptions, delta_e2000_mu, psnr, psnr_mu, psnr_mu_masked, pu21_psnr, pu21_ssim,
     score, ssim, ssim_mu,
 };
 use hdrsynth::io::Image;
@@ -31,7 +31,7 @@ fn bench(c: &mut Criterion) {
     for (w, h) in [(1024usize, 768usize), (4032, 3024)] {
         let (gt, pred) = pair(w, h);
         // A darkened ground truth stands in for the reference frame: about a third is dark.
-        let dark = DarkMask::from_frame(&gt.map(|v| v * 0.15)).expect("mask");
+        let dark = PixelMask::from_frame(&gt.map(|v| v * 0.15)).expect("mask");
         g.throughput(Throughput::Elements((w * h) as u64));
         g.bench_function(format!("ssim/{w}x{h}"), |b| {
             b.iter(|| ssim(&gt, &pred).expect("ssim"))
@@ -55,9 +55,9 @@ fn bench(c: &mut Criterion) {
     g.bench_function("delta_e2000/1024x768", |b| {
         b.iter(|| delta_e2000_mu(&gt, &pred))
     });
-    let dark = DarkMask::from_frame(&gt.map(|v| v * 0.15)).expect("mask");
+    let dark = PixelMask::from_frame(&gt.map(|v| v * 0.15)).expect("mask");
     g.bench_function("psnr_t_dark/1024x768", |b| {
-        b.iter(|| psnr_mu_dark(&gt, &pred, &dark))
+        b.iter(|| psnr_mu_masked(&gt, &pred, &dark))
     });
     g.finish();
 }
