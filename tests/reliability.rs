@@ -2808,13 +2808,9 @@ fn brackets_without_signal_are_refused_before_a_response_is_estimated() {
     use hdrsynth::data::bracket_testset::{self, BracketOptions};
     let dir = tempfile::tempdir().unwrap();
     type Codes = fn(usize, u32, u32) -> u8;
-    let cases: [(&str, u32, u32, Codes); 3] = [
+    let cases: [(&str, u32, u32, Codes); 2] = [
         ("black", 48, 32, |_, _, _| 0),
         ("white", 48, 32, |_, _, _| 255),
-        // 3×2 pixels: a response from six pixels.
-        ("tiny", 3, 2, |i, x, y| {
-            (40 + 60 * i as u32 + 7 * x + 11 * y) as u8
-        }),
     ];
     for (name, w, h, code) in cases {
         let brackets = dir.path().join(name);
@@ -2840,6 +2836,49 @@ fn brackets_without_signal_are_refused_before_a_response_is_estimated() {
         &dir.path().join("ok"),
     )
     .expect("a ramp has signal");
+}
+
+/// Frames under 11×11 (the SSIM window) are refused naming the frame, whether the response is
+/// estimated (3×2 frames: a response from six pixels) or declared (a 1×1 region, where no
+/// estimate fails first).
+#[test]
+fn a_frame_smaller_than_the_ssim_window_is_refused_naming_it_whatever_the_response() {
+    use hdrsynth::data::bracket_testset::{self, BracketOptions, ResponseChoice};
+    use hdrsynth::data::brackets::{Region, ScanOptions};
+    use hdrsynth::sensor::profile::Response;
+    let dir = tempfile::tempdir().unwrap();
+    let ramp = |i: usize, x: u32, y: u32| (40 + 60 * i as u32 + 3 * x + 5 * y).min(255) as u8;
+    let tiny = dir.path().join("tiny");
+    png_bracket_of(&tiny.join("s"), 3, 2, ramp);
+    let cut = dir.path().join("cut");
+    png_bracket_of(&cut.join("s"), 48, 32, ramp);
+    let declared = BracketOptions {
+        response: ResponseChoice::Declared(Response::Srgb),
+        scan: ScanOptions {
+            region: Some(Region::Rect {
+                x: 0,
+                y: 0,
+                w: 1,
+                h: 1,
+            }),
+            ..ScanOptions::default()
+        },
+        ..BracketOptions::default()
+    };
+    for (name, brackets, opts, size) in [
+        ("tiny", &tiny, BracketOptions::default(), "3×2 pixels"),
+        ("cut", &cut, declared, "1×1 pixels in region 0,0,1,1"),
+    ] {
+        let out = dir.path().join(format!("{name}_ts"));
+        let e = bracket_testset::build(brackets, &opts, &out)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(size) && e.contains("f0.png") && e.contains("at least 11×11"),
+            "{name}: {e}"
+        );
+        assert!(!out.exists(), "{name}: output left");
+    }
 }
 
 #[cfg(unix)]

@@ -1,0 +1,168 @@
+#!/usr/bin/env python3
+"""Quality against compute: the main job's recipe at other network widths and step counts.
+
+For each point (width w, step factor k; suffix `m`: training scenes with moving subjects, the
+scene engine's default motion, instead of the main job's static ones) of the sweep, from a
+finished main job's folder QS (`hdrsynth quickstart --out QS`, whose training data and test
+sets it reuses):
+  - Net_O per seed: the main job's pretraining config with `model.base_width = w` (the merger
+    widths scaled alike) and k times the steps (warm-up and checkpoints alike);
+  - the main job's grid with Net_R, Net_S and the classical rows only, fine-tuned for k times
+    the steps from that point's Net_O, on the main job's primary and dynamic test sets;
+and writes OUT/sweep.csv: per point, test set and metric (PSNR-T, PSNR-T over the moving
+pixels), each row's mean over seeds and scenes and the paired differences Net_S − Net_R,
+Net_S − triangle and Net_S − copy (within seed and set; t 95 % interval over scenes, each
+scene's difference the mean over its ISO sets and the seeds; each seed's mean).
+
+Run: tools/sweep.py QS OUT --points 8x1,8x1m,8x4,16x1 --seeds 1,2,3 [--hdrsynth PATH]
+Resumable: every stage is (`hdrsynth train --resume`, `hdrsynth ablate`).
+Needs Python 3.11+ and tomli-w.
+"""
+
+import argparse
+import csv
+import math
+import statistics
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+import tomli_w
+
+
+def load(path: Path) -> dict:
+    with open(path, "rb") as f:
+        return tomllib.load(f)
+
+
+def save(path: Path, cfg: dict) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp")
+    tmp.write_bytes(tomli_w.dumps(cfg).encode())
+    tmp.replace(path)
+
+
+def scaled(cfg: dict, width: int, k: int, out: Path) -> dict:
+    cfg = dict(cfg)
+    run = dict(cfg["run"])
+    run["out"] = str(out)
+    run["steps"] = run["steps"] * k
+    run["checkpoint_every"] = run["checkpoint_every"] * k
+    cfg["run"] = run
+    model = dict(cfg["model"])
+    ratio = width / model["base_width"]
+    model["base_width"] = width
+    model["unet_merger_widths"] = [max(1, round(v * ratio)) for v in model["unet_merger_widths"]]
+    cfg["model"] = model
+    sched = dict(cfg["schedule"])
+    sched["warmup_steps"] = sched["warmup_steps"] * k
+    cfg["schedule"] = sched
+    return cfg
+
+
+# Student t 97.5 % quantiles by degrees of freedom (scipy.stats.t.ppf(0.975, df)).
+T975 = {15: 2.1314, 23: 2.0687, 47: 2.0117}
+
+
+def per_image(path: Path, metric: str) -> dict:
+    with open(path) as f:
+        return {r["set"]: float(r[metric]) for r in csv.DictReader(f) if r.get(metric)}
+
+
+def paired(a: dict, b: dict) -> tuple:
+    """a, b: seed -> set -> value. Mean difference, t interval over scenes, per-seed means."""
+    by_scene, per_seed = {}, []
+    for k in a:
+        d = {s: a[k][s] - b[k][s] for s in a[k] if s in b[k]}
+        per_seed.append(statistics.fmean(d.values()))
+        for s, v in d.items():
+            by_scene.setdefault(s.rsplit("_iso", 1)[0], []).append(v)
+    scenes = [statistics.fmean(v) for v in by_scene.values()]
+    m = statistics.fmean(scenes)
+    half = T975.get(len(scenes) - 1, 2.0) * statistics.stdev(scenes) / math.sqrt(len(scenes))
+    return m, m - half, m + half, per_seed
+
+
+def run(cmd: list) -> None:
+    print("+", " ".join(map(str, cmd)), flush=True)
+    subprocess.run([str(c) for c in cmd], check=True)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("qs", type=Path)
+    ap.add_argument("out", type=Path)
+    ap.add_argument("--points", default="8x1,8x4,16x1")
+    ap.add_argument("--seeds", default="1,2")
+    ap.add_argument("--hdrsynth", default="hdrsynth")
+    a = ap.parse_args()
+    qs, out = a.qs.resolve(), a.out.resolve()
+    seeds = [int(s) for s in a.seeds.split(",")]
+    rows_kept = {"net_r", "net_s", "copy", "triangle"}
+    results = []
+    moving_data = qs / "data/train_moving"
+    for point in a.points.split(","):
+        moving = point.endswith("m")
+        width, k = (int(v) for v in point.rstrip("m").split("x"))
+        here = out / f"w{width}_k{k}{'_moving' if moving else ''}"
+        if moving and not (moving_data / "dataset.toml").is_file():
+            gen = load(qs / "configs/train_data.toml")
+            gen["scene"]["motion_scale"] = 1.0
+            save(out / "train_moving.toml", gen)
+            run([a.hdrsynth, "generate", "--config", out / "train_moving.toml",
+                 "--out", moving_data])
+        data = str(moving_data if moving else qs / "data/train")
+        for s in seeds:
+            pre = scaled(load(qs / f"configs/pretrain_seed{s}.toml"), width, k,
+                         here / f"pretrain/seed{s}")
+            pre["data"]["dataset"] = data
+            path = here / f"configs/pretrain_seed{s}.toml"
+            save(path, pre)
+            resume = ["--resume"] if (here / f"pretrain/seed{s}/checkpoints").is_dir() else []
+            run([a.hdrsynth, "train", "--config", path, *resume])
+        base = scaled(load(qs / "configs/finetune.toml"), width, k, here / "unused")
+        base["data"]["dataset"] = data
+        save(here / "configs/finetune.toml", base)
+        exp = load(qs / "configs/experiment.toml")
+        exp["title"] = f"Sweep point: width {width}, {k}x the main job's steps"
+        exp["out"] = str(here / "experiment")
+        exp["base"] = str(here / "configs/finetune.toml")
+        exp["seeds"] = seeds
+        exp["pretrained_per_seed"] = str(here / "pretrain/seed{seed}")
+        exp["rows"] = [r for r in exp["rows"] if r["name"] in rows_kept]
+        exp["also"] = [t for t in exp.get("also", []) if t.get("name") == "dynamic"]
+        save(here / "configs/experiment.toml", exp)
+        run([a.hdrsynth, "ablate", "--config", here / "configs/experiment.toml"])
+        cells = here / "experiment/cells"
+        for name, folder in [("primary", "eval"), ("dynamic", "eval_dynamic")]:
+            for metric in ("psnr_t", "psnr_t_moving"):
+                scores = {
+                    row: {s: per_image(cells / row / f"seed{s}" / folder / "per_image.csv",
+                                       metric) for s in seeds}
+                    for row in sorted(rows_kept)
+                }
+                if not any(scores["net_s"].values()):
+                    continue
+                line = {"width": width, "steps_factor": k, "moving_training": moving,
+                        "testset": name, "metric": metric}
+                for row, v in scores.items():
+                    line[row] = round(statistics.fmean(
+                        statistics.fmean(x.values()) for x in v.values()), 3)
+                for versus in ("net_r", "triangle", "copy"):
+                    m, lo, hi, ps = paired(scores["net_s"], scores[versus])
+                    line[f"net_s-{versus}"] = round(m, 3)
+                    line[f"net_s-{versus}_ci"] = f"[{lo:+.2f}, {hi:+.2f}]"
+                    line[f"net_s-{versus}_per_seed"] = " ".join(f"{v:+.2f}" for v in ps)
+                results.append(line)
+                print(line, flush=True)
+    out.mkdir(parents=True, exist_ok=True)
+    with open(out / "sweep.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(results[0].keys()) if results else ["width"])
+        w.writeheader()
+        w.writerows(results)
+    print(f"wrote {out / 'sweep.csv'}", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()
