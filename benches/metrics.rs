@@ -4,7 +4,7 @@
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use hdrsynth::eval::metrics::{
-    PixelMask, MetricOptions, delta_e2000_mu, psnr, psnr_mu, psnr_mu_masked, pu21_psnr, pu21_ssim,
+    MetricOptions, PixelMask, delta_e2000_mu, psnr, psnr_mu, psnr_mu_masked, pu21_psnr, pu21_ssim,
     score, ssim, ssim_mu,
 };
 use hdrsynth::io::Image;

@@ -333,3 +333,64 @@ fn a_scene_target_is_the_device_target_without_t() {
     }
     assert!(checked > 1000, "{checked} pixels checked");
 }
+
+/// `static_fraction`: a still sample takes every frame from the static set, at the crop the
+/// sample would have anyway; the other samples are the default's, unchanged.
+#[test]
+fn a_still_sample_takes_every_frame_from_the_static_set() {
+    let dir = tempfile::tempdir().expect("tmp");
+    dataset("[-2.0, 0.0, 2.0]", dir.path());
+    let info = hdrsynth::data::layout::detect(dir.path()).expect("detect");
+    let with = |f: f64| {
+        let mut cfg = loader_cfg(dir.path(), "network2", 1, false);
+        cfg.augment = false;
+        cfg.static_fraction = f;
+        Loader::new(&cfg).expect("loader")
+    };
+    let (moving, still, half) = (with(0.0), with(1.0), with(0.5));
+    let (mut n_still, mut n_moved) = (0, 0);
+    for i in 0..16 {
+        let (m, s, h) = (
+            moving.sample(0, i).expect("sample"),
+            still.sample(0, i).expect("sample"),
+            half.sample(0, i).expect("sample"),
+        );
+        let p = s.size;
+        let plane = |x: &Sample, k: usize| x.input[k * p * p..(k + 1) * p * p].to_vec();
+        assert_eq!(
+            (m.set.as_str(), plane(&m, 6)),
+            (s.set.as_str(), plane(&s, 6))
+        );
+        let set = info.sets.iter().find(|x| x.name == s.set).expect("set");
+        let stat = hdrsynth::io::read_image(&set.static_frames[0]).expect("static low");
+        let refr = hdrsynth::io::read_image(&set.static_frames[1]).expect("static ref");
+        // The crop: where the reference plane matches the static reference.
+        let crop = (0..=set.height - p)
+            .flat_map(|y| (0..=set.width - p).map(move |x| (x, y)))
+            .find(|&(x0, y0)| {
+                (0..p * p)
+                    .all(|q| (plane(&s, 6)[q] - refr.get(x0 + q % p, y0 + q / p)[0]).abs() < 1e-6)
+            })
+            .expect("the reference crop");
+        let low_still = (0..p * p)
+            .all(|q| (plane(&s, 0)[q] - stat.get(crop.0 + q % p, crop.1 + q / p)[0]).abs() < 1e-6);
+        assert!(
+            low_still,
+            "sample {i}: the still sample's EV−2 frame is not the static one"
+        );
+        n_moved += usize::from(plane(&m, 0) != plane(&s, 0));
+        if plane(&h, 0) == plane(&s, 0) && plane(&h, 0) != plane(&m, 0) {
+            n_still += 1;
+        } else {
+            assert_eq!(h.input, m.input, "sample {i}: a moving sample changed");
+        }
+    }
+    assert!(
+        n_moved > 4,
+        "the dataset's subjects move in {n_moved} of 16 crops"
+    );
+    assert!(
+        n_still > 0 && n_still < n_moved,
+        "half still: {n_still} of {n_moved}"
+    );
+}

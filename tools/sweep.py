@@ -2,7 +2,8 @@
 """Quality against compute: the main job's recipe at other network widths and step counts.
 
 For each point (width w, step factor k; suffix `m`: training scenes with moving subjects, the
-scene engine's default motion, instead of the main job's static ones) of the sweep, from a
+scene engine's default motion, instead of the main job's static ones; suffix `h`: the same
+scenes with half the samples still, `[data] static_fraction = 0.5`) of the sweep, from a
 finished main job's folder QS (`hdrsynth quickstart --out QS`, whose training data and test
 sets it reuses):
   - Net_O per seed: the main job's pretraining config with `model.base_width = w` (the merger
@@ -103,9 +104,10 @@ def main() -> None:
     results = []
     moving_data = qs / "data/train_moving"
     for point in a.points.split(","):
-        moving = point.endswith("m")
-        width, k = (int(v) for v in point.rstrip("m").split("x"))
-        here = out / f"w{width}_k{k}{'_moving' if moving else ''}"
+        mix = point.endswith("h")
+        moving = mix or point.endswith("m")
+        width, k = (int(v) for v in point.rstrip("mh").split("x"))
+        here = out / f"w{width}_k{k}{'_half_still' if mix else '_moving' if moving else ''}"
         if moving and not (moving_data / "dataset.toml").is_file():
             gen = load(qs / "configs/train_data.toml")
             gen["scene"]["motion_scale"] = 1.0
@@ -117,12 +119,16 @@ def main() -> None:
             pre = scaled(load(qs / f"configs/pretrain_seed{s}.toml"), width, k,
                          here / f"pretrain/seed{s}")
             pre["data"]["dataset"] = data
+            if mix:
+                pre["data"]["static_fraction"] = 0.5
             path = here / f"configs/pretrain_seed{s}.toml"
             save(path, pre)
             resume = ["--resume"] if (here / f"pretrain/seed{s}/checkpoints").is_dir() else []
             run([a.hdrsynth, "train", "--config", path, *resume])
         base = scaled(load(qs / "configs/finetune.toml"), width, k, here / "unused")
         base["data"]["dataset"] = data
+        if mix:
+            base["data"]["static_fraction"] = 0.5
         save(here / "configs/finetune.toml", base)
         exp = load(qs / "configs/experiment.toml")
         exp["title"] = f"Sweep point: width {width}, {k}x the main job's steps"
@@ -145,6 +151,7 @@ def main() -> None:
                 if not any(scores["net_s"].values()):
                     continue
                 line = {"width": width, "steps_factor": k, "moving_training": moving,
+                        "static_fraction": 0.5 if mix else 0.0,
                         "testset": name, "metric": metric}
                 for row, v in scores.items():
                     line[row] = round(statistics.fmean(

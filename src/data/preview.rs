@@ -65,6 +65,7 @@ pub fn preview(args: &PreviewOptions) -> Result<String> {
         realism: None,
         target_sigma: 0.0,
         target_frames: Default::default(),
+        static_fraction: 0.0,
         input_response: None,
     };
     let mut real_cfg = base.clone();

@@ -101,6 +101,15 @@ pub struct DataConfig {
     /// Network-1: the frames behind the class targets, `clean` (default: the crop rendered
     /// without the noise draw) or `noisy` (the input frames themselves).
     pub target_frames: TargetFrames,
+    /// Network-2: the fraction of samples whose frames all come from the static set (no
+    /// motion between them); the others take the non-reference frames from the dynamic set.
+    /// Default 0 (every sample dynamic, the paper's §4.2).
+    #[serde(skip_serializing_if = "is_zero")]
+    pub static_fraction: f64,
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
 }
 
 /// Network-1's default target smoothing, chosen by measurement (docs/network1.md).
@@ -120,7 +129,8 @@ fn data_keys() -> &'static [&'static str] {
             "augment",
         ];
         let realism = crate::config::struct_fields::<RealismConfig>();
-        [&before[..], realism, &["target_sigma", "target_frames"]].concat()
+        let after = ["target_sigma", "target_frames", "static_fraction"];
+        [&before[..], realism, &after[..]].concat()
     });
     &KEYS
 }
@@ -144,6 +154,7 @@ struct Own {
     augment: Option<bool>,
     target_sigma: Option<f32>,
     target_frames: Option<TargetFrames>,
+    static_fraction: Option<f64>,
 }
 
 impl<'de> de::Visitor<'de> for DataVisitor {
@@ -175,6 +186,7 @@ impl<'de> de::Visitor<'de> for DataVisitor {
             realism,
             target_sigma: own.target_sigma.unwrap_or(DEFAULT_TARGET_SIGMA),
             target_frames: own.target_frames.unwrap_or_default(),
+            static_fraction: own.static_fraction.unwrap_or(0.0),
         })
     }
 }
@@ -206,6 +218,7 @@ impl<'de, A: de::MapAccess<'de>> de::MapAccess<'de> for Split<'_, A> {
                 "augment" => o.augment = Some(self.map.next_value()?),
                 "target_sigma" => o.target_sigma = Some(self.map.next_value()?),
                 "target_frames" => o.target_frames = Some(self.map.next_value()?),
+                "static_fraction" => o.static_fraction = Some(self.map.next_value()?),
                 _ => {
                     return seed
                         .deserialize(de::IntoDeserializer::into_deserializer(key))
@@ -253,6 +266,7 @@ impl DataConfig {
             realism,
             target_sigma: DEFAULT_TARGET_SIGMA,
             target_frames: TargetFrames::default(),
+            static_fraction: 0.0,
         }
     }
 
@@ -262,6 +276,7 @@ impl DataConfig {
         in_range("batch_size", self.batch_size, Range::at_least(1.0))?;
         in_range("workers", self.workers, Range::at_least(1.0))?;
         in_range("target_sigma", self.target_sigma, Range::NON_NEGATIVE)?;
+        in_range("static_fraction", self.static_fraction, Range::UNIT)?;
         self.realism.validate()
     }
 
@@ -281,6 +296,7 @@ impl DataConfig {
             realism,
             target_sigma: self.target_sigma,
             target_frames: self.target_frames,
+            static_fraction: self.static_fraction,
             input_response: None,
         })
     }

@@ -168,6 +168,10 @@ pub struct LoaderConfig {
     /// Network-1 only: which frames the Mertens weights behind the class targets come from.
     #[serde(default)]
     pub target_frames: TargetFrames,
+    /// Network-2 only: the fraction of samples whose three frames all come from the static
+    /// set (no motion between them); 0: the non-reference frames always from the dynamic set.
+    #[serde(default)]
+    pub static_fraction: f64,
     /// Network-2 only: the curve its HDR input channels invert (the network's
     /// `input_response`, set by the trainer); None: LDR^2.2, Wu et al.'s.
     #[serde(skip)]

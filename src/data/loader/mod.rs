@@ -174,6 +174,8 @@ struct Draw<'a> {
     /// Seed of the realism noise; frame k of the sample uses hash(noise_seed, [k]), so frames
     /// of a sample get independent noise.
     noise_seed: u64,
+    /// Network-2: every frame from the static set (`static_fraction`), not only the reference.
+    still: bool,
 }
 
 impl Draw<'_> {
@@ -407,8 +409,9 @@ impl Loader {
     }
 
     /// Sample `index` of `epoch`'s random choices, from the sample's own generator in a fixed
-    /// order (crop x, crop y, dihedral transform, ISO, exposure jitter: drawing them in another
-    /// order would change every sample), and its noise seed.
+    /// order (crop x, crop y, dihedral transform, ISO, exposure jitter, then — only with a
+    /// `static_fraction` — whether the sample is still: drawing them in another order would
+    /// change every sample), and its noise seed.
     fn draw(&self, k: usize, epoch: u64, index: usize) -> Result<Draw<'_>> {
         let set = &self.sets[k];
         let mut rng = Rng::from_parts(self.cfg.seed, &[epoch, index as u64]);
@@ -429,6 +432,8 @@ impl Loader {
             }
             None => 1.0,
         };
+        let f = self.cfg.static_fraction;
+        let still = f > 0.0 && rng.range(0.0, 1.0) < f as f32;
         Ok(Draw {
             loader: self,
             set,
@@ -439,6 +444,7 @@ impl Loader {
             clean: pick.and_then(|i| self.clean.get(i)),
             exposure,
             noise_seed: hash(self.cfg.seed, &[0x0153, epoch, index as u64]),
+            still,
         })
     }
 
@@ -486,8 +492,9 @@ impl Loader {
         let idx = frames_at(set, &[-2.0, 0.0, 2.0])?;
         let stat = !set.static_frames.is_empty();
         let pick = |i: usize| -> &Path {
-            // The reference from the static set, the others from the dynamic set.
-            if i == 1 && stat {
+            // The reference from the static set, the others from the dynamic set (a still
+            // sample: all from the static set).
+            if (i == 1 || d.still) && stat {
                 &set.static_frames[idx[i]]
             } else {
                 &set.dynamic_frames[idx[i]]
