@@ -327,30 +327,7 @@ pub fn build(
     let metering = Metering::resolve(opts.metering, profile.metering);
     opts.metering = Some(metering.rule);
     let dynamic = dynamic::is_generated(input);
-    let files = if dynamic {
-        dynamic::scene_dirs(input)?
-    } else {
-        radiance_files(input)?
-    };
-    let scenes: Vec<SceneEntry> = files
-        .iter()
-        .map(|f| SceneEntry {
-            name: scene_name(f),
-            file: f.clone(),
-        })
-        .collect();
-    for (i, a) in scenes.iter().enumerate() {
-        if let Some(b) = scenes[i + 1..].iter().find(|b| b.name == a.name) {
-            return Err(Error::layout(
-                &b.file,
-                format!(
-                    "scene name '{}' is also that of {}; rename one",
-                    a.name,
-                    a.file.display()
-                ),
-            ));
-        }
-    }
+    let scenes = scene_entries(input, dynamic)?;
     // The frames are rendered from scene-linear radiance: the source is linear, whatever the
     // profile's source response for synthetic frames is.
     let mut device = profile.clone();
@@ -415,10 +392,7 @@ pub fn build(
         } else {
             let (r, n) = load_radiance(&scene.file, opts.resize)?;
             notes.extend(n);
-            SceneRadiance {
-                reference: r,
-                moving: None,
-            }
+            SceneRadiance::still(r)
         };
         let key =
             exposure_key(&radiance.reference, &opts).map_err(|m| Error::layout(&scene.file, m))?;
@@ -444,6 +418,36 @@ pub fn build(
         dynamic,
         notes,
     })
+}
+
+/// The scenes of `input`: a generated dataset's sets (`dynamic`) or its radiance files; two
+/// scenes of one name are refused.
+fn scene_entries(input: &Path, dynamic: bool) -> Result<Vec<SceneEntry>> {
+    let files = if dynamic {
+        dynamic::scene_dirs(input)?
+    } else {
+        radiance_files(input)?
+    };
+    let scenes: Vec<SceneEntry> = files
+        .iter()
+        .map(|f| SceneEntry {
+            name: scene_name(f),
+            file: f.clone(),
+        })
+        .collect();
+    for (i, a) in scenes.iter().enumerate() {
+        if let Some(b) = scenes[i + 1..].iter().find(|b| b.name == a.name) {
+            return Err(Error::layout(
+                &b.file,
+                format!(
+                    "scene name '{}' is also that of {}; rename one",
+                    a.name,
+                    a.file.display()
+                ),
+            ));
+        }
+    }
+    Ok(scenes)
 }
 
 fn write_manifest(

@@ -60,24 +60,30 @@ impl Scoring {
         }
     }
 
-    /// `dark`: the set's under-exposed pixels (from its reference input frame), for PSNR-T dark.
+    /// `[dark, moving]`: the set's under-exposed pixels (from its reference input frame) and
+    /// its moving ones (its motion masks), for PSNR-T dark and PSNR-T moving.
     pub fn score(
         self,
         reference: &Image,
         output: &Image,
-        dark: Option<&PixelMask>,
+        [dark, moving]: [Option<&PixelMask>; 2],
         opts: &MetricOptions,
     ) -> Result<Scores> {
-        match self {
-            Scoring::Hdr => metrics::score(reference, output, dark, opts),
+        let mut scores = match self {
+            Scoring::Hdr => metrics::score(reference, output, dark, opts)?,
             Scoring::Network1 { .. } => {
                 let (rt, ot) = rayon::join(
                     || reference.map(|v| self.display(v)),
                     || output.map(|v| self.display(v)),
                 );
-                metrics::score_pair(reference, output, &rt, &ot, dark, opts)
+                metrics::score_pair(reference, output, &rt, &ot, dark, opts)?
             }
+        };
+        if let Some(m) = moving {
+            scores.psnr_t_moving = self.psnr_t_masked(reference, output, m)?;
+            scores.moving_fraction = Some(m.fraction());
         }
+        Ok(scores)
     }
 
     /// PSNR-T over the pixels of `mask`: μ-law for HDR, the tone curve for Network-1.
@@ -435,9 +441,8 @@ fn evaluate_set(
     notes: &mut Vec<String>,
 ) -> Result<SetScore> {
     let t0 = Instant::now();
-    // Before the method runs: only the mask (a byte per pixel) stays alive, not the frame.
-    let dark = dark_mask(set)?;
-    let moving = moving_mask(set)?;
+    // Before the method runs: only the masks (a byte per pixel) stay alive, not the frames.
+    let (dark, moving) = (dark_mask(set)?, moving_mask(set)?);
     let outcome = method.run(set, opts)?;
     let Outcome {
         mut output,
@@ -462,15 +467,10 @@ fn evaluate_set(
             file => (label, file),
         })
         .collect();
-    let mut scores = scoring
-        .score(&reference, &output, dark.as_ref(), &opts.metrics)
+    let masks = [dark.as_ref(), moving.as_ref()];
+    let scores = scoring
+        .score(&reference, &output, masks, &opts.metrics)
         .map_err(Error::within(format!("set '{}'", set.name)))?;
-    if let Some(m) = &moving {
-        scores.psnr_t_moving = scoring
-            .psnr_t_masked(&reference, &output, m)
-            .map_err(Error::within(format!("set '{}'", set.name)))?;
-        scores.moving_fraction = Some(m.fraction());
-    }
     let seconds = t0.elapsed().as_secs_f64();
     notes.extend(set_notes);
 

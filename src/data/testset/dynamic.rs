@@ -21,6 +21,16 @@ pub struct SceneRadiance {
     pub moving: Option<Moving>,
 }
 
+impl SceneRadiance {
+    /// A static scene of one radiance map.
+    pub fn still(reference: Image) -> SceneRadiance {
+        SceneRadiance {
+            reference,
+            moving: None,
+        }
+    }
+}
+
 /// The frames of a dynamic scene, in the test set's EV order.
 pub struct Moving {
     /// Radiance at each frame's time, in the reference's unit.

@@ -338,16 +338,11 @@ fn write_table_for(cfg: &AblateConfig, t: &TestsetSpec) -> Result<Table> {
     })
 }
 
-/// Row `row` of the grid (one column) against row `versus` on the primary test set: each
-/// metric's [`TableEntry`], its `diff` the paired difference row − versus (within seed, scene
-/// and set), as the table computes its differences to the reference. Empty until both rows
-/// have finished runs.
-pub fn paired_rows(cfg: &AblateConfig, row: &str, versus: &str) -> Result<Vec<TableEntry>> {
-    paired_rows_on(cfg, &cfg.testset, row, versus)
-}
-
-/// [`paired_rows`] on test set `t` (the primary or one of `also`).
-pub fn paired_rows_on(
+/// Row `row` of the grid (one column) against row `versus` on test set `t` (the primary or one
+/// of `also`): each metric's [`TableEntry`], its `diff` the paired difference row − versus
+/// (within seed, scene and set), as the table computes its differences to the reference.
+/// Empty until both rows have finished runs.
+pub fn paired_rows(
     cfg: &AblateConfig,
     t: &TestsetSpec,
     row: &str,

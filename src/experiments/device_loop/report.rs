@@ -228,7 +228,7 @@ pub(super) fn what_a_user_gets(cfg: &AblateConfig, steps: &[Step]) -> Result<Str
     ] {
         let (mut beats, mut loses, mut neither) = (Vec::new(), Vec::new(), Vec::new());
         for row in &names {
-            let entries = ablate::paired_rows(cfg, row, versus)?;
+            let entries = ablate::paired_rows(cfg, &cfg.testset, row, versus)?;
             let Some(d) = entries
                 .iter()
                 .find(|e| e.metric == "psnr_t")
@@ -277,7 +277,7 @@ pub(super) fn steps_table(cfg: &AblateConfig, steps: &[Step]) -> Result<String> 
         pairs.extend(["net_o", "control", "copy", "triangle"].map(|v| (st.name, v)));
     }
     for (row, versus) in pairs {
-        for e in ablate::paired_rows(cfg, row, versus)? {
+        for e in ablate::paired_rows(cfg, &cfg.testset, row, versus)? {
             if !matches!(e.metric, "psnr_t" | "ssim_t") {
                 continue;
             }

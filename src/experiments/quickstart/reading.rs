@@ -183,7 +183,7 @@ fn primary_reading(report: &mut String, primary: &ablate::Table, alpha: f64) {
 fn classical_reading(report: &mut String, exp: &AblateConfig, t: &TestsetSpec, what: &str) {
     for row in ["net_s", "net_r"] {
         for versus in ["copy", "triangle"] {
-            let Ok(entries) = ablate::paired_rows_on(exp, t, row, versus) else {
+            let Ok(entries) = ablate::paired_rows(exp, t, row, versus) else {
                 continue;
             };
             let Some(d) = entries
