@@ -468,8 +468,7 @@ fn evaluate_set(
         })
         .collect();
     let masks = [dark.as_ref(), moving.as_ref()];
-    let scores = scoring
-        .score(&reference, &output, masks, &opts.metrics)
+    let scores = (scoring.score(&reference, &output, masks, &opts.metrics))
         .map_err(Error::within(format!("set '{}'", set.name)))?;
     let seconds = t0.elapsed().as_secs_f64();
     notes.extend(set_notes);
