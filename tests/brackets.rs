@@ -1090,7 +1090,7 @@ fn dng_brackets_are_linear_raw_with_exif_exposures() {
     for (name, den) in [("a.dng", 400u32), ("b.dng", 100), ("c.dng", 25)] {
         let l = lin(1.0 / den as f64);
         let dn = l.map(|v| (64.0 + v * 4095.0).round() as u16);
-        write_uniform_dng(&d.join(name), 8, 6, dn, den);
+        write_uniform_dng(&d.join(name), 12, 12, dn, den);
     }
     let s = scan(tmp.path());
     assert_close(&stops_rel(&s.sets[0]), &[0.0, 2.0, 4.0], 1e-9);
@@ -1885,7 +1885,7 @@ fn auto_picks_two_stop_steps_and_the_least_clipped_or_dark_reference() {
     png_bracket(
         &tmp.path().join("bands"),
         40,
-        8,
+        12,
         &band_scene,
         &[0.0, 1.0, 2.0, 3.0, 4.0, 6.0],
     );
@@ -1934,7 +1934,7 @@ fn ramp_scene(x: usize, _y: usize) -> f64 {
 fn ground_truth_from_all_frames_recovers_what_the_inputs_clip_or_lose_in_the_dark() {
     let tmp = tempfile::tempdir().expect("tmp");
     let stops = [0.0, 2.0, 4.0, 6.0, 8.0, 10.0];
-    png_bracket(&tmp.path().join("ramp"), 80, 4, &ramp_scene, &stops);
+    png_bracket(&tmp.path().join("ramp"), 80, 12, &ramp_scene, &stops);
     let beside = tempfile::tempdir().expect("tmp");
     let build = |gt: GtFrames, name: &str| {
         let out = beside.path().join(name);
@@ -1963,7 +1963,7 @@ fn ground_truth_from_all_frames_recovers_what_the_inputs_clip_or_lose_in_the_dar
     // The truth in the field's unit: the shortest input (stop 2) has white 1, so H = L · 2^2.
     let err = |gt: &[f64], cols: std::ops::Range<usize>| -> f64 {
         let (mut sum, mut n) = (0.0, 0);
-        for y in 0..4 {
+        for y in 0..12 {
             for x in cols.clone() {
                 let truth = ramp_scene(x, y) * 4.0;
                 sum += ((gt[(y * 80 + x) * 3 + 1] - truth) / truth).abs();
@@ -2005,8 +2005,8 @@ fn a_short_frames_black_floor_does_not_lift_the_dark_regions_of_the_merge() {
     let stops = [0.0f64, 2.0, 4.0, 6.0, 8.0];
     let scene = |x: usize| (-13.0 + 4.0 * x as f64 / 39.0).exp2();
     for (i, s) in stops.iter().enumerate() {
-        let mut img = image::RgbImage::new(40, 2);
-        for y in 0..2 {
+        let mut img = image::RgbImage::new(40, 12);
+        for y in 0..12 {
             for x in 0..40 {
                 let mut v = (srgb(scene(x) * s.exp2()) * 255.0).round() as u8;
                 if i < 2 {

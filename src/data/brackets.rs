@@ -34,7 +34,10 @@ use std::path::{Path, PathBuf};
 mod frame;
 mod grouping;
 use frame::days_from_civil;
-pub use frame::{Region, frame_source, orient, read_frame_image, set_sources, size_mismatch};
+pub use frame::{
+    MIN_FRAME_SIDE, Region, check_scorable, frame_source, orient, read_frame_image, set_sources,
+    size_mismatch,
+};
 
 /// OpenCV's sidecar (`samples/cpp/tutorial_code/photo/hdr_imaging`): "name 1/t" per line.
 pub const LIST_TXT: &str = "list.txt";

@@ -129,6 +129,7 @@ fn build_set(
         gt_shifts = s.iter().map(|&(x, y)| Some([x, y])).collect();
     }
     let (w, h) = (codes[ref_pos].width, codes[ref_pos].height);
+    brackets::check_scorable(&set.frames[idx[1]], (w, h))?;
     let pos = idx.map(|i| gt_idx.iter().position(|&g| g == i).unwrap_or(0));
     let inputs: [&Image; 3] = if written.is_empty() {
         pos.map(|p| &codes[p])

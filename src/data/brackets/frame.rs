@@ -14,34 +14,31 @@ pub fn read_frame_image(frame: &BracketFrame) -> Result<crate::io::Image> {
     orient(crate::io::read_image(&frame.path)?, frame)
 }
 
-/// The smallest side of a bracket frame as read (after its region): the test set's SSIM needs
-/// its 11×11 Gaussian window, and a response or noise estimate from fewer pixels is no
-/// estimate.
+/// The smallest side of a test set's frame (after its region): the metrics' SSIM needs its
+/// 11×11 Gaussian window.
 pub const MIN_FRAME_SIDE: usize = 11;
 
-/// `img` (decoded from `frame`) as displayed under the frame's EXIF Orientation, cut to the
-/// frame's region: every reader of a bracket frame goes through here. A frame smaller than
-/// [`MIN_FRAME_SIDE`] is refused, naming the file (and the region that cut it).
-pub fn orient(img: crate::io::Image, frame: &BracketFrame) -> Result<crate::io::Image> {
-    let img = orient_and_crop(img, frame)?;
-    if img.width < MIN_FRAME_SIDE || img.height < MIN_FRAME_SIDE {
+/// Refuse a frame (as read, after its region) that no test set can be scored on: smaller than
+/// [`MIN_FRAME_SIDE`], naming the file and the region that cut it.
+pub fn check_scorable(frame: &BracketFrame, (w, h): (usize, usize)) -> Result<()> {
+    if w < MIN_FRAME_SIDE || h < MIN_FRAME_SIDE {
         return Err(Error::decode(
             &frame.path,
             format!(
-                "{}×{} pixels{}: a bracket frame needs at least {MIN_FRAME_SIDE}×{MIN_FRAME_SIDE} \
-                 (the metrics' SSIM window; a response or noise estimate needs pixels)",
-                img.width,
-                img.height,
+                "{w}×{h} pixels{}: a test set's frame needs at least \
+                 {MIN_FRAME_SIDE}×{MIN_FRAME_SIDE} (the metrics' SSIM window)",
                 frame
                     .region
                     .map_or(String::new(), |r| format!(" in region {r}"))
             ),
         ));
     }
-    Ok(img)
+    Ok(())
 }
 
-fn orient_and_crop(img: crate::io::Image, frame: &BracketFrame) -> Result<crate::io::Image> {
+/// `img` (decoded from `frame`) as displayed under the frame's EXIF Orientation, cut to the
+/// frame's region: every reader of a bracket frame goes through here.
+pub fn orient(img: crate::io::Image, frame: &BracketFrame) -> Result<crate::io::Image> {
     let img = match frame.exif.orientation.unwrap_or(1) {
         1 => img,
         o => img.oriented(o).ok_or_else(|| {
