@@ -408,6 +408,48 @@ fn noise_planes_map_to_channels_through_the_cfa_plane_colours() {
     assert_eq!(t.noise_per_channel(p).unwrap().unwrap(), [[1e-5, 2e-8]; 3]);
 }
 
+/// A NoiseProfile no sensor has (1e300, NaN, a negative scale or offset — the DNG SDK's
+/// rule) is refused naming the file, the tag and the channel, and no profile is written.
+#[test]
+fn a_noise_profile_no_sensor_has_is_refused_naming_the_file_and_the_tag() {
+    let dir = tempfile::tempdir().unwrap();
+    let cases: [(&str, Vec<f64>, &str); 4] = [
+        ("huge", vec![1e300, 2e-8], "S = 1e300"),
+        ("nan", vec![f64::NAN, 2e-8], "non-finite value: [NaN, 2e-8]"),
+        ("negative_scale", vec![-1e-5, 2e-8], "S = -1e-5"),
+        (
+            "negative_offset",
+            vec![1.5e-5, 3e-8, 2e-5, -4e-8, 2.5e-5, 5e-8],
+            "O = -4e-8",
+        ),
+    ];
+    for (name, np, value) in cases {
+        let f = write(
+            dir.path(),
+            &format!("{name}.dng"),
+            &set(synthetic(400, "Cam 1"), 1, 51041, Val::Double(np)),
+        );
+        let out = dir.path().join(format!("{name}.toml"));
+        let e = calibrate_dng(&DngOptions {
+            files: vec![f],
+            out: out.clone(),
+            name: None,
+            noise: true,
+        })
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains(&format!("{name}.dng")) && e.contains("NoiseProfile") && e.contains(value),
+            "{name}: {e}"
+        );
+        assert!(!out.exists(), "{name}: a profile was written");
+    }
+    // The shipped values pass: S and O of every channel positive and small.
+    let ok = write(dir.path(), "ok.dng", &synthetic(400, "Cam 1"));
+    let t = read_dng_tags_bytes(&std::fs::read(&ok).unwrap(), &ok).unwrap();
+    assert!(t.noise_per_channel(&ok).unwrap().is_some());
+}
+
 /// LinearRaw, 3 samples with their own BlackLevel (10, 20, 30) and WhiteLevel (1000, 1010,
 /// 1030): black = 20, white = 1000 (the lowest), r = (990, 990, 1000)/980.
 #[test]

@@ -381,6 +381,22 @@ impl DngTags {
                 ));
             }
         }
+        // The DNG SDK's rule (dng_noise_function: scale positive, offset non-negative), and a
+        // noise under the whole range at white: beyond it the tag is damaged, not a sensor.
+        for (c, [s, o]) in out.iter().enumerate() {
+            let ok = s.is_finite() && o.is_finite() && *s > 0.0 && *o >= 0.0 && s + o < 1.0;
+            if !ok {
+                return Err(Error::decode(
+                    path,
+                    format!(
+                        "NoiseProfile (51041) of channel {}: S = {s:e}, O = {o:e}: σ² = S·x + O \
+                         needs S > 0, O ≥ 0 and S + O < 1 (a noise below the whole range at \
+                         white); the tag is damaged (or give --no-noise)",
+                        ["R", "G", "B"][c]
+                    ),
+                ));
+            }
+        }
         Ok(Some(out))
     }
 }
