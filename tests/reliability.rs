@@ -2808,9 +2808,13 @@ fn brackets_without_signal_are_refused_before_a_response_is_estimated() {
     use hdrsynth::data::bracket_testset::{self, BracketOptions};
     let dir = tempfile::tempdir().unwrap();
     type Codes = fn(usize, u32, u32) -> u8;
-    let cases: [(&str, u32, u32, Codes); 2] = [
+    let cases: [(&str, u32, u32, Codes); 3] = [
         ("black", 48, 32, |_, _, _| 0),
         ("white", 48, 32, |_, _, _| 255),
+        // 3×2 pixels: a response from six pixels.
+        ("tiny", 3, 2, |i, x, y| {
+            (40 + 60 * i as u32 + 7 * x + 11 * y) as u8
+        }),
     ];
     for (name, w, h, code) in cases {
         let brackets = dir.path().join(name);
@@ -2838,11 +2842,10 @@ fn brackets_without_signal_are_refused_before_a_response_is_estimated() {
     .expect("a ramp has signal");
 }
 
-/// Frames under 11×11 (the SSIM window) are refused naming the frame, whether the response is
-/// estimated (3×2 frames: a response from six pixels) or declared (a 1×1 region, where no
-/// estimate fails first).
+/// With a declared response (no estimate to fail first), frames under 11×11 (the SSIM window)
+/// are refused naming the frame: 3×2 files, and a 1×1 region of larger ones.
 #[test]
-fn a_frame_smaller_than_the_ssim_window_is_refused_naming_it_whatever_the_response() {
+fn a_frame_smaller_than_the_ssim_window_is_refused_naming_it_with_a_declared_response() {
     use hdrsynth::data::bracket_testset::{self, BracketOptions, ResponseChoice};
     use hdrsynth::data::brackets::{Region, ScanOptions};
     use hdrsynth::sensor::profile::Response;
@@ -2865,8 +2868,12 @@ fn a_frame_smaller_than_the_ssim_window_is_refused_naming_it_whatever_the_respon
         },
         ..BracketOptions::default()
     };
+    let whole = BracketOptions {
+        response: ResponseChoice::Declared(Response::Srgb),
+        ..BracketOptions::default()
+    };
     for (name, brackets, opts, size) in [
-        ("tiny", &tiny, BracketOptions::default(), "3×2 pixels"),
+        ("tiny", &tiny, whole, "3×2 pixels"),
         ("cut", &cut, declared, "1×1 pixels in region 0,0,1,1"),
     ] {
         let out = dir.path().join(format!("{name}_ts"));
@@ -2874,7 +2881,7 @@ fn a_frame_smaller_than_the_ssim_window_is_refused_naming_it_whatever_the_respon
             .unwrap_err()
             .to_string();
         assert!(
-            e.contains(size) && e.contains("f0.png") && e.contains("at least 11×11"),
+            e.contains(size) && e.contains("f1.png") && e.contains("at least 11×11"),
             "{name}: {e}"
         );
         assert!(!out.exists(), "{name}: output left");
@@ -3084,4 +3091,52 @@ fn frames_of_one_set_in_different_sizes_are_refused_naming_both() {
     let e = bracket_testset::build(&b, &BracketOptions::default(), &ts).expect_err("sizes");
     want(&e.to_string());
     assert!(!ts.exists());
+}
+
+/// The binary's message says each cause once: an I/O error whose text the library's message
+/// already holds gets no "Caused by" (anyhow's default report would repeat it); a cause the
+/// message does not hold keeps anyhow's "Caused by:" shape, indented by four spaces.
+#[test]
+fn a_cause_the_message_already_holds_is_not_repeated() {
+    use hdrsynth::cli::error_report;
+    let io = std::io::Error::new(std::io::ErrorKind::NotFound, "No such file or directory");
+    let lib = hdrsynth::Error::io("runs/a.toml", io);
+    let plain = format!(
+        "{:?}",
+        anyhow::Error::new(hdrsynth::Error::io(
+            "runs/a.toml",
+            std::io::Error::new(std::io::ErrorKind::NotFound, "No such file or directory"),
+        ))
+    );
+    assert!(
+        plain.starts_with(
+            "runs/a.toml: No such file or directory\n\nCaused by:\n    No such file or directory"
+        ),
+        "anyhow's own report repeats the cause: {plain}"
+    );
+    assert_eq!(
+        error_report(&anyhow::Error::new(lib)),
+        "Error: runs/a.toml: No such file or directory"
+    );
+    let e = anyhow::Error::new(hdrsynth::Error::context(
+        "stage 2 (pretraining)",
+        hdrsynth::Error::Invalid("data.batch_size = 0 must be positive".into()),
+    ));
+    assert_eq!(
+        error_report(&e),
+        "Error: stage 2 (pretraining)\n\nCaused by:\n    data.batch_size = 0 must be positive"
+    );
+    // Through the binary: a missing config, named once.
+    let dir = tempfile::tempdir().unwrap();
+    let out = bin()
+        .args(["train", "--config"])
+        .arg(dir.path().join("missing.toml"))
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stderr).to_string();
+    assert_eq!(out.status.code(), Some(1), "{text}");
+    assert!(
+        text.starts_with("Error: ") && text.contains("missing.toml") && !text.contains("Caused by"),
+        "{text}"
+    );
 }

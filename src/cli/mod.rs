@@ -113,6 +113,31 @@ pub enum DatasetCommand {
 }
 
 /// Run the parsed command, printing its report.
+/// The message the binary prints for a failed command: anyhow's "Error: … / Caused by:" shape,
+/// less every cause whose text the lines above already hold (a library error that names its
+/// cause in its own message is said once).
+pub fn error_report(e: &anyhow::Error) -> String {
+    let mut said = e.to_string();
+    let mut out = format!("Error: {said}");
+    let mut causes = Vec::new();
+    for cause in e.chain().skip(1) {
+        let text = cause.to_string();
+        if !said.contains(&text) {
+            said.push('\n');
+            said.push_str(&text);
+            causes.push(text);
+        }
+    }
+    if !causes.is_empty() {
+        out.push_str("\n\nCaused by:");
+        for c in causes {
+            out.push_str("\n    ");
+            out.push_str(&c);
+        }
+    }
+    out
+}
+
 pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Generate { config, out } => {
