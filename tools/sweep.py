@@ -3,8 +3,8 @@
 
 For each point (width w, step factor k; suffix `m`: training scenes with moving subjects, the
 scene engine's default motion, instead of the main job's static ones; suffix `h`: the same
-scenes with half the samples still, `[data] static_fraction = 0.5`) of the sweep, from a
-finished main job's folder QS (`hdrsynth quickstart --out QS`, whose training data and test
+scenes with half the samples still, `[data] static_fraction = 0.5`; suffix `k`: the kernel
+head, `[model] output = "kernel"`, instead of the merge head) of the sweep, from a finished main job's folder QS (`hdrsynth quickstart --out QS`, whose training data and test
 sets it reuses):
   - Net_O per seed: the main job's pretraining config with `model.base_width = w` (the merger
     widths scaled alike) and k times the steps (warm-up and checkpoints alike);
@@ -15,7 +15,7 @@ pixels), each row's mean over seeds and scenes and the paired differences Net_S 
 Net_S − triangle and Net_S − copy (within seed and set; t 95 % interval over scenes, each
 scene's difference the mean over its ISO sets and the seeds; each seed's mean).
 
-Run: tools/sweep.py QS OUT --points 8x1,8x1m,8x4,16x1 --seeds 1,2,3 [--hdrsynth PATH]
+Run: tools/sweep.py QS OUT --points 8x1,8x1m,8x4h,8x1hk,16x1 --seeds 1,2,3 [--hdrsynth PATH]
 Resumable: every stage is (`hdrsynth train --resume`, `hdrsynth ablate`).
 Needs Python 3.11+ and tomli-w.
 """
@@ -104,10 +104,13 @@ def main() -> None:
     results = []
     moving_data = qs / "data/train_moving"
     for point in a.points.split(","):
-        mix = point.endswith("h")
-        moving = mix or point.endswith("m")
-        width, k = (int(v) for v in point.rstrip("mh").split("x"))
-        here = out / f"w{width}_k{k}{'_half_still' if mix else '_moving' if moving else ''}"
+        flags = point.split("x", 1)[1].lstrip("0123456789")
+        mix = "h" in flags
+        moving = mix or "m" in flags
+        kernel = "k" in flags
+        width, k = (int(v) for v in point.rstrip("mhk").split("x"))
+        here = out / (f"w{width}_k{k}{'_half_still' if mix else '_moving' if moving else ''}"
+                      f"{'_kernel' if kernel else ''}")
         if moving and not (moving_data / "dataset.toml").is_file():
             gen = load(qs / "configs/train_data.toml")
             gen["scene"]["motion_scale"] = 1.0
@@ -121,6 +124,8 @@ def main() -> None:
             pre["data"]["dataset"] = data
             if mix:
                 pre["data"]["static_fraction"] = 0.5
+            if kernel:
+                pre["model"]["output"] = "kernel"
             path = here / f"configs/pretrain_seed{s}.toml"
             save(path, pre)
             resume = ["--resume"] if (here / f"pretrain/seed{s}/checkpoints").is_dir() else []
@@ -129,6 +134,8 @@ def main() -> None:
         base["data"]["dataset"] = data
         if mix:
             base["data"]["static_fraction"] = 0.5
+        if kernel:
+            base["model"]["output"] = "kernel"
         save(here / "configs/finetune.toml", base)
         exp = load(qs / "configs/experiment.toml")
         exp["title"] = f"Sweep point: width {width}, {k}x the main job's steps"
@@ -152,6 +159,7 @@ def main() -> None:
                     continue
                 line = {"width": width, "steps_factor": k, "moving_training": moving,
                         "static_fraction": 0.5 if mix else 0.0,
+                        "head": "kernel" if kernel else "merge",
                         "testset": name, "metric": metric}
                 for row, v in scores.items():
                     line[row] = round(statistics.fmean(
