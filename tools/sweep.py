@@ -15,6 +15,10 @@ pixels), each row's mean over seeds and scenes and the paired differences Net_S 
 Net_S − triangle and Net_S − copy (within seed and set; t 95 % interval over scenes, each
 scene's difference the mean over its ISO sets and the seeds; each seed's mean).
 
+Every point is also scored on validation scenes of seeds used for nothing else (16 static,
+16 with moving subjects: `val_static`, `val_dynamic`); a choice between points is made on them,
+never on the main job's test sets.
+
 Run: tools/sweep.py QS OUT --points 8x1,8x1m,8x4h,8x1hk,16x1 --seeds 1,2,3 [--hdrsynth PATH]
 Resumable: every stage is (`hdrsynth train --resume`, `hdrsynth ablate`).
 Needs Python 3.11+ and tomli-w.
@@ -63,7 +67,7 @@ def scaled(cfg: dict, width: int, k: int, out: Path) -> dict:
 
 
 # Student t 97.5 % quantiles by degrees of freedom (scipy.stats.t.ppf(0.975, df)).
-T975 = {15: 2.1314, 23: 2.0687, 47: 2.0117}
+T975 = {15: 2.1314, 23: 2.0687, 47: 2.0117}  # 15: 16 scenes, 23: 24 scenes
 
 
 def per_image(path: Path, metric: str) -> dict:
@@ -90,6 +94,53 @@ def run(cmd: list) -> None:
     subprocess.run([str(c) for c in cmd], check=True)
 
 
+# Validation scenes: the scene engine at seeds used for nothing else, 16 static and 16 with
+# moving subjects, built as the main job builds its test scenes (192×144, at least 10 stops).
+# Choices between sweep points are made on these; the main job's test sets are scored beside
+# them and decide nothing.
+VALIDATION = {"val_static": 707, "val_dynamic": 777}
+
+
+def validation_scenes(hdrsynth: str, qs: Path, out: Path) -> dict:
+    """Generate the validation scenes once; name -> the radiance a test set is built from."""
+    base = load(qs / "configs/train_data.toml")
+    found = {}
+    for name, seed in VALIDATION.items():
+        gen = dict(base, seed=seed, count=16, width=192, height=144)
+        scene = dict(base["scene"], min_dynamic_range=10.0, motion_scale=1.0)
+        if name == "val_static":
+            scene["subjects"] = [0, 0]
+        gen["scene"] = scene
+        scenes = out / f"validation/{name}_scenes"
+        if not (scenes / "dataset.toml").is_file():
+            save(out / f"validation/{name}.toml", gen)
+            run([hdrsynth, "generate", "--config", out / f"validation/{name}.toml",
+                 "--out", scenes])
+        if name == "val_static":
+            # A static test set is built from a folder of radiance maps (the sets' hdr_gt.exr).
+            maps = out / "validation/val_static_radiance"
+            maps.mkdir(parents=True, exist_ok=True)
+            for gt in sorted(scenes.glob("*/hdr_gt.exr")):
+                to = maps / f"{gt.parent.name}.exr"
+                if not to.is_file():
+                    to.write_bytes(gt.read_bytes())
+            found[name] = maps
+        else:
+            found[name] = scenes
+    return found
+
+
+def validation_specs(exp: dict, val: dict) -> list:
+    """The validation sets as `also` test sets of the primary set's options and per-seed noise."""
+    out = []
+    for name, radiance in val.items():
+        spec = dict(exp["testset"], name=name, radiance=str(radiance),
+                    dir=str(radiance.parent / f"{name}_testset"),
+                    label=f"validation scenes (seed {VALIDATION[name]}; chooses between points)")
+        out.append(spec)
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("qs", type=Path)
@@ -103,6 +154,7 @@ def main() -> None:
     rows_kept = {"net_r", "net_s", "copy", "triangle"}
     results = []
     moving_data = qs / "data/train_moving"
+    val = validation_scenes(a.hdrsynth, qs, out)
     for point in a.points.split(","):
         flags = point.split("x", 1)[1].lstrip("0123456789")
         mix = "h" in flags
@@ -145,10 +197,14 @@ def main() -> None:
         exp["pretrained_per_seed"] = str(here / "pretrain/seed{seed}")
         exp["rows"] = [r for r in exp["rows"] if r["name"] in rows_kept]
         exp["also"] = [t for t in exp.get("also", []) if t.get("name") == "dynamic"]
+        exp["also"] += validation_specs(exp, val)
         save(here / "configs/experiment.toml", exp)
         run([a.hdrsynth, "ablate", "--config", here / "configs/experiment.toml"])
         cells = here / "experiment/cells"
-        for name, folder in [("primary", "eval"), ("dynamic", "eval_dynamic")]:
+        sets = [("primary", "eval"), ("dynamic", "eval_dynamic")] + [
+            (v, f"eval_{v}") for v in VALIDATION
+        ]
+        for name, folder in sets:
             for metric in ("psnr_t", "psnr_t_moving"):
                 scores = {
                     row: {s: per_image(cells / row / f"seed{s}" / folder / "per_image.csv",
