@@ -107,8 +107,12 @@ pub fn correlation_of_width(s: f64) -> (f64, f64) {
 
 /// The correlation of the channels' noise from [`channel_moments`] summed over frames, with
 /// 8-bit rounding (independent per channel, 36/12 code² in Immerkær's residual) taken out of
-/// each channel's variance: the mean over the pairs RG, GB, RB, in [0, RHO_MAX].
+/// each channel's variance: the mean over the pairs RG, GB, RB, in [0, RHO_MAX]; NaN (not
+/// measured) without pixels.
 pub fn channel_correlation_of(cross: [f64; 3], square: [f64; 3], n: usize) -> f64 {
+    if n == 0 {
+        return f64::NAN;
+    }
     let q = 36.0 * ROUNDING * n as f64;
     let v = square.map(|s| (s - q).max(1e-30));
     let pairs = [(0, 0, 1), (1, 1, 2), (2, 0, 2)];
@@ -516,16 +520,23 @@ impl BracketCalibration {
                  every channel); none written"
             );
         }
-        let _ = writeln!(
-            s,
-            "channel correlation of the noise: {:.3} ({})",
-            self.channel_correlation,
-            self.written(
-                plan::id::CHANNEL_CORRELATION,
+        if self.channel_correlation.is_finite() {
+            let _ = writeln!(
+                s,
+                "channel correlation of the noise: {:.3} ({})",
                 self.channel_correlation,
-                "the channels' noise is independent"
-            )
-        );
+                self.written(
+                    plan::id::CHANNEL_CORRELATION,
+                    self.channel_correlation,
+                    "the channels' noise is independent"
+                )
+            );
+        } else {
+            let _ = writeln!(
+                s,
+                "channel correlation of the noise: not measured (no flat pixels); none written"
+            );
+        }
         for m in &self.metering {
             let _ = writeln!(
                 s,

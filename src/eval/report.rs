@@ -462,11 +462,13 @@ mod tests {
     /// (15 + 40) / 2 = 27.5, not over sets (23.33), and every resample is a mean of {15, 40}.
     #[test]
     fn the_summary_averages_and_resamples_scenes_not_sets() {
-        let rows = [
-            row("A_iso100", 10.0),
-            row("A_iso800", 20.0),
-            row("B_iso100", 40.0),
-        ];
+        // Every metric present, PSNR-T over moving pixels included (a dynamic set's rows).
+        let rows = [("A_iso100", 10.0), ("A_iso800", 20.0), ("B_iso100", 40.0)].map(|(s, v)| {
+            let mut r = row(s, v);
+            r.scores.psnr_t_moving = Some(v);
+            r.scores.moving_fraction = Some(0.5);
+            r
+        });
         let scenes: BTreeMap<String, String> =
             [("A_iso100", "A"), ("A_iso800", "A"), ("B_iso100", "B")]
                 .into_iter()
