@@ -167,10 +167,17 @@ fn predictions_equal_to_the_ground_truth_give_inf_psnr_and_ssim_1() {
             "seconds",
             "delta_e2000",
             "psnr_t_dark",
-            "dark_fraction"
+            "dark_fraction",
+            "psnr_t_moving",
+            "moving_fraction"
         ]
     );
     for row in &rows {
+        // The generated sets carry motion masks: over their moving pixels too, the identical
+        // prediction is exact.
+        if !row[13].is_empty() {
+            assert_eq!(row[13], "inf", "{}", row[0]);
+        }
         assert_eq!(row[1], "inf");
         assert_eq!(row[2], "inf");
         assert_eq!(num(&row[3]), 1.0);
@@ -292,7 +299,18 @@ fn predictions_scaled_by_1_1_give_the_hand_computed_psnr_l() {
         assert!(num(&row[10]) > 0.0 && num(&row[10]).is_finite());
     }
     let (_, summary) = read_csv(&out.join("summary.csv"));
-    assert_eq!(summary.len(), 8);
+    // Every metric, PSNR-T over the moving pixels included: each set counted once, with a
+    // value or absent.
+    assert_eq!(summary.len(), 9);
+    let moving = summary
+        .iter()
+        .find(|r| r[0] == "psnr_t_moving")
+        .expect("moving");
+    assert_eq!(
+        num(&moving[1]) as usize + num(&moving[7]) as usize,
+        set_names().len(),
+        "{moving:?}"
+    );
     for r in summary.iter().filter(|r| num(&r[1]) > 0.0) {
         let (mean, lo, hi) = (num(&r[3]), num(&r[4]), num(&r[5]));
         assert!(lo <= mean && mean <= hi, "{}: {lo} {mean} {hi}", r[0]);
