@@ -2829,7 +2829,28 @@ fn brackets_without_signal_are_refused_before_a_response_is_estimated() {
         );
         assert!(!out.exists(), "{name}: output left");
     }
-    // A ramp of the same size passes.
+    // With a declared response nothing is estimated: an all-black or all-white set is
+    // refused at its reference frame, naming it, and nothing is left.
+    let declared = BracketOptions {
+        response: bracket_testset::ResponseChoice::Declared(
+            hdrsynth::sensor::profile::Response::Srgb,
+        ),
+        ..BracketOptions::default()
+    };
+    for name in ["black", "white"] {
+        let out = dir.path().join(format!("{name}_declared_ts"));
+        let e = bracket_testset::build(&dir.path().join(name), &declared, &out)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("f1.png")
+                && e.contains("100.00 % clipped or dark")
+                && e.contains("no scene to score"),
+            "{name}: {e}"
+        );
+        assert!(!out.exists(), "{name}: output left");
+    }
+    // A ramp of the same size passes, with either response.
     let brackets = dir.path().join("ramp");
     png_bracket_of(&brackets.join("s"), 48, 32, |i, x, _| {
         (10 + 4 * x + 20 * i as u32).min(255) as u8
@@ -2840,6 +2861,8 @@ fn brackets_without_signal_are_refused_before_a_response_is_estimated() {
         &dir.path().join("ok"),
     )
     .expect("a ramp has signal");
+    bracket_testset::build(&brackets, &declared, &dir.path().join("ok_declared"))
+        .expect("a ramp has signal");
 }
 
 /// With a declared response (no estimate to fail first), frames under 11×11 (the SSIM window)

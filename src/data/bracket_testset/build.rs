@@ -111,6 +111,20 @@ fn build_set(
         mut written,
         reference_bad,
     } = set_codes(set, &gt_idx, idx, ref_pos, lin, hat != Hat::No, how.encode)?;
+    if reference_bad > MAX_REFERENCE_CLIPPED_OR_DARK {
+        return Err(Error::layout(
+            &set.frames[idx[1]].path,
+            format!(
+                "set '{}': the reference frame is {:.2} % clipped or dark (a channel at code \
+                 {CLIPPED_CODE} or above, or every channel at {DARK_CODE} or below; at most \
+                 {:.1} %): the bracket holds no scene to score (all-black, all-white or flat \
+                 frames?)",
+                set.name,
+                100.0 * reference_bad,
+                100.0 * MAX_REFERENCE_CLIPPED_OR_DARK
+            ),
+        ));
+    }
     let mut gt_shifts: Vec<Option<[i32; 2]>> = vec![None; gt_idx.len()];
     if let Some(mtb) = opts.align {
         let s = align_codes(

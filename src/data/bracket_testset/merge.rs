@@ -7,6 +7,10 @@ use super::*;
 pub const CLIPPED_CODE: f32 = 250.0;
 pub const DARK_CODE: f32 = 5.0;
 
+/// The largest [`clipped_or_dark`] fraction of a reference frame a test set is built from:
+/// beyond it the frames hold no scene to score (all-black, all-white or flat).
+pub const MAX_REFERENCE_CLIPPED_OR_DARK: f64 = 0.999;
+
 /// Fraction of the pixels of `code` (a frame's values in [0, 1] as stored — JPEG/PNG/TIFF code
 /// / maximum code; DNG: linear after levels and white balance) that are clipped or dark
 /// ([`CLIPPED_CODE`], [`DARK_CODE`]).
