@@ -3512,6 +3512,13 @@ fn the_loop_trains_the_device_rule_in_its_metering_step_only() {
         &q.join("pretrain/seed1"),
         &q.join("experiment/cells/net_s/seed1/run"),
     );
+    // The main job's stock phone profile, as quickstart copies it.
+    std::fs::create_dir_all(q.join("configs/sensors")).expect("mkdir");
+    std::fs::copy(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/sensors/composite_phone.toml"),
+        q.join("configs/sensors/composite_phone.toml"),
+    )
+    .expect("copy");
     let out = beside.path().join("loop");
     let opts = LoopOptions {
         brackets: tmp.path().to_path_buf(),
@@ -3532,6 +3539,8 @@ fn the_loop_trains_the_device_rule_in_its_metering_step_only() {
         "| copy: the reference frame, linearised (no network) |",
         "| triangle merge of the inputs (no network) |",
         "| Net_S (the main job's network for a stock sRGB phone profile; no calibration) |",
+        "| generic: a stock sRGB phone profile (the main job's composite), fine-tuned here as \
+         the steps are; no calibration |",
     ] {
         assert!(report.contains(row), "{row}: {report}");
     }

@@ -36,6 +36,9 @@ const CHECK_REPLICATES: usize = 10;
 /// The row of the main job's Net_S, and where its run of seed k lies in the main job's folder.
 const NET_S: &str = "net_s";
 const NET_S_RUN: &str = "experiment/cells/net_s/seed{seed}/run";
+/// The row fine-tuned here, as the steps are, on the main job's stock sRGB phone profile.
+const GENERIC: &str = "generic";
+const STOCK_PROFILE: &str = "configs/sensors/composite_phone.toml";
 
 /// What a loop is asked for (the command's flags).
 #[derive(Clone, Debug)]
@@ -488,6 +491,26 @@ fn steps(
     steps
 }
 
+/// The `set` of a fine-tuned row: its profile at the device's ISOs, without the profile's
+/// colour (the device's frames carry their own), its noise unless the step has none, and its
+/// exposure rule if it has one.
+fn step_set(s: &Step, isos: &[toml::Value]) -> toml::Table {
+    let mut data = toml::Table::new();
+    data.insert("profile".into(), s.profile.display().to_string().into());
+    data.insert("isos".into(), isos.to_vec().into());
+    data.insert("colour".into(), false.into());
+    if !s.noise {
+        data.insert("noise".into(), "none".into());
+    }
+    if let Some(m) = &s.metering {
+        let mut t = toml::Table::new();
+        t.insert("mid_grey".into(), m.mid_grey.into());
+        t.insert("max_clipped".into(), m.max_clipped.into());
+        data.insert("metering".into(), t.into());
+    }
+    toml::Table::from_iter([("data".to_string(), data.into())])
+}
+
 fn ablate_config(
     opts: &LoopOptions,
     base: &Path,
@@ -539,22 +562,49 @@ fn ablate_config(
             )
         });
     }
+    // No calibration, the same training as the steps: the stock profile's response and noise
+    // at the device's ISOs (held within the profile's calibrated range).
+    let stock = opts.quickstart.join(STOCK_PROFILE);
+    if stock.is_file() {
+        // A profile that does not load is named by the fine-tune that reads it.
+        let noise = SensorProfile::load(&stock)
+            .map(|p| p.noise)
+            .unwrap_or_default();
+        let (lo, hi) = (
+            noise.first().map_or(f64::MIN, |n| n.iso),
+            noise.last().map_or(f64::MAX, |n| n.iso),
+        );
+        let mut held: Vec<f64> = isos
+            .iter()
+            .filter_map(toml::Value::as_float)
+            .map(|i| i.clamp(lo, hi))
+            .collect();
+        held.dedup();
+        let held: Vec<toml::Value> = held.into_iter().map(Into::into).collect();
+        let generic = Step {
+            name: GENERIC,
+            label: String::new(),
+            profile: stock,
+            noise: true,
+            metering: None,
+        };
+        rows.push(row(
+            GENERIC,
+            "generic: a stock sRGB phone profile (the main job's composite), fine-tuned here as \
+             the steps are; no calibration",
+            step_set(&generic, &held),
+            true,
+            AxisKind::Finetune,
+        ));
+    }
     for s in steps {
-        let mut data = toml::Table::new();
-        data.insert("profile".into(), s.profile.display().to_string().into());
-        data.insert("isos".into(), isos.to_vec().into());
-        data.insert("colour".into(), false.into());
-        if !s.noise {
-            data.insert("noise".into(), "none".into());
-        }
-        if let Some(m) = &s.metering {
-            let mut t = toml::Table::new();
-            t.insert("mid_grey".into(), m.mid_grey.into());
-            t.insert("max_clipped".into(), m.max_clipped.into());
-            data.insert("metering".into(), t.into());
-        }
-        let set = toml::Table::from_iter([("data".to_string(), data.into())]);
-        rows.push(row(s.name, &s.label, set, true, AxisKind::Finetune));
+        rows.push(row(
+            s.name,
+            &s.label,
+            step_set(s, isos),
+            true,
+            AxisKind::Finetune,
+        ));
     }
     rows.extend(Axis::classical_rows());
     AblateConfig {
