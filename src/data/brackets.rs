@@ -35,7 +35,7 @@ mod frame;
 mod grouping;
 use frame::days_from_civil;
 pub use frame::{
-    MIN_FRAME_SIDE, Region, check_scorable, frame_source, orient, read_frame_image, set_sources,
+    MIN_FRAME_SIDE, Region, frame_source, orient, read_frame_image, scorable_size, set_sources,
     size_mismatch,
 };
 

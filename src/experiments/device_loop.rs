@@ -511,6 +511,50 @@ fn step_set(s: &Step, isos: &[toml::Value]) -> toml::Table {
     toml::Table::from_iter([("data".to_string(), data.into())])
 }
 
+/// No calibration, the same training as the steps: the main job's stock sRGB phone profile
+/// (its response and noise at the device's ISOs, held within the profile's calibrated range),
+/// where `--quickstart` holds it.
+fn generic_row(opts: &LoopOptions, isos: &[toml::Value]) -> Option<Axis> {
+    let stock = opts.quickstart.join(STOCK_PROFILE);
+    if !stock.is_file() {
+        return None;
+    }
+    // A profile that does not load is named by the fine-tune that reads it.
+    let noise = SensorProfile::load(&stock)
+        .map(|p| p.noise)
+        .unwrap_or_default();
+    let (lo, hi) = (
+        noise.first().map_or(f64::MIN, |n| n.iso),
+        noise.last().map_or(f64::MAX, |n| n.iso),
+    );
+    let mut held: Vec<f64> = isos
+        .iter()
+        .filter_map(toml::Value::as_float)
+        .map(|i| i.clamp(lo, hi))
+        .collect();
+    held.dedup();
+    let held: Vec<toml::Value> = held.into_iter().map(Into::into).collect();
+    let generic = Step {
+        name: GENERIC,
+        label: String::new(),
+        profile: stock,
+        noise: true,
+        metering: None,
+    };
+    Some(Axis {
+        name: GENERIC.into(),
+        label: Some(
+            "generic: a stock sRGB phone profile (the main job's composite), fine-tuned here as \
+             the steps are; no calibration"
+                .into(),
+        ),
+        set: step_set(&generic, &held),
+        train: true,
+        checkpoint: None,
+        kind: AxisKind::Finetune,
+    })
+}
+
 fn ablate_config(
     opts: &LoopOptions,
     base: &Path,
@@ -562,41 +606,7 @@ fn ablate_config(
             )
         });
     }
-    // No calibration, the same training as the steps: the stock profile's response and noise
-    // at the device's ISOs (held within the profile's calibrated range).
-    let stock = opts.quickstart.join(STOCK_PROFILE);
-    if stock.is_file() {
-        // A profile that does not load is named by the fine-tune that reads it.
-        let noise = SensorProfile::load(&stock)
-            .map(|p| p.noise)
-            .unwrap_or_default();
-        let (lo, hi) = (
-            noise.first().map_or(f64::MIN, |n| n.iso),
-            noise.last().map_or(f64::MAX, |n| n.iso),
-        );
-        let mut held: Vec<f64> = isos
-            .iter()
-            .filter_map(toml::Value::as_float)
-            .map(|i| i.clamp(lo, hi))
-            .collect();
-        held.dedup();
-        let held: Vec<toml::Value> = held.into_iter().map(Into::into).collect();
-        let generic = Step {
-            name: GENERIC,
-            label: String::new(),
-            profile: stock,
-            noise: true,
-            metering: None,
-        };
-        rows.push(row(
-            GENERIC,
-            "generic: a stock sRGB phone profile (the main job's composite), fine-tuned here as \
-             the steps are; no calibration",
-            step_set(&generic, &held),
-            true,
-            AxisKind::Finetune,
-        ));
-    }
+    rows.extend(generic_row(opts, isos));
     for s in steps {
         rows.push(row(
             s.name,

@@ -111,20 +111,6 @@ fn build_set(
         mut written,
         reference_bad,
     } = set_codes(set, &gt_idx, idx, ref_pos, lin, hat != Hat::No, how.encode)?;
-    if reference_bad > MAX_REFERENCE_CLIPPED_OR_DARK {
-        return Err(Error::layout(
-            &set.frames[idx[1]].path,
-            format!(
-                "set '{}': the reference frame is {:.2} % clipped or dark (a channel at code \
-                 {CLIPPED_CODE} or above, or every channel at {DARK_CODE} or below; at most \
-                 {:.1} %): the bracket holds no scene to score (all-black, all-white or flat \
-                 frames?)",
-                set.name,
-                100.0 * reference_bad,
-                100.0 * MAX_REFERENCE_CLIPPED_OR_DARK
-            ),
-        ));
-    }
     let mut gt_shifts: Vec<Option<[i32; 2]>> = vec![None; gt_idx.len()];
     if let Some(mtb) = opts.align {
         let s = align_codes(
@@ -142,8 +128,7 @@ fn build_set(
         }
         gt_shifts = s.iter().map(|&(x, y)| Some([x, y])).collect();
     }
-    let (w, h) = (codes[ref_pos].width, codes[ref_pos].height);
-    brackets::check_scorable(&set.frames[idx[1]], (w, h))?;
+    let (w, h) = brackets::scorable_size(&set.frames[idx[1]], &codes[ref_pos])?;
     let pos = idx.map(|i| gt_idx.iter().position(|&g| g == i).unwrap_or(0));
     let inputs: [&Image; 3] = if written.is_empty() {
         pos.map(|p| &codes[p])
@@ -260,6 +245,7 @@ fn set_codes(
         let code = code_frame(f)?;
         if i == ref_idx {
             reference_bad = clipped_or_dark(&code);
+            refuse_sceneless(set, f, reference_bad)?;
         }
         if hat {
             stored.push(code.clone());

@@ -25,6 +25,29 @@ pub fn clipped_or_dark(code: &Image) -> f64 {
     bad as f64 / code.pixel_count().max(1) as f64
 }
 
+/// Refuse a set whose reference frame (`frame`, [`clipped_or_dark`] fraction `bad`) holds no
+/// scene: beyond [`MAX_REFERENCE_CLIPPED_OR_DARK`].
+pub(super) fn refuse_sceneless(
+    set: &brackets::BracketSet,
+    frame: &BracketFrame,
+    bad: f64,
+) -> Result<()> {
+    if bad <= MAX_REFERENCE_CLIPPED_OR_DARK {
+        return Ok(());
+    }
+    Err(Error::layout(
+        &frame.path,
+        format!(
+            "set '{}': the reference frame is {:.2} % clipped or dark (a channel at code \
+             {CLIPPED_CODE} or above, or every channel at {DARK_CODE} or below; at most {:.1} %): \
+             the bracket holds no scene to score (all-black, all-white or flat frames?)",
+            set.name,
+            100.0 * bad,
+            100.0 * MAX_REFERENCE_CLIPPED_OR_DARK
+        ),
+    ))
+}
+
 /// How the inputs of one set were chosen.
 #[derive(Clone, Debug, PartialEq)]
 pub struct InputSelection {

@@ -18,9 +18,11 @@ pub fn read_frame_image(frame: &BracketFrame) -> Result<crate::io::Image> {
 /// 11×11 Gaussian window.
 pub const MIN_FRAME_SIDE: usize = 11;
 
-/// Refuse a frame (as read, after its region) that no test set can be scored on: smaller than
-/// [`MIN_FRAME_SIDE`], naming the file and the region that cut it.
-pub fn check_scorable(frame: &BracketFrame, (w, h): (usize, usize)) -> Result<()> {
+/// The size of `img`, read from `frame` (after its region and any alignment), or a refusal
+/// where no test set can be scored on it: smaller than [`MIN_FRAME_SIDE`], naming the file and
+/// the region that cut it.
+pub fn scorable_size(frame: &BracketFrame, img: &crate::io::Image) -> Result<(usize, usize)> {
+    let (w, h) = (img.width, img.height);
     if w < MIN_FRAME_SIDE || h < MIN_FRAME_SIDE {
         return Err(Error::decode(
             &frame.path,
@@ -33,7 +35,7 @@ pub fn check_scorable(frame: &BracketFrame, (w, h): (usize, usize)) -> Result<()
             ),
         ));
     }
-    Ok(())
+    Ok((w, h))
 }
 
 /// `img` (decoded from `frame`) as displayed under the frame's EXIF Orientation, cut to the
