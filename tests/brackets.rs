@@ -3864,3 +3864,52 @@ fn the_loop_refuses_calibration_scenes_that_give_no_noise_naming_why() {
     );
     assert!(!out.join("testset").exists() && !out.join("experiment").exists());
 }
+
+/// A bracket folder read once serves every stage of a run: each selection of sets and region
+/// equals a fresh scan with the same options, and it needs no second read of the folder (it
+/// holds after the folder is moved away).
+#[test]
+fn a_folder_scanned_once_gives_each_stage_what_a_scan_would() {
+    use hdrsynth::data::brackets::{FolderScan, Region};
+    let tmp = tempfile::tempdir().expect("tmp");
+    let root = tmp.path().join("b");
+    for name in ["park", "desk"] {
+        png_bracket(&root.join(name), 24, 16, &ramp_scene, &[0.0, 2.0, 4.0]);
+    }
+    let folder = FolderScan::new(&root, &ScanOptions::default()).expect("scan");
+    let choices = [
+        ScanOptions::default(),
+        ScanOptions {
+            sets: vec!["park".into()],
+            ..ScanOptions::default()
+        },
+        ScanOptions {
+            region: Some(Region::Left),
+            ..ScanOptions::default()
+        },
+        ScanOptions {
+            sets: vec!["desk".into()],
+            region: Some(Region::Rect {
+                x: 2,
+                y: 1,
+                w: 12,
+                h: 12,
+            }),
+            ..ScanOptions::default()
+        },
+    ];
+    let fresh: Vec<_> = choices
+        .iter()
+        .map(|o| brackets::scan(&root, o).expect("scan"))
+        .collect();
+    let unknown = ScanOptions {
+        sets: vec!["attic".into()],
+        ..ScanOptions::default()
+    };
+    let e = brackets::scan(&root, &unknown).unwrap_err().to_string();
+    std::fs::rename(&root, tmp.path().join("moved")).expect("move");
+    for (o, f) in choices.iter().zip(&fresh) {
+        assert_eq!(&folder.select(o).expect("select"), f, "{o:?}");
+    }
+    assert_eq!(folder.select(&unknown).unwrap_err().to_string(), e);
+}

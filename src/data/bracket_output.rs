@@ -163,7 +163,16 @@ pub fn check(
     profile: &SensorProfile,
     opts: &OutputCheckOptions,
 ) -> Result<OutputCheck> {
-    let scan = brackets::scan(dir, &opts.scan)?;
+    check_scanned(brackets::scan(dir, &opts.scan)?, profile, opts)
+}
+
+/// [`check`] on sets already scanned with `opts.scan` (a run that reads the folder once:
+/// [`brackets::FolderScan`]).
+pub fn check_scanned(
+    scan: brackets::BracketScan,
+    profile: &SensorProfile,
+    opts: &OutputCheckOptions,
+) -> Result<OutputCheck> {
     if let Some(f) = scan
         .sets
         .iter()

@@ -257,7 +257,17 @@ fn one_size_sources(sets: &[brackets::BracketSet]) -> Result<Vec<crate::io::sour
 pub fn calibrate_brackets(dir: &Path, opts: &BracketProfileOptions) -> Result<BracketCalibration> {
     // The profile is an output: never written into the folder it is measured from.
     crate::io::guard::refuse_output_inside(dir, &opts.out)?;
-    let scan = brackets::scan(dir, &opts.scan)?;
+    calibrate_scanned(dir, brackets::scan(dir, &opts.scan)?, opts)
+}
+
+/// [`calibrate_brackets`] on the sets of `dir` already scanned with `opts.scan` (a run that
+/// reads the folder once: [`brackets::FolderScan`]).
+pub fn calibrate_scanned(
+    dir: &Path,
+    scan: brackets::BracketScan,
+    opts: &BracketProfileOptions,
+) -> Result<BracketCalibration> {
+    crate::io::guard::refuse_output_inside(dir, &opts.out)?;
     let mut notes = scan.notes;
     if let Some(f) = scan
         .sets

@@ -609,11 +609,25 @@ fn refuse_no_signal(set: &brackets::BracketSet, frames: &[Image], name: &str) ->
 /// the response (the inputs of every set, `--encode`) is refused before any work; the test set
 /// is staged and appears in `out` whole, or not at all.
 pub fn build(dir: &Path, opts: &BracketOptions, out: &Path) -> Result<BracketSummary> {
+    build_scanned(dir, None, opts, out)
+}
+
+/// [`build`] on the sets of `dir` already scanned with `opts.scan`, where `scanned` holds them
+/// (a run that reads the folder once: [`brackets::FolderScan`]).
+pub fn build_scanned(
+    dir: &Path,
+    scanned: Option<BracketScan>,
+    opts: &BracketOptions,
+    out: &Path,
+) -> Result<BracketSummary> {
     // A test set inside the bracket folder would be scanned as brackets by the next run.
     crate::io::guard::refuse_output_inside(dir, out)?;
     // One writer per output, held to the end.
     let lock = crate::io::guard::OutputLock::acquire(out, "testset --brackets")?;
-    let BracketScan { sets, mut notes } = brackets::scan(dir, &opts.scan)?;
+    let BracketScan { sets, mut notes } = match scanned {
+        Some(s) => s,
+        None => brackets::scan(dir, &opts.scan)?,
+    };
     let selections = sets
         .iter()
         .map(|set| select_inputs(set, &opts.inputs))

@@ -31,8 +31,11 @@ use crate::error::{Error, Result};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+mod folder;
 mod frame;
 mod grouping;
+pub use folder::FolderScan;
+use folder::select;
 use frame::days_from_civil;
 pub use frame::{
     MIN_FRAME_SIDE, Region, frame_source, orient, read_frame_image, scorable_size, set_sources,
@@ -631,43 +634,7 @@ pub fn scan(root: &Path, opts: &ScanOptions) -> Result<BracketScan> {
             "no bracket frames (.jpg, .jpeg, .png, .tif, .tiff, .dng) here or in its sub-folders",
         ));
     }
-    if !opts.sets.is_empty() {
-        if let Some(n) = opts
-            .sets
-            .iter()
-            .find(|n| !scan.sets.iter().any(|s| &&s.name == n))
-        {
-            return Err(Error::layout(
-                root,
-                format!(
-                    "no set named '{n}' (sets: {})",
-                    scan.sets
-                        .iter()
-                        .map(|s| s.name.as_str())
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                ),
-            ));
-        }
-        scan.sets.retain(|s| opts.sets.contains(&s.name));
-    }
-    for s in scan.sets.iter_mut() {
-        for f in s.frames.iter_mut().chain(s.repeats.iter_mut()) {
-            f.region = opts.region;
-        }
-    }
-    let sizes: Vec<usize> = scan.sets.iter().map(|s| s.frames.len()).collect();
-    if sizes.iter().any(|&n| n != sizes[0]) {
-        scan.notes.push(format!(
-            "ambiguous: sets have differing numbers of frames ({}); check the grouping",
-            scan.sets
-                .iter()
-                .map(|s| format!("{} {}", s.name, s.frames.len()))
-                .collect::<Vec<_>>()
-                .join(", ")
-        ));
-    }
-    Ok(scan)
+    select(root, scan, opts)
 }
 
 /// A folder's frames as read: path, EXIF exposure tags, kind.

@@ -14,11 +14,11 @@
 
 use crate::data::bracket_output::{self, OutputCheck, OutputCheckOptions};
 use crate::data::bracket_profile::{
-    BracketCalibration, BracketProfileOptions, CorrelationFit, MIN_RHO, calibrate_brackets,
+    BracketCalibration, BracketProfileOptions, CorrelationFit, MIN_RHO, calibrate_scanned,
     metering_rule, with_channel_correlation, with_correlation,
 };
 use crate::data::bracket_testset::{self, BracketOptions, GtFrames, InputChoice, ResponseChoice};
-use crate::data::brackets::{self, Region, ScanOptions};
+use crate::data::brackets::{self, FolderScan, Region, ScanOptions};
 use crate::error::{Error, Result};
 use crate::experiments::ablate::{self, AblateConfig, Axis, AxisKind, EvalSpec, TestsetSpec};
 use crate::io::source::{Source, overlapping};
@@ -83,8 +83,11 @@ pub struct LoopSummary {
 
 /// The calibration and test scans, their split checked: no capture region both calibrates
 /// and is scored.
-fn split(opts: &LoopOptions) -> Result<(ScanOptions, ScanOptions, Vec<String>, Vec<String>)> {
-    let all = brackets::scan(&opts.brackets, &opts.scan)?;
+fn split(
+    opts: &LoopOptions,
+    folder: &FolderScan,
+) -> Result<(ScanOptions, ScanOptions, Vec<String>, Vec<String>)> {
+    let all = folder.select(&opts.scan)?;
     let names: Vec<String> = all.sets.iter().map(|s| s.name.clone()).collect();
     let (cal, test) = if opts.calibration.is_empty() {
         if opts.calibration_region.is_none() || opts.test_region.is_none() {
@@ -123,7 +126,8 @@ fn split(opts: &LoopOptions) -> Result<(ScanOptions, ScanOptions, Vec<String>, V
         scan_of(&test, opts.test_region),
     );
     let sources = |scan: &ScanOptions| -> Result<Vec<Source>> {
-        brackets::scan(&opts.brackets, scan)?
+        folder
+            .select(scan)?
             .sets
             .iter()
             .flat_map(|s| s.all_frames())
@@ -215,20 +219,23 @@ pub fn run(opts: &LoopOptions) -> Result<LoopSummary> {
         ..opts.clone()
     };
     crate::io::guard::refuse_output_inside(&opts.brackets, &opts.out)?;
-    let (cal_scan, test_scan, cal, test) = split(opts)?;
+    // The folder is read once; every stage takes its sets and region from this scan.
+    let folder = FolderScan::new(&opts.brackets, &opts.scan)?;
+    let (cal_scan, test_scan, cal, test) = split(opts, &folder)?;
     let base = check_quickstart(&opts.quickstart, &opts.seeds)?;
     let _lock = crate::io::guard::OutputLock::acquire(&opts.out, "loop")?;
     keep_split(opts, &cal, &test)?;
     let profiles = opts.out.join("profiles");
     std::fs::create_dir_all(&profiles).map_err(|e| Error::io(&profiles, e))?;
 
-    let (cal_result, calibrated, extra) = calibrate(opts, &cal_scan, &profiles)?;
+    let (cal_result, calibrated, extra) = calibrate(opts, &folder, &cal_scan, &profiles)?;
     let fit = &cal_result.correlation;
     let testset = opts.out.join("testset");
     if !testset.join(crate::data::encoding::ENCODING_FILE).is_file() {
         stage(opts, "building the test set from the test scenes");
-        bracket_testset::build(
+        bracket_testset::build_scanned(
             &opts.brackets,
+            Some(folder.select(&test_scan)?),
             &BracketOptions {
                 scan: test_scan,
                 // Linearised through the calibration's response: nothing is estimated on the
@@ -262,7 +269,7 @@ pub fn run(opts: &LoopOptions) -> Result<LoopSummary> {
             .map_err(|e| Error::encode(&cfg_path, e))?
             .as_bytes(),
     )?;
-    let checks = output_checks(opts, &cal_scan, &steps)?;
+    let checks = output_checks(opts, &folder, &cal_scan, &steps)?;
     stage(opts, "fine-tuning and scoring every step and seed");
     ablate::run(&cfg, &cfg_path, opts.progress)?;
     let tables = ablate::write_tables(&cfg)?;
@@ -328,13 +335,15 @@ fn keep_split(opts: &LoopOptions, cal: &[String], test: &[String]) -> Result<()>
 /// same profile), so the fit that decides the correlated step is at hand.
 fn calibrate(
     opts: &LoopOptions,
+    folder: &FolderScan,
     cal_scan: &ScanOptions,
     profiles: &Path,
 ) -> Result<(BracketCalibration, PathBuf, Extra)> {
     let calibrated = profiles.join("calibrated.toml");
     stage(opts, "calibrating the profile on the calibration scenes");
-    let mut cal = calibrate_brackets(
+    let mut cal = calibrate_scanned(
         &opts.brackets,
+        folder.select(cal_scan)?,
         &BracketProfileOptions {
             scan: cal_scan.clone(),
             response: ResponseChoice::new(None, None)?,
@@ -393,6 +402,7 @@ struct Extra {
 /// Every step's device-output check on the calibration scenes.
 fn output_checks(
     opts: &LoopOptions,
+    folder: &FolderScan,
     cal_scan: &ScanOptions,
     steps: &[Step],
 ) -> Result<Vec<OutputCheck>> {
@@ -404,8 +414,8 @@ fn output_checks(
         .iter()
         .map(|st| {
             let p = SensorProfile::load(&st.profile)?;
-            bracket_output::check(
-                &opts.brackets,
+            bracket_output::check_scanned(
+                folder.select(cal_scan)?,
                 &p,
                 &OutputCheckOptions {
                     scan: cal_scan.clone(),
