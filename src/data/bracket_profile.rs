@@ -231,9 +231,21 @@ pub struct BracketCalibration {
     pub notes: Vec<String>,
 }
 
-/// The sources of every frame of `sets`, refusing a set whose frames (the pixels read) differ
-/// in size, naming the frame and the set's first.
+/// The sources of every frame of `sets`, refusing a DNG (linear raw, not the device's output)
+/// and a set whose frames (the pixels read) differ in size, naming the frame and the set's
+/// first.
 fn one_size_sources(sets: &[brackets::BracketSet]) -> Result<Vec<crate::io::source::Source>> {
+    if let Some(f) = sets
+        .iter()
+        .flat_map(|s| s.all_frames())
+        .find(|f| f.kind == FrameKind::Dng)
+    {
+        return Err(Error::layout(
+            &f.path,
+            "a DNG is linear raw, not the device's output; `hdrsynth calibrate dng` reads its \
+             tags",
+        ));
+    }
     let mut all = Vec::new();
     for set in sets {
         let frames: Vec<&BracketFrame> = set.all_frames().collect();
@@ -269,19 +281,8 @@ pub fn calibrate_scanned(
 ) -> Result<BracketCalibration> {
     crate::io::guard::refuse_output_inside(dir, &opts.out)?;
     let mut notes = scan.notes;
-    if let Some(f) = scan
-        .sets
-        .iter()
-        .flat_map(|s| s.all_frames())
-        .find(|f| f.kind == FrameKind::Dng)
-    {
-        return Err(Error::layout(
-            &f.path,
-            "a DNG is linear raw, not the device's output; `hdrsynth calibrate dng` reads its \
-             tags",
-        ));
-    }
-    // Read first: a set whose frames differ in size is refused before any measurement.
+    // Read first: a DNG, or a set whose frames differ in size, is refused before any
+    // measurement.
     let sources = one_size_sources(&scan.sets)?;
     let lin = bracket_testset::resolve_linearisation(&scan.sets, &opts.response, None, &mut notes)?;
     let response = match &lin {
