@@ -2849,6 +2849,25 @@ fn brackets_without_signal_are_refused_before_a_response_is_estimated() {
             "{name}: {e}"
         );
         assert!(!out.exists(), "{name}: output left");
+        // Nor is a profile calibrated from it (its metering frame is the same frame).
+        let profile = dir.path().join(format!("{name}.toml"));
+        let e = hdrsynth::data::bracket_profile::calibrate_brackets(
+            &dir.path().join(name),
+            &hdrsynth::data::bracket_profile::BracketProfileOptions {
+                scan: hdrsynth::data::brackets::ScanOptions::default(),
+                response: declared.response.clone(),
+                out: profile.clone(),
+                name: None,
+                correlated: false,
+            },
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("f1.png") && e.contains("no scene to score or measure"),
+            "{name}: {e}"
+        );
+        assert!(!profile.exists(), "{name}: a profile was written");
     }
     // A ramp of the same size passes, with either response.
     let brackets = dir.path().join("ramp");

@@ -423,6 +423,7 @@ fn metered(set: &brackets::BracketSet, lin: &Linearise) -> Result<MeteredFrame> 
         )
     };
     let code = brackets::read_frame_image(frame)?;
+    bracket_testset::refuse_sceneless(set, frame, bracket_testset::clipped_or_dark(&code))?;
     let clipped = code
         .data
         .chunks_exact(3)

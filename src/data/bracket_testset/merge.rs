@@ -26,12 +26,9 @@ pub fn clipped_or_dark(code: &Image) -> f64 {
 }
 
 /// Refuse a set whose reference frame (`frame`, [`clipped_or_dark`] fraction `bad`) holds no
-/// scene: beyond [`MAX_REFERENCE_CLIPPED_OR_DARK`].
-pub(super) fn refuse_sceneless(
-    set: &brackets::BracketSet,
-    frame: &BracketFrame,
-    bad: f64,
-) -> Result<()> {
+/// scene: beyond [`MAX_REFERENCE_CLIPPED_OR_DARK`] (a test set's reference, a calibration's
+/// metering frame).
+pub fn refuse_sceneless(set: &brackets::BracketSet, frame: &BracketFrame, bad: f64) -> Result<()> {
     if bad <= MAX_REFERENCE_CLIPPED_OR_DARK {
         return Ok(());
     }
@@ -40,7 +37,8 @@ pub(super) fn refuse_sceneless(
         format!(
             "set '{}': the reference frame is {:.2} % clipped or dark (a channel at code \
              {CLIPPED_CODE} or above, or every channel at {DARK_CODE} or below; at most {:.1} %): \
-             the bracket holds no scene to score (all-black, all-white or flat frames?)",
+             the bracket holds no scene to score or measure (all-black, all-white or flat \
+             frames?)",
             set.name,
             100.0 * bad,
             100.0 * MAX_REFERENCE_CLIPPED_OR_DARK
