@@ -3553,9 +3553,14 @@ fn the_loop_trains_the_device_rule_in_its_metering_step_only() {
         .find(|l| l.starts_with("- Against the copied reference frame:"))
         .unwrap_or_else(|| panic!("{report}"));
     assert!(
-        reading.contains("beat it net_o (+") && reading.ends_with("no difference shown none."),
+        reading.contains("beat it net_o (+")
+            && reading.contains("generic (+")
+            && reading.ends_with("no difference shown none."),
         "{reading}"
     );
+    // Calibrating against not calibrating at equal training: each step against the generic
+    // row, in the table of gains.
+    assert!(report.contains("| response | generic | psnr_t |"), "{report}");
     assert!(
         report
             .lines()

@@ -218,7 +218,7 @@ pub(super) fn what_a_user_gets(cfg: &AblateConfig, steps: &[Step]) -> Result<Str
          scenes on one side of 0 where there is one (10 or more scenes), else the same sign in \
          every seed; otherwise \"no difference shown\".\n\n",
     );
-    let names: Vec<&str> = ["net_o", "control", NET_S]
+    let names: Vec<&str> = ["net_o", "control", NET_S, GENERIC]
         .into_iter()
         .chain(steps.iter().map(|st| st.name))
         .collect();
@@ -264,8 +264,9 @@ pub(super) fn what_a_user_gets(cfg: &AblateConfig, steps: &[Step]) -> Result<Str
     Ok(s)
 }
 
-/// The gain each step buys over the step before (and each step against Net_O and the
-/// control), PSNR-T and SSIM-T, every seed.
+/// The gain each step buys over the step before (and each step against Net_O, the control,
+/// the classical rows and the uncalibrated rows: calibrating against not calibrating), PSNR-T
+/// and SSIM-T, every seed.
 pub(super) fn steps_table(cfg: &AblateConfig, steps: &[Step]) -> Result<String> {
     let mut s = String::from(
         "## The gain of each step\n\n\
@@ -274,7 +275,8 @@ pub(super) fn steps_table(cfg: &AblateConfig, steps: &[Step]) -> Result<String> 
     );
     let mut pairs: Vec<(&str, &str)> = steps.windows(2).map(|w| (w[1].name, w[0].name)).collect();
     for st in steps {
-        pairs.extend(["net_o", "control", "copy", "triangle"].map(|v| (st.name, v)));
+        pairs
+            .extend(["net_o", "control", GENERIC, NET_S, "copy", "triangle"].map(|v| (st.name, v)));
     }
     for (row, versus) in pairs {
         for e in ablate::paired_rows(cfg, &cfg.testset, row, versus)? {
