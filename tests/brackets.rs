@@ -3560,7 +3560,10 @@ fn the_loop_trains_the_device_rule_in_its_metering_step_only() {
     );
     // Calibrating against not calibrating at equal training: each step against the generic
     // row, in the table of gains.
-    assert!(report.contains("| response | generic | psnr_t |"), "{report}");
+    assert!(
+        report.contains("| response | generic | psnr_t |"),
+        "{report}"
+    );
     assert!(
         report
             .lines()
