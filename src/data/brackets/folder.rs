@@ -89,10 +89,6 @@ impl FolderScan {
         all.notes.retain(|n| !n.starts_with(DIFFERING));
         select(&self.root, all, opts)
     }
-
-    pub fn root(&self) -> &Path {
-        &self.root
-    }
 }
 
 const DIFFERING: &str = "ambiguous: sets have differing numbers of frames";
