@@ -779,3 +779,35 @@ fn a_missing_adapter_is_refused_before_training_starts() {
     );
     assert!(!run.exists(), "the refused run left {}", run.display());
 }
+
+// ─── The `gpu` preset ─────────────────────────────────────────────────────────────────────
+
+/// The `gpu` preset's pretraining config as the main job writes it (Wu's released width 64,
+/// 9 residual blocks, its merge head, optimiser and schedule) starts on wgpu: two steps on
+/// 32² crops of one sample, a finite loss each, a checkpoint of that network.
+#[test]
+fn the_gpu_presets_pretraining_config_starts_on_wgpu() {
+    use hdrsynth::experiments::quickstart::{Preset, pretrain_config};
+    let run = scratch().join("gpu-preset");
+    let mut cfg = pretrain_config(Preset::Gpu, "wgpu", dataset3(), Path::new("pure"), &run, 1);
+    let ModelConfig::Wu(wu) = &cfg.model else {
+        panic!("the gpu preset trains Network-2");
+    };
+    assert_eq!((wu.base_width, wu.res_blocks), (64, 9));
+    (cfg.data.patch, cfg.data.batch_size, cfg.data.workers) = (32, 1, 1);
+    (cfg.run.steps, cfg.run.checkpoint_every, cfg.run.log_every) = (2, 2, 1);
+    cfg.schedule.warmup_steps = 1;
+    cfg.validate().expect("valid");
+    hdrsynth::train::run(&cfg, &TrainOptions::default()).expect("train");
+    let losses = logged_losses(&run);
+    assert_eq!(losses.iter().map(|l| l.0).collect::<Vec<_>>(), [1, 2]);
+    assert!(
+        losses.iter().all(|l| l.1.is_finite() && l.1 > 0.0),
+        "{losses:?}"
+    );
+    let dir = checkpoint::resolve(&run).expect("checkpoint");
+    let ModelConfig::Wu(saved) = checkpoint::read_state(&dir).expect("state").model else {
+        panic!("a Network-2 checkpoint expected");
+    };
+    assert_eq!((saved.base_width, saved.res_blocks), (64, 9));
+}

@@ -3,7 +3,8 @@
 
 For each point (width w, step factor k; suffix `m`: training scenes with moving subjects, the
 scene engine's default motion, instead of the main job's static ones; suffix `h`: the same
-scenes with half the samples still, `[data] static_fraction = 0.5`; suffix `k`: the kernel
+scenes with half the samples still, `[data] static_fraction = 0.5`; suffix `q`: three
+quarters of them still, `static_fraction = 0.75`; suffix `k`: the kernel
 head, `[model] output = "kernel"`, instead of the merge head) of the sweep, from a finished main job's folder QS (`hdrsynth quickstart --out QS`, whose training data and test
 sets it reuses):
   - Net_O per seed: the main job's pretraining config with `model.base_width = w` (the merger
@@ -19,7 +20,7 @@ Every point is also scored on validation scenes of seeds used for nothing else (
 16 with moving subjects: `val_static`, `val_dynamic`); a choice between points is made on them,
 never on the main job's test sets.
 
-Run: tools/sweep.py QS OUT --points 8x1,8x1m,8x4h,8x1hk,16x1 --seeds 1,2,3 [--hdrsynth PATH]
+Run: tools/sweep.py QS OUT --points 8x1,8x1m,8x1q,8x4h,8x1hk,16x1 --seeds 1,2,3 [--hdrsynth PATH]
 Resumable: every stage is (`hdrsynth train --resume`, `hdrsynth ablate`).
 Needs Python 3.11+ and tomli-w.
 """
@@ -157,11 +158,13 @@ def main() -> None:
     val = validation_scenes(a.hdrsynth, qs, out)
     for point in a.points.split(","):
         flags = point.split("x", 1)[1].lstrip("0123456789")
-        mix = "h" in flags
+        still = 0.75 if "q" in flags else 0.5 if "h" in flags else 0.0
+        mix = still > 0.0
         moving = mix or "m" in flags
         kernel = "k" in flags
-        width, k = (int(v) for v in point.rstrip("mhk").split("x"))
-        here = out / (f"w{width}_k{k}{'_half_still' if mix else '_moving' if moving else ''}"
+        width, k = (int(v) for v in point.rstrip("mhqk").split("x"))
+        share = {0.5: "_half_still", 0.75: "_three_quarters_still"}.get(still, "")
+        here = out / (f"w{width}_k{k}{share if mix else '_moving' if moving else ''}"
                       f"{'_kernel' if kernel else ''}")
         if moving and not (moving_data / "dataset.toml").is_file():
             gen = load(qs / "configs/train_data.toml")
@@ -175,7 +178,7 @@ def main() -> None:
                          here / f"pretrain/seed{s}")
             pre["data"]["dataset"] = data
             if mix:
-                pre["data"]["static_fraction"] = 0.5
+                pre["data"]["static_fraction"] = still
             if kernel:
                 pre["model"]["output"] = "kernel"
             path = here / f"configs/pretrain_seed{s}.toml"
@@ -185,7 +188,7 @@ def main() -> None:
         base = scaled(load(qs / "configs/finetune.toml"), width, k, here / "unused")
         base["data"]["dataset"] = data
         if mix:
-            base["data"]["static_fraction"] = 0.5
+            base["data"]["static_fraction"] = still
         if kernel:
             base["model"]["output"] = "kernel"
         save(here / "configs/finetune.toml", base)
@@ -214,7 +217,7 @@ def main() -> None:
                 if not any(scores["net_s"].values()):
                     continue
                 line = {"width": width, "steps_factor": k, "moving_training": moving,
-                        "static_fraction": 0.5 if mix else 0.0,
+                        "static_fraction": still,
                         "head": "kernel" if kernel else "merge",
                         "testset": name, "metric": metric}
                 for row, v in scores.items():

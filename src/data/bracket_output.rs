@@ -16,6 +16,11 @@
 //! the same scene estimate with different seeds: the scene cancels on both sides, so texture
 //! the smoothed estimate lacks cannot bias the comparison as it does for single frames.
 //!
+//! Without repeats, each frame's statistics are taken on its residual against the merge of the
+//! set's other frames (`bracket_profile::cross_residuals`), real and simulated alike: the
+//! scene cancels there too, so neither the texture of the real frames nor the smoothing of the
+//! estimate enters the comparison.
+//!
 //! Statistics, per channel on flat pixels (the flattest half of each code bin, as
 //! `calibrate brackets` measures): the noise level (pixel-weighted mean over code bins of
 //! ln σ² of Immerkær's residual), its spatial correlation (the low/high-order residual
@@ -24,7 +29,7 @@
 //! does, makes its channels' noise move together). Each names what would close it: the
 //! profile's noise (a, b), the catalogue's `correlated_noise` and `channel_correlation`.
 
-use crate::data::bracket_profile::{self, NoiseBin, Pair, Planes};
+use crate::data::bracket_profile::{self, CrossResidual, NoiseBin, Pair, Planes};
 use crate::data::bracket_testset::{self, FIELD_GAMMA, Linearise};
 use crate::data::brackets::{self, ScanOptions};
 use crate::error::Result;
@@ -96,6 +101,8 @@ struct FrameStats {
 enum Unit {
     Frame(Image),
     Pair(Pair),
+    /// A frame of a set of two or more, against the others' merge: no scene texture.
+    Residual(CrossResidual),
 }
 
 impl Unit {
@@ -103,8 +110,38 @@ impl Unit {
         match self {
             Unit::Frame(code) => Planes::frame(code),
             Unit::Pair(p) => p.planes(),
+            Unit::Residual(r) => r.planes(),
         }
     }
+}
+
+/// The units of each set of single frames (indices into the units, relative exposure times).
+type Groups = Vec<(Vec<usize>, Vec<f64>)>;
+
+/// Each set's frames replaced by their residuals against the set's other frames
+/// ([`bracket_profile::cross_residuals`]), on the real and on every simulated side alike.
+fn residualise(
+    units: &mut [(Unit, f64)],
+    groups: &Groups,
+    response: &crate::sensor::profile::Response,
+) -> Result<()> {
+    for (indices, times) in groups {
+        let frames: Vec<Image> = indices
+            .iter()
+            .filter_map(|&i| match &units[i].0 {
+                Unit::Frame(img) => Some(img.clone()),
+                _ => None,
+            })
+            .collect();
+        if frames.len() != indices.len() {
+            continue;
+        }
+        let residuals = bracket_profile::cross_residuals(&frames, times, response)?;
+        for (&i, r) in indices.iter().zip(residuals) {
+            units[i].0 = Unit::Residual(r);
+        }
+    }
+    Ok(())
 }
 
 /// What is measured on a set of units (real, or one replicate), each with its ISO.
@@ -186,10 +223,18 @@ pub fn check_scanned(
         ));
     }
     let lin = Linearise::Curve(profile.response.clone());
+    // The scene estimate is linear: rendered as it is, not read through the profile's source
+    // curve (a measured profile's is the scene engine's display curve, which would darken
+    // every simulated frame and compare the noise at other codes than the frames').
+    let mut device = profile.clone();
+    device.source_response = crate::sensor::profile::Response::Linear;
+    let profile = &device;
     let temporal = scan.sets.iter().any(|s| !s.repeats.is_empty());
     // Per set: the real units with their ISO, and the scene at each unit's exposure (a pair:
     // rendered twice).
     let mut real: Vec<(Unit, f64)> = Vec::new();
+    // Sets of single frames: the units' indices and relative exposure times.
+    let mut groups: Groups = Vec::new();
     let mut scenes: Vec<(Image, f64, bool)> = Vec::new();
     for set in &scan.sets {
         let mut gamma = Vec::new();
@@ -208,6 +253,12 @@ pub fn check_scanned(
             &times,
             FIELD_GAMMA,
         )?);
+        if !temporal {
+            groups.push((
+                (real.len()..real.len() + set.frames.len()).collect(),
+                times.clone(),
+            ));
+        }
         for ((f, t), code) in set.frames.iter().zip(&times).zip(stored) {
             let iso = f.exif.iso.unwrap_or(100.0);
             let scene = radiance.map(|v| v * *t as f32);
@@ -226,6 +277,7 @@ pub fn check_scanned(
             }
         }
     }
+    residualise(&mut real, &groups, &profile.response)?;
     let measured = measure(&real, &profile.response);
     let mut sims = Vec::with_capacity(opts.replicates);
     for r in 0..opts.replicates {
@@ -259,6 +311,8 @@ pub fn check_scanned(
                 Ok((unit, *iso))
             })
             .collect::<Result<Vec<_>>>()?;
+        let mut units = units;
+        residualise(&mut units, &groups, &profile.response)?;
         sims.push(measure(&units, &profile.response));
     }
     // The bins every replicate and the real frames have, weighted by the real pixels.

@@ -41,7 +41,8 @@ use std::path::{Path, PathBuf};
 mod noise;
 pub use noise::NoiseBin;
 pub(crate) use noise::{
-    BINS, Pair, Planes, channel_moments, checked_pair, merge_bins, noise_bins, window,
+    BINS, CrossResidual, Pair, Planes, channel_moments, checked_pair, cross_residuals, merge_bins,
+    noise_bins, window,
 };
 
 #[derive(Clone, Debug)]
@@ -209,7 +210,9 @@ pub fn with_correlation(
     set_rho(&mut p, plan::id::CORRELATED_NOISE, fit.rho);
     let _ = write!(
         p.provenance.noise,
-        "; spatially correlated as measured (low-order/Immerkær ratio {:.3} {:.3} {:.3} →          Gaussian kernel width {:.3}, lag-1 correlation {:.3}; a, b divided by {:.4}, the          fraction of the per-pixel variance Immerkær's residual sees)",
+        "; spatially correlated as measured (low-order/Immerkær ratio {:.3} {:.3} {:.3} → \
+         Gaussian kernel width {:.3}, lag-1 correlation {:.3}; a, b divided by {:.4}, the \
+         fraction of the per-pixel variance Immerkær's residual sees)",
         fit.ratio[0], fit.ratio[1], fit.ratio[2], fit.width, fit.rho, fit.immerkaer_fraction
     );
     Some(p)
@@ -227,6 +230,9 @@ pub struct BracketCalibration {
     pub channel_correlation: f64,
     /// Repeated-capture pairs the noise was measured on (0: each frame's flat regions).
     pub repeated_pairs: usize,
+    /// Frames whose noise correlations were read from their residual against the other
+    /// frames of their set (0: from the pairs, or each frame's flat regions).
+    pub cross_frames: usize,
     pub metering: Vec<MeteredFrame>,
     pub notes: Vec<String>,
 }
@@ -294,6 +300,7 @@ pub fn calibrate_scanned(
         rows,
         channel_correlation,
         pairs,
+        cross_frames,
     } = noise::measure_noise(&scan.sets, &response, &mut notes)?;
     let metering = scan
         .sets
@@ -381,6 +388,7 @@ pub fn calibrate_scanned(
         correlation,
         channel_correlation,
         repeated_pairs: pairs,
+        cross_frames,
         metering,
         notes,
     })
@@ -479,6 +487,12 @@ impl BracketCalibration {
                 format!(
                     "from the differences of {} repeated-capture pair(s)",
                     self.repeated_pairs
+                )
+            } else if self.cross_frames > 0 {
+                format!(
+                    "from each frame's flat regions; the ratio from the residual of {} frame(s) \
+                     against the merge of the other frames of their set (no scene texture)",
+                    self.cross_frames
                 )
             } else {
                 "from each frame's flat regions".into()

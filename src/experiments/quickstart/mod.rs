@@ -739,6 +739,40 @@ fn prepare(opts: &Options, s: &Sizes, backend: &str, began: Instant) -> Result<P
     })
 }
 
+/// The pretraining config (Net_O of seed `seed`) that `preset`'s main job writes: its network,
+/// optimiser, schedule and crops, on `data` through `profile` into `run`. Public so that a
+/// preset's config can be started on a backend without the whole job (tests/wgpu.rs).
+pub fn pretrain_config(
+    preset: Preset,
+    backend: &str,
+    data: &Path,
+    profile: &Path,
+    run: &Path,
+    seed: u64,
+) -> TrainConfig {
+    pretrain_stage(&sizes(preset), backend, data, profile, run, seed)
+}
+
+fn pretrain_stage(
+    s: &Sizes,
+    backend: &str,
+    data: &Path,
+    profile: &Path,
+    run: &Path,
+    seed: u64,
+) -> TrainConfig {
+    let stage = Stage {
+        run,
+        seed,
+        profile,
+        isos: &DSLR_ISOS,
+        steps: s.pretrain_steps,
+        lr: s.pretrain_lr,
+        init: None,
+    };
+    train_config(s, backend, data, &stage)
+}
+
 /// Stage 2: Net_O per seed, pretrained on `data` through the DSLR profile.
 fn pretrain(
     opts: &Options,
@@ -753,20 +787,7 @@ fn pretrain(
         let pre_path = configs.join(format!("pretrain_seed{k}.toml"));
         write_config(
             &pre_path,
-            &train_config(
-                s,
-                backend,
-                data,
-                &Stage {
-                    run: &pre_run,
-                    seed: k,
-                    profile: pre_profile,
-                    isos: &DSLR_ISOS,
-                    steps: s.pretrain_steps,
-                    lr: s.pretrain_lr,
-                    init: None,
-                },
-            ),
+            &pretrain_stage(s, backend, data, pre_profile, &pre_run, k),
         )?;
         train_resumable(&pre_path, opts.progress)
             .map_err(|e| Error::context(format!("pretraining ({})", pre_path.display()), e))?;
