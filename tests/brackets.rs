@@ -3794,23 +3794,8 @@ fn chroma_noise_is_measured_fitted_and_closes_the_device_output_gap() {
         "{}",
         missed.markdown()
     );
-    // With the fitted correlation the channels' statistic agrees. (On residuals the check also
-    // sees this calibration's b, 26 % under the truth here, in the dark bins' noise level.)
     let closed = run(&fitted.profile);
-    let chroma = closed
-        .stats
-        .iter()
-        .find(|s| s.names == "channel_correlation")
-        .expect("the channels' statistic");
-    assert!(!chroma.significant, "{}", closed.markdown());
-    assert!(
-        closed
-            .stats
-            .iter()
-            .all(|s| s.names != "correlated_noise" || !s.significant),
-        "{}",
-        closed.markdown()
-    );
+    assert!(closed.named().is_none(), "{}", closed.markdown());
 }
 
 #[test]

@@ -493,9 +493,69 @@ impl CrossResidual {
     }
 }
 
+/// A frame's mean stored code against the value the other frames give it, in [`Self::BINS`]
+/// even bins over [0, 1], empty bins interpolated between their neighbours (held flat beyond
+/// the first and last): the code the frame is expected to record there, read from the frame
+/// itself, so it holds whatever the response, its estimation error, clipping or the bias that
+/// noise gives a code through a curved response — each a smooth function of the value that
+/// would otherwise follow the scene into the residual.
+struct ConditionalMean(Vec<f64>);
+
+impl ConditionalMean {
+    const BINS: usize = 256;
+
+    fn at(&self, v: f64) -> f64 {
+        let x = v.clamp(0.0, 1.0) * (Self::BINS - 1) as f64;
+        let lo = (x.floor() as usize).min(Self::BINS - 1);
+        let hi = (lo + 1).min(Self::BINS - 1);
+        let f = x - lo as f64;
+        self.0[lo] * (1.0 - f) + self.0[hi] * f
+    }
+}
+
+/// [`ConditionalMean`] per channel of `code` against `at` (per value), over the values `keep`.
+fn conditional_means(
+    code: &Image,
+    at: &[f64],
+    keep: &dyn Fn(usize) -> bool,
+) -> [ConditionalMean; 3] {
+    let n = ConditionalMean::BINS;
+    let mut sum = vec![[0.0f64; 3]; n];
+    let mut count = vec![[0u64; 3]; n];
+    for (k, &z) in code.data.iter().enumerate() {
+        if keep(k) {
+            let b = (at[k].clamp(0.0, 1.0) * (n - 1) as f64).round() as usize;
+            sum[b][k % 3] += f64::from(z);
+            count[b][k % 3] += 1;
+        }
+    }
+    std::array::from_fn(|c| {
+        let seen: Vec<(usize, f64)> = (0..n)
+            .filter(|&b| count[b][c] > 0)
+            .map(|b| (b, sum[b][c] / count[b][c] as f64))
+            .collect();
+        let mut t = vec![0.0; n];
+        let mut j = 0;
+        for (b, slot) in t.iter_mut().enumerate() {
+            while j + 1 < seen.len() && seen[j + 1].0 <= b {
+                j += 1;
+            }
+            *slot = match (seen.get(j), seen.get(j + 1)) {
+                (Some(&(b0, z0)), _) if b <= b0 => z0,
+                (Some(&(b0, z0)), Some(&(b1, z1))) => {
+                    z0 + (z1 - z0) * (b - b0) as f64 / (b1 - b0) as f64
+                }
+                (Some(&(_, z0)), None) => z0,
+                (None, _) => 0.0,
+            };
+        }
+        ConditionalMean(t)
+    })
+}
+
 /// [`CrossResidual`] of each of `codes` (a set's frames as stored, of 1, aligned; relative
 /// exposure times `times`): the others merged by [`bracket_testset::hat_merge_covered`] after
-/// `response`, the frame's expected codes `response`(merged · its time).
+/// `response`, the frame's expected codes its [`ConditionalMean`] at merged · its time.
 pub(crate) fn cross_residuals(
     codes: &[Image],
     times: &[f64],
@@ -522,6 +582,14 @@ pub(crate) fn cross_residuals(
             .collect();
         let (merged, covered) =
             hat_merge_covered(&others(&written), &others(codes), &t, FIELD_GAMMA)?;
+        // The others' value at this frame's exposure, as written (γ 2.2: even bins in codes).
+        let at: Vec<f64> = merged
+            .data
+            .iter()
+            .map(|&m| (f64::from(m) * times[i]).max(0.0).powf(f64::from(inv_g)))
+            .collect();
+        let use_value = |k: usize| covered[k] && at[k] < 1.0;
+        let table = conditional_means(code, &at, &use_value);
         let mut signal = code.clone();
         let mut noise = code.clone();
         for (k, (s, n)) in signal
@@ -530,10 +598,8 @@ pub(crate) fn cross_residuals(
             .zip(noise.data.iter_mut())
             .enumerate()
         {
-            let x = f64::from(merged.data[k]) * times[i];
-            let expected = response.apply(x.min(1.0));
-            *n = (f64::from(code.data[k]) - expected) as f32;
-            if !covered[k] || x >= 1.0 {
+            *n = (f64::from(code.data[k]) - table[k % 3].at(at[k])) as f32;
+            if !use_value(k) {
                 *s = 0.0;
             }
         }
