@@ -115,6 +115,49 @@ impl Unit {
     }
 }
 
+/// Replicate `r` of the units: each scene rendered through `profile` (a pair twice, with
+/// different seeds), each set's frames taken against the others as the real ones are.
+fn simulate(
+    profile: &SensorProfile,
+    scenes: &[(Image, f64, bool)],
+    groups: &Groups,
+    opts: &OutputCheckOptions,
+    r: usize,
+) -> Result<FrameStats> {
+    let mut units = scenes
+        .iter()
+        .enumerate()
+        .map(|(j, (scene, iso, pair))| {
+            let realism = Realism::new(
+                profile,
+                &RealismOptions {
+                    iso: *iso,
+                    exposure: 1.0,
+                    noise: if opts.noise {
+                        NoiseModel::Gaussian
+                    } else {
+                        NoiseModel::None
+                    },
+                    colour: false,
+                    output_bits: 8,
+                },
+            )?;
+            let seed = |k: u64| {
+                crate::rng::mix64(opts.seed ^ crate::rng::mix64((r * 7919 + j) as u64) ^ k)
+            };
+            let a = realism.apply(scene, seed(0));
+            let unit = if *pair {
+                Unit::Pair(Pair::new(&a, &realism.apply(scene, seed(1 << 40))))
+            } else {
+                Unit::Frame(a)
+            };
+            Ok((unit, *iso))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    residualise(&mut units, groups, &profile.response)?;
+    Ok(measure(&units, &profile.response))
+}
+
 /// The units of each set of single frames (indices into the units, relative exposure times).
 type Groups = Vec<(Vec<usize>, Vec<f64>)>;
 
@@ -279,42 +322,9 @@ pub fn check_scanned(
     }
     residualise(&mut real, &groups, &profile.response)?;
     let measured = measure(&real, &profile.response);
-    let mut sims = Vec::with_capacity(opts.replicates);
-    for r in 0..opts.replicates {
-        let units = scenes
-            .iter()
-            .enumerate()
-            .map(|(j, (scene, iso, pair))| {
-                let realism = Realism::new(
-                    profile,
-                    &RealismOptions {
-                        iso: *iso,
-                        exposure: 1.0,
-                        noise: if opts.noise {
-                            NoiseModel::Gaussian
-                        } else {
-                            NoiseModel::None
-                        },
-                        colour: false,
-                        output_bits: 8,
-                    },
-                )?;
-                let seed = |k: u64| {
-                    crate::rng::mix64(opts.seed ^ crate::rng::mix64((r * 7919 + j) as u64) ^ k)
-                };
-                let a = realism.apply(scene, seed(0));
-                let unit = if *pair {
-                    Unit::Pair(Pair::new(&a, &realism.apply(scene, seed(1 << 40))))
-                } else {
-                    Unit::Frame(a)
-                };
-                Ok((unit, *iso))
-            })
-            .collect::<Result<Vec<_>>>()?;
-        let mut units = units;
-        residualise(&mut units, &groups, &profile.response)?;
-        sims.push(measure(&units, &profile.response));
-    }
+    let sims = (0..opts.replicates)
+        .map(|r| simulate(profile, &scenes, &groups, opts, r))
+        .collect::<Result<Vec<_>>>()?;
     // The bins every replicate and the real frames have, weighted by the real pixels.
     let keys: Vec<(usize, usize, f64)> = measured
         .bins

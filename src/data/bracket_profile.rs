@@ -39,11 +39,12 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 mod noise;
+mod residual;
 pub use noise::NoiseBin;
 pub(crate) use noise::{
-    BINS, CrossResidual, Pair, Planes, channel_moments, checked_pair, cross_residuals, merge_bins,
-    noise_bins, window,
+    BINS, Pair, Planes, channel_moments, checked_pair, merge_bins, noise_bins, window,
 };
+pub(crate) use residual::{CrossResidual, cross_residuals};
 
 #[derive(Clone, Debug)]
 pub struct BracketProfileOptions {

@@ -3,6 +3,7 @@
 //! from the differences of repeated frames (temporal noise: no scene in the residual).
 
 use super::channel_correlation_of;
+use super::residual::{crop_window, cross_residuals};
 use crate::data::brackets::{self, BracketFrame, BracketSet};
 use crate::error::{Error, Result};
 use crate::io::Image;
@@ -14,7 +15,7 @@ pub(crate) const BINS: usize = 16;
 /// Fewest flat pixels for a bin's σ.
 const MIN_PIXELS: usize = 200;
 /// Of each bin's pixels, the flattest fraction (smallest local gradient) is measured.
-const FLAT_FRACTION: f64 = 0.5;
+pub(super) const FLAT_FRACTION: f64 = 0.5;
 /// Codes at or beyond these (of 255) are clipped or crushed: no noise survives there.
 const LOW_CODE: f64 = 3.0 / 255.0;
 pub(super) const HIGH_CODE: f64 = 250.0 / 255.0;
@@ -458,154 +459,6 @@ impl Moments {
         }
         self.count += n;
     }
-}
-
-/// The central [`window`] of `img`.
-fn crop_window(img: &Image) -> Image {
-    let (x0, y0, w, h) = window(img);
-    if (w, h) == (img.width, img.height) {
-        return img.clone();
-    }
-    Image::from_fn(w, h, |x, y| img.get(x0 + x, y0 + y))
-}
-
-/// A frame's residual against the other frames of its set: the frame's codes less the codes it
-/// is expected to record at the radiance the others merge to. The scene cancels (the frames of
-/// a set are aligned), so what remains is the frame's noise and the others' noise carried to
-/// its exposure — the device's noise in both, with its spatial and channel correlation. Scene
-/// texture, which a single frame's flat regions keep (it raises the low-order residual over
-/// Immerkær's as correlated noise does), does not enter it.
-pub(crate) struct CrossResidual {
-    /// The frame's codes; 0 (outside every bin) where the others do not record the value.
-    signal: Image,
-    noise: Image,
-}
-
-impl CrossResidual {
-    pub fn planes(&self) -> Planes<'_> {
-        Planes {
-            signal: &self.signal,
-            noise: &self.noise,
-            flat_fraction: FLAT_FRACTION,
-            // The residual is not on a code lattice.
-            quantum: 1e-7,
-        }
-    }
-}
-
-/// A frame's mean stored code against the value the other frames give it, in [`Self::BINS`]
-/// even bins over [0, 1], empty bins interpolated between their neighbours (held flat beyond
-/// the first and last): the code the frame is expected to record there, read from the frame
-/// itself, so it holds whatever the response, its estimation error, clipping or the bias that
-/// noise gives a code through a curved response — each a smooth function of the value that
-/// would otherwise follow the scene into the residual.
-struct ConditionalMean(Vec<f64>);
-
-impl ConditionalMean {
-    const BINS: usize = 256;
-
-    fn at(&self, v: f64) -> f64 {
-        let x = v.clamp(0.0, 1.0) * (Self::BINS - 1) as f64;
-        let lo = (x.floor() as usize).min(Self::BINS - 1);
-        let hi = (lo + 1).min(Self::BINS - 1);
-        let f = x - lo as f64;
-        self.0[lo] * (1.0 - f) + self.0[hi] * f
-    }
-}
-
-/// [`ConditionalMean`] per channel of `code` against `at` (per value), over the values `keep`.
-fn conditional_means(
-    code: &Image,
-    at: &[f64],
-    keep: &dyn Fn(usize) -> bool,
-) -> [ConditionalMean; 3] {
-    let n = ConditionalMean::BINS;
-    let mut sum = vec![[0.0f64; 3]; n];
-    let mut count = vec![[0u64; 3]; n];
-    for (k, &z) in code.data.iter().enumerate() {
-        if keep(k) {
-            let b = (at[k].clamp(0.0, 1.0) * (n - 1) as f64).round() as usize;
-            sum[b][k % 3] += f64::from(z);
-            count[b][k % 3] += 1;
-        }
-    }
-    std::array::from_fn(|c| {
-        let seen: Vec<(usize, f64)> = (0..n)
-            .filter(|&b| count[b][c] > 0)
-            .map(|b| (b, sum[b][c] / count[b][c] as f64))
-            .collect();
-        let mut t = vec![0.0; n];
-        let mut j = 0;
-        for (b, slot) in t.iter_mut().enumerate() {
-            while j + 1 < seen.len() && seen[j + 1].0 <= b {
-                j += 1;
-            }
-            *slot = match (seen.get(j), seen.get(j + 1)) {
-                (Some(&(b0, z0)), _) if b <= b0 => z0,
-                (Some(&(b0, z0)), Some(&(b1, z1))) => {
-                    z0 + (z1 - z0) * (b - b0) as f64 / (b1 - b0) as f64
-                }
-                (Some(&(_, z0)), None) => z0,
-                (None, _) => 0.0,
-            };
-        }
-        ConditionalMean(t)
-    })
-}
-
-/// [`CrossResidual`] of each of `codes` (a set's frames as stored, of 1, aligned; relative
-/// exposure times `times`): the others merged by [`bracket_testset::hat_merge_covered`] after
-/// `response`, the frame's expected codes its [`ConditionalMean`] at merged · its time.
-pub(crate) fn cross_residuals(
-    codes: &[Image],
-    times: &[f64],
-    response: &Response,
-) -> Result<Vec<CrossResidual>> {
-    use crate::data::bracket_testset::{FIELD_GAMMA, hat_merge_covered};
-    let inv_g = 1.0 / FIELD_GAMMA;
-    let written: Vec<Image> = codes
-        .iter()
-        .map(|c| c.map(|z| (response.invert(f64::from(z)).clamp(0.0, 1.0) as f32).powf(inv_g)))
-        .collect();
-    let mut out = Vec::with_capacity(codes.len());
-    for (i, code) in codes.iter().enumerate() {
-        let others = |v: &[Image]| -> Vec<Image> {
-            v.iter()
-                .enumerate()
-                .filter(|&(j, _)| j != i)
-                .map(|(_, x)| x.clone())
-                .collect()
-        };
-        let t: Vec<f64> = (0..times.len())
-            .filter(|&j| j != i)
-            .map(|j| times[j])
-            .collect();
-        let (merged, covered) =
-            hat_merge_covered(&others(&written), &others(codes), &t, FIELD_GAMMA)?;
-        // The others' value at this frame's exposure, as written (γ 2.2: even bins in codes).
-        let at: Vec<f64> = merged
-            .data
-            .iter()
-            .map(|&m| (f64::from(m) * times[i]).max(0.0).powf(f64::from(inv_g)))
-            .collect();
-        let use_value = |k: usize| covered[k] && at[k] < 1.0;
-        let table = conditional_means(code, &at, &use_value);
-        let mut signal = code.clone();
-        let mut noise = code.clone();
-        for (k, (s, n)) in signal
-            .data
-            .iter_mut()
-            .zip(noise.data.iter_mut())
-            .enumerate()
-        {
-            *n = (f64::from(code.data[k]) - table[k % 3].at(at[k])) as f32;
-            if !use_value(k) {
-                *s = 0.0;
-            }
-        }
-        out.push(CrossResidual { signal, noise });
-    }
-    Ok(out)
 }
 
 /// One interior pixel of one channel: the scene's local gradient, Immerkær's residual, the
