@@ -351,12 +351,6 @@ fn the_device_output_check_on_repeats_compares_noise_without_the_scene() {
     }
     std::fs::write(single.path().join("exposure.txt"), "-2\n0\n2\n").expect("write");
     let frames = check(single.path(), &cal.profile, &opts(ScanOptions::default())).expect("check");
-    for s in &frames.stats {
-        eprintln!(
-            "single frames: {} {:.4} vs {:.4} z {:.2}",
-            s.name, s.measured, s.sim_mean, s.z
-        );
-    }
     assert!(
         frames.stats.iter().all(|s| !s.significant),
         "{}",

@@ -3,6 +3,7 @@
 //! correlation are read (`calibrate brackets`, the device-output check).
 
 use super::noise::{FLAT_FRACTION, Planes, window};
+use crate::data::bracket_testset::binned_means;
 use crate::error::Result;
 use crate::io::Image;
 use crate::sensor::profile::Response;
@@ -66,38 +67,12 @@ fn conditional_means(
     at: &[f64],
     keep: &dyn Fn(usize) -> bool,
 ) -> [ConditionalMean; 3] {
-    let n = ConditionalMean::BINS;
-    let mut sum = vec![[0.0f64; 3]; n];
-    let mut count = vec![[0u64; 3]; n];
-    for (k, &z) in code.data.iter().enumerate() {
-        if keep(k) {
-            let b = (at[k].clamp(0.0, 1.0) * (n - 1) as f64).round() as usize;
-            sum[b][k % 3] += f64::from(z);
-            count[b][k % 3] += 1;
-        }
-    }
-    std::array::from_fn(|c| {
-        let seen: Vec<(usize, f64)> = (0..n)
-            .filter(|&b| count[b][c] > 0)
-            .map(|b| (b, sum[b][c] / count[b][c] as f64))
-            .collect();
-        let mut t = vec![0.0; n];
-        let mut j = 0;
-        for (b, slot) in t.iter_mut().enumerate() {
-            while j + 1 < seen.len() && seen[j + 1].0 <= b {
-                j += 1;
-            }
-            *slot = match (seen.get(j), seen.get(j + 1)) {
-                (Some(&(b0, z0)), _) if b <= b0 => z0,
-                (Some(&(b0, z0)), Some(&(b1, z1))) => {
-                    z0 + (z1 - z0) * (b - b0) as f64 / (b1 - b0) as f64
-                }
-                (Some(&(_, z0)), None) => z0,
-                (None, _) => 0.0,
-            };
-        }
-        ConditionalMean(t)
-    })
+    let samples = code.data.iter().enumerate().filter(|&(k, _)| keep(k));
+    binned_means(
+        samples.map(|(k, &z)| (k, at[k], f64::from(z))),
+        ConditionalMean::BINS,
+    )
+    .map(ConditionalMean)
 }
 
 /// [`CrossResidual`] of each of `codes` (a set's frames as stored, of 1, aligned; relative

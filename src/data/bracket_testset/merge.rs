@@ -291,47 +291,65 @@ impl CodeTable {
 /// [`CodeTable`] per frame and channel, from the pairs (written value, stored code) of every
 /// pixel of `frames` and `codes`.
 pub fn expected_code_tables(frames: &[Image], codes: &[Image]) -> Vec<[CodeTable; 3]> {
-    let n = CodeTable::BINS;
     frames
         .par_iter()
         .zip(codes)
         .map(|(f, c)| {
-            let mut sum = vec![[0.0f64; 3]; n];
-            let mut count = vec![[0u64; 3]; n];
-            for (k, (&v, &z)) in f.data.iter().zip(&c.data).enumerate() {
-                let b = (f64::from(v).clamp(0.0, 1.0) * (n - 1) as f64).round() as usize;
-                sum[b][k % 3] += f64::from(z);
-                count[b][k % 3] += 1;
-            }
-            std::array::from_fn(|ch| {
-                let seen: Vec<(usize, f64)> = (0..n)
-                    .filter(|&b| count[b][ch] > 0)
-                    .map(|b| (b, sum[b][ch] / count[b][ch] as f64))
-                    .collect();
-                let mut t = vec![0.0f32; n];
-                if seen.is_empty() {
-                    return CodeTable(t);
-                }
-                let mut j = 0;
-                for (b, slot) in t.iter_mut().enumerate() {
-                    while j + 1 < seen.len() && seen[j + 1].0 <= b {
-                        j += 1;
-                    }
-                    let (b0, z0) = seen[j];
-                    *slot = match seen.get(j + 1) {
-                        Some(&(b1, z1)) if b > b0 => {
-                            (z0 + (z1 - z0) * (b - b0) as f64 / (b1 - b0) as f64) as f32
-                        }
-                        _ => z0 as f32,
-                    };
-                }
+            let samples = f.data.iter().zip(&c.data).enumerate();
+            let means = binned_means(
+                samples.map(|(k, (&v, &z))| (k, f64::from(v), f64::from(z))),
+                CodeTable::BINS,
+            );
+            means.map(|m| {
                 let mut top = f32::MIN;
-                for z in &mut t {
-                    top = top.max(*z);
-                    *z = top;
-                }
-                CodeTable(t)
+                CodeTable(
+                    m.iter()
+                        .map(|&z| {
+                            top = top.max(z as f32);
+                            top
+                        })
+                        .collect(),
+                )
             })
         })
         .collect()
+}
+
+/// Per channel, the mean code `z` of the samples (value index k, of channel k % 3; value `v` in
+/// [0, 1]; code `z`) whose `v` falls in each of `n` even bins over [0, 1], empty bins
+/// interpolated between their neighbours and held flat beyond the first and last (0 where a
+/// channel has no sample).
+pub(crate) fn binned_means(
+    samples: impl Iterator<Item = (usize, f64, f64)>,
+    n: usize,
+) -> [Vec<f64>; 3] {
+    let mut sum = vec![[0.0f64; 3]; n];
+    let mut count = vec![[0u64; 3]; n];
+    for (k, v, z) in samples {
+        let b = (v.clamp(0.0, 1.0) * (n - 1) as f64).round() as usize;
+        sum[b][k % 3] += z;
+        count[b][k % 3] += 1;
+    }
+    std::array::from_fn(|ch| {
+        let seen: Vec<(usize, f64)> = (0..n)
+            .filter(|&b| count[b][ch] > 0)
+            .map(|b| (b, sum[b][ch] / count[b][ch] as f64))
+            .collect();
+        let mut t = vec![0.0; n];
+        if seen.is_empty() {
+            return t;
+        }
+        let mut j = 0;
+        for (b, slot) in t.iter_mut().enumerate() {
+            while j + 1 < seen.len() && seen[j + 1].0 <= b {
+                j += 1;
+            }
+            let (b0, z0) = seen[j];
+            *slot = match seen.get(j + 1) {
+                Some(&(b1, z1)) if b > b0 => z0 + (z1 - z0) * (b - b0) as f64 / (b1 - b0) as f64,
+                _ => z0,
+            };
+        }
+        t
+    })
 }

@@ -750,17 +750,7 @@ pub fn pretrain_config(
     run: &Path,
     seed: u64,
 ) -> TrainConfig {
-    pretrain_stage(&sizes(preset), backend, data, profile, run, seed)
-}
-
-fn pretrain_stage(
-    s: &Sizes,
-    backend: &str,
-    data: &Path,
-    profile: &Path,
-    run: &Path,
-    seed: u64,
-) -> TrainConfig {
+    let s = sizes(preset);
     let stage = Stage {
         run,
         seed,
@@ -770,7 +760,7 @@ fn pretrain_stage(
         lr: s.pretrain_lr,
         init: None,
     };
-    train_config(s, backend, data, &stage)
+    train_config(&s, backend, data, &stage)
 }
 
 /// Stage 2: Net_O per seed, pretrained on `data` through the DSLR profile.
@@ -787,7 +777,7 @@ fn pretrain(
         let pre_path = configs.join(format!("pretrain_seed{k}.toml"));
         write_config(
             &pre_path,
-            &pretrain_stage(s, backend, data, pre_profile, &pre_run, k),
+            &pretrain_config(opts.preset, backend, data, pre_profile, &pre_run, k),
         )?;
         train_resumable(&pre_path, opts.progress)
             .map_err(|e| Error::context(format!("pretraining ({})", pre_path.display()), e))?;
