@@ -1,8 +1,8 @@
 //! Ground truth: pyramids against hand-computed values (OpenCV pyrDown/pyrUp semantics with
 //! reflect-101 borders), Mertens fusion against OpenCV 5.0 `MergeMertens` oracles, the triangle
 //! merge against its oracle (on the committed crops in tests/data/oracle_crops, and full size
-//! where ../shared/data exists), `debevec_merge` against OpenCV 5.0 `MergeDebevec` on the
-//! committed crops, the blend-class sign convention on hand examples, the class weights on hand
+//! where ../shared/data exists), `debevec_merge` and `robertson_merge` against OpenCV's
+//! `MergeDebevec` (5.0) and `MergeRobertson` (5.1) on the committed crops, the blend-class sign convention on hand examples, the class weights on hand
 //! histograms, and `dataset weights` on a small generated dataset.
 
 use hdrsynth::config::parse_toml;
@@ -16,7 +16,7 @@ use hdrsynth::data::pyramid::{
     Plane, collapse, gaussian_pyramid, laplacian_blend, laplacian_pyramid, max_level, pyr_down,
     pyr_up, reflect101,
 };
-use hdrsynth::eval::evaluate::debevec_merge;
+use hdrsynth::eval::evaluate::{debevec_merge, robertson_merge, robertson_weight};
 use hdrsynth::io::{Image, read_image};
 use hdrsynth::sensor::profile::Response;
 use std::path::{Path, PathBuf};
@@ -381,6 +381,76 @@ fn debevec_merge_matches_opencv_on_committed_crops() {
     // clipped pixels, and a linear-domain weighted mean Σ w·R(z)/t / Σ w up to 0.75 off, with
     // 19% (Carrots) and 51% (Desk) of the values beyond 1e-4: either mistake fails here.
     check_debevec_oracles(&crops(), 1e-4);
+}
+
+/// Runs our `robertson_merge` with the known γ 2.2 response on every MergeRobertson case of
+/// `DIR/oracles.json` (Desk and Carrots, EV −2/0/+2, t = 0.25, 1, 4; written by
+/// tools/robertson_oracle.py with OpenCV 5.1) and checks the largest relative difference per
+/// value against OpenCV's output; values OpenCV merges to 0 (clipped in every frame) must be 0.
+fn check_robertson_oracles(dir: &Path, limit: f64) {
+    let cases = oracle_cases(dir, "robertson_merge");
+    let names: Vec<&str> = cases.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(names, ["carrots_3exp_robertson", "desk_3exp_robertson"]);
+    let mut zeros = 0;
+    for (name, case) in &cases {
+        let f = frames(dir, name, case);
+        let t = exposure_times(case);
+        assert_eq!(t, [0.25, 1.0, 4.0], "{name}: exposure times");
+        assert_eq!(case["gamma"].as_f64(), Some(2.2), "{name}: gamma");
+        let output = case["output"].as_str().expect("output");
+        let want = read_image(&dir.join(output)).expect("oracle exr");
+        let got = robertson_merge(&f, &t, &Response::Gamma { gamma: 2.2 }).expect("merge");
+        assert_eq!((got.width, got.height), (want.width, want.height), "{name}");
+        let (mut max, mut sum) = (0f64, 0f64);
+        for (g, w) in got.data.iter().zip(&want.data) {
+            assert!(*w >= 0.0 && w.is_finite(), "{name}: oracle value {w}");
+            if *w == 0.0 {
+                assert_eq!(*g, 0.0, "{name}: OpenCV merges this value to 0");
+                zeros += 1;
+                continue;
+            }
+            let r = ((*g as f64) - (*w as f64)).abs() / *w as f64;
+            max = max.max(r);
+            sum += r;
+        }
+        let mean = sum / got.data.len() as f64;
+        println!("{name}: max relative error {max:.3e}, mean {mean:.3e}");
+        assert!(
+            max <= limit,
+            "{name}: max relative error {max:.3e} (limit {limit:e}), mean {mean:.3e}"
+        );
+    }
+    // The crops clip in every frame somewhere, so the weights' exact zeros are exercised.
+    assert!(zeros > 100, "only {zeros} values clipped in every frame");
+}
+
+#[test]
+fn robertson_merge_matches_opencv_on_committed_crops() {
+    // OpenCV sums in f32, ours in f64: ~1e-6 relative. Weights per pixel (the channels' mean,
+    // as Debevec's) instead of per channel, or t·w in the denominator instead of t²·w, are
+    // far beyond the limit.
+    check_robertson_oracles(&crops(), 1e-4);
+}
+
+#[test]
+fn robertson_merge_by_hand() {
+    // One pixel, γ = 1, t = (0.5, 1, 2), codes 51, 102, 255 (0.2, 0.4, 1.0): the last frame is
+    // clipped (weight 0). w(51) = s·exp(−(0.8 − 2)²) + c, w(102) = s·exp(−(1.6 − 2)²) + c,
+    // s = e⁴/(e⁴ − 1), c = 1/(1 − e⁴); H = (0.5·w₁·0.2 + 1·w₂·0.4) / (0.25·w₁ + w₂).
+    let e4 = 4f64.exp();
+    let w = |v: f64| e4 / (e4 - 1.0) * (-(v - 2.0) * (v - 2.0)).exp() + 1.0 / (1.0 - e4);
+    let (w1, w2) = (w(0.8), w(1.6));
+    let want = (0.5 * w1 * 0.2 + w2 * 0.4) / (0.25 * w1 + w2);
+    let f = |v: f32| Image::from_vec(1, 1, vec![v; 3]);
+    let out = robertson_merge(
+        &[f(0.2), f(0.4), f(1.0)],
+        &[0.5, 1.0, 2.0],
+        &Response::Gamma { gamma: 1.0 },
+    )
+    .expect("merge");
+    assert_close(&out.data, &[want as f32; 3], 1e-5, "robertson");
+    assert_eq!(robertson_weight(0), 0.0);
+    assert_eq!(robertson_weight(255), 0.0);
 }
 
 #[test]

@@ -508,7 +508,7 @@ fn data_section_errors_name_the_key_line_and_the_valid_keys() {
 #[test]
 fn omitted_keys_take_the_documented_defaults() {
     use hdrsynth::data::loader::Source;
-    use hdrsynth::models::wu::{Linearise, WuOutput};
+    use hdrsynth::models::wu::{Linearise, MergePrior, WuOutput};
     use hdrsynth::models::{DeconvAlignment, WuConfig, WuVariant};
     use hdrsynth::sensor::metering::Metering;
     use hdrsynth::sensor::profile::Response;
@@ -582,6 +582,7 @@ fn omitted_keys_take_the_documented_defaults() {
             deconv_alignment: DeconvAlignment::Tensorflow,
             hdr_input_scale: 0.25,
             output: WuOutput::Image,
+            merge_prior: MergePrior::Triangle,
             linearise: Linearise::Fixed,
             input_response: Response::Gamma { gamma: 2.2 },
         })

@@ -710,6 +710,77 @@ fn the_untrained_merge_head_is_the_triangle_merge() {
     }
 }
 
+/// The merge head with `merge_prior = "robertson"` before training: each frame's weight is
+/// OpenCV's Robertson weight of its code times code^(2·2.2) (∝ t² on a static pixel),
+/// normalised over the frames, + ε, normalised again. Computed here in f64 from the formula
+/// (w(z) = s·exp(−(4z − 2)²) + c, s = e⁴/(e⁴ − 1), c = 1/(1 − e⁴)). A pixel clipped in every
+/// frame (codes 1, 1, 1) falls back to the triangle's weights (the short frame's value).
+#[test]
+fn the_untrained_robertson_merge_head_is_robertsons_merge() {
+    let dev = Device::flex();
+    let cfg = WuConfig {
+        output: wu::WuOutput::Merge,
+        merge_prior: wu::MergePrior::Robertson,
+        ..WuConfig::resnet(2)
+    };
+    let net = seeded_init(&cfg, &dev, 7);
+    let (h, w) = (8, 8);
+    let n = h * w;
+    // Per pixel column: the three frames' codes (EV −2, 0, +2 of one static radiance, and a
+    // pixel clipped everywhere) and HDR channels chosen by hand.
+    let cases: [([f32; 3], [f32; 3]); 3] = [
+        ([0.1, 0.19, 0.35], [0.8, 0.10, 0.14]),
+        ([0.4, 0.75, 1.0], [0.6, 0.50, 0.40]),
+        ([1.0, 1.0, 1.0], [0.9, 1.00, 0.25]),
+    ];
+    let e4 = 4f64.exp();
+    let rob = |z: f64| {
+        let d = 4.0 * z - 2.0;
+        ((e4 / (e4 - 1.0)) * (-d * d).exp() + 1.0 / (1.0 - e4)).max(0.0) * z.powf(4.4)
+    };
+    let eps = 1e-3f64;
+    let want: Vec<f64> = cases
+        .iter()
+        .enumerate()
+        .map(|(k, (codes, hdr))| {
+            let p: [f64; 3] = if k == 2 {
+                [1.0, 0.0, 0.0]
+            } else {
+                let a = codes.map(|z| rob(z as f64));
+                let sum: f64 = a.iter().sum();
+                a.map(|v| v / sum)
+            };
+            (0..3).map(|i| (p[i] + eps) * hdr[i] as f64).sum::<f64>() / (1.0 + 3.0 * eps)
+        })
+        .collect();
+    // The long frame gets most of the first pixel, the clipped long frame nothing of the second.
+    let a0 = cases[0].0.map(|z| rob(z as f64));
+    assert!(a0[2] > 0.9 * a0.iter().sum::<f64>(), "{a0:?}");
+    assert_eq!(rob(1.0), 0.0);
+    let mut x = vec![0.0f32; 18 * n];
+    for px in 0..n {
+        let (codes, hdr) = cases[(px % w) % 3];
+        for f in 0..3 {
+            for c in 0..3 {
+                x[(6 * f + c) * n + px] = codes[f];
+                x[(6 * f + 3 + c) * n + px] = hdr[f];
+            }
+        }
+    }
+    let y = to_vec(net.forward(Tensor::from_data(TensorData::new(x, [1, 18, h, w]), &dev)));
+    for px in 0..n {
+        let k = (px % w) % 3;
+        for c in 0..3 {
+            let got = (y[c * n + px] / 0.25) as f64;
+            assert!(
+                (got - want[k]).abs() < 1e-5 * want[k].max(1.0),
+                "pixel {px} channel {c}: {got} vs Robertson's merge {}",
+                want[k]
+            );
+        }
+    }
+}
+
 /// The kernel head (`output = "kernel"`) before training: the triangle weights on each frame's
 /// centre tap and ε on its 8 neighbours, one softmax over the 27. On a uniform image every tap
 /// holds the centre's value, so by hand out = (Σᵢ (wᵢ + ε)·Hᵢ + 8ε·Σᵢ Hᵢ) / (1 + 27ε); a lone

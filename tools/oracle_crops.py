@@ -5,7 +5,8 @@ Small reference data that the tests use without ../shared/data: crops of two rea
 (openexr-images, BSD-3), 8-bit brackets made from them, and the outputs of OpenCV MergeMertens,
 a numpy triangle merge, scikit-image PSNR/SSIM (plus the PU21 numpy transcription of
 tools/metrics_reference.py), colour-science CIEDE2000 and colour-science colour correction;
-then OpenCV MergeDebevec on the three-frame PNGs (tools/debevec_oracle.py, `add_cases`).
+then OpenCV MergeDebevec and MergeRobertson on the three-frame PNGs (tools/debevec_oracle.py,
+tools/robertson_oracle.py, `add_cases`).
 Conventions are those of ../shared/data/oracles/oracles.json; PROVENANCE.md in the output
 folder lists them with the tool versions. Deterministic: the crop windows are chosen by a fixed
 score, the noise and the random pairs come from fixed seeds.
@@ -31,6 +32,7 @@ import metrics_reference  # noqa: E402  (PU21 transcription and the field's PSNR
 import colour  # noqa: E402
 import debevec_oracle  # noqa: E402  (the MergeDebevec cases, added to oracles.json at the end)
 from debevec_oracle import write_exr  # noqa: E402  (one EXR writer for every oracle output)
+import robertson_oracle  # noqa: E402  (the MergeRobertson cases, likewise)
 
 # (name in the output, source file in ../shared/data/real_hdr)
 SCENES = [("desk", "Desk.exr"), ("carrots", "Carrots.exr")]
@@ -214,6 +216,7 @@ def main():
         json.dump(doc, f, indent=1)
         f.write("\n")
     debevec_oracle.add_cases(out)
+    robertson_oracle.add_cases(out)
     print(json.dumps(dict(tools=tools, crops=crops), indent=1))
 
 

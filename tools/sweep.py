@@ -4,17 +4,19 @@
 For each point (width w, step factor k; suffix `m`: training scenes with moving subjects, the
 scene engine's default motion, instead of the main job's static ones; suffix `h`: the same
 scenes with half the samples still, `[data] static_fraction = 0.5`; suffix `q`: three
-quarters of them still, `static_fraction = 0.75`; suffix `k`: the kernel
-head, `[model] output = "kernel"`, instead of the merge head) of the sweep, from a finished main job's folder QS (`hdrsynth quickstart --out QS`, whose training data and test
-sets it reuses):
+quarters of them still, `static_fraction = 0.75`; suffix `k`: the kernel head,
+`[model] output = "kernel"`, instead of the merge head; suffix `r`: the merge head's prior
+Robertson's weights, `[model] merge_prior = "robertson"`, instead of the triangle's) of the
+sweep, from a finished main job's folder QS (`hdrsynth quickstart --out QS`, whose training
+data and test sets it reuses):
   - Net_O per seed: the main job's pretraining config with `model.base_width = w` (the merger
     widths scaled alike) and k times the steps (warm-up and checkpoints alike);
   - the main job's grid with Net_R, Net_S and the classical rows only, fine-tuned for k times
     the steps from that point's Net_O, on the main job's primary and dynamic test sets;
 and writes OUT/sweep.csv: per point, test set and metric (PSNR-T, PSNR-T over the moving
 pixels), each row's mean over seeds and scenes and the paired differences Net_S − Net_R,
-Net_S − triangle and Net_S − copy (within seed and set; t 95 % interval over scenes, each
-scene's difference the mean over its ISO sets and the seeds; each seed's mean).
+Net_S − triangle, Net_S − Robertson and Net_S − copy (within seed and set; t 95 % interval
+over scenes, each scene's difference the mean over its ISO sets and the seeds; each seed's mean).
 
 Every point is also scored on validation scenes of seeds used for nothing else (16 static,
 16 with moving subjects: `val_static`, `val_dynamic`); a choice between points is made on them,
@@ -152,7 +154,7 @@ def main() -> None:
     a = ap.parse_args()
     qs, out = a.qs.resolve(), a.out.resolve()
     seeds = [int(s) for s in a.seeds.split(",")]
-    rows_kept = {"net_r", "net_s", "copy", "triangle"}
+    rows_kept = {"net_r", "net_s", "copy", "triangle", "robertson"}
     results = []
     moving_data = qs / "data/train_moving"
     val = validation_scenes(a.hdrsynth, qs, out)
@@ -162,10 +164,11 @@ def main() -> None:
         mix = still > 0.0
         moving = mix or "m" in flags
         kernel = "k" in flags
-        width, k = (int(v) for v in point.rstrip("mhqk").split("x"))
+        robertson = "r" in flags
+        width, k = (int(v) for v in point.rstrip("mhqkr").split("x"))
         share = {0.5: "_half_still", 0.75: "_three_quarters_still"}.get(still, "")
         here = out / (f"w{width}_k{k}{share if mix else '_moving' if moving else ''}"
-                      f"{'_kernel' if kernel else ''}")
+                      f"{'_kernel' if kernel else ''}{'_robertson' if robertson else ''}")
         if moving and not (moving_data / "dataset.toml").is_file():
             gen = load(qs / "configs/train_data.toml")
             gen["scene"]["motion_scale"] = 1.0
@@ -181,6 +184,8 @@ def main() -> None:
                 pre["data"]["static_fraction"] = still
             if kernel:
                 pre["model"]["output"] = "kernel"
+            if robertson:
+                pre["model"]["merge_prior"] = "robertson"
             path = here / f"configs/pretrain_seed{s}.toml"
             save(path, pre)
             resume = ["--resume"] if (here / f"pretrain/seed{s}/checkpoints").is_dir() else []
@@ -191,6 +196,8 @@ def main() -> None:
             base["data"]["static_fraction"] = still
         if kernel:
             base["model"]["output"] = "kernel"
+        if robertson:
+            base["model"]["merge_prior"] = "robertson"
         save(here / "configs/finetune.toml", base)
         exp = load(qs / "configs/experiment.toml")
         exp["title"] = f"Sweep point: width {width}, {k}x the main job's steps"
@@ -219,11 +226,12 @@ def main() -> None:
                 line = {"width": width, "steps_factor": k, "moving_training": moving,
                         "static_fraction": still,
                         "head": "kernel" if kernel else "merge",
+                        "prior": "robertson" if robertson else "triangle",
                         "testset": name, "metric": metric}
                 for row, v in scores.items():
                     line[row] = round(statistics.fmean(
                         statistics.fmean(x.values()) for x in v.values()), 3)
-                for versus in ("net_r", "triangle", "copy"):
+                for versus in ("net_r", "triangle", "robertson", "copy"):
                     m, lo, hi, ps = paired(scores["net_s"], scores[versus])
                     line[f"net_s-{versus}"] = round(m, 3)
                     line[f"net_s-{versus}_ci"] = f"[{lo:+.2f}, {hi:+.2f}]"

@@ -34,8 +34,8 @@ pub struct Args {
     #[arg(long)]
     pub config: Option<PathBuf>,
     /// A classical baseline instead of a network: copy (the reference frame linearised),
-    /// triangle (Kalantari's triangle merge) or debevec (OpenCV's MergeDebevec), each with the
-    /// curve the test set records for its frames (refused where it records none).
+    /// triangle (Kalantari's triangle merge), debevec or robertson (OpenCV's MergeDebevec,
+    /// MergeRobertson), each with the curve the test set records for its frames (refused where it records none).
     #[arg(long)]
     pub baseline: Option<Classical>,
     /// Skip sets without a prediction (listed in the summary) instead of failing.

@@ -81,6 +81,24 @@ pub enum WuOutput {
     Kernel,
 }
 
+/// The per-frame weights the merge heads start from and correct.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum MergePrior {
+    /// Kalantari & Ramamoorthi's triangle weights of the reference frame's code: the reference
+    /// alone in its mid-tones, so the prior is ghost-free there and as noisy as that frame.
+    #[default]
+    Triangle,
+    /// OpenCV `MergeRobertson`'s weights tᵢ²·w(zᵢ) of each frame's own code (w the Gaussian
+    /// of `evaluate::robertson_weight`, 0 at the clipped codes), tᵢ² read off the frame as
+    /// zᵢ^(2·2.2) (∝ tᵢ² wherever the scene is static, so no exposure time is needed);
+    /// normalised over the frames, then + ε as the triangle's. Every unclipped frame
+    /// contributes, the longer exposure most: the static merge with the least noise, which
+    /// ghosts where subjects move until training learns to drop the frames that disagree.
+    /// Where every frame is clipped the triangle weights decide.
+    Robertson,
+}
+
 /// Where the curve of the HDR input channels (LDR → linear, then / t) comes from.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -161,6 +179,10 @@ pub struct WuConfig {
     /// written, so configs and checkpoints of Wu's form read as they always have.
     #[serde(skip_serializing_if = "is_default")]
     pub output: WuOutput,
+    /// The weights the merge heads correct (`"triangle"` or `"robertson"`; ignored by
+    /// `output = "image"`).
+    #[serde(skip_serializing_if = "is_default")]
+    pub merge_prior: MergePrior,
     /// Where `input_response` comes from (`"fixed"`, or `"data"`: the training frames' curve).
     #[serde(skip_serializing_if = "is_default")]
     pub linearise: Linearise,
@@ -196,6 +218,7 @@ impl Default for WuConfig {
             deconv_alignment: DeconvAlignment::Tensorflow,
             hdr_input_scale: 0.25,
             output: WuOutput::Image,
+            merge_prior: MergePrior::Triangle,
             linearise: Linearise::Fixed,
             input_response: wu_input_response(),
         }
@@ -722,9 +745,7 @@ impl WuNet {
         let head = conv_same(&self.decoder.out, relu(cur));
         match self.config.output {
             WuOutput::Image => tanh(head).add_scalar(1.0).mul_scalar(0.5),
-            WuOutput::Merge | WuOutput::Kernel => {
-                merge_head::merge(raw, head, self.config.output, self.config.hdr_input_scale)
-            }
+            WuOutput::Merge | WuOutput::Kernel => merge_head::merge(raw, head, &self.config),
         }
     }
 

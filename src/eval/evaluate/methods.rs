@@ -324,16 +324,24 @@ pub enum Classical {
     Triangle,
     /// OpenCV's `MergeDebevec` with the known response ([`debevec_merge`]).
     Debevec,
+    /// OpenCV's `MergeRobertson` with the known response ([`robertson_merge`]).
+    Robertson,
 }
 
 impl Classical {
-    pub const ALL: [Classical; 3] = [Classical::Copy, Classical::Triangle, Classical::Debevec];
+    pub const ALL: [Classical; 4] = [
+        Classical::Copy,
+        Classical::Triangle,
+        Classical::Debevec,
+        Classical::Robertson,
+    ];
 
     pub fn name(self) -> &'static str {
         match self {
             Classical::Copy => "copy",
             Classical::Triangle => "triangle",
             Classical::Debevec => "debevec",
+            Classical::Robertson => "robertson",
         }
     }
 
@@ -342,6 +350,7 @@ impl Classical {
             Classical::Copy => "reference frame, linearised (copy)",
             Classical::Triangle => "triangle merge of the inputs",
             Classical::Debevec => "Debevec merge of the inputs (OpenCV MergeDebevec)",
+            Classical::Robertson => "Robertson merge of the inputs (OpenCV MergeRobertson)",
         }
     }
 
@@ -354,6 +363,7 @@ impl Classical {
                 ground_truth::triangle_merge_with(frames, times, |v| response.invert(v))?
             }
             Classical::Debevec => debevec_merge(frames, &times, response)?,
+            Classical::Robertson => robertson_merge(frames, &times, response)?,
         };
         out.data.par_iter_mut().for_each(|v| *v = v.max(0.0));
         Ok(out)
@@ -366,7 +376,7 @@ impl std::str::FromStr for Classical {
         Classical::ALL
             .into_iter()
             .find(|c| c.name() == s.trim())
-            .ok_or_else(|| format!("'{s}': expected copy, triangle or debevec"))
+            .ok_or_else(|| format!("'{s}': expected copy, triangle, debevec or robertson"))
     }
 }
 
@@ -419,6 +429,56 @@ pub fn debevec_merge(frames: &[Image], times: &[f32], response: &Response) -> Re
                 o[c] = (acc[c] / sum).exp() as f32;
             }
         });
+    Ok(out)
+}
+
+/// OpenCV's `RobertsonWeights` (photo/src/hdr_common.cpp), in f32 as OpenCV computes it: a
+/// Gaussian in the code, w(z) = s·exp(−(z/q − 2)²) + c with q = 255/4, s = e⁴/(e⁴ − 1) and
+/// c = 1/(1 − e⁴), so that w is exactly 0 at the clipped codes 0 and 255 and ~1 at mid-grey.
+pub fn robertson_weight(z: u8) -> f32 {
+    let q = 255.0f32 / 4.0;
+    let e4 = 4.0f32.exp();
+    let v = z as f32 / q - 2.0;
+    (e4 / (e4 - 1.0)) * (-v * v).exp() + 1.0 / (1.0 - e4)
+}
+
+/// OpenCV's `MergeRobertson::process` (photo/src/merge.cpp) with a given response: frames as
+/// 8-bit codes z = round(255·v); per pixel, channel and frame the weight w = [`robertson_weight`]
+/// of that channel's code; H = Σ tᵢ·w(zᵢ)·R(zᵢ) / (Σ tᵢ²·w(zᵢ) + DBL_EPSILON), R(z) = the
+/// response's inverse at z/255 — the maximum-likelihood radiance under noise of equal variance
+/// in every frame, which gives the longer exposure the larger share. A pixel clipped (code 0 or
+/// 255) in every frame has no weight and merges to 0, as in OpenCV: a highlight clipped even in
+/// the shortest frame comes out black. 1 = the reference's white when the times are relative
+/// to the reference. Weights in f32 as OpenCV's, sums in f64 (OpenCV's in f32: they agree to
+/// ~1e-6 relative).
+pub fn robertson_merge(frames: &[Image], times: &[f32], response: &Response) -> Result<Image> {
+    let refs: Vec<&Image> = frames.iter().collect();
+    let (w, h) = crate::data::ground_truth::check_frames("Robertson merge", &refs)?;
+    if times.len() != frames.len() || times.iter().any(|t| !(t.is_finite() && *t > 0.0)) {
+        return Err(Error::Invalid(format!(
+            "Robertson merge: exposure times {times:?} must be finite, positive and one per frame"
+        )));
+    }
+    let lut: Vec<(f64, f64)> = (0..=255u8)
+        .map(|z| {
+            (
+                robertson_weight(z) as f64,
+                response.invert(z as f64 / 255.0),
+            )
+        })
+        .collect();
+    let code = |v: f32| (v.clamp(0.0, 1.0) * 255.0).round() as usize;
+    let mut out = Image::new(w, h);
+    out.data.par_iter_mut().enumerate().for_each(|(i, o)| {
+        let (mut num, mut den) = (0.0f64, 0.0f64);
+        for (f, &t) in frames.iter().zip(times) {
+            let (wz, r) = lut[code(f.data[i])];
+            let t = t as f64;
+            num += t * wz * r;
+            den += t * t * wz;
+        }
+        *o = (num / (den + f64::EPSILON)) as f32;
+    });
     Ok(out)
 }
 

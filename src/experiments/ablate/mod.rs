@@ -268,8 +268,10 @@ pub enum AxisKind {
     Copy,
     /// the triangle merge of the three inputs;
     Triangle,
-    /// OpenCV's MergeDebevec of the three inputs.
+    /// OpenCV's MergeDebevec of the three inputs;
     Debevec,
+    /// OpenCV's MergeRobertson of the three inputs.
+    Robertson,
 }
 
 /// A method scored without a network (a cell whose row or column has a baseline kind).
@@ -281,6 +283,7 @@ pub enum Baseline {
     Copy,
     Triangle,
     Debevec,
+    Robertson,
 }
 
 /// The constant baseline's blend weight: no preference between the two frames, chosen a
@@ -295,6 +298,7 @@ impl AxisKind {
             AxisKind::Copy => Some(Baseline::Copy),
             AxisKind::Triangle => Some(Baseline::Triangle),
             AxisKind::Debevec => Some(Baseline::Debevec),
+            AxisKind::Robertson => Some(Baseline::Robertson),
             AxisKind::Finetune | AxisKind::Control => None,
         }
     }
@@ -308,6 +312,7 @@ impl Baseline {
             Baseline::Copy => Some(evaluate::Classical::Copy),
             Baseline::Triangle => Some(evaluate::Classical::Triangle),
             Baseline::Debevec => Some(evaluate::Classical::Debevec),
+            Baseline::Robertson => Some(evaluate::Classical::Robertson),
             Baseline::Constant | Baseline::Mertens => None,
         };
         if let Some(kind) = classical {
@@ -325,7 +330,7 @@ impl Baseline {
                 "Mertens weights of the noisy pair (no network)".into(),
                 Box::new(crate::data::ground_truth::blend_weights_high),
             ),
-            Baseline::Copy | Baseline::Triangle | Baseline::Debevec => {
+            Baseline::Copy | Baseline::Triangle | Baseline::Debevec | Baseline::Robertson => {
                 unreachable!("the classical merges returned above")
             }
         };
@@ -347,7 +352,8 @@ impl Axis {
     }
 
     /// Network-2's classical rows (no network): the copied reference, the triangle merge and
-    /// OpenCV's Debevec merge of each test set's inputs, through the curve the set records.
+    /// OpenCV's Debevec and Robertson merges of each test set's inputs, through the curve the
+    /// set records.
     pub fn classical_rows() -> Vec<Axis> {
         [
             (
@@ -364,6 +370,11 @@ impl Axis {
                 "debevec",
                 "Debevec merge of the inputs, OpenCV's recipe (no network)",
                 AxisKind::Debevec,
+            ),
+            (
+                "robertson",
+                "Robertson merge of the inputs, OpenCV's recipe (no network)",
+                AxisKind::Robertson,
             ),
         ]
         .into_iter()

@@ -71,7 +71,15 @@ fn the_configs_follow_the_protocol_and_read_back() {
         assert_eq!(
             names,
             [
-                "net_o", "control", "net_r", "net_p", "net_s", "copy", "triangle", "debevec"
+                "net_o",
+                "control",
+                "net_r",
+                "net_p",
+                "net_s",
+                "copy",
+                "triangle",
+                "debevec",
+                "robertson"
             ]
         );
         // The classical rows train nothing and are scored per seed (the test noise is).
