@@ -357,21 +357,35 @@ fn check_debevec_oracles(dir: &Path, limit: f64) {
         let output = case["output"].as_str().expect("output");
         let want = read_image(&dir.join(output)).expect("oracle exr");
         let got = debevec_merge(&f, &t, &Response::Gamma { gamma: 2.2 }).expect("merge");
-        assert_eq!((got.width, got.height), (want.width, want.height), "{name}");
-        let (mut max, mut sum) = (0f64, 0f64);
-        for (g, w) in got.data.iter().zip(&want.data) {
-            assert!(*w > 0.0 && w.is_finite(), "{name}: oracle value {w}");
-            let r = ((*g as f64) - (*w as f64)).abs() / *w as f64;
-            max = max.max(r);
-            sum += r;
-        }
-        let mean = sum / got.data.len() as f64;
-        println!("{name}: max relative error {max:.3e}, mean {mean:.3e}");
-        assert!(
-            max <= limit,
-            "{name}: max relative error {max:.3e} (limit {limit:e}), mean {mean:.3e}"
-        );
+        assert_relative(name, &got, &want, limit, false);
     }
+}
+
+/// Checks `got` against OpenCV's `want` value by value: the largest relative difference at
+/// most `limit`. Where `zeros` allows it, an oracle value of exactly 0 must be 0 in `got` too
+/// (counted and returned); otherwise every oracle value must be positive.
+fn assert_relative(name: &str, got: &Image, want: &Image, limit: f64, zeros: bool) -> usize {
+    assert_eq!((got.width, got.height), (want.width, want.height), "{name}");
+    let (mut max, mut sum, mut n_zero) = (0f64, 0f64, 0);
+    for (g, w) in got.data.iter().zip(&want.data) {
+        assert!(w.is_finite(), "{name}: oracle value {w}");
+        if zeros && *w == 0.0 {
+            assert_eq!(*g, 0.0, "{name}: OpenCV merges this value to 0");
+            n_zero += 1;
+            continue;
+        }
+        assert!(*w > 0.0, "{name}: oracle value {w}");
+        let r = ((*g as f64) - (*w as f64)).abs() / *w as f64;
+        max = max.max(r);
+        sum += r;
+    }
+    let mean = sum / got.data.len() as f64;
+    println!("{name}: max relative error {max:.3e}, mean {mean:.3e}");
+    assert!(
+        max <= limit,
+        "{name}: max relative error {max:.3e} (limit {limit:e}), mean {mean:.3e}"
+    );
+    n_zero
 }
 
 #[test]
@@ -400,25 +414,7 @@ fn check_robertson_oracles(dir: &Path, limit: f64) {
         let output = case["output"].as_str().expect("output");
         let want = read_image(&dir.join(output)).expect("oracle exr");
         let got = robertson_merge(&f, &t, &Response::Gamma { gamma: 2.2 }).expect("merge");
-        assert_eq!((got.width, got.height), (want.width, want.height), "{name}");
-        let (mut max, mut sum) = (0f64, 0f64);
-        for (g, w) in got.data.iter().zip(&want.data) {
-            assert!(*w >= 0.0 && w.is_finite(), "{name}: oracle value {w}");
-            if *w == 0.0 {
-                assert_eq!(*g, 0.0, "{name}: OpenCV merges this value to 0");
-                zeros += 1;
-                continue;
-            }
-            let r = ((*g as f64) - (*w as f64)).abs() / *w as f64;
-            max = max.max(r);
-            sum += r;
-        }
-        let mean = sum / got.data.len() as f64;
-        println!("{name}: max relative error {max:.3e}, mean {mean:.3e}");
-        assert!(
-            max <= limit,
-            "{name}: max relative error {max:.3e} (limit {limit:e}), mean {mean:.3e}"
-        );
+        zeros += assert_relative(name, &got, &want, limit, true);
     }
     // The crops clip in every frame somewhere, so the weights' exact zeros are exercised.
     assert!(zeros > 100, "only {zeros} values clipped in every frame");

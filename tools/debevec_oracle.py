@@ -56,29 +56,37 @@ def gamma_response():
     return np.ascontiguousarray(np.repeat(r[:, None, None], 3, axis=2), dtype=np.float32)
 
 
-def add_cases(out):
-    """Writes `<scene>_3exp_debevec.exr` for each scene and adds its case to out/oracles.json
-    (replacing a case of the same name, keeping every other entry and its order)."""
+def add_merge_cases(out, kind, suffix, merge, response_note):
+    """Runs `merge(frames_bgr, times)` on each scene's three-frame bracket, writes
+    `<scene>_3exp_<suffix>.exr` and adds the case (kind `kind`) to out/oracles.json, replacing a
+    case of the same name and keeping every other entry and its order."""
     path = os.path.join(out, "oracles.json")
     with open(path) as f:
         doc = json.load(f)
     times = [2.0 ** ev for ev in EVS]
-    response = gamma_response()
     for name in SCENES:
         files = [f"{name}_ev{ev:+d}.png" for ev in EVS]
         bgr = [read_png_bgr(os.path.join(out, f)) for f in files]
-        merged = cv2.createMergeDebevec().process(bgr, times=np.float32(times),
-                                                  response=response)
+        merged = merge(bgr, np.float32(times))
         assert merged.dtype == np.float32 and merged.shape == bgr[0].shape, merged.shape
-        case = f"{name}_3exp_debevec"
+        case = f"{name}_3exp_{suffix}"
         write_exr(os.path.join(out, f"{case}.exr"), merged[..., ::-1])
         doc["cases"][case] = dict(
-            kind="debevec_merge", inputs=files, exposure_times=times, gamma=GAMMA,
-            response="R[z] = (z/255)^2.2 for z >= 1, R[0] = (0.5/255)^2.2; float32 256x1x3",
-            opencv=version("opencv-python-headless"), output=f"{case}.exr")
+            kind=kind, inputs=files, exposure_times=times, gamma=GAMMA,
+            response=response_note, opencv=version("opencv-python-headless"),
+            output=f"{case}.exr")
     with open(path, "w") as f:
         json.dump(doc, f, indent=1)
         f.write("\n")
+
+
+def add_cases(out):
+    """Writes `<scene>_3exp_debevec.exr` for each scene and adds its case to out/oracles.json."""
+    response = gamma_response()
+    add_merge_cases(
+        out, "debevec_merge", "debevec",
+        lambda bgr, t: cv2.createMergeDebevec().process(bgr, times=t, response=response),
+        "R[z] = (z/255)^2.2 for z >= 1, R[0] = (0.5/255)^2.2; float32 256x1x3")
 
 
 def main():

@@ -20,7 +20,6 @@ frame merges to 0.
     /tmp/cropsenv/bin/pip install opencv-python-headless numpy OpenEXR
     /tmp/cropsenv/bin/python tools/robertson_oracle.py [tests/data/oracle_crops]
 """
-import json
 import os
 import sys
 from importlib.metadata import version
@@ -28,7 +27,7 @@ from importlib.metadata import version
 import cv2
 import numpy as np
 
-from debevec_oracle import EVS, GAMMA, HERE, SCENES, read_png_bgr, write_exr
+from debevec_oracle import GAMMA, HERE, add_merge_cases
 
 
 def gamma_response():
@@ -38,28 +37,12 @@ def gamma_response():
 
 
 def add_cases(out):
-    """Writes `<scene>_3exp_robertson.exr` for each scene and adds its case to out/oracles.json
-    (replacing a case of the same name, keeping every other entry and its order)."""
-    path = os.path.join(out, "oracles.json")
-    with open(path) as f:
-        doc = json.load(f)
-    times = [2.0 ** ev for ev in EVS]
+    """Writes `<scene>_3exp_robertson.exr` for each scene and adds its case to out/oracles.json."""
     response = gamma_response()
-    for name in SCENES:
-        files = [f"{name}_ev{ev:+d}.png" for ev in EVS]
-        bgr = [read_png_bgr(os.path.join(out, f)) for f in files]
-        merged = cv2.createMergeRobertson().process(bgr, times=np.float32(times),
-                                                    response=response)
-        assert merged.dtype == np.float32 and merged.shape == bgr[0].shape, merged.shape
-        case = f"{name}_3exp_robertson"
-        write_exr(os.path.join(out, f"{case}.exr"), merged[..., ::-1])
-        doc["cases"][case] = dict(
-            kind="robertson_merge", inputs=files, exposure_times=times, gamma=GAMMA,
-            response="R[z] = (z/255)^2.2; float32 256x1x3",
-            opencv=version("opencv-python-headless"), output=f"{case}.exr")
-    with open(path, "w") as f:
-        json.dump(doc, f, indent=1)
-        f.write("\n")
+    add_merge_cases(
+        out, "robertson_merge", "robertson",
+        lambda bgr, t: cv2.createMergeRobertson().process(bgr, times=t, response=response),
+        "R[z] = (z/255)^2.2; float32 256x1x3")
 
 
 def main():

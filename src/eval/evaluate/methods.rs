@@ -380,6 +380,19 @@ impl std::str::FromStr for Classical {
     }
 }
 
+/// The frames' common size, after checking that they agree and that `times` holds one
+/// finite, positive exposure time per frame.
+fn check_merge_inputs(what: &str, frames: &[Image], times: &[f32]) -> Result<(usize, usize)> {
+    let refs: Vec<&Image> = frames.iter().collect();
+    let size = crate::data::ground_truth::check_frames(what, &refs)?;
+    if times.len() != frames.len() || times.iter().any(|t| !(t.is_finite() && *t > 0.0)) {
+        return Err(Error::Invalid(format!(
+            "{what}: exposure times {times:?} must be finite, positive and one per frame"
+        )));
+    }
+    Ok(size)
+}
+
 /// OpenCV's `MergeDebevec::process` (photo/src/merge.cpp; OpenCV 5.0, and 4.x since
 /// opencv/opencv#27270) with a given response: frames as 8-bit codes z = round(255·v); per
 /// pixel and frame the weight w = mean over channels of OpenCV's `triangleWeights`
@@ -391,13 +404,7 @@ impl std::str::FromStr for Classical {
 /// known curve's is 0 there). 1 = the reference's white when the times are relative to the
 /// reference. Computed in f64 (OpenCV in f32: they agree to ~1e-6 relative).
 pub fn debevec_merge(frames: &[Image], times: &[f32], response: &Response) -> Result<Image> {
-    let refs: Vec<&Image> = frames.iter().collect();
-    let (w, h) = crate::data::ground_truth::check_frames("Debevec merge", &refs)?;
-    if times.len() != frames.len() || times.iter().any(|t| !(t.is_finite() && *t > 0.0)) {
-        return Err(Error::Invalid(format!(
-            "Debevec merge: exposure times {times:?} must be finite, positive and one per frame"
-        )));
-    }
+    let (w, h) = check_merge_inputs("Debevec merge", frames, times)?;
     let floor = response.invert(0.5 / 255.0).max(f64::MIN_POSITIVE);
     let log_r: Vec<f64> = (0..256)
         .map(|z| response.invert(z as f64 / 255.0).max(floor).ln())
@@ -452,13 +459,7 @@ pub fn robertson_weight(z: u8) -> f32 {
 /// to the reference. Weights in f32 as OpenCV's, sums in f64 (OpenCV's in f32: they agree to
 /// ~1e-6 relative).
 pub fn robertson_merge(frames: &[Image], times: &[f32], response: &Response) -> Result<Image> {
-    let refs: Vec<&Image> = frames.iter().collect();
-    let (w, h) = crate::data::ground_truth::check_frames("Robertson merge", &refs)?;
-    if times.len() != frames.len() || times.iter().any(|t| !(t.is_finite() && *t > 0.0)) {
-        return Err(Error::Invalid(format!(
-            "Robertson merge: exposure times {times:?} must be finite, positive and one per frame"
-        )));
-    }
+    let (w, h) = check_merge_inputs("Robertson merge", frames, times)?;
     let lut: Vec<(f64, f64)> = (0..=255u8)
         .map(|z| {
             (
