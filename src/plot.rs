@@ -153,3 +153,120 @@ pub fn log_bars(values: &[f64], labels: &[String], threshold: f64, title: &str) 
     }
     c.into_image()
 }
+
+/// One point of a [`Scatter`]: its position, a vertical interval drawn as a bar, the series it
+/// belongs to (its colour and legend entry) and a short label drawn beside it.
+pub struct ScatterPoint {
+    pub x: f64,
+    pub y: f64,
+    pub y_range: (f64, f64),
+    pub series: usize,
+    pub label: String,
+}
+
+/// A scatter plot on linear axes with both zero lines drawn: each axis spans whole units,
+/// from ⌊min⌋ to ⌈max⌉ of its values (the bars' ends included) and 0, so that which side of
+/// zero a point lies on is read at a glance.
+pub struct Scatter<'a> {
+    pub title: &'a str,
+    pub x_label: &'a str,
+    /// Legend names, indexed by [`ScatterPoint::series`].
+    pub series: &'a [&'a str],
+}
+
+/// Size of a [`Scatter`] and its plot area's margins (left, top, right, bottom).
+pub const SCATTER_SIZE: (i32, i32) = (720, 480);
+pub const SCATTER_MARGINS: (i32, i32, i32, i32) = (60, 40, 20, 50);
+/// Series colours, in order (cycled).
+pub const SERIES_COLOURS: [Rgb888; 4] = [
+    Rgb888::new(40, 80, 220),
+    Rgb888::new(210, 40, 40),
+    Rgb888::new(30, 150, 50),
+    Rgb888::new(200, 130, 0),
+];
+
+/// The whole-unit span [⌊min⌋, ⌈max⌉] of `values` and 0, at least one unit wide.
+fn unit_span(values: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (lo, hi) = values
+        .filter(|v| v.is_finite())
+        .fold((0.0f64, 0.0f64), |(a, b), v| (a.min(v), b.max(v)));
+    let (lo, hi) = (lo.floor(), hi.ceil());
+    (lo, if hi > lo { hi } else { lo + 1.0 })
+}
+
+impl Scatter<'_> {
+    /// The axes' spans ((x0, x1), (y0, y1)) for `points`.
+    pub fn spans(points: &[ScatterPoint]) -> ((f64, f64), (f64, f64)) {
+        let xs = unit_span(points.iter().map(|p| p.x));
+        let ys = unit_span(points.iter().flat_map(|p| [p.y, p.y_range.0, p.y_range.1]));
+        (xs, ys)
+    }
+
+    pub fn render(&self, points: &[ScatterPoint]) -> Image {
+        let (w, h) = SCATTER_SIZE;
+        let (l, t, r, b) = SCATTER_MARGINS;
+        let mut c = Canvas::new(w as usize, h as usize);
+        let text = MonoTextStyle::new(&FONT_6X10, Rgb888::BLACK);
+        let grid = Rgb888::new(222, 222, 222);
+        let ((x0, x1), (y0, y1)) = Self::spans(points);
+        let px = |x: f64| l + ((x - x0) / (x1 - x0) * (w - l - r) as f64).round() as i32;
+        let py = |y: f64| h - b - ((y - y0) / (y1 - y0) * (h - t - b) as f64).round() as i32;
+        let _ = Text::new(self.title, Point::new(l, 18), text).draw(&mut c);
+        // Ticks every whole unit (every second one past 12 units).
+        let step = |span: f64| if span > 12.0 { 2.0 } else { 1.0 };
+        let mut v = x0;
+        while v <= x1 {
+            x_tick(&mut c, (t, h - b), px(v), &format!("{v:+.0}"), grid, text);
+            v += step(x1 - x0);
+        }
+        let mut v = y0;
+        while v <= y1 {
+            y_tick(&mut c, (l, w - r), py(v), &format!("{v:+.0}"), grid, text);
+            v += step(y1 - y0);
+        }
+        let zero = PrimitiveStyle::with_stroke(Rgb888::new(90, 90, 90), 1);
+        let _ = Line::new(Point::new(px(0.0), t), Point::new(px(0.0), h - b))
+            .into_styled(zero)
+            .draw(&mut c);
+        let _ = Line::new(Point::new(l, py(0.0)), Point::new(w - r, py(0.0)))
+            .into_styled(zero)
+            .draw(&mut c);
+        let _ = Rectangle::new(
+            Point::new(l, t),
+            Size::new((w - l - r) as u32, (h - t - b) as u32),
+        )
+        .into_styled(PrimitiveStyle::with_stroke(Rgb888::BLACK, 1))
+        .draw(&mut c);
+        let _ = Text::with_alignment(
+            self.x_label,
+            Point::new((l + w - r) / 2, h - 12),
+            text,
+            Alignment::Center,
+        )
+        .draw(&mut c);
+        for p in points {
+            let colour = SERIES_COLOURS[p.series % SERIES_COLOURS.len()];
+            let (x, y) = (px(p.x), py(p.y));
+            let _ = Line::new(
+                Point::new(x, py(p.y_range.0)),
+                Point::new(x, py(p.y_range.1)),
+            )
+            .into_styled(PrimitiveStyle::with_stroke(colour, 1))
+            .draw(&mut c);
+            let _ = embedded_graphics::primitives::Circle::with_center(Point::new(x, y), 7)
+                .into_styled(PrimitiveStyle::with_fill(colour))
+                .draw(&mut c);
+            let ink = MonoTextStyle::new(&FONT_6X10, colour);
+            let _ = Text::new(&p.label, Point::new(x + 6, y - 4), ink).draw(&mut c);
+        }
+        for (k, name) in self.series.iter().enumerate() {
+            let colour = SERIES_COLOURS[k % SERIES_COLOURS.len()];
+            let y = t + 14 + 13 * k as i32;
+            let _ = Rectangle::new(Point::new(l + 8, y - 7), Size::new(8, 8))
+                .into_styled(PrimitiveStyle::with_fill(colour))
+                .draw(&mut c);
+            let _ = Text::new(name, Point::new(l + 20, y), text).draw(&mut c);
+        }
+        c.into_image()
+    }
+}

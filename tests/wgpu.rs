@@ -364,6 +364,7 @@ fn network2_forward(batch: &[Sample]) -> impl Fn(&hdrsynth::models::WuNet, &Devi
 fn network2_resnet_step_agrees_with_flex() {
     let task = Network2 {
         unit: Default::default(),
+        average: Default::default(),
         config: WuConfig {
             res_blocks: 2,
             ..WuConfig::resnet(8)
@@ -377,6 +378,7 @@ fn network2_resnet_step_agrees_with_flex() {
 fn network2_unet_step_agrees_with_flex() {
     let task = Network2 {
         unit: Default::default(),
+        average: Default::default(),
         config: WuConfig::unet(4),
     };
     let batch = common::samples(2, 18, 64, true);

@@ -14,7 +14,7 @@ use hdrsynth::models::import::expected_tensors;
 use hdrsynth::models::wu::{
     self, DeconvAlignment, WuConfig, WuNet, WuVariant, conv_same, same_padding,
 };
-use hdrsynth::train::loss::{MU, mu_law, mu_law_l2, network2_batch};
+use hdrsynth::train::loss::{MU, mu_law, mu_law_l2, mu_law_psnr_loss, network2_batch};
 use std::path::Path;
 
 /// Burn's seed is global to the backend and the tests of this file run on parallel threads:
@@ -353,6 +353,24 @@ fn mu_law_hand_values() {
     let l: f32 = mu_law_l2(pred.clone(), target).into_scalar();
     assert!((l - 0.492_523).abs() < 1e-5, "{l}");
     assert_eq!(mu_law_l2(pred.clone(), pred).into_scalar::<f32>(), 0.0);
+}
+
+/// The PSNR-averaged loss weighs each crop by its own error, unlike the pooled one. Two crops
+/// of two elements: crop 1 pred (1, 1), target (0, 0): MSE 1; crop 2 pred (1, 0), target
+/// (0, 0): MSE 0.5. Pooled: (1 + 1 + 1 + 0) / 4 = 0.75. PSNR-averaged:
+/// (10·log10(1 + 1e-6) + 10·log10(0.5 + 1e-6)) / 2 = (4.3429e-6 − 3.010291) / 2 = −1.505143.
+/// A crop with no error counts as 60 dB (−60).
+#[test]
+fn the_psnr_averaged_loss_by_hand() {
+    let dev = Device::flex();
+    let pred = Tensor::<4>::from_floats([[[[1.0, 1.0]]], [[[1.0, 0.0]]]], &dev);
+    let target = Tensor::<4>::zeros([2, 1, 1, 2], &dev);
+    let pooled: f32 = mu_law_l2(pred.clone(), target.clone()).into_scalar();
+    assert!((pooled - 0.75).abs() < 1e-6, "{pooled}");
+    let l: f32 = mu_law_psnr_loss(pred.clone(), target).into_scalar();
+    assert!((l - -1.505_143).abs() < 1e-5, "{l}");
+    let exact: f32 = mu_law_psnr_loss(pred.clone(), pred).into_scalar();
+    assert!((exact - -60.0).abs() < 1e-4, "{exact}");
 }
 
 #[test]

@@ -6,7 +6,9 @@ scene engine's default motion, instead of the main job's static ones; suffix `h`
 scenes with half the samples still, `[data] static_fraction = 0.5`; suffix `q`: three
 quarters of them still, `static_fraction = 0.75`; suffix `k`: the kernel head,
 `[model] output = "kernel"`, instead of the merge head; suffix `r`: the merge head's prior
-Robertson's weights, `[model] merge_prior = "robertson"`, instead of the triangle's) of the
+Robertson's weights, `[model] merge_prior = "robertson"`, instead of the triangle's; suffix
+`p`: the loss averaged as PSNR-T averages images, `[loss] average = "psnr"`, instead of over
+every pixel) of the
 sweep, from a finished main job's folder QS (`hdrsynth quickstart --out QS`, whose training
 data and test sets it reuses):
   - Net_O per seed: the main job's pretraining config with `model.base_width = w` (the merger
@@ -16,7 +18,10 @@ data and test sets it reuses):
 and writes OUT/sweep.csv: per point, test set and metric (PSNR-T, PSNR-T over the moving
 pixels), each row's mean over seeds and scenes and the paired differences Net_S − Net_R,
 Net_S − triangle, Net_S − Robertson and Net_S − copy (within seed and set; t 95 % interval
-over scenes, each scene's difference the mean over its ISO sets and the seeds; each seed's mean).
+over scenes, each scene's difference the mean over its ISO sets and the seeds; each seed's mean),
+and OUT/realism_vs_quality.png (`hdrsynth sweep-plot`): Net_S − Net_R against Net_S − triangle
+per point and test set. With `--pair A,B`, OUT/sweep_pairs.csv holds Net_S(A) − Net_S(B), paired
+within seed and scene, per test set.
 
 Every point is also scored on validation scenes of seeds used for nothing else (16 static,
 16 with moving subjects: `val_static`, `val_dynamic`); a choice between points is made on them,
@@ -151,11 +156,15 @@ def main() -> None:
     ap.add_argument("--points", default="8x1,8x4,16x1")
     ap.add_argument("--seeds", default="1,2")
     ap.add_argument("--hdrsynth", default="hdrsynth")
+    ap.add_argument("--pair", action="append", default=[],
+                    help="A,B: also Net_S of point A − Net_S of point B, paired within seed "
+                         "and scene (OUT/sweep_pairs.csv); both points must be in --points")
     a = ap.parse_args()
     qs, out = a.qs.resolve(), a.out.resolve()
     seeds = [int(s) for s in a.seeds.split(",")]
     rows_kept = {"net_r", "net_s", "copy", "triangle", "robertson"}
     results = []
+    net_s_of = {}  # (point, test set, metric) -> seed -> set -> Net_S's score
     moving_data = qs / "data/train_moving"
     val = validation_scenes(a.hdrsynth, qs, out)
     for point in a.points.split(","):
@@ -165,10 +174,12 @@ def main() -> None:
         moving = mix or "m" in flags
         kernel = "k" in flags
         robertson = "r" in flags
-        width, k = (int(v) for v in point.rstrip("mhqkr").split("x"))
+        psnr_loss = "p" in flags
+        width, k = (int(v) for v in point.rstrip("mhqkrp").split("x"))
         share = {0.5: "_half_still", 0.75: "_three_quarters_still"}.get(still, "")
         here = out / (f"w{width}_k{k}{share if mix else '_moving' if moving else ''}"
-                      f"{'_kernel' if kernel else ''}{'_robertson' if robertson else ''}")
+                      f"{'_kernel' if kernel else ''}{'_robertson' if robertson else ''}"
+                      f"{'_psnr_loss' if psnr_loss else ''}")
         if moving and not (moving_data / "dataset.toml").is_file():
             gen = load(qs / "configs/train_data.toml")
             gen["scene"]["motion_scale"] = 1.0
@@ -186,6 +197,8 @@ def main() -> None:
                 pre["model"]["output"] = "kernel"
             if robertson:
                 pre["model"]["merge_prior"] = "robertson"
+            if psnr_loss:
+                pre.setdefault("loss", {})["average"] = "psnr"
             path = here / f"configs/pretrain_seed{s}.toml"
             save(path, pre)
             resume = ["--resume"] if (here / f"pretrain/seed{s}/checkpoints").is_dir() else []
@@ -198,6 +211,8 @@ def main() -> None:
             base["model"]["output"] = "kernel"
         if robertson:
             base["model"]["merge_prior"] = "robertson"
+        if psnr_loss:
+            base.setdefault("loss", {})["average"] = "psnr"
         save(here / "configs/finetune.toml", base)
         exp = load(qs / "configs/experiment.toml")
         exp["title"] = f"Sweep point: width {width}, {k}x the main job's steps"
@@ -223,10 +238,12 @@ def main() -> None:
                 }
                 if not any(scores["net_s"].values()):
                     continue
+                net_s_of[(point, name, metric)] = scores["net_s"]
                 line = {"width": width, "steps_factor": k, "moving_training": moving,
                         "static_fraction": still,
                         "head": "kernel" if kernel else "merge",
                         "prior": "robertson" if robertson else "triangle",
+                        "loss": "psnr" if psnr_loss else "pixels",
                         "testset": name, "metric": metric}
                 for row, v in scores.items():
                     line[row] = round(statistics.fmean(
@@ -244,6 +261,26 @@ def main() -> None:
         w.writeheader()
         w.writerows(results)
     print(f"wrote {out / 'sweep.csv'}", file=sys.stderr)
+    pairs = []
+    for spec in a.pair:
+        pa, pb = spec.split(",")
+        for (point, name, metric), scores in net_s_of.items():
+            other = net_s_of.get((pb, name, metric))
+            if point != pa or other is None:
+                continue
+            m, lo, hi, ps = paired(scores, other)
+            pairs.append({"a": pa, "b": pb, "testset": name, "metric": metric,
+                          "net_s_a-net_s_b": round(m, 3), "ci": f"[{lo:+.2f}, {hi:+.2f}]",
+                          "per_seed": " ".join(f"{v:+.2f}" for v in ps)})
+            print(pairs[-1], flush=True)
+    if pairs:
+        with open(out / "sweep_pairs.csv", "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=list(pairs[0].keys()))
+            w.writeheader()
+            w.writerows(pairs)
+    if results:
+        run([a.hdrsynth, "sweep-plot", "--sweep", out / "sweep.csv",
+             "--out", out / "realism_vs_quality.png"])
 
 
 if __name__ == "__main__":

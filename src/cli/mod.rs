@@ -77,6 +77,16 @@ pub enum Command {
         #[command(subcommand)]
         command: crate::cli::export::ExportCommand,
     },
+    /// Plot what realism buys against how good the network is, from a sweep's table
+    /// (tools/sweep.py's sweep.csv): Net_S − Net_R against Net_S − the triangle merge.
+    SweepPlot {
+        /// The sweep's table (sweep.csv).
+        #[arg(long)]
+        sweep: PathBuf,
+        /// The PNG to write.
+        #[arg(long)]
+        out: PathBuf,
+    },
     /// Inspect datasets.
     Dataset {
         #[command(subcommand)]
@@ -112,7 +122,6 @@ pub enum DatasetCommand {
     Preview(crate::cli::preview::Args),
 }
 
-/// Run the parsed command, printing its report.
 /// The message the binary prints for a failed command: anyhow's "Error: … / Caused by:" shape,
 /// less every cause whose text the lines above already hold (a library error that names its
 /// cause in its own message is said once).
@@ -138,6 +147,7 @@ pub fn error_report(e: &anyhow::Error) -> String {
     out
 }
 
+/// Run the parsed command, printing its report.
 pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Generate { config, out } => {
@@ -172,6 +182,10 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Diagnose(args) => println!("{}", crate::cli::diagnose::run(&args)?),
         Command::Loop(args) => println!("{}", crate::cli::device_loop::run(&args)?),
         Command::Export { command } => println!("{}", crate::cli::export::run(&command)?),
+        Command::SweepPlot { sweep, out } => {
+            crate::experiments::sweep::write_realism_plot(&sweep, &out)?;
+            println!("wrote {}", out.display());
+        }
         Command::Dataset { command } => match command {
             DatasetCommand::Info { dir, verify } => {
                 let (report, bad) = crate::cli::dataset::info_report_verified(&dir, verify)?;

@@ -4,3 +4,4 @@ pub mod ablate;
 pub mod device_loop;
 pub mod protocol;
 pub mod quickstart;
+pub mod sweep;

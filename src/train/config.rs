@@ -530,6 +530,28 @@ pub struct LossConfig {
     /// white, the unit PSNR-T scores). The default is not written.
     #[serde(skip_serializing_if = "HdrUnit::is_output")]
     pub hdr_unit: HdrUnit,
+    /// Network-2: how the μ-law L2 is averaged — "pixels" (Wu's: over every pixel of the
+    /// batch) or "psnr" (per crop, then the crops' mean PSNR, as PSNR-T averages images).
+    /// The default is not written.
+    #[serde(skip_serializing_if = "LossAverage::is_pixels")]
+    pub average: LossAverage,
+}
+
+/// How Network-2's μ-law L2 is averaged over a batch.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LossAverage {
+    /// Over every pixel of the batch (Wu et al.; `train::loss::mu_law_l2`).
+    #[default]
+    Pixels,
+    /// Per crop, then minus the crops' mean PSNR (`train::loss::mu_law_psnr_loss`).
+    Psnr,
+}
+
+impl LossAverage {
+    fn is_pixels(&self) -> bool {
+        *self == LossAverage::Pixels
+    }
 }
 
 impl HdrUnit {
@@ -576,6 +598,7 @@ impl Default for LossConfig {
             reading: Network1Reading::default(),
             label_sigma: DEFAULT_LABEL_SIGMA,
             hdr_unit: HdrUnit::Output,
+            average: LossAverage::Pixels,
         }
     }
 }

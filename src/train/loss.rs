@@ -282,6 +282,35 @@ pub fn mu_law_l2(pred: Tensor<4>, target: Tensor<4>) -> Tensor<1> {
     (mu_law(pred, MU) - mu_law(target, MU)).square().mean()
 }
 
+/// The floor of [`mu_law_psnr_loss`]'s per-crop MSE: a crop scores at most 60 dB, so that a
+/// crop merged exactly (a flat one) does not dominate the batch.
+pub const PSNR_LOSS_FLOOR: f64 = 1e-6;
+
+/// The Network-2 loss as PSNR-T averages it: per crop, the μ-law MSE over its elements; then
+/// the mean over the batch of 10·log10(MSE + [`PSNR_LOSS_FLOOR`]) — minus the crops' mean
+/// PSNR-T (data range 1). Unlike [`mu_law_l2`], which pools every pixel of the batch, it
+/// weighs a crop's error relative to that crop's own, as a per-image mean of PSNR does.
+///
+/// # Panics
+/// If the shapes differ.
+pub fn mu_law_psnr_loss(pred: Tensor<4>, target: Tensor<4>) -> Tensor<1> {
+    assert_eq!(
+        pred.dims(),
+        target.dims(),
+        "mu_law_psnr_loss: prediction and target shapes differ"
+    );
+    let n = pred.dims()[0] as i32;
+    let mse = (mu_law(pred, MU) - mu_law(target, MU))
+        .square()
+        .reshape([n, -1])
+        .mean_dim(1);
+    mse.add_scalar(PSNR_LOSS_FLOOR)
+        .log()
+        .mean()
+        .mul_scalar(10.0 / std::f64::consts::LN_10)
+        .reshape([1])
+}
+
 /// A Network-2 batch from loader samples: input `[B, 18, H, W]` (the samples' 18×H×W data
 /// stacked) and target `[B, 3, H, W]` (the linear HDR ground truth). All samples must have 18
 /// channels, the same size and a [`Target::Hdr`] target of 3·size² values.

@@ -257,6 +257,7 @@ pub fn run(cfg: &TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
             let task = Network2 {
                 config: m.clone(),
                 unit: cfg.loss.hdr_unit,
+                average: cfg.loss.average,
             };
             train(&task, cfg, opts, loader)
         }

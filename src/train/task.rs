@@ -7,10 +7,10 @@ use crate::data::loader::{Sample, Target};
 use crate::error::Result;
 use crate::io::Image;
 use crate::models::{BlendUNet, BlendUNetConfig, ModelConfig, WuConfig, WuNet};
-use crate::train::config::HdrUnit;
+use crate::train::config::{HdrUnit, LossAverage};
 use crate::train::loss::{
-    MU, Network1Reading, alpha_tensor, expected_weight, mu_law, mu_law_l2, network1_batch,
-    network1_loss, network2_batch, weighted_l1,
+    MU, Network1Reading, alpha_tensor, expected_weight, mu_law, mu_law_l2, mu_law_psnr_loss,
+    network1_batch, network1_loss, network2_batch, weighted_l1,
 };
 use burn::module::Module;
 use burn::tensor::activation::softmax;
@@ -201,6 +201,8 @@ pub struct Network2 {
     pub config: WuConfig,
     /// The unit the loss and the validation scores are taken in.
     pub unit: HdrUnit,
+    /// How the loss is averaged over the batch.
+    pub average: LossAverage,
 }
 
 impl Network2 {
@@ -246,7 +248,11 @@ impl Task for Network2 {
 
     fn loss(&self, model: &WuNet, batch: &[Sample], device: &Device) -> Result<Tensor<1>> {
         let (x, t) = self.batch(batch, device)?;
-        Ok(mu_law_l2(self.in_unit(model.forward(x)), self.in_unit(t)))
+        let (y, t) = (self.in_unit(model.forward(x)), self.in_unit(t));
+        Ok(match self.average {
+            LossAverage::Pixels => mu_law_l2(y, t),
+            LossAverage::Psnr => mu_law_psnr_loss(y, t),
+        })
     }
 
     /// `loss`, `psnr_t` (μ-law, per sample, dB) and `psnr_l` (linear), in the loss's unit,
