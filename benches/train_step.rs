@@ -107,10 +107,7 @@ fn bench(c: &mut Criterion) {
         label_sigma: hdrsynth::train::config::DEFAULT_LABEL_SIGMA,
     };
     bench_task(c, "network1/b4/128px", &net1, &samples(6, 128, false));
-    let net2 = Network2 {
-        unit: Default::default(),
-        config: WuConfig::default(),
-    };
+    let net2 = Network2::new(WuConfig::default(), &Default::default());
     bench_task(c, "network2/b4/256px", &net2, &samples(18, 256, true));
 }
 

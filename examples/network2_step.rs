@@ -36,10 +36,7 @@ fn main() -> Result<()> {
     let loader = Arc::new(Loader::new(&cfg.loader(cfg.model.sample_kind())?)?);
 
     let device = device_from_name(&cfg.run.backend)?.autodiff();
-    let task = Network2 {
-        config: model.clone(),
-        unit: cfg.loss.hdr_unit,
-    };
+    let task = Network2::new(model.clone(), &cfg.loss);
     // As the trainer starts a new run: seeded weights, then [init]'s weights if any; Adam as
     // [optim] says.
     let net = initial_model(&task, &cfg, &device)?;

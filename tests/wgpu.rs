@@ -362,25 +362,20 @@ fn network2_forward(batch: &[Sample]) -> impl Fn(&hdrsynth::models::WuNet, &Devi
 
 #[test]
 fn network2_resnet_step_agrees_with_flex() {
-    let task = Network2 {
-        unit: Default::default(),
-        average: Default::default(),
-        config: WuConfig {
+    let task = Network2::new(
+        WuConfig {
             res_blocks: 2,
             ..WuConfig::resnet(8)
         },
-    };
+        &Default::default(),
+    );
     let batch = common::samples(2, 18, 64, true);
     compare_step("Network-2 ResNet", &task, &batch, network2_forward(&batch));
 }
 
 #[test]
 fn network2_unet_step_agrees_with_flex() {
-    let task = Network2 {
-        unit: Default::default(),
-        average: Default::default(),
-        config: WuConfig::unet(4),
-    };
+    let task = Network2::new(WuConfig::unet(4), &Default::default());
     let batch = common::samples(2, 18, 64, true);
     compare_step("Network-2 U-Net", &task, &batch, network2_forward(&batch));
 }

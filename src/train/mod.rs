@@ -254,11 +254,7 @@ pub fn run(cfg: &TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
             train(&task, cfg, opts, loader)
         }
         ModelConfig::Wu(m) => {
-            let task = Network2 {
-                config: m.clone(),
-                unit: cfg.loss.hdr_unit,
-                average: cfg.loss.average,
-            };
+            let task = Network2::new(m.clone(), &cfg.loss);
             train(&task, cfg, opts, loader)
         }
     }

@@ -206,6 +206,15 @@ pub struct Network2 {
 }
 
 impl Network2 {
+    /// The task of `config` with the loss `[loss]` asks for.
+    pub fn new(config: WuConfig, loss: &crate::train::config::LossConfig) -> Network2 {
+        Network2 {
+            config,
+            unit: loss.hdr_unit,
+            average: loss.average,
+        }
+    }
+
     /// Input and target, the target in the network's output unit clipped to its range.
     fn batch(&self, batch: &[Sample], device: &Device) -> Result<(Tensor<4>, Tensor<4>)> {
         let (x, t) = network2_batch(batch, device)?;
