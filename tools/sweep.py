@@ -20,7 +20,8 @@ pixels), each row's mean over seeds and scenes and the paired differences Net_S 
 Net_S − triangle, Net_S − Robertson and Net_S − copy (within seed and set; t 95 % interval
 over scenes, each scene's difference the mean over its ISO sets and the seeds; each seed's mean),
 and OUT/realism_vs_quality.png (`hdrsynth sweep-plot`): Net_S − Net_R against Net_S − triangle
-per point and test set. With `--pair A,B`, OUT/sweep_pairs.csv holds Net_S(A) − Net_S(B), paired
+per point and test set, and OUT/sweep_scenes.csv: per point, test set and scene, the triangle
+merge's PSNR-T and Net_S − triangle. With `--pair A,B`, OUT/sweep_pairs.csv holds Net_S(A) − Net_S(B), paired
 within seed and scene, per test set.
 
 Every point is also scored on validation scenes of seeds used for nothing else (16 static,
@@ -97,6 +98,21 @@ def paired(a: dict, b: dict) -> tuple:
     return m, m - half, m + half, per_seed
 
 
+def per_scene(point: str, testset: str, scores: dict) -> list:
+    """Per scene of a test set: the triangle merge's PSNR-T and Net_S − triangle, each the mean
+    over the scene's ISO sets and the seeds (where a point's static cost lies)."""
+    acc = {}
+    for seed, sets in scores["net_s"].items():
+        for s, v in sets.items():
+            tri = scores["triangle"][seed].get(s)
+            if tri is not None:
+                acc.setdefault(s.rsplit("_iso", 1)[0], []).append((tri, v - tri))
+    return [{"point": point, "testset": testset, "scene": scene,
+             "triangle": round(statistics.fmean(t for t, _ in v), 3),
+             "net_s-triangle": round(statistics.fmean(d for _, d in v), 3)}
+            for scene, v in sorted(acc.items())]
+
+
 def run(cmd: list) -> None:
     print("+", " ".join(map(str, cmd)), flush=True)
     subprocess.run([str(c) for c in cmd], check=True)
@@ -165,6 +181,7 @@ def main() -> None:
     rows_kept = {"net_r", "net_s", "copy", "triangle", "robertson"}
     results = []
     net_s_of = {}  # (point, test set, metric) -> seed -> set -> Net_S's score
+    scene_rows = []
     moving_data = qs / "data/train_moving"
     val = validation_scenes(a.hdrsynth, qs, out)
     for point in a.points.split(","):
@@ -239,6 +256,8 @@ def main() -> None:
                 if not any(scores["net_s"].values()):
                     continue
                 net_s_of[(point, name, metric)] = scores["net_s"]
+                if metric == "psnr_t":
+                    scene_rows += per_scene(point, name, scores)
                 line = {"width": width, "steps_factor": k, "moving_training": moving,
                         "static_fraction": still,
                         "head": "kernel" if kernel else "merge",
@@ -273,6 +292,11 @@ def main() -> None:
                           "net_s_a-net_s_b": round(m, 3), "ci": f"[{lo:+.2f}, {hi:+.2f}]",
                           "per_seed": " ".join(f"{v:+.2f}" for v in ps)})
             print(pairs[-1], flush=True)
+    if scene_rows:
+        with open(out / "sweep_scenes.csv", "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=list(scene_rows[0].keys()))
+            w.writeheader()
+            w.writerows(scene_rows)
     if pairs:
         with open(out / "sweep_pairs.csv", "w", newline="") as f:
             w = csv.DictWriter(f, fieldnames=list(pairs[0].keys()))
