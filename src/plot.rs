@@ -165,8 +165,8 @@ pub struct ScatterPoint {
 }
 
 /// A scatter plot on linear axes with both zero lines drawn: each axis spans whole units,
-/// from ⌊min⌋ to ⌈max⌉ of its values (the bars' ends included) and 0, so that which side of
-/// zero a point lies on is read at a glance.
+/// from ⌊min − ¼⌋ to ⌈max + ¼⌉ of its values (the bars' ends included) and 0 (so no point sits
+/// on the frame), and which side of zero a point lies on is read at a glance.
 pub struct Scatter<'a> {
     pub title: &'a str,
     pub x_label: &'a str,
@@ -185,12 +185,12 @@ pub const SERIES_COLOURS: [Rgb888; 4] = [
     Rgb888::new(200, 130, 0),
 ];
 
-/// The whole-unit span [⌊min⌋, ⌈max⌉] of `values` and 0, at least one unit wide.
+/// The whole-unit span [⌊min − ¼⌋, ⌈max + ¼⌉] of `values` and 0, at least one unit wide.
 fn unit_span(values: impl Iterator<Item = f64>) -> (f64, f64) {
     let (lo, hi) = values
         .filter(|v| v.is_finite())
         .fold((0.0f64, 0.0f64), |(a, b), v| (a.min(v), b.max(v)));
-    let (lo, hi) = (lo.floor(), hi.ceil());
+    let (lo, hi) = ((lo - 0.25).floor(), (hi + 0.25).ceil());
     (lo, if hi > lo { hi } else { lo + 1.0 })
 }
 

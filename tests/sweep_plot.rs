@@ -42,8 +42,8 @@ fn points_and_bars_land_where_the_axes_put_them() {
     assert_eq!(rows[1].point(), "8x1hk");
     let img = realism_plot(&rows);
     assert_eq!((img.width, img.height), (720, 480));
-    // Axes: x over [⌊−0.5⌋, ⌈6.2⌉] = [−1, 7], y over [⌊−0.3⌋, ⌈1.5⌉] = [−1, 2] (the psnr_t_moving
-    // row is not drawn, so it does not widen them). The plot area is x 60…700, y 40…430:
+    // Axes: x over [⌊−0.5 − ¼⌋, ⌈6.2 + ¼⌉] = [−1, 7], y over [⌊−0.3 − ¼⌋, ⌈1.5 + ¼⌉] = [−1, 2]
+    // (the psnr_t_moving row is not drawn, so it does not widen them). The plot area is x 60…700, y 40…430:
     // px(x) = 60 + (x + 1)/8·640, py(y) = 430 − (y + 1)/3·390.
     let blue = [40, 80, 220];
     let red = [210, 40, 40];
@@ -87,4 +87,19 @@ fn a_malformed_table_is_refused_naming_the_file_and_line() {
     std::fs::write(&csv, format!("{HEADER}\n")).unwrap();
     let e = read_sweep(&csv).unwrap_err().to_string();
     assert!(e.contains("no rows"), "{e}");
+}
+
+/// A point within ¼ unit of a whole value widens its axis by one unit, so it never sits on the
+/// frame: x 6.9 → [⌊0 − ¼⌋, ⌈6.9 + ¼⌉] = [−1, 8]; y 0.5 with bar [0.1, 0.7] → [−1, 1].
+#[test]
+fn no_point_sits_on_the_frame() {
+    use hdrsynth::plot::{Scatter, ScatterPoint};
+    let p = ScatterPoint {
+        x: 6.9,
+        y: 0.5,
+        y_range: (0.1, 0.7),
+        series: 0,
+        label: String::new(),
+    };
+    assert_eq!(Scatter::spans(&[p]), ((-1.0, 8.0), (-1.0, 1.0)));
 }
