@@ -20,7 +20,7 @@ use crate::data::loader::RealismConfig;
 use crate::error::{Error, Result};
 use crate::eval::evaluate::{self, Classical, ClassicalMerge, EvalOptions};
 use crate::experiments::ablate::{self, AblateConfig, Axis, AxisKind, EvalSpec, TestsetSpec};
-use crate::models::wu::{Linearise, WuOutput};
+use crate::models::wu::Linearise;
 use crate::models::{ModelConfig, WuConfig, WuVariant};
 use crate::sensor::metering::Metering;
 use crate::sensor::profile::Response;
@@ -33,21 +33,16 @@ use crate::train::config::{
 use crate::train::{TrainOptions, checkpoint};
 use serde::Serialize;
 
+mod presets;
 mod reading;
 mod test_sets;
+pub use presets::Preset;
+pub(crate) use presets::{Sizes, sizes};
 pub use reading::Decision;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use test_sets::{noise_ceiling, optional_source, real_capture, test_scenes};
-
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Preset {
-    /// About 10 minutes on 2 CPU cores: a narrow Network-2, short runs, small crops.
-    Cpu,
-    /// Wu et al.'s released width and longer runs, for a GPU (pass --backend cuda or wgpu).
-    Gpu,
-}
 
 /// What a quickstart run is asked for (the command's flags).
 #[derive(Clone, Debug)]
@@ -69,68 +64,6 @@ pub struct Options {
     /// (docs/protocol.md, full protocol part 1).
     pub heldout: bool,
     pub progress: bool,
-}
-
-/// The sizes of one preset.
-pub(crate) struct Sizes {
-    pub(crate) train_sets: usize,
-    pub(crate) train_size: (usize, usize),
-    pub(crate) test_scenes: usize,
-    pub(crate) test_size: (usize, usize),
-    /// Test scenes with moving subjects (the dynamic test set).
-    pub(crate) dynamic_scenes: usize,
-    pub(crate) base_width: usize,
-    pub(crate) res_blocks: usize,
-    pub(crate) patch: usize,
-    pub(crate) batch: usize,
-    pub(crate) pretrain_steps: u64,
-    pub(crate) finetune_steps: u64,
-    pub(crate) pretrain_lr: f64,
-    pub(crate) finetune_lr: f64,
-    pub(crate) checkpoint_every: u64,
-    pub(crate) seeds: &'static [u64],
-    pub(crate) backend: &'static str,
-}
-
-pub(crate) fn sizes(p: Preset) -> Sizes {
-    match p {
-        Preset::Cpu => Sizes {
-            train_sets: 40,
-            train_size: (160, 128),
-            test_scenes: 24,
-            test_size: (192, 144),
-            dynamic_scenes: 16,
-            base_width: 8,
-            res_blocks: 2,
-            patch: 64,
-            batch: 8,
-            pretrain_steps: 800,
-            finetune_steps: 300,
-            pretrain_lr: 1e-3,
-            finetune_lr: 5e-4,
-            checkpoint_every: 100,
-            seeds: &[1, 2, 3],
-            backend: "flex",
-        },
-        Preset::Gpu => Sizes {
-            train_sets: 256,
-            train_size: (512, 384),
-            test_scenes: 48,
-            test_size: (512, 384),
-            dynamic_scenes: 48,
-            base_width: 64,
-            res_blocks: 9,
-            patch: 256,
-            batch: 8,
-            pretrain_steps: 20000,
-            finetune_steps: 4000,
-            pretrain_lr: 1e-4,
-            finetune_lr: 5e-5,
-            checkpoint_every: 1000,
-            seeds: &[1, 2, 3],
-            backend: "cuda",
-        },
-    }
 }
 
 /// Seed of the training scenes, and of the primary test scenes (used for nothing else).
@@ -193,12 +126,13 @@ pub(crate) fn generate_config(
 }
 
 /// The main job's training sets: static (subjects, no motion between the frames), as its
-/// primary test scenes are. Trained on moving subjects, a merging network learns to distrust
-/// the other frames where they disagree with the reference, which costs it on static scenes
-/// (docs/experiments.md, "Recipe").
+/// primary test scenes are, or with the scene engine's motion where the preset trains on
+/// moving subjects (`long`). Trained on moving subjects with the pooled loss, a merging
+/// network learns to distrust the other frames where they disagree with the reference, which
+/// costs it on static scenes (docs/experiments.md, "Recipe", "the sweep").
 pub(crate) fn train_data_config(s: &Sizes) -> GenerateConfig {
     let mut cfg = generate_config(s, TRAIN_SCENE_SEED, s.train_sets, s.train_size);
-    cfg.scene.motion_scale = 0.0;
+    cfg.scene.motion_scale = if s.moving_still.is_some() { 1.0 } else { 0.0 };
     cfg
 }
 
@@ -245,11 +179,14 @@ pub(crate) fn train_config(s: &Sizes, backend: &str, data: &Path, st: &Stage) ->
             base_width: s.base_width,
             res_blocks: s.res_blocks,
             hdr_input_scale: 0.25,
-            output: WuOutput::Merge,
+            output: s.output,
             linearise: Linearise::Data,
             ..WuConfig::default()
         }),
-        data: DataConfig::new(data.to_path_buf(), s.patch, s.batch, realism),
+        data: DataConfig {
+            static_fraction: s.moving_still.unwrap_or(0.0),
+            ..DataConfig::new(data.to_path_buf(), s.patch, s.batch, realism)
+        },
         optim: OptimConfig {
             lr: st.lr,
             ..OptimConfig::default()
@@ -264,7 +201,10 @@ pub(crate) fn train_config(s: &Sizes, backend: &str, data: &Path, st: &Stage) ->
             checkpoint: Some(i.to_path_buf()),
             safetensors: None,
         }),
-        loss: LossConfig::default(),
+        loss: LossConfig {
+            average: s.loss_average,
+            ..LossConfig::default()
+        },
         validation: None,
     }
 }
@@ -639,6 +579,7 @@ pub fn run(opts: &Options) -> Result<String> {
         match opts.preset {
             Preset::Cpu => "cpu",
             Preset::Gpu => "gpu",
+            Preset::Long => "long",
         },
         p.configs.display(),
         p.exp_path.display()

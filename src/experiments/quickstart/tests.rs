@@ -34,7 +34,7 @@ fn round_trip<T: Serialize + serde::de::DeserializeOwned>(cfg: &T) -> T {
 fn the_configs_follow_the_protocol_and_read_back() {
     let root = Path::new("/r");
     let target = root.join(TARGET_PROFILE.0);
-    for preset in [Preset::Cpu, Preset::Gpu] {
+    for preset in [Preset::Cpu, Preset::Gpu, Preset::Long] {
         let s = sizes(preset);
         let gen_cfg = train_data_config(&s);
         assert_eq!(round_trip(&gen_cfg), gen_cfg);
@@ -97,14 +97,31 @@ fn the_configs_follow_the_protocol_and_read_back() {
             lr: 1e-3,
             init: None,
         };
-        let ModelConfig::Wu(m) = train_config(&s, s.backend, root, &st).model else {
+        let cfg = train_config(&s, s.backend, root, &st);
+        let ModelConfig::Wu(m) = &cfg.model else {
             panic!("Network-2");
         };
-        assert_eq!(
-            (m.output, m.linearise),
-            (crate::models::wu::WuOutput::Merge, Linearise::Data)
-        );
-        assert_eq!(train_data_config(&s).scene.motion_scale, 0.0);
+        assert_eq!(m.linearise, Linearise::Data);
+        // cpu and gpu: the merge head, Wu's pooled loss, static training scenes; long: the
+        // sweep's chosen point `8x2hkp` — the kernel head, the PSNR-averaged loss, moving
+        // subjects with half the samples still, twice the cpu preset's steps.
+        use crate::models::wu::WuOutput;
+        use crate::train::config::LossAverage;
+        let (output, average, motion, still, steps) = match preset {
+            Preset::Long => (WuOutput::Kernel, LossAverage::Psnr, 1.0, 0.5, (1600, 600)),
+            Preset::Cpu => (WuOutput::Merge, LossAverage::Pixels, 0.0, 0.0, (800, 300)),
+            Preset::Gpu => (
+                WuOutput::Merge,
+                LossAverage::Pixels,
+                0.0,
+                0.0,
+                (20000, 4000),
+            ),
+        };
+        assert_eq!((m.output, cfg.loss.average), (output, average));
+        assert_eq!(cfg.data.static_fraction, still);
+        assert_eq!(train_data_config(&s).scene.motion_scale, motion);
+        assert_eq!((s.pretrain_steps, s.finetune_steps), steps);
         let net_r = &exp.rows[2].set["data"];
         assert_eq!(net_r["noise"].as_str(), Some("none"));
         assert_eq!(net_r["colour"].as_bool(), Some(false));
