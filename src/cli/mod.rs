@@ -13,6 +13,7 @@ pub mod preview;
 pub mod profile;
 pub mod quickstart;
 pub mod realism;
+pub mod sweep_plot;
 pub mod testset;
 pub mod train;
 pub mod weights;
@@ -79,14 +80,7 @@ pub enum Command {
     },
     /// Plot what realism buys against how good the network is, from a sweep's table
     /// (tools/sweep.py's sweep.csv): Net_S − Net_R against Net_S − the triangle merge.
-    SweepPlot {
-        /// The sweep's table (sweep.csv).
-        #[arg(long)]
-        sweep: PathBuf,
-        /// The PNG to write.
-        #[arg(long)]
-        out: PathBuf,
-    },
+    SweepPlot(crate::cli::sweep_plot::Args),
     /// Inspect datasets.
     Dataset {
         #[command(subcommand)]
@@ -182,10 +176,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Diagnose(args) => println!("{}", crate::cli::diagnose::run(&args)?),
         Command::Loop(args) => println!("{}", crate::cli::device_loop::run(&args)?),
         Command::Export { command } => println!("{}", crate::cli::export::run(&command)?),
-        Command::SweepPlot { sweep, out } => {
-            crate::experiments::sweep::write_realism_plot(&sweep, &out)?;
-            println!("wrote {}", out.display());
-        }
+        Command::SweepPlot(args) => println!("{}", crate::cli::sweep_plot::run(&args)?),
         Command::Dataset { command } => match command {
             DatasetCommand::Info { dir, verify } => {
                 let (report, bad) = crate::cli::dataset::info_report_verified(&dir, verify)?;
