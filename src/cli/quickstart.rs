@@ -39,6 +39,11 @@ pub struct Args {
     /// baselines and learning curves; report in OUT/protocol.md.
     #[arg(long)]
     pub full: bool,
+    /// Seeds to train and score (default 1,2,3). A claim about newly trained networks needs 5
+    /// (docs/protocol.md, "Statistics"); a folder that holds some of them keeps those and
+    /// gains the others.
+    #[arg(long, value_delimiter = ',')]
+    pub seeds: Option<Vec<u64>>,
     /// No progress output.
     #[arg(long)]
     pub quiet: bool,
@@ -58,6 +63,7 @@ pub fn run(args: &Args) -> Result<String> {
         brackets: args.brackets.clone(),
         target: args.target.clone(),
         heldout: args.heldout,
+        seeds: args.seeds.clone(),
         progress: !args.quiet,
     })?)
 }

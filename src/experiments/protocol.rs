@@ -440,7 +440,7 @@ pub fn run(opts: &Options) -> Result<String> {
         heldout: true,
         ..opts.clone()
     })?;
-    let s = quickstart::sizes(opts.preset);
+    let s = quickstart::sizes_with_seeds(opts.preset, opts.seeds.as_deref())?;
     let backend = opts.backend.as_deref().unwrap_or(s.backend);
     let out = &opts.out;
     let _lock = crate::io::guard::OutputLock::acquire(&out.join("protocol"), "protocol")?;
@@ -567,7 +567,7 @@ fn network1_grid(x: &Setup, report: &mut String) -> Result<()> {
     generate(&GenerateConfig::load(&gen_train)?, &pairs, x.progress)?;
     generate(&GenerateConfig::load(&gen_val)?, &pairs_val, x.progress)?;
     let mut curve_runs = Vec::new();
-    for &k in s.seeds {
+    for &k in s.seeds.iter() {
         let run = out.join(format!("network1_pretrain/seed{k}"));
         let path = configs.join(format!("network1_pretrain_seed{k}.toml"));
         let st = Stage {
@@ -617,7 +617,7 @@ fn network1_grid(x: &Setup, report: &mut String) -> Result<()> {
         "Network-1",
         report,
     )?;
-    for &k in s.seeds {
+    for &k in s.seeds.iter() {
         let cell = net1.out.join(format!("cells/net_s/seed{k}/run"));
         curve_runs.push((format!("Net_S fine-tuning, seed {k}"), cell));
     }

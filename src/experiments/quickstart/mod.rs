@@ -37,7 +37,7 @@ mod presets;
 mod reading;
 mod test_sets;
 pub use presets::Preset;
-pub(crate) use presets::{Sizes, sizes};
+pub(crate) use presets::{Sizes, sizes, sizes_with_seeds};
 pub use reading::Decision;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -63,6 +63,9 @@ pub struct Options {
     /// Also score every network on the held-out-simulator renderings of the primary scenes
     /// (docs/protocol.md, full protocol part 1).
     pub heldout: bool,
+    /// These seeds instead of the preset's 1, 2, 3; a folder that holds some of them keeps
+    /// those and gains the others.
+    pub seeds: Option<Vec<u64>>,
     pub progress: bool,
 }
 
@@ -533,7 +536,7 @@ pub fn run(opts: &Options) -> Result<String> {
     };
     let began = Instant::now();
     let progress = opts.progress;
-    let s = sizes(opts.preset);
+    let s = sizes_with_seeds(opts.preset, opts.seeds.as_deref())?;
     let backend = opts.backend.as_deref().unwrap_or(s.backend);
     let out = &opts.out;
     // One main job per folder: a second would rewrite the configs the first is reading. The
@@ -713,7 +716,7 @@ fn pretrain(
     pre_profile: &Path,
     configs: &Path,
 ) -> Result<()> {
-    for &k in s.seeds {
+    for &k in s.seeds.iter() {
         let pre_run = opts.out.join(format!("pretrain/seed{k}"));
         let pre_path = configs.join(format!("pretrain_seed{k}.toml"));
         write_config(

@@ -1,6 +1,8 @@
 //! The main job's presets and their sizes: `cpu` (the main job), `long` (the recipe the sweep
 //! chose on validation scenes) and `gpu` (Wu et al.'s width).
 
+use crate::error::{Error, Result};
+use std::borrow::Cow;
 use crate::models::wu::WuOutput;
 use crate::train::config::LossAverage;
 
@@ -33,7 +35,7 @@ pub(crate) struct Sizes {
     pub(crate) pretrain_lr: f64,
     pub(crate) finetune_lr: f64,
     pub(crate) checkpoint_every: u64,
-    pub(crate) seeds: &'static [u64],
+    pub(crate) seeds: Cow<'static, [u64]>,
     pub(crate) backend: &'static str,
     /// Training scenes with moving subjects, this share of the samples still; `None`: static
     /// training scenes.
@@ -58,12 +60,38 @@ const CPU: Sizes = Sizes {
     pretrain_lr: 1e-3,
     finetune_lr: 5e-4,
     checkpoint_every: 100,
-    seeds: &[1, 2, 3],
+    seeds: Cow::Borrowed(&[1, 2, 3]),
     backend: "flex",
     moving_still: None,
     output: WuOutput::Merge,
     loss_average: LossAverage::Pixels,
 };
+
+/// The sizes of `p` with `seeds` where asked (a claim about newly trained networks needs 5:
+/// docs/protocol.md, "Statistics").
+pub(crate) fn sizes_with_seeds(p: Preset, seeds: Option<&[u64]>) -> Result<Sizes> {
+    let mut s = sizes(p);
+    if let Some(seeds) = seeds {
+        let list = || {
+            let v: Vec<String> = seeds.iter().map(u64::to_string).collect();
+            v.join(",")
+        };
+        if seeds.len() < 2 {
+            return Err(Error::Invalid(format!(
+                "--seeds {}: at least two (an interval over training runs needs two)",
+                list()
+            )));
+        }
+        if (1..seeds.len()).any(|i| seeds[..i].contains(&seeds[i])) {
+            return Err(Error::Invalid(format!(
+                "--seeds {}: a seed named twice",
+                list()
+            )));
+        }
+        s.seeds = Cow::Owned(seeds.to_vec());
+    }
+    Ok(s)
+}
 
 pub(crate) fn sizes(p: Preset) -> Sizes {
     match p {
@@ -93,7 +121,7 @@ pub(crate) fn sizes(p: Preset) -> Sizes {
             pretrain_lr: 1e-4,
             finetune_lr: 5e-5,
             checkpoint_every: 1000,
-            seeds: &[1, 2, 3],
+            seeds: Cow::Borrowed(&[1, 2, 3]),
             backend: "cuda",
             moving_still: None,
             output: WuOutput::Merge,

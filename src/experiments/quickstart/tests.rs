@@ -43,7 +43,7 @@ fn the_configs_follow_the_protocol_and_read_back() {
         test_cfg.validate().expect("valid test scene config");
         assert_ne!(test_cfg.seed, gen_cfg.seed);
         assert!(test_cfg.count >= 20, "the protocol needs ≥ 20 test scenes");
-        for seed in s.seeds {
+        for seed in s.seeds.iter() {
             let st = Stage {
                 run: root,
                 seed: *seed,
@@ -264,4 +264,17 @@ fn the_reading_gives_the_interval_over_training_runs() {
         five.contains("over training runs") && !five.contains("these runs only"),
         "{five}"
     );
+}
+
+/// `--seeds` replaces the preset's 1, 2, 3; fewer than two (no interval over training runs)
+/// or a seed named twice is refused, naming the list.
+#[test]
+fn seeds_replace_the_presets_and_are_checked() {
+    let s = |n: Option<&[u64]>| presets::sizes_with_seeds(Preset::Long, n).map(|s| s.seeds.to_vec());
+    assert_eq!(s(None).unwrap(), [1, 2, 3]);
+    assert_eq!(s(Some(&[1, 2, 3, 4, 5])).unwrap(), [1, 2, 3, 4, 5]);
+    for (bad, shown) in [(&[4][..], "--seeds 4:"), (&[], "--seeds :"), (&[1, 2, 1], "--seeds 1,2,1:")] {
+        let e = s(Some(bad)).unwrap_err().to_string();
+        assert!(e.contains(shown), "{e}");
+    }
 }
