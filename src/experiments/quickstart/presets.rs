@@ -2,9 +2,9 @@
 //! chose on validation scenes) and `gpu` (Wu et al.'s width).
 
 use crate::error::{Error, Result};
-use std::borrow::Cow;
 use crate::models::wu::WuOutput;
 use crate::train::config::LossAverage;
+use std::borrow::Cow;
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Preset {

@@ -270,10 +270,15 @@ fn the_reading_gives_the_interval_over_training_runs() {
 /// or a seed named twice is refused, naming the list.
 #[test]
 fn seeds_replace_the_presets_and_are_checked() {
-    let s = |n: Option<&[u64]>| presets::sizes_with_seeds(Preset::Long, n).map(|s| s.seeds.to_vec());
+    let s =
+        |n: Option<&[u64]>| presets::sizes_with_seeds(Preset::Long, n).map(|s| s.seeds.to_vec());
     assert_eq!(s(None).unwrap(), [1, 2, 3]);
     assert_eq!(s(Some(&[1, 2, 3, 4, 5])).unwrap(), [1, 2, 3, 4, 5]);
-    for (bad, shown) in [(&[4][..], "--seeds 4:"), (&[], "--seeds :"), (&[1, 2, 1], "--seeds 1,2,1:")] {
+    for (bad, shown) in [
+        (&[4][..], "--seeds 4:"),
+        (&[], "--seeds :"),
+        (&[1, 2, 1], "--seeds 1,2,1:"),
+    ] {
         let e = s(Some(bad)).unwrap_err().to_string();
         assert!(e.contains(shown), "{e}");
     }
