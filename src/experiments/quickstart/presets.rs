@@ -12,7 +12,7 @@ pub enum Preset {
     Cpu,
     /// Wu et al.'s released width and longer runs, for a GPU (pass --backend cuda or wgpu).
     Gpu,
-    /// An estimated 40 minutes on 2 CPU cores: the recipe the sweep chose on validation scenes
+    /// About 50 minutes on 2 CPU cores: the recipe the sweep chose on validation scenes
     /// (docs/experiments.md, "the sweep"): moving training subjects with half the samples still,
     /// the kernel head, the PSNR-averaged loss and 2× the cpu preset's steps.
     Long,
