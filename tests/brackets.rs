@@ -789,6 +789,41 @@ fn debevec_response_matches_opencv_calibrate_debevec() {
 }
 
 #[test]
+fn the_toe_re_estimated_from_the_frames_follows_the_true_response_where_debevec_does_not() {
+    // The oracle bracket's response is known (code = (1 − e^(−4x)) / (1 − e^(−4)), as above):
+    // at codes 1–25 Debevec's estimate is set by its small weights and smoothness term; the
+    // toe re-estimated from the radiance the other frames give those pixels must follow the
+    // true curve there, and leave codes from 26 on as they were.
+    use hdrsynth::sensor::crf::{self, DebevecOptions};
+    let dir = oracle_dir();
+    let times: Vec<f64> = std::fs::read_to_string(dir.join("crf_times.txt"))
+        .expect("times")
+        .split_whitespace()
+        .map(|v| v.parse().expect("number"))
+        .collect();
+    let frames: Vec<hdrsynth::io::Image> = (0..times.len())
+        .map(|i| hdrsynth::io::read_image(&dir.join(format!("crf_{i}.png"))).expect("png"))
+        .collect();
+    let raw = crf::calibrate_debevec(&frames, &times, DebevecOptions::one_curve()).expect("crf");
+    let mut toe = raw.clone();
+    crf::refine_toe(&frames, &times, &mut toe, true).expect("toe");
+    assert!(toe[0] == toe[1] && toe[1] == toe[2], "one curve stays one curve");
+    assert_eq!(toe[0][crf::TOE_CODES..], raw[0][crf::TOE_CODES..]);
+    let x_of =
+        |z: usize| -> f64 { -(1.0 - (z as f64 / 255.0) * (1.0 - (-4.0f64).exp())).ln() / 4.0 };
+    // Both curves in code 128's unit (g(128) = 0), against the truth at codes 4–25.
+    let err = |r: &[f64]| -> f64 {
+        (4..crf::TOE_CODES)
+            .map(|z| (r[z] / r[128] / (x_of(z) / x_of(128))).ln().abs())
+            .fold(0.0, f64::max)
+    };
+    let (before, after) = (err(&raw[0]), err(&toe[0]));
+    eprintln!("max |ln estimate / truth| codes 4–25: Debevec {before:.4}, toe {after:.4}");
+    assert!(after < 0.05, "re-estimated toe off the truth by {after}");
+    assert!(before > 2.0 * after, "Debevec {before} against the toe {after}");
+}
+
+#[test]
 fn robertson_response_matches_opencv_calibrate_robertson() {
     use hdrsynth::sensor::crf::{self, RobertsonOptions};
     let dir = oracle_dir();

@@ -540,6 +540,10 @@ pub fn resolve_linearisation(
         ResponseChoice::Debevec(o) => crf::calibrate_debevec(&frames, &times, *o)?,
         _ => unreachable!("curves returned above"),
     };
+    // The estimators leave the darkest codes to their priors: re-estimated from the frames
+    // (crf::refine_toe) before the curve is written or used.
+    let shared = matches!(choice, ResponseChoice::Debevec(o) if o.shared);
+    crf::refine_toe(&frames, &times, &mut response, shared)?;
     let mut written = String::new();
     if let Some(crf_dir) = crf_dir {
         let mut csv = String::from("code,r,g,b\n");
@@ -558,9 +562,13 @@ pub fn resolve_linearisation(
         written = format!(", written as {file}");
     }
     notes.push(format!(
-        "response: {name} estimated from set '{}' ({} frames){written}",
+        "response: {name} estimated from set '{}' ({} frames){written}; codes under {} \
+         re-estimated from the radiance its frames record at codes {}–{}",
         set.name,
         set.frames.len(),
+        crf::TOE_CODES,
+        crf::TOE_CODES,
+        crf::TOE_SOURCE_TOP,
     ));
     if matches!(choice, ResponseChoice::Robertson(_)) {
         // Robertson's I(255) is the mean exposure of all clipped observations, far above the
