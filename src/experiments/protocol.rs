@@ -52,7 +52,7 @@ struct Net1Sizes {
 
 fn net1_sizes(p: Preset) -> Net1Sizes {
     match p {
-        Preset::Cpu | Preset::Long => Net1Sizes {
+        Preset::Cpu | Preset::Long | Preset::LongStill => Net1Sizes {
             base_width: 8,
             depth: 3,
             patch: 64,

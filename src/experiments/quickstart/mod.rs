@@ -583,6 +583,7 @@ pub fn run(opts: &Options) -> Result<String> {
             Preset::Cpu => "cpu",
             Preset::Gpu => "gpu",
             Preset::Long => "long",
+            Preset::LongStill => "long-still",
         },
         p.configs.display(),
         p.exp_path.display()

@@ -1,5 +1,6 @@
 //! The main job's presets and their sizes: `cpu` (the main job), `long` (the recipe the sweep
-//! chose on validation scenes) and `gpu` (Wu et al.'s width).
+//! chose on validation scenes), `long-still` (that recipe on still samples only) and `gpu` (Wu
+//! et al.'s width).
 
 use crate::error::{Error, Result};
 use crate::models::wu::WuOutput;
@@ -17,6 +18,10 @@ pub enum Preset {
     /// the kernel head, the PSNR-averaged loss and 2× the cpu preset's steps. It beats the
     /// triangle merge on the simulated test sets and loses to it on the real 550D capture.
     Long,
+    /// `long` with every training sample still (the same training scenes, no subject moves
+    /// between the frames): for static brackets. About 50 minutes on 2 CPU cores; it does not
+    /// learn to avoid ghosts (docs/experiments.md, "The `long-still` preset").
+    LongStill,
 }
 
 /// The sizes of one preset.
@@ -106,6 +111,10 @@ pub(crate) fn sizes(p: Preset) -> Sizes {
             output: WuOutput::Kernel,
             loss_average: LossAverage::Psnr,
             ..CPU
+        },
+        Preset::LongStill => Sizes {
+            moving_still: Some(1.0),
+            ..sizes(Preset::Long)
         },
         Preset::Gpu => Sizes {
             train_sets: 256,

@@ -34,7 +34,7 @@ fn round_trip<T: Serialize + serde::de::DeserializeOwned>(cfg: &T) -> T {
 fn the_configs_follow_the_protocol_and_read_back() {
     let root = Path::new("/r");
     let target = root.join(TARGET_PROFILE.0);
-    for preset in [Preset::Cpu, Preset::Gpu, Preset::Long] {
+    for preset in [Preset::Cpu, Preset::Gpu, Preset::Long, Preset::LongStill] {
         let s = sizes(preset);
         let gen_cfg = train_data_config(&s);
         assert_eq!(round_trip(&gen_cfg), gen_cfg);
@@ -104,11 +104,13 @@ fn the_configs_follow_the_protocol_and_read_back() {
         assert_eq!(m.linearise, Linearise::Data);
         // cpu and gpu: the merge head, Wu's pooled loss, static training scenes; long: the
         // sweep's chosen point `8x2hkp` — the kernel head, the PSNR-averaged loss, moving
-        // subjects with half the samples still, twice the cpu preset's steps.
+        // subjects with half the samples still, twice the cpu preset's steps; long-still: the
+        // same with every sample still.
         use crate::models::wu::WuOutput;
         use crate::train::config::LossAverage;
         let (output, average, motion, still, steps) = match preset {
             Preset::Long => (WuOutput::Kernel, LossAverage::Psnr, 1.0, 0.5, (1600, 600)),
+            Preset::LongStill => (WuOutput::Kernel, LossAverage::Psnr, 1.0, 1.0, (1600, 600)),
             Preset::Cpu => (WuOutput::Merge, LossAverage::Pixels, 0.0, 0.0, (800, 300)),
             Preset::Gpu => (
                 WuOutput::Merge,
