@@ -807,7 +807,10 @@ fn the_toe_re_estimated_from_the_frames_follows_the_true_response_where_debevec_
     let raw = crf::calibrate_debevec(&frames, &times, DebevecOptions::one_curve()).expect("crf");
     let mut toe = raw.clone();
     crf::refine_toe(&frames, &times, &mut toe, true).expect("toe");
-    assert!(toe[0] == toe[1] && toe[1] == toe[2], "one curve stays one curve");
+    assert!(
+        toe[0] == toe[1] && toe[1] == toe[2],
+        "one curve stays one curve"
+    );
     assert_eq!(toe[0][crf::TOE_CODES..], raw[0][crf::TOE_CODES..]);
     let x_of =
         |z: usize| -> f64 { -(1.0 - (z as f64 / 255.0) * (1.0 - (-4.0f64).exp())).ln() / 4.0 };
@@ -820,7 +823,10 @@ fn the_toe_re_estimated_from_the_frames_follows_the_true_response_where_debevec_
     let (before, after) = (err(&raw[0]), err(&toe[0]));
     eprintln!("max |ln estimate / truth| codes 4–25: Debevec {before:.4}, toe {after:.4}");
     assert!(after < 0.05, "re-estimated toe off the truth by {after}");
-    assert!(before > 2.0 * after, "Debevec {before} against the toe {after}");
+    assert!(
+        before > 2.0 * after,
+        "Debevec {before} against the toe {after}"
+    );
 }
 
 #[test]

@@ -102,12 +102,10 @@ fn the_configs_follow_the_protocol_and_read_back() {
             panic!("Network-2");
         };
         assert_eq!(m.linearise, Linearise::Data);
-        // cpu and gpu: the merge head, Wu's pooled loss, static training scenes; long: the
-        // sweep's chosen point `8x2hkp` — the kernel head, the PSNR-averaged loss, moving
-        // subjects with half the samples still, twice the cpu preset's steps; long-still: the
-        // same with every sample still.
-        use crate::models::wu::WuOutput;
-        use crate::train::config::LossAverage;
+        // cpu and gpu: the merge head, Wu's pooled loss, static scenes; long: the sweep's
+        // `8x2hkp` (kernel head, PSNR-averaged loss, moving subjects half still, 2× the steps);
+        // long-still: the same with every sample still.
+        use crate::{models::wu::WuOutput, train::config::LossAverage};
         let (output, average, motion, still, steps) = match preset {
             Preset::Long => (WuOutput::Kernel, LossAverage::Psnr, 1.0, 0.5, (1600, 600)),
             Preset::LongStill => (WuOutput::Kernel, LossAverage::Psnr, 1.0, 1.0, (1600, 600)),
