@@ -643,6 +643,20 @@ fn oracle_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/brackets")
 }
 
+/// The oracle bracket's frames (crf_K.png) and their times (crf_times.txt).
+fn oracle_bracket() -> (Vec<hdrsynth::io::Image>, Vec<f64>) {
+    let dir = oracle_dir();
+    let times: Vec<f64> = std::fs::read_to_string(dir.join("crf_times.txt"))
+        .expect("times")
+        .split_whitespace()
+        .map(|v| v.parse().expect("number"))
+        .collect();
+    let frames = (0..times.len())
+        .map(|i| hdrsynth::io::read_image(&dir.join(format!("crf_{i}.png"))).expect("png"))
+        .collect();
+    (frames, times)
+}
+
 fn read_csv_rows(path: &Path) -> Vec<Vec<f64>> {
     std::fs::read_to_string(path)
         .expect("csv")
@@ -706,14 +720,7 @@ fn one_debevec_curve_for_the_channels_matches_opencv_on_the_channels_side_by_sid
     // grey image (samples 210, tools/crf_oracle.py) against `DebevecOptions::one_curve`.
     use hdrsynth::sensor::crf::{self, DebevecOptions};
     let dir = oracle_dir();
-    let times: Vec<f64> = std::fs::read_to_string(dir.join("crf_times.txt"))
-        .expect("times")
-        .split_whitespace()
-        .map(|v| v.parse().expect("number"))
-        .collect();
-    let frames: Vec<hdrsynth::io::Image> = (0..times.len())
-        .map(|i| hdrsynth::io::read_image(&dir.join(format!("crf_{i}.png"))).expect("png"))
-        .collect();
+    let (frames, times) = oracle_bracket();
     let ours = crf::calibrate_debevec(&frames, &times, DebevecOptions::one_curve()).expect("crf");
     assert!(ours[0] == ours[1] && ours[1] == ours[2], "one curve");
     let cv: Vec<f64> = std::fs::read_to_string(dir.join("crf_debevec_one_curve.csv"))
@@ -737,14 +744,7 @@ fn one_debevec_curve_for_the_channels_matches_opencv_on_the_channels_side_by_sid
 fn debevec_response_matches_opencv_calibrate_debevec() {
     use hdrsynth::sensor::crf::{self, DebevecOptions};
     let dir = oracle_dir();
-    let times: Vec<f64> = std::fs::read_to_string(dir.join("crf_times.txt"))
-        .expect("times")
-        .split_whitespace()
-        .map(|v| v.parse().expect("number"))
-        .collect();
-    let frames: Vec<hdrsynth::io::Image> = (0..times.len())
-        .map(|i| hdrsynth::io::read_image(&dir.join(format!("crf_{i}.png"))).expect("png"))
-        .collect();
+    let (frames, times) = oracle_bracket();
     let ours = crf::calibrate_debevec(&frames, &times, DebevecOptions::default()).expect("crf");
     let cv = read_csv_rows(&dir.join("crf_debevec.csv"));
     assert_eq!(cv.len(), 256);
@@ -795,15 +795,7 @@ fn the_toe_re_estimated_from_the_frames_follows_the_true_response_where_debevec_
     // toe re-estimated from the radiance the other frames give those pixels must follow the
     // true curve there, and leave codes from 26 on as they were.
     use hdrsynth::sensor::crf::{self, DebevecOptions};
-    let dir = oracle_dir();
-    let times: Vec<f64> = std::fs::read_to_string(dir.join("crf_times.txt"))
-        .expect("times")
-        .split_whitespace()
-        .map(|v| v.parse().expect("number"))
-        .collect();
-    let frames: Vec<hdrsynth::io::Image> = (0..times.len())
-        .map(|i| hdrsynth::io::read_image(&dir.join(format!("crf_{i}.png"))).expect("png"))
-        .collect();
+    let (frames, times) = oracle_bracket();
     let raw = crf::calibrate_debevec(&frames, &times, DebevecOptions::one_curve()).expect("crf");
     let mut toe = raw.clone();
     crf::refine_toe(&frames, &times, &mut toe, true).expect("toe");
@@ -833,14 +825,7 @@ fn the_toe_re_estimated_from_the_frames_follows_the_true_response_where_debevec_
 fn robertson_response_matches_opencv_calibrate_robertson() {
     use hdrsynth::sensor::crf::{self, RobertsonOptions};
     let dir = oracle_dir();
-    let times: Vec<f64> = std::fs::read_to_string(dir.join("crf_times.txt"))
-        .expect("times")
-        .split_whitespace()
-        .map(|v| v.parse().expect("number"))
-        .collect();
-    let frames: Vec<hdrsynth::io::Image> = (0..times.len())
-        .map(|i| hdrsynth::io::read_image(&dir.join(format!("crf_{i}.png"))).expect("png"))
-        .collect();
+    let (frames, times) = oracle_bracket();
     let ours = crf::calibrate_robertson(&frames, &times, RobertsonOptions::default()).expect("crf");
     // OpenCV's CalibrateRobertson (defaults), "nan" where a code never occurs.
     let cv = read_csv_rows(&dir.join("crf_robertson.csv"));
