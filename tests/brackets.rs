@@ -3371,6 +3371,36 @@ fn the_loop_refuses_a_calibration_frame_resaved_under_another_name_in_a_test_sce
     assert!(!beside.path().join("loop").exists(), "nothing written");
 }
 
+/// The network row whose seed-`seed` scores on the loop's validation set (the calibration
+/// scenes) have the highest mean PSNR-T, read from `per_image.csv` under `cells`.
+fn best_on_validation(cells: &Path, seed: u64) -> String {
+    let mut best: Option<(String, f64)> = None;
+    for entry in std::fs::read_dir(cells).expect("cells") {
+        let dir = entry.expect("entry").path();
+        let file = dir.join(format!("seed{seed}/eval_validation/per_image.csv"));
+        if !file.is_file() {
+            continue; // a classical row: one folder for every seed, never handed over
+        }
+        let mut r = csv::Reader::from_path(&file).expect("per_image.csv");
+        let k = r
+            .headers()
+            .expect("header")
+            .iter()
+            .position(|h| h == "psnr_t")
+            .expect("psnr_t");
+        let v: Vec<f64> = r
+            .records()
+            .map(|x| x.expect("record")[k].parse().expect("a number"))
+            .collect();
+        let mean = v.iter().sum::<f64>() / v.len() as f64;
+        let name = dir.file_name().expect("name").to_string_lossy().to_string();
+        if best.as_ref().is_none_or(|(_, b)| mean > *b) {
+            best = Some((name, mean));
+        }
+    }
+    best.expect("a network scored on the validation set").0
+}
+
 fn copy_dir(from: &Path, to: &Path) {
     std::fs::create_dir_all(to).expect("mkdir");
     for e in std::fs::read_dir(from).expect("read_dir") {
@@ -3695,6 +3725,28 @@ fn the_loop_trains_the_device_rule_in_its_metering_step_only() {
             "{report}"
         );
     }
+    // The network handed over: the row with the best mean PSNR-T on the calibration scenes,
+    // read here from each network's own scores there (classical rows never compete).
+    assert!(
+        report.contains("## The network the loop hands over"),
+        "{report}"
+    );
+    let handed: toml::Table = std::fs::read_to_string(out.join("handover.toml"))
+        .expect("handover.toml")
+        .parse()
+        .expect("handover.toml parses");
+    let seed1 = handed["seed1"].as_table().expect("[seed1]");
+    let best = best_on_validation(&out.join("experiment/cells"), 1);
+    assert_eq!(seed1["row"].as_str(), Some(best.as_str()), "{handed}");
+    let checkpoint = Path::new(seed1["checkpoint"].as_str().expect("checkpoint"));
+    assert!(
+        checkpoint.ends_with(format!("cells/{best}/seed1/run"))
+            || checkpoint.ends_with("pretrain/seed1")
+            || checkpoint.ends_with("net_s/seed1/run"),
+        "{}",
+        checkpoint.display()
+    );
+    assert!(checkpoint.is_dir(), "{}", checkpoint.display());
     // The same folders spelled another way resume it (every cell kept); another split is
     // refused.
     let respelled = LoopOptions {

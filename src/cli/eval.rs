@@ -95,6 +95,7 @@ impl Args {
             thumb: self.thumb.max(16),
             progress: !self.quiet,
             frame_curve: None,
+            validation: false,
         }
     }
 

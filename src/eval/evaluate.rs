@@ -201,6 +201,10 @@ pub struct EvalOptions {
     /// network with `linearise = "data"` linearises its inputs with it, as the classical rows
     /// do); what a caller puts here is replaced.
     pub frame_curve: Option<Response>,
+    /// The test set is a validation set: sets built from the captures that calibrated the
+    /// method's profile are scored (for choosing among networks, as the loop does; such a
+    /// score is never a test of the network). Default: refused ([`split_check`]).
+    pub validation: bool,
 }
 
 impl Default for EvalOptions {
@@ -216,6 +220,7 @@ impl Default for EvalOptions {
             thumb: 512,
             progress: false,
             frame_curve: None,
+            validation: false,
         }
     }
 }
@@ -258,8 +263,17 @@ pub fn evaluate(
     }
     let began = Instant::now();
     let info = layout::detect(testset)?;
-    split_check(method, &info.sets)?;
+    if !opts.validation {
+        split_check(method, &info.sets)?;
+    }
     let (warnings, mut notes) = encoding_check(method, testset)?;
+    if opts.validation && method.calibrated_on().is_some() {
+        notes.push(
+            "a validation set: its sets may hold captures that calibrated this network's \
+             profile, so these scores choose among networks and test none"
+                .into(),
+        );
+    }
     let opts = &EvalOptions {
         frame_curve: encoding::of_testset(testset)?.map(|e| e.response),
         ..opts.clone()

@@ -27,6 +27,7 @@ use crate::sensor::profile::SensorProfile;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
+mod handover;
 mod pictures;
 mod report;
 use report::*;
@@ -231,23 +232,16 @@ pub fn run(opts: &LoopOptions) -> Result<LoopSummary> {
     let (cal_result, calibrated, extra) = calibrate(opts, &folder, &cal_scan, &profiles)?;
     let fit = &cal_result.correlation;
     let testset = opts.out.join("testset");
-    if !testset.join(crate::data::encoding::ENCODING_FILE).is_file() {
-        stage(opts, "building the test set from the test scenes");
-        bracket_testset::build_scanned(
-            &opts.brackets,
-            Some(folder.select(&test_scan)?),
-            &BracketOptions {
-                scan: test_scan,
-                // Linearised through the calibration's response: nothing is estimated on the
-                // test scenes, and the frames keep the device's own codes.
-                response: ResponseChoice::new(Some(&calibrated), None)?,
-                inputs: opts.inputs.clone(),
-                gt_frames: opts.gt_frames,
-                ..BracketOptions::default()
-            },
-            &testset,
-        )?;
-    }
+    build_set(opts, &folder, &test_scan, &calibrated, &testset, "test")?;
+    let validation = opts.out.join("validation");
+    build_set(
+        opts,
+        &folder,
+        &cal_scan,
+        &calibrated,
+        &validation,
+        "calibration",
+    )?;
     let steps = steps(
         &calibrated,
         &extra,
@@ -261,7 +255,7 @@ pub fn run(opts: &LoopOptions) -> Result<LoopSummary> {
         .iter()
         .map(|r| r.iso.into())
         .collect();
-    let cfg = ablate_config(opts, &base, &testset, &steps, &isos);
+    let cfg = ablate_config(opts, &base, [&testset, &validation], &steps, &isos);
     let cfg_path = opts.out.join("loop_ablate.toml");
     crate::io::atomic::write_atomic(
         &cfg_path,
@@ -277,7 +271,9 @@ pub fn run(opts: &LoopOptions) -> Result<LoopSummary> {
     report.push_str(&measured_text(&cal_result, &extra));
     report.push_str(&checks_text(&steps, &checks, &opts.out)?);
     report.push_str(&steps_table(&cfg, &steps)?);
-    report.push_str(&what_a_user_gets(&cfg, &steps)?);
+    let networks = networks(&cfg, &steps);
+    report.push_str(&what_a_user_gets(&cfg, &networks)?);
+    report.push_str(&handover::handover_text(opts, &cfg, &cfg_path, &networks)?);
     report.push_str(&pictures_text(&cfg, &testset, &steps, &opts.out)?);
     report.push_str("\n## Every row against the fair baseline\n\n");
     report.push_str(&tables[0].markdown);
@@ -287,6 +283,49 @@ pub fn run(opts: &LoopOptions) -> Result<LoopSummary> {
         test,
         report,
     })
+}
+
+/// The sets of `scan` as a test set in `dir`, linearised through the calibration's response:
+/// nothing is estimated on the scenes scored, and the frames keep the device's own codes. A
+/// set already built is kept.
+fn build_set(
+    opts: &LoopOptions,
+    folder: &FolderScan,
+    scan: &ScanOptions,
+    calibrated: &Path,
+    dir: &Path,
+    scenes: &str,
+) -> Result<()> {
+    if dir.join(crate::data::encoding::ENCODING_FILE).is_file() {
+        return Ok(());
+    }
+    stage(
+        opts,
+        &format!("building a test set from the {scenes} scenes"),
+    );
+    bracket_testset::build_scanned(
+        &opts.brackets,
+        Some(folder.select(scan)?),
+        &BracketOptions {
+            scan: scan.clone(),
+            response: ResponseChoice::new(Some(calibrated), None)?,
+            inputs: opts.inputs.clone(),
+            gt_frames: opts.gt_frames,
+            ..BracketOptions::default()
+        },
+        dir,
+    )
+    .map(drop)
+}
+
+/// The grid's network rows, the least trained first (the handed-over network is chosen from
+/// them; a tie keeps the first).
+fn networks<'a>(cfg: &'a AblateConfig, steps: &'a [Step]) -> Vec<&'a str> {
+    ["net_o", NET_S, "control", GENERIC]
+        .into_iter()
+        .chain(steps.iter().map(|s| s.name))
+        .filter(|n| cfg.rows.iter().any(|r| r.name == *n))
+        .collect()
 }
 
 /// Record the split and the test set's options in `OUT/split.toml` on the first run, and
@@ -568,7 +607,7 @@ fn generic_row(opts: &LoopOptions, isos: &[toml::Value]) -> Option<Axis> {
 fn ablate_config(
     opts: &LoopOptions,
     base: &Path,
-    testset: &Path,
+    [testset, validation]: [&Path; 2],
     steps: &[Step],
     isos: &[toml::Value],
 ) -> AblateConfig {
@@ -642,26 +681,44 @@ fn ablate_config(
                 .to_string(),
         ),
         testset: TestsetSpec {
-            name: None,
             label: Some("the device's test scenes".into()),
-            dir: testset.to_path_buf(),
-            radiance: None,
-            profile: None,
-            // Unused (the test set is built from brackets); the rule pinned keeps
-            // `loop_ablate.toml` as the loop wrote it before a profile could hold one.
-            options: crate::data::testset::TestsetOptions {
-                metering: Some(Metering::default()),
-                ..Default::default()
-            },
-            noise_per_seed: false,
-            reference: None,
+            ..test_spec(testset)
         },
-        also: Vec::new(),
+        also: vec![TestsetSpec {
+            name: Some("validation".into()),
+            label: Some(
+                "the calibration scenes (a validation set: it chooses the network the loop hands \
+                 over, and tests none)"
+                    .into(),
+            ),
+            validation: true,
+            ..test_spec(validation)
+        }],
         eval: EvalSpec {
             reference: Some(steps[0].name.into()),
             ..EvalSpec::default()
         },
         rows,
         columns: Vec::new(),
+    }
+}
+
+/// A test set the loop built from brackets.
+fn test_spec(dir: &Path) -> TestsetSpec {
+    TestsetSpec {
+        name: None,
+        label: None,
+        dir: dir.to_path_buf(),
+        radiance: None,
+        profile: None,
+        // Unused (the test set is built from brackets); the rule pinned keeps
+        // `loop_ablate.toml` as the loop wrote it before a profile could hold one.
+        options: crate::data::testset::TestsetOptions {
+            metering: Some(Metering::default()),
+            ..Default::default()
+        },
+        noise_per_seed: false,
+        reference: None,
+        validation: false,
     }
 }

@@ -140,6 +140,7 @@ fn scene_testset(
         },
         noise_per_seed: true,
         reference: None,
+        validation: false,
     }
 }
 

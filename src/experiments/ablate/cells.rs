@@ -215,6 +215,22 @@ fn plan_cell(
     })
 }
 
+/// The network row `row`'s run of `seed` scores (its checkpoint folder; `None` for a classical
+/// row).
+pub fn run_checkpoint(
+    cfg: &AblateConfig,
+    config_path: &Path,
+    row: &str,
+    seed: Option<u64>,
+) -> Result<Option<PathBuf>> {
+    let r = cfg
+        .rows
+        .iter()
+        .position(|a| a.name == row)
+        .ok_or_else(|| Error::config(config_path, format!("no row '{row}'")))?;
+    Ok(plan_cell(cfg, config_path, &load_base(cfg)?, r, None, seed)?.checkpoint)
+}
+
 /// The table `[name]` of a config, created when missing (`None` when the key holds a value
 /// that is not a table: the config's own validation reports it).
 fn section<'a>(cfg: &'a mut toml::Table, name: &str) -> Option<&'a mut toml::Table> {
@@ -299,12 +315,12 @@ fn run_cell(
             write_atomic(&plan_path, plan_text.as_bytes())?;
         }
     }
-    // (test set folder, eval folder) pairs not scored yet.
-    let pending: Vec<(&Path, String)> = std::iter::once(&plan.testset)
+    // (test set folder, eval folder, a validation set) of the sets not scored yet.
+    let pending: Vec<(&Path, String, bool)> = std::iter::once(&plan.testset)
         .chain(&plan.also)
-        .zip(cfg.testsets().map(TestsetSpec::eval_dir))
-        .filter(|(_, e)| !dir.join(e).join(evaluate::SUMMARY_CSV).is_file())
-        .map(|(t, e)| (t.as_path(), e))
+        .zip(cfg.testsets())
+        .map(|(t, spec)| (t.as_path(), spec.eval_dir(), spec.validation))
+        .filter(|(_, e, _)| !dir.join(e).join(evaluate::SUMMARY_CSV).is_file())
         .collect();
     if pending.is_empty() {
         if progress {
@@ -344,7 +360,7 @@ fn run_cell(
         progress,
         ..EvalOptions::default()
     };
-    for (testset, eval_dir) in pending {
+    for (testset, eval_dir, validation) in pending {
         // Scored into a partial folder, renamed when complete: a killed evaluation reruns.
         let partial = dir.join(format!("{eval_dir}.partial"));
         if partial.exists() {
@@ -362,6 +378,10 @@ fn run_cell(
                     "cell '{id}' has neither a checkpoint nor a baseline"
                 )));
             }
+        };
+        let opts = EvalOptions {
+            validation,
+            ..opts.clone()
         };
         evaluate::evaluate(testset, method, &partial, &opts)?;
         let done = dir.join(&eval_dir);

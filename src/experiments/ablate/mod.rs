@@ -108,6 +108,10 @@ pub struct TestsetSpec {
     /// ISO-matched cell of a table scored at one ISO).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub reference: Option<String>,
+    /// A validation set (`also` only): scenes that calibrated a fine-tuned row's profile may be
+    /// in it, so its scores choose among rows and are never a test (`EvalOptions::validation`).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub validation: bool,
 }
 
 impl TestsetSpec {
@@ -524,6 +528,12 @@ impl AblateConfig {
             };
             if i == 0 && t.name.is_some() {
                 return Err("testset: the primary test set has no `name`".into());
+            }
+            if i == 0 && t.validation {
+                return Err(
+                    "testset: the primary test set is a test; a validation set is an [[also]]"
+                        .into(),
+                );
             }
             if let Some(n) = &t.name
                 && (n.is_empty()

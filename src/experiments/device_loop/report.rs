@@ -211,23 +211,19 @@ pub const PICTURES: &str = "pictures";
 /// reference frame, the triangle merge of the same inputs) in PSNR-T, paired within seed and
 /// scene. "Beats" needs the 95 % t interval over scenes above 0 where there is one, else the
 /// same sign in every seed.
-pub(super) fn what_a_user_gets(cfg: &AblateConfig, steps: &[Step]) -> Result<String> {
+pub(super) fn what_a_user_gets(cfg: &AblateConfig, names: &[&str]) -> Result<String> {
     let mut s = String::from(
         "\n## What a user gets\n\nPSNR-T of each network against what the user already has, \
          paired within seed and scene; \"beats\" and \"loses to\" need the 95 % t interval over \
          scenes on one side of 0 where there is one (10 or more scenes), else the same sign in \
          every seed; otherwise \"no difference shown\".\n\n",
     );
-    let names: Vec<&str> = ["net_o", "control", NET_S, GENERIC]
-        .into_iter()
-        .chain(steps.iter().map(|st| st.name))
-        .collect();
     for (versus, what) in [
         ("copy", "the copied reference frame"),
         ("triangle", "the triangle merge of the inputs"),
     ] {
         let (mut beats, mut loses, mut neither) = (Vec::new(), Vec::new(), Vec::new());
-        for row in &names {
+        for row in names {
             let entries = ablate::paired_rows(cfg, &cfg.testset, row, versus)?;
             let Some(d) = entries
                 .iter()

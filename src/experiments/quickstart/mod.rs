@@ -359,6 +359,7 @@ fn heldout_testsets(
                 options,
                 noise_per_seed: false,
                 reference: None,
+                validation: false,
             })
         })
         .collect()
@@ -397,6 +398,7 @@ fn experiment_config(
         options: options.clone(),
         noise_per_seed: true,
         reference: None,
+        validation: false,
     };
     let mut also = vec![TestsetSpec {
         name: Some(reading::DYNAMIC.into()),
@@ -416,6 +418,7 @@ fn experiment_config(
             options,
             noise_per_seed: false,
             reference: None,
+            validation: false,
         });
     }
     if let Some(c) = &src.real_capture {
@@ -428,6 +431,7 @@ fn experiment_config(
             options: Default::default(),
             noise_per_seed: false,
             reference: None,
+            validation: false,
         });
     }
     let target_row = |name: &str, label: &str, extra: &[(&str, toml::Value)]| {
