@@ -3517,6 +3517,53 @@ fn the_device_output_check_finds_what_a_profile_misses_and_nothing_when_it_has_i
 }
 
 #[test]
+fn a_noise_level_the_check_finds_off_is_fitted_back_to_what_the_frames_hold() {
+    use hdrsynth::data::bracket_output::{OutputCheckOptions, check_scanned, fit_noise_level};
+    let tmp = tempfile::tempdir().expect("tmp");
+    noisy_png_bracket(
+        &tmp.path().join("scene"),
+        4e-4,
+        1e-5,
+        &[-2.0, 0.0, 2.0],
+        Spatial::White,
+    );
+    let beside = tempfile::tempdir().expect("tmp");
+    let cal = calibrate_srgb(
+        tmp.path(),
+        ScanOptions::default(),
+        &beside.path().join("p.toml"),
+        false,
+    );
+    // The measured noise made too low: R halved, B quartered, G kept. The frames hold 2×, 1×
+    // and 4× what this profile simulates.
+    let mut low = cal.profile.clone();
+    for row in &mut low.noise {
+        for (c, k) in [(0, 0.5), (2, 0.25)] {
+            row.a[c] *= k;
+            row.b[c] *= k;
+        }
+    }
+    let opts = OutputCheckOptions {
+        scan: ScanOptions::default(),
+        replicates: 10,
+        seed: 1,
+        noise: true,
+    };
+    let scan = brackets::scan(tmp.path(), &opts.scan).expect("scan");
+    let before = check_scanned(scan.clone(), &low, &opts).expect("check");
+    assert!(before.level_off(), "{}", before.markdown());
+    let (fitted, k, after) = fit_noise_level(&scan, &low, &before, &opts, 2).expect("fit");
+    for (c, truth) in [(0, 2.0), (1, 1.0), (2, 4.0)] {
+        assert!((k[c] / truth - 1.0).abs() < 0.15, "channel {c}: {k:?}");
+        let row = (&fitted.noise[0], &low.noise[0]);
+        assert!((row.0.a[c] - k[c] * row.1.a[c]).abs() <= 1e-12 * row.0.a[c].abs());
+        assert!((row.0.b[c] - k[c] * row.1.b[c]).abs() <= 1e-12 * row.0.b[c].abs());
+    }
+    assert!(!after.level_off(), "{}", after.markdown());
+    assert!(after.gap < before.gap, "{} → {}", before.gap, after.gap);
+}
+
+#[test]
 fn the_device_meter_is_read_from_the_frame_exif_marks_and_not_from_a_manual_bracket() {
     use hdrsynth::data::bracket_profile::metering_rule;
     use hdrsynth::sensor::profile::SensorProfile;

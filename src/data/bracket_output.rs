@@ -443,7 +443,72 @@ fn smooth(img: &Image) -> Image {
     })
 }
 
+/// Indices in [`STATS`] of the three channels' noise level.
+const LEVEL: [usize; 3] = [0, 2, 4];
+/// The fitted scale of a channel's noise stays within this factor of the measured one: a
+/// larger gap is not a level error the fit should paper over.
+const MAX_LEVEL_SCALE: f64 = 16.0;
+
+/// The noise level the check compares, fitted: every ISO's a and b of channel c scaled by
+/// k_c so that the simulated frames' noise-level statistic (mean ln σ² of the codes) matches
+/// the real frames'. The statistic moves by ln k with the noise (up to quantisation and
+/// clipping), so each round multiplies k_c by exp(measured − simulated) and checks again;
+/// `first` is the check of `profile` itself. Returns the scaled profile, k and the check of
+/// the last profile. With repeats or without, the statistic is the one the check takes
+/// (pairs, or each frame against the others' merge): the noise the frames hold beyond what
+/// the profile's flat-region measurement gave, whatever its source (JPEG processing, a noise
+/// floor), is then in the simulation.
+pub fn fit_noise_level(
+    scan: &brackets::BracketScan,
+    profile: &SensorProfile,
+    first: &OutputCheck,
+    opts: &OutputCheckOptions,
+    rounds: usize,
+) -> Result<(SensorProfile, [f64; 3], OutputCheck)> {
+    let mut k = [1.0f64; 3];
+    let mut last = first.clone();
+    let mut fitted = profile.clone();
+    for _ in 0..rounds {
+        for (c, &i) in LEVEL.iter().enumerate() {
+            let st = &last.stats[i];
+            if (st.measured - st.sim_mean).is_finite() {
+                k[c] = (k[c] * (st.measured - st.sim_mean).exp())
+                    .clamp(1.0 / MAX_LEVEL_SCALE, MAX_LEVEL_SCALE);
+            }
+        }
+        fitted = scaled_noise(profile, k);
+        last = check_scanned(scan.clone(), &fitted, opts)?;
+    }
+    Ok((fitted, k, last))
+}
+
+/// `profile` with every ISO's noise a and b of channel c multiplied by `k[c]`.
+fn scaled_noise(profile: &SensorProfile, k: [f64; 3]) -> SensorProfile {
+    let mut p = profile.clone();
+    for row in &mut p.noise {
+        for (c, k) in k.iter().enumerate() {
+            row.a[c] *= k;
+            row.b[c] *= k;
+        }
+        // The standard errors were the flat-region fit's; they do not describe the scaled one.
+        row.a_stderr = None;
+        row.b_stderr = None;
+    }
+    p.provenance.noise = format!(
+        "{}; scaled by ({:.3}, {:.3}, {:.3}) per channel to match the frames' noise level on \
+         their cross-frame residuals (the device-output check's statistic)",
+        profile.provenance.noise, k[0], k[1], k[2]
+    );
+    p
+}
+
 impl OutputCheck {
+    /// Whether a channel's noise level is a significant statistic (the profile's noise is too
+    /// low or too high for the frames).
+    pub fn level_off(&self) -> bool {
+        LEVEL.iter().any(|&i| self.stats[i].significant)
+    }
+
     /// The check as Markdown: one row per statistic, then what is named.
     pub fn markdown(&self) -> String {
         use std::fmt::Write as _;

@@ -28,6 +28,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 mod handover;
+mod level;
 mod pictures;
 mod report;
 use report::*;
@@ -229,7 +230,14 @@ pub fn run(opts: &LoopOptions) -> Result<LoopSummary> {
     let profiles = opts.out.join("profiles");
     std::fs::create_dir_all(&profiles).map_err(|e| Error::io(&profiles, e))?;
 
-    let (cal_result, calibrated, extra) = calibrate(opts, &folder, &cal_scan, &profiles)?;
+    let (cal_result, calibrated, mut extra) = calibrate(opts, &folder, &cal_scan, &profiles)?;
+    let last_noise = [&extra.chroma, &extra.correlated]
+        .into_iter()
+        .flatten()
+        .next()
+        .unwrap_or(&calibrated)
+        .clone();
+    extra.level = level::level_step(opts, &folder, &cal_scan, &last_noise, &profiles)?;
     let fit = &cal_result.correlation;
     let testset = opts.out.join("testset");
     build_set(opts, &folder, &test_scan, &calibrated, &testset, "test")?;
@@ -428,6 +436,7 @@ fn calibrate(
     let steps = Extra {
         correlated: save(spatial, "correlated.toml")?,
         chroma: save(chroma, "chroma.toml")?,
+        level: None,
     };
     Ok((cal, calibrated, steps))
 }
@@ -436,6 +445,8 @@ fn calibrate(
 struct Extra {
     correlated: Option<PathBuf>,
     chroma: Option<PathBuf>,
+    /// The last noise step's profile with the noise level the device-output check measures.
+    level: Option<level::Level>,
 }
 
 /// Every step's device-output check on the calibration scenes.
@@ -475,8 +486,9 @@ fn stage(opts: &LoopOptions, what: &str) {
 
 /// The loop's steps, each adding one measured effect to the one before: the response alone,
 /// its white output noise, that noise's spatial correlation and the channels' correlation
-/// where each reaches the catalogue's minimum effect, and the device's exposure rule where
-/// EXIF marks its auto-exposed frames.
+/// where each reaches the catalogue's minimum effect, the noise level the device-output check
+/// fits where it finds the level off, and the device's exposure rule where EXIF marks its
+/// auto-exposed frames.
 fn steps(
     calibrated: &Path,
     extra: &Extra,
@@ -519,6 +531,19 @@ fn steps(
                 "+ the channels' noise correlation (channel_correlation, {channel_rho:.3})"
             ),
             profile: p.to_path_buf(),
+            noise: true,
+            metering: None,
+        });
+    }
+    if let Some(l) = &extra.level {
+        steps.push(Step {
+            name: "level",
+            label: format!(
+                "+ the noise level the frames hold against each other (a, b × {:.2}, {:.2}, \
+                 {:.2})",
+                l.scale[0], l.scale[1], l.scale[2]
+            ),
+            profile: l.profile.clone(),
             noise: true,
             metering: None,
         });

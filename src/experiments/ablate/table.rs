@@ -372,6 +372,9 @@ pub fn paired_rows(
         .collect())
 }
 
+/// A row's runs: each run's seed (`None`: a run that serves every seed) and one metric per set.
+pub type RunScores = Vec<(Option<u64>, BTreeMap<String, f64>)>;
+
 /// Each finished run of row `row` (no column) on test set `t`: its seed (`None`: a run that
 /// serves every seed) and `metric` per set. Empty where the row has no finished run.
 pub fn run_scores(
@@ -379,7 +382,7 @@ pub fn run_scores(
     t: &TestsetSpec,
     row: &str,
     metric: &str,
-) -> Result<Vec<(Option<u64>, BTreeMap<String, f64>)>> {
+) -> Result<RunScores> {
     let k = metric_index(metric);
     let (done, _, _) = load_cells(cfg, t)?;
     Ok(done

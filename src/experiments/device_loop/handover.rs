@@ -11,8 +11,8 @@ use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::Path;
 
-/// One row's PSNR-T per set on `t`, per seed (`None`: a classical row, every seed's).
-type Scores = Vec<(Option<u64>, BTreeMap<String, f64>)>;
+/// One row's PSNR-T per set, per seed (`None`: a classical row, every seed's).
+use ablate::RunScores as Scores;
 
 fn of_seed(s: &Scores, seed: u64) -> Option<&BTreeMap<String, f64>> {
     s.iter()

@@ -34,7 +34,18 @@ pub(super) fn measured_text(cal: &BracketCalibration, extra: &Extra) -> String {
         step(extra.correlated.is_some()),
         cal.channel_correlation,
         step(extra.chroma.is_some()),
-    ) + &match metering_rule(&cal.metering) {
+    ) + &match &extra.level {
+        Some(l) => format!(
+            "The device-output check finds the frames' noise level off the last noise step's \
+             simulation (gap {:.1}): the same profile with a, b scaled by {:.3}, {:.3}, {:.3} \
+             (R, G, B) to match it is a step of the loop (gap {:.1} after the fit; \
+             `profiles/level.toml`).\n\n",
+            l.gap.0, l.scale[0], l.scale[1], l.scale[2], l.gap.1
+        ),
+        None => "The device-output check finds the frames' noise level as the last noise step \
+                 simulates it: no noise-level step.\n\n"
+            .to_string(),
+    } + &match metering_rule(&cal.metering) {
         Some(m) => format!(
             "Exposure rule of the auto-exposed frames: mid grey {:.4}, at most {:.2} % \
              clipped (a step of the loop).\n\n",

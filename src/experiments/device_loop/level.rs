@@ -1,0 +1,60 @@
+//! The loop's noise-level step. The profile's noise is measured on the calibration frames'
+//! flat regions; the device-output check compares the noise the frames hold against the
+//! other frames of their set with what the profile simulates there. Where that level differs
+//! significantly for the last noise step, the same profile with each channel's noise scaled
+//! until the check's level statistic matches (`bracket_output::fit_noise_level`) is one more
+//! step: the missing effect named, fitted, and its gap shown closing.
+
+use super::{CHECK_REPLICATES, LoopOptions, stage};
+use crate::data::bracket_output::{self, OutputCheckOptions};
+use crate::data::brackets::{FolderScan, ScanOptions};
+use crate::error::Result;
+use crate::sensor::profile::SensorProfile;
+use std::path::{Path, PathBuf};
+
+/// Rounds of the fit: the second corrects what quantisation and clipping leave of the first.
+const ROUNDS: usize = 2;
+
+/// The fitted step's profile, its per-channel scale and the check's gap before and after.
+pub(super) struct Level {
+    pub profile: PathBuf,
+    pub scale: [f64; 3],
+    pub gap: (f64, f64),
+}
+
+/// `profiles/level.toml` where the check of `last_noise` (the last noise step's profile) finds
+/// the frames' noise level off; `None` where it does not. Fitted on every run (deterministic:
+/// a rerun writes the same profile).
+pub(super) fn level_step(
+    opts: &LoopOptions,
+    folder: &FolderScan,
+    cal_scan: &ScanOptions,
+    last_noise: &Path,
+    profiles: &Path,
+) -> Result<Option<Level>> {
+    let profile = SensorProfile::load(last_noise)?;
+    let check = OutputCheckOptions {
+        scan: cal_scan.clone(),
+        replicates: CHECK_REPLICATES,
+        seed: 1,
+        noise: true,
+    };
+    let scan = folder.select(cal_scan)?;
+    let before = bracket_output::check_scanned(scan.clone(), &profile, &check)?;
+    if !before.level_off() {
+        return Ok(None);
+    }
+    stage(
+        opts,
+        "fitting the noise level the frames hold against each other",
+    );
+    let (fitted, scale, after) =
+        bracket_output::fit_noise_level(&scan, &profile, &before, &check, ROUNDS)?;
+    let path = profiles.join("level.toml");
+    fitted.save(&path)?;
+    Ok(Some(Level {
+        profile: path,
+        scale,
+        gap: (before.gap, after.gap),
+    }))
+}
