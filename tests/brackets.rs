@@ -3552,7 +3552,7 @@ fn a_noise_level_the_check_finds_off_is_fitted_back_to_what_the_frames_hold() {
     let scan = brackets::scan(tmp.path(), &opts.scan).expect("scan");
     let before = check_scanned(scan.clone(), &low, &opts).expect("check");
     assert!(before.level_off(), "{}", before.markdown());
-    let (fitted, k, after) = fit_noise_level(&scan, &low, &before, &opts, 2).expect("fit");
+    let (fitted, k, after) = fit_noise_level(&scan, &low, &before, &opts, 4).expect("fit");
     for (c, truth) in [(0, 2.0), (1, 1.0), (2, 4.0)] {
         assert!((k[c] / truth - 1.0).abs() < 0.15, "channel {c}: {k:?}");
         let row = (&fitted.noise[0], &low.noise[0]);

@@ -451,13 +451,14 @@ const MAX_LEVEL_SCALE: f64 = 16.0;
 
 /// The noise level the check compares, fitted: every ISO's a and b of channel c scaled by
 /// k_c so that the simulated frames' noise-level statistic (mean ln σ² of the codes) matches
-/// the real frames'. The statistic moves by ln k with the noise (up to quantisation and
-/// clipping), so each round multiplies k_c by exp(measured − simulated) and checks again;
-/// `first` is the check of `profile` itself. Returns the scaled profile, k and the check of
-/// the last profile. With repeats or without, the statistic is the one the check takes
-/// (pairs, or each frame against the others' merge): the noise the frames hold beyond what
-/// the profile's flat-region measurement gave, whatever its source (JPEG processing, a noise
-/// floor), is then in the simulation.
+/// the real frames'. Per channel a secant on ln k (the first step assumes the statistic moves
+/// by ln k, as it does for noise well above the 8-bit step; quantisation, clipping and a
+/// response with a steep toe bend it), `rounds` checks in all, `first` being the check of
+/// `profile` itself; the round whose largest |measured − simulated| level is smallest wins.
+/// Returns the scaled profile, k and that round's check. The statistic is the one the check
+/// takes (pairs, or each frame against the others' merge): the noise the frames hold beyond
+/// what the profile's flat-region measurement gave, whatever its source (JPEG processing, a
+/// noise floor), is then in the simulation.
 pub fn fit_noise_level(
     scan: &brackets::BracketScan,
     profile: &SensorProfile,
@@ -465,21 +466,34 @@ pub fn fit_noise_level(
     opts: &OutputCheckOptions,
     rounds: usize,
 ) -> Result<(SensorProfile, [f64; 3], OutputCheck)> {
-    let mut k = [1.0f64; 3];
-    let mut last = first.clone();
-    let mut fitted = profile.clone();
+    let off = |c: &OutputCheck| LEVEL.map(|i| c.stats[i].measured - c.stats[i].sim_mean);
+    let worst = |d: [f64; 3]| d.iter().map(|x| x.abs()).fold(0.0, f64::max);
+    let limit = MAX_LEVEL_SCALE.ln();
+    let mut ln_k = [0.0f64; 3];
+    let mut prev: [Option<(f64, f64)>; 3] = [None; 3];
+    let mut d = off(first);
+    let mut best = (worst(d), profile.clone(), [1.0; 3], first.clone());
     for _ in 0..rounds {
-        for (c, &i) in LEVEL.iter().enumerate() {
-            let st = &last.stats[i];
-            if (st.measured - st.sim_mean).is_finite() {
-                k[c] = (k[c] * (st.measured - st.sim_mean).exp())
-                    .clamp(1.0 / MAX_LEVEL_SCALE, MAX_LEVEL_SCALE);
+        for c in 0..3 {
+            if !d[c].is_finite() {
+                continue;
             }
+            // The statistic's slope in ln k from the last two rounds, else 1.
+            let slope = prev[c]
+                .filter(|&(x, _)| (ln_k[c] - x).abs() > 1e-9)
+                .map_or(1.0, |(x, e)| ((e - d[c]) / (ln_k[c] - x)).clamp(0.1, 10.0));
+            prev[c] = Some((ln_k[c], d[c]));
+            ln_k[c] = (ln_k[c] + d[c] / slope).clamp(-limit, limit);
         }
-        fitted = scaled_noise(profile, k);
-        last = check_scanned(scan.clone(), &fitted, opts)?;
+        let k = ln_k.map(f64::exp);
+        let fitted = scaled_noise(profile, k);
+        let check = check_scanned(scan.clone(), &fitted, opts)?;
+        d = off(&check);
+        if worst(d) < best.0 {
+            best = (worst(d), fitted, k, check);
+        }
     }
-    Ok((fitted, k, last))
+    Ok((best.1, best.2, best.3))
 }
 
 /// `profile` with every ISO's noise a and b of channel c multiplied by `k[c]`.

@@ -98,7 +98,7 @@ pub(super) fn handover_text(
             under_tri_on_val.push(seed.to_string());
         }
         let f = |x: Option<f64>, sign: bool| match (x, sign) {
-            (Some(x), true) => format!("{x:+.2}"),
+            (Some(x), true) => format!("{x:+.2}").replace('-', "−"),
             (Some(x), false) => format!("{x:.2}"),
             (None, _) => "—".into(),
         };

@@ -12,8 +12,9 @@ use crate::error::Result;
 use crate::sensor::profile::SensorProfile;
 use std::path::{Path, PathBuf};
 
-/// Rounds of the fit: the second corrects what quantisation and clipping leave of the first.
-const ROUNDS: usize = 2;
+/// Checks the fit may take: the first assumes the statistic moves by ln k, the others correct
+/// what quantisation, clipping and the response's toe bend.
+const ROUNDS: usize = 4;
 
 /// The fitted step's profile, its per-channel scale and the check's gap before and after.
 pub(super) struct Level {

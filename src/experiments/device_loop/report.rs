@@ -243,7 +243,7 @@ pub(super) fn what_a_user_gets(cfg: &AblateConfig, names: &[&str]) -> Result<Str
             else {
                 continue;
             };
-            let text = format!("{row} ({:+.2} dB)", d.mean);
+            let text = format!("{row} ({} dB)", format!("{:+.2}", d.mean).replace('-', "−"));
             let every_seed = d.sign_holds == d.n_seeds;
             match d.t {
                 Some(t) if t.ci_lower > 0.0 => beats.push(text),
