@@ -237,7 +237,8 @@ pub fn run(opts: &LoopOptions) -> Result<LoopSummary> {
         .next()
         .unwrap_or(&calibrated)
         .clone();
-    extra.level = level::level_step(opts, &folder, &cal_scan, &last_noise, &profiles)?;
+    let (level, checked) = level::level_step(opts, &folder, &cal_scan, &last_noise, &profiles)?;
+    extra.level = level;
     let fit = &cal_result.correlation;
     let testset = opts.out.join("testset");
     build_set(opts, &folder, &test_scan, &calibrated, &testset, "test")?;
@@ -271,7 +272,7 @@ pub fn run(opts: &LoopOptions) -> Result<LoopSummary> {
             .map_err(|e| Error::encode(&cfg_path, e))?
             .as_bytes(),
     )?;
-    let checks = output_checks(opts, &folder, &cal_scan, &steps)?;
+    let checks = output_checks(opts, &folder, &cal_scan, &steps, checked)?;
     stage(opts, "fine-tuning and scoring every step and seed");
     ablate::run(&cfg, &cfg_path, opts.progress)?;
     let tables = ablate::write_tables(&cfg)?;
@@ -449,33 +450,53 @@ struct Extra {
     level: Option<level::Level>,
 }
 
-/// Every step's device-output check on the calibration scenes.
+/// A profile's device-output check with noise (`true`) or without: checks already made are
+/// kept, since steps share profiles (the exposure-rule step its predecessor's, the noise-level
+/// step's fit checks its own and the last noise step's).
+type Checked = Vec<(PathBuf, bool, OutputCheck)>;
+
+/// Every step's device-output check on the calibration scenes (`known`: those made already).
 fn output_checks(
     opts: &LoopOptions,
     folder: &FolderScan,
     cal_scan: &ScanOptions,
     steps: &[Step],
+    mut known: Checked,
 ) -> Result<Vec<OutputCheck>> {
     stage(
         opts,
         "the device-output check of every step on the calibration scenes",
     );
-    steps
-        .iter()
-        .map(|st| {
-            let p = SensorProfile::load(&st.profile)?;
-            bracket_output::check_scanned(
-                folder.select(cal_scan)?,
-                &p,
-                &OutputCheckOptions {
-                    scan: cal_scan.clone(),
-                    replicates: CHECK_REPLICATES,
-                    seed: 1,
-                    noise: st.noise,
-                },
-            )
-        })
-        .collect()
+    let mut checks = Vec::new();
+    for st in steps {
+        let made = known
+            .iter()
+            .find(|(p, noise, _)| *p == st.profile && *noise == st.noise);
+        let check = match made {
+            Some((_, _, c)) => c.clone(),
+            None => {
+                let c = bracket_output::check_scanned(
+                    folder.select(cal_scan)?,
+                    &SensorProfile::load(&st.profile)?,
+                    &check_options(cal_scan, st.noise),
+                )?;
+                known.push((st.profile.clone(), st.noise, c.clone()));
+                c
+            }
+        };
+        checks.push(check);
+    }
+    Ok(checks)
+}
+
+/// The options of every device-output check the loop makes.
+fn check_options(cal_scan: &ScanOptions, noise: bool) -> OutputCheckOptions {
+    OutputCheckOptions {
+        scan: cal_scan.clone(),
+        replicates: CHECK_REPLICATES,
+        seed: 1,
+        noise,
+    }
 }
 
 fn stage(opts: &LoopOptions, what: &str) {

@@ -5,8 +5,8 @@
 //! until the check's level statistic matches (`bracket_output::fit_noise_level`) is one more
 //! step: the missing effect named, fitted, and its gap shown closing.
 
-use super::{CHECK_REPLICATES, LoopOptions, stage};
-use crate::data::bracket_output::{self, OutputCheckOptions};
+use super::{Checked, LoopOptions, check_options, stage};
+use crate::data::bracket_output;
 use crate::data::brackets::{FolderScan, ScanOptions};
 use crate::error::Result;
 use crate::sensor::profile::SensorProfile;
@@ -25,37 +25,36 @@ pub(super) struct Level {
 
 /// `profiles/level.toml` where the check of `last_noise` (the last noise step's profile) finds
 /// the frames' noise level off; `None` where it does not. Fitted on every run (deterministic:
-/// a rerun writes the same profile).
+/// a rerun writes the same profile). Also the checks it made, for the steps' own.
 pub(super) fn level_step(
     opts: &LoopOptions,
     folder: &FolderScan,
     cal_scan: &ScanOptions,
     last_noise: &Path,
     profiles: &Path,
-) -> Result<Option<Level>> {
+) -> Result<(Option<Level>, Checked)> {
     let profile = SensorProfile::load(last_noise)?;
-    let check = OutputCheckOptions {
-        scan: cal_scan.clone(),
-        replicates: CHECK_REPLICATES,
-        seed: 1,
-        noise: true,
-    };
+    let check = check_options(cal_scan, true);
     let scan = folder.select(cal_scan)?;
     let before = bracket_output::check_scanned(scan.clone(), &profile, &check)?;
-    if !before.level_off() {
-        return Ok(None);
+    let gap = before.gap;
+    let mut checked = vec![(last_noise.to_path_buf(), true, before)];
+    if !checked[0].2.level_off() {
+        return Ok((None, checked));
     }
     stage(
         opts,
         "fitting the noise level the frames hold against each other",
     );
     let (fitted, scale, after) =
-        bracket_output::fit_noise_level(&scan, &profile, &before, &check, ROUNDS)?;
+        bracket_output::fit_noise_level(&scan, &profile, &checked[0].2, &check, ROUNDS)?;
     let path = profiles.join("level.toml");
     fitted.save(&path)?;
-    Ok(Some(Level {
-        profile: path,
+    let level = Level {
+        profile: path.clone(),
         scale,
-        gap: (before.gap, after.gap),
-    }))
+        gap: (gap, after.gap),
+    };
+    checked.push((path, true, after));
+    Ok((Some(level), checked))
 }
