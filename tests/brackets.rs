@@ -3500,7 +3500,7 @@ fn the_device_output_check_finds_what_a_profile_misses_and_nothing_when_it_has_i
         )
         .expect("diagnose");
         let c = d.device_output.expect("checked");
-        assert_eq!((c.stats.len(), c.replicates), (7, 30));
+        assert_eq!((c.stats.len(), c.replicates), (10, 30));
         assert!(c.named().is_none(), "{}", c.markdown());
         let md = std::fs::read_to_string(out.join("device_output.md")).expect("written");
         assert!(md.contains("channel correlation"), "{md}");
@@ -3552,7 +3552,8 @@ fn a_noise_level_the_check_finds_off_is_fitted_back_to_what_the_frames_hold() {
     let scan = brackets::scan(tmp.path(), &opts.scan).expect("scan");
     let before = check_scanned(scan.clone(), &low, &opts).expect("check");
     assert!(before.level_off(), "{}", before.markdown());
-    let (fitted, k, after) = fit_noise_level(&scan, &low, &before, &opts, 4).expect("fit");
+    let fit = fit_noise_level(&scan, &low, &before, &opts, 4).expect("fit");
+    let (fitted, k, after) = (fit.profile, fit.scale, fit.check);
     for (c, truth) in [(0, 2.0), (1, 1.0), (2, 4.0)] {
         assert!((k[c] / truth - 1.0).abs() < 0.15, "channel {c}: {k:?}");
         let row = (&fitted.noise[0], &low.noise[0]);

@@ -22,12 +22,14 @@
 //! estimate enters the comparison.
 //!
 //! Statistics, per channel on flat pixels (the flattest half of each code bin, as
-//! `calibrate brackets` measures): the noise level (pixel-weighted mean over code bins of
-//! ln σ² of Immerkær's residual), its spatial correlation (the low/high-order residual
-//! ratio), and across channels the correlation of the three channels' Immerkær residuals
-//! (chroma noise: a device that denoises chroma harder than luma, or subsamples chroma as JPEG
-//! does, makes its channels' noise move together). Each names what would close it: the
-//! profile's noise (a, b), the catalogue's `correlated_noise` and `channel_correlation`.
+//! `calibrate brackets` measures): the noise level (pixel-weighted mean over the code bins
+//! from 1/8 up of ln σ² of Immerkær's residual), the noise floor (the same over the code bins
+//! under 1/8, where a read-noise floor b, not the signal's shot noise, sets σ²), the noise's
+//! spatial correlation (the low/high-order residual ratio), and across channels the
+//! correlation of the three channels' Immerkær residuals (chroma noise: a device that
+//! denoises chroma harder than luma, or subsamples chroma as JPEG does, makes its channels'
+//! noise move together). Each names what would close it: the profile's noise a and b, the
+//! catalogue's `correlated_noise` and `channel_correlation`.
 
 use crate::data::bracket_profile::{self, CrossResidual, NoiseBin, Pair, Planes};
 use crate::data::bracket_testset::{self, FIELD_GAMMA, Linearise};
@@ -207,24 +209,29 @@ fn bin_of(b: &NoiseBin) -> usize {
     ((b.code * bracket_profile::BINS as f64) as usize).min(bracket_profile::BINS - 1)
 }
 
-/// The statistics' values of `s` over the bins `keys` (channel, bin, weight): per channel the
-/// weighted mean ln σ² (weights: the real frames' pixels) and the median correlation ratio
-/// (as `calibrate brackets` takes it: a bin whose noise falls under the 8-bit step has a
-/// ratio without bound), then the mean channel correlation.
+/// Code bins (of [`bracket_profile::BINS`]) under the noise-floor statistic's ceiling, 1/8.
+const DARK_BINS: usize = bracket_profile::BINS / 8;
+
+/// The statistics' values of `s` over the bins `keys` (channel, bin, weight), in the order of
+/// [`STATS`]: per channel the weighted mean ln σ² (weights: the real frames' pixels) over the
+/// bins from [`DARK_BINS`] up, the same under it (NaN where no bin is there), and the median
+/// correlation ratio (as `calibrate brackets` takes it: a bin whose noise falls under the
+/// 8-bit step has a ratio without bound); then the mean channel correlation.
 fn values(s: &FrameStats, keys: &[(usize, usize, f64)]) -> Vec<f64> {
     let mut out = Vec::new();
     for c in 0..3 {
-        let (mut lv, mut wsum) = (0.0, 0.0);
+        let mut level = [(0.0, 0.0); 2];
         let mut ratios = Vec::new();
         for &(kc, kb, w) in keys.iter().filter(|k| k.0 == c) {
             let Some(b) = s.bins.iter().find(|b| b.channel == kc && bin_of(b) == kb) else {
                 continue;
             };
-            lv += w * b.var_code.max(1e-12).ln();
-            wsum += w;
+            let l = &mut level[usize::from(kb < DARK_BINS)];
+            l.0 += w * b.var_code.max(1e-12).ln();
+            l.1 += w;
             ratios.push(b.correlation_ratio);
         }
-        out.push(lv / wsum);
+        out.extend(level.map(|(lv, w)| if w > 0.0 { lv / w } else { f64::NAN }));
         out.push(if ratios.is_empty() {
             f64::NAN
         } else {
@@ -343,42 +350,17 @@ pub fn check_scanned(
 }
 
 /// (name, what closes it, minimum effect) of each value of [`values`].
-const STATS: [(&str, &str, f64); 7] = [
-    (
-        "R noise level (mean ln σ² over code bins)",
-        "noise a, b",
-        0.1,
-    ),
-    (
-        "R spatial correlation (median low/high-order ratio)",
-        "correlated_noise",
-        0.05,
-    ),
-    (
-        "G noise level (mean ln σ² over code bins)",
-        "noise a, b",
-        0.1,
-    ),
-    (
-        "G spatial correlation (median low/high-order ratio)",
-        "correlated_noise",
-        0.05,
-    ),
-    (
-        "B noise level (mean ln σ² over code bins)",
-        "noise a, b",
-        0.1,
-    ),
-    (
-        "B spatial correlation (median low/high-order ratio)",
-        "correlated_noise",
-        0.05,
-    ),
-    (
-        "channel correlation of the noise (mean of RG, GB, RB)",
-        "channel_correlation",
-        0.05,
-    ),
+const STATS: [(&str, &str, f64); 10] = [
+    ("R noise level (mean ln σ², codes from 1/8)", "noise a, b", 0.1),
+    ("R noise floor (mean ln σ², codes under 1/8)", "noise b", 0.1),
+    ("R spatial correlation (median low/high-order ratio)", "correlated_noise", 0.05),
+    ("G noise level (mean ln σ², codes from 1/8)", "noise a, b", 0.1),
+    ("G noise floor (mean ln σ², codes under 1/8)", "noise b", 0.1),
+    ("G spatial correlation (median low/high-order ratio)", "correlated_noise", 0.05),
+    ("B noise level (mean ln σ², codes from 1/8)", "noise a, b", 0.1),
+    ("B noise floor (mean ln σ², codes under 1/8)", "noise b", 0.1),
+    ("B spatial correlation (median low/high-order ratio)", "correlated_noise", 0.05),
+    ("channel correlation of the noise (mean of RG, GB, RB)", "channel_correlation", 0.05),
 ];
 
 fn compare(measured: &[f64], sims: &[Vec<f64>]) -> OutputCheck {
@@ -443,84 +425,159 @@ fn smooth(img: &Image) -> Image {
     })
 }
 
-/// Indices in [`STATS`] of the three channels' noise level.
-const LEVEL: [usize; 3] = [0, 2, 4];
+/// Indices in [`STATS`] of the three channels' noise level and noise floor.
+const LEVEL: [usize; 3] = [0, 3, 6];
+const FLOOR: [usize; 3] = [1, 4, 7];
 /// The fitted scale of a channel's noise stays within this factor of the measured one: a
 /// larger gap is not a level error the fit should paper over.
 const MAX_LEVEL_SCALE: f64 = 16.0;
 
+/// What [`fit_noise_level`] found.
+#[derive(Clone, Debug)]
+pub struct NoiseFit {
+    /// The profile with every ISO's a_c and b_c scaled by `scale[c]` and, where `floor[c]`
+    /// is fitted, `floor[c]`·a_c (both scaled) added to b_c.
+    pub profile: SensorProfile,
+    pub scale: [f64; 3],
+    /// The floor fitted per channel, as the linear signal whose shot noise equals it (None:
+    /// the check found that channel's floor right).
+    pub floor: [Option<f64>; 3],
+    /// The check of `profile`.
+    pub check: OutputCheck,
+}
+
 /// The noise level the check compares, fitted: every ISO's a and b of channel c scaled by
-/// k_c so that the simulated frames' noise-level statistic (mean ln σ² of the codes) matches
-/// the real frames'. Per channel a secant on ln k (the first step assumes the statistic moves
-/// by ln k, as it does for noise well above the 8-bit step; quantisation, clipping and a
-/// response with a steep toe bend it), `rounds` checks in all, `first` being the check of
-/// `profile` itself; the round whose largest |measured − simulated| level is smallest wins.
-/// Returns the scaled profile, k and that round's check. The statistic is the one the check
-/// takes (pairs, or each frame against the others' merge): the noise the frames hold beyond
-/// what the profile's flat-region measurement gave, whatever its source (JPEG processing, a
-/// noise floor), is then in the simulation.
+/// k_c so that the simulated frames' noise-level statistic (mean ln σ² of the codes from 1/8)
+/// matches the real frames', and, in each channel whose noise floor (the codes under 1/8)
+/// the check of `profile` finds significant, a floor f_c·a_c added to b_c (f_c a linear
+/// signal: the floor scales with each ISO's gain as the shot noise does) so that the floor
+/// statistic matches too. Per parameter a secant on its logarithm (the first step assumes the
+/// statistic moves by the step, as it does for noise well above the 8-bit step;
+/// quantisation, clipping and a response with a steep toe bend it; a floor starts at the
+/// signal of code 1/16), `rounds` checks in all, `first` being the check of `profile` itself;
+/// the round whose largest |measured − simulated| statistic fitted is smallest wins. The
+/// statistics are the ones the check takes (pairs, or each frame against the others' merge):
+/// the noise the frames hold beyond what the profile's flat-region measurement gave, whatever
+/// its source (JPEG processing, a read-noise floor the flat regions hid), is then in the
+/// simulation.
 pub fn fit_noise_level(
     scan: &brackets::BracketScan,
     profile: &SensorProfile,
     first: &OutputCheck,
     opts: &OutputCheckOptions,
     rounds: usize,
-) -> Result<(SensorProfile, [f64; 3], OutputCheck)> {
-    let off = |c: &OutputCheck| LEVEL.map(|i| c.stats[i].measured - c.stats[i].sim_mean);
-    let worst = |d: [f64; 3]| d.iter().map(|x| x.abs()).fold(0.0, f64::max);
-    let limit = MAX_LEVEL_SCALE.ln();
-    let mut ln_k = [0.0f64; 3];
-    let mut prev: [Option<(f64, f64)>; 3] = [None; 3];
+) -> Result<NoiseFit> {
+    let fit_floor = FLOOR.map(|i| first.stats[i].significant);
+    let fitted_stats: Vec<usize> = (0..3)
+        .flat_map(|c| [Some(LEVEL[c]), fit_floor[c].then_some(FLOOR[c])])
+        .flatten()
+        .collect();
+    let off = |c: &OutputCheck| {
+        fitted_stats
+            .iter()
+            .map(|&i| (i, c.stats[i].measured - c.stats[i].sim_mean))
+            .collect::<Vec<_>>()
+    };
+    let worst = |d: &[(usize, f64)]| d.iter().map(|x| x.1.abs()).fold(0.0, f64::max);
+    let start = profile
+        .response
+        .invert(DARK_BINS as f64 / bracket_profile::BINS as f64 / 2.0);
+    // Per fitted statistic: its parameter's logarithm (ln k, or ln f) and its range.
+    let level_range = (-MAX_LEVEL_SCALE.ln(), MAX_LEVEL_SCALE.ln());
+    let floor_range = ((start * 1e-4).ln(), (start * 1e2).ln());
+    let mut x: Vec<f64> = fitted_stats
+        .iter()
+        .map(|i| if LEVEL.contains(i) { 0.0 } else { start.ln() })
+        .collect();
+    let mut prev: Vec<Option<(f64, f64)>> = vec![None; x.len()];
     let mut d = off(first);
-    let mut best = (worst(d), profile.clone(), [1.0; 3], first.clone());
-    for _ in 0..rounds {
-        for c in 0..3 {
-            if !d[c].is_finite() {
+    let unfitted = NoiseFit {
+        profile: profile.clone(),
+        scale: [1.0; 3],
+        floor: [None; 3],
+        check: first.clone(),
+    };
+    let mut best = (worst(&d), unfitted);
+    for round in 0..rounds {
+        for (j, &(i, e)) in d.iter().enumerate() {
+            // A floor's first value is its start; it had none (ln 0) in `first`.
+            if !e.is_finite() || (round == 0 && FLOOR.contains(&i)) {
                 continue;
             }
-            // The statistic's slope in ln k from the last two rounds, else 1.
-            let slope = prev[c]
-                .filter(|&(x, _)| (ln_k[c] - x).abs() > 1e-9)
-                .map_or(1.0, |(x, e)| ((e - d[c]) / (ln_k[c] - x)).clamp(0.1, 10.0));
-            prev[c] = Some((ln_k[c], d[c]));
-            ln_k[c] = (ln_k[c] + d[c] / slope).clamp(-limit, limit);
+            // The statistic's slope in the parameter from the last two rounds, else 1.
+            let slope = prev[j]
+                .filter(|&(p, _)| (x[j] - p).abs() > 1e-9)
+                .map_or(1.0, |(p, pe)| ((pe - e) / (x[j] - p)).clamp(0.1, 10.0));
+            prev[j] = Some((x[j], e));
+            let (lo, hi) = if LEVEL.contains(&i) {
+                level_range
+            } else {
+                floor_range
+            };
+            x[j] = (x[j] + e / slope).clamp(lo, hi);
         }
-        let k = ln_k.map(f64::exp);
-        let fitted = scaled_noise(profile, k);
+        let mut k = [1.0; 3];
+        let mut floor = [None; 3];
+        for (&i, v) in fitted_stats.iter().zip(&x) {
+            match LEVEL.iter().position(|&l| l == i) {
+                Some(c) => k[c] = v.exp(),
+                None => floor[FLOOR.iter().position(|&l| l == i).unwrap_or(0)] = Some(v.exp()),
+            }
+        }
+        let fitted = scaled_noise(profile, k, floor);
         let check = check_scanned(scan.clone(), &fitted, opts)?;
         d = off(&check);
-        if worst(d) < best.0 {
-            best = (worst(d), fitted, k, check);
+        if worst(&d) < best.0 {
+            best = (
+                worst(&d),
+                NoiseFit {
+                    profile: fitted,
+                    scale: k,
+                    floor,
+                    check,
+                },
+            );
         }
     }
-    Ok((best.1, best.2, best.3))
+    Ok(best.1)
 }
 
-/// `profile` with every ISO's noise a and b of channel c multiplied by `k[c]`.
-fn scaled_noise(profile: &SensorProfile, k: [f64; 3]) -> SensorProfile {
+/// `profile` with every ISO's noise a and b of channel c multiplied by `k[c]`, and
+/// `floor[c]`·a (scaled) added to b where a floor is given.
+fn scaled_noise(profile: &SensorProfile, k: [f64; 3], floor: [Option<f64>; 3]) -> SensorProfile {
     let mut p = profile.clone();
     for row in &mut p.noise {
-        for (c, k) in k.iter().enumerate() {
-            row.a[c] *= k;
-            row.b[c] *= k;
+        for c in 0..3 {
+            row.a[c] *= k[c];
+            row.b[c] = k[c] * row.b[c] + floor[c].unwrap_or(0.0) * row.a[c];
         }
         // The standard errors were the flat-region fit's; they do not describe the scaled one.
         row.a_stderr = None;
         row.b_stderr = None;
     }
+    let floors = if floor.iter().any(Option::is_some) {
+        let f = floor.map(|f| f.map_or("none".to_string(), |f| format!("{f:.3e}")));
+        format!(
+            ", and a floor of the shot noise at linear ({}, {}, {}) added to b to match their \
+             noise under code 1/8",
+            f[0], f[1], f[2]
+        )
+    } else {
+        String::new()
+    };
     p.provenance.noise = format!(
         "{}; scaled by ({:.3}, {:.3}, {:.3}) per channel to match the frames' noise level on \
-         their cross-frame residuals (the device-output check's statistic)",
+         their cross-frame residuals (the device-output check's statistic){floors}",
         profile.provenance.noise, k[0], k[1], k[2]
     );
     p
 }
 
 impl OutputCheck {
-    /// Whether a channel's noise level is a significant statistic (the profile's noise is too
-    /// low or too high for the frames).
+    /// Whether a channel's noise level or floor is a significant statistic (the profile's
+    /// noise is too low or too high for the frames).
     pub fn level_off(&self) -> bool {
-        LEVEL.iter().any(|&i| self.stats[i].significant)
+        LEVEL.iter().chain(&FLOOR).any(|&i| self.stats[i].significant)
     }
 
     /// The check as Markdown: one row per statistic, then what is named.

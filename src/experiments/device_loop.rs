@@ -561,8 +561,15 @@ fn steps(
             name: "level",
             label: format!(
                 "+ the noise level the frames hold against each other (a, b × {:.2}, {:.2}, \
-                 {:.2})",
-                l.scale[0], l.scale[1], l.scale[2]
+                 {:.2}{})",
+                l.scale[0],
+                l.scale[1],
+                l.scale[2],
+                if l.floor.iter().any(Option::is_some) {
+                    "; a floor added to b"
+                } else {
+                    ""
+                }
             ),
             profile: l.profile.clone(),
             noise: true,

@@ -1,9 +1,11 @@
 //! The loop's noise-level step. The profile's noise is measured on the calibration frames'
 //! flat regions; the device-output check compares the noise the frames hold against the
-//! other frames of their set with what the profile simulates there. Where that level differs
-//! significantly for the last noise step, the same profile with each channel's noise scaled
-//! until the check's level statistic matches (`bracket_output::fit_noise_level`) is one more
-//! step: the missing effect named, fitted, and its gap shown closing.
+//! other frames of their set with what the profile simulates there, over the codes from 1/8
+//! (the level) and under it (the floor, where a read-noise floor b sets σ²). Where either
+//! differs significantly for the last noise step, the same profile with each channel's noise
+//! scaled, and a floor added where the floor is off, until the check's statistics match
+//! (`bracket_output::fit_noise_level`) is one more step: the missing effect named, fitted,
+//! and its gap shown closing.
 
 use super::{Checked, LoopOptions, check_options, stage};
 use crate::data::bracket_output;
@@ -12,14 +14,17 @@ use crate::error::Result;
 use crate::sensor::profile::SensorProfile;
 use std::path::{Path, PathBuf};
 
-/// Checks the fit may take: the first assumes the statistic moves by ln k, the others correct
-/// what quantisation, clipping and the response's toe bend.
-const ROUNDS: usize = 4;
+/// Checks the fit may take: the first assumes the statistics move by ln k (a floor's starts
+/// where it is set), the others correct what quantisation, clipping and the response's toe
+/// bend.
+const ROUNDS: usize = 6;
 
 /// The fitted step's profile, its per-channel scale and the check's gap before and after.
 pub(super) struct Level {
     pub profile: PathBuf,
     pub scale: [f64; 3],
+    /// Per channel the floor added to b, as the linear signal whose shot noise equals it.
+    pub floor: [Option<f64>; 3],
     pub gap: (f64, f64),
 }
 
@@ -44,17 +49,17 @@ pub(super) fn level_step(
     }
     stage(
         opts,
-        "fitting the noise level the frames hold against each other",
+        "fitting the noise level and floor the frames hold against each other",
     );
-    let (fitted, scale, after) =
-        bracket_output::fit_noise_level(&scan, &profile, &checked[0].2, &check, ROUNDS)?;
+    let fit = bracket_output::fit_noise_level(&scan, &profile, &checked[0].2, &check, ROUNDS)?;
     let path = profiles.join("level.toml");
-    fitted.save(&path)?;
+    fit.profile.save(&path)?;
     let level = Level {
         profile: path.clone(),
-        scale,
-        gap: (gap, after.gap),
+        scale: fit.scale,
+        floor: fit.floor,
+        gap: (gap, fit.check.gap),
     };
-    checked.push((path, true, after));
+    checked.push((path, true, fit.check));
     Ok((Some(level), checked))
 }

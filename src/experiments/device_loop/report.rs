@@ -35,15 +35,19 @@ pub(super) fn measured_text(cal: &BracketCalibration, extra: &Extra) -> String {
         cal.channel_correlation,
         step(extra.chroma.is_some()),
     ) + &match &extra.level {
-        Some(l) => format!(
-            "The device-output check finds the frames' noise level off the last noise step's \
-             simulation (gap {:.1}): the same profile with a, b scaled by {:.3}, {:.3}, {:.3} \
-             (R, G, B) to match it is a step of the loop (gap {:.1} after the fit; \
-             `profiles/level.toml`).\n\n",
-            l.gap.0, l.scale[0], l.scale[1], l.scale[2], l.gap.1
-        ),
-        None => "The device-output check finds the frames' noise level as the last noise step \
-                 simulates it: no noise-level step.\n\n"
+        Some(l) => {
+            let floor = l.floor.map(|f| f.map_or("—".to_string(), |f| format!("{f:.2e}")));
+            format!(
+                "The device-output check finds the frames' noise level or floor off the last \
+                 noise step's simulation (gap {:.1}): the same profile with a, b scaled by \
+                 {:.3}, {:.3}, {:.3} (R, G, B) and a floor added to b where the floor (codes \
+                 under 1/8) was off — the shot noise at linear {}, {}, {} — is a step of the \
+                 loop (gap {:.1} after the fit; `profiles/level.toml`).\n\n",
+                l.gap.0, l.scale[0], l.scale[1], l.scale[2], floor[0], floor[1], floor[2], l.gap.1
+            )
+        }
+        None => "The device-output check finds the frames' noise level and floor as the last \
+                 noise step simulates them: no noise-level step.\n\n"
             .to_string(),
     } + &match metering_rule(&cal.metering) {
         Some(m) => format!(
@@ -140,6 +144,8 @@ fn short_statistic(name: &str) -> String {
         "chroma".to_string()
     } else if name.contains("noise level") {
         format!("{channel} level")
+    } else if name.contains("noise floor") {
+        format!("{channel} floor")
     } else if name.contains("spatial correlation") {
         format!("{channel} spatial")
     } else {
