@@ -3565,6 +3565,78 @@ fn a_noise_level_the_check_finds_off_is_fitted_back_to_what_the_frames_hold() {
 }
 
 #[test]
+fn a_read_noise_floor_the_profile_lacks_is_found_under_code_one_eighth_and_fitted_back() {
+    use hdrsynth::data::bracket_output::{OutputCheckOptions, check_scanned, fit_noise_level};
+    let tmp = tempfile::tempdir().expect("tmp");
+    // σ² = a·L + b with a floor that rules the darkest codes: under code 1/8 (L < 0.0144) the
+    // shot noise a·L is at most 5.8·10⁻⁶, b is 10⁻⁵.
+    let (a, b) = (4e-4, 1e-5);
+    noisy_png_bracket(
+        &tmp.path().join("scene"),
+        a,
+        b,
+        &[-2.0, 0.0, 2.0],
+        Spatial::White,
+    );
+    let beside = tempfile::tempdir().expect("tmp");
+    let cal = calibrate_srgb(
+        tmp.path(),
+        ScanOptions::default(),
+        &beside.path().join("p.toml"),
+        false,
+    );
+    // The floor lost, as a flat-region fit that finds none gives it.
+    let mut floorless = cal.profile.clone();
+    for row in &mut floorless.noise {
+        row.b = [0.0; 3];
+    }
+    let opts = OutputCheckOptions {
+        scan: ScanOptions::default(),
+        replicates: 10,
+        seed: 1,
+        noise: true,
+    };
+    let scan = brackets::scan(tmp.path(), &opts.scan).expect("scan");
+    let before = check_scanned(scan.clone(), &floorless, &opts).expect("check");
+    let floors: Vec<_> = before
+        .stats
+        .iter()
+        .filter(|s| s.name.contains("noise floor"))
+        .collect();
+    assert_eq!(floors.len(), 3);
+    for s in &floors {
+        assert!(
+            s.significant && s.measured > s.sim_mean,
+            "{}",
+            before.markdown()
+        );
+    }
+    let fit = fit_noise_level(&scan, &floorless, &before, &opts, 4).expect("fit");
+    eprintln!("{:?} {:?}\n{}", fit.scale, fit.floor, fit.check.markdown());
+    let row = &fit.profile.noise[0];
+    for c in 0..3 {
+        assert!(fit.floor[c].is_some(), "channel {c}");
+        assert!(
+            (row.b[c] / b - 1.0).abs() < 0.35,
+            "channel {c}: b {} for {b}",
+            row.b[c]
+        );
+        assert!(
+            (row.a[c] / a - 1.0).abs() < 0.25,
+            "channel {c}: a {} for {a}",
+            row.a[c]
+        );
+    }
+    assert!(!fit.check.level_off(), "{}", fit.check.markdown());
+    assert!(
+        fit.check.gap < before.gap,
+        "{} → {}",
+        before.gap,
+        fit.check.gap
+    );
+}
+
+#[test]
 fn the_device_meter_is_read_from_the_frame_exif_marks_and_not_from_a_manual_bracket() {
     use hdrsynth::data::bracket_profile::metering_rule;
     use hdrsynth::sensor::profile::SensorProfile;

@@ -14,10 +14,10 @@ use crate::error::Result;
 use crate::sensor::profile::SensorProfile;
 use std::path::{Path, PathBuf};
 
-/// Checks the fit may take: the first assumes the statistics move by ln k (a floor's starts
-/// where it is set), the others correct what quantisation, clipping and the response's toe
-/// bend.
-const ROUNDS: usize = 6;
+/// Checks the fit may take for the level, and as many again for a floor: the first assumes
+/// the statistics move by ln k (a floor's starts where it is set), the others correct what
+/// quantisation, clipping and the response's toe bend.
+const ROUNDS: usize = 4;
 
 /// The fitted step's profile, its per-channel scale and the check's gap before and after.
 pub(super) struct Level {

@@ -36,7 +36,9 @@ pub(super) fn measured_text(cal: &BracketCalibration, extra: &Extra) -> String {
         step(extra.chroma.is_some()),
     ) + &match &extra.level {
         Some(l) => {
-            let floor = l.floor.map(|f| f.map_or("—".to_string(), |f| format!("{f:.2e}")));
+            let floor = l
+                .floor
+                .map(|f| f.map_or("—".to_string(), |f| format!("{f:.2e}")));
             format!(
                 "The device-output check finds the frames' noise level or floor off the last \
                  noise step's simulation (gap {:.1}): the same profile with a, b scaled by \
