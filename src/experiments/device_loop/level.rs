@@ -14,9 +14,8 @@ use crate::error::Result;
 use crate::sensor::profile::SensorProfile;
 use std::path::{Path, PathBuf};
 
-/// Checks the fit may take for the level, and as many again for a floor: the first assumes
-/// the statistics move by ln k (a floor's starts where it is set), the others correct what
-/// quantisation, clipping and the response's toe bend.
+/// Checks the fit may take for the level, and as many again for level and floor together
+/// (`bracket_output::fit_noise_level`).
 const ROUNDS: usize = 4;
 
 /// The fitted step's profile, its per-channel scale and the check's gap before and after.
@@ -25,6 +24,8 @@ pub(super) struct Level {
     pub scale: [f64; 3],
     /// Per channel the floor added to b, as the linear signal whose shot noise equals it.
     pub floor: [Option<f64>; 3],
+    /// Per ISO the read-noise floor b (R, G, B) before the fit and after it.
+    pub b: Vec<(f64, [f64; 3], [f64; 3])>,
     pub gap: (f64, f64),
 }
 
@@ -58,6 +59,12 @@ pub(super) fn level_step(
         profile: path.clone(),
         scale: fit.scale,
         floor: fit.floor,
+        b: profile
+            .noise
+            .iter()
+            .zip(&fit.profile.noise)
+            .map(|(before, after)| (before.iso, before.b, after.b))
+            .collect(),
         gap: (gap, fit.check.gap),
     };
     checked.push((path, true, fit.check));

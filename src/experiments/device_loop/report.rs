@@ -36,16 +36,28 @@ pub(super) fn measured_text(cal: &BracketCalibration, extra: &Extra) -> String {
         step(extra.chroma.is_some()),
     ) + &match &extra.level {
         Some(l) => {
-            let floor = l
-                .floor
-                .map(|f| f.map_or("—".to_string(), |f| format!("{f:.2e}")));
+            let floor = if l.floor.iter().any(Option::is_some) {
+                let b = |v: [f64; 3]| format!("{:.2e}, {:.2e}, {:.2e}", v[0], v[1], v[2]);
+                let per_iso: Vec<String> =
+                    l.b.iter()
+                        .map(|(iso, before, after)| {
+                            format!("{} at ISO {iso} (was {})", b(*after), b(*before))
+                        })
+                        .collect();
+                format!(
+                    ", and, where the floor (codes under 1/8) was still off, a read-noise floor \
+                     fitted into b: b = {}",
+                    per_iso.join("; ")
+                )
+            } else {
+                String::new()
+            };
             format!(
                 "The device-output check finds the frames' noise level or floor off the last \
                  noise step's simulation (gap {:.1}): the same profile with a, b scaled by \
-                 {:.3}, {:.3}, {:.3} (R, G, B) and a floor added to b where the floor (codes \
-                 under 1/8) was off — the shot noise at linear {}, {}, {} — is a step of the \
-                 loop (gap {:.1} after the fit; `profiles/level.toml`).\n\n",
-                l.gap.0, l.scale[0], l.scale[1], l.scale[2], floor[0], floor[1], floor[2], l.gap.1
+                 {:.3}, {:.3}, {:.3} (R, G, B){floor}, is a step of the loop (gap {:.1} after \
+                 the fit; `profiles/level.toml`).\n\n",
+                l.gap.0, l.scale[0], l.scale[1], l.scale[2], l.gap.1
             )
         }
         None => "The device-output check finds the frames' noise level and floor as the last \
