@@ -16,6 +16,21 @@ use rayon::prelude::*;
 mod distributions;
 pub use distributions::*;
 
+/// Bisection: the point in [lo, hi] where `below` turns from true to false, after `iters`
+/// halvings (`below(x)`: the point lies above x). On a log scale, pass ln bounds and take
+/// exp of the result.
+pub fn bisect(mut lo: f64, mut hi: f64, iters: usize, below: impl Fn(f64) -> bool) -> f64 {
+    for _ in 0..iters {
+        let mid = 0.5 * (lo + hi);
+        if below(mid) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    0.5 * (lo + hi)
+}
+
 /// Median (mean of the two middle values for even lengths); NaN when empty. One generic
 /// function for the f32 per-pixel statistics and the f64 fit inputs.
 pub fn median<T>(v: &mut [T]) -> T

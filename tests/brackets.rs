@@ -3520,14 +3520,22 @@ fn the_device_output_check_finds_what_a_profile_misses_and_nothing_when_it_has_i
     assert!(fitted.gap < missed.gap, "{} → {}", missed.gap, fitted.gap);
 }
 
-#[test]
-fn a_noise_level_the_check_finds_off_is_fitted_back_to_what_the_frames_hold() {
-    use hdrsynth::data::bracket_output::{OutputCheckOptions, check_scanned, fit_noise_level};
+/// A white-noise bracket (σ² = a·L + b, stops −2, 0, 2) calibrated as most tests calibrate
+/// it, with the device-output check's options for it and its scan.
+fn white_bracket_for_the_check(
+    a: f64,
+    b: f64,
+) -> (
+    tempfile::TempDir,
+    hdrsynth::sensor::profile::SensorProfile,
+    hdrsynth::data::bracket_output::OutputCheckOptions,
+    brackets::BracketScan,
+) {
     let tmp = tempfile::tempdir().expect("tmp");
     noisy_png_bracket(
         &tmp.path().join("scene"),
-        4e-4,
-        1e-5,
+        a,
+        b,
         &[-2.0, 0.0, 2.0],
         Spatial::White,
     );
@@ -3538,22 +3546,29 @@ fn a_noise_level_the_check_finds_off_is_fitted_back_to_what_the_frames_hold() {
         &beside.path().join("p.toml"),
         false,
     );
-    // The measured noise made too low: R halved, B quartered, G kept. The frames hold 2×, 1×
-    // and 4× what this profile simulates.
-    let mut low = cal.profile.clone();
-    for row in &mut low.noise {
-        for (c, k) in [(0, 0.5), (2, 0.25)] {
-            row.a[c] *= k;
-            row.b[c] *= k;
-        }
-    }
-    let opts = OutputCheckOptions {
+    let opts = hdrsynth::data::bracket_output::OutputCheckOptions {
         scan: ScanOptions::default(),
         replicates: 10,
         seed: 1,
         noise: true,
     };
     let scan = brackets::scan(tmp.path(), &opts.scan).expect("scan");
+    (tmp, cal.profile, opts, scan)
+}
+
+#[test]
+fn a_noise_level_the_check_finds_off_is_fitted_back_to_what_the_frames_hold() {
+    use hdrsynth::data::bracket_output::{check_scanned, fit_noise_level};
+    let (_frames, profile, opts, scan) = white_bracket_for_the_check(4e-4, 1e-5);
+    // The measured noise made too low: R halved, B quartered, G kept. The frames hold 2×, 1×
+    // and 4× what this profile simulates.
+    let mut low = profile.clone();
+    for row in &mut low.noise {
+        for (c, k) in [(0, 0.5), (2, 0.25)] {
+            row.a[c] *= k;
+            row.b[c] *= k;
+        }
+    }
     let before = check_scanned(scan.clone(), &low, &opts).expect("check");
     assert!(before.level_off(), "{}", before.markdown());
     let fit = fit_noise_level(&scan, &low, &before, &opts, 4).expect("fit");
@@ -3591,37 +3606,16 @@ fn named_beside_the_floor(
 
 #[test]
 fn a_read_noise_floor_the_profile_lacks_is_found_under_code_one_eighth_and_fitted_back() {
-    use hdrsynth::data::bracket_output::{OutputCheckOptions, check_scanned, fit_noise_level};
-    let tmp = tempfile::tempdir().expect("tmp");
+    use hdrsynth::data::bracket_output::{check_scanned, fit_noise_level};
     // σ² = a·L + b with a floor that rules the darkest codes: under code 1/8 (L < 0.0144) the
     // shot noise a·L is at most 5.8·10⁻⁶, b is 10⁻⁵.
     let (a, b) = (4e-4, 1e-5);
-    noisy_png_bracket(
-        &tmp.path().join("scene"),
-        a,
-        b,
-        &[-2.0, 0.0, 2.0],
-        Spatial::White,
-    );
-    let beside = tempfile::tempdir().expect("tmp");
-    let cal = calibrate_srgb(
-        tmp.path(),
-        ScanOptions::default(),
-        &beside.path().join("p.toml"),
-        false,
-    );
+    let (_frames, profile, opts, scan) = white_bracket_for_the_check(a, b);
     // The floor lost, as a flat-region fit that finds none gives it.
-    let mut floorless = cal.profile.clone();
+    let mut floorless = profile.clone();
     for row in &mut floorless.noise {
         row.b = [0.0; 3];
     }
-    let opts = OutputCheckOptions {
-        scan: ScanOptions::default(),
-        replicates: 10,
-        seed: 1,
-        noise: true,
-    };
-    let scan = brackets::scan(tmp.path(), &opts.scan).expect("scan");
     let before = check_scanned(scan.clone(), &floorless, &opts).expect("check");
     let floors: Vec<_> = before
         .stats

@@ -226,6 +226,18 @@ fn bin_of(b: &NoiseBin) -> usize {
     ((b.code * bracket_profile::BINS as f64) as usize).min(bracket_profile::BINS - 1)
 }
 
+/// ln σ² of a bin's codes, as the level and floor statistics average it.
+fn ln_var(b: &NoiseBin) -> f64 {
+    b.var_code.max(1e-12).ln()
+}
+
+impl FrameStats {
+    /// Channel `c`'s code bin `k`, where these frames have it.
+    fn bin(&self, c: usize, k: usize) -> Option<&NoiseBin> {
+        self.bins.iter().find(|b| b.channel == c && bin_of(b) == k)
+    }
+}
+
 /// Code bins (of [`bracket_profile::BINS`]) under the noise-floor statistic's ceiling, 1/8.
 const DARK_BINS: usize = bracket_profile::BINS / 8;
 
@@ -240,11 +252,11 @@ fn values(s: &FrameStats, keys: &[(usize, usize, f64)]) -> Vec<f64> {
         let mut level = [(0.0, 0.0); 2];
         let mut ratios = Vec::new();
         for &(kc, kb, w) in keys.iter().filter(|k| k.0 == c) {
-            let Some(b) = s.bins.iter().find(|b| b.channel == kc && bin_of(b) == kb) else {
+            let Some(b) = s.bin(kc, kb) else {
                 continue;
             };
             let l = &mut level[usize::from(kb < DARK_BINS)];
-            l.0 += w * b.var_code.max(1e-12).ln();
+            l.0 += w * ln_var(b);
             l.1 += w;
             ratios.push(b.correlation_ratio);
         }
@@ -355,31 +367,22 @@ pub fn check_scanned(
         .iter()
         .filter(|b| b.var_code > 0.0 && b.correlation_ratio.is_finite())
         .map(|b| (b.channel, bin_of(b), b.pixels as f64))
-        .filter(|&(c, k, _)| {
-            sims.iter()
-                .all(|s| s.bins.iter().any(|b| b.channel == c && bin_of(b) == k))
-        })
+        .filter(|&(c, k, _)| sims.iter().all(|s| s.bin(c, k).is_some()))
         .collect();
-    let ln_var = |s: &FrameStats, c: usize, k: usize| {
-        s.bins
-            .iter()
-            .find(|b| b.channel == c && bin_of(b) == k)
-            .map(|b| b.var_code.max(1e-12).ln())
-    };
     let bins = keys
         .iter()
         .filter_map(|&(c, k, weight)| {
-            let real = measured
-                .bins
+            let real = measured.bin(c, k)?;
+            let sim: Vec<f64> = sims
                 .iter()
-                .find(|b| b.channel == c && bin_of(b) == k)?;
-            let sim: Vec<f64> = sims.iter().filter_map(|s| ln_var(s, c, k)).collect();
+                .filter_map(|s| s.bin(c, k).map(ln_var))
+                .collect();
             Some(BinOffset {
                 channel: c,
                 linear: real.linear,
                 dark: k < DARK_BINS,
                 weight,
-                measured: real.var_code.max(1e-12).ln(),
+                measured: ln_var(real),
                 simulated: sim.iter().sum::<f64>() / sim.len().max(1) as f64,
             })
         })

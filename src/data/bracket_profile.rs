@@ -169,16 +169,7 @@ fn fit_correlation(bins: &[NoiseBin]) -> CorrelationFit {
     } else if correlation_of_width(top).0 <= target {
         top
     } else {
-        let (mut lo, mut hi) = (0.0, top);
-        for _ in 0..60 {
-            let mid = 0.5 * (lo + hi);
-            if correlation_of_width(mid).0 < target {
-                lo = mid;
-            } else {
-                hi = mid;
-            }
-        }
-        0.5 * (lo + hi)
+        crate::stats::bisect(0.0, top, 60, |s| correlation_of_width(s).0 < target)
     };
     let k = plan::kernel(width);
     CorrelationFit {

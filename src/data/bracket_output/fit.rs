@@ -203,21 +203,13 @@ fn model_step(bins: &[&BinOffset], own: f64, k: f64, f: f64) -> (f64, f64) {
     if !want.is_finite() || !shape(f).is_finite() {
         return (k, f);
     }
-    let (mut lo, mut hi) = (FLOOR_RANGE.0.ln(), FLOOR_RANGE.1.ln());
     let next = if shape(0.0) >= want {
         0.0
-    } else if shape(hi.exp()) <= want {
-        hi.exp()
+    } else if shape(FLOOR_RANGE.1) <= want {
+        FLOOR_RANGE.1
     } else {
-        for _ in 0..60 {
-            let mid = 0.5 * (lo + hi);
-            if shape(mid.exp()) < want {
-                lo = mid;
-            } else {
-                hi = mid;
-            }
-        }
-        (0.5 * (lo + hi)).exp()
+        let (lo, hi) = (FLOOR_RANGE.0.ln(), FLOOR_RANGE.1.ln());
+        crate::stats::bisect(lo, hi, 60, |m| shape(m.exp()) < want).exp()
     };
     let ln_k = mean(false, &off) - mean(false, &gain(next));
     let limit = MAX_LEVEL_SCALE.ln();

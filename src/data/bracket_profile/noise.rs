@@ -587,16 +587,10 @@ fn linear_variance(response: &Response, keep: &[Residual], var_code: f64) -> (f6
             .sum::<f64>()
             / n
     };
-    let (mut lo, mut hi) = (1e-16f64.ln(), 0.25f64.ln());
-    for _ in 0..50 {
-        let mid = 0.5 * (lo + hi);
-        if simulated(mid.exp()) < var_code {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    (x_mean, (0.5 * (lo + hi)).exp())
+    let ln_v = crate::stats::bisect(1e-16f64.ln(), 0.25f64.ln(), 50, |m| {
+        simulated(m.exp()) < var_code
+    });
+    (x_mean, ln_v.exp())
 }
 
 /// Bins of several frames at one ISO pooled per channel and code bin (pixel-weighted).

@@ -275,16 +275,7 @@ pub fn width(rho: f64) -> f64 {
     if rho <= 0.0 {
         return 0.0;
     }
-    let (mut lo, mut hi) = (0.0, 4.0);
-    for _ in 0..60 {
-        let mid = 0.5 * (lo + hi);
-        if lag_correlation(&kernel(mid), 1) < rho {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    0.5 * (lo + hi)
+    crate::stats::bisect(0.0, 4.0, 60, |s| lag_correlation(&kernel(s), 1) < rho)
 }
 
 #[derive(Deserialize)]
