@@ -2,14 +2,18 @@
 # A bracket folder of a device whose response, noise and chroma noise are known (hidden from
 # the loop), made with `hdrsynth realism` from linear radiance frames: per scene 7 frames one
 # stop apart (exposure 2^-5 … 2^1 of the radiance), 8-bit PNGs and OpenCV's list.txt.
-#   tools/generated_bracket.sh RADIANCE_DIR OUT [HDRSYNTH]
+#   tools/generated_bracket.sh RADIANCE_DIR OUT [HDRSYNTH] [DEVICE]
 # RADIANCE_DIR: linear EXRs (e.g. a main job's data/test_radiance). The hidden device is written
-# to OUT.device.toml (beside OUT, so the loop does not scan it): gamma 1.8 (not sRGB), white
-# noise σ² = 2e-4·x + 2e-6 at ISO 100, channels correlated by 0.5, identity colour.
+# to OUT.device.toml (beside OUT, so the loop does not scan it): DEVICE (a sensor profile at
+# ISO 100) where given, else gamma 1.8 (not sRGB), white noise σ² = 2e-4·x + 2e-6 at ISO 100,
+# channels correlated by 0.5, identity colour.
 set -euo pipefail
-src=$1 out=$2 bin=${3:-target/release/hdrsynth}
+src=$1 out=$2 bin=${3:-target/release/hdrsynth} given=${4:-}
 [[ -e $out ]] && { echo "$out exists" >&2; exit 1; }
 device=$out.device.toml
+if [[ -n $given ]]; then
+  cp "$given" "$device"
+else
 cat > "$device" <<'TOML'
 format = "hdrsynth-sensor/1"
 name = "hidden device (generated bracket)"
@@ -43,6 +47,7 @@ gamma = 1.8
 [source_response]
 kind = "linear"
 TOML
+fi
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 n=0
