@@ -132,10 +132,11 @@ pub fn of_testset(dir: &Path) -> Result<Option<FrameEncoding>> {
 }
 
 /// A dataset's display frames' encoding as pure training reads them: hdrsynth's manifest
-/// curve; None for other layouts.
+/// curve, or the record of a set folder built from a device's brackets (a loop's
+/// calibration scenes); None for other layouts.
 pub fn of_dataset(dir: &Path) -> Result<Option<FrameEncoding>> {
     if !dir.join(own::MANIFEST).is_file() {
-        return Ok(None);
+        return of_testset(dir);
     }
     let m = own::read_manifest(dir)?;
     let name = match m.tone_curve {

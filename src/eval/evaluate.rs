@@ -374,10 +374,10 @@ fn split_check(method: &dyn Method, sets: &[SetInfo]) -> Result<()> {
             return Err(Error::layout(
                 &set.dir,
                 format!(
-                    "set '{}' was built from {} (pixels {:?}), which{} calibrated profile {} \
-                     (pixels {:?}) that this network was fine-tuned with: a scene never \
-                     calibrates the model scored on it; calibrate on other scenes (or other \
-                     regions, `--region`) than the test set's",
+                    "set '{}' was built from {} (pixels {:?}), which{} made {} (pixels {:?}), \
+                     the profile or training set this network was fine-tuned with: a scene \
+                     never trains or calibrates the model scored on it; use other scenes (or \
+                     other regions, `--region`) than the test set's",
                     set.name,
                     t.file,
                     t.pixels,

@@ -30,6 +30,7 @@ use std::path::{Path, PathBuf};
 mod handover;
 mod level;
 mod pictures;
+mod real;
 mod report;
 use report::*;
 
@@ -251,6 +252,7 @@ pub fn run(opts: &LoopOptions) -> Result<LoopSummary> {
         &validation,
         "calibration",
     )?;
+    let real = real::real_row(opts, &folder, &cal_scan, &validation)?;
     let steps = steps(
         &calibrated,
         &extra,
@@ -264,7 +266,14 @@ pub fn run(opts: &LoopOptions) -> Result<LoopSummary> {
         .iter()
         .map(|r| r.iso.into())
         .collect();
-    let cfg = ablate_config(opts, &base, [&testset, &validation], &steps, &isos);
+    let cfg = ablate_config(
+        opts,
+        &base,
+        [&testset, &validation],
+        &steps,
+        &isos,
+        real.as_ref().ok(),
+    );
     let cfg_path = opts.out.join("loop_ablate.toml");
     crate::io::atomic::write_atomic(
         &cfg_path,
@@ -278,6 +287,7 @@ pub fn run(opts: &LoopOptions) -> Result<LoopSummary> {
     let tables = ablate::write_tables(&cfg)?;
     let mut report = split_text(opts, &cal, &test);
     report.push_str(&measured_text(&cal_result, &extra));
+    report.push_str(&real_text(&real));
     report.push_str(&checks_text(&steps, &checks, &opts.out)?);
     report.push_str(&steps_table(&cfg, &steps)?);
     let networks = networks(&cfg, &steps);
@@ -328,11 +338,12 @@ fn build_set(
 }
 
 /// The grid's network rows, the least trained first (the handed-over network is chosen from
-/// them; a tie keeps the first).
+/// them; a tie keeps the first), the `real` row last.
 fn networks<'a>(cfg: &'a AblateConfig, steps: &'a [Step]) -> Vec<&'a str> {
     ["net_o", NET_S, "control", GENERIC]
         .into_iter()
         .chain(steps.iter().map(|s| s.name))
+        .chain([real::REAL])
         .filter(|n| cfg.rows.iter().any(|r| r.name == *n))
         .collect()
 }
@@ -663,6 +674,7 @@ fn ablate_config(
     [testset, validation]: [&Path; 2],
     steps: &[Step],
     isos: &[toml::Value],
+    real: Option<&Axis>,
 ) -> AblateConfig {
     let row = |name: &str, label: &str, set: toml::Table, train: bool, kind: AxisKind| Axis {
         name: name.into(),
@@ -718,6 +730,7 @@ fn ablate_config(
             AxisKind::Finetune,
         ));
     }
+    rows.extend(real.cloned());
     rows.extend(Axis::classical_rows());
     AblateConfig {
         title: format!(

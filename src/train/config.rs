@@ -336,8 +336,11 @@ impl DataConfig {
 pub struct TrainedOn {
     /// [`DataConfig::frame_encoding`].
     pub encoding: Option<FrameEncoding>,
-    /// The run's sensor profile and the captures it was calibrated on (none for "pure").
+    /// What ties the run to real captures: its sensor profile, or a pure training set built
+    /// from a device's brackets (the loop's `real` row); none for synthetic pure data.
     pub profile: Option<PathBuf>,
+    /// The captures behind it: those the profile was calibrated on, or those the pure
+    /// training set's sets record (`brackets.toml`).
     pub calibrated_on: Vec<crate::io::source::Source>,
 }
 
@@ -346,7 +349,9 @@ pub fn run_trained_on(run: &Path) -> Result<TrainedOn> {
     let cfg: TrainConfig = crate::config::load_toml(&run.join(super::RUN_CONFIG))?;
     let p = &cfg.data.realism.profile;
     let (profile, calibrated_on) = if p == Path::new(PURE_PROFILE) {
-        (None, Vec::new())
+        let captures = dataset_captures(&cfg.data.dataset)?;
+        let from = (!captures.is_empty()).then(|| cfg.data.dataset.clone());
+        (from, captures)
     } else {
         let profile = crate::sensor::profile::SensorProfile::load(p)?;
         (Some(p.clone()), profile.calibrated_on)
@@ -356,6 +361,15 @@ pub fn run_trained_on(run: &Path) -> Result<TrainedOn> {
         profile,
         calibrated_on,
     })
+}
+
+/// The captures a dataset's sets record they were built from (none for a synthetic dataset).
+fn dataset_captures(dataset: &Path) -> Result<Vec<crate::io::source::Source>> {
+    let mut all = Vec::new();
+    for set in crate::data::layout::detect(dataset)?.sets {
+        all.extend(crate::data::bracket_testset::set_sources(&set.dir)?.unwrap_or_default());
+    }
+    Ok(all)
 }
 
 /// Adam (Kingma and Ba) with decoupled-free L2 weight decay as Burn implements it.

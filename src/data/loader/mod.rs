@@ -333,9 +333,11 @@ impl Loader {
                 r.exposure,
                 r.ev_jitter
             ),
-            _ => "pure synthetic display frames (no sensor realism), targets in units of \
+            _ => {
+                "the dataset's display frames as they are (no sensor realism), targets in units of \
                   the reference frame's white"
-                .into(),
+                    .into()
+            }
         }
     }
 

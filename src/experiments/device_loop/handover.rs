@@ -1,5 +1,7 @@
-//! The network the loop hands over: per seed, the network row that scores best on the
-//! validation set (the calibration scenes, which no test scene is), then scored on the test
+//! The network the loop hands over, per seed: the `real` row where the loop made one (the
+//! only network trained against the device's own frames; its calibration-scene score is
+//! in-sample, so those scenes cannot choose it), else the network row that scores best on the
+//! validation set (the calibration scenes, which no test scene is); then scored on the test
 //! scenes against the copied reference and the triangle merge. Choosing on the calibration
 //! scenes keeps a fine-tune that hurts from being handed over, and says so where the
 //! triangle merge is better than every network there.
@@ -31,12 +33,22 @@ fn paired(a: &BTreeMap<String, f64>, b: &BTreeMap<String, f64>) -> Option<f64> {
     mean(a.iter().filter_map(|(n, x)| b.get(n).map(|y| x - y)))
 }
 
-/// The seed's row with the highest mean PSNR-T on the validation set; the first listed wins a
-/// tie (candidates are listed from the least trained).
+/// The seed's `real` row where there is one, else its row with the highest mean PSNR-T on the
+/// validation set (never the `real` row, trained there); the first listed wins a tie (candidates are listed from the least
+/// trained). With the row, its mean there.
 fn choose<'a>(val: &[(&'a str, Scores)], seed: u64) -> Option<(&'a str, f64)> {
+    let seed_mean = |s: &Scores| of_seed(s, seed).and_then(|v| mean(v.values().copied()));
+    let is_real = |r: &str| r == super::real::REAL;
+    if let Some(hit) = val
+        .iter()
+        .find(|(r, _)| is_real(r))
+        .and_then(|(r, s)| seed_mean(s).map(|m| (*r, m)))
+    {
+        return Some(hit);
+    }
     let mut best: Option<(&str, f64)> = None;
-    for (row, s) in val {
-        let Some(m) = of_seed(s, seed).and_then(|v| mean(v.values().copied())) else {
+    for (row, s) in val.iter().filter(|(r, _)| !is_real(r)) {
+        let Some(m) = seed_mean(s) else {
             continue;
         };
         if best.is_none_or(|(_, b)| m > b) {
@@ -67,18 +79,28 @@ pub(super) fn handover_text(
         scores(&cfg.testset, "triangle")?,
         scores(&cfg.testset, "copy")?,
     );
-    let mut s = String::from(
+    let real = candidates.contains(&super::real::REAL);
+    let mut s = String::from(if real {
+        "\n## The network the loop hands over\n\n\
+         Per seed, the `real` row: the network fine-tuned on the calibration scenes' own frames \
+         (its PSNR-T on them, below, is in-sample and chooses nothing), scored on the test \
+         scenes. Its checkpoint per seed is in `handover.toml`.\n\n"
+    } else {
         "\n## The network the loop hands over\n\n\
          Per seed, the network (Net_O, the control, the uncalibrated rows and every step) with \
          the highest mean PSNR-T on the calibration scenes (`validation/`, a validation set: \
          they calibrated the profiles, so the score there chooses and tests nothing), then \
-         scored on the test scenes. Its checkpoint per seed is in `handover.toml`.\n\n\
-         | seed | handed over | validation PSNR-T | triangle merge there | test PSNR-T | − triangle merge | − copy |\n\
-         |---|---|---|---|---|---|---|\n",
+         scored on the test scenes. Its checkpoint per seed is in `handover.toml`.\n\n"
+    });
+    s.push_str(
+        "| seed | handed over | validation PSNR-T | triangle merge there | test PSNR-T | − triangle \
+         merge | − copy |\n|---|---|---|---|---|---|---|\n",
     );
-    let mut toml_text = String::from(
-        "# The network the loop hands over per seed: the best on the calibration scenes.\n",
-    );
+    let mut toml_text = String::from(if real {
+        "# The network the loop hands over per seed: the `real` row.\n"
+    } else {
+        "# The network the loop hands over per seed: the best on the calibration scenes.\n"
+    });
     let (mut beats, mut under_tri_on_val, mut n) = (0, Vec::new(), 0);
     for &seed in &cfg.seeds {
         let Some((row, v)) = choose(&val_rows, seed) else {
@@ -123,7 +145,7 @@ pub(super) fn handover_text(
         "\nThe handed-over network beats the triangle merge of its inputs on the test scenes in \
          {beats} of {n} seeds."
     );
-    if !under_tri_on_val.is_empty() {
+    if !under_tri_on_val.is_empty() && !real {
         let _ = writeln!(
             s,
             "On the calibration scenes the triangle merge scores above every network in seed(s) \
@@ -164,6 +186,12 @@ mod tests {
         assert_eq!(choose(&val, 1), Some(("noise", 31.5)));
         assert_eq!(choose(&val, 2), Some(("net_o", 31.0)));
         assert_eq!(choose(&val, 3), None);
+        // A `real` row is handed over whatever its in-sample score.
+        let mut with_real = val.clone();
+        with_real.push(("real", vec![(Some(1), sets(&[("a", 20.0), ("b", 20.0)]))]));
+        assert_eq!(choose(&with_real, 1), Some(("real", 20.0)));
+        // Without one for a seed, the choice on the calibration scenes.
+        assert_eq!(choose(&with_real, 2), Some(("net_o", 31.0)));
     }
 
     #[test]

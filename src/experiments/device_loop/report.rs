@@ -204,6 +204,21 @@ pub(super) fn split_text(opts: &LoopOptions, cal: &[String], test: &[String]) ->
     s
 }
 
+/// What the `real` row is, or why the loop has none.
+pub(super) fn real_text(real: &std::result::Result<Axis, String>) -> String {
+    match real {
+        Ok(_) => "\nThe `real` row fine-tunes the pretrained network of each seed on the \
+                  calibration scenes' own frames (`validation/`) against their ground truth, \
+                  merged from every frame of each set, with no simulation: what the device's \
+                  frames carry that no step models. Its score on the calibration scenes is \
+                  in-sample; the test scenes never enter it.\n"
+            .into(),
+        Err(why) => {
+            format!("\nNo `real` row (fine-tuning on the calibration scenes' own frames): {why}.\n")
+        }
+    }
+}
+
 /// `OUT/pictures/<set>.png` for every test scene and the report's links to them.
 pub(super) fn pictures_text(
     cfg: &AblateConfig,
@@ -219,12 +234,18 @@ pub(super) fn pictures_text(
     .into_iter()
     .map(|(l, n)| (l.to_string(), n))
     .chain(steps.iter().map(|st| (st.name.to_string(), st.name)))
+    .chain(
+        cfg.rows
+            .iter()
+            .any(|r| r.name == real::REAL)
+            .then(|| (real::REAL.to_string(), real::REAL)),
+    )
     .collect();
     let written = pictures::write(cfg, testset, &rows, &out.join(PICTURES))?;
     let mut s = format!(
         "\n## Pictures\n\nPer test scene, the crop (up to {0}×{0}) of the ground truth with the widest \
-         range: the reference frame as the device wrote it, the triangle merge, Net_O and every \
-         step's network (seed {1}), then the ground truth, the HDR images tone-mapped alike \
+         range: the reference frame as the device wrote it, the triangle merge, Net_O, every \
+         step's network and the `real` row's where there is one (seed {1}), then the ground truth, the HDR images tone-mapped alike \
          (μ-law, the T of PSNR-T).\n\n",
         pictures::CROP,
         cfg.seeds.first().map_or("–".to_string(), u64::to_string)
@@ -301,9 +322,21 @@ pub(super) fn steps_table(cfg: &AblateConfig, steps: &[Step]) -> Result<String> 
          |---|---|---|---|---|---|---|---|\n",
     );
     let mut pairs: Vec<(&str, &str)> = steps.windows(2).map(|w| (w[1].name, w[0].name)).collect();
-    for st in steps {
-        pairs
-            .extend(["net_o", "control", GENERIC, NET_S, "copy", "triangle"].map(|v| (st.name, v)));
+    let real = cfg.rows.iter().any(|r| r.name == real::REAL);
+    let last = steps.last().map(|s| s.name);
+    for row in steps
+        .iter()
+        .map(|s| s.name)
+        .chain(real.then_some(real::REAL))
+    {
+        pairs.extend(
+            [Some("net_o"), Some("control"), Some(GENERIC), Some(NET_S)]
+                .into_iter()
+                .chain([last.filter(|_| row == real::REAL)])
+                .chain([Some("copy"), Some("triangle")])
+                .flatten()
+                .map(|v| (row, v)),
+        );
     }
     for (row, versus) in pairs {
         for e in ablate::paired_rows(cfg, &cfg.testset, row, versus)? {
