@@ -28,11 +28,11 @@ use crate::rng::{Rng, hash};
 use crate::sensor::metering::{Metering, Resolved};
 use crate::sensor::profile::{Response, SensorProfile};
 use crate::sensor::realism::{NoiseModel, Realism, RealismOptions, TargetSpace};
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::mpsc::{Receiver, sync_channel};
-use std::sync::{Arc, OnceLock};
+use std::sync::{Arc, Mutex, OnceLock};
 
 pub mod config;
 pub use config::{
@@ -80,7 +80,14 @@ pub struct Loader {
     keys: Vec<OnceLock<std::result::Result<f32, String>>>,
     /// The exposure rule the keys are metered with and where it came from (pure mode: none).
     metering: Option<Resolved>,
+    /// Decoded files, kept while they fit [`CACHE_BYTES`]: every sample crops a few pixels
+    /// of whole files, and decoding a device's full-size frames costs more than the step.
+    images: Mutex<HashMap<PathBuf, Arc<Image>>>,
+    cached_bytes: AtomicUsize,
 }
+
+/// Most bytes of decoded files a loader keeps.
+const CACHE_BYTES: usize = 2 << 30;
 
 /// Indices of the frames with the wanted EVs (error naming the set when one is missing).
 fn frames_at(set: &SetInfo, evs: &[f32]) -> Result<Vec<usize>> {
@@ -183,7 +190,7 @@ impl Draw<'_> {
     fn exposed(&self, frame: &Path) -> Result<Image> {
         let p = self.loader.cfg.patch;
         Ok(crop(
-            &self.loader.linear_frame(self.set, frame)?,
+            &*self.loader.linear_frame(self.set, frame)?,
             self.x0,
             self.y0,
             p,
@@ -198,7 +205,7 @@ impl Draw<'_> {
         Ok(match self.op {
             Some((_, r)) => r.apply(&self.exposed(frame)?, hash(self.noise_seed, &[k])),
             // Pure mode still quantises to 8 bits, as the networks see 8-bit frames.
-            None => crop(&read_set_image(self.set, frame)?, self.x0, self.y0, p)
+            None => crop(&*self.loader.image(self.set, frame)?, self.x0, self.y0, p)
                 .map(|v| (v.clamp(0.0, 1.0) * 255.0).round() / 255.0),
         })
     }
@@ -287,6 +294,8 @@ impl Loader {
         Ok(Loader {
             cfg: cfg.clone(),
             keys: info.sets.iter().map(|_| OnceLock::new()).collect(),
+            images: Mutex::new(HashMap::new()),
+            cached_bytes: AtomicUsize::new(0),
             sets: info.sets,
             realism,
             clean,
@@ -351,13 +360,32 @@ impl Loader {
         order[index % order.len()]
     }
 
+    /// A file of `set`, decoded once while the cache has room.
+    fn image(&self, set: &SetInfo, path: &Path) -> Result<Arc<Image>> {
+        let lock = || self.images.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(img) = lock().get(path) {
+            return Ok(Arc::clone(img));
+        }
+        let img = Arc::new(read_set_image(set, path)?);
+        let bytes = img.data.len() * std::mem::size_of::<f32>();
+        if self.cached_bytes.fetch_add(bytes, Ordering::Relaxed) + bytes <= CACHE_BYTES {
+            lock().insert(path.to_path_buf(), Arc::clone(&img));
+        } else {
+            self.cached_bytes.fetch_sub(bytes, Ordering::Relaxed);
+        }
+        Ok(img)
+    }
+
     /// A frame as linear values in realism's starting unit: the EXR sibling (Linear source),
     /// or the display frame through the source response (Display source, 1 = its white).
-    fn linear_frame(&self, set: &SetInfo, frame: &Path) -> Result<Image> {
+    fn linear_frame(&self, set: &SetInfo, frame: &Path) -> Result<Arc<Image>> {
         match &self.linearise {
-            None => read_set_image(set, &linear_sibling(frame)),
-            Some(lut) => Ok(read_set_image(set, frame)?
-                .map(|v| lut[(v.clamp(0.0, 1.0) * 65535.0).round() as usize])),
+            None => self.image(set, &linear_sibling(frame)),
+            Some(lut) => {
+                Ok(Arc::new(self.image(set, frame)?.map(|v| {
+                    lut[(v.clamp(0.0, 1.0) * 65535.0).round() as usize]
+                })))
+            }
         }
     }
 
@@ -371,7 +399,7 @@ impl Loader {
             .get_or_init(|| {
                 let radiance = match (&set.ground_truth, self.source) {
                     (Some(gt), Source::Linear) if gt.kind == GroundTruthKind::Linear => {
-                        read_set_image(set, &gt.path)
+                        self.image(set, &gt.path)
                     }
                     _ => {
                         let frames = if set.static_frames.is_empty() {
@@ -533,18 +561,15 @@ impl Loader {
         // brought from their own unit into the reference's.
         let (hdr, white) = match &set.ground_truth {
             Some(gt) if gt.kind == GroundTruthKind::Linear => (
-                layout::to_reference_unit(
-                    set,
-                    gt,
-                    crop(&read_set_image(set, &gt.path)?, x0, y0, p),
-                ),
+                layout::to_reference_unit(set, gt, crop(&*self.image(set, &gt.path)?, x0, y0, p)),
                 self.white,
             ),
             _ if !set.static_frames.is_empty() => {
                 let s: Vec<Image> = idx
                     .iter()
                     .map(|&i| {
-                        read_set_image(set, &set.static_frames[i]).map(|f| crop(&f, x0, y0, p))
+                        self.image(set, &set.static_frames[i])
+                            .map(|f| crop(&f, x0, y0, p))
                     })
                     .collect::<Result<_>>()?;
                 // LDR^2.2 / t: the reference frame's white is 1.
