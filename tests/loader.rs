@@ -394,3 +394,53 @@ fn a_still_sample_takes_every_frame_from_the_static_set() {
         "half still: {n_still} of {n_moved}"
     );
 }
+
+/// A Kalantari set (three 16-bit TIFFs, exposure.txt, HDRImg.hdr) of a flat grey at code 0.5
+/// in every frame, its exposure file `stops`.
+fn kalantari_set(dir: &Path, stops: &str) {
+    use hdrsynth::io::{BitDepth, write_hdr, write_ldr};
+    std::fs::create_dir_all(dir).expect("mkdir");
+    let grey = Image::from_fn(64, 64, |_, _| [0.5; 3]);
+    for name in ["a.tif", "b.tif", "c.tif"] {
+        write_ldr(&dir.join(name), &grey, BitDepth::Sixteen).expect("tif");
+    }
+    std::fs::write(dir.join("exposure.txt"), stops).expect("exposure.txt");
+    write_hdr(
+        &dir.join("HDRImg.hdr"),
+        &Image::from_fn(64, 64, |_, _| [0.2; 3]),
+    )
+    .expect("hdr");
+}
+
+#[test]
+fn network2_takes_a_three_frame_set_at_the_stops_it_records() {
+    let sample = |stops: &str| {
+        let dir = tempfile::tempdir().expect("tmp");
+        kalantari_set(dir.path(), stops);
+        let cfg = loader_cfg(dir.path(), "network2", 1, false);
+        epoch(&cfg, 0).remove(0)
+    };
+    // Two stops apart: Wu's times.
+    assert_eq!(sample("0\n2\n4\n").exposure_times, vec![0.25, 1.0, 4.0]);
+    // A device's own steps (1.9 and 2.2 stops, as its exposure times made them): taken as
+    // recorded, relative to the reference.
+    let s = sample("0\n1.9\n4.1\n");
+    let want = [(-1.9f32).exp2(), 1.0, 2.2f32.exp2()];
+    for (t, w) in s.exposure_times.iter().zip(want) {
+        assert!(
+            (t - w).abs() < 1e-5,
+            "{:?} against {want:?}",
+            s.exposure_times
+        );
+    }
+    // Frame 0's linear channel is LDR^2.2 / t₀ (the 8-bit code of 0.5 is 128/255).
+    let ldr = (128.0f32 / 255.0).powf(2.2);
+    let (c, n) = (s.channels, s.size * s.size);
+    assert_eq!(c, 18);
+    let hdr0 = s.input[3 * n];
+    assert!(
+        (hdr0 - ldr / want[0]).abs() < 1e-4,
+        "{hdr0} against {}",
+        ldr / want[0]
+    );
+}

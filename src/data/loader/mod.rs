@@ -89,6 +89,21 @@ pub struct Loader {
 /// Most bytes of decoded files a loader keeps.
 const CACHE_BYTES: usize = 2 << 30;
 
+/// Network-2's three frames of `set` and their exposure times relative to the reference:
+/// EV −2, 0, +2 where the set has them (times ¼, 1, 4); else a set of exactly three frames
+/// around its reference, at the EVs it records (a device's own bracket, whose steps are what
+/// its exposure times made them, e.g. 1.91 stops).
+fn network2_frames(set: &SetInfo) -> Result<(Vec<usize>, [f32; 3])> {
+    match frames_at(set, &[-2.0, 0.0, 2.0]) {
+        Ok(idx) => Ok((idx, [0.25, 1.0, 4.0])),
+        Err(_) if set.evs.len() == 3 && set.evs[0] < 0.0 && set.evs[2] > 0.0 => Ok((
+            vec![0, 1, 2],
+            [set.evs[0], set.evs[1], set.evs[2]].map(f32::exp2),
+        )),
+        Err(e) => Err(e),
+    }
+}
+
 /// Indices of the frames with the wanted EVs (error naming the set when one is missing).
 fn frames_at(set: &SetInfo, evs: &[f32]) -> Result<Vec<usize>> {
     evs.iter()
@@ -220,7 +235,10 @@ impl Loader {
         }
         let need = Self::evs(cfg.kind);
         for s in &info.sets {
-            frames_at(s, need)?;
+            match cfg.kind {
+                SampleKind::Network1 => frames_at(s, need).map(drop)?,
+                SampleKind::Network2 => network2_frames(s).map(drop)?,
+            }
             if s.width < cfg.patch || s.height < cfg.patch {
                 return Err(Error::layout(
                     &s.dir,
@@ -241,7 +259,10 @@ impl Loader {
             let mut profile = SensorProfile::load(&r.profile)?;
             metering = Some(Metering::resolve(r.metering, profile.metering));
             let missing = info.sets.iter().find_map(|s| {
-                let idx = frames_at(s, need).ok()?;
+                let idx = match cfg.kind {
+                    SampleKind::Network1 => frames_at(s, need).ok()?,
+                    SampleKind::Network2 => network2_frames(s).ok()?.0,
+                };
                 [&s.static_frames, &s.dynamic_frames]
                     .into_iter()
                     .flat_map(|fs| idx.iter().filter_map(|&i| fs.get(i)))
@@ -514,12 +535,13 @@ impl Loader {
         Ok((6, hwc, Target::Classes(classes), vec![0.125, 1.0]))
     }
 
-    /// Network-2's sample: per frame (EV−2, 0, +2) LDR and response⁻¹(LDR) / t (18 channels;
+    /// Network-2's sample: per frame (EV−2, 0, +2, or a three-frame set's own EVs:
+    /// [`network2_frames`]) LDR and response⁻¹(LDR) / t (18 channels;
     /// the network's input curve, LDR^2.2 by default) and the
     /// linear HDR target, transformed.
     fn network2(&self, d: &Draw) -> Result<(usize, Vec<f32>, Target, Vec<f32>)> {
         let (set, p) = (d.set, self.cfg.patch);
-        let idx = frames_at(set, &[-2.0, 0.0, 2.0])?;
+        let (idx, times) = network2_frames(set)?;
         let stat = !set.static_frames.is_empty();
         let pick = |i: usize| -> &Path {
             // The reference from the static set, the others from the dynamic set (a still
@@ -530,7 +552,6 @@ impl Loader {
                 &set.dynamic_frames[idx[i]]
             }
         };
-        let times = [0.25f32, 1.0, 4.0];
         let wu = Response::Gamma { gamma: 2.2 };
         // None: Wu et al.'s LDR^2.2.
         let curve = self.cfg.input_response.as_ref().unwrap_or(&wu);
