@@ -207,14 +207,14 @@ pub(super) fn split_text(opts: &LoopOptions, cal: &[String], test: &[String]) ->
 /// What the `real` row is, or why the loop has none.
 pub(super) fn real_text(real: &std::result::Result<Axis, String>) -> String {
     match real {
-        Ok(_) => "\nThe `real` row fine-tunes the pretrained network of each seed on the \
+        Ok(_) => "The `real` row fine-tunes the pretrained network of each seed on the \
                   calibration scenes' own frames (`validation/`) against their ground truth, \
                   merged from every frame of each set, with no simulation: what the device's \
                   frames carry that no step models. Its score on the calibration scenes is \
-                  in-sample; the test scenes never enter it.\n"
+                  in-sample; the test scenes never enter it.\n\n"
             .into(),
         Err(why) => {
-            format!("\nNo `real` row (fine-tuning on the calibration scenes' own frames): {why}.\n")
+            format!("No `real` row (fine-tuning on the calibration scenes' own frames): {why}.\n\n")
         }
     }
 }
