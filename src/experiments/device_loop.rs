@@ -6,7 +6,8 @@
 //! pretrained networks of a main job are fine-tuned once per loop step and seed, each step
 //! adding one measured effect to the model; every network is scored on the test scenes and the
 //! table gives the gain each step buys over the step before, paired within seed, scene and set,
-//! beside Net_O, the control and the fair baseline (the device's response alone).
+//! beside Net_O, the control, the fair baseline (the device's response alone) and the `real`
+//! row, fine-tuned on the calibration scenes' own frames (`real.rs`).
 //!
 //! The split is checked twice: here, before any work, by the captures' SHA-256 and pixels, and
 //! by evaluation itself, which refuses to score a network fine-tuned with a profile calibrated

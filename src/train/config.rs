@@ -363,9 +363,13 @@ pub fn run_trained_on(run: &Path) -> Result<TrainedOn> {
     })
 }
 
-/// The captures a dataset's sets record they were built from (none for a synthetic dataset).
+/// The captures a dataset's sets record they were built from: none for a synthetic dataset
+/// (or one no longer there); a folder of sets built from brackets records its encoding.
 fn dataset_captures(dataset: &Path) -> Result<Vec<crate::io::source::Source>> {
     let mut all = Vec::new();
+    if !dataset.join(crate::data::encoding::ENCODING_FILE).is_file() {
+        return Ok(all);
+    }
     for set in crate::data::layout::detect(dataset)?.sets {
         all.extend(crate::data::bracket_testset::set_sources(&set.dir)?.unwrap_or_default());
     }
