@@ -34,8 +34,8 @@ fn paired(a: &BTreeMap<String, f64>, b: &BTreeMap<String, f64>) -> Option<f64> {
 }
 
 /// The seed's `real` row where there is one, else its row with the highest mean PSNR-T on the
-/// validation set (never the `real` row, trained there); the first listed wins a tie (candidates are listed from the least
-/// trained). With the row, its mean there.
+/// validation set (never the `real` row, trained there); the first listed wins a tie
+/// (candidates are listed from the least trained). With the row, its mean there.
 fn choose<'a>(val: &[(&'a str, Scores)], seed: u64) -> Option<(&'a str, f64)> {
     let seed_mean = |s: &Scores| of_seed(s, seed).and_then(|v| mean(v.values().copied()));
     let is_real = |r: &str| r == super::real::REAL;

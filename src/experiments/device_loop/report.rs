@@ -243,10 +243,10 @@ pub(super) fn pictures_text(
     .collect();
     let written = pictures::write(cfg, testset, &rows, &out.join(PICTURES))?;
     let mut s = format!(
-        "\n## Pictures\n\nPer test scene, the crop (up to {0}×{0}) of the ground truth with the widest \
-         range: the reference frame as the device wrote it, the triangle merge, Net_O, every \
-         step's network and the `real` row's where there is one (seed {1}), then the ground truth, the HDR images tone-mapped alike \
-         (μ-law, the T of PSNR-T).\n\n",
+        "\n## Pictures\n\nPer test scene, the crop (up to {0}×{0}) of the ground truth with the \
+         widest range: the reference frame as the device wrote it, the triangle merge, Net_O, \
+         every step's network and the `real` row's where there is one (seed {1}), then the \
+         ground truth, the HDR images tone-mapped alike (μ-law, the T of PSNR-T).\n\n",
         pictures::CROP,
         cfg.seeds.first().map_or("–".to_string(), u64::to_string)
     );
