@@ -253,7 +253,8 @@ pub fn run(opts: &LoopOptions) -> Result<LoopSummary> {
         &validation,
         "calibration",
     )?;
-    let real = real::real_row(opts, &folder, &cal_scan, &validation)?;
+    let patch = crate::train::config::TrainConfig::load(&base)?.data.patch;
+    let real = real::real_row(opts, &folder, &cal_scan, &validation, patch)?;
     let steps = steps(
         &calibrated,
         &extra,

@@ -16,12 +16,14 @@ use std::path::Path;
 pub(super) const REAL: &str = "real";
 
 /// The row, where the calibration scenes' ground truth holds more than the inputs (every set
-/// has more frames than the three inputs, and `--gt-frames` is not `inputs`); else why not.
+/// has more frames than the three inputs, and `--gt-frames` is not `inputs`) and every set
+/// holds the fine-tune's crops of `patch` pixels; else why not.
 pub(super) fn real_row(
     opts: &LoopOptions,
     folder: &FolderScan,
     cal_scan: &ScanOptions,
     validation: &Path,
+    patch: usize,
 ) -> Result<std::result::Result<Axis, String>> {
     if opts.gt_frames == GtFrames::Inputs {
         return Ok(Err(
@@ -34,6 +36,19 @@ pub(super) fn real_row(
             "calibration set '{}' holds only its three inputs, so its ground truth is their \
              own merge",
             s.name
+        )));
+    }
+    // The fine-tune crops `patch` pixels from each set: a smaller set is not refused later,
+    // after every other row has run.
+    let built = crate::data::layout::detect(validation)?;
+    if let Some(s) = built
+        .sets
+        .iter()
+        .find(|s| s.width < patch || s.height < patch)
+    {
+        return Ok(Err(format!(
+            "calibration set '{}' is {}×{}, smaller than the fine-tune's {patch}-pixel crops",
+            s.name, s.width, s.height
         )));
     }
     let mut data = toml::Table::new();
@@ -54,4 +69,75 @@ pub(super) fn real_row(
         checkpoint: None,
         kind: AxisKind::Finetune,
     }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::io::{BitDepth, Image, write_hdr, write_ldr};
+
+    /// `dir/scene`: `n` grey PNG frames one stop apart with OpenCV's list.txt.
+    fn bracket(dir: &Path, n: usize) {
+        let d = dir.join("scene");
+        std::fs::create_dir_all(&d).expect("mkdir");
+        let mut list = String::new();
+        for k in 0..n {
+            let v = 0.1 * (k + 1) as f32;
+            let name = format!("f{k}.png");
+            write_ldr(
+                &d.join(&name),
+                &Image::from_fn(8, 8, |_, _| [v; 3]),
+                BitDepth::Eight,
+            )
+            .expect("png");
+            list += &format!("{name} {}\n", 2f32.powi(4 - k as i32));
+        }
+        std::fs::write(d.join("list.txt"), list).expect("list.txt");
+    }
+
+    /// `dir/set`: a Kalantari set of side `side`, as the loop's `validation/` holds.
+    fn validation(dir: &Path, side: usize) {
+        let d = dir.join("set");
+        std::fs::create_dir_all(&d).expect("mkdir");
+        let grey = Image::from_fn(side, side, |_, _| [0.5; 3]);
+        for name in ["a.tif", "b.tif", "c.tif"] {
+            write_ldr(&d.join(name), &grey, BitDepth::Sixteen).expect("tif");
+        }
+        std::fs::write(d.join("exposure.txt"), "0\n2\n4\n").expect("exposure.txt");
+        write_hdr(&d.join("HDRImg.hdr"), &grey).expect("hdr");
+    }
+
+    fn row(frames: usize, side: usize, gt: GtFrames) -> std::result::Result<Axis, String> {
+        let tmp = tempfile::tempdir().expect("tmp");
+        let (brackets, val) = (tmp.path().join("b"), tmp.path().join("v"));
+        bracket(&brackets, frames);
+        validation(&val, side);
+        let scan = ScanOptions::default();
+        let folder = FolderScan::new(&brackets, &scan).expect("scan");
+        let opts = LoopOptions {
+            brackets,
+            calibration: vec!["scene".into()],
+            calibration_region: None,
+            test_region: None,
+            scan: scan.clone(),
+            inputs: Default::default(),
+            gt_frames: gt,
+            quickstart: tmp.path().join("q"),
+            seeds: vec![1],
+            out: tmp.path().join("out"),
+            progress: false,
+        };
+        real_row(&opts, &folder, &scan, &val, 32).expect("row")
+    }
+
+    #[test]
+    fn the_row_needs_more_frames_than_the_inputs_and_sets_that_hold_a_crop() {
+        let made = row(5, 48, GtFrames::All).expect("made");
+        assert_eq!(made.name, REAL);
+        assert_eq!(made.set["data"]["profile"].as_str(), Some("pure"));
+        let why = |r: std::result::Result<Axis, String>| r.expect_err("no row");
+        assert!(why(row(3, 48, GtFrames::All)).contains("only its three inputs"));
+        assert!(why(row(5, 48, GtFrames::Inputs)).contains("--gt-frames inputs"));
+        assert!(why(row(5, 16, GtFrames::All)).contains("smaller than the fine-tune's 32-pixel"));
+    }
 }
