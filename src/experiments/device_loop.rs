@@ -162,8 +162,8 @@ fn split(
 
 /// The main job's pieces the loop starts from, checked before any work: its fine-tune config
 /// (readable, its training set and profile present) and a complete pretrained network per
-/// seed. The config's path.
-fn check_quickstart(q: &Path, seeds: &[u64]) -> Result<PathBuf> {
+/// seed. The config's path, and its crop side.
+fn check_quickstart(q: &Path, seeds: &[u64]) -> Result<(PathBuf, usize)> {
     let base = q.join("configs/finetune.toml");
     if !base.is_file() {
         return Err(Error::layout(
@@ -206,7 +206,7 @@ fn check_quickstart(q: &Path, seeds: &[u64]) -> Result<PathBuf> {
             )
         })?;
     }
-    Ok(base)
+    Ok((base, cfg.data.patch))
 }
 
 /// Run the loop (every stage resumes: a profile, test set or cell already made is kept).
@@ -226,7 +226,7 @@ pub fn run(opts: &LoopOptions) -> Result<LoopSummary> {
     // The folder is read once; every stage takes its sets and region from this scan.
     let folder = FolderScan::new(&opts.brackets, &opts.scan)?;
     let (cal_scan, test_scan, cal, test) = split(opts, &folder)?;
-    let base = check_quickstart(&opts.quickstart, &opts.seeds)?;
+    let (base, patch) = check_quickstart(&opts.quickstart, &opts.seeds)?;
     let _lock = crate::io::guard::OutputLock::acquire(&opts.out, "loop")?;
     keep_split(opts, &cal, &test)?;
     let profiles = opts.out.join("profiles");
@@ -253,7 +253,6 @@ pub fn run(opts: &LoopOptions) -> Result<LoopSummary> {
         &validation,
         "calibration",
     )?;
-    let patch = crate::train::config::TrainConfig::load(&base)?.data.patch;
     let real = real::real_row(opts, &folder, &cal_scan, &validation, patch)?;
     let steps = steps(
         &calibrated,

@@ -104,6 +104,18 @@ fn network2_frames(set: &SetInfo) -> Result<(Vec<usize>, [f32; 3])> {
     }
 }
 
+/// The frames of `set` a sample of `kind` reads: Network-1's EV −3 and 0, Network-2's
+/// [`network2_frames`] (an error naming the set where it lacks them).
+fn sample_frames(kind: SampleKind, set: &SetInfo) -> Result<Vec<usize>> {
+    match kind {
+        SampleKind::Network1 => frames_at(set, &NETWORK1_EVS),
+        SampleKind::Network2 => network2_frames(set).map(|(idx, _)| idx),
+    }
+}
+
+/// Network-1's frames: the short exposure and the reference.
+const NETWORK1_EVS: [f32; 2] = [-3.0, 0.0];
+
 /// Indices of the frames with the wanted EVs (error naming the set when one is missing).
 fn frames_at(set: &SetInfo, evs: &[f32]) -> Result<Vec<usize>> {
     evs.iter()
@@ -203,14 +215,11 @@ struct Draw<'a> {
 impl Draw<'_> {
     /// The crop of a frame as linear values times the sample's exposure.
     fn exposed(&self, frame: &Path) -> Result<Image> {
-        let p = self.loader.cfg.patch;
-        Ok(crop(
-            &*self.loader.linear_frame(self.set, frame)?,
-            self.x0,
-            self.y0,
-            p,
-        )
-        .map(|v| v * self.exposure))
+        let window = [self.x0, self.y0, self.loader.cfg.patch];
+        Ok(self
+            .loader
+            .linear_frame(self.set, frame, Some(window))?
+            .map(|v| v * self.exposure))
     }
 
     /// The crop of frame `k` of the sample as the network sees it: through the realism
@@ -233,12 +242,8 @@ impl Loader {
         if info.sets.is_empty() {
             return Err(Error::layout(&cfg.dataset, "no sets"));
         }
-        let need = Self::evs(cfg.kind);
         for s in &info.sets {
-            match cfg.kind {
-                SampleKind::Network1 => frames_at(s, need).map(drop)?,
-                SampleKind::Network2 => network2_frames(s).map(drop)?,
-            }
+            sample_frames(cfg.kind, s)?;
             if s.width < cfg.patch || s.height < cfg.patch {
                 return Err(Error::layout(
                     &s.dir,
@@ -259,10 +264,7 @@ impl Loader {
             let mut profile = SensorProfile::load(&r.profile)?;
             metering = Some(Metering::resolve(r.metering, profile.metering));
             let missing = info.sets.iter().find_map(|s| {
-                let idx = match cfg.kind {
-                    SampleKind::Network1 => frames_at(s, need).ok()?,
-                    SampleKind::Network2 => network2_frames(s).ok()?.0,
-                };
+                let idx = sample_frames(cfg.kind, s).ok()?;
                 [&s.static_frames, &s.dynamic_frames]
                     .into_iter()
                     .flat_map(|fs| idx.iter().filter_map(|&i| fs.get(i)))
@@ -332,14 +334,6 @@ impl Loader {
         self.metering
     }
 
-    /// The EVs a sample kind reads.
-    fn evs(kind: SampleKind) -> &'static [f32] {
-        match kind {
-            SampleKind::Network1 => &[-3.0, 0.0],
-            SampleKind::Network2 => &[-2.0, 0.0, 2.0],
-        }
-    }
-
     /// Samples per epoch (one per set).
     pub fn len(&self) -> usize {
         self.sets.len()
@@ -398,16 +392,27 @@ impl Loader {
     }
 
     /// A frame as linear values in realism's starting unit: the EXR sibling (Linear source),
-    /// or the display frame through the source response (Display source, 1 = its white).
-    fn linear_frame(&self, set: &SetInfo, frame: &Path) -> Result<Arc<Image>> {
-        match &self.linearise {
-            None => self.image(set, &linear_sibling(frame)),
-            Some(lut) => {
-                Ok(Arc::new(self.image(set, frame)?.map(|v| {
-                    lut[(v.clamp(0.0, 1.0) * 65535.0).round() as usize]
-                })))
-            }
-        }
+    /// or the display frame through the source response (Display source, 1 = its white);
+    /// cropped to `window` ([x0, y0, side]) where given, before the per-pixel curve.
+    fn linear_frame(
+        &self,
+        set: &SetInfo,
+        frame: &Path,
+        window: Option<[usize; 3]>,
+    ) -> Result<Image> {
+        let path = match self.linearise {
+            None => linear_sibling(frame),
+            Some(_) => frame.to_path_buf(),
+        };
+        let img = self.image(set, &path)?;
+        let img = match window {
+            Some([x0, y0, side]) => crop(&img, x0, y0, side),
+            None => Image::clone(&img),
+        };
+        Ok(match &self.linearise {
+            None => img,
+            Some(lut) => img.map(|v| lut[(v.clamp(0.0, 1.0) * 65535.0).round() as usize]),
+        })
     }
 
     /// The metered EV0 key of set `k` in realism's starting unit (cached).
@@ -420,7 +425,7 @@ impl Loader {
             .get_or_init(|| {
                 let radiance = match (&set.ground_truth, self.source) {
                     (Some(gt), Source::Linear) if gt.kind == GroundTruthKind::Linear => {
-                        self.image(set, &gt.path)
+                        self.image(set, &gt.path).map(|i| Image::clone(&i))
                     }
                     _ => {
                         let frames = if set.static_frames.is_empty() {
@@ -428,7 +433,7 @@ impl Loader {
                         } else {
                             &set.static_frames
                         };
-                        self.linear_frame(set, &frames[set.reference])
+                        self.linear_frame(set, &frames[set.reference], None)
                     }
                 }
                 .map_err(|e| e.to_string())?;
@@ -503,7 +508,7 @@ impl Loader {
     /// classes of the clean frames (noisy ones when there is no clean operator), transformed.
     fn network1(&self, d: &Draw) -> Result<(usize, Vec<f32>, Target, Vec<f32>)> {
         let (set, p) = (d.set, self.cfg.patch);
-        let idx = frames_at(set, &[-3.0, 0.0])?;
+        let idx = frames_at(set, &NETWORK1_EVS)?;
         let frames = if set.static_frames.is_empty() {
             &set.dynamic_frames
         } else {

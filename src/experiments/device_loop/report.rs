@@ -322,21 +322,17 @@ pub(super) fn steps_table(cfg: &AblateConfig, steps: &[Step]) -> Result<String> 
          |---|---|---|---|---|---|---|---|\n",
     );
     let mut pairs: Vec<(&str, &str)> = steps.windows(2).map(|w| (w[1].name, w[0].name)).collect();
-    let real = cfg.rows.iter().any(|r| r.name == real::REAL);
-    let last = steps.last().map(|s| s.name);
-    for row in steps
-        .iter()
-        .map(|s| s.name)
-        .chain(real.then_some(real::REAL))
-    {
-        pairs.extend(
-            [Some("net_o"), Some("control"), Some(GENERIC), Some(NET_S)]
-                .into_iter()
-                .chain([last.filter(|_| row == real::REAL)])
-                .chain([Some("copy"), Some("triangle")])
-                .flatten()
-                .map(|v| (row, v)),
-        );
+    for st in steps {
+        pairs
+            .extend(["net_o", "control", GENERIC, NET_S, "copy", "triangle"].map(|v| (st.name, v)));
+    }
+    // The `real` row against the same, and against the last simulated step.
+    if cfg.rows.iter().any(|r| r.name == real::REAL) {
+        let versus = ["net_o", "control", GENERIC, NET_S]
+            .into_iter()
+            .chain(steps.last().map(|s| s.name))
+            .chain(["copy", "triangle"]);
+        pairs.extend(versus.map(|v| (real::REAL, v)));
     }
     for (row, versus) in pairs {
         for e in ablate::paired_rows(cfg, &cfg.testset, row, versus)? {
