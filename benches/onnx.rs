@@ -12,11 +12,11 @@ use hdrsynth::eval::blend::BlendWeight;
 use hdrsynth::eval::infer::{network1_tiling, network1_weight, network2_hdr, network2_tiling};
 use hdrsynth::eval::tiling::Tiling;
 use hdrsynth::io::Image;
+use hdrsynth::models::seeded_init;
 use hdrsynth::models::{BlendUNetConfig, WuConfig};
 use hdrsynth::onnx::export::{self, ExportOptions};
 use hdrsynth::onnx::infer as oi;
 use hdrsynth::onnx::runtime::OnnxModel;
-use hdrsynth::train::seeded_init;
 use std::time::Instant;
 
 fn frame(w: usize, h: usize, seed: u64) -> Image {

@@ -51,7 +51,7 @@ fn bench_task<T: Task>(c: &mut Criterion, name: &str, task: &T, batch: &[Sample]
     let dev = hdrsynth::device::device_from_name(&backend)
         .expect("backend")
         .autodiff();
-    let mut model = Some(hdrsynth::train::seeded_init(&dev, 1, || task.init(&dev)).expect("init"));
+    let mut model = Some(hdrsynth::models::seeded_init(&dev, 1, || task.init(&dev)).expect("init"));
     let mut optim = AdamConfig::new().init();
     let mut step = || {
         let (m, loss) = train_step(

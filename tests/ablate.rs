@@ -12,11 +12,12 @@ use burn::tensor::{Device, Tensor};
 use hdrsynth::experiments::ablate::{self, AblateConfig, CellStatus};
 use hdrsynth::io::{ExrPrecision, Image, write_exr};
 use hdrsynth::models::ModelConfig;
+use hdrsynth::models::seeded_init;
 use hdrsynth::sensor::profile::SensorProfile;
 use hdrsynth::stats::{bootstrap_ci, bootstrap_crossed};
+use hdrsynth::train::TrainOptions;
 use hdrsynth::train::checkpoint;
 use hdrsynth::train::config::TrainConfig;
-use hdrsynth::train::{TrainOptions, seeded_init};
 use std::collections::BTreeMap;
 use std::path::Path;
 

@@ -14,7 +14,7 @@ use hdrsynth::train::network1_step;
 /// Burn's seed is global to the backend and the tests of this file run on parallel threads:
 /// seeding and initialising under one lock keeps each test's initial weights reproducible.
 fn seeded_init(cfg: &BlendUNetConfig, dev: &Device, seed: u64) -> BlendUNet {
-    hdrsynth::train::seeded_init(dev, seed, || cfg.init(dev)).expect("init")
+    hdrsynth::models::seeded_init(dev, seed, || cfg.init(dev)).expect("init")
 }
 
 fn tiny() -> BlendUNetConfig {

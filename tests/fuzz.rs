@@ -775,7 +775,7 @@ fn small_wu() -> hdrsynth::models::wu::WuNet {
         res_blocks: 1,
         ..hdrsynth::models::wu::WuConfig::resnet(2)
     };
-    hdrsynth::train::seeded_init(&dev, 0, || cfg.init(&dev)).unwrap()
+    hdrsynth::models::seeded_init(&dev, 0, || cfg.init(&dev)).unwrap()
 }
 
 /// A checkpoint's `model.bpk` (Burn's record), decoded into the model in memory.
@@ -890,7 +890,7 @@ fn fuzz_checkpoint_optimizer_record() {
         res_blocks: 1,
         ..hdrsynth::models::wu::WuConfig::resnet(2)
     };
-    let model = hdrsynth::train::seeded_init(&dev, 0, || cfg.init(&dev)).unwrap();
+    let model = hdrsynth::models::seeded_init(&dev, 0, || cfg.init(&dev)).unwrap();
     let x = burn::tensor::Tensor::<4>::from_data(
         burn::tensor::TensorData::new(common::values(18 * 16 * 16, 1), [1, 18, 16, 16]),
         &dev,

@@ -171,7 +171,7 @@ fn blend_unet_tiled_equals_untiled_when_the_overlap_covers_the_receptive_field()
     assert_eq!(cfg.receptive_radius(), 28);
     assert_eq!(BlendUNetConfig::default().receptive_radius(), 124);
     let dev = Device::flex();
-    let model = hdrsynth::train::seeded_init(&dev, 5, || cfg.init(&dev))
+    let model = hdrsynth::models::seeded_init(&dev, 5, || cfg.init(&dev))
         .expect("init")
         .valid();
     // Smooth-ish content with edges, 6 channels, a size that is no multiple of anything.

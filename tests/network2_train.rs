@@ -88,7 +88,7 @@ fn a_short_run_raises_psnr_t_on_held_out_sets_and_infers_whole_sets() {
         ..WuConfig::default()
     };
     let trained = hdrsynth::train::checkpoint::load_model(
-        hdrsynth::train::seeded_init(&dev, 0, || fresh.init(&dev)).expect("init"),
+        hdrsynth::models::seeded_init(&dev, 0, || fresh.init(&dev)).expect("init"),
         &dir,
     )
     .expect("load");
@@ -118,7 +118,7 @@ fn wu_tiled_equals_untiled_when_the_overlap_covers_the_receptive_field() {
     assert_eq!(cfg.receptive_radius(), 60);
     assert_eq!(WuConfig::default().receptive_radius(), 188);
     let dev = Device::flex();
-    let model = hdrsynth::train::seeded_init(&dev, 8, || cfg.init(&dev))
+    let model = hdrsynth::models::seeded_init(&dev, 8, || cfg.init(&dev))
         .expect("init")
         .valid();
     let tmp = tempfile::tempdir().expect("tmp");

@@ -10,12 +10,12 @@ use burn::module::Module;
 use burn::tensor::Device;
 use hdrsynth::io::read_image;
 use hdrsynth::models::import::{expected_tensors, import_weights};
+use hdrsynth::models::seeded_init;
 use hdrsynth::models::{BlendUNet, BlendUNetConfig, ModelConfig, WuConfig, WuNet};
 use hdrsynth::onnx::export::{self, ExportOptions, InputSize};
 use hdrsynth::onnx::runtime::OnnxModel;
 use hdrsynth::onnx::verify::{self, Check, Loaded};
 use hdrsynth::train::checkpoint::{self, CheckpointState};
-use hdrsynth::train::seeded_init;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 

@@ -1689,6 +1689,53 @@ fn runs_resumed_at_a_random_checkpoint_match_uninterrupted_ones_for_every_option
     println!("64 resume cases in {:.1} s", began.elapsed().as_secs_f64());
 }
 
+/// Burn draws from one generator that every thread shares, and Network-2's initialisers draw
+/// as its layers are built: a seeded initialisation gives the same weights while other threads
+/// build networks of their own (as a loader of checkpoints, a memory estimate or another test
+/// does), for both networks.
+#[test]
+fn a_seeded_initialisation_is_the_same_while_other_threads_build_networks() {
+    use hdrsynth::models::{BlendUNetConfig, WuConfig, seeded_init};
+    use hdrsynth::train::checkpoint::model_to_bytes;
+    use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
+    let dev = burn::tensor::Device::flex();
+    let wu = WuConfig {
+        base_width: 4,
+        res_blocks: 1,
+        ..WuConfig::default()
+    };
+    let unet = BlendUNetConfig {
+        base_width: 4,
+        depth: 2,
+        ..BlendUNetConfig::default()
+    };
+    let path = Path::new("m");
+    let seeded = || {
+        let a = seeded_init(&dev, 3, || wu.init(&dev)).unwrap();
+        let b = seeded_init(&dev, 3, || unet.init(&dev)).unwrap();
+        (
+            model_to_bytes(&a, path).unwrap(),
+            model_to_bytes(&b, path).unwrap(),
+        )
+    };
+    let reference = seeded();
+    let stop = AtomicBool::new(false);
+    let differ = std::thread::scope(|s| {
+        for _ in 0..2 {
+            s.spawn(|| {
+                while !stop.load(Relaxed) {
+                    std::hint::black_box(wu.init(&dev).unwrap());
+                    std::hint::black_box(unet.init(&dev).unwrap());
+                }
+            });
+        }
+        let differ = (0..100).filter(|_| seeded() != reference).count();
+        stop.store(true, Relaxed);
+        differ
+    });
+    assert_eq!(differ, 0, "{differ} of 100 seeded initialisations differ");
+}
+
 /// Two identical runs write byte-identical checkpoint files (model, optimizer, state, α,
 /// checksums): no random parameter ids, no hash-map order in them.
 #[test]
@@ -2600,8 +2647,8 @@ fn every_parameter_of_both_networks_gets_a_gradient_before_and_after_a_reload() 
     use burn::module::{Module, ModuleVisitor, Param, ParamId};
     use burn::optim::GradientsParams;
     use burn::tensor::{Device, Tensor, TensorData};
+    use hdrsynth::models::seeded_init;
     use hdrsynth::models::{BlendUNetConfig, WuConfig};
-    use hdrsynth::train::seeded_init;
     struct Ids(Vec<String>, Vec<(String, ParamId, usize)>);
     impl ModuleVisitor for Ids {
         fn enter_module(&mut self, name: &str, _: &str) {

@@ -9,10 +9,11 @@ mod common;
 use burn::optim::AdamConfig;
 use hdrsynth::data::ground_truth::{ClassWeights, MertensWeights};
 use hdrsynth::data::loader::Sample;
+use hdrsynth::models::seeded_init;
 use hdrsynth::models::{BlendUNetConfig, WuConfig};
 use hdrsynth::train::loss::Network1Reading;
 use hdrsynth::train::task::{Network1, Network2, Task};
-use hdrsynth::train::{seeded_init, train_step};
+use hdrsynth::train::train_step;
 
 fn batch(channels: usize, size: usize, hdr: bool) -> Vec<Sample> {
     common::samples(2, channels, size, hdr)

@@ -6,10 +6,11 @@ mod common;
 use burn::module::{Module, ModuleVisitor, Param};
 use burn::tensor::{Device, Tensor, TensorData};
 use hdrsynth::config::parse_toml;
+use hdrsynth::models::seeded_init;
 use hdrsynth::models::{BlendUNetConfig, ModelConfig};
+use hdrsynth::train::TrainOptions;
 use hdrsynth::train::checkpoint::{self, CheckpointState};
 use hdrsynth::train::config::{Schedule, ScheduleKind, TrainConfig};
-use hdrsynth::train::{TrainOptions, seeded_init};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::OnceLock;
@@ -975,10 +976,10 @@ fn a_step_that_cannot_fit_in_memory_is_refused_naming_the_key_before_anything_is
     use hdrsynth::train::budget;
     let tmp = tempfile::tempdir().expect("tmp");
     // The lower bound against hand values and Burn's own count of the materialised network:
-    // Network-1 base width 4, depth 2, batch 2 of 32² crops; its first convolution takes the
-    // two frames' 3 channels each.
+    // Network-1 base width 4, depth 2, batch 2 of 32² crops of its 6 input channels (two
+    // frames of 3).
     let cfg = parse(&config_text(&tmp.path().join("small"), 4, "", 1e-3, false));
-    let need = budget::step_memory(&cfg.model, 2, 32).expect("estimate");
+    let need = budget::step_memory(&cfg.model, 2, 32);
     let ModelConfig::BlendUnet(m) = &cfg.model else {
         panic!("Network-1 expected")
     };

@@ -20,7 +20,7 @@ use std::path::Path;
 /// Burn's seed is global to the backend and the tests of this file run on parallel threads:
 /// seeding and initialising under one lock keeps each test's initial weights reproducible.
 fn seeded_init(cfg: &WuConfig, dev: &Device, seed: u64) -> WuNet {
-    hdrsynth::train::seeded_init(dev, seed, || cfg.init(dev)).expect("init")
+    hdrsynth::models::seeded_init(dev, seed, || cfg.init(dev)).expect("init")
 }
 
 const TIMES: [f32; 3] = [0.25, 1.0, 4.0];
@@ -136,7 +136,7 @@ fn padding_conventions_follow_tensorflow() {
     let conv = burn::nn::conv::Conv2dConfig::new([1, 1], [5, 5])
         .with_stride([2, 2])
         .with_bias(false);
-    let mut conv = hdrsynth::train::seeded_init(&dev, 0, || Ok(conv.init(&dev))).expect("init");
+    let mut conv = hdrsynth::models::seeded_init(&dev, 0, || Ok(conv.init(&dev))).expect("init");
     let w: Vec<f32> = (0..25).map(|i| (10 * (i / 5) + i % 5) as f32).collect();
     conv.weight = burn::module::Param::from_tensor(Tensor::from_data(
         TensorData::new(w.clone(), [1, 1, 5, 5]),
@@ -162,7 +162,7 @@ fn padding_conventions_follow_tensorflow() {
             .with_padding_out([padding_out, padding_out])
             .with_bias(false);
         let mut deconv =
-            hdrsynth::train::seeded_init(&dev, 0, || Ok(deconv.init(&dev))).expect("init");
+            hdrsynth::models::seeded_init(&dev, 0, || Ok(deconv.init(&dev))).expect("init");
         deconv.weight = burn::module::Param::from_tensor(Tensor::from_data(
             TensorData::new(w.clone(), [1, 1, 5, 5]),
             &dev,

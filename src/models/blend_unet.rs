@@ -126,9 +126,13 @@ impl BlendUNetConfig {
     }
 
     /// A freshly initialised network on `device` (Burn's default initialisers: Kaiming-uniform
-    /// convolutions, BatchNorm γ = 1, β = 0). Seed with `device.seed(s)` first for a
-    /// reproducible initialisation.
+    /// convolutions, BatchNorm γ = 1, β = 0); every parameter drawn now
+    /// ([`super::seeded_init`] for a reproducible one).
     pub fn init(&self, device: &Device) -> Result<BlendUNet> {
+        super::init::drawing(|| self.build(device))
+    }
+
+    fn build(&self, device: &Device) -> Result<BlendUNet> {
         self.validate()?;
         let w = self.widths();
         let mut encoder = vec![ConvBlock::new(

@@ -7,9 +7,11 @@
 //! - The layers' operations (convolution, padding, activation, pooling, BatchNorm) come from
 //!   [`crate::kernels`], which picks the hand-written flex kernels or Burn's ops.
 //! - [`ModelConfig`]: either network's config, tagged by `kind` (training configs, checkpoints).
+//! - [`seeded_init`]: a reproducible initialisation, whatever other threads draw.
 
 pub mod blend_unet;
 pub mod import;
+mod init;
 mod merge_head;
 pub mod wu;
 
@@ -17,6 +19,7 @@ use crate::data::loader::SampleKind;
 use serde::{Deserialize, Serialize};
 
 pub use blend_unet::{BlendUNet, BlendUNetConfig};
+pub use init::seeded_init;
 pub use wu::{DeconvAlignment, WuConfig, WuNet, WuVariant};
 
 /// The network, tagged by `kind`.
@@ -42,6 +45,22 @@ impl ModelConfig {
         match self {
             ModelConfig::BlendUnet(m) => m.validate(),
             ModelConfig::Wu(m) => m.validate(),
+        }
+    }
+
+    /// Trainable parameters, counted from the architecture (nothing is allocated).
+    pub fn trainable_parameters(&self) -> usize {
+        match self {
+            ModelConfig::BlendUnet(m) => m.trainable_parameters(),
+            ModelConfig::Wu(m) => m.trainable_parameters(),
+        }
+    }
+
+    /// Channels of one input sample.
+    pub fn input_channels(&self) -> usize {
+        match self {
+            ModelConfig::BlendUnet(_) => blend_unet::INPUT_CHANNELS,
+            ModelConfig::Wu(_) => wu::INPUT_CHANNELS,
         }
     }
 

@@ -384,8 +384,13 @@ impl WuConfig {
 
     /// A freshly initialised network on `device`, initialised as the authors do: weights
     /// N(0, 0.02) (TensorFlow draws the convolutions' from a truncated normal), biases 0,
-    /// BatchNorm γ = 1, β = 0. Seed with `device.seed(s)` first for a reproducible one.
+    /// BatchNorm γ = 1, β = 0; every parameter drawn now ([`super::seeded_init`] for a
+    /// reproducible one).
     pub fn init(&self, device: &Device) -> Result<WuNet> {
+        super::init::drawing(|| self.build(device))
+    }
+
+    fn build(&self, device: &Device) -> Result<WuNet> {
         self.validate()?;
         let b = self.base_width;
         let encoders = (0..FRAMES)

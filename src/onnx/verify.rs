@@ -56,11 +56,11 @@ pub fn load_checkpoint(path: &Path, device: &Device) -> Result<(PathBuf, Checkpo
     // Initialisation is overwritten by the checkpoint; seeded only so nothing is left to chance.
     let loaded = match &state.model {
         ModelConfig::BlendUnet(cfg) => {
-            let m = crate::train::seeded_init(device, 0, || cfg.init(device))?;
+            let m = crate::models::seeded_init(device, 0, || cfg.init(device))?;
             Loaded::Network1(checkpoint::load_model(m, &dir)?.valid())
         }
         ModelConfig::Wu(cfg) => {
-            let m = crate::train::seeded_init(device, 0, || cfg.init(device))?;
+            let m = crate::models::seeded_init(device, 0, || cfg.init(device))?;
             Loaded::Network2(checkpoint::load_model(m, &dir)?.valid())
         }
     };

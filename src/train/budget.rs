@@ -6,8 +6,6 @@ use super::config::TrainConfig;
 use crate::device::device_from_name;
 use crate::error::{Error, Result};
 use crate::models::ModelConfig;
-use burn::module::{Module, ModuleVisitor, Param};
-use burn::tensor::{Device, Tensor};
 
 /// What a training step holds at least, in bytes.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -16,7 +14,7 @@ pub struct StepMemory {
     pub parameters: u64,
     /// Weights, their gradients and Adam's two moments: 4 f32 per parameter.
     pub optimiser_bytes: f64,
-    /// One batch of inputs at the first layer's channels (f32): every activation is extra.
+    /// One batch of inputs at the network's input channels (f32): every activation is extra.
     pub input_bytes: f64,
     /// The batch of `patch`² crops it was computed for.
     pub batch: usize,
@@ -29,42 +27,17 @@ impl StepMemory {
     }
 }
 
-/// Counts parameters by their declared shapes: Burn initialises parameters lazily, so a
-/// network too large to allocate can still be measured.
-#[derive(Default)]
-struct Count {
-    parameters: u64,
-    first_in_channels: Option<usize>,
-}
-
-impl ModuleVisitor for Count {
-    fn visit_float<const D: usize>(&mut self, param: &Param<Tensor<D>>) {
-        let shape = param.lazy_shape();
-        self.parameters = self
-            .parameters
-            .saturating_add(shape.dims::<D>().iter().map(|&d| d as u64).product::<u64>());
-        if D == 4 && self.first_in_channels.is_none() {
-            self.first_in_channels = Some(shape.dims::<D>()[1]);
-        }
-    }
-}
-
-/// The lower bound for `model` trained on batches of `batch` crops of `patch`².
-pub fn step_memory(model: &ModelConfig, batch: usize, patch: usize) -> Result<StepMemory> {
-    let device = Device::flex();
-    let mut count = Count::default();
-    match model {
-        ModelConfig::BlendUnet(m) => m.init(&device)?.visit(&mut count),
-        ModelConfig::Wu(m) => m.init(&device)?.visit(&mut count),
-    }
-    let channels = count.first_in_channels.unwrap_or(3) as f64;
-    Ok(StepMemory {
-        parameters: count.parameters,
-        optimiser_bytes: 16.0 * count.parameters as f64,
-        input_bytes: 4.0 * batch as f64 * (patch as f64).powi(2) * channels,
+/// The lower bound for `model` trained on batches of `batch` crops of `patch`², counted from
+/// the architecture: a network too large to allocate can still be measured.
+pub fn step_memory(model: &ModelConfig, batch: usize, patch: usize) -> StepMemory {
+    let parameters = model.trainable_parameters() as u64;
+    StepMemory {
+        parameters,
+        optimiser_bytes: 16.0 * parameters as f64,
+        input_bytes: 4.0 * batch as f64 * (patch as f64).powi(2) * model.input_channels() as f64,
         batch,
         patch,
-    })
+    }
 }
 
 /// The host's available memory (Linux `/proc/meminfo` MemAvailable), bytes; `None` elsewhere.
@@ -126,6 +99,6 @@ pub fn check_config(cfg: &TrainConfig) -> Result<()> {
         ModelConfig::BlendUnet(_) => "model.base_width and model.depth",
         ModelConfig::Wu(_) => "model.base_width and model.res_blocks",
     };
-    let need = step_memory(&cfg.model, cfg.data.batch_size, cfg.data.patch)?;
+    let need = step_memory(&cfg.model, cfg.data.batch_size, cfg.data.patch);
     check(&need, available, keys)
 }

@@ -21,15 +21,15 @@ use crate::data::loader::{Loader, LoaderConfig, Sample, Target};
 use crate::device::device_from_name;
 use crate::error::{Error, Result};
 use crate::io::atomic::write_atomic;
-use crate::models::{BlendUNet, ModelConfig};
-use burn::module::{Module, ModuleVisitor, Param};
+use crate::models::{BlendUNet, ModelConfig, seeded_init};
+use burn::module::Module;
 use burn::optim::{AdamConfig, GradientsAccumulator, GradientsParams, ModuleOptimizer};
-use burn::tensor::{Bool, Device, Int, Tensor};
+use burn::tensor::{Device, Int, Tensor};
 use checkpoint::CheckpointState;
 use config::TrainConfig;
 use log::{Log, LogLine, Number, Scores};
 use std::path::{Path, PathBuf};
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 use std::time::Instant;
 use task::{CHECKPOINT_ALPHA_FILE, Network1, Network2, Task};
 
@@ -165,38 +165,6 @@ pub fn parallel_gradients<T: Task + Sync>(
         accumulator.accumulate(model, grads.to_device(main, model));
     }
     Ok((accumulator.grads(), value))
-}
-
-/// Burn's seed is global to a backend: seeding and initialising under one lock keeps
-/// concurrent initialisations (tests, library users) reproducible. Burn also initialises
-/// parameters lazily, at first access, so every parameter is touched here under the lock;
-/// otherwise the draws happen at the first forward, interleaved with other threads' draws.
-pub fn seeded_init<M: Module>(
-    device: &Device,
-    seed: u64,
-    init: impl FnOnce() -> Result<M>,
-) -> Result<M> {
-    static INIT: Mutex<()> = Mutex::new(());
-    let _guard = INIT.lock().unwrap_or_else(|e| e.into_inner());
-    device.seed(seed);
-    let module = init()?;
-    module.visit(&mut Materialise);
-    Ok(module)
-}
-
-/// Reads every parameter once, which makes Burn run its deferred initialisation.
-struct Materialise;
-
-impl ModuleVisitor for Materialise {
-    fn visit_float<const D: usize>(&mut self, param: &Param<Tensor<D>>) {
-        let _ = param.val();
-    }
-    fn visit_int<const D: usize>(&mut self, param: &Param<Tensor<D, Int>>) {
-        let _ = param.val();
-    }
-    fn visit_bool<const D: usize>(&mut self, param: &Param<Tensor<D, Bool>>) {
-        let _ = param.val();
-    }
 }
 
 #[derive(Clone, Debug, Default)]
