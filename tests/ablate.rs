@@ -215,6 +215,28 @@ fn a_two_by_two_grid_makes_the_table_skips_finished_cells_and_resumes_a_killed_o
     // Resume is bit-identical and rerunning is deterministic: the same table.
     assert_eq!(t1, table(&grid.join("table.csv")));
 
+    // Two cells at a time: the same table and the same weights, cell by cell.
+    let at_once = AblateConfig {
+        out: root.join("grid2"),
+        jobs: 2,
+        ..cfg.clone()
+    };
+    let run2 = ablate::run(&at_once, &cfg_path, false).expect("two at once");
+    let ids: Vec<&str> = run2.cells.iter().map(|c| c.id.as_str()).collect();
+    assert_eq!(
+        ids,
+        ["pure__low", "pure__high", "canon__low", "canon__high"]
+    );
+    assert_eq!(t1, table(&root.join("grid2/table.csv")));
+    for id in ids {
+        let weights = |g: &str| {
+            let run = root.join(g).join("cells").join(id).join("run");
+            let dir = hdrsynth::train::checkpoint::resolve(&run).expect("checkpoint");
+            std::fs::read(dir.join("model.bpk")).expect("model")
+        };
+        assert!(weights("grid") == weights("grid2"), "{id}: weights differ");
+    }
+
     // A changed cell is refused, naming it, rather than reusing a stale result.
     std::fs::write(&cfg_path, ablate_toml(root, &base, 5e-3)).expect("grid");
     let changed = AblateConfig::load(&cfg_path).expect("config");

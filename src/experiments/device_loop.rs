@@ -767,6 +767,7 @@ fn ablate_config(
         },
         rows,
         columns: Vec::new(),
+        jobs: ablate::GRID_JOBS,
     }
 }
 

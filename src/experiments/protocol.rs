@@ -215,6 +215,7 @@ fn colour_iso_config(s: &Sizes, out: &Path, base: &Path, target: &Path) -> Ablat
                 }
             })
             .collect(),
+        jobs: ablate::GRID_JOBS,
     }
 }
 
@@ -281,6 +282,7 @@ fn scene_target_config(s: &Sizes, out: &Path, base: &Path, target: &Path) -> Abl
             ),
         ],
         columns: Vec::new(),
+        jobs: ablate::GRID_JOBS,
     }
 }
 
@@ -343,6 +345,7 @@ fn network1_config(s: &Sizes, out: &Path, base: &Path, target: &Path) -> AblateC
             ),
         ],
         columns: Vec::new(),
+        jobs: ablate::GRID_JOBS,
     }
 }
 

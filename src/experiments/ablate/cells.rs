@@ -79,33 +79,81 @@ pub fn run(cfg: &AblateConfig, config_path: &Path, progress: bool) -> Result<Abl
     std::fs::create_dir_all(&cfg.out).map_err(|e| Error::io(&cfg.out, e))?;
     crate::io::atomic::remove_stale_temps(&cfg.out)?;
     let cells = cfg.cells();
-    let mut results = Vec::new();
+    let mut units = Vec::new();
     for (k, &(r, c)) in cells.iter().enumerate() {
         for seed in cfg.cell_seeds(r, c) {
             let id = match seed {
                 None => cfg.cell_id(r, c),
                 Some(s) => format!("{}/seed{s}", cfg.cell_id(r, c)),
             };
-            let t0 = Instant::now();
-            let plan = plan_cell(cfg, config_path, &base, r, c, seed)?;
-            if progress {
-                eprintln!("cell {}/{} {id}", k + 1, cells.len());
-            }
-            let status = run_cell(cfg, &cfg.unit_dir(r, c, seed), &id, &plan, progress)?;
-            results.push(CellResult {
+            let label = format!("cell {}/{} {id}", k + 1, cells.len());
+            units.push(Unit {
+                label,
                 id,
-                status,
-                seconds: t0.elapsed().as_secs_f64(),
+                dir: cfg.unit_dir(r, c, seed),
+                at: (r, c, seed),
             });
+        }
+    }
+    let plan = |u: &Unit| plan_cell(cfg, config_path, &base, u.at.0, u.at.1, u.at.2);
+    let results = if cfg.jobs <= 1 {
+        let mut results = Vec::new();
+        for u in &units {
+            results.push(run_unit(cfg, u, &plan(u)?, progress, false)?);
             // The table so far, after every run: an interrupted grid shows what it has.
             write_table(cfg)?;
         }
-    }
+        results
+    } else {
+        // Planned before any runs: a cell that cannot be planned stops the grid first. The
+        // table is rewritten after each run, by one writer at a time.
+        let plans = units.iter().map(plan).collect::<Result<Vec<_>>>()?;
+        let table = std::sync::Mutex::new(());
+        crate::experiments::at_once(cfg.jobs, &units, |i, u| {
+            let r = run_unit(cfg, u, &plans[i], progress, true)?;
+            let _one_writer = table.lock().unwrap_or_else(|e| e.into_inner());
+            write_table(cfg)?;
+            Ok(r)
+        })?
+    };
     let table = write_table(cfg)?;
     Ok(AblateSummary {
         cells: results,
         table,
         seconds: began.elapsed().as_secs_f64(),
+    })
+}
+
+/// One run of a cell: its seed's folder, named for the progress lines.
+struct Unit {
+    label: String,
+    id: String,
+    dir: PathBuf,
+    at: (usize, Option<usize>, Option<u64>),
+}
+
+/// Runs one unit; `quiet` leaves out its progress bars (several run at once) and says when it
+/// is done instead.
+fn run_unit(
+    cfg: &AblateConfig,
+    u: &Unit,
+    plan: &CellPlan,
+    progress: bool,
+    quiet: bool,
+) -> Result<CellResult> {
+    let t0 = Instant::now();
+    if progress {
+        eprintln!("{}", u.label);
+    }
+    let status = run_cell(cfg, &u.dir, &u.id, plan, progress && !quiet)?;
+    let seconds = t0.elapsed().as_secs_f64();
+    if progress && quiet {
+        eprintln!("{}: done in {seconds:.0} s", u.label);
+    }
+    Ok(CellResult {
+        id: u.id.clone(),
+        status,
+        seconds,
     })
 }
 

@@ -77,7 +77,19 @@ pub struct AblateConfig {
     /// Optional second axis (table columns); without it the grid is one column.
     #[serde(default)]
     pub columns: Vec<Axis>,
+    /// Cells trained and scored at once (default 1). One small network's training step keeps
+    /// about 1.4 of 2 cores busy; two cells at once fill them. Results do not depend on it.
+    #[serde(default = "one")]
+    pub jobs: usize,
 }
+
+fn one() -> usize {
+    1
+}
+
+/// Cells at once in the grids the product writes itself (the main job, the protocol, the
+/// loop): two fill two cores (BENCHMARKS.md, "Main job").
+pub const GRID_JOBS: usize = 2;
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -425,6 +437,9 @@ impl AblateConfig {
             return Err(format!("seeds {:?}: a seed appears twice", self.seeds));
         }
         self.check_eval()?;
+        if self.jobs == 0 {
+            return Err("jobs = 0: at least one cell must run at a time".into());
+        }
         if let Some(p) = &self.pretrained_per_seed
             && (self.seeds.is_empty() || !p.contains("{seed}"))
         {

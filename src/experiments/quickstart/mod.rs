@@ -479,6 +479,7 @@ fn experiment_config(
         .chain(Axis::classical_rows())
         .collect(),
         columns: Vec::new(),
+        jobs: ablate::GRID_JOBS,
     }
 }
 
@@ -721,6 +722,7 @@ fn pretrain(
     pre_profile: &Path,
     configs: &Path,
 ) -> Result<()> {
+    let mut paths = Vec::new();
     for &k in s.seeds.iter() {
         let pre_run = opts.out.join(format!("pretrain/seed{k}"));
         let pre_path = configs.join(format!("pretrain_seed{k}.toml"));
@@ -728,9 +730,19 @@ fn pretrain(
             &pre_path,
             &pretrain_config(opts.preset, backend, data, pre_profile, &pre_run, k),
         )?;
-        train_resumable(&pre_path, opts.progress)
-            .map_err(|e| Error::context(format!("pretraining ({})", pre_path.display()), e))?;
+        paths.push(pre_path);
     }
+    // The seeds' pretrainings at once, as the grid's cells (their progress bars would
+    // interleave: a line per run instead).
+    let jobs = ablate::GRID_JOBS;
+    crate::experiments::at_once(jobs, &paths, |_, pre_path| {
+        train_resumable(pre_path, opts.progress && jobs <= 1)
+            .map_err(|e| Error::context(format!("pretraining ({})", pre_path.display()), e))?;
+        if opts.progress && jobs > 1 {
+            eprintln!("  pretrained {}", pre_path.display());
+        }
+        Ok(())
+    })?;
     Ok(())
 }
 
