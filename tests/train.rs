@@ -282,6 +282,10 @@ fn resume_refuses_a_changed_config_and_a_missing_run() {
     let err = hdrsynth::train::run(&cfg, &resume).expect_err("nothing to resume");
     assert!(err.to_string().contains("no checkpoint"), "{err}");
     hdrsynth::train::run(&cfg, &TrainOptions::default()).expect("train");
+    // The folder records the whole config, which trains again: the same run, steps included.
+    let recorded = hdrsynth::train::config::TrainConfig::load(&run.join("config.toml"))
+        .expect("the recorded config loads");
+    assert_eq!((recorded.run.steps, &recorded.run.out), (4, &run));
     let mut changed = cfg.clone();
     changed.optim.lr = 2e-3;
     changed.run.steps = 8;
@@ -311,6 +315,15 @@ fn resume_refuses_a_changed_config_and_a_missing_run() {
     longer.run.steps = 6;
     let s = hdrsynth::train::run(&longer, &resume).expect("extend");
     assert_eq!((s.start_step, s.steps), (4, 6));
+    // A folder written with `run.steps` blanked (as it once was) resumes as well.
+    let blanked = std::fs::read_to_string(run.join("config.toml"))
+        .expect("config")
+        .replace("steps = 4\n", "steps = 0\n");
+    assert!(blanked.contains("steps = 0\n"), "{blanked}");
+    std::fs::write(run.join("config.toml"), blanked).expect("blank");
+    longer.run.steps = 8;
+    let s = hdrsynth::train::run(&longer, &resume).expect("extend a blanked folder");
+    assert_eq!((s.start_step, s.steps), (6, 8));
 }
 
 /// The exposure rule a run trains with: `[data.metering]` where the config gives it (whole:

@@ -282,6 +282,14 @@ fn identity_of(cfg: &TrainConfig) -> Result<String> {
     toml::to_string(&c).map_err(|e| Error::encode(RUN_CONFIG, e))
 }
 
+/// The identity of the config a run folder records (a whole config, which `hdrsynth train
+/// --config` takes again; folders written with `run.steps` blanked read the same).
+fn recorded_identity(run: &Path) -> Result<String> {
+    let path = run.join(RUN_CONFIG);
+    let saved: TrainConfig = crate::config::load_toml(&path)?;
+    identity_of(&saved)
+}
+
 /// The trainer shared by both networks: the run folder, then `start_or_resume`, the
 /// `validation_set`, and `train_loop`.
 pub fn train<T: Task + Sync>(
@@ -338,7 +346,8 @@ pub fn train<T: Task + Sync>(
     }
     let validation = validation_set(task, cfg, &loader)?;
     if !opts.resume {
-        write_atomic(&run.join(RUN_CONFIG), identity_of(cfg)?.as_bytes())?;
+        let text = toml::to_string(cfg).map_err(|e| Error::encode(RUN_CONFIG, e))?;
+        write_atomic(&run.join(RUN_CONFIG), text.as_bytes())?;
     }
     // Which frames the run trains on (pure, linear EXRs, display frames) for whoever reads it.
     let source = loader.describe_source();
@@ -376,7 +385,7 @@ fn start_or_resume<T: Task>(
     let optim = optimizer(&cfg.optim);
     match (existing, resume) {
         (Some(dir), true) => {
-            let saved = crate::io::guard::read_text(&run.join(RUN_CONFIG))?;
+            let saved = recorded_identity(run)?;
             if saved != identity {
                 let keys = crate::config::differing_keys(&saved, &identity).join("; ");
                 let msg = format!(
