@@ -21,21 +21,18 @@ thread_local! {
 /// Runs `build` under the draw lock (re-entrant on one thread) and reads every parameter of
 /// what it built, so that no draw is left for later.
 pub(crate) fn drawing<M: Module>(build: impl FnOnce() -> Result<M>) -> Result<M> {
-    if HELD.get() {
-        let module = build()?;
-        module.visit(&mut Materialise);
-        return Ok(module);
-    }
-    let _guard = DRAWS.lock().unwrap_or_else(|e| e.into_inner());
-    HELD.set(true);
-    // Released on every exit, panics included.
+    /// Clears `HELD` on every exit, panics included.
     struct Release;
     impl Drop for Release {
         fn drop(&mut self) {
             HELD.set(false);
         }
     }
-    let _release = Release;
+    let _held = (!HELD.get()).then(|| {
+        let guard = DRAWS.lock().unwrap_or_else(|e| e.into_inner());
+        HELD.set(true);
+        (guard, Release)
+    });
     let module = build()?;
     module.visit(&mut Materialise);
     Ok(module)

@@ -95,27 +95,20 @@ pub fn run(cfg: &AblateConfig, config_path: &Path, progress: bool) -> Result<Abl
             });
         }
     }
-    let plan = |u: &Unit| plan_cell(cfg, config_path, &base, u.at.0, u.at.1, u.at.2);
-    let results = if cfg.jobs <= 1 {
-        let mut results = Vec::new();
-        for u in &units {
-            results.push(run_unit(cfg, u, &plan(u)?, progress, false)?);
-            // The table so far, after every run: an interrupted grid shows what it has.
-            write_table(cfg)?;
-        }
-        results
-    } else {
-        // Planned before any runs: a cell that cannot be planned stops the grid first. The
-        // table is rewritten after each run, by one writer at a time.
-        let plans = units.iter().map(plan).collect::<Result<Vec<_>>>()?;
-        let table = std::sync::Mutex::new(());
-        crate::experiments::at_once(cfg.jobs, &units, |i, u| {
-            let r = run_unit(cfg, u, &plans[i], progress, true)?;
-            let _one_writer = table.lock().unwrap_or_else(|e| e.into_inner());
-            write_table(cfg)?;
-            Ok(r)
-        })?
-    };
+    // Planned before any runs: a cell that cannot be planned stops the grid first. The table
+    // is rewritten after each run, by one writer at a time: an interrupted grid shows what it
+    // has.
+    let plans = units
+        .iter()
+        .map(|u| plan_cell(cfg, config_path, &base, u.at.0, u.at.1, u.at.2))
+        .collect::<Result<Vec<_>>>()?;
+    let table = std::sync::Mutex::new(());
+    let results = crate::experiments::at_once(cfg.jobs, &units, |i, u| {
+        let r = run_unit(cfg, u, &plans[i], progress, cfg.jobs > 1)?;
+        let _one_writer = table.lock().unwrap_or_else(|e| e.into_inner());
+        write_table(cfg)?;
+        Ok(r)
+    })?;
     let table = write_table(cfg)?;
     Ok(AblateSummary {
         cells: results,

@@ -734,11 +734,10 @@ fn pretrain(
     }
     // The seeds' pretrainings at once, as the grid's cells (their progress bars would
     // interleave: a line per run instead).
-    let jobs = ablate::GRID_JOBS;
-    crate::experiments::at_once(jobs, &paths, |_, pre_path| {
-        train_resumable(pre_path, opts.progress && jobs <= 1)
+    crate::experiments::at_once(ablate::GRID_JOBS, &paths, |_, pre_path| {
+        train_resumable(pre_path, false)
             .map_err(|e| Error::context(format!("pretraining ({})", pre_path.display()), e))?;
-        if opts.progress && jobs > 1 {
+        if opts.progress {
             eprintln!("  pretrained {}", pre_path.display());
         }
         Ok(())
