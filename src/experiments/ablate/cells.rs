@@ -60,6 +60,19 @@ pub(super) const EVAL_DIR: &str = "eval";
 /// Run every unfinished cell of `cfg`, then write the table. `config_path` names the config in
 /// errors.
 pub fn run(cfg: &AblateConfig, config_path: &Path, progress: bool) -> Result<AblateSummary> {
+    run_with(cfg, config_path, progress, &|_| Ok(()))
+}
+
+/// [`run`], where `pretrain(seed)` makes `pretrained_per_seed`'s network of that seed: called
+/// on the grid's workers before the first of that seed's cells that read it (once per seed;
+/// its other cells wait for it), so that pretrainings share the cores with the cells of the
+/// seeds already pretrained.
+pub fn run_with(
+    cfg: &AblateConfig,
+    config_path: &Path,
+    progress: bool,
+    pretrain: &(dyn Fn(u64) -> Result<()> + Sync),
+) -> Result<AblateSummary> {
     let began = Instant::now();
     let base = load_base(cfg)?;
     for t in cfg.testsets() {
@@ -103,7 +116,20 @@ pub fn run(cfg: &AblateConfig, config_path: &Path, progress: bool) -> Result<Abl
         .map(|u| plan_cell(cfg, config_path, &base, u.at.0, u.at.1, u.at.2))
         .collect::<Result<Vec<_>>>()?;
     let table = std::sync::Mutex::new(());
+    // Per seed: whether its pretraining is done. A seed's lock is held while it pretrains.
+    let pretrained: Vec<std::sync::Mutex<bool>> =
+        cfg.seeds.iter().map(|_| Default::default()).collect();
     let results = crate::experiments::at_once(cfg.jobs, &units, |i, u| {
+        let seed = u.at.2.filter(|_| cfg.pretrained_per_seed.is_some());
+        if let Some(k) = seed.filter(|_| plans[i].baseline.is_none())
+            && let Some(at) = cfg.seeds.iter().position(|&s| s == k)
+        {
+            let mut done = pretrained[at].lock().unwrap_or_else(|e| e.into_inner());
+            if !*done {
+                pretrain(k)?;
+                *done = true;
+            }
+        }
         let r = run_unit(cfg, u, &plans[i], progress, cfg.jobs > 1)?;
         let _one_writer = table.lock().unwrap_or_else(|e| e.into_inner());
         write_table(cfg)?;

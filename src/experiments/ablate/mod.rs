@@ -78,7 +78,8 @@ pub struct AblateConfig {
     #[serde(default)]
     pub columns: Vec<Axis>,
     /// Cells trained and scored at once (default 1). One small network's training step keeps
-    /// about 1.4 of 2 cores busy; two cells at once fill them. Results do not depend on it.
+    /// about 1.4 of 2 cores busy: its own thread works alone between the parallel operations.
+    /// Results do not depend on it.
     #[serde(default = "one")]
     pub jobs: usize,
 }
@@ -88,8 +89,8 @@ fn one() -> usize {
 }
 
 /// Cells at once in the grids the product writes itself (the main job, the protocol, the
-/// loop): two fill two cores (BENCHMARKS.md, "Main job").
-pub const GRID_JOBS: usize = 2;
+/// loop): on two cores, a third run fills the gaps two leave (BENCHMARKS.md, "Main job").
+pub const GRID_JOBS: usize = 3;
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

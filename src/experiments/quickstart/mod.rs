@@ -522,7 +522,7 @@ pub(crate) fn stage(progress: bool, began: Instant, what: &str) {
     }
 }
 
-/// What stages 1–3 leave for the grid: the configs folder, the grid's config, the target's
+/// What stages 1–2 leave for the grid: the configs folder, the grid's config, the target's
 /// profile, and the real test sets' folders or why there are none.
 struct Prepared {
     configs: PathBuf,
@@ -559,14 +559,24 @@ pub fn run(opts: &Options) -> Result<String> {
     stage(
         progress,
         began,
-        "4/5 per seed: control, Net_R, Net_P and Net_S fine-tuned; every network scored on every \
-         test set (hdrsynth ablate)",
+        "3/4 per seed: Net_O pretrained through a DSLR model (550D, gamma 2.2, ISO 100–200), \
+         then control, Net_R, Net_P and Net_S fine-tuned; every network scored on every test \
+         set (hdrsynth ablate)",
     );
     let exp = AblateConfig::load(&p.exp_path)?;
-    let summary = ablate::run(&exp, &p.exp_path, progress)
+    let pretrain = |k: u64| {
+        let path = p.configs.join(pretrain_file(k));
+        train_resumable(&path, false)
+            .map_err(|e| Error::context(format!("pretraining ({})", path.display()), e))?;
+        if progress {
+            eprintln!("  pretrained {}", path.display());
+        }
+        Ok(())
+    };
+    let summary = ablate::run_with(&exp, &p.exp_path, progress, &pretrain)
         .map_err(|e| Error::context("the main job's grid", e))?;
 
-    stage(progress, began, "5/5 noise ceiling and decision");
+    stage(progress, began, "4/4 noise ceiling and decision");
     let mut device = p.target_profile.clone();
     device.source_response = Response::Linear;
     let ceiling = noise_ceiling(&exp, &device.response, &out.join("noise_ceiling"), progress)?;
@@ -598,8 +608,8 @@ pub fn run(opts: &Options) -> Result<String> {
     Ok(report)
 }
 
-/// Stages 1–3: the sensor profiles, the training sets, the pretrainings, the test sets and
-/// the grid's config.
+/// Stages 1–2: the sensor profiles, the training sets, the pretraining configs, the test sets
+/// and the grid's config.
 fn prepare(opts: &Options, s: &Sizes, backend: &str, began: Instant) -> Result<Prepared> {
     let (progress, out) = (opts.progress, &opts.out);
     let configs = out.join("configs");
@@ -612,24 +622,22 @@ fn prepare(opts: &Options, s: &Sizes, backend: &str, began: Instant) -> Result<P
     write(&pre_profile, PRETRAIN_PROFILE.1)?;
     write(&target, &target_text)?;
 
-    stage(progress, began, "1/5 synthetic training sets (EV −2/0/+2)");
+    stage(progress, began, "1/4 synthetic training sets (EV −2/0/+2)");
     let data = out.join("data/train");
     let gen_path = configs.join("train_data.toml");
     write_config(&gen_path, &train_data_config(s))?;
     generate(&GenerateConfig::load(&gen_path)?, &data, progress)?;
 
-    stage(
-        progress,
-        began,
-        "2/5 pretraining Network-2 (Net_O) per seed through a DSLR model (550D, gamma 2.2, ISO \
-         100–200)",
-    );
-    pretrain(opts, s, backend, &data, &pre_profile, &configs)?;
+    for &k in s.seeds.iter() {
+        let run = out.join(format!("pretrain/seed{k}"));
+        let cfg = pretrain_config(opts.preset, backend, &data, &pre_profile, &run, k);
+        write_config(&configs.join(pretrain_file(k)), &cfg)?;
+    }
 
     stage(
         progress,
         began,
-        "3/5 test sets (held-out generated scenes, static and with moving subjects; real \
+        "2/4 test sets (held-out generated scenes, static and with moving subjects; real \
          radiance and a real capture where present)",
     );
     let real_radiance = optional_source(
@@ -713,36 +721,10 @@ pub fn pretrain_config(
     train_config(&s, backend, data, &stage)
 }
 
-/// Stage 2: Net_O per seed, pretrained on `data` through the DSLR profile.
-fn pretrain(
-    opts: &Options,
-    s: &Sizes,
-    backend: &str,
-    data: &Path,
-    pre_profile: &Path,
-    configs: &Path,
-) -> Result<()> {
-    let mut paths = Vec::new();
-    for &k in s.seeds.iter() {
-        let pre_run = opts.out.join(format!("pretrain/seed{k}"));
-        let pre_path = configs.join(format!("pretrain_seed{k}.toml"));
-        write_config(
-            &pre_path,
-            &pretrain_config(opts.preset, backend, data, pre_profile, &pre_run, k),
-        )?;
-        paths.push(pre_path);
-    }
-    // The seeds' pretrainings at once, as the grid's cells (their progress bars would
-    // interleave: a line per run instead).
-    crate::experiments::at_once(ablate::GRID_JOBS, &paths, |_, pre_path| {
-        train_resumable(pre_path, false)
-            .map_err(|e| Error::context(format!("pretraining ({})", pre_path.display()), e))?;
-        if opts.progress {
-            eprintln!("  pretrained {}", pre_path.display());
-        }
-        Ok(())
-    })?;
-    Ok(())
+/// The pretraining config of seed `k` in the configs folder: what the grid trains before
+/// that seed's first cell.
+fn pretrain_file(k: u64) -> String {
+    format!("pretrain_seed{k}.toml")
 }
 
 #[cfg(test)]

@@ -114,51 +114,51 @@ pub(super) fn noise_ceiling(
     out: &Path,
     progress: bool,
 ) -> Result<[(f64, f64); 4]> {
-    let mut sums = [(0.0, 0.0); 4];
-    for &k in &cfg.seeds {
-        let testset = cfg.testset.dir_for(Some(k));
-        let mut pair = [0.0f64; 8];
-        for (ci, clean) in [false, true].into_iter().enumerate() {
-            let method = ClassicalMerge {
-                kind: Classical::Triangle,
-                response: response.clone(),
-                clean,
-            };
-            let dir = out.join(format!("seed{k}/{}", if clean { "clean" } else { "noisy" }));
-            let partial = dir.with_extension("partial");
-            if partial.exists() {
-                std::fs::remove_dir_all(&partial).map_err(|e| Error::io(&partial, e))?;
-            }
-            let sum = evaluate::evaluate(
-                &testset,
-                &method,
-                &partial,
-                &EvalOptions {
-                    progress: false,
-                    ..EvalOptions::default()
-                },
-            )?;
-            if dir.exists() {
-                std::fs::remove_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
-            }
-            std::fs::rename(&partial, &dir).map_err(|e| Error::io(&dir, e))?;
-            for (mi, m) in ["psnr_t", "psnr_l", "ssim_t", "ssim_l"].iter().enumerate() {
-                let v = sum
-                    .summary
-                    .iter()
-                    .find(|x| x.metric == *m)
-                    .map_or(f64::NAN, |x| x.mean);
-                pair[ci * 4 + mi] = v;
-            }
+    // Per seed, the triangle merge of the noisy and of the noise-free frames, several at once.
+    let runs: Vec<(u64, bool)> = (cfg.seeds.iter())
+        .flat_map(|&k| [(k, false), (k, true)])
+        .collect();
+    let scores = crate::experiments::at_once(ablate::GRID_JOBS, &runs, |_, &(k, clean)| {
+        let method = ClassicalMerge {
+            kind: Classical::Triangle,
+            response: response.clone(),
+            clean,
+        };
+        let dir = out.join(format!("seed{k}/{}", if clean { "clean" } else { "noisy" }));
+        let partial = dir.with_extension("partial");
+        if partial.exists() {
+            std::fs::remove_dir_all(&partial).map_err(|e| Error::io(&partial, e))?;
         }
+        let sum = evaluate::evaluate(
+            &cfg.testset.dir_for(Some(k)),
+            &method,
+            &partial,
+            &EvalOptions {
+                progress: false,
+                ..EvalOptions::default()
+            },
+        )?;
+        if dir.exists() {
+            std::fs::remove_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
+        }
+        std::fs::rename(&partial, &dir).map_err(|e| Error::io(&dir, e))?;
+        Ok(["psnr_t", "psnr_l", "ssim_t", "ssim_l"].map(|m| {
+            (sum.summary.iter())
+                .find(|x| x.metric == m)
+                .map_or(f64::NAN, |x| x.mean)
+        }))
+    })?;
+    let mut sums = [(0.0, 0.0); 4];
+    for (&k, pair) in cfg.seeds.iter().zip(scores.chunks_exact(2)) {
+        let (noisy, clean) = (pair[0], pair[1]);
         for mi in 0..4 {
-            sums[mi].0 += pair[mi] / cfg.seeds.len() as f64;
-            sums[mi].1 += pair[4 + mi] / cfg.seeds.len() as f64;
+            sums[mi].0 += noisy[mi] / cfg.seeds.len() as f64;
+            sums[mi].1 += clean[mi] / cfg.seeds.len() as f64;
         }
         if progress {
             eprintln!(
                 "noise ceiling, seed {k}: triangle merge PSNR-T noisy {:.2} / noise-free {:.2}",
-                pair[0], pair[4]
+                noisy[0], clean[0]
             );
         }
     }

@@ -29,27 +29,32 @@ pub(super) fn im2col(
                 continue;
             }
             let src = &plane[ih as usize * w..(ih as usize + 1) * w];
-            if sw == 1 {
-                // A shifted copy of one input row with zeros outside it.
-                let off = (j * dw) as isize - pl as isize;
-                let lo = (-off).clamp(0, wo as isize) as usize;
-                let hi = (w as isize - off).clamp(lo as isize, wo as isize) as usize;
-                out[..lo].fill(0.0);
-                let s0 = (lo as isize + off) as usize;
-                out[lo..hi].copy_from_slice(&src[s0..s0 + hi - lo]);
-                out[hi..].fill(0.0);
+            // Every sw-th value of one input row, shifted, with zeros outside it.
+            let off = (j * dw) as isize - pl as isize;
+            let (lo, hi) = inside(off, sw, w, wo);
+            out[..lo].fill(0.0);
+            out[hi..].fill(0.0);
+            if lo == hi {
                 continue;
             }
-            for (ow, v) in out.iter_mut().enumerate() {
-                let iw = (ow * sw + j * dw) as isize - pl as isize;
-                *v = if iw >= 0 && iw < w as isize {
-                    src[iw as usize]
-                } else {
-                    0.0
-                };
+            let s0 = ((lo * sw) as isize + off) as usize;
+            if sw == 1 {
+                out[lo..hi].copy_from_slice(&src[s0..s0 + hi - lo]);
+            } else {
+                for (o, s) in out[lo..hi].iter_mut().zip(src[s0..].iter().step_by(sw)) {
+                    *o = *s;
+                }
             }
         }
     });
+}
+
+/// The output columns `lo..hi` of a row whose column ow reads input column ow·sw + off:
+/// those that land inside the row's `w` columns (an empty range at 0 if none do).
+fn inside(off: isize, sw: usize, w: usize, wo: usize) -> (usize, usize) {
+    let first = |x: isize| (x.max(0) as usize).div_ceil(sw).min(wo);
+    let lo = first(-off);
+    (lo, first(w as isize - off).max(lo))
 }
 
 /// The inverse of [`im2col`] for one image: adds the tile `col` (output rows oh0.., as many
@@ -81,22 +86,16 @@ pub(super) fn col2im(
                         continue;
                     }
                     let dst = &mut plane[ih as usize * w..(ih as usize + 1) * w];
+                    // The columns lo..hi land on every sw-th value of the input row.
                     let off = (j * dw) as isize - pl as isize;
-                    if sw == 1 {
-                        // The columns lo..hi land on one contiguous run of the input row.
-                        let lo = (-off).clamp(0, wo as isize) as usize;
-                        let hi = (w as isize - off).clamp(lo as isize, wo as isize) as usize;
-                        let d0 = (lo as isize + off) as usize;
-                        for (d, s) in dst[d0..d0 + hi - lo].iter_mut().zip(&src[lo..hi]) {
-                            *d += s;
-                        }
+                    let (lo, hi) = inside(off, sw, w, wo);
+                    if lo == hi {
                         continue;
                     }
-                    for (ow, s) in src.iter().enumerate() {
-                        let iw = (ow * sw) as isize + off;
-                        if iw >= 0 && iw < w as isize {
-                            dst[iw as usize] += s;
-                        }
+                    let d0 = ((lo * sw) as isize + off) as usize;
+                    let dst = dst[d0..].iter_mut().step_by(sw);
+                    for (d, s) in dst.zip(&src[lo..hi]) {
+                        *d += s;
                     }
                 }
             }
