@@ -244,15 +244,13 @@ pub(crate) fn net_o_row() -> Axis {
     }
 }
 
-/// The control row: Net_O trained further on its own DSLR data for the same steps.
+const CONTROL_LABEL: &str = "control (Net_O trained on its own DSLR data, same steps)";
+
+/// The control row: Net_O trained further on its own pretraining data for the same steps.
 pub(crate) fn control_row() -> Axis {
     Axis {
         kind: AxisKind::Control,
-        ..row(
-            "control",
-            "control (Net_O trained on its own DSLR data, same steps)",
-            toml::Table::new(),
-        )
+        ..row("control", CONTROL_LABEL, toml::Table::new())
     }
 }
 
@@ -382,7 +380,7 @@ fn experiment_config(
     out: &Path,
     base: &Path,
     src: &TestSources,
-    target: &Path,
+    [dslr, target]: [&Path; 2],
 ) -> AblateConfig {
     let mut options = crate::data::testset::TestsetOptions {
         isos: isos(&TARGET_ISOS),
@@ -458,7 +456,13 @@ fn experiment_config(
         },
         rows: vec![
             net_o_row(),
-            control_row(),
+            // The control spelled out (the pretraining's data through the DSLR) rather than
+            // read from the pretrained run, which the grid itself trains.
+            row(
+                "control",
+                CONTROL_LABEL,
+                data_set(dslr, Some(&DSLR_ISOS), &[]),
+            ),
             target_row(
                 REFERENCE,
                 "Net_R (target response, levels, exposure rule; no colour, no noise)",
@@ -685,7 +689,7 @@ fn prepare(opts: &Options, s: &Sizes, backend: &str, began: Instant) -> Result<P
         ),
     )?;
     let exp_path = configs.join("experiment.toml");
-    let mut exp_cfg = experiment_config(s, out, &base_path, &sources, &target);
+    let mut exp_cfg = experiment_config(s, out, &base_path, &sources, [&pre_profile, &target]);
     exp_cfg.also.extend(heldout);
     write_config(&exp_path, &exp_cfg)?;
     Ok(Prepared {

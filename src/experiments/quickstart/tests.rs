@@ -64,7 +64,8 @@ fn the_configs_follow_the_protocol_and_read_back() {
             real_radiance: Some(root.join("hdr")),
             real_capture: Some(root.join("capture")),
         };
-        let exp = experiment_config(&s, root, &root.join("ft.toml"), &src, &target);
+        let dslr = root.join(PRETRAIN_PROFILE.0);
+        let exp = experiment_config(&s, root, &root.join("ft.toml"), &src, [&dslr, &target]);
         assert_eq!(round_trip(&exp), exp);
         assert_eq!(exp.eval.reference.as_deref(), Some(REFERENCE));
         let names: Vec<&str> = exp.rows.iter().map(|r| r.name.as_str()).collect();
@@ -282,4 +283,66 @@ fn seeds_replace_the_presets_and_are_checked() {
         let e = s(Some(bad)).unwrap_err().to_string();
         assert!(e.contains(shown), "{e}");
     }
+}
+
+/// The main job's control row, spelled out as the pretraining's DSLR data (the grid trains the
+/// pretrained runs itself, so none exists when its cells are planned), trains exactly what the
+/// ablation's `control` kind reads from a finished pretrained run: the same training config.
+#[test]
+fn the_spelled_out_control_is_the_control_read_from_the_pretrained_run() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let root = dir.path();
+    let (dslr, target) = (root.join(PRETRAIN_PROFILE.0), root.join(TARGET_PROFILE.0));
+    let s = sizes(Preset::Cpu);
+    let data = root.join("data");
+    let base = root.join("finetune.toml");
+    for &k in s.seeds.iter() {
+        let run = root.join(format!("pretrain/seed{k}"));
+        std::fs::create_dir_all(&run).expect("run folder");
+        let pre = pretrain_config(Preset::Cpu, s.backend, &data, &dslr, &run, k);
+        write_config(&run.join(train::RUN_CONFIG), &pre).expect("write run config");
+    }
+    let unused = root.join("unused");
+    let init = root.join("pretrain/seed1");
+    let ft = Stage {
+        run: &unused,
+        seed: 0,
+        profile: Path::new("pure"),
+        isos: &TARGET_ISOS,
+        steps: s.finetune_steps,
+        lr: s.finetune_lr,
+        init: Some(&init),
+    };
+    write_config(&base, &train_config(&s, s.backend, &data, &ft)).expect("write base");
+    let src = TestSources {
+        scenes: root.join("scenes"),
+        dynamic: root.join("moving"),
+        real_radiance: None,
+        real_capture: None,
+    };
+    let spelled = experiment_config(&s, root, &base, &src, [&dslr, &target]);
+    let read = AblateConfig {
+        rows: (spelled.rows.iter())
+            .map(|r| {
+                if r.name == "control" {
+                    control_row()
+                } else {
+                    r.clone()
+                }
+            })
+            .collect(),
+        ..spelled.clone()
+    };
+    let path = root.join("experiment.toml");
+    let spelled = ablate::train_configs(&spelled, &path).expect("plans");
+    let read = ablate::train_configs(&read, &path).expect("plans");
+    let controls = |c: &[TrainConfig]| -> Vec<TrainConfig> {
+        c.iter()
+            .filter(|t| t.run.out.to_string_lossy().contains("/control/"))
+            .cloned()
+            .collect()
+    };
+    assert_eq!(controls(&spelled).len(), s.seeds.len());
+    assert_eq!(controls(&spelled), controls(&read));
+    assert_eq!(spelled, read);
 }
