@@ -33,7 +33,7 @@ fn round_trip<T: Serialize + serde::de::DeserializeOwned>(cfg: &T) -> T {
 #[test]
 fn the_configs_follow_the_protocol_and_read_back() {
     let root = Path::new("/r");
-    let target = root.join(TARGET_PROFILE.0);
+    let (dslr, target) = (root.join(PRETRAIN_PROFILE.0), root.join(TARGET_PROFILE.0));
     for preset in [Preset::Cpu, Preset::Gpu, Preset::Long, Preset::LongStill] {
         let s = sizes(preset);
         let gen_cfg = train_data_config(&s);
@@ -64,7 +64,6 @@ fn the_configs_follow_the_protocol_and_read_back() {
             real_radiance: Some(root.join("hdr")),
             real_capture: Some(root.join("capture")),
         };
-        let dslr = root.join(PRETRAIN_PROFILE.0);
         let exp = experiment_config(&s, root, &root.join("ft.toml"), &src, [&dslr, &target]);
         assert_eq!(round_trip(&exp), exp);
         assert_eq!(exp.eval.reference.as_deref(), Some(REFERENCE));
