@@ -120,8 +120,7 @@ pub fn run_with(
     let pretrained: Vec<std::sync::Mutex<bool>> =
         cfg.seeds.iter().map(|_| Default::default()).collect();
     let results = crate::experiments::at_once(cfg.jobs, &units, |i, u| {
-        let seed = u.at.2.filter(|_| cfg.pretrained_per_seed.is_some());
-        if let Some(k) = seed.filter(|_| plans[i].baseline.is_none())
+        if let (Some(k), Some(_), None) = (u.at.2, &cfg.pretrained_per_seed, plans[i].baseline)
             && let Some(at) = cfg.seeds.iter().position(|&s| s == k)
         {
             let mut done = pretrained[at].lock().unwrap_or_else(|e| e.into_inner());

@@ -31,17 +31,17 @@ pub(super) fn im2col(
             let src = &plane[ih as usize * w..(ih as usize + 1) * w];
             // Every sw-th value of one input row, shifted, with zeros outside it.
             let off = (j * dw) as isize - pl as isize;
-            let (lo, hi) = inside(off, sw, w, wo);
-            out[..lo].fill(0.0);
-            out[hi..].fill(0.0);
-            if lo == hi {
+            let (c0, c1) = inside(off, sw, w, wo);
+            out[..c0].fill(0.0);
+            out[c1..].fill(0.0);
+            if c0 == c1 {
                 continue;
             }
-            let s0 = ((lo * sw) as isize + off) as usize;
+            let s0 = ((c0 * sw) as isize + off) as usize;
             if sw == 1 {
-                out[lo..hi].copy_from_slice(&src[s0..s0 + hi - lo]);
+                out[c0..c1].copy_from_slice(&src[s0..s0 + c1 - c0]);
             } else {
-                for (o, s) in out[lo..hi].iter_mut().zip(src[s0..].iter().step_by(sw)) {
+                for (o, s) in out[c0..c1].iter_mut().zip(src[s0..].iter().step_by(sw)) {
                     *o = *s;
                 }
             }
@@ -49,8 +49,8 @@ pub(super) fn im2col(
     });
 }
 
-/// The output columns `lo..hi` of a row whose column ow reads input column ow·sw + off:
-/// those that land inside the row's `w` columns (an empty range at 0 if none do).
+/// The output columns `c0..c1` of a row whose column ow reads input column ow·sw + off:
+/// those that land inside the row's `w` columns (an empty range if none do).
 fn inside(off: isize, sw: usize, w: usize, wo: usize) -> (usize, usize) {
     let first = |x: isize| (x.max(0) as usize).div_ceil(sw).min(wo);
     let lo = first(-off);
@@ -88,13 +88,13 @@ pub(super) fn col2im(
                     let dst = &mut plane[ih as usize * w..(ih as usize + 1) * w];
                     // The columns lo..hi land on every sw-th value of the input row.
                     let off = (j * dw) as isize - pl as isize;
-                    let (lo, hi) = inside(off, sw, w, wo);
-                    if lo == hi {
+                    let (c0, c1) = inside(off, sw, w, wo);
+                    if c0 == c1 {
                         continue;
                     }
-                    let d0 = ((lo * sw) as isize + off) as usize;
+                    let d0 = ((c0 * sw) as isize + off) as usize;
                     let dst = dst[d0..].iter_mut().step_by(sw);
-                    for (d, s) in dst.zip(&src[lo..hi]) {
+                    for (d, s) in dst.zip(&src[c0..c1]) {
                         *d += s;
                     }
                 }
