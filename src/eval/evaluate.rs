@@ -31,7 +31,7 @@ pub use crate::eval::infer::NetworkOptions;
 use crate::eval::metrics::{self, MetricOptions, PixelMask, Pu21Scale, Scores};
 use crate::eval::report::{self, Cell, MetricSummary, SetScore};
 use crate::io::source::Source;
-use crate::io::{BitDepth, ExrPrecision, Image, read_image, resize, write_exr, write_ldr};
+use crate::io::{BitDepth, Image, read_image, resize, write_exr_uncompressed, write_ldr};
 use crate::sensor::profile::Response;
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
@@ -487,32 +487,30 @@ fn evaluate_set(
     let seconds = t0.elapsed().as_secs_f64();
     notes.extend(set_notes);
 
-    write_exr(
-        &out.join(format!("{}.exr", set.name)),
-        &output,
-        ExrPrecision::Float,
+    write_exr_uncompressed(&out.join(format!("{}.exr", set.name)), &output)?;
+    // Each display image is mapped once and its linear image dropped: the full-size preview
+    // is written, the error map made from the two, then only thumbnails are kept.
+    let shown = output.map(|v| scoring.display(v));
+    drop(output);
+    write_ldr(
+        &out.join(format!("{}.png", set.name)),
+        &shown,
+        BitDepth::Eight,
     )?;
-    // Display images one at a time: the full-size preview is written, then only its
-    // thumbnail is kept.
-    let out_thumb = {
-        let d = output.map(|v| scoring.display(v));
-        write_ldr(&out.join(format!("{}.png", set.name)), &d, BitDepth::Eight)?;
-        resize(&d, tw, th)
-    };
-    let ref_thumb = resize(&reference.map(|v| scoring.display(v)), tw, th);
+    let truth = reference.map(|v| scoring.display(v));
+    drop(reference);
+    let (out_thumb, ref_thumb) = (resize(&shown, tw, th), resize(&truth, tw, th));
     let err_thumb = {
-        let mut e = Image::new(output.width, output.height);
+        let mut e = Image::new(shown.width, shown.height);
         e.data
             .par_chunks_exact_mut(3)
-            .zip(output.data.par_chunks_exact(3))
-            .zip(reference.data.par_chunks_exact(3))
+            .zip(shown.data.par_chunks_exact(3))
+            .zip(truth.data.par_chunks_exact(3))
             .for_each(|((e, o), r)| {
-                let m = (0..3)
-                    .map(|c| (scoring.display(o[c]) - scoring.display(r[c])).abs())
-                    .sum::<f32>()
-                    / 3.0;
+                let m = (0..3).map(|c| (o[c] - r[c]).abs()).sum::<f32>() / 3.0;
                 e.fill(m);
             });
+        drop((shown, truth));
         let t = resize(&e, tw, th);
         Image::from_vec(
             tw,
@@ -523,8 +521,6 @@ fn evaluate_set(
                 .collect(),
         )
     };
-    drop(output);
-    drop(reference);
     let mut input_cells = Vec::new();
     for (label, frame) in inputs {
         let image = match frame {

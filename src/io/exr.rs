@@ -18,7 +18,7 @@ use rayon::prelude::*;
 use std::io::{Cursor, Seek, SeekFrom};
 use std::path::Path;
 
-pub(super) fn write(path: &Path, img: &Image, precision: ExrPrecision) -> Result<()> {
+pub(super) fn write(path: &Path, img: &Image, precision: ExrPrecision, zip: bool) -> Result<()> {
     use exr::prelude::{Encoding, Layer, LayerAttributes, SpecificChannels, WritableImage, f16};
     if img.width == 0 || img.height == 0 {
         return Err(Error::encode(
@@ -27,6 +27,11 @@ pub(super) fn write(path: &Path, img: &Image, precision: ExrPrecision) -> Result
         ));
     }
     let size = (img.width, img.height);
+    let encoding = if zip {
+        Encoding::SMALL_LOSSLESS
+    } else {
+        Encoding::UNCOMPRESSED
+    };
     let mut buf = Cursor::new(Vec::with_capacity(img.data.len() * 2));
     let result = match precision {
         ExrPrecision::Float => {
@@ -34,12 +39,7 @@ pub(super) fn write(path: &Path, img: &Image, precision: ExrPrecision) -> Result
                 let [r, g, b] = img.get(p.x(), p.y());
                 (r, g, b)
             });
-            let layer = Layer::new(
-                size,
-                LayerAttributes::default(),
-                Encoding::SMALL_LOSSLESS,
-                channels,
-            );
+            let layer = Layer::new(size, LayerAttributes::default(), encoding, channels);
             exr::prelude::Image::from_layer(layer)
                 .write()
                 .to_buffered(&mut buf)
@@ -49,12 +49,7 @@ pub(super) fn write(path: &Path, img: &Image, precision: ExrPrecision) -> Result
                 let [r, g, b] = img.get(p.x(), p.y());
                 (f16::from_f32(r), f16::from_f32(g), f16::from_f32(b))
             });
-            let layer = Layer::new(
-                size,
-                LayerAttributes::default(),
-                Encoding::SMALL_LOSSLESS,
-                channels,
-            );
+            let layer = Layer::new(size, LayerAttributes::default(), encoding, channels);
             exr::prelude::Image::from_layer(layer)
                 .write()
                 .to_buffered(&mut buf)

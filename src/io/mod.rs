@@ -163,7 +163,14 @@ pub fn read_image_bytes(bytes: &[u8], format: Format, path: &Path) -> Result<(Im
 
 /// Write linear values to OpenEXR (RGB, ZIP compression), atomically.
 pub fn write_exr(path: &Path, img: &Image, precision: ExrPrecision) -> Result<()> {
-    exr::write(path, img, precision)
+    exr::write(path, img, precision, true)
+}
+
+/// [`write_exr`] in f32 without compression, for a network's or a merge's output: ZIP shrinks
+/// the noise of such an image by about 3 % (a clean render by half) and took a tenth of an
+/// evaluation's time.
+pub fn write_exr_uncompressed(path: &Path, img: &Image) -> Result<()> {
+    exr::write(path, img, ExrPrecision::Float, false)
 }
 
 /// Write linear values to Radiance RGBE (.hdr), atomically. Negative values are clamped to 0.

@@ -243,6 +243,14 @@ impl Method for Network1 {
     }
 }
 
+/// The three frames [`infer::network2_frames`] picked, for the grid, labelled by their EVs.
+fn three_shown(set: &SetInfo, frames: [Image; 3]) -> Vec<(String, Frame)> {
+    let evs = [0, set.reference, set.evs.len() - 1].map(|i| set.evs[i]);
+    (frames.into_iter().zip(evs))
+        .map(|(f, ev)| (format!("input {}", ev_tag(ev)), Frame::Loaded(f)))
+        .collect()
+}
+
 /// A network's full-resolution inference on three frames (shortest, reference, longest; LDR
 /// code values in [0, 1]) with exposure times relative to the reference (how the networks are
 /// trained), and the curve the test set records for its frames where it records one → linear
@@ -300,11 +308,7 @@ impl Method for Network2 {
             output,
             reference,
             scoring: Scoring::Hdr,
-            inputs: frames
-                .into_iter()
-                .zip(evs)
-                .map(|(f, ev)| (format!("input {}", ev_tag(ev)), Frame::Loaded(f)))
-                .collect(),
+            inputs: three_shown(set, frames),
             notes: Vec::new(),
         })
     }
@@ -546,11 +550,17 @@ impl Method for ClassicalMerge {
         }
         let output = self.kind.merge(&frames, times, &self.response)?;
         let reference = layout::read_linear_ground_truth(set)?;
+        // The frames merged, as a network's are shown; the noise-free ones stay unshown.
+        let inputs = if self.clean {
+            set_inputs(set)
+        } else {
+            three_shown(set, frames)
+        };
         Ok(Outcome {
             output,
             reference,
             scoring: Scoring::Hdr,
-            inputs: set_inputs(set),
+            inputs,
             notes: Vec::new(),
         })
     }
