@@ -243,6 +243,21 @@ impl PerImageRow {
 
 /// The rows of a `per_image.csv`; an error names the file and the line.
 pub fn read_per_image(path: &Path) -> Result<Vec<PerImageRow>> {
+    read_rows(path)
+}
+
+/// (metric, mean) of each row of a `summary.csv`; an error names the file and the line.
+pub fn read_summary_means(path: &Path) -> Result<Vec<(String, f64)>> {
+    #[derive(serde::Deserialize)]
+    struct Row {
+        metric: String,
+        mean: f64,
+    }
+    let rows: Vec<Row> = read_rows(path)?;
+    Ok(rows.into_iter().map(|r| (r.metric, r.mean)).collect())
+}
+
+fn read_rows<T: serde::de::DeserializeOwned>(path: &Path) -> Result<Vec<T>> {
     let text = crate::io::guard::read_text(path)?;
     csv::Reader::from_reader(text.as_bytes())
         .deserialize()
