@@ -77,9 +77,9 @@ pub struct AblateConfig {
     /// Optional second axis (table columns); without it the grid is one column.
     #[serde(default)]
     pub columns: Vec<Axis>,
-    /// Cells trained and scored at once (default 1). One small network's training step keeps
-    /// about 1.4 of 2 cores busy: its own thread works alone between the parallel operations.
-    /// Results do not depend on it.
+    /// Cells trained and scored at once (default 1), each in a thread pool of its own. One
+    /// small network's training step keeps about 1.4 of 2 cores busy: its own thread works
+    /// alone between the parallel operations. Results do not depend on it.
     #[serde(default = "one")]
     pub jobs: usize,
 }
@@ -89,7 +89,7 @@ fn one() -> usize {
 }
 
 /// Cells at once in the grids the product writes itself (the main job, the protocol, the
-/// loop): on two cores, a third run fills the gaps two leave (BENCHMARKS.md, "Main job").
+/// loop): one per seed; on two cores two already keep both busy (BENCHMARKS.md, "Main job").
 pub const GRID_JOBS: usize = 3;
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

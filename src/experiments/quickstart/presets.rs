@@ -9,7 +9,7 @@ use std::borrow::Cow;
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Preset {
-    /// About 13 minutes on 2 CPU cores: a narrow Network-2, short runs, small crops.
+    /// About 10 minutes on 2 CPU cores: a narrow Network-2, short runs, small crops.
     Cpu,
     /// Wu et al.'s released width and longer runs, for a GPU (pass --backend cuda or wgpu).
     Gpu,
