@@ -123,7 +123,9 @@ pub(super) fn noise_ceiling(
                 .map_or(f64::NAN, |x| x.1)
         })
     };
-    let triangle = (cfg.rows.iter()).position(|a| a.kind == AxisKind::Triangle);
+    let triangle = (cfg.rows.iter())
+        .position(|a| a.kind == AxisKind::Triangle)
+        .filter(|_| cfg.columns.is_empty());
     let graded = |k: u64| {
         let r = triangle?;
         let seed = (cfg.cell_seeds(r, None).contains(&Some(k))).then_some(k);
