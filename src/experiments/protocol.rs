@@ -440,6 +440,12 @@ struct Setup<'a> {
 /// test scenes are shared). Returns the report, also written to OUT/protocol.md.
 pub fn run(opts: &Options) -> Result<String> {
     let began = Instant::now();
+    // Absolute, as the main job's configs name it: the test sets they share record their
+    // sources by path, and a relative one would read as another recipe.
+    let opts = &Options {
+        out: crate::io::guard::resolve(&opts.out)?,
+        ..opts.clone()
+    };
     let main = quickstart::run(&Options {
         heldout: true,
         ..opts.clone()
