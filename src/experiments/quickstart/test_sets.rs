@@ -115,14 +115,6 @@ pub(super) fn noise_ceiling(
     out: &Path,
     progress: bool,
 ) -> Result<[(f64, f64); 4]> {
-    const METRICS: [&str; 4] = ["psnr_t", "psnr_l", "ssim_t", "ssim_l"];
-    let means = |summary: &[(String, f64)]| {
-        METRICS.map(|m| {
-            (summary.iter())
-                .find(|(x, _)| x == m)
-                .map_or(f64::NAN, |x| x.1)
-        })
-    };
     let triangle = (cfg.rows.iter())
         .position(|a| a.kind == AxisKind::Triangle)
         .filter(|_| cfg.columns.is_empty());
@@ -132,41 +124,22 @@ pub(super) fn noise_ceiling(
         let path = cfg.eval_dir(r, None, seed).join(evaluate::SUMMARY_CSV);
         path.is_file().then_some(path)
     };
-    // Per seed, the triangle merge of the noisy and of the noise-free frames, several at once.
+    // Per seed, the triangle merge of the noisy and of the noise-free frames, several at once;
+    // each read back from its evaluation's summary.csv, as the grid's row is.
     let runs: Vec<(u64, bool)> = (cfg.seeds.iter())
         .flat_map(|&k| [(k, false), (k, true)])
         .collect();
     let scores = crate::experiments::at_once(ablate::GRID_JOBS, &runs, |_, &(k, clean)| {
-        if let (false, Some(path)) = (clean, graded(k)) {
-            return Ok(means(&crate::eval::report::read_summary_means(&path)?));
-        }
-        let method = ClassicalMerge {
-            kind: Classical::Triangle,
-            response: response.clone(),
-            clean,
+        let summary = match graded(k).filter(|_| !clean) {
+            Some(path) => path,
+            None => triangle_merge(cfg, response, out, k, clean)?,
         };
-        let dir = out.join(format!("seed{k}/{}", if clean { "clean" } else { "noisy" }));
-        let partial = dir.with_extension("partial");
-        if partial.exists() {
-            std::fs::remove_dir_all(&partial).map_err(|e| Error::io(&partial, e))?;
-        }
-        let sum = evaluate::evaluate(
-            &cfg.testset.dir_for(Some(k)),
-            &method,
-            &partial,
-            &EvalOptions {
-                progress: false,
-                ..EvalOptions::default()
-            },
-        )?;
-        if dir.exists() {
-            std::fs::remove_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
-        }
-        std::fs::rename(&partial, &dir).map_err(|e| Error::io(&dir, e))?;
-        let summary: Vec<(String, f64)> = (sum.summary.iter())
-            .map(|x| (x.metric.to_string(), x.mean))
-            .collect();
-        Ok(means(&summary))
+        let means = crate::eval::report::read_summary_means(&summary)?;
+        Ok(["psnr_t", "psnr_l", "ssim_t", "ssim_l"].map(|m| {
+            (means.iter())
+                .find(|(x, _)| x == m)
+                .map_or(f64::NAN, |x| x.1)
+        }))
     })?;
     let mut sums = [(0.0, 0.0); 4];
     for (&k, pair) in cfg.seeds.iter().zip(scores.chunks_exact(2)) {
@@ -183,4 +156,39 @@ pub(super) fn noise_ceiling(
         }
     }
     Ok(sums)
+}
+
+/// Seed k's triangle merge of the primary test set's noisy or noise-free frames with the true
+/// response, evaluated into `out`; returns its summary.csv.
+fn triangle_merge(
+    cfg: &AblateConfig,
+    response: &Response,
+    out: &Path,
+    k: u64,
+    clean: bool,
+) -> Result<PathBuf> {
+    let method = ClassicalMerge {
+        kind: Classical::Triangle,
+        response: response.clone(),
+        clean,
+    };
+    let dir = out.join(format!("seed{k}/{}", if clean { "clean" } else { "noisy" }));
+    let partial = dir.with_extension("partial");
+    if partial.exists() {
+        std::fs::remove_dir_all(&partial).map_err(|e| Error::io(&partial, e))?;
+    }
+    evaluate::evaluate(
+        &cfg.testset.dir_for(Some(k)),
+        &method,
+        &partial,
+        &EvalOptions {
+            progress: false,
+            ..EvalOptions::default()
+        },
+    )?;
+    if dir.exists() {
+        std::fs::remove_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
+    }
+    std::fs::rename(&partial, &dir).map_err(|e| Error::io(&dir, e))?;
+    Ok(dir.join(evaluate::SUMMARY_CSV))
 }
