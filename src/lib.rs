@@ -1,6 +1,7 @@
 //! hdrsynth: sensor-realistic synthetic data for multi-frame HDR networks.
 //! See ARCHITECTURE in docs/architecture.md for the one-way flow and where things live.
 
+pub mod capture;
 pub mod cli;
 pub mod config;
 pub mod data;

@@ -6,9 +6,9 @@
 //! cannot tell from noise), noise of variance a·L + b added to the linear signal, sRGB
 //! encoded by hand, 8-bit PNG; the oracle values are the generator's a, b and correlations.
 
-use hdrsynth::data::bracket_profile::{BracketCalibration, BracketProfileOptions};
-use hdrsynth::data::bracket_testset::ResponseChoice;
-use hdrsynth::data::brackets::{self, ScanOptions};
+use hdrsynth::capture::linearise::ResponseChoice;
+use hdrsynth::capture::profile::{BracketCalibration, BracketProfileOptions};
+use hdrsynth::capture::scan::{self, ScanOptions};
 use hdrsynth::sensor::profile::Response;
 use std::path::Path;
 
@@ -125,7 +125,7 @@ fn calibrate(
 ) -> hdrsynth::Result<BracketCalibration> {
     let beside = tempfile::tempdir().expect("tmp");
     let out = beside.path().join("phone.toml");
-    let cal = hdrsynth::data::bracket_profile::calibrate_brackets(
+    let cal = hdrsynth::capture::profile::calibrate_brackets(
         dir,
         &BracketProfileOptions {
             scan,
@@ -156,9 +156,9 @@ fn repeated_captures_stay_in_their_set_only_when_asked() {
     let tmp = tempfile::tempdir().expect("tmp");
     folder(tmp.path(), &STOPS, 3, Noise::White, &|_, _| Take::default());
     // As brackets, every repeated exposure starts a new set: sets of one frame, refused.
-    let err = brackets::scan(tmp.path(), &ScanOptions::default()).expect_err("lone frames");
+    let err = scan::scan(tmp.path(), &ScanOptions::default()).expect_err("lone frames");
     assert!(err.to_string().contains("holds only this frame"), "{err}");
-    let scan = brackets::scan(tmp.path(), &repeats_scan()).expect("scan");
+    let scan = scan::scan(tmp.path(), &repeats_scan()).expect("scan");
     assert_eq!(scan.sets.len(), 1);
     let set = &scan.sets[0];
     assert_eq!(set.frames.len(), 3);
@@ -316,7 +316,7 @@ fn a_burst_of_one_exposure_needs_a_declared_response() {
 
 #[test]
 fn the_device_output_check_on_repeats_compares_noise_without_the_scene() {
-    use hdrsynth::data::bracket_output::{OutputCheckOptions, check};
+    use hdrsynth::capture::output::{OutputCheckOptions, check};
     let tmp = tempfile::tempdir().expect("tmp");
     folder(tmp.path(), &STOPS, 2, Noise::White, &|_, _| Take::default());
     let cal = calibrate(tmp.path(), repeats_scan(), srgb_choice(), false).expect("calibrate");

@@ -5,8 +5,10 @@
 //! 2.32 / TIFF 6.0 specifications, independent of the crate's reader); the oracle values are
 //! the hand-known exposure times written into them.
 
-use hdrsynth::data::bracket_testset::{self, BracketOptions, EncodeSpec, ResponseChoice};
-use hdrsynth::data::brackets::{self, ScanOptions};
+use hdrsynth::capture::testset::{self, BracketOptions, EncodeSpec};
+
+use hdrsynth::capture::linearise::ResponseChoice;
+use hdrsynth::capture::scan::{self, ScanOptions};
 use hdrsynth::sensor::profile::{Response, SensorProfile};
 use image::ExtendedColorType;
 use image::codecs::jpeg::JpegEncoder;
@@ -189,11 +191,11 @@ fn tags(t: (u32, u32), iso: u16, date: &str, subsec: &str) -> Tags {
     }
 }
 
-fn scan(dir: &Path) -> brackets::BracketScan {
-    brackets::scan(dir, &ScanOptions::default()).expect("scan")
+fn scan(dir: &Path) -> scan::BracketScan {
+    scan::scan(dir, &ScanOptions::default()).expect("scan")
 }
 
-fn stops_rel(set: &brackets::BracketSet) -> Vec<f64> {
+fn stops_rel(set: &scan::BracketSet) -> Vec<f64> {
     set.frames
         .iter()
         .map(|f| f.stop - set.frames[0].stop)
@@ -218,7 +220,7 @@ fn exif_exposure_time_iso_and_fnumber_are_read_from_a_jpeg() {
     t.f_number = Some((28, 10));
     t.bias = Some((-2, 1));
     bracket_jpeg(&p, 1.0 / 400.0, Some(&t));
-    let e = brackets::read_exif(&p).expect("exif");
+    let e = scan::read_exif(&p).expect("exif");
     assert_eq!(e.exposure_time, Some(0.0025));
     assert_eq!(e.iso, Some(200.0));
     assert_eq!(e.f_number, Some(2.8));
@@ -354,7 +356,7 @@ fn frames_without_exposure_are_refused_by_name_unless_evs_are_declared() {
     bracket_jpeg(&tmp.path().join("a.jpg"), 0.01, Some(&t));
     bracket_jpeg(&tmp.path().join("b.jpg"), 0.04, None);
     bracket_jpeg(&tmp.path().join("c.jpg"), 0.0025, None);
-    let err = brackets::scan(tmp.path(), &ScanOptions::default())
+    let err = scan::scan(tmp.path(), &ScanOptions::default())
         .expect_err("undeterminable")
         .to_string();
     assert!(err.contains("b.jpg") && err.contains("c.jpg"), "{err}");
@@ -365,7 +367,7 @@ fn frames_without_exposure_are_refused_by_name_unless_evs_are_declared() {
         evs: Some(vec![0.0, 2.0, -2.0]),
         ..ScanOptions::default()
     };
-    let s = brackets::scan(tmp.path(), &opts).expect("declared");
+    let s = scan::scan(tmp.path(), &opts).expect("declared");
     let names: Vec<String> = s.sets[0]
         .frames
         .iter()
@@ -382,7 +384,7 @@ fn a_lone_frame_and_equal_exposures_are_refused_naming_the_file() {
     std::fs::create_dir_all(&d).expect("mkdir");
     let t = tags((1, 100), 100, "2026:11:24 10:00:00", "0");
     bracket_jpeg(&d.join("only.jpg"), 0.01, Some(&t));
-    let err = brackets::scan(tmp.path(), &ScanOptions::default())
+    let err = scan::scan(tmp.path(), &ScanOptions::default())
         .expect_err("lone frame")
         .to_string();
     assert!(
@@ -413,7 +415,7 @@ fn a_corrupt_jpeg_is_an_error_naming_it_not_a_panic() {
         ..BracketOptions::default()
     };
     let beside = tempfile::tempdir().expect("tmp"); // outputs inside the input are refused
-    let err = bracket_testset::build(tmp.path(), &opts, &beside.path().join("out"))
+    let err = testset::build(tmp.path(), &opts, &beside.path().join("out"))
         .expect_err("corrupt")
         .to_string();
     assert!(err.contains("f1.jpg"), "{err}");
@@ -466,11 +468,11 @@ fn the_ground_truth_is_the_triangle_merge_of_the_written_frames() {
     // An output inside the bracket folder is refused before anything is written (a rerun
     // would scan its Kalantari sets as brackets).
     let inside = tmp.path().join("out");
-    let e = bracket_testset::build(tmp.path(), &opts, &inside)
+    let e = testset::build(tmp.path(), &opts, &inside)
         .expect_err("output inside the input")
         .to_string();
     assert!(e.contains("inside") && !inside.exists(), "{e}");
-    let summary = bracket_testset::build(tmp.path(), &opts, &out).expect("build");
+    let summary = testset::build(tmp.path(), &opts, &out).expect("build");
     assert_eq!(summary.sets.len(), 1);
     let set = out.join("scene1");
 
@@ -583,7 +585,7 @@ fn the_bracket_test_set_reads_as_kalantari_and_eval_scores_it() {
         encode: EncodeSpec::Field,
         ..BracketOptions::default()
     };
-    bracket_testset::build(tmp.path(), &opts, &out).expect("build");
+    testset::build(tmp.path(), &opts, &out).expect("build");
     let info = layout::detect(&out).expect("detect");
     assert_eq!(info.layout, LayoutKind::Kalantari);
     assert_eq!(info.sets.len(), 1);
@@ -884,7 +886,7 @@ const ROBERTSON_TOL: f64 = 1e-5;
 
 #[test]
 fn mtb_recovers_known_shifts_as_opencv_align_mtb_does() {
-    use hdrsynth::data::align::{self, MtbOptions};
+    use hdrsynth::capture::align::{self, MtbOptions};
     let dir = oracle_dir();
     let lines: Vec<Vec<String>> = std::fs::read_to_string(dir.join("mtb_shifts.txt"))
         .expect("shifts")
@@ -1129,8 +1131,7 @@ fn dng_brackets_are_linear_raw_with_exif_exposures() {
         ..BracketOptions::default()
     };
     let beside = tempfile::tempdir().expect("tmp"); // outputs inside the input are refused
-    let built =
-        bracket_testset::build(tmp.path(), &opts, &beside.path().join("out")).expect("build");
+    let built = testset::build(tmp.path(), &opts, &beside.path().join("out")).expect("build");
     let enc = std::fs::read_to_string(beside.path().join("out/encoding.toml")).expect("encoding");
     assert!(
         enc.contains("kind = \"gamma\"") && enc.contains("gamma = 2.2"),
@@ -1141,7 +1142,7 @@ fn dng_brackets_are_linear_raw_with_exif_exposures() {
         encode: EncodeSpec::Device,
         ..opts.clone()
     };
-    let e = bracket_testset::build(tmp.path(), &device, &beside.path().join("out2"))
+    let e = testset::build(tmp.path(), &device, &beside.path().join("out2"))
         .expect_err("device codes of a DNG")
         .to_string();
     assert!(e.contains(".dng") && e.contains("linear raw"), "{e}");
@@ -1172,7 +1173,7 @@ fn dng_brackets_are_linear_raw_with_exif_exposures() {
 
 #[test]
 fn hand_held_sets_are_aligned_by_mtb_and_cropped() {
-    use hdrsynth::data::align::MtbOptions;
+    use hdrsynth::capture::align::MtbOptions;
     let tmp = tempfile::tempdir().expect("tmp");
     let d = tmp.path().join("handheld");
     std::fs::create_dir_all(&d).expect("mkdir");
@@ -1211,8 +1212,7 @@ fn hand_held_sets_are_aligned_by_mtb_and_cropped() {
         ..BracketOptions::default()
     };
     let beside = tempfile::tempdir().expect("tmp"); // outputs inside the input are refused
-    let built =
-        bracket_testset::build(tmp.path(), &opts, &beside.path().join("out")).expect("build");
+    let built = testset::build(tmp.path(), &opts, &beside.path().join("out")).expect("build");
     let b = &built.sets[0];
     // The shifts undo the motion: short (1, −2), middle 0, long (−2, 1).
     assert_eq!(b.shifts, vec![[1, -2], [0, 0], [-2, 1]]);
@@ -1224,7 +1224,7 @@ fn hand_held_sets_are_aligned_by_mtb_and_cropped() {
 
 #[test]
 fn hand_held_ground_truth_from_all_frames_aligns_and_crops_every_frame() {
-    use hdrsynth::data::align::MtbOptions;
+    use hdrsynth::capture::align::MtbOptions;
     let tmp = tempfile::tempdir().expect("tmp");
     let d = tmp.path().join("handheld4");
     std::fs::create_dir_all(&d).expect("mkdir");
@@ -1264,8 +1264,7 @@ fn hand_held_ground_truth_from_all_frames_aligns_and_crops_every_frame() {
         ..srgb_opts(InputChoice::Indices([1, 2, 3]), GtFrames::All)
     };
     let beside = tempfile::tempdir().expect("tmp");
-    let built =
-        bracket_testset::build(tmp.path(), &opts, &beside.path().join("out")).expect("build");
+    let built = testset::build(tmp.path(), &opts, &beside.path().join("out")).expect("build");
     let b = &built.sets[0];
     // The inputs' shifts as with three frames; the extra frame's undoes its motion too.
     assert_eq!(b.shifts, vec![[1, -2], [0, 0], [-2, 1]]);
@@ -1288,7 +1287,7 @@ fn hand_held_ground_truth_from_all_frames_aligns_and_crops_every_frame() {
 
 #[test]
 fn mtb_keeps_a_textureless_frame_in_place_against_itself() {
-    use hdrsynth::data::align::{self, MtbOptions};
+    use hdrsynth::capture::align::{self, MtbOptions};
     // A flat frame: every pixel sits within the exclusion range of the median, so every
     // candidate shift ties at 0 differing bits. OpenCV's rule (first candidate in scan order)
     // drifts by (−1, −1) per level, (−63, −63) over 6 levels; smooth real frames drift too
@@ -1393,7 +1392,7 @@ fn assert_displayed(img: &hdrsynth::io::Image, o: u16, block: usize, tol: f32, w
     }
 }
 
-fn scan_one_set(dir: &Path) -> brackets::BracketSet {
+fn scan_one_set(dir: &Path) -> scan::BracketSet {
     let s = scan(dir);
     assert_eq!(s.sets.len(), 1, "{:?}", s.notes);
     s.sets.into_iter().next().expect("set")
@@ -1413,7 +1412,7 @@ fn every_exif_orientation_is_applied_to_tiff_and_jpeg_frames() {
         let set = scan_one_set(&d);
         for f in &set.frames {
             assert_eq!(f.exif.orientation, Some(o));
-            let img = brackets::read_frame_image(f).expect("read");
+            let img = scan::read_frame_image(f).expect("read");
             assert_displayed(&img, o, 1, 0.0, "tiff");
         }
         // JPEG: 16-px label blocks (block centres are clear of the codec's edge ringing).
@@ -1431,7 +1430,7 @@ fn every_exif_orientation_is_applied_to_tiff_and_jpeg_frames() {
         let set = scan_one_set(&d);
         assert_close(&stops_rel(&set), &[0.0, 2.0, 4.0], 1e-9);
         for f in &set.frames {
-            let img = brackets::read_frame_image(f).expect("read");
+            let img = scan::read_frame_image(f).expect("read");
             assert_displayed(&img, o, 16, 0.05, "jpeg");
         }
     }
@@ -1446,7 +1445,7 @@ fn frames_of_one_set_with_different_orientations_are_refused_naming_them() {
         write_oriented_tiff(&d.join(n), 1, o);
     }
     std::fs::write(d.join("exposure.txt"), "0\n2\n4\n").expect("expo");
-    let e = brackets::scan(tmp.path(), &ScanOptions::default())
+    let e = scan::scan(tmp.path(), &ScanOptions::default())
         .expect_err("mixed orientations")
         .to_string();
     assert!(e.contains("different EXIF orientations"), "{e}");
@@ -1459,7 +1458,7 @@ fn frames_of_one_set_with_different_orientations_are_refused_naming_them() {
     write_oriented_tiff(&d.join("x.tif"), 1, 9);
     write_oriented_tiff(&d.join("y.tif"), 1, 1);
     std::fs::write(d.join("exposure.txt"), "0\n2\n").expect("expo");
-    let e = brackets::scan(&d, &ScanOptions::default())
+    let e = scan::scan(&d, &ScanOptions::default())
         .expect_err("orientation 9")
         .to_string();
     assert!(e.contains("x.tif") && e.contains("Orientation"), "{e}");
@@ -1471,7 +1470,7 @@ fn frames_of_one_set_with_different_orientations_are_refused_naming_them() {
 // hidden power-law response before the sRGB encoding, and an optional frame whose true exposure
 // differs from the one written into its EXIF.
 
-use hdrsynth::data::bracket_captures::{self, BracketDiagnoseOptions};
+use hdrsynth::capture::diagnose::{self, BracketDiagnoseOptions};
 
 /// EXIF exposure times of every set (EV −2/0/+2), seconds.
 const DIAG_TIMES: [u32; 3] = [400, 100, 25];
@@ -1523,17 +1522,17 @@ fn diag_brackets(root: &Path, exponent: f64, wrong: Option<(usize, usize, f64)>)
     }
 }
 
-fn diagnose_srgb(root: &Path) -> bracket_captures::BracketDiagnosis {
+fn diagnose_srgb(root: &Path) -> diagnose::BracketDiagnosis {
     let opts = BracketDiagnoseOptions {
         // The user declares the phone's curve as sRGB (what a JPEG claims to be).
         response: ResponseChoice::Declared(Response::Srgb),
         ..BracketDiagnoseOptions::default()
     };
     let out = root.with_file_name("diag");
-    bracket_captures::diagnose_brackets(root, &opts, &out).expect("diagnose")
+    diagnose::diagnose_brackets(root, &opts, &out).expect("diagnose")
 }
 
-fn step_names(b: &bracket_captures::BracketDiagnosis) -> Vec<String> {
+fn step_names(b: &diagnose::BracketDiagnosis) -> Vec<String> {
     b.diagnosis.steps.iter().map(|s| s.effect.clone()).collect()
 }
 
@@ -1625,7 +1624,7 @@ fn a_misreported_exposure_is_named_by_file_and_left_out() {
     // scene_1's EV −2 frame was exposed half a stop longer than its EXIF 1/400 s says.
     diag_brackets(&root, 1.0, Some((1, 0, 0.5)));
     let b = diagnose_srgb(&root);
-    let named: Vec<&bracket_captures::FrameRatio> = b.ratios.named().collect();
+    let named: Vec<&diagnose::FrameRatio> = b.ratios.named().collect();
     assert_eq!(named.len(), 1, "{:?}", b.ratios.pairs);
     eprintln!(
         "named {:?}: residual {:+.4} stops",
@@ -1654,7 +1653,7 @@ fn a_misreported_exposure_is_named_by_file_and_left_out() {
     let md = std::fs::read_to_string(root.with_file_name("diag").join("brackets.md")).expect("md");
     assert!(md.contains("f0.jpg") && md.contains("**yes**"), "{md}");
     // An output inside the bracket folder is refused (a rerun would scan it as a set).
-    let e = bracket_captures::diagnose_brackets(
+    let e = diagnose::diagnose_brackets(
         &root,
         &BracketDiagnoseOptions::default(),
         &root.join("diag"),
@@ -1680,7 +1679,7 @@ fn testset_with_robertson_records_the_estimator_and_writes_its_curve() {
     };
     let beside = tempfile::tempdir().expect("tmp"); // outputs inside the input are refused
     let out = beside.path().join("out");
-    let built = bracket_testset::build(tmp.path(), &opts, &out).expect("build");
+    let built = testset::build(tmp.path(), &opts, &out).expect("build");
     assert!(
         built.sets[0].response.contains("Robertson"),
         "{}",
@@ -1702,7 +1701,7 @@ fn testset_with_robertson_records_the_estimator_and_writes_its_curve() {
 // this test's own camera: a known radiance, exposure = radiance · 2^stop clipped at 1, encoded
 // by hand (IEC 61966-2-1 sRGB, 8 bits).
 
-use hdrsynth::data::bracket_testset::{GtFrames, InputChoice};
+use hdrsynth::capture::testset::{GtFrames, InputChoice};
 
 /// A bracket of 8-bit sRGB PNGs `f0.png`, `f1.png`, … (ascending exposure) of the linear
 /// `scene` at `stops`, with Kalantari's exposure.txt sidecar (log2 stops in file-name order).
@@ -1781,7 +1780,7 @@ fn inputs_by_index_write_those_frames_with_their_exif_stops() {
     let beside = tempfile::tempdir().expect("tmp");
     let out = beside.path().join("out");
     let opts = srgb_opts(InputChoice::Indices([1, 2, 3]), GtFrames::Inputs);
-    let built = bracket_testset::build(tmp.path(), &opts, &out).expect("build");
+    let built = testset::build(tmp.path(), &opts, &out).expect("build");
     let b = &built.sets[0];
     assert_eq!(b.inputs, vec![1, 2, 3]);
     let sources: Vec<PathBuf> = b.frames.iter().map(|f| f.source.clone()).collect();
@@ -1917,7 +1916,7 @@ fn auto_picks_two_stop_steps_and_the_least_clipped_or_dark_reference() {
     );
     let beside = tempfile::tempdir().expect("tmp");
     let out = beside.path().join("out");
-    let built = bracket_testset::build(
+    let built = testset::build(
         tmp.path(),
         &srgb_opts(InputChoice::Auto, GtFrames::Inputs),
         &out,
@@ -1931,7 +1930,7 @@ fn auto_picks_two_stop_steps_and_the_least_clipped_or_dark_reference() {
     let report = built.report(&out);
     assert!(report.contains("4:f4.png"), "{report}");
 
-    let spread = bracket_testset::build(
+    let spread = testset::build(
         tmp.path(),
         &srgb_opts(InputChoice::Spread, GtFrames::Inputs),
         &beside.path().join("spread"),
@@ -1943,10 +1942,10 @@ fn auto_picks_two_stop_steps_and_the_least_clipped_or_dark_reference() {
     // The rule alone, on the stops of a 3-stop bracket: no 2-stop triple exists; (0, 1, 2)
     // and (1, 2, 3) are both 1 stop off, and the metering decides between references 1 and 2.
     let stops = [0.0, 3.0, 6.0, 9.0];
-    let sel = bracket_testset::auto_inputs(&stops, |j| Ok([0.9, 0.4, 0.1, 0.9][j])).expect("auto");
+    let sel = testset::auto_inputs(&stops, |j| Ok([0.9, 0.4, 0.1, 0.9][j])).expect("auto");
     assert_eq!(sel.indices, [1, 2, 3]);
     assert_eq!(sel.metered, vec![(1, 0.4), (2, 0.1)]);
-    let sel = bracket_testset::auto_inputs(&stops, |j| Ok([0.9, 0.1, 0.4, 0.9][j])).expect("auto");
+    let sel = testset::auto_inputs(&stops, |j| Ok([0.9, 0.1, 0.4, 0.9][j])).expect("auto");
     assert_eq!(sel.indices, [0, 1, 2]);
 }
 
@@ -1964,7 +1963,7 @@ fn ground_truth_from_all_frames_recovers_what_the_inputs_clip_or_lose_in_the_dar
     let beside = tempfile::tempdir().expect("tmp");
     let build = |gt: GtFrames, name: &str| {
         let out = beside.path().join(name);
-        let b = bracket_testset::build(
+        let b = testset::build(
             tmp.path(),
             &srgb_opts(InputChoice::Indices([1, 2, 3]), gt),
             &out,
@@ -2046,7 +2045,7 @@ fn a_short_frames_black_floor_does_not_lift_the_dark_regions_of_the_merge() {
     std::fs::write(dir.join("exposure.txt"), "0\n2\n4\n6\n8\n").expect("exposure.txt");
     let beside = tempfile::tempdir().expect("tmp");
     let out = beside.path().join("out");
-    bracket_testset::build(
+    testset::build(
         tmp.path(),
         &srgb_opts(InputChoice::Indices([2, 3, 4]), GtFrames::All),
         &out,
@@ -2084,7 +2083,7 @@ fn ground_truth_from_the_other_frames_is_independent_of_the_inputs_noise() {
     let correlation = |gt: GtFrames, name: &str| {
         let out = beside.path().join(name);
         let opts = srgb_opts(InputChoice::Indices([0, 2, 4]), gt);
-        bracket_testset::build(tmp.path(), &opts, &out).expect("build");
+        testset::build(tmp.path(), &opts, &out).expect("build");
         let read = |f: &str| hdrsynth::io::read_image(&out.join("ramp").join(f)).expect(f);
         let (hdr, reference) = (read("HDRImg.hdr"), read("frame_2.tif"));
         let (w, h) = (hdr.width, hdr.height);
@@ -2127,7 +2126,7 @@ fn ground_truth_from_all_frames_of_a_three_frame_set_is_the_inputs_merge() {
     let beside = tempfile::tempdir().expect("tmp");
     let bytes = |gt: GtFrames, name: &str| {
         let out = beside.path().join(name);
-        bracket_testset::build(tmp.path(), &srgb_opts(InputChoice::Auto, gt), &out).expect("build");
+        testset::build(tmp.path(), &srgb_opts(InputChoice::Auto, gt), &out).expect("build");
         [
             "HDRImg.hdr",
             "frame_1.tif",
@@ -2159,7 +2158,7 @@ fn bad_input_indices_are_refused_naming_the_folder_and_nothing_is_written() {
         ([1, 3, 3], "repeats"),
     ] {
         let out = beside.path().join(format!("{idx:?}"));
-        let e = bracket_testset::build(
+        let e = testset::build(
             tmp.path(),
             &srgb_opts(InputChoice::Indices(idx), GtFrames::All),
             &out,
@@ -2373,7 +2372,7 @@ fn written_inputs_keep_the_device_codes_or_take_a_named_curve_and_the_ground_tru
             ..BracketOptions::default()
         };
         let out = beside.path().join(name);
-        bracket_testset::build(tmp.path(), &opts, &out).expect("build");
+        testset::build(tmp.path(), &opts, &out).expect("build");
         out
     };
     let auto = build(EncodeSpec::Auto, "auto");
@@ -2457,7 +2456,7 @@ fn an_estimated_response_is_recorded_as_the_curve_of_the_device_codes() {
     bracket_folder(tmp.path());
     let beside = tempfile::tempdir().expect("tmp");
     let out = beside.path().join("out");
-    bracket_testset::build(tmp.path(), &BracketOptions::default(), &out).expect("build");
+    testset::build(tmp.path(), &BracketOptions::default(), &out).expect("build");
     let e = hdrsynth::data::encoding::of_testset(&out)
         .expect("read")
         .expect("some");
@@ -2579,7 +2578,7 @@ fn an_estimated_per_channel_response_keeps_grey_grey_and_its_record_gives_the_gr
         gt_frames: GtFrames::Inputs,
         ..BracketOptions::default()
     };
-    bracket_testset::build(tmp.path(), &opts, &out).expect("build");
+    testset::build(tmp.path(), &opts, &out).expect("build");
     let set = out.join("grey");
     let stops: Vec<f64> = exposure_txt(&set)
         .split_whitespace()
@@ -2663,7 +2662,7 @@ fn canon_550d_neutral_codes_stay_neutral_in_the_ground_truth() {
         gt_frames: GtFrames::All,
         ..BracketOptions::default()
     };
-    let built = bracket_testset::build(&src, &opts, &out).expect("build");
+    let built = testset::build(&src, &opts, &out).expect("build");
     let b = &built.sets[0];
     let gt = hdrsynth::io::read_image(&out.join(&b.name).join("HDRImg.hdr")).expect("gt");
     let codes = image::open(&b.frames[1].source)
@@ -2716,7 +2715,7 @@ fn eval_warns_when_a_network_meets_a_curve_it_was_not_trained_on() {
             ..BracketOptions::default()
         };
         let out = beside.path().join(name);
-        bracket_testset::build(tmp.path(), &opts, &out).expect("build");
+        testset::build(tmp.path(), &opts, &out).expect("build");
         out
     };
     let device_set = testset(EncodeSpec::Device, "device");
@@ -2882,8 +2881,8 @@ fn calibrate_srgb(
     scan: ScanOptions,
     out: &Path,
     correlated: bool,
-) -> hdrsynth::data::bracket_profile::BracketCalibration {
-    use hdrsynth::data::bracket_profile::{BracketProfileOptions, calibrate_brackets};
+) -> hdrsynth::capture::profile::BracketCalibration {
+    use hdrsynth::capture::profile::{BracketProfileOptions, calibrate_brackets};
     calibrate_brackets(
         dir,
         &BracketProfileOptions {
@@ -2899,7 +2898,7 @@ fn calibrate_srgb(
 
 #[test]
 fn calibrate_brackets_recovers_a_known_output_noise_and_encodes_what_it_trains_on() {
-    use hdrsynth::data::bracket_profile::{BracketProfileOptions, calibrate_brackets};
+    use hdrsynth::capture::profile::{BracketProfileOptions, calibrate_brackets};
     let tmp = tempfile::tempdir().expect("tmp");
     let (a, b) = (4e-4, 1e-5);
     noisy_png_bracket(
@@ -2961,7 +2960,7 @@ fn calibrate_brackets_recovers_a_known_output_noise_and_encodes_what_it_trains_o
         response: ResponseChoice::new(Some(&out), None).expect("choice"),
         ..BracketOptions::default()
     };
-    bracket_testset::build(tmp.path(), &opts, &ts).expect("testset");
+    testset::build(tmp.path(), &opts, &ts).expect("testset");
     let test = hdrsynth::data::encoding::of_testset(&ts)
         .expect("read")
         .expect("some");
@@ -3107,7 +3106,7 @@ fn correlated_output_noise_is_fitted_as_the_catalogues_kernel_with_its_per_pixel
 
 #[test]
 fn halves_of_a_frame_share_no_pixel_and_are_read_as_cut() {
-    use hdrsynth::data::brackets::Region;
+    use hdrsynth::capture::scan::Region;
     assert_eq!(Region::Left.bounds(5, 3), Some([0, 0, 2, 3]));
     assert_eq!(Region::Right.bounds(5, 3), Some([2, 0, 5, 3]));
     assert_eq!(Region::Top.bounds(4, 5), Some([0, 0, 4, 2]));
@@ -3148,7 +3147,7 @@ fn halves_of_a_frame_share_no_pixel_and_are_read_as_cut() {
         .expect("png")
         .to_rgb8();
     for (region, x0) in [(Region::Left, 0u32), (Region::Right, 96)] {
-        let scan = brackets::scan(
+        let scan = scan::scan(
             tmp.path(),
             &ScanOptions {
                 region: Some(region),
@@ -3157,7 +3156,7 @@ fn halves_of_a_frame_share_no_pixel_and_are_read_as_cut() {
         )
         .expect("scan");
         let f = &scan.sets[0].frames[1];
-        let img = brackets::read_frame_image(f).expect("read");
+        let img = scan::read_frame_image(f).expect("read");
         assert_eq!((img.width, img.height), (96, 144));
         for (x, y) in [(0u32, 0u32), (95, 143), (40, 70)] {
             let want = whole.get_pixel(x0 + x, y).0;
@@ -3169,7 +3168,7 @@ fn halves_of_a_frame_share_no_pixel_and_are_read_as_cut() {
                 );
             }
         }
-        let source = brackets::frame_source(f).expect("source");
+        let source = scan::frame_source(f).expect("source");
         assert_eq!(source.pixels, [x0 as usize, 0, x0 as usize + 96, 144]);
     }
 }
@@ -3194,12 +3193,7 @@ fn a_network_is_never_scored_on_captures_that_calibrated_its_profile() {
     };
     // Calibrated on the left half of the frames.
     let profile = beside.path().join("phone.toml");
-    calibrate_srgb(
-        tmp.path(),
-        scan(Some(brackets::Region::Left)),
-        &profile,
-        false,
-    );
+    calibrate_srgb(tmp.path(), scan(Some(scan::Region::Left)), &profile, false);
     let p = SensorProfile::load(&profile).expect("load");
     assert_eq!(p.calibrated_on.len(), 3);
     assert!(p.calibrated_on.iter().all(|s| s.pixels == [0, 0, 96, 144]));
@@ -3217,7 +3211,7 @@ fn a_network_is_never_scored_on_captures_that_calibrated_its_profile() {
             response: ResponseChoice::Declared(Response::Srgb),
             ..BracketOptions::default()
         };
-        bracket_testset::build(tmp.path(), &opts, &out).expect("build");
+        testset::build(tmp.path(), &opts, &out).expect("build");
         out
     };
     let device = hdrsynth::device::device_from_name("flex").expect("flex");
@@ -3241,13 +3235,13 @@ fn a_network_is_never_scored_on_captures_that_calibrated_its_profile() {
     );
     assert!(!beside.path().join("e_whole").exists());
     // The right half is other pixels of the same frames: scored.
-    let right = testset(Some(brackets::Region::Right), "right");
+    let right = testset(Some(scan::Region::Right), "right");
     let scored = eval(&right, "e_right").expect("disjoint regions are scored");
     assert_eq!(scored.rows.len(), 1);
     // A network trained on the frames themselves (a set built from the left half, no
     // profile: the loop's `real` row) is held to the same split, and linearises its inputs
     // through the curve that set records.
-    let left = testset(Some(brackets::Region::Left), "left");
+    let left = testset(Some(scan::Region::Left), "left");
     let real = beside.path().join("real");
     let text = format!(
         "[run]\nout = {real:?}\nseed = 4\nsteps = 2\ncheckpoint_every = 2\nlog_every = 1\n\
@@ -3313,7 +3307,7 @@ fn loop_without_main_job(
 
 #[test]
 fn the_loop_refuses_a_split_in_which_a_capture_both_calibrates_and_is_scored() {
-    use hdrsynth::data::brackets::Region;
+    use hdrsynth::capture::scan::Region;
     use hdrsynth::experiments::device_loop::{LoopOptions, run};
     let tmp = tempfile::tempdir().expect("tmp");
     noisy_png_bracket(
@@ -3460,7 +3454,7 @@ fn tiny_main_job(dir: &Path, seeds: &[u64]) -> PathBuf {
 
 #[test]
 fn the_device_output_check_finds_what_a_profile_misses_and_nothing_when_it_has_it() {
-    use hdrsynth::data::bracket_output::{OutputCheckOptions, check};
+    use hdrsynth::capture::output::{OutputCheckOptions, check};
     let run = |spatial: Spatial, correlated: bool| {
         let tmp = tempfile::tempdir().expect("tmp");
         noisy_png_bracket(
@@ -3507,7 +3501,7 @@ fn the_device_output_check_finds_what_a_profile_misses_and_nothing_when_it_has_i
         let profile = beside.path().join("phone.toml");
         calibrate_srgb(tmp.path(), ScanOptions::default(), &profile, false);
         let out = beside.path().join("diag");
-        let d = bracket_captures::diagnose_brackets(
+        let d = diagnose::diagnose_brackets(
             tmp.path(),
             &BracketDiagnoseOptions {
                 response: ResponseChoice::new(Some(&profile), None).expect("profile"),
@@ -3542,8 +3536,8 @@ fn white_bracket_for_the_check(
 ) -> (
     tempfile::TempDir,
     hdrsynth::sensor::profile::SensorProfile,
-    hdrsynth::data::bracket_output::OutputCheckOptions,
-    brackets::BracketScan,
+    hdrsynth::capture::output::OutputCheckOptions,
+    scan::BracketScan,
 ) {
     let tmp = tempfile::tempdir().expect("tmp");
     noisy_png_bracket(
@@ -3560,19 +3554,19 @@ fn white_bracket_for_the_check(
         &beside.path().join("p.toml"),
         false,
     );
-    let opts = hdrsynth::data::bracket_output::OutputCheckOptions {
+    let opts = hdrsynth::capture::output::OutputCheckOptions {
         scan: ScanOptions::default(),
         replicates: 10,
         seed: 1,
         noise: true,
     };
-    let scan = brackets::scan(tmp.path(), &opts.scan).expect("scan");
+    let scan = scan::scan(tmp.path(), &opts.scan).expect("scan");
     (tmp, cal.profile, opts, scan)
 }
 
 #[test]
 fn a_noise_level_the_check_finds_off_is_fitted_back_to_what_the_frames_hold() {
-    use hdrsynth::data::bracket_output::{check_scanned, fit_noise_level};
+    use hdrsynth::capture::output::{check_scanned, fit_noise_level};
     let (_frames, profile, opts, scan) = white_bracket_for_the_check(4e-4, 1e-5);
     // The measured noise made too low: R halved, B quartered, G kept. The frames hold 2×, 1×
     // and 4× what this profile simulates.
@@ -3603,8 +3597,8 @@ fn a_noise_level_the_check_finds_off_is_fitted_back_to_what_the_frames_hold() {
 /// clipping at code 0 bends, and its b comes out 10–20 % low in variance on these brackets
 /// (the check's floor statistic sees it; the loop's level step fits it).
 fn named_beside_the_floor(
-    c: &hdrsynth::data::bracket_output::OutputCheck,
-) -> Option<&hdrsynth::data::bracket_output::OutputStat> {
+    c: &hdrsynth::capture::output::OutputCheck,
+) -> Option<&hdrsynth::capture::output::OutputStat> {
     for s in c
         .stats
         .iter()
@@ -3620,7 +3614,7 @@ fn named_beside_the_floor(
 
 #[test]
 fn a_read_noise_floor_the_profile_lacks_is_found_under_code_one_eighth_and_fitted_back() {
-    use hdrsynth::data::bracket_output::{check_scanned, fit_noise_level};
+    use hdrsynth::capture::output::{check_scanned, fit_noise_level};
     // σ² = a·L + b with a floor that rules the darkest codes: under code 1/8 (L < 0.0144) the
     // shot noise a·L is at most 5.8·10⁻⁶, b is 10⁻⁵.
     let (a, b) = (4e-4, 1e-5);
@@ -3671,7 +3665,7 @@ fn a_read_noise_floor_the_profile_lacks_is_found_under_code_one_eighth_and_fitte
 
 #[test]
 fn the_device_meter_is_read_from_the_frame_exif_marks_and_not_from_a_manual_bracket() {
-    use hdrsynth::data::bracket_profile::metering_rule;
+    use hdrsynth::capture::profile::metering_rule;
     use hdrsynth::sensor::profile::SensorProfile;
     let beside = tempfile::tempdir().expect("tmp");
     // A bracket of 1/100, 1/400 and 1/25 s whose frames record these biases, calibrated into
@@ -3764,7 +3758,7 @@ fn the_device_meter_is_read_from_the_frame_exif_marks_and_not_from_a_manual_brac
 /// the device's rule measured on the calibration scene.
 #[test]
 fn the_loop_trains_the_device_rule_in_its_metering_step_only() {
-    use hdrsynth::data::bracket_profile::metering_rule;
+    use hdrsynth::capture::profile::metering_rule;
     use hdrsynth::experiments::device_loop::{LoopOptions, run};
     use hdrsynth::sensor::profile::SensorProfile;
     let tmp = tempfile::tempdir().expect("tmp");
@@ -3974,7 +3968,7 @@ fn the_loop_trains_the_device_rule_in_its_metering_step_only() {
 
 #[test]
 fn chroma_noise_is_measured_fitted_and_closes_the_device_output_gap() {
-    use hdrsynth::data::bracket_output::{OutputCheckOptions, check};
+    use hdrsynth::capture::output::{OutputCheckOptions, check};
     let tmp = tempfile::tempdir().expect("tmp");
     noisy_png_bracket(
         &tmp.path().join("scene"),
@@ -4076,7 +4070,7 @@ fn against_the_default_ground_truth_a_denoised_reference_beats_the_noisy_one() {
             gt_frames,
             ..BracketOptions::default()
         };
-        bracket_testset::build(&tmp.path().join(what), &opts, &out).expect("build");
+        testset::build(&tmp.path().join(what), &opts, &out).expect("build");
         out.join("s")
     };
     let copy = |set: &Path| {
@@ -4134,7 +4128,7 @@ fn an_exif_exposure_time_no_camera_gives_is_refused_naming_the_file() {
             };
             bracket_jpeg(&tmp.path().join(format!("IMG_{i}.jpg")), t, Some(&tg));
         }
-        let e = brackets::scan(tmp.path(), &ScanOptions::default())
+        let e = scan::scan(tmp.path(), &ScanOptions::default())
             .expect_err("refused")
             .to_string();
         assert!(
@@ -4192,7 +4186,7 @@ fn the_loop_refuses_calibration_scenes_that_give_no_noise_naming_why() {
 /// holds after the folder is moved away).
 #[test]
 fn a_folder_scanned_once_gives_each_stage_what_a_scan_would() {
-    use hdrsynth::data::brackets::{FolderScan, Region};
+    use hdrsynth::capture::scan::{FolderScan, Region};
     let tmp = tempfile::tempdir().expect("tmp");
     let root = tmp.path().join("b");
     for name in ["park", "desk"] {
@@ -4222,13 +4216,13 @@ fn a_folder_scanned_once_gives_each_stage_what_a_scan_would() {
     ];
     let fresh: Vec<_> = choices
         .iter()
-        .map(|o| brackets::scan(&root, o).expect("scan"))
+        .map(|o| scan::scan(&root, o).expect("scan"))
         .collect();
     let unknown = ScanOptions {
         sets: vec!["attic".into()],
         ..ScanOptions::default()
     };
-    let e = brackets::scan(&root, &unknown).unwrap_err().to_string();
+    let e = scan::scan(&root, &unknown).unwrap_err().to_string();
     std::fs::rename(&root, tmp.path().join("moved")).expect("move");
     for (o, f) in choices.iter().zip(&fresh) {
         assert_eq!(&folder.select(o).expect("select"), f, "{o:?}");

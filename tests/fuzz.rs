@@ -830,7 +830,7 @@ fn fuzz_safetensors_import() {
     });
 }
 
-/// EXIF exposure tags of a bracket JPEG (`testset --brackets`), through `brackets::read_exif`,
+/// EXIF exposure tags of a bracket JPEG (`testset --brackets`), through `scan::read_exif`,
 /// which reads a file: each execution writes one (put TMPDIR on a RAM disk for long runs).
 #[test]
 fn fuzz_bracket_exif() {
@@ -868,14 +868,14 @@ fn fuzz_bracket_exif() {
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("seed.jpg");
     std::fs::write(&p, &jpeg).unwrap();
-    let e = hdrsynth::data::brackets::read_exif(&p).expect("the seed is valid");
+    let e = hdrsynth::capture::scan::read_exif(&p).expect("the seed is valid");
     assert_eq!((e.exposure_time, e.iso), (Some(1.0 / 250.0), Some(100.0)));
     fuzz(
         "bracket_exif",
         &[jpeg],
         false,
         file_target(dir.path(), "input.jpg", |p| {
-            let _ = hdrsynth::data::brackets::read_exif(p);
+            let _ = hdrsynth::capture::scan::read_exif(p);
         }),
     );
 }

@@ -1,7 +1,7 @@
 //! The ground truth of a bracket test set: the weighted merge of every frame
-//! (`bracket_testset::hat_merge`), against hand values and against a known radiance.
+//! (`testset::hat_merge`), against hand values and against a known radiance.
 
-use hdrsynth::data::bracket_testset::{code_weight, hat_merge};
+use hdrsynth::capture::testset::{code_weight, hat_merge};
 use hdrsynth::io::Image;
 use hdrsynth::rng::Rng;
 

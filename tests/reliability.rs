@@ -5,6 +5,7 @@
 
 mod common;
 
+use hdrsynth::capture::linearise::ResponseChoice;
 use hdrsynth::data::layout;
 use hdrsynth::data::loader::{Loader, LoaderConfig};
 use hdrsynth::io::limits::DecodeLimits;
@@ -556,7 +557,8 @@ fn testset_refuses_a_locked_output() {
 
 #[test]
 fn a_bracket_testset_refuses_a_locked_output() {
-    use hdrsynth::data::bracket_testset::{self, BracketOptions, ResponseChoice};
+    use hdrsynth::capture::linearise::ResponseChoice;
+    use hdrsynth::capture::testset::{self, BracketOptions};
     use hdrsynth::sensor::profile::Response;
     let dir = tempfile::tempdir().unwrap();
     let brackets = dir.path().join("brackets");
@@ -569,7 +571,7 @@ fn a_bracket_testset_refuses_a_locked_output() {
     };
     let out = dir.path().join("ts");
     let (held, before) = locked_output(&out);
-    let e = bracket_testset::build(&brackets, &opts, &out).expect_err("locked");
+    let e = testset::build(&brackets, &opts, &out).expect_err("locked");
     assert_refused_lock(&out, &e.to_string(), &before);
     drop(held);
 }
@@ -2256,7 +2258,7 @@ fn fifos_given_as_configs_profiles_images_or_checkpoints_are_refused_not_waited_
             hdrsynth::sensor::captures::CaptureSet::load(p).map(|_| ())
         }),
         ("bracket.tif", |p| {
-            hdrsynth::data::brackets::read_exif(p).map(|_| ())
+            hdrsynth::capture::scan::read_exif(p).map(|_| ())
         }),
         ("radiance.exr", |p| {
             hdrsynth::data::testset::radiance::to_rec709_matrix(p).map(|_| ())
@@ -2599,7 +2601,7 @@ fn an_exif_exposure_time_stored_as_double_is_read() {
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("frame.tif");
     std::fs::write(&p, &b).unwrap();
-    let exif = hdrsynth::data::brackets::read_exif(&p).expect("exif");
+    let exif = hdrsynth::capture::scan::read_exif(&p).expect("exif");
     assert_eq!(exif.exposure_time, Some(0.004));
 }
 
@@ -2731,7 +2733,7 @@ fn png_bracket(dir: &Path) {
 
 #[test]
 fn a_bracket_testset_appears_whole_or_not_at_all_and_refuses_before_any_work() {
-    use hdrsynth::data::bracket_testset::{self, BracketOptions, EncodeSpec, InputChoice};
+    use hdrsynth::capture::testset::{self, BracketOptions, EncodeSpec, InputChoice};
     let dir = tempfile::tempdir().unwrap();
     let brackets = dir.path().join("brackets");
     png_bracket(&brackets.join("a"));
@@ -2745,7 +2747,7 @@ fn a_bracket_testset_appears_whole_or_not_at_all_and_refuses_before_any_work() {
     // A corrupt frame in the second scene: the first scene, complete, is not left behind,
     // nor the response estimated before it.
     std::fs::write(brackets.join("b/f1.png"), b"not a png").unwrap();
-    let e = bracket_testset::build(&brackets, &BracketOptions::default(), &out)
+    let e = testset::build(&brackets, &BracketOptions::default(), &out)
         .unwrap_err()
         .to_string();
     assert!(e.contains("f1.png"), "{e}");
@@ -2756,7 +2758,7 @@ fn a_bracket_testset_appears_whole_or_not_at_all_and_refuses_before_any_work() {
         inputs: InputChoice::Indices([0, 1, 1]),
         ..BracketOptions::default()
     };
-    let e = bracket_testset::build(&brackets, &opts, &out)
+    let e = testset::build(&brackets, &opts, &out)
         .unwrap_err()
         .to_string();
     assert!(e.contains("--inputs 0,1,1"), "{e}");
@@ -2766,13 +2768,13 @@ fn a_bracket_testset_appears_whole_or_not_at_all_and_refuses_before_any_work() {
         encode: EncodeSpec::Profile(missing.clone()),
         ..BracketOptions::default()
     };
-    let e = bracket_testset::build(&brackets, &opts, &out)
+    let e = testset::build(&brackets, &opts, &out)
         .unwrap_err()
         .to_string();
     assert!(e.contains(&missing.display().to_string()), "{e}");
     nothing_left("--encode profile: of a missing file");
     // Whole: both scenes, the response table and the record, and nothing staged left.
-    let built = bracket_testset::build(&brackets, &BracketOptions::default(), &out).unwrap();
+    let built = testset::build(&brackets, &BracketOptions::default(), &out).unwrap();
     assert_eq!(built.sets.len(), 2);
     for f in [
         "a/HDRImg.hdr",
@@ -2795,12 +2797,12 @@ fn a_bracket_testset_appears_whole_or_not_at_all_and_refuses_before_any_work() {
 
 #[test]
 fn absurd_or_duplicated_exposures_are_refused_naming_the_file_and_line() {
-    use hdrsynth::data::brackets::{self, ScanOptions};
+    use hdrsynth::capture::scan::{self, ScanOptions};
     let dir = tempfile::tempdir().unwrap();
     let set = dir.path().join("b");
     png_bracket(&set);
     let scan_err = |opts: &ScanOptions| {
-        brackets::scan(dir.path(), opts)
+        scan::scan(dir.path(), opts)
             .expect_err("refused")
             .to_string()
     };
@@ -2829,7 +2831,7 @@ fn absurd_or_duplicated_exposures_are_refused_naming_the_file_and_line() {
     });
     assert!(e.contains("--declared-evs") && e.contains("at most"), "{e}");
     // In range: the same folder scans.
-    let ok = brackets::scan(
+    let ok = scan::scan(
         dir.path(),
         &ScanOptions {
             evs: Some(vec![-2.0, 0.0, 2.0]),
@@ -2852,7 +2854,7 @@ fn png_bracket_of(dir: &Path, w: u32, h: u32, code: impl Fn(usize, u32, u32) -> 
 
 #[test]
 fn brackets_without_signal_are_refused_before_a_response_is_estimated() {
-    use hdrsynth::data::bracket_testset::{self, BracketOptions};
+    use hdrsynth::capture::testset::{self, BracketOptions};
     let dir = tempfile::tempdir().unwrap();
     type Codes = fn(usize, u32, u32) -> u8;
     let cases: [(&str, u32, u32, Codes); 3] = [
@@ -2867,7 +2869,7 @@ fn brackets_without_signal_are_refused_before_a_response_is_estimated() {
         let brackets = dir.path().join(name);
         png_bracket_of(&brackets.join("s"), w, h, code);
         let out = dir.path().join(format!("{name}_ts"));
-        let e = bracket_testset::build(&brackets, &BracketOptions::default(), &out)
+        let e = testset::build(&brackets, &BracketOptions::default(), &out)
             .unwrap_err()
             .to_string();
         assert!(
@@ -2879,14 +2881,12 @@ fn brackets_without_signal_are_refused_before_a_response_is_estimated() {
     // With a declared response nothing is estimated: an all-black or all-white set is
     // refused at its reference frame, naming it, and nothing is left.
     let declared = BracketOptions {
-        response: bracket_testset::ResponseChoice::Declared(
-            hdrsynth::sensor::profile::Response::Srgb,
-        ),
+        response: ResponseChoice::Declared(hdrsynth::sensor::profile::Response::Srgb),
         ..BracketOptions::default()
     };
     for name in ["black", "white"] {
         let out = dir.path().join(format!("{name}_declared_ts"));
-        let e = bracket_testset::build(&dir.path().join(name), &declared, &out)
+        let e = testset::build(&dir.path().join(name), &declared, &out)
             .unwrap_err()
             .to_string();
         assert!(
@@ -2898,10 +2898,10 @@ fn brackets_without_signal_are_refused_before_a_response_is_estimated() {
         assert!(!out.exists(), "{name}: output left");
         // Nor is a profile calibrated from it (its metering frame is the same frame).
         let profile = dir.path().join(format!("{name}.toml"));
-        let e = hdrsynth::data::bracket_profile::calibrate_brackets(
+        let e = hdrsynth::capture::profile::calibrate_brackets(
             &dir.path().join(name),
-            &hdrsynth::data::bracket_profile::BracketProfileOptions {
-                scan: hdrsynth::data::brackets::ScanOptions::default(),
+            &hdrsynth::capture::profile::BracketProfileOptions {
+                scan: hdrsynth::capture::scan::ScanOptions::default(),
                 response: declared.response.clone(),
                 out: profile.clone(),
                 name: None,
@@ -2921,13 +2921,13 @@ fn brackets_without_signal_are_refused_before_a_response_is_estimated() {
     png_bracket_of(&brackets.join("s"), 48, 32, |i, x, _| {
         (10 + 4 * x + 20 * i as u32).min(255) as u8
     });
-    bracket_testset::build(
+    testset::build(
         &brackets,
         &BracketOptions::default(),
         &dir.path().join("ok"),
     )
     .expect("a ramp has signal");
-    bracket_testset::build(&brackets, &declared, &dir.path().join("ok_declared"))
+    testset::build(&brackets, &declared, &dir.path().join("ok_declared"))
         .expect("a ramp has signal");
 }
 
@@ -2935,8 +2935,9 @@ fn brackets_without_signal_are_refused_before_a_response_is_estimated() {
 /// are refused naming the frame: 3×2 files, and a 1×1 region of larger ones.
 #[test]
 fn a_frame_smaller_than_the_ssim_window_is_refused_naming_it_with_a_declared_response() {
-    use hdrsynth::data::bracket_testset::{self, BracketOptions, ResponseChoice};
-    use hdrsynth::data::brackets::{Region, ScanOptions};
+    use hdrsynth::capture::linearise::ResponseChoice;
+    use hdrsynth::capture::scan::{Region, ScanOptions};
+    use hdrsynth::capture::testset::{self, BracketOptions};
     use hdrsynth::sensor::profile::Response;
     let dir = tempfile::tempdir().unwrap();
     let ramp = |i: usize, x: u32, y: u32| (40 + 60 * i as u32 + 3 * x + 5 * y).min(255) as u8;
@@ -2966,7 +2967,7 @@ fn a_frame_smaller_than_the_ssim_window_is_refused_naming_it_with_a_declared_res
         ("cut", &cut, declared, "1×1 pixels in region 0,0,1,1"),
     ] {
         let out = dir.path().join(format!("{name}_ts"));
-        let e = bracket_testset::build(brackets, &opts, &out)
+        let e = testset::build(brackets, &opts, &out)
             .unwrap_err()
             .to_string();
         assert!(
@@ -2980,12 +2981,12 @@ fn a_frame_smaller_than_the_ssim_window_is_refused_naming_it_with_a_declared_res
 #[cfg(unix)]
 #[test]
 fn a_link_back_to_a_folder_already_read_is_refused_naming_it() {
-    use hdrsynth::data::brackets::{self, ScanOptions};
+    use hdrsynth::capture::scan::{self, ScanOptions};
     let dir = tempfile::tempdir().unwrap();
     let root = dir.path().join("b");
     png_bracket(&root);
     std::os::unix::fs::symlink(".", root.join("loop")).unwrap();
-    let e = brackets::scan(&root, &ScanOptions::default())
+    let e = scan::scan(&root, &ScanOptions::default())
         .expect_err("refused")
         .to_string();
     assert!(e.contains("loop") && e.contains("a link"), "{e}");
@@ -2993,8 +2994,8 @@ fn a_link_back_to_a_folder_already_read_is_refused_naming_it() {
 
 #[test]
 fn calibrate_brackets_refuses_a_profile_inside_its_bracket_folder() {
-    use hdrsynth::data::bracket_profile::{BracketProfileOptions, calibrate_brackets};
-    use hdrsynth::data::bracket_testset::ResponseChoice;
+    use hdrsynth::capture::linearise::ResponseChoice;
+    use hdrsynth::capture::profile::{BracketProfileOptions, calibrate_brackets};
     let dir = tempfile::tempdir().unwrap();
     let root = dir.path().join("b");
     png_bracket(&root);
@@ -3055,18 +3056,18 @@ fn a_checkpoint_with_a_nan_weight_is_refused_naming_the_file_and_the_parameter()
 
 #[test]
 fn a_bracket_folder_that_is_a_file_or_missing_is_named_as_such_once() {
-    use hdrsynth::data::brackets::{self, ScanOptions};
+    use hdrsynth::capture::scan::{self, ScanOptions};
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("f.png");
     std::fs::write(&file, b"x").unwrap();
-    let e = brackets::scan(&file, &ScanOptions::default())
+    let e = scan::scan(&file, &ScanOptions::default())
         .expect_err("a file")
         .to_string();
     assert!(
         e.contains("f.png") && e.contains("is a file, not a bracket folder"),
         "{e}"
     );
-    let e = brackets::scan(&dir.path().join("none"), &ScanOptions::default())
+    let e = scan::scan(&dir.path().join("none"), &ScanOptions::default())
         .expect_err("missing")
         .to_string();
     assert!(
@@ -3091,7 +3092,7 @@ fn a_bracket_folder_that_is_a_file_or_missing_is_named_as_such_once() {
 
 #[test]
 fn an_empty_or_text_file_named_as_a_frame_is_called_not_an_image() {
-    use hdrsynth::data::brackets::read_exif;
+    use hdrsynth::capture::scan::read_exif;
     let dir = tempfile::tempdir().unwrap();
     let empty = dir.path().join("a.png");
     std::fs::write(&empty, b"").unwrap();
@@ -3139,8 +3140,9 @@ fn radiance_flags_given_with_brackets_are_refused_not_ignored() {
 
 #[test]
 fn frames_of_one_set_in_different_sizes_are_refused_naming_both() {
-    use hdrsynth::data::bracket_profile::{BracketProfileOptions, calibrate_brackets};
-    use hdrsynth::data::bracket_testset::{self, BracketOptions, ResponseChoice};
+    use hdrsynth::capture::linearise::ResponseChoice;
+    use hdrsynth::capture::profile::{BracketProfileOptions, calibrate_brackets};
+    use hdrsynth::capture::testset::{self, BracketOptions};
     use hdrsynth::sensor::profile::Response;
     let dir = tempfile::tempdir().unwrap();
     let b = dir.path().join("b");
@@ -3177,7 +3179,7 @@ fn frames_of_one_set_in_different_sizes_are_refused_naming_both() {
     assert!(!out.exists());
     // An estimated response: the test set refuses before estimating it.
     let ts = dir.path().join("ts");
-    let e = bracket_testset::build(&b, &BracketOptions::default(), &ts).expect_err("sizes");
+    let e = testset::build(&b, &BracketOptions::default(), &ts).expect_err("sizes");
     want(&e.to_string());
     assert!(!ts.exists());
 }

@@ -1,8 +1,8 @@
 //! `hdrsynth loop`: the sim-to-real loop on a device's bracket folder
 //! (`experiments::device_loop`, docs/your_device.md "The loop").
 
-use crate::data::bracket_testset::{GtFrames, InputChoice};
-use crate::data::brackets::{Region, ScanOptions};
+use crate::capture::scan::{Region, ScanOptions};
+use crate::capture::testset::{GtFrames, InputChoice};
 use crate::experiments::device_loop::{LoopOptions, run as run_loop};
 use std::path::PathBuf;
 

@@ -4,9 +4,9 @@
 //! `hdrsynth diagnose --brackets DIR [--profile P | --response R] --out OUT`: a bracket folder
 //! as scene bursts (src/data/bracket_captures.rs), plus OUT/brackets.{md,toml} and OUT/captures.
 
-use crate::data::bracket_captures::{self, BracketDiagnoseOptions};
-use crate::data::bracket_testset::{ResponseChoice, ResponseSpec};
-use crate::data::brackets::{Region, ScanOptions};
+use crate::capture::diagnose::{BracketDiagnoseOptions, diagnose_brackets};
+use crate::capture::linearise::{ResponseChoice, ResponseSpec};
+use crate::capture::scan::{Region, ScanOptions};
 use crate::sensor::diagnose::{self, DiagnoseOptions};
 use anyhow::{Context, Result};
 use std::fmt::Write as _;
@@ -100,7 +100,7 @@ pub fn run(args: &Args) -> Result<String> {
                     None
                 },
             };
-            let b = bracket_captures::diagnose_brackets(dir, &opts, &args.out)
+            let b = diagnose_brackets(dir, &opts, &args.out)
                 .with_context(|| format!("diagnosing the brackets in {}", dir.display()))?;
             let files = if args.device_output {
                 "brackets.md, brackets.toml, captures/, device_output.md, profile.toml, \

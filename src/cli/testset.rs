@@ -2,13 +2,12 @@
 //! rendered through a sensor profile (`data::testset`, docs/evaluation.md): static from radiance
 //! maps, dynamic from a generated dataset's moving scenes.
 //! `hdrsynth testset --brackets DIR --out OUT`: a Kalantari-layout test set from the user's own
-//! bracket folders (`data::bracket_testset`, docs/your_device.md).
+//! bracket folders (`capture::testset`, docs/your_device.md).
 
-use crate::data::align::MtbOptions;
-use crate::data::bracket_testset::{
-    self, BracketOptions, EncodeSpec, GtFrames, InputChoice, ResponseChoice, ResponseSpec,
-};
-use crate::data::brackets::{Region, ScanOptions};
+use crate::capture::align::MtbOptions;
+use crate::capture::linearise::{ResponseChoice, ResponseSpec};
+use crate::capture::scan::{Region, ScanOptions};
+use crate::capture::testset::{BracketOptions, EncodeSpec, GtFrames, InputChoice};
 use crate::data::testset::{self, TestsetOptions, TestsetSummary};
 use crate::sensor::metering::Metering;
 use crate::sensor::profile::SensorProfile;
@@ -188,7 +187,7 @@ pub fn bracket_options(args: &Args) -> Result<BracketOptions> {
 
 pub fn run(args: &Args) -> Result<String> {
     if let Some(dir) = &args.brackets {
-        let s = bracket_testset::build(dir, &bracket_options(args)?, &args.out)?;
+        let s = crate::capture::testset::build(dir, &bracket_options(args)?, &args.out)?;
         return Ok(s.report(&args.out));
     }
     let s = build(args)?;

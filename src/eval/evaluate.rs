@@ -367,7 +367,7 @@ fn split_check(method: &dyn Method, sets: &[SetInfo]) -> Result<()> {
         return Ok(());
     }
     for set in sets {
-        let Some(sources) = crate::data::bracket_testset::set_sources(&set.dir)? else {
+        let Some(sources) = crate::capture::testset::set_sources(&set.dir)? else {
             continue;
         };
         if let Some((c, t)) = crate::io::source::overlapping(calibrated, &sources).first() {

@@ -13,13 +13,14 @@
 //! by evaluation itself, which refuses to score a network fine-tuned with a profile calibrated
 //! on a capture a test set was built from (`eval::evaluate`).
 
-use crate::data::bracket_output::{self, OutputCheck, OutputCheckOptions};
-use crate::data::bracket_profile::{
+use crate::capture::linearise::ResponseChoice;
+use crate::capture::output::{self, OutputCheck, OutputCheckOptions};
+use crate::capture::profile::{
     BracketCalibration, BracketProfileOptions, CorrelationFit, MIN_RHO, calibrate_scanned,
     metering_rule, with_channel_correlation, with_correlation,
 };
-use crate::data::bracket_testset::{self, BracketOptions, GtFrames, InputChoice, ResponseChoice};
-use crate::data::brackets::{self, FolderScan, Region, ScanOptions};
+use crate::capture::scan::{self, FolderScan, Region, ScanOptions};
+use crate::capture::testset::{self, BracketOptions, GtFrames, InputChoice};
 use crate::error::{Error, Result};
 use crate::experiments::ablate::{self, AblateConfig, Axis, AxisKind, EvalSpec, TestsetSpec};
 use crate::io::source::{Source, overlapping};
@@ -135,7 +136,7 @@ fn split(
             .sets
             .iter()
             .flat_map(|s| s.all_frames())
-            .map(brackets::frame_source)
+            .map(scan::frame_source)
             .collect()
     };
     let (a, b) = (sources(&cal_scan)?, sources(&test_scan)?);
@@ -323,7 +324,7 @@ fn build_set(
         opts,
         &format!("building a test set from the {scenes} scenes"),
     );
-    bracket_testset::build_scanned(
+    testset::build_scanned(
         &opts.brackets,
         Some(folder.select(scan)?),
         &BracketOptions {
@@ -487,7 +488,7 @@ fn output_checks(
         let check = match made {
             Some((_, _, c)) => c.clone(),
             None => {
-                let c = bracket_output::check_scanned(
+                let c = output::check_scanned(
                     folder.select(cal_scan)?,
                     &SensorProfile::load(&st.profile)?,
                     &check_options(cal_scan, st.noise),

@@ -424,7 +424,7 @@ pub const WHITE_FIT: (f64, f64) = (128.0 / 255.0, 224.0 / 255.0);
 
 /// The highest code whose estimate the common white is set from ([`linearisation_table`]):
 /// 249, one below the code from which the ground-truth merges treat a frame as clipped
-/// (`data::bracket_testset::CLIPPED_CODE`, 250).
+/// (`capture::testset::CLIPPED_CODE`, 250).
 pub const TRUSTED_TOP: usize = 249;
 
 /// A channel's white fitted on its response `r` (exposure per code, any unit): least squares of
@@ -456,7 +456,7 @@ fn fit_white(r: &[f64]) -> Option<f64> {
 
 /// Code value → linear per channel from an estimated response (exp g, or Robertson's I):
 /// non-decreasing, in [0, 1], 1 at the top code in every channel (the clipping white, the unit
-/// of [`linear_frame`](crate::data::bracket_testset::linear_frame)).
+/// of [`linear_frame`](crate::capture::linearise::linear_frame)).
 ///
 /// The estimators fix each channel's unit at code 128 (g(128) = 0, I(128) = 1), which says
 /// nothing about how the channels compare. The frames' encoding clips every channel at one

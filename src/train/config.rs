@@ -371,7 +371,7 @@ fn dataset_captures(dataset: &Path) -> Result<Vec<crate::io::source::Source>> {
         return Ok(all);
     }
     for set in crate::data::layout::detect(dataset)?.sets {
-        all.extend(crate::data::bracket_testset::set_sources(&set.dir)?.unwrap_or_default());
+        all.extend(crate::capture::testset::set_sources(&set.dir)?.unwrap_or_default());
     }
     Ok(all)
 }

@@ -1,9 +1,9 @@
 //! `hdrsynth calibrate brackets DIR --out PROFILE`: a device profile in the device's output
-//! domain from its bracketed frames (`data::bracket_profile`, docs/your_device.md).
+//! domain from its bracketed frames (`capture::profile`, docs/your_device.md).
 
-use crate::data::bracket_profile::{BracketProfileOptions, calibrate_brackets};
-use crate::data::bracket_testset::{ResponseChoice, ResponseSpec};
-use crate::data::brackets::{Region, ScanOptions};
+use crate::capture::linearise::{ResponseChoice, ResponseSpec};
+use crate::capture::profile::{BracketProfileOptions, calibrate_brackets};
+use crate::capture::scan::{Region, ScanOptions};
 use std::path::PathBuf;
 
 #[derive(clap::Args, Clone, Debug)]

@@ -4,18 +4,18 @@
 //! (the level) and under it (the floor, where a read-noise floor b sets σ²). Where either
 //! differs significantly for the last noise step, the same profile with each channel's noise
 //! scaled, and a floor added where the floor is off, until the check's statistics match
-//! (`bracket_output::fit_noise_level`) is one more step: the missing effect named, fitted,
+//! (`output::fit_noise_level`) is one more step: the missing effect named, fitted,
 //! and its gap shown closing.
 
 use super::{Checked, LoopOptions, check_options, stage};
-use crate::data::bracket_output;
-use crate::data::brackets::{FolderScan, ScanOptions};
+use crate::capture::output;
+use crate::capture::scan::{FolderScan, ScanOptions};
 use crate::error::Result;
 use crate::sensor::profile::SensorProfile;
 use std::path::{Path, PathBuf};
 
 /// Checks the fit may take for the level, and as many again for level and floor together
-/// (`bracket_output::fit_noise_level`).
+/// (`output::fit_noise_level`).
 const ROUNDS: usize = 4;
 
 /// The fitted step's profile, its per-channel scale and the check's gap before and after.
@@ -42,7 +42,7 @@ pub(super) fn level_step(
     let profile = SensorProfile::load(last_noise)?;
     let check = check_options(cal_scan, true);
     let scan = folder.select(cal_scan)?;
-    let before = bracket_output::check_scanned(scan.clone(), &profile, &check)?;
+    let before = output::check_scanned(scan.clone(), &profile, &check)?;
     let gap = before.gap;
     let mut checked = vec![(last_noise.to_path_buf(), true, before)];
     if !checked[0].2.level_off() {
@@ -52,7 +52,7 @@ pub(super) fn level_step(
         opts,
         "fitting the noise level and floor the frames hold against each other",
     );
-    let fit = bracket_output::fit_noise_level(&scan, &profile, &checked[0].2, &check, ROUNDS)?;
+    let fit = output::fit_noise_level(&scan, &profile, &checked[0].2, &check, ROUNDS)?;
     let path = profiles.join("level.toml");
     fit.profile.save(&path)?;
     let level = Level {

@@ -6,8 +6,8 @@
 //! truth is the inputs' own merge, training on it teaches the triangle merge back.
 
 use super::LoopOptions;
-use crate::data::bracket_testset::GtFrames;
-use crate::data::brackets::{FolderScan, ScanOptions};
+use crate::capture::scan::{FolderScan, ScanOptions};
+use crate::capture::testset::GtFrames;
 use crate::error::Result;
 use crate::experiments::ablate::{Axis, AxisKind};
 use std::path::Path;

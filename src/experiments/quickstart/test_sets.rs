@@ -79,8 +79,8 @@ pub(super) fn optional_source(
 /// ground truth merged from every frame, linearised by a Debevec response estimated from the
 /// brackets (`hdrsynth testset --brackets --inputs auto --gt-frames all`).
 pub(super) fn real_capture(brackets: &Path, out: &Path) -> Result<PathBuf> {
-    use crate::data::bracket_testset::{self, BracketOptions, GtFrames, InputChoice};
-    use crate::data::brackets::ScanOptions;
+    use crate::capture::scan::ScanOptions;
+    use crate::capture::testset::{self, BracketOptions, GtFrames, InputChoice};
     let dir = out.join("data/testset_real_capture");
     if !dir.is_dir() {
         // Built beside and renamed when complete, so an interrupted build is redone.
@@ -99,7 +99,7 @@ pub(super) fn real_capture(brackets: &Path, out: &Path) -> Result<PathBuf> {
             gt_frames: GtFrames::All,
             ..BracketOptions::default()
         };
-        bracket_testset::build(brackets, &opts, &partial)?;
+        testset::build(brackets, &opts, &partial)?;
         std::fs::rename(&partial, &dir).map_err(|e| Error::io(&dir, e))?;
     }
     Ok(dir)

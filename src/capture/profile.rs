@@ -2,7 +2,7 @@
 //! folder of bracketed JPEG/PNG/TIFF frames of the device — in the device's **output** domain,
 //! the frames a network sees after the device's processing (docs/your_device.md):
 //! - the response: the linearisation of `testset --brackets` (Debevec by default, or a
-//!   declared curve) as one curve ([`bracket_testset::table_response`] for an estimate);
+//!   declared curve) as one curve ([`testset::table_response`] for an estimate);
 //! - the noise per ISO (EXIF ISO of the frames): per frame and channel, on flat pixels, the
 //!   robust (MAD) σ of Immerkær's noise-estimation residual (mask [1 −2 1; −2 4 −2; 1 −2 1],
 //!   Σ mask² = 36, so σ² = σ²_residual / 36 for white noise), per code bin; less the 8-bit
@@ -29,8 +29,11 @@
 //! visible quantisation); colour is identity unless the profile already has one (the frames
 //! are already rendered; `calibrate colour` or `calibrate dng` measure T).
 
-use crate::data::bracket_testset::{self, Linearise, ResponseChoice};
-use crate::data::brackets::{self, BracketFrame, FrameKind, ScanOptions};
+use crate::capture::linearise::{linearise, resolve_linearisation};
+use crate::capture::testset::{self};
+
+use crate::capture::linearise::{Linearise, ResponseChoice};
+use crate::capture::scan::{self, BracketFrame, FrameKind, ScanOptions};
 use crate::error::{Error, Result};
 use crate::sensor::effects::plan;
 pub use crate::sensor::metering::{MeteredFrame, metering_rule};
@@ -38,13 +41,7 @@ use crate::sensor::profile::{Colour, Levels, Provenance, SensorProfile};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-mod noise;
-mod residual;
-pub use noise::NoiseBin;
-pub(crate) use noise::{
-    BINS, Pair, Planes, channel_moments, checked_pair, merge_bins, noise_bins, window,
-};
-pub(crate) use residual::{CrossResidual, cross_residuals};
+use super::noise::{self, NoiseBin, ROUNDING};
 
 #[derive(Clone, Debug)]
 pub struct BracketProfileOptions {
@@ -63,9 +60,6 @@ pub struct BracketProfileOptions {
 /// Smallest lag-1 correlation written as an effect: `diagnose`'s minimum effect size for noise
 /// correlations (docs/diagnose.md).
 pub const MIN_RHO: f64 = 0.02;
-
-/// 8-bit rounding's variance, codes² of 1.
-const ROUNDING: f64 = 1.0 / (12.0 * 255.0 * 255.0);
 
 /// The output noise's spatial correlation as the catalogue's `correlated_noise`: normal draws
 /// filtered by a separable Gaussian kernel of width `width` (effects::plan::kernel), whose
@@ -105,25 +99,6 @@ pub fn correlation_of_width(s: f64) -> (f64, f64) {
     let box3 = filtered_variance([1.0, 1.0, 1.0], c);
     let low = (1.0 - 2.0 / 9.0 * (c[0] + 2.0 * c[1]).powi(2) + box3 * box3 / 81.0) / (8.0 / 9.0);
     (low / imm, imm)
-}
-
-/// The correlation of the channels' noise from [`channel_moments`] summed over frames, with
-/// 8-bit rounding (independent per channel, 36/12 code² in Immerkær's residual) taken out of
-/// each channel's variance: the mean over the pairs RG, GB, RB, in [0, RHO_MAX]; NaN (not
-/// measured) without pixels.
-pub fn channel_correlation_of(cross: [f64; 3], square: [f64; 3], n: usize) -> f64 {
-    if n == 0 {
-        return f64::NAN;
-    }
-    let q = 36.0 * ROUNDING * n as f64;
-    let v = square.map(|s| (s - q).max(1e-30));
-    let pairs = [(0, 0, 1), (1, 1, 2), (2, 0, 2)];
-    let r = pairs
-        .iter()
-        .map(|&(k, a, b)| cross[k] / (v[a] * v[b]).sqrt())
-        .sum::<f64>()
-        / 3.0;
-    r.clamp(0.0, plan::RHO_MAX)
 }
 
 /// `profile` with the channels' noise correlated by `rho` (`channel_correlation`, replacing one
@@ -218,7 +193,7 @@ pub struct BracketCalibration {
     /// Per channel, the median over bins of [`NoiseBin::correlation_ratio`].
     pub correlation_ratio: [f64; 3],
     pub correlation: CorrelationFit,
-    /// The correlation of the channels' noise ([`channel_correlation_of`]).
+    /// The correlation of the channels' noise ([`noise::channel_correlation_of`]).
     pub channel_correlation: f64,
     /// Repeated-capture pairs the noise was measured on (0: each frame's flat regions).
     pub repeated_pairs: usize,
@@ -232,7 +207,7 @@ pub struct BracketCalibration {
 /// The sources of every frame of `sets`, refusing a DNG (linear raw, not the device's output)
 /// and a set whose frames (the pixels read) differ in size, naming the frame and the set's
 /// first.
-fn one_size_sources(sets: &[brackets::BracketSet]) -> Result<Vec<crate::io::source::Source>> {
+fn one_size_sources(sets: &[scan::BracketSet]) -> Result<Vec<crate::io::source::Source>> {
     if let Some(f) = sets
         .iter()
         .flat_map(|s| s.all_frames())
@@ -250,14 +225,14 @@ fn one_size_sources(sets: &[brackets::BracketSet]) -> Result<Vec<crate::io::sour
         let size = |p: [usize; 4]| (p[2] - p[0], p[3] - p[1]);
         let start = all.len();
         for f in &frames {
-            all.push((f.path.clone(), brackets::frame_source(f)?));
+            all.push((f.path.clone(), scan::frame_source(f)?));
         }
         let Some((p0, s0)) = all.get(start) else {
             continue;
         };
         let (w, h) = size(s0.pixels);
         if let Some((p, s)) = all[start..].iter().find(|(_, s)| size(s.pixels) != (w, h)) {
-            return Err(brackets::size_mismatch(p, size(s.pixels), p0, (w, h)));
+            return Err(scan::size_mismatch(p, size(s.pixels), p0, (w, h)));
         }
     }
     Ok(all.into_iter().map(|(_, s)| s).collect())
@@ -267,14 +242,14 @@ fn one_size_sources(sets: &[brackets::BracketSet]) -> Result<Vec<crate::io::sour
 pub fn calibrate_brackets(dir: &Path, opts: &BracketProfileOptions) -> Result<BracketCalibration> {
     // The profile is an output: never written into the folder it is measured from.
     crate::io::guard::refuse_output_inside(dir, &opts.out)?;
-    calibrate_scanned(dir, brackets::scan(dir, &opts.scan)?, opts)
+    calibrate_scanned(dir, scan::scan(dir, &opts.scan)?, opts)
 }
 
 /// [`calibrate_brackets`] on the sets of `dir` already scanned with `opts.scan` (a run that
-/// reads the folder once: [`brackets::FolderScan`]).
+/// reads the folder once: [`scan::FolderScan`]).
 pub fn calibrate_scanned(
     dir: &Path,
-    scan: brackets::BracketScan,
+    scan: scan::BracketScan,
     opts: &BracketProfileOptions,
 ) -> Result<BracketCalibration> {
     crate::io::guard::refuse_output_inside(dir, &opts.out)?;
@@ -282,10 +257,10 @@ pub fn calibrate_scanned(
     // Read first: a DNG, or a set whose frames differ in size, is refused before any
     // measurement.
     let sources = one_size_sources(&scan.sets)?;
-    let lin = bracket_testset::resolve_linearisation(&scan.sets, &opts.response, None, &mut notes)?;
+    let lin = resolve_linearisation(&scan.sets, &opts.response, None, &mut notes)?;
     let response = match &lin {
         Linearise::Curve(r) => r.clone(),
-        Linearise::Table(t) => bracket_testset::table_response(t),
+        Linearise::Table(t) => testset::table_response(t),
     };
     let noise::Measured {
         bins,
@@ -405,7 +380,7 @@ fn noise_provenance(dir: &Path, pairs: usize) -> String {
 }
 
 /// The auto-exposed frame of `set` and where it put its signal.
-fn metered(set: &brackets::BracketSet, lin: &Linearise) -> Result<MeteredFrame> {
+fn metered(set: &scan::BracketSet, lin: &Linearise) -> Result<MeteredFrame> {
     // An auto-exposure bracket marks its metered frame by bias 0 and the others by their
     // offsets; frames that all record 0 (manual exposures) mark nothing.
     let zero: Vec<&BracketFrame> = set
@@ -422,15 +397,15 @@ fn metered(set: &brackets::BracketSet, lin: &Linearise) -> Result<MeteredFrame> 
             "the middle frame (ExposureBiasValue marks no single frame)",
         )
     };
-    let code = brackets::read_frame_image(frame)?;
-    bracket_testset::refuse_sceneless(set, frame, bracket_testset::clipped_or_dark(&code))?;
+    let code = scan::read_frame_image(frame)?;
+    testset::refuse_sceneless(set, frame, testset::clipped_or_dark(&code))?;
     let clipped = code
         .data
         .chunks_exact(3)
         .filter(|p| p.iter().any(|&v| f64::from(v) >= noise::HIGH_CODE))
         .count() as f64
         / code.pixel_count().max(1) as f64;
-    let lum = bracket_testset::linearise(frame, code, lin).luminance();
+    let lum = linearise(frame, code, lin).luminance();
     let log_mean = lum
         .iter()
         .map(|&l| (f64::from(l).max(1e-6)).ln())

@@ -2,6 +2,7 @@
 //! alignment, the merged ground truth, the files and the record.
 
 use super::*;
+use crate::capture::linearise::linearise;
 
 /// A stop rounded as exposure.txt writes it, so the merge uses exactly what the field's code
 /// will read back.
@@ -10,7 +11,7 @@ fn written_stop(s: f64) -> f64 {
 }
 
 pub(super) fn build_sets(
-    sets: &[brackets::BracketSet],
+    sets: &[scan::BracketSet],
     selections: &[InputSelection],
     lin: &Linearise,
     how: Encoding,
@@ -28,7 +29,7 @@ pub(super) fn build_sets(
 /// Which inputs and ground-truth frames a set of more than three frames (or a chosen
 /// selection) took.
 fn selection_note(
-    set: &brackets::BracketSet,
+    set: &scan::BracketSet,
     sel: &InputSelection,
     n_gt: usize,
     n_dropped: usize,
@@ -74,7 +75,7 @@ struct SetCodes {
 
 /// Build one set's folder (inputs, exposure.txt, merged ground truth, record).
 fn build_set(
-    set: &brackets::BracketSet,
+    set: &scan::BracketSet,
     sel: &InputSelection,
     lin: &Linearise,
     how: Encoding,
@@ -128,7 +129,7 @@ fn build_set(
         }
         gt_shifts = s.iter().map(|&(x, y)| Some([x, y])).collect();
     }
-    let (w, h) = brackets::scorable_size(&set.frames[idx[1]], &codes[ref_pos])?;
+    let (w, h) = scan::scorable_size(&set.frames[idx[1]], &codes[ref_pos])?;
     let pos = idx.map(|i| gt_idx.iter().position(|&g| g == i).unwrap_or(0));
     let inputs: [&Image; 3] = if written.is_empty() {
         pos.map(|p| &codes[p])
@@ -186,7 +187,7 @@ fn build_set(
         } else {
             Vec::new()
         },
-        sources: brackets::set_sources(set)?,
+        sources: scan::set_sources(set)?,
     };
     let toml =
         toml::to_string_pretty(&record).map_err(|e| Error::encode(set_dir.join(RECORD), e))?;
@@ -225,7 +226,7 @@ fn align_codes(
 /// for the hat merge, the stored codes; for the inputs, what `encode` writes when it is not
 /// the γ code) are kept. The frames must all have the reference's size.
 fn set_codes(
-    set: &brackets::BracketSet,
+    set: &scan::BracketSet,
     gt_idx: &[usize],
     idx: [usize; 3],
     ref_pos: usize,

@@ -143,6 +143,11 @@ pub struct BracketSet {
 }
 
 impl BracketSet {
+    /// The folder the set's frames lie in, for errors about the set.
+    pub fn folder(&self) -> &Path {
+        self.frames[0].path.parent().unwrap_or(&self.frames[0].path)
+    }
+
     /// Every frame of the set: its exposures, then its repeated captures.
     pub fn all_frames(&self) -> impl Iterator<Item = &BracketFrame> {
         self.frames.iter().chain(&self.repeats)

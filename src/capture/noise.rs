@@ -2,12 +2,14 @@
 //! flat regions (Immerkær's residual) or, where a set has repeated captures of one exposure,
 //! from the differences of repeated frames (temporal noise: no scene in the residual).
 
-use super::channel_correlation_of;
-use super::residual::{crop_window, cross_residuals};
-use crate::data::brackets::{self, BracketFrame, BracketSet};
+mod residual;
+use crate::capture::scan::{self, BracketFrame, BracketSet};
 use crate::error::{Error, Result};
 use crate::io::Image;
+use crate::sensor::effects::plan;
 use crate::sensor::profile::{NoiseAtIso, Response};
+use residual::crop_window;
+pub(crate) use residual::{CrossResidual, cross_residuals};
 use std::path::Path;
 
 /// Code bins of the noise measurement (of the 3×3 mean code).
@@ -79,10 +81,7 @@ impl Pair {
 /// none (the camera moved) or when the difference is mostly smooth (the scene, the light or
 /// the exposure changed between them).
 pub(crate) fn repeated_pair(a: &BracketFrame, b: &BracketFrame) -> Result<Pair> {
-    let (ia, ib) = (
-        brackets::read_frame_image(a)?,
-        brackets::read_frame_image(b)?,
-    );
+    let (ia, ib) = (scan::read_frame_image(a)?, scan::read_frame_image(b)?);
     checked_pair(&ia, &ib, &a.path, &b.path)
 }
 
@@ -383,10 +382,10 @@ pub(crate) fn measure_noise(
             continue;
         }
         // Each frame's flat regions give its noise level; its central window is kept for the
-        // residual against the others (a set holds two frames or more: `brackets::scan`).
+        // residual against the others (a set holds two frames or more: `scan::scan`).
         let mut windows = Vec::with_capacity(set.frames.len());
         for f in &set.frames {
-            let code = brackets::read_frame_image(f)?;
+            let code = scan::read_frame_image(f)?;
             level.extend(noise_bins(Planes::frame(&code), iso_of(f), response));
             windows.push(crop_window(&code));
         }
@@ -654,4 +653,26 @@ fn fit_row(iso: f64, bins: &[NoiseBin]) -> Option<NoiseAtIso> {
         a_stderr: None,
         b_stderr: None,
     })
+}
+
+/// 8-bit rounding's variance, codes² of 1.
+pub(super) const ROUNDING: f64 = 1.0 / (12.0 * 255.0 * 255.0);
+
+/// The correlation of the channels' noise from [`channel_moments`] summed over frames, with
+/// 8-bit rounding (independent per channel, 36/12 code² in Immerkær's residual) taken out of
+/// each channel's variance: the mean over the pairs RG, GB, RB, in [0, RHO_MAX]; NaN (not
+/// measured) without pixels.
+pub fn channel_correlation_of(cross: [f64; 3], square: [f64; 3], n: usize) -> f64 {
+    if n == 0 {
+        return f64::NAN;
+    }
+    let q = 36.0 * ROUNDING * n as f64;
+    let v = square.map(|s| (s - q).max(1e-30));
+    let pairs = [(0, 0, 1), (1, 1, 2), (2, 0, 2)];
+    let r = pairs
+        .iter()
+        .map(|&(k, a, b)| cross[k] / (v[a] * v[b]).sqrt())
+        .sum::<f64>()
+        / 3.0;
+    r.clamp(0.0, plan::RHO_MAX)
 }

@@ -1,4 +1,4 @@
-//! `hdrsynth diagnose --brackets DIR`: a user's own bracket folder ([`crate::data::brackets`]) as
+//! `hdrsynth diagnose --brackets DIR`: a user's own bracket folder ([`crate::capture::scan`]) as
 //! scene bursts for the sim-to-real gap workflow (docs/diagnose.md, docs/your_device.md).
 //!
 //! Every frame of every set becomes one scene burst of one frame, with the set's name as its
@@ -19,8 +19,8 @@
 //! the workflow's response statistic; then the workflow runs every statistic that one-frame scene
 //! bursts support (the response exponent between exposures) and lists what it skipped.
 
-use crate::data::bracket_testset::{self, Linearise, ResponseChoice};
-use crate::data::brackets::{self, BracketSet, FrameKind, ScanOptions};
+use crate::capture::linearise::{Linearise, ResponseChoice, linear_frame, resolve_linearisation};
+use crate::capture::scan::{self, BracketSet, FrameKind, ScanOptions};
 use crate::error::{Error, Result};
 use crate::io::Image;
 use crate::sensor::captures::{
@@ -53,7 +53,7 @@ pub struct BracketDiagnoseOptions {
     /// stops), so the default is 0.15.
     pub ratio_tolerance_stops: f64,
     /// Also compare the frames with this profile's simulation of them in the device's output
-    /// domain (`bracket_output::check`, written to `OUT/device_output.md`).
+    /// domain (`output::check`, written to `OUT/device_output.md`).
     pub device_output: Option<PathBuf>,
 }
 
@@ -120,7 +120,7 @@ pub struct BracketDiagnosis {
     /// The capture set the workflow ran on (`OUT/captures`).
     pub captures: PathBuf,
     /// The device-output check, when asked for.
-    pub device_output: Option<crate::data::bracket_output::OutputCheck>,
+    pub device_output: Option<crate::capture::output::OutputCheck>,
 }
 
 /// Linear frames of one set (1 = clipping white), upright, checked for one size.
@@ -128,7 +128,7 @@ fn linear_frames(set: &BracketSet, lin: &Linearise) -> Result<Vec<Image>> {
     let imgs = set
         .frames
         .iter()
-        .map(|f| bracket_testset::linear_frame(f, lin))
+        .map(|f| linear_frame(f, lin))
         .collect::<Result<Vec<Image>>>()?;
     let (w, h) = (imgs[0].width, imgs[0].height);
     for (f, img) in set.frames.iter().zip(&imgs) {
@@ -236,9 +236,9 @@ pub fn diagnose_brackets(
     }
     // The output would otherwise be scanned as a sub-folder of brackets on the next run.
     crate::io::guard::refuse_output_inside(dir, out)?;
-    let brackets::BracketScan { sets, mut notes } = brackets::scan(dir, &opts.scan)?;
+    let scan::BracketScan { sets, mut notes } = scan::scan(dir, &opts.scan)?;
     let _lock = crate::io::guard::OutputLock::acquire(out, "diagnose --brackets")?;
-    let lin = bracket_testset::resolve_linearisation(&sets, &opts.response, Some(out), &mut notes)?;
+    let lin = resolve_linearisation(&sets, &opts.response, Some(out), &mut notes)?;
     let estimated = matches!(
         opts.response,
         ResponseChoice::Debevec(_) | ResponseChoice::Robertson(_)
@@ -339,14 +339,14 @@ pub fn diagnose_brackets(
 fn device_output_check(
     dir: &Path,
     opts: &BracketDiagnoseOptions,
-) -> Result<Option<crate::data::bracket_output::OutputCheck>> {
+) -> Result<Option<crate::capture::output::OutputCheck>> {
     let Some(p) = &opts.device_output else {
         return Ok(None);
     };
-    crate::data::bracket_output::check(
+    crate::capture::output::check(
         dir,
         &crate::sensor::profile::SensorProfile::load(p)?,
-        &crate::data::bracket_output::OutputCheckOptions {
+        &crate::capture::output::OutputCheckOptions {
             scan: opts.scan.clone(),
             replicates: opts.diagnose.replicates,
             seed: opts.diagnose.seed,

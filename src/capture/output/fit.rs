@@ -2,7 +2,7 @@
 //! ([`fit_noise_level`]).
 
 use super::{BinOffset, FLOOR, LEVEL, OutputCheck, OutputCheckOptions, check_scanned};
-use crate::data::brackets;
+use crate::capture::scan;
 use crate::error::Result;
 use crate::sensor::profile::SensorProfile;
 
@@ -42,7 +42,7 @@ pub struct NoiseFit {
 /// whatever its source (JPEG processing, a read-noise floor the flat regions hid), is then in
 /// the simulation.
 pub fn fit_noise_level(
-    scan: &brackets::BracketScan,
+    scan: &scan::BracketScan,
     profile: &SensorProfile,
     first: &OutputCheck,
     opts: &OutputCheckOptions,
@@ -71,7 +71,7 @@ pub fn fit_noise_level(
 
 /// The two fits of [`fit_noise_level`].
 struct NoiseFitter<'a> {
-    scan: &'a brackets::BracketScan,
+    scan: &'a scan::BracketScan,
     profile: &'a SensorProfile,
     opts: &'a OutputCheckOptions,
 }

@@ -2,8 +2,8 @@
 //! holds the device's noise without the scene, where the noise's spatial and channel
 //! correlation are read (`calibrate brackets`, the device-output check).
 
-use super::noise::{FLAT_FRACTION, Planes, window};
-use crate::data::bracket_testset::binned_means;
+use super::{FLAT_FRACTION, Planes, window};
+use crate::capture::testset::binned_means;
 use crate::error::Result;
 use crate::io::Image;
 use crate::sensor::profile::Response;
@@ -76,14 +76,14 @@ fn conditional_means(
 }
 
 /// [`CrossResidual`] of each of `codes` (a set's frames as stored, of 1, aligned; relative
-/// exposure times `times`): the others merged by [`bracket_testset::hat_merge_covered`] after
+/// exposure times `times`): the others merged by [`testset::hat_merge_covered`] after
 /// `response`, the frame's expected codes its [`ConditionalMean`] at merged · its time.
 pub(crate) fn cross_residuals(
     codes: &[Image],
     times: &[f64],
     response: &Response,
 ) -> Result<Vec<CrossResidual>> {
-    use crate::data::bracket_testset::{FIELD_GAMMA, hat_merge_covered};
+    use crate::capture::testset::{FIELD_GAMMA, hat_merge_covered};
     let inv_g = 1.0 / FIELD_GAMMA;
     let written: Vec<Image> = codes
         .iter()

@@ -51,7 +51,7 @@ pub enum Encode {
 /// The encoding `spec` asks for on `sets`, checked before any work (a profile that does not
 /// load, device codes of DNG frames: refused, naming the file); [`EncodePlan::resolve`] finishes
 /// it once the linearisation is known.
-pub fn plan_encoding(spec: &EncodeSpec, sets: &[brackets::BracketSet]) -> Result<EncodePlan> {
+pub fn plan_encoding(spec: &EncodeSpec, sets: &[scan::BracketSet]) -> Result<EncodePlan> {
     let frames = || sets.iter().flat_map(|s| &s.frames);
     let dng = frames().find(|f| f.kind == FrameKind::Dng);
     let ldr = frames().find(|f| f.kind == FrameKind::Ldr);

@@ -28,7 +28,7 @@ pub fn clipped_or_dark(code: &Image) -> f64 {
 /// Refuse a set whose reference frame (`frame`, [`clipped_or_dark`] fraction `bad`) holds no
 /// scene: beyond [`MAX_REFERENCE_CLIPPED_OR_DARK`] (a test set's reference, a calibration's
 /// metering frame).
-pub fn refuse_sceneless(set: &brackets::BracketSet, frame: &BracketFrame, bad: f64) -> Result<()> {
+pub fn refuse_sceneless(set: &scan::BracketSet, frame: &BracketFrame, bad: f64) -> Result<()> {
     if bad <= MAX_REFERENCE_CLIPPED_OR_DARK {
         return Ok(());
     }

@@ -17,7 +17,7 @@
 //! the smoothed estimate lacks cannot bias the comparison as it does for single frames.
 //!
 //! Without repeats, each frame's statistics are taken on its residual against the merge of the
-//! set's other frames (`bracket_profile::cross_residuals`), real and simulated alike: the
+//! set's other frames (`noise::cross_residuals`), real and simulated alike: the
 //! scene cancels there too, so neither the texture of the real frames nor the smoothing of the
 //! estimate enters the comparison.
 //!
@@ -31,19 +31,21 @@
 //! noise move together). Each names what would close it: the profile's noise a and b, the
 //! catalogue's `correlated_noise` and `channel_correlation`.
 
-use crate::data::bracket_profile::{self, CrossResidual, NoiseBin, Pair, Planes};
-use crate::data::bracket_testset::{self, FIELD_GAMMA, Linearise};
-use crate::data::brackets::{self, ScanOptions};
+use crate::capture::linearise::Linearise;
+use crate::capture::linearise::{code_frame, linearise};
+use crate::capture::noise::{self, CrossResidual, NoiseBin, Pair, Planes};
+use crate::capture::scan::{self, ScanOptions};
+use crate::capture::testset::{self, FIELD_GAMMA};
 use crate::error::Result;
 use crate::io::Image;
 use crate::sensor::profile::SensorProfile;
 use crate::sensor::realism::{NoiseModel, Realism, RealismOptions};
 use std::path::Path;
 
-/// The central window of `img` (`bracket_profile::window`, at most 640×480), the same for
+/// The central window of `img` (`noise::window`, at most 640×480), the same for
 /// every frame of a set.
 fn window(img: Image) -> Image {
-    let (x0, y0, w, h) = bracket_profile::window(&img);
+    let (x0, y0, w, h) = noise::window(&img);
     if (w, h) == (img.width, img.height) {
         return img;
     }
@@ -181,7 +183,7 @@ fn simulate(
 type Groups = Vec<(Vec<usize>, Vec<f64>)>;
 
 /// Each set's frames replaced by their residuals against the set's other frames
-/// ([`bracket_profile::cross_residuals`]), on the real and on every simulated side alike.
+/// ([`noise::cross_residuals`]), on the real and on every simulated side alike.
 fn residualise(
     units: &mut [(Unit, f64)],
     groups: &Groups,
@@ -198,7 +200,7 @@ fn residualise(
         if frames.len() != indices.len() {
             continue;
         }
-        let residuals = bracket_profile::cross_residuals(&frames, times, response)?;
+        let residuals = noise::cross_residuals(&frames, times, response)?;
         for (&i, r) in indices.iter().zip(residuals) {
             units[i].0 = Unit::Residual(r);
         }
@@ -211,19 +213,19 @@ fn measure(units: &[(Unit, f64)], response: &crate::sensor::profile::Response) -
     let mut s = FrameStats::default();
     for (unit, iso) in units {
         s.bins
-            .extend(bracket_profile::noise_bins(unit.planes(), *iso, response));
-        let (cross, square, _) = bracket_profile::channel_moments(unit.planes());
+            .extend(noise::noise_bins(unit.planes(), *iso, response));
+        let (cross, square, _) = noise::channel_moments(unit.planes());
         for k in 0..3 {
             s.cross[k] += cross[k];
             s.square[k] += square[k];
         }
     }
-    s.bins = bracket_profile::merge_bins(&s.bins);
+    s.bins = noise::merge_bins(&s.bins);
     s
 }
 
 fn bin_of(b: &NoiseBin) -> usize {
-    ((b.code * bracket_profile::BINS as f64) as usize).min(bracket_profile::BINS - 1)
+    ((b.code * noise::BINS as f64) as usize).min(noise::BINS - 1)
 }
 
 /// ln σ² of a bin's codes, as the level and floor statistics average it.
@@ -238,8 +240,8 @@ impl FrameStats {
     }
 }
 
-/// Code bins (of [`bracket_profile::BINS`]) under the noise-floor statistic's ceiling, 1/8.
-const DARK_BINS: usize = bracket_profile::BINS / 8;
+/// Code bins (of [`noise::BINS`]) under the noise-floor statistic's ceiling, 1/8.
+const DARK_BINS: usize = noise::BINS / 8;
 
 /// The statistics' values of `s` over the bins `keys` (channel, bin, weight), in the order of
 /// [`STATS`]: per channel the weighted mean ln σ² (weights: the real frames' pixels) over the
@@ -279,13 +281,13 @@ pub fn check(
     profile: &SensorProfile,
     opts: &OutputCheckOptions,
 ) -> Result<OutputCheck> {
-    check_scanned(brackets::scan(dir, &opts.scan)?, profile, opts)
+    check_scanned(scan::scan(dir, &opts.scan)?, profile, opts)
 }
 
 /// [`check`] on sets already scanned with `opts.scan` (a run that reads the folder once:
-/// [`brackets::FolderScan`]).
+/// [`scan::FolderScan`]).
 pub fn check_scanned(
-    scan: brackets::BracketScan,
+    scan: scan::BracketScan,
     profile: &SensorProfile,
     opts: &OutputCheckOptions,
 ) -> Result<OutputCheck> {
@@ -293,7 +295,7 @@ pub fn check_scanned(
         .sets
         .iter()
         .flat_map(|s| &s.frames)
-        .find(|f| f.kind == brackets::FrameKind::Dng)
+        .find(|f| f.kind == scan::FrameKind::Dng)
     {
         return Err(crate::error::Error::layout(
             &f.path,
@@ -320,18 +322,13 @@ pub fn check_scanned(
         let mut stored = Vec::new();
         let mut times = Vec::new();
         for f in &set.frames {
-            let code = window(bracket_testset::code_frame(f)?);
-            let linear = bracket_testset::linearise(f, code.clone(), &lin);
+            let code = window(code_frame(f)?);
+            let linear = linearise(f, code.clone(), &lin);
             gamma.push(linear.map(|v| v.clamp(0.0, 1.0).powf(1.0 / FIELD_GAMMA)));
             stored.push(code);
             times.push(f.stop.exp2());
         }
-        let radiance = smooth(&bracket_testset::hat_merge(
-            &gamma,
-            &stored,
-            &times,
-            FIELD_GAMMA,
-        )?);
+        let radiance = smooth(&testset::hat_merge(&gamma, &stored, &times, FIELD_GAMMA)?);
         if !temporal {
             groups.push((
                 (real.len()..real.len() + set.frames.len()).collect(),
@@ -348,8 +345,8 @@ pub fn check_scanned(
             }
             let mut prev = (code, &f.path);
             for r in set.repeats_of(f) {
-                let next = window(bracket_testset::code_frame(r)?);
-                let pair = bracket_profile::checked_pair(&prev.0, &next, prev.1, &r.path)?;
+                let next = window(code_frame(r)?);
+                let pair = noise::checked_pair(&prev.0, &next, prev.1, &r.path)?;
                 real.push((Unit::Pair(pair), iso));
                 scenes.push((scene.clone(), iso, true));
                 prev = (next, &r.path);
