@@ -45,7 +45,24 @@ pub enum Error {
         holder: String,
         lock: PathBuf,
     },
-    /// Invalid parameters passed by code (not tied to a file).
+    /// A command-line flag (or the library option it sets) whose value cannot work: the flag
+    /// as the user types it, then what is wrong with its value ("--max-gap 0 must be > 0").
+    #[error("{flag} {msg}")]
+    Flag { flag: String, msg: String },
+    /// A named value (a profile's or config's key, an effect's parameter) that is out of range
+    /// or inconsistent, where no file is read (a file's key: [`Error::Config`]).
+    #[error("{key}: {msg}")]
+    Key { key: String, msg: String },
+    /// A sensor profile, by name, that cannot do what is asked of it (no colour calibration,
+    /// no noise at an ISO, an effect that does not apply).
+    #[error("profile '{name}': {msg}")]
+    Profile { name: String, msg: String },
+    /// A step of a longer pass (a set, a dataset) that failed, on one line ("what: cause"),
+    /// the shape the dataset passes print; the cause stays typed for callers that match on it.
+    #[error("{what}: {cause}")]
+    Within { what: String, cause: Box<Error> },
+    /// Parameters passed by code that break a function's contract (sizes that differ, an
+    /// empty list): not a file, key or flag of the user's.
     #[error("{0}")]
     Invalid(String),
     /// A named step of a longer job (e.g. a quickstart stage) that failed; the cause is the
@@ -104,7 +121,28 @@ impl Error {
     /// dataset passes. [`Error::context`] keeps the cause as the source instead (a chain, as
     /// `anyhow` prints it).
     pub fn within(what: String) -> impl FnOnce(Error) -> Error {
-        move |e| Error::Invalid(format!("{what}: {e}"))
+        move |e| Error::Within {
+            what,
+            cause: Box::new(e),
+        }
+    }
+    pub fn flag(flag: impl ToString, msg: impl ToString) -> Self {
+        Error::Flag {
+            flag: flag.to_string(),
+            msg: msg.to_string(),
+        }
+    }
+    pub fn key(key: impl ToString, msg: impl ToString) -> Self {
+        Error::Key {
+            key: key.to_string(),
+            msg: msg.to_string(),
+        }
+    }
+    pub fn profile(name: impl ToString, msg: impl ToString) -> Self {
+        Error::Profile {
+            name: name.to_string(),
+            msg: msg.to_string(),
+        }
     }
     pub fn layout(path: impl AsRef<Path>, msg: impl ToString) -> Self {
         Error::Layout {
