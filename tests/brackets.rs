@@ -2702,9 +2702,9 @@ fn canon_550d_neutral_codes_stay_neutral_in_the_ground_truth() {
 
 #[test]
 fn eval_warns_when_a_network_meets_a_curve_it_was_not_trained_on() {
-    use hdrsynth::engine::method::from_checkpoint;
     use hdrsynth::eval::evaluate::{self, EvalOptions};
     use hdrsynth::eval::infer::NetworkOptions;
+    use hdrsynth::runner::method::from_checkpoint;
     let tmp = tempfile::tempdir().expect("tmp");
     bracket_folder(tmp.path());
     let beside = tempfile::tempdir().expect("tmp");
@@ -3175,9 +3175,9 @@ fn halves_of_a_frame_share_no_pixel_and_are_read_as_cut() {
 
 #[test]
 fn a_network_is_never_scored_on_captures_that_calibrated_its_profile() {
-    use hdrsynth::engine::method::from_checkpoint;
     use hdrsynth::eval::evaluate::{self, EvalOptions};
     use hdrsynth::eval::infer::NetworkOptions;
+    use hdrsynth::runner::method::from_checkpoint;
     let tmp = tempfile::tempdir().expect("tmp");
     noisy_png_bracket(
         &tmp.path().join("scene"),

@@ -8,11 +8,11 @@ use hdrsynth::config::parse_toml;
 use hdrsynth::data::generate::GenerateConfig;
 use hdrsynth::data::layout::{self, LayoutKind};
 use hdrsynth::data::testset::{self, TestsetOptions};
-use hdrsynth::engine::method::{Source, method_for};
 use hdrsynth::eval::blend::{DEFAULT_TONE_K, fuse};
 use hdrsynth::eval::evaluate::{EvalOptions, EvalSummary, NetworkOptions};
 use hdrsynth::eval::metrics;
 use hdrsynth::io::{BitDepth, ExrPrecision, Image, read_image, read_image_info, write_exr};
+use hdrsynth::runner::method::{Source, method_for};
 use hdrsynth::sensor::profile::SensorProfile;
 use hdrsynth::sensor::realism::NoiseModel;
 use hdrsynth::train::TrainOptions;
@@ -663,8 +663,8 @@ fn classical_rows_read_the_sets_curve_or_refuse() {
 /// merge: it scores as the triangle merge through the set's curve, not through its own.
 #[test]
 fn a_data_linearised_network_takes_the_test_sets_curve() {
-    use hdrsynth::engine::method::{Source, method_for};
     use hdrsynth::eval::evaluate::{self, Classical, ClassicalMerge, NetworkOptions};
+    use hdrsynth::runner::method::{Source, method_for};
     use hdrsynth::sensor::profile::Response;
     let tmp = tempfile::tempdir().expect("tmp");
     let data = tmp.path().join("train");

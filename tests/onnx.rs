@@ -655,8 +655,9 @@ fn exported_graphs_have_the_promised_structure() {
 /// both agree within the parity tolerance on Network-1's blend weights and Network-2's HDR.
 #[test]
 fn engines_agree_and_auto_picks_the_faster_engine_on_cpu() {
-    use hdrsynth::engine::{Engine, LoadedNetwork};
+    use hdrsynth::eval::infer::Engine;
     use hdrsynth::eval::infer::NetworkOptions;
+    use hdrsynth::runner::LoadedNetwork;
     require_ort();
     let tmp = tempfile::tempdir().expect("tmp");
     let t = tmp.path();

@@ -1910,7 +1910,7 @@ fn a_corrupted_checkpoint_is_refused_by_eval_infer_and_export_and_set_aside_by_r
         "infer: {err}"
     );
     // eval, on the library path it and `ablate` share.
-    let e = hdrsynth::engine::LoadedNetwork::from_checkpoint(
+    let e = hdrsynth::runner::LoadedNetwork::from_checkpoint(
         &ckpt,
         &hdrsynth::eval::infer::NetworkOptions::default(),
         &burn::tensor::Device::flex(),

@@ -17,7 +17,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 SRC = ROOT / "src"
 # docs/architecture.md: a module uses only modules to its left.
-LAYERS = ["io", "sensor", "data", "capture", "kernels", "models", "train", "eval", "onnx", "engine",
+LAYERS = ["io", "sensor", "data", "capture", "kernels", "models", "train", "eval", "onnx", "runner",
           "experiments", "cli"]
 LEAVES = {"error", "config", "rng", "linalg", "stats", "plot", "device", "lib"}
 # `models` reads two constants of `data` on purpose (docs/architecture.md); data is to its left.

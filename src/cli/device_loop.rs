@@ -1,8 +1,9 @@
 //! `hdrsynth loop`: the sim-to-real loop on a device's bracket folder
 //! (`experiments::device_loop`, docs/your_device.md "The loop").
 
-use crate::capture::scan::{Region, ScanOptions};
+use crate::capture::scan::Region;
 use crate::capture::testset::{GtFrames, InputChoice};
+use crate::cli::scan::ScanArgs;
 use crate::experiments::device_loop::{LoopOptions, run as run_loop};
 use std::path::PathBuf;
 
@@ -35,17 +36,8 @@ pub struct Args {
     /// (the frames that are not inputs, where they reach).
     #[arg(long, default_value = "all")]
     pub gt_frames: GtFrames,
-    /// Declared EV steps in capture order, for frames without EXIF or sidecar.
-    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
-    pub declared_evs: Option<Vec<f64>>,
-    /// Largest gap between capture times within one set, seconds.
-    #[arg(long, default_value_t = ScanOptions::default().max_gap_s)]
-    pub max_gap: f64,
-    /// Frames of one exposure within a set are repeated captures (as `calibrate brackets
-    /// --repeats`): the profile's noise is their temporal noise; the test sets use each
-    /// exposure's first capture.
-    #[arg(long)]
-    pub repeats: bool,
+    #[command(flatten)]
+    pub scan: ScanArgs,
     /// Output folder: profiles/, testset/, experiment/ (the grid), loop.md.
     #[arg(long)]
     pub out: PathBuf,
@@ -57,12 +49,7 @@ pub fn run(args: &Args) -> anyhow::Result<String> {
         calibration: args.calibration.clone(),
         calibration_region: args.calibration_region,
         test_region: args.test_region,
-        scan: ScanOptions {
-            evs: args.declared_evs.clone(),
-            max_gap_s: args.max_gap,
-            repeats: args.repeats,
-            ..ScanOptions::default()
-        },
+        scan: args.scan.options(None),
         inputs: args.inputs.clone().unwrap_or_default(),
         gt_frames: args.gt_frames,
         quickstart: args.quickstart.clone(),

@@ -6,7 +6,7 @@
 
 use crate::capture::diagnose::{BracketDiagnoseOptions, diagnose_brackets};
 use crate::capture::linearise::{ResponseChoice, ResponseSpec};
-use crate::capture::scan::{Region, ScanOptions};
+use crate::cli::scan::{RegionArg, ScanArgs};
 use crate::sensor::diagnose::{self, DiagnoseOptions};
 use anyhow::{Context, Result};
 use std::fmt::Write as _;
@@ -31,30 +31,16 @@ pub struct Args {
     /// OUT/device_output.md; docs/your_device.md, section 7).
     #[arg(long, requires = "brackets", requires = "profile")]
     pub device_output: bool,
-    /// --brackets: frames of one exposure within a set are repeated captures (as `calibrate
-    /// brackets --repeats`); the device-output check then compares the differences of
-    /// repeated pairs, which hold no scene.
-    #[arg(long, requires = "brackets")]
-    pub repeats: bool,
     /// --brackets without --profile: srgb, linear, gamma:G, debevec (default: one curve for the
     /// three channels), debevec-per-channel or robertson.
     #[arg(long, conflicts_with = "profile", requires = "brackets")]
     pub response: Option<ResponseSpec>,
-    /// --brackets: declared EV steps in capture order, for frames without EXIF or sidecar.
-    #[arg(
-        long,
-        value_delimiter = ',',
-        allow_hyphen_values = true,
-        requires = "brackets"
-    )]
-    pub declared_evs: Option<Vec<f64>>,
-    /// --brackets: largest gap between capture times within one set, seconds.
-    #[arg(long, default_value_t = ScanOptions::default().max_gap_s)]
-    pub max_gap: f64,
-    /// --brackets: read only this part of every frame: left, right, top, bottom (halves of the upright
-    /// frame, split at ⌊w/2⌋ or ⌊h/2⌋) or x,y,w,h in pixels.
-    #[arg(long)]
-    pub region: Option<Region>,
+    /// --brackets: how the folder is scanned.
+    #[command(flatten)]
+    pub scan: ScanArgs,
+    /// --brackets: the part of every frame that is read.
+    #[command(flatten)]
+    pub region: RegionArg,
     /// --brackets: a frame whose exposure ratio is off the common response by more than this
     /// many stops is named and left out.
     #[arg(long, default_value_t = BracketDiagnoseOptions::default().ratio_tolerance_stops)]
@@ -74,6 +60,15 @@ pub struct Args {
 }
 
 pub fn run(args: &Args) -> Result<String> {
+    // The scan's flags read a bracket folder: without --brackets they would be ignored.
+    let scan = &args.scan;
+    if args.brackets.is_none()
+        && (scan.declared_evs.is_some() || scan.repeats || args.region.region.is_some())
+    {
+        anyhow::bail!(
+            "--declared-evs, --repeats and --region read a bracket folder: give --brackets"
+        );
+    }
     let t0 = Instant::now();
     let opts = DiagnoseOptions {
         replicates: args.replicates,
@@ -84,13 +79,7 @@ pub fn run(args: &Args) -> Result<String> {
     let (mut s, wrote) = match (&args.brackets, &args.captures) {
         (Some(dir), _) => {
             let opts = BracketDiagnoseOptions {
-                scan: ScanOptions {
-                    evs: args.declared_evs.clone(),
-                    max_gap_s: args.max_gap,
-                    region: args.region,
-                    repeats: args.repeats,
-                    ..ScanOptions::default()
-                },
+                scan: args.scan.options(args.region.region),
                 response: ResponseChoice::new(args.profile.as_deref(), args.response.as_ref())?,
                 diagnose: opts,
                 ratio_tolerance_stops: args.ratio_tolerance,

@@ -3,12 +3,12 @@
 //! or a checkpoint's network run here at full resolution with tiles — and write per-image and
 //! summary tables with bootstrap intervals, outputs, previews and a report (docs/evaluation.md).
 
-use crate::engine::method::{Source, method_for};
 use crate::eval::evaluate::{
     Classical, EvalOptions, Network1Reference, NetworkOptions, ScoreUnit, evaluate,
 };
 use crate::eval::metrics::{MetricOptions, Pu21Scale};
 use crate::eval::report;
+use crate::runner::method::{Source, method_for};
 use crate::train::config::TrainConfig;
 use anyhow::{Result, bail};
 use std::fmt::Write as _;

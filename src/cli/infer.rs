@@ -11,12 +11,12 @@
 
 use crate::data::layout::find_set;
 use crate::device::device_from_name;
-use crate::engine::{LoadedNetwork, Network};
 use crate::eval::blend::fuse;
 use crate::eval::infer::{
     NetworkOptions, network1_frames, network2_frames, write_network1, write_network2,
 };
 use crate::io::{Image, read_image};
+use crate::runner::{LoadedNetwork, Network};
 use anyhow::{Context, Result, bail};
 use std::path::PathBuf;
 use std::time::Instant;

@@ -13,6 +13,7 @@ pub mod preview;
 pub mod profile;
 pub mod quickstart;
 pub mod realism;
+pub mod scan;
 pub mod sweep_plot;
 pub mod testset;
 pub mod train;

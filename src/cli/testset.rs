@@ -6,8 +6,8 @@
 
 use crate::capture::align::MtbOptions;
 use crate::capture::linearise::{ResponseChoice, ResponseSpec};
-use crate::capture::scan::{Region, ScanOptions};
 use crate::capture::testset::{BracketOptions, EncodeSpec, GtFrames, InputChoice};
+use crate::cli::scan::{RegionArg, ScanArgs};
 use crate::data::testset::{self, TestsetOptions, TestsetSummary};
 use crate::sensor::metering::Metering;
 use crate::sensor::profile::SensorProfile;
@@ -40,24 +40,20 @@ pub struct Args {
     /// CalibrateRobertson per channel).
     #[arg(long, conflicts_with = "profile")]
     pub response: Option<ResponseSpec>,
-    /// --brackets: declared EV steps in capture order, for frames without EXIF or sidecar.
-    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
-    pub declared_evs: Option<Vec<f64>>,
     /// --brackets: align hand-held sets to the middle frame (MTB, Ward 2003) and crop.
     #[arg(long)]
     pub align: bool,
-    /// --brackets: largest gap between capture times within one set, seconds.
-    #[arg(long, default_value_t = ScanOptions::default().max_gap_s)]
-    pub max_gap: f64,
-    /// --brackets: read only this part of every frame: left, right, top, bottom (halves of the upright
-    /// frame, split at ⌊w/2⌋ or ⌊h/2⌋) or x,y,w,h in pixels.
-    #[arg(long)]
-    pub region: Option<Region>,
     /// --brackets: the three inputs per set: auto (2-stop steps, the reference with the fewest
     /// clipped/dark pixels) or I,J,K (0-based, shortest exposure first). Default: the shortest,
     /// middle and longest.
     #[arg(long)]
     pub inputs: Option<InputChoice>,
+    /// --brackets: how the folder is scanned.
+    #[command(flatten)]
+    pub scan: ScanArgs,
+    /// --brackets: the part of every frame that is read.
+    #[command(flatten)]
+    pub region: RegionArg,
     /// --brackets: ground truth from the inputs (Kalantari's merge), all frames of the set, or
     /// the others (the frames that are not inputs, where they reach; all frames elsewhere).
     #[arg(long, default_value = "all")]
@@ -171,12 +167,7 @@ pub fn build(args: &Args) -> Result<TestsetSummary> {
 pub fn bracket_options(args: &Args) -> Result<BracketOptions> {
     let response = ResponseChoice::new(args.profile.as_deref(), args.response.as_ref())?;
     Ok(BracketOptions {
-        scan: ScanOptions {
-            evs: args.declared_evs.clone(),
-            max_gap_s: args.max_gap,
-            region: args.region,
-            ..ScanOptions::default()
-        },
+        scan: args.scan.options(args.region.region),
         response,
         align: args.align.then(MtbOptions::default),
         inputs: args.inputs.clone().unwrap_or_default(),

@@ -2,8 +2,10 @@
 //! and evaluate through `data`, `train` and `eval`; `eval` itself only scores.
 pub mod ablate;
 pub mod device_loop;
+pub mod presets;
 pub mod protocol;
 pub mod quickstart;
+pub mod recipe;
 pub mod sweep;
 
 use crate::error::Result;

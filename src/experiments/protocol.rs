@@ -21,10 +21,12 @@
 use crate::data::generate::{GenerateConfig, generate};
 use crate::error::{Error, Result};
 use crate::experiments::ablate::{self, AblateConfig, Axis, AxisKind, EvalSpec, TestsetSpec};
-use crate::experiments::quickstart::{
-    self, DSLR_ISOS, Options, PRETRAIN_PROFILE, Preset, Sizes, Stage, TARGET_ISOS,
-    TRAIN_SCENE_SEED, control_row, data_set, generate_config, net_o_row, row, stage,
-    target_profile, train_config, train_resumable, write, write_config,
+use crate::experiments::presets::{Preset, Sizes};
+use crate::experiments::quickstart::{self, Options};
+use crate::experiments::recipe::{
+    self, DSLR_ISOS, PRETRAIN_PROFILE, Stage, TARGET_ISOS, TRAIN_SCENE_SEED, control_row, data_set,
+    generate_config, net_o_row, net_p_row, net_r_row, net_s_row, row, stage, target_profile,
+    train_config, train_resumable, write, write_config,
 };
 use crate::models::{BlendUNetConfig, ModelConfig};
 use crate::sensor::realism::TargetSpace;
@@ -134,7 +136,7 @@ fn scene_testset(
         radiance: Some(out.join("data/test_radiance")),
         profile: Some(target.to_path_buf()),
         options: crate::data::testset::TestsetOptions {
-            isos: quickstart::isos(isos),
+            isos: recipe::isos(isos),
             evs: evs.to_vec(),
             ..Default::default()
         },
@@ -294,9 +296,6 @@ fn network1_config(s: &Sizes, out: &Path, base: &Path, target: &Path) -> AblateC
         kind,
         ..row(name, label, toml::Table::new())
     };
-    let target_row = |name: &str, label: &str, extra: &[(&str, toml::Value)]| {
-        row(name, label, data_set(target, Some(&TARGET_ISOS), extra))
-    };
     AblateConfig {
         title: "Network-1 — blend maps for the target device: Net_O, control, Net_R, Net_P, \
                 Net_S against a constant blend weight and the Mertens weights of the noisy pair"
@@ -322,17 +321,9 @@ fn network1_config(s: &Sizes, out: &Path, base: &Path, target: &Path) -> AblateC
         rows: vec![
             net_o_row(),
             control_row(),
-            target_row(
-                "net_r",
-                "Net_R (target response, levels, exposure rule; no colour, no noise)",
-                &[("noise", "none".into()), ("colour", false.into())],
-            ),
-            row(
-                "net_p",
-                "Net_P (engine display frames)",
-                data_set(Path::new("pure"), None, &[]),
-            ),
-            target_row("net_s", "Net_S (full target model)", &[]),
+            net_r_row(target),
+            net_p_row(),
+            net_s_row(target),
             baseline(
                 "constant",
                 "constant blend weight 0.5 (no network)",
@@ -718,7 +709,7 @@ mod tests {
             cfg.data.target_frames,
             crate::data::loader::TargetFrames::Clean
         );
-        assert_ne!(NET1_VALIDATION_SEED, quickstart::TEST_SCENE_SEED);
+        assert_ne!(NET1_VALIDATION_SEED, recipe::TEST_SCENE_SEED);
         assert_ne!(NET1_VALIDATION_SEED, TRAIN_SCENE_SEED);
         assert_eq!(pair_config(&s, 1, 2).evs, [-3.0, 0.0]);
         let scene = parse(&scene_target_config(

@@ -18,11 +18,11 @@
 use crate::config::merge_tables;
 use crate::data::testset::{self, TestsetOptions};
 use crate::device::device_from_name;
-use crate::engine::method::from_checkpoint;
 use crate::error::{Error, Result};
 use crate::eval::evaluate::{self, EvalOptions, NetworkOptions};
 use crate::eval::report::{self, SUMMARY_METRICS};
 use crate::io::atomic::write_atomic;
+use crate::runner::method::from_checkpoint;
 use crate::sensor::profile::SensorProfile;
 use crate::stats::{self, bootstrap_crossed};
 use crate::train::config::TrainConfig;

@@ -1,6 +1,9 @@
 use super::*;
 use crate::config::parse_toml;
 use crate::experiments::ablate::DiffEntry;
+use crate::models::ModelConfig;
+use crate::models::wu::Linearise;
+use serde::Serialize;
 
 /// The shipped DSLR profile is the 550D's with only its response replaced.
 #[test]
@@ -270,8 +273,7 @@ fn the_reading_gives_the_interval_over_training_runs() {
 /// or a seed named twice is refused, naming the list.
 #[test]
 fn seeds_replace_the_presets_and_are_checked() {
-    let s =
-        |n: Option<&[u64]>| presets::sizes_with_seeds(Preset::Long, n).map(|s| s.seeds.to_vec());
+    let s = |n: Option<&[u64]>| sizes_with_seeds(Preset::Long, n).map(|s| s.seeds.to_vec());
     assert_eq!(s(None).unwrap(), [1, 2, 3]);
     assert_eq!(s(Some(&[1, 2, 3, 4, 5])).unwrap(), [1, 2, 3, 4, 5]);
     for (bad, shown) in [

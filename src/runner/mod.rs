@@ -9,7 +9,7 @@
 use crate::device::is_cpu;
 use crate::error::{Error, Result};
 use crate::eval::blend::BlendWeight;
-pub use crate::eval::infer::Engine;
+use crate::eval::infer::Engine;
 use crate::eval::infer::{
     NetworkOptions, network1_tiling, network1_weight, network2_hdr_with, network2_tiling,
 };
