@@ -167,9 +167,7 @@ pub fn linearise(frame: &BracketFrame, code: Image, lin: &Linearise) -> Image {
     match lin {
         Linearise::Curve(r) => {
             // 16-bit codes make a per-pixel inverse costly for LUT curves: tabulate it.
-            let table: Vec<f32> = (0..=65535)
-                .map(|k| r.invert(f64::from(k) / 65535.0) as f32)
-                .collect();
+            let table = r.inverse_table();
             code.map(|v| table[(v.clamp(0.0, 1.0) * 65535.0).round() as usize])
         }
         Linearise::Table(t) => {

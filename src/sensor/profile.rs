@@ -239,6 +239,24 @@ impl Response {
         }
     }
 
+    /// [`invert`](Self::invert) tabulated over the 65,536 16-bit codes, entry k at k/65535:
+    /// exact for 8- and 16-bit inputs (k/255 = 257k/65535). The one table that the realism
+    /// operator, the loader and the bracket jobs look codes up in.
+    pub fn inverse_table(&self) -> Vec<f32> {
+        self.inverse_table_scaled(1.0)
+    }
+
+    /// [`inverse_table`](Self::inverse_table) with code white at 1 (divided by `invert(1)`).
+    pub fn inverse_table_to_white(&self) -> Vec<f32> {
+        self.inverse_table_scaled(self.invert(1.0).max(1e-12))
+    }
+
+    fn inverse_table_scaled(&self, scale: f64) -> Vec<f32> {
+        (0..=65535u32)
+            .map(|k| (self.invert(f64::from(k) / 65535.0) / scale) as f32)
+            .collect()
+    }
+
     /// [`invert`](Self::invert) in f32 for network inputs; γ curves as Wu's LDR^γ (computed
     /// in f32, unclamped), so γ 2.2 gives exactly the values Network-2 has always been fed.
     pub fn invert_f32(&self, v: f32) -> f32 {

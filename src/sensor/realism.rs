@@ -237,15 +237,10 @@ impl Realism {
         }
         let plan = Plan::from_effects(&profile.effects)
             .map_err(|m| Error::Invalid(format!("profile '{}': {m}", profile.name)))?;
-        let src = &profile.source_response;
-        let sat = src.invert(1.0).max(1e-12);
-        let source_lut = match src {
+        let sat = profile.source_response.invert(1.0).max(1e-12);
+        let source_lut = match &profile.source_response {
             Response::Linear => None,
-            _ => Some(
-                (0..=65535u32)
-                    .map(|k| (src.invert(k as f64 / 65535.0) / sat) as f32)
-                    .collect(),
-            ),
+            src => Some(src.inverse_table_to_white()),
         };
         let colour = if !opts.colour {
             ColourOp::Identity

@@ -283,13 +283,7 @@ impl Loader {
                 }
             };
             if source == Source::Display {
-                let src = &profile.source_response;
-                let sat = src.invert(1.0).max(1e-12);
-                linearise = Some(
-                    (0..=65535u32)
-                        .map(|k| (src.invert(k as f64 / 65535.0) / sat) as f32)
-                        .collect(),
-                );
+                linearise = Some(profile.source_response.inverse_table_to_white());
             }
             // The operator always receives linear, exposed frames.
             profile.source_response = Response::Linear;
