@@ -2,7 +2,7 @@
 //! (src/sensor/diagnose/, docs/diagnose.md). Writes DIR/profile.toml (the extended model),
 //! DIR/report.md, DIR/report.json and plots (gap.png, radial.png, ptc.png); prints a summary.
 //! `hdrsynth diagnose --brackets DIR [--profile P | --response R] --out OUT`: a bracket folder
-//! as scene bursts (src/data/bracket_captures.rs), plus OUT/brackets.{md,toml} and OUT/captures.
+//! as scene bursts (src/capture/diagnose.rs), plus OUT/brackets.{md,toml} and OUT/captures.
 
 use crate::capture::diagnose::{BracketDiagnoseOptions, diagnose_brackets};
 use crate::capture::linearise::{ResponseChoice, ResponseSpec};

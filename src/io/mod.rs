@@ -1,5 +1,5 @@
 //! Image I/O: one image type and readers/writers for OpenEXR, Radiance .hdr, PNG and TIFF, and a
-//! reader for 8-bit JPEG (bracket folders off a phone or camera, src/data/brackets.rs).
+//! reader for 8-bit JPEG (bracket folders off a phone or camera, src/capture/scan.rs).
 //!
 //! Conventions: EXR and .hdr hold linear values and are returned as stored. PNG, TIFF and JPEG
 //! are returned as code values in [0, 1] (v / 255 or v / 65535), with no transfer function undone:

@@ -12,7 +12,7 @@ use crate::error::{Error, Result};
 use std::path::Path;
 
 pub const EXPOSURE_FILE: &str = "exposure.txt";
-/// Written by `hdrsynth testset --brackets` (src/data/bracket_testset.rs) into sets made from
+/// Written by `hdrsynth testset --brackets` (src/capture/testset.rs) into sets made from
 /// static brackets: its presence marks the three frames as static too (motion-free), so
 /// Network-1's Mertens reference can be fused from them. Other tools ignore it.
 pub const STATIC_MARKER: &str = "brackets.toml";
