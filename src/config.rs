@@ -69,10 +69,11 @@ impl KeyError {
     }
 }
 
-/// A rule broken in a value built by code rather than read from a file.
+/// A rule broken in a value built by code rather than read from a file: an [`Error::Key`]
+/// that prints as the key error does (`key 'data.exposure': …`).
 impl From<KeyError> for Error {
     fn from(e: KeyError) -> Error {
-        Error::Invalid(e.to_string())
+        Error::key(format!("key '{}'", e.key), e.msg)
     }
 }
 

@@ -9,20 +9,21 @@ pub use burn::tensor::Device;
 /// "cuda" / "cuda:N". Only cuda takes an index: wgpu's adapter is the one wgpu picks for high
 /// performance, or the one `CUBECL_WGPU_DEFAULT_DEVICE` names (e.g. `DiscreteGpu(1)`, `Cpu`).
 pub fn device_from_name(name: &str) -> Result<Device> {
-    let (kind, index) = match name.split_once(':') {
-        Some((k, i)) => (
-            k,
-            Some(
-                i.parse::<usize>()
-                    .map_err(|_| Error::Invalid(format!("device '{name}': bad index '{i}'")))?,
+    let (kind, index) =
+        match name.split_once(':') {
+            Some((k, i)) => (
+                k,
+                Some(i.parse::<usize>().map_err(|_| {
+                    Error::key(format!("device '{name}'"), format!("bad index '{i}'"))
+                })?),
             ),
-        ),
-        None => (name, None),
-    };
+            None => (name, None),
+        };
     if index.is_some() && kind != "cuda" {
-        return Err(Error::Invalid(format!(
-            "device '{name}': only cuda takes an index (cuda:N); write '{kind}'"
-        )));
+        return Err(Error::key(
+            format!("device '{name}'"),
+            format!("only cuda takes an index (cuda:N); write '{kind}'"),
+        ));
     }
     match kind {
         #[cfg(feature = "flex")]
@@ -37,11 +38,14 @@ pub fn device_from_name(name: &str) -> Result<Device> {
         "wgpu" => wgpu::device(),
         #[cfg(feature = "cuda")]
         "cuda" => Ok(Device::cuda(index.unwrap_or(0))),
-        _ => Err(Error::Invalid(format!(
-            "device '{name}' is not available in this build (compiled in: {}); \
-             enable the cargo feature of the same name",
-            compiled_backends().join(", ")
-        ))),
+        _ => Err(Error::key(
+            format!("device '{name}'"),
+            format!(
+                "not available in this build (compiled in: {}); enable the cargo feature of \
+                 the same name",
+                compiled_backends().join(", ")
+            ),
+        )),
     }
 }
 
@@ -76,12 +80,15 @@ mod wgpu {
     pub fn device() -> Result<Device> {
         match acquired() {
             Ok((device, _)) => Ok(device.clone()),
-            Err(why) => Err(Error::Invalid(format!(
-                "device 'wgpu': no usable adapter ({why}). wgpu needs a Vulkan, Metal or DX12 \
+            Err(why) => Err(Error::key(
+                "device 'wgpu'",
+                format!(
+                    "no usable adapter ({why}). wgpu needs a Vulkan, Metal or DX12 \
                  driver: on Linux the GPU vendor's Vulkan driver, or for a slow CPU one \
                  Debian/Ubuntu's mesa-vulkan-drivers (`vulkaninfo --summary` lists what wgpu \
                  can see); CUBECL_WGPU_DEFAULT_DEVICE picks among several (docs/gpu.md)"
-            ))),
+                ),
+            )),
         }
     }
 

@@ -229,10 +229,10 @@ pub fn diagnose_brackets(
     out: &Path,
 ) -> Result<BracketDiagnosis> {
     if !(opts.ratio_tolerance_stops.is_finite() && opts.ratio_tolerance_stops > 0.0) {
-        return Err(Error::Invalid(format!(
-            "exposure-ratio tolerance {} stops must be positive",
-            opts.ratio_tolerance_stops
-        )));
+        return Err(Error::flag(
+            "--ratio-tolerance",
+            format!("{} stops must be positive", opts.ratio_tolerance_stops),
+        ));
     }
     // The output would otherwise be scanned as a sub-folder of brackets on the next run.
     crate::io::guard::refuse_output_inside(dir, out)?;

@@ -54,15 +54,16 @@ pub const EXPOSURE_TIME_RANGE_S: (f64, f64) = (1e-6, 1e4);
 /// The most a set's declared exposures may span, in stops (the range above).
 const MAX_SPAN_STOPS: f64 = 33.3;
 
-/// `t` (seconds) inside [`EXPOSURE_TIME_RANGE_S`], else why not.
-fn physical_time(t: f64) -> std::result::Result<f64, String> {
+/// `t` (seconds) inside [`EXPOSURE_TIME_RANGE_S`], else the error `at` makes of why not (the
+/// file and the place in it that gave `t`).
+fn physical_time(t: f64, at: impl FnOnce(String) -> Error) -> Result<f64> {
     let (lo, hi) = EXPOSURE_TIME_RANGE_S;
     if t.is_finite() && (lo..=hi).contains(&t) {
         Ok(t)
     } else {
-        Err(format!(
+        Err(at(format!(
             "{t:e} s is not an exposure time a camera gives ({lo:e} … {hi:e} s)"
-        ))
+        )))
     }
 }
 
@@ -294,8 +295,9 @@ pub fn read_exif(path: &Path) -> Result<ExifExposure> {
         orientation,
         exposure_time: real(Tag::ExposureTime)
             .map(|t| {
-                physical_time(t)
-                    .map_err(|why| Error::decode(path, format!("EXIF ExposureTime: {why}")))
+                physical_time(t, |why| {
+                    Error::decode(path, format!("EXIF ExposureTime: {why}"))
+                })
             })
             .transpose()?,
         shutter_speed_apex: real(Tag::ShutterSpeedValue),
@@ -341,8 +343,9 @@ fn sidecar_stops(dir: &Path, files: &[PathBuf]) -> Result<Option<(Vec<f64>, Stri
                         ),
                     )
                 })?;
-            let t = physical_time(1.0 / v)
-                .map_err(|why| Error::layout(&list, format!("line {}: 1/{val}: {why}", n + 1)))?;
+            let t = physical_time(1.0 / v, |why| {
+                Error::layout(&list, format!("line {}: 1/{val}: {why}", n + 1))
+            })?;
             if let Some((first, _)) = by_name.insert(name.to_string(), (n + 1, t.log2())) {
                 return Err(Error::layout(
                     &list,
@@ -570,20 +573,23 @@ pub fn scan(root: &Path, opts: &ScanOptions) -> Result<BracketScan> {
         ));
     }
     if opts.max_gap_s.is_nan() || opts.max_gap_s <= 0.0 {
-        return Err(Error::Invalid(format!(
-            "max gap {} s must be positive",
-            opts.max_gap_s
-        )));
+        return Err(Error::flag(
+            "--max-gap",
+            format!("{} s must be positive", opts.max_gap_s),
+        ));
     }
     if let Some(evs) = &opts.evs {
         let span = evs.iter().fold(f64::NEG_INFINITY, |m, &e| m.max(e))
             - evs.iter().fold(f64::INFINITY, |m, &e| m.min(e));
         if evs.len() < 2 || evs.iter().any(|e| !e.is_finite()) || span > MAX_SPAN_STOPS {
-            return Err(Error::Invalid(format!(
-                "--declared-evs {evs:?}: need at least two finite values spanning at most \
-                 {MAX_SPAN_STOPS} stops (the exposure times a camera gives, {:e} … {:e} s)",
-                EXPOSURE_TIME_RANGE_S.0, EXPOSURE_TIME_RANGE_S.1
-            )));
+            return Err(Error::flag(
+                "--declared-evs",
+                format!(
+                    "{evs:?}: need at least two finite values spanning at most \
+                     {MAX_SPAN_STOPS} stops (the exposure times a camera gives, {:e} … {:e} s)",
+                    EXPOSURE_TIME_RANGE_S.0, EXPOSURE_TIME_RANGE_S.1
+                ),
+            ));
         }
     }
     let (files, dirs) = list_dir(root)?;

@@ -47,21 +47,26 @@ struct SetResult {
 
 fn process_set(set: &SetInfo, w: MertensWeights) -> Result<SetResult> {
     if set.static_frames.is_empty() {
-        return Err(Error::Invalid(format!(
-            "set {} ({}): no static (motion-free) frames; blend classes need aligned frames",
-            set.name,
-            set.dir.display()
-        )));
+        return Err(Error::layout(
+            &set.dir,
+            format!(
+                "set {}: no static (motion-free) frames; blend classes need aligned frames",
+                set.name
+            ),
+        ));
     }
     let (lo, hi) = set.network1_pair()?;
     let frame = |i: usize| -> Result<Image> {
         let p = set.static_frames.get(i).ok_or_else(|| {
-            Error::Invalid(format!(
-                "set {}: {} static frames for {} EVs",
-                set.name,
-                set.static_frames.len(),
-                set.evs.len()
-            ))
+            Error::layout(
+                &set.dir,
+                format!(
+                    "set {}: {} static frames for {} EVs",
+                    set.name,
+                    set.static_frames.len(),
+                    set.evs.len()
+                ),
+            )
         })?;
         crate::data::layout::read_set_image(set, p)
     };

@@ -39,11 +39,14 @@ pub fn generate(cfg: &GenerateConfig, out: &Path, progress: bool) -> Result<Summ
             None => false,
         };
         if !same {
-            return Err(Error::Invalid(format!(
-                "{} holds a dataset made with a different config; choose another --out \
-                 (or delete it) rather than mixing sets",
-                out.display()
-            )));
+            return Err(Error::flag(
+                "--out",
+                format!(
+                    "{} holds a dataset made with a different config; choose another --out \
+                     (or delete it) rather than mixing sets",
+                    out.display()
+                ),
+            ));
         }
     } else {
         std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;

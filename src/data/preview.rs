@@ -31,7 +31,7 @@ fn kind_of(args: &PreviewOptions) -> Result<SampleKind> {
             let evs = &info
                 .sets
                 .first()
-                .ok_or_else(|| Error::Invalid("dataset has no sets".into()))?
+                .ok_or_else(|| Error::layout(&args.dir, "dataset has no sets"))?
                 .evs;
             if evs.iter().any(|e| (e + 3.0).abs() < 1e-3) {
                 SampleKind::Network1

@@ -521,9 +521,8 @@ fn write_set(
             written: false,
         });
     }
-    let depth = BitDepth::from_bits(opts.output_bits).ok_or_else(|| {
-        Error::Invalid(format!("output bits {} must be 8 or 16", opts.output_bits))
-    })?;
+    let depth = BitDepth::from_bits(opts.output_bits)
+        .ok_or_else(|| Error::flag("--bits", format!("{} must be 8 or 16", opts.output_bits)))?;
     // The device at `ev` stops from the metered key, with the configured noise or none.
     let realism = |ev: f32, noise: NoiseModel| {
         Realism::new(

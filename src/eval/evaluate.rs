@@ -256,10 +256,10 @@ pub fn evaluate(
     opts: &EvalOptions,
 ) -> Result<EvalSummary> {
     if !(opts.level > 0.0 && opts.level < 1.0) {
-        return Err(Error::Invalid(format!(
-            "confidence level {} must be in (0, 1)",
-            opts.level
-        )));
+        return Err(Error::flag(
+            "--level",
+            format!("{} must be in (0, 1)", opts.level),
+        ));
     }
     let began = Instant::now();
     let info = layout::detect(testset)?;
@@ -430,7 +430,7 @@ pub fn moving_mask(set: &SetInfo) -> Result<Option<PixelMask>> {
     match union {
         Some(u) if u.iter().any(|&m| m) => PixelMask::from_flags(set.width, set.height, u)
             .map(Some)
-            .map_err(|e| Error::layout(&set.dir, e.to_string())),
+            .map_err(Error::within(set.dir.display().to_string())),
         _ => Ok(None),
     }
 }
@@ -444,7 +444,7 @@ pub fn dark_mask(set: &SetInfo) -> Result<Option<PixelMask>> {
     let frame = layout::read_set_image(set, path)?;
     PixelMask::from_frame(&frame)
         .map(Some)
-        .map_err(|e| Error::layout(path, e.to_string()))
+        .map_err(Error::within(path.display().to_string()))
 }
 
 fn evaluate_set(

@@ -161,10 +161,10 @@ impl Default for MetricOptions {
 /// Factor that turns the images' linear values into cd/m² for PU21.
 pub fn pu21_scale_factor(gt: &Image, opts: &MetricOptions) -> Result<f64> {
     if !(opts.peak_luminance.is_finite() && opts.peak_luminance > 0.0) {
-        return Err(Error::Invalid(format!(
-            "PU21 peak luminance must be positive and finite, got {}",
-            opts.peak_luminance
-        )));
+        return Err(Error::flag(
+            "--peak-luminance",
+            format!("{} must be positive and finite", opts.peak_luminance),
+        ));
     }
     match opts.pu21_scale {
         Pu21Scale::UnitValue => Ok(opts.peak_luminance),

@@ -96,13 +96,15 @@ fn split(
     let names: Vec<String> = all.sets.iter().map(|s| s.name.clone()).collect();
     let (cal, test) = if opts.calibration.is_empty() {
         if opts.calibration_region.is_none() || opts.test_region.is_none() {
-            return Err(Error::Invalid(format!(
-                "{}: name the calibration sets (--calibration; the others are the test scenes), \
-                 or give --calibration-region and --test-region to split every set into two \
-                 regions (sets: {})",
-                opts.brackets.display(),
-                names.join(", ")
-            )));
+            return Err(Error::layout(
+                &opts.brackets,
+                format!(
+                    "name the calibration sets (--calibration; the others are the test \
+                     scenes), or give --calibration-region and --test-region to split every \
+                     set into two regions (sets: {})",
+                    names.join(", ")
+                ),
+            ));
         }
         (names.clone(), names.clone())
     } else {
@@ -112,11 +114,13 @@ fn split(
             .cloned()
             .collect();
         if test.is_empty() && opts.test_region.is_none() {
-            return Err(Error::Invalid(format!(
-                "{}: every set ({}) calibrates; a test scene is needed that does not",
-                opts.brackets.display(),
-                names.join(", ")
-            )));
+            return Err(Error::layout(
+                &opts.brackets,
+                format!(
+                    "every set ({}) calibrates; a test scene is needed that does not",
+                    names.join(", ")
+                ),
+            ));
         }
         let test = if test.is_empty() { names.clone() } else { test };
         (opts.calibration.clone(), test)
@@ -149,14 +153,15 @@ fn split(
                 c.file, t.file
             )
         };
-        return Err(Error::Invalid(format!(
-            "{}: {what} would both calibrate (pixels {:?}) and be scored (pixels {:?}): a \
-             scene never calibrates the model scored on it; choose other calibration sets or \
-             disjoint regions",
-            opts.brackets.display(),
-            c.pixels,
-            t.pixels
-        )));
+        return Err(Error::layout(
+            &opts.brackets,
+            format!(
+                "{what} would both calibrate (pixels {:?}) and be scored (pixels {:?}): a \
+                 scene never calibrates the model scored on it; choose other calibration sets \
+                 or disjoint regions",
+                c.pixels, t.pixels
+            ),
+        ));
     }
     Ok((cal_scan, test_scan, cal, test))
 }
@@ -213,7 +218,10 @@ fn check_quickstart(q: &Path, seeds: &[u64]) -> Result<(PathBuf, usize)> {
 /// Run the loop (every stage resumes: a profile, test set or cell already made is kept).
 pub fn run(opts: &LoopOptions) -> Result<LoopSummary> {
     if opts.seeds.is_empty() {
-        return Err(Error::Invalid("the loop needs at least one seed".into()));
+        return Err(Error::flag(
+            "--seeds",
+            "names no seed: the loop needs at least one",
+        ));
     }
     // Folders by what they are, not how they are spelled: the cells record these paths.
     let resolve = crate::io::guard::resolve;

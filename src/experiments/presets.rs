@@ -83,16 +83,19 @@ pub(crate) fn sizes_with_seeds(p: Preset, seeds: Option<&[u64]>) -> Result<Sizes
             v.join(",")
         };
         if seeds.len() < 2 {
-            return Err(Error::Invalid(format!(
-                "--seeds {}: at least two (an interval over training runs needs two)",
-                list()
-            )));
+            return Err(Error::flag(
+                "--seeds",
+                format!(
+                    "{}: at least two (an interval over training runs needs two)",
+                    list()
+                ),
+            ));
         }
         if (1..seeds.len()).any(|i| seeds[..i].contains(&seeds[i])) {
-            return Err(Error::Invalid(format!(
-                "--seeds {}: a seed named twice",
-                list()
-            )));
+            return Err(Error::flag(
+                "--seeds",
+                format!("{}: a seed named twice", list()),
+            ));
         }
         s.seeds = Cow::Owned(seeds.to_vec());
     }

@@ -54,17 +54,19 @@ pub fn resolve(out: &Path) -> Result<PathBuf> {
 pub fn refuse_output_inside(input: &Path, output: &Path) -> Result<()> {
     let (i, o) = (resolve(input)?, resolve(output)?);
     if o.starts_with(&i) {
-        return Err(Error::Invalid(format!(
-            "output {} is {} the input {}: it would overwrite or re-read its own input; choose \
-             an output folder outside the input",
-            output.display(),
-            if o == i {
-                "the same folder as"
-            } else {
-                "inside"
-            },
-            input.display()
-        )));
+        return Err(Error::layout(
+            output,
+            format!(
+                "is {} the input {}: it would overwrite or re-read its own input; choose an \
+                 output folder outside the input",
+                if o == i {
+                    "the same folder as"
+                } else {
+                    "inside"
+                },
+                input.display()
+            ),
+        ));
     }
     Ok(())
 }
@@ -151,10 +153,10 @@ impl OutputLock {
 fn split(resolved: &Path, shown: &Path) -> Result<(PathBuf, String)> {
     match (resolved.parent(), resolved.file_name()) {
         (Some(p), Some(n)) => Ok((p.to_path_buf(), n.to_string_lossy().into_owned())),
-        _ => Err(Error::Invalid(format!(
-            "{}: an output must be a named folder, not a file-system root",
-            shown.display()
-        ))),
+        _ => Err(Error::layout(
+            shown,
+            "an output must be a named folder, not a file-system root",
+        )),
     }
 }
 
@@ -228,10 +230,10 @@ impl Drop for Staged {
 
 fn merge_into(src: &Path, dst: &Path) -> Result<()> {
     if !dst.is_dir() {
-        return Err(Error::Invalid(format!(
-            "{} exists and is not a folder; cannot write an output there",
-            dst.display()
-        )));
+        return Err(Error::layout(
+            dst,
+            "exists and is not a folder; cannot write an output there",
+        ));
     }
     for entry in std::fs::read_dir(src).map_err(|e| Error::io(src, e))? {
         let entry = entry.map_err(|e| Error::io(src, e))?;

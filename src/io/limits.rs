@@ -132,7 +132,8 @@ fn parse_size(s: &str) -> Option<u64> {
 }
 
 fn bad_env(var: &str, value: &str) -> Error {
-    Error::Invalid(format!(
-        "{var}={value:?} is not a positive whole number (K/M/G suffixes allowed)"
-    ))
+    Error::flag(
+        format!("{var}={value:?}"),
+        "is not a positive whole number (K/M/G suffixes allowed)",
+    )
 }

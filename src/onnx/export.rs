@@ -81,10 +81,13 @@ fn check_size(size: InputSize, multiple: usize, min: usize, what: &str) -> Resul
     if let InputSize::Static { height, width } = size {
         for (name, v) in [("height", height), ("width", width)] {
             if v < min || !v.is_multiple_of(multiple) {
-                return Err(Error::Invalid(format!(
-                    "ONNX export of {what}: {name} {v} must be a multiple of {multiple} and at \
-                     least {min}"
-                )));
+                return Err(Error::flag(
+                    format!("--{name}"),
+                    format!(
+                        "{v} must be a multiple of {multiple} and at least {min} (ONNX export of \
+                         {what})"
+                    ),
+                ));
             }
         }
     }

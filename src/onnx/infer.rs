@@ -24,13 +24,15 @@ pub fn default_tiling(model: &OnnxModel) -> Result<Tiling> {
             let fits = |t: usize| (t + 2 * overlap).div_ceil(m) * m <= h.min(w);
             let t = (1..).map(|k| k * m).take_while(|&t| fits(t)).last();
             t.ok_or_else(|| {
-                Error::Invalid(format!(
-                    "{}: a static {h}×{w} model is too small for exact tiling with overlap \
-                     {overlap}: export at least {}×{} or --dynamic",
-                    model.path().display(),
-                    (m + 2 * overlap).div_ceil(m) * m,
-                    (m + 2 * overlap).div_ceil(m) * m
-                ))
+                Error::config(
+                    model.path(),
+                    format!(
+                        "a static {h}×{w} model is too small for exact tiling with overlap \
+                         {overlap}: export at least {}×{} or --dynamic",
+                        (m + 2 * overlap).div_ceil(m) * m,
+                        (m + 2 * overlap).div_ceil(m) * m
+                    ),
+                )
             })?
         }
     };
@@ -116,10 +118,7 @@ pub fn network1_weight(
     mode: BlendWeight,
 ) -> Result<Vec<f32>> {
     if model.network != Network::Network1 {
-        return Err(Error::Invalid(format!(
-            "{}: not a Network-1 model",
-            model.path().display()
-        )));
+        return Err(Error::config(model.path(), "not a Network-1 model"));
     }
     let input = planar_from_images(&[low, high])?;
     let out = run_tiled(&input, 1, tiling, |win| {
@@ -160,10 +159,7 @@ pub fn network2_hdr(
     tiling: Tiling,
 ) -> Result<Image> {
     if model.network != Network::Network2 {
-        return Err(Error::Invalid(format!(
-            "{}: not a Network-2 model",
-            model.path().display()
-        )));
+        return Err(Error::config(model.path(), "not a Network-2 model"));
     }
     let (w, h) = (frames[0].width, frames[0].height);
     let input = planar_from_images(&frames)?;

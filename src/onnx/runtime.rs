@@ -19,11 +19,14 @@ pub const DYLIB_ENV: &str = "ORT_DYLIB_PATH";
 /// the variable is unset or names no file.
 pub fn dylib_path() -> Result<PathBuf> {
     let Some(path) = std::env::var_os(DYLIB_ENV) else {
-        return Err(Error::Invalid(format!(
-            "{DYLIB_ENV} is not set: hdrsynth loads ONNX Runtime at run time. Run \
-             tools/setup_ort.sh (fetches PyPI's onnxruntime wheel into target/ort) and \
-             `export {DYLIB_ENV}=<the path it prints>`"
-        )));
+        return Err(Error::flag(
+            DYLIB_ENV,
+            format!(
+                "is not set: hdrsynth loads ONNX Runtime at run time. Run tools/setup_ort.sh \
+                 (fetches PyPI's onnxruntime wheel into target/ort) and \
+                 `export {DYLIB_ENV}=<the path it prints>`"
+            ),
+        ));
     };
     let path = PathBuf::from(path);
     if !path.is_file() {
@@ -40,23 +43,20 @@ pub fn dylib_path() -> Result<PathBuf> {
 
 /// The process's ONNX Runtime environment (ONNX Runtime allows one), loaded on first use.
 pub fn environment() -> Result<Environment> {
-    static ENV: OnceLock<std::result::Result<Environment, String>> = OnceLock::new();
+    // The failure is kept as (library, text): every later call reports the first one's cause.
+    static ENV: OnceLock<std::result::Result<Environment, (PathBuf, String)>> = OnceLock::new();
     let path = dylib_path()?;
     ENV.get_or_init(|| {
+        let failed = |what: &str, e: &dyn std::fmt::Display| (path.clone(), format!("{what}: {e}"));
         ort::init_from(&path)
-            .map_err(|e| format!("{}: loading ONNX Runtime: {e}", path.display()))?
+            .map_err(|e| failed("loading ONNX Runtime", &e))?
             .with_name("hdrsynth")
             .with_telemetry(false)
             .build()
-            .map_err(|e| {
-                format!(
-                    "{}: creating the ONNX Runtime environment: {e}",
-                    path.display()
-                )
-            })
+            .map_err(|e| failed("creating the ONNX Runtime environment", &e))
     })
     .clone()
-    .map_err(Error::Invalid)
+    .map_err(|(path, msg)| Error::io(path, std::io::Error::other(msg)))
 }
 
 /// Which network an exported file holds (its `hdrsynth.network` metadata).
@@ -187,22 +187,24 @@ impl OnnxModel {
     pub fn check_size(&self, height: usize, width: usize) -> Result<()> {
         if let Some((h, w)) = self.static_size {
             if (h, w) != (height, width) {
-                return Err(Error::Invalid(format!(
-                    "{}: a static {h}×{w} model cannot take a {height}×{width} input",
-                    self.path.display()
-                )));
+                return Err(Error::config(
+                    &self.path,
+                    format!("a static {h}×{w} model cannot take a {height}×{width} input"),
+                ));
             }
             return Ok(());
         }
         let m = self.size_multiple;
         for v in [height, width] {
             if v < self.min_size || !v.is_multiple_of(m) {
-                return Err(Error::Invalid(format!(
-                    "{}: input {height}×{width}: height and width must be multiples of {m} and \
-                     at least {}",
-                    self.path.display(),
-                    self.min_size
-                )));
+                return Err(Error::config(
+                    &self.path,
+                    format!(
+                        "input {height}×{width}: height and width must be multiples of {m} and \
+                         at least {}",
+                        self.min_size
+                    ),
+                ));
             }
         }
         Ok(())
@@ -210,11 +212,10 @@ impl OnnxModel {
 
     fn expect(&self, network: Network) -> Result<()> {
         if self.network != network {
-            return Err(Error::Invalid(format!(
-                "{}: holds {:?}, not {network:?}",
-                self.path.display(),
-                self.network
-            )));
+            return Err(Error::config(
+                &self.path,
+                format!("holds {:?}, not {network:?}", self.network),
+            ));
         }
         Ok(())
     }
@@ -240,19 +241,17 @@ impl OnnxModel {
             .session
             .run(ort::inputs![N1_INPUTS[0] => a, N1_INPUTS[1] => b])
             .map_err(|e| run_err(&self.path, e))?;
-        let take = |name: &str| -> std::result::Result<Vec<f32>, String> {
+        let path = &self.path;
+        let take = |name: &str| -> Result<Vec<f32>> {
             let (_, data) = outputs[name]
                 .try_extract_tensor::<f32>()
-                .map_err(|e| e.to_string())?;
+                .map_err(|e| run_err(path, e))?;
             Ok(data.to_vec())
         };
         let probs = take(N1_PROBABILITIES);
         let weight = has_weight.then(|| take(N1_WEIGHT)).transpose();
         drop(outputs);
-        Ok((
-            probs.map_err(|e| run_err(&self.path, e))?,
-            weight.map_err(|e| run_err(&self.path, e))?,
-        ))
+        Ok((probs?, weight?))
     }
 
     /// Network-1's `blend_weight` output alone (`[n, 1, h, w]`): ONNX Runtime is asked for no
@@ -267,10 +266,10 @@ impl OnnxModel {
         self.expect(Network::Network1)?;
         self.check_size(h, w)?;
         if !self.has_weight {
-            return Err(Error::Invalid(format!(
-                "{}: exported without the '{N1_WEIGHT}' output",
-                self.path.display()
-            )));
+            return Err(Error::config(
+                &self.path,
+                format!("exported without the '{N1_WEIGHT}' output"),
+            ));
         }
         let shape = [n, 3, h, w];
         let a = Tensor::from_array((shape, low.to_vec())).map_err(|e| run_err(&self.path, e))?;
@@ -285,9 +284,9 @@ impl OnnxModel {
         let out = outputs[N1_WEIGHT]
             .try_extract_tensor::<f32>()
             .map(|(_, d)| d.to_vec())
-            .map_err(|e| e.to_string());
+            .map_err(|e| run_err(&self.path, e));
         drop(outputs);
-        out.map_err(|e| run_err(&self.path, e))
+        out
     }
 
     /// Network-2 on `n` triples of `[3, h, w]` planar frames (EV −2, 0, +2), each frame
@@ -324,13 +323,13 @@ impl OnnxModel {
         let out = outputs[N2_OUTPUT]
             .try_extract_tensor::<f32>()
             .map(|(_, d)| d.to_vec())
-            .map_err(|e| e.to_string());
+            .map_err(|e| run_err(&self.path, e));
         drop(outputs);
-        out.map_err(|e| run_err(&self.path, e))
+        out
     }
 }
 
 /// An error of ONNX Runtime while running the model at `path`.
 fn run_err(path: &Path, e: impl std::fmt::Display) -> Error {
-    Error::Invalid(format!("{}: ONNX Runtime: {e}", path.display()))
+    Error::config(path, format!("ONNX Runtime: {e}"))
 }

@@ -275,10 +275,13 @@ pub fn verify(
     }
     if let Some((images, label)) = images {
         if images.len() != frames_needed {
-            return Err(Error::Invalid(format!(
-                "{label}: {} images given, the network takes {frames_needed}",
-                images.len()
-            )));
+            return Err(Error::flag(
+                "--verify-frames",
+                format!(
+                    "{label}: {} images given, the network takes {frames_needed}",
+                    images.len()
+                ),
+            ));
         }
         let (h, w) = match size {
             InputSize::Static { height, width } => (height, width),
@@ -289,10 +292,13 @@ pub fn verify(
             }
         };
         if h < loaded.min_size() || w < loaded.min_size() {
-            return Err(Error::Invalid(format!(
-                "{label}: images {}×{} are too small for this network",
-                images[0].height, images[0].width
-            )));
+            return Err(Error::flag(
+                "--verify-frames",
+                format!(
+                    "{label}: images {}×{} are too small for this network",
+                    images[0].height, images[0].width
+                ),
+            ));
         }
         let frames = crop_frames(images, h, w)?;
         checks.push(compare(loaded, onnx, &frames, CHECK_TIMES, device, label)?);
@@ -381,9 +387,10 @@ pub fn export_checkpoint(
     let images = if paths.iter().all(|p| p.is_file()) {
         Some(read_images(&paths).map_err(|e| Error::context("reading the --verify frames", e))?)
     } else if !v.frames.is_empty() {
-        return Err(Error::Invalid(format!(
-            "--verify-frames: not every file exists: {paths:?}"
-        )));
+        return Err(Error::flag(
+            "--verify-frames",
+            format!("not every file exists: {paths:?}"),
+        ));
     } else {
         None
     };

@@ -29,7 +29,7 @@ pub fn from_checkpoint(
         .map(Path::to_path_buf);
     let trained = match run {
         Some(run) if run.join(crate::train::RUN_CONFIG).is_file() => {
-            crate::train::config::run_trained_on(&run).map_err(|e| e.to_string())
+            crate::train::config::run_trained_on(&run)
         }
         _ => Ok(TrainedOn::default()),
     };
@@ -42,7 +42,7 @@ pub fn from_checkpoint(
 /// A checkpoint's method with what its run was trained on (or why it could not be read).
 struct Trained {
     method: Box<dyn Method>,
-    trained: std::result::Result<TrainedOn, String>,
+    trained: Result<TrainedOn>,
 }
 
 impl Method for Trained {
@@ -99,10 +99,10 @@ pub fn method_for(source: &Source) -> Result<Box<dyn Method>> {
     match source {
         Source::Predictions(dir) => {
             if !dir.is_dir() {
-                return Err(Error::Invalid(format!(
-                    "--predictions {}: not a folder",
-                    dir.display()
-                )));
+                return Err(Error::flag(
+                    "--predictions",
+                    format!("{}: not a folder", dir.display()),
+                ));
             }
             Ok(Box::new(Predictions { dir: dir.clone() }))
         }

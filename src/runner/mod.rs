@@ -105,11 +105,14 @@ impl LoadedNetwork {
     }
 
     #[cfg(not(feature = "onnx"))]
-    pub fn from_onnx_file(_: &Path, _: &NetworkOptions) -> Result<Self> {
-        Err(Error::Invalid(
-            "--onnx: this hdrsynth was built without ONNX support: rebuild with \
-             `cargo build --release --features onnx` (docs/onnx.md)"
-                .into(),
+    pub fn from_onnx_file(path: &Path, _: &NetworkOptions) -> Result<Self> {
+        Err(Error::flag(
+            "--onnx",
+            format!(
+                "{}: this hdrsynth was built without ONNX support: rebuild with \
+                 `cargo build --release --features onnx` (docs/onnx.md)",
+                path.display()
+            ),
         ))
     }
 
@@ -138,11 +141,10 @@ impl LoadedNetwork {
     }
 
     fn wrong(&self, want: Network) -> Error {
-        Error::Invalid(format!(
-            "{}: holds {:?}, not {want:?}",
-            self.source.display(),
-            self.network
-        ))
+        Error::config(
+            &self.source,
+            format!("holds {:?}, not {want:?}", self.network),
+        )
     }
 
     /// Network-1's long-exposure weight per pixel of a (low, high) pair.
@@ -227,10 +229,10 @@ fn onnx_available() -> Result<()> {
 
 #[cfg(not(feature = "onnx"))]
 fn not_built() -> Error {
-    Error::Invalid(
-        "--engine onnx: this hdrsynth was built without ONNX support: rebuild with \
-         `cargo build --release --features onnx` (docs/onnx.md)"
-            .into(),
+    Error::flag(
+        "--engine",
+        "onnx: this hdrsynth was built without ONNX support: rebuild with \
+         `cargo build --release --features onnx` (docs/onnx.md)",
     )
 }
 

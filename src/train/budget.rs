@@ -55,28 +55,38 @@ pub fn check(need: &StepMemory, available: f64, model_keys: &str) -> Result<()> 
         return Ok(());
     }
     let gb = |b: f64| b / 1e9;
-    let culprit = if need.optimiser_bytes >= need.input_bytes {
-        format!(
-            "{model_keys}: the network has {} parameters, {:.1} GB with their gradients and \
-             Adam's moments",
-            need.parameters,
-            gb(need.optimiser_bytes)
+    // (keys, what they cost): the message reads "KEYS: COST; a training step needs …".
+    let (keys, cost) = if need.optimiser_bytes >= need.input_bytes {
+        (
+            model_keys.to_string(),
+            format!(
+                "the network has {} parameters, {:.1} GB with their gradients and Adam's \
+                 moments",
+                need.parameters,
+                gb(need.optimiser_bytes)
+            ),
         )
     } else {
-        format!(
-            "data.batch_size = {} crops of data.patch = {}²: one batch of inputs alone is \
-             {:.1} GB",
-            need.batch,
-            need.patch,
-            gb(need.input_bytes)
+        (
+            format!(
+                "data.batch_size = {} crops of data.patch = {}²",
+                need.batch, need.patch
+            ),
+            format!(
+                "one batch of inputs alone is {:.1} GB",
+                gb(need.input_bytes)
+            ),
         )
     };
-    Err(Error::Invalid(format!(
-        "{culprit}; a training step needs at least {:.1} GB and this machine has {:.1} GB \
-         available: lower it (docs/training.md, \"Memory\")",
-        gb(need.total()),
-        gb(available)
-    )))
+    Err(Error::key(
+        keys,
+        format!(
+            "{cost}; a training step needs at least {:.1} GB and this machine has {:.1} GB \
+             available: lower it (docs/training.md, \"Memory\")",
+            gb(need.total()),
+            gb(available)
+        ),
+    ))
 }
 
 /// On a CPU backend, refuse a config whose training step cannot fit in the host's available

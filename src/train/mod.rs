@@ -267,7 +267,7 @@ fn network1_alpha(cfg: &TrainConfig, opts: &TrainOptions, loader: &Loader) -> Re
                 .as_ref()
                 .and_then(|i| i.checkpoint.as_ref())
                 .ok_or_else(|| {
-                    Error::Invalid("loss.alpha = \"checkpoint\" needs an [init] checkpoint".into())
+                    Error::key("loss.alpha", "\"checkpoint\" needs an [init] checkpoint")
                 })?;
             from_checkpoint(&checkpoint::resolve(init)?)
         }
@@ -448,12 +448,15 @@ pub fn initial_model<T: Task>(task: &T, cfg: &TrainConfig, device: &Device) -> R
     if let Some(init) = cfg.init.as_ref().and_then(|i| i.checkpoint.as_ref()) {
         let own = crate::io::guard::resolve(run)?;
         if crate::io::guard::resolve(init)?.starts_with(&own) {
-            return Err(Error::Invalid(format!(
-                "init.checkpoint {} lies in this run's own output folder (run.out = {}): \
-                 fine-tuning starts from another run's checkpoint",
-                init.display(),
-                run.display()
-            )));
+            return Err(Error::key(
+                "init.checkpoint",
+                format!(
+                    "{} lies in this run's own output folder (run.out = {}): fine-tuning \
+                     starts from another run's checkpoint",
+                    init.display(),
+                    run.display()
+                ),
+            ));
         }
         let dir = checkpoint::resolve(init)?;
         let state = checkpoint::read_state(&dir)?;

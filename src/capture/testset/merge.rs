@@ -84,9 +84,10 @@ pub fn auto_inputs(
     }
     let best = triples.iter().map(|t| t.1).fold(f64::INFINITY, f64::min);
     if !best.is_finite() {
-        return Err(Error::Invalid(format!(
-            "--inputs auto needs at least three frames, the set has {n}"
-        )));
+        return Err(Error::flag(
+            "--inputs",
+            format!("auto needs at least three frames, the set has {n}"),
+        ));
     }
     triples.retain(|t| t.1 <= best + AUTO_STEP_TOLERANCE + 1e-9);
     let mut fractions: Vec<(usize, f64)> = Vec::new();
@@ -106,7 +107,7 @@ pub fn auto_inputs(
                 .then(a.0.cmp(&b.0))
         })
         .copied()
-        .ok_or_else(|| Error::Invalid("--inputs auto: no triple of frames".to_string()))?;
+        .ok_or_else(|| Error::flag("--inputs", "auto: no triple of frames"))?;
     let how = format!(
         "auto: steps {:.2}, {:.2} stops (largest deviation from 2 stops {d:.2}; candidates \
          within {:.2} of the best {best:.2}); reference {} of the candidates' references {} \

@@ -215,7 +215,10 @@ fn plan_cell(
         );
     }
     let mut merged = if axes.iter().any(|a| a.kind == AxisKind::Control) {
-        control_config(&cfg.base, &base).map_err(|e| cell_err(format!("control: {e}")))?
+        control_config(&cfg.base, &base).map_err(Error::within(format!(
+            "{}: cell '{id}': control",
+            config_path.display()
+        )))?
     } else {
         base
     };

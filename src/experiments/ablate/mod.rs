@@ -417,38 +417,45 @@ impl AblateConfig {
     /// errors); in memory for the fuzzer.
     pub fn parse(text: &str, path: &Path) -> Result<AblateConfig> {
         let cfg: AblateConfig = crate::config::parse_toml(text, path)?;
-        cfg.validate().map_err(|m| Error::config(path, m))?;
+        cfg.validate(path)?;
         Ok(cfg)
     }
 
-    fn validate(&self) -> std::result::Result<(), String> {
+    fn validate(&self, path: &Path) -> Result<()> {
         if self.rows.is_empty() {
-            return Err("[[rows]]: at least one row is needed".into());
+            return Err(Error::config(path, "[[rows]]: at least one row is needed"));
         }
         for (axis, list) in [("rows", &self.rows), ("columns", &self.columns)] {
             let mut seen = std::collections::BTreeSet::new();
             for a in list {
-                self.check_axis(axis, a, &mut seen)?;
+                self.check_axis(axis, a, &mut seen, path)?;
             }
         }
         let mut seeds = self.seeds.clone();
         seeds.sort_unstable();
         seeds.dedup();
         if seeds.len() != self.seeds.len() {
-            return Err(format!("seeds {:?}: a seed appears twice", self.seeds));
+            return Err(Error::config(
+                path,
+                format!("seeds {:?}: a seed appears twice", self.seeds),
+            ));
         }
-        self.check_eval()?;
+        self.check_eval(path)?;
         if self.jobs == 0 {
-            return Err("jobs = 0: at least one cell must run at a time".into());
+            return Err(Error::config(
+                path,
+                "jobs = 0: at least one cell must run at a time",
+            ));
         }
         if let Some(p) = &self.pretrained_per_seed
             && (self.seeds.is_empty() || !p.contains("{seed}"))
         {
-            return Err(format!(
-                "pretrained_per_seed '{p}' needs `seeds` and '{{seed}}' in the path"
+            return Err(Error::config(
+                path,
+                format!("pretrained_per_seed '{p}' needs `seeds` and '{{seed}}' in the path"),
             ));
         }
-        self.check_testsets()
+        self.check_testsets(path)
     }
 
     /// One row or column of `axis` ("rows" or "columns"): its name (unique among `seen`), its
@@ -458,33 +465,46 @@ impl AblateConfig {
         axis: &str,
         a: &'a Axis,
         seen: &mut std::collections::BTreeSet<&'a String>,
-    ) -> std::result::Result<(), String> {
+        path: &Path,
+    ) -> Result<()> {
         if a.name.is_empty()
             || !a
                 .name
                 .chars()
                 .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
         {
-            return Err(format!(
-                "[[{axis}]] name '{}': use letters, digits, '-' and '_' only",
-                a.name
+            return Err(Error::config(
+                path,
+                format!(
+                    "[[{axis}]] name '{}': use letters, digits, '-' and '_' only",
+                    a.name
+                ),
             ));
         }
         if !seen.insert(&a.name) {
-            return Err(format!("[[{axis}]] name '{}' appears twice", a.name));
+            return Err(Error::config(
+                path,
+                format!("[[{axis}]] name '{}' appears twice", a.name),
+            ));
         }
         if a.kind.baseline().is_some() && a.checkpoint.is_some() {
-            return Err(format!(
-                "[[{axis}]] '{}': a baseline kind has no network; it cannot name a \
+            return Err(Error::config(
+                path,
+                format!(
+                    "[[{axis}]] '{}': a baseline kind has no network; it cannot name a \
                  checkpoint",
-                a.name
+                    a.name
+                ),
             ));
         }
         if a.kind == AxisKind::Control && (!a.train || a.checkpoint.is_some()) {
-            return Err(format!(
-                "[[{axis}]] '{}': kind = \"control\" trains; it cannot also have \
+            return Err(Error::config(
+                path,
+                format!(
+                    "[[{axis}]] '{}': kind = \"control\" trains; it cannot also have \
                  train = false or a checkpoint",
-                a.name
+                    a.name
+                ),
             ));
         }
         let sets_seed = a
@@ -493,19 +513,25 @@ impl AblateConfig {
             .and_then(|r| r.as_table())
             .is_some_and(|r| r.contains_key("seed"));
         if sets_seed && !self.seeds.is_empty() {
-            return Err(format!(
-                "[[{axis}]] '{}' sets run.seed, but the grid's `seeds` set every \
+            return Err(Error::config(
+                path,
+                format!(
+                    "[[{axis}]] '{}' sets run.seed, but the grid's `seeds` set every \
                  trained cell's seed",
-                a.name
+                    a.name
+                ),
             ));
         }
         Ok(())
     }
 
     /// `[eval]`: the confidence level, the equivalence margins, and references that are cells.
-    fn check_eval(&self) -> std::result::Result<(), String> {
+    fn check_eval(&self, path: &Path) -> Result<()> {
         if !(self.eval.level > 0.0 && self.eval.level < 1.0) {
-            return Err(format!("eval.level {} must be in (0, 1)", self.eval.level));
+            return Err(Error::config(
+                path,
+                format!("eval.level {} must be in (0, 1)", self.eval.level),
+            ));
         }
         for (key, m) in [
             ("margin_psnr", self.eval.margin_psnr),
@@ -513,7 +539,10 @@ impl AblateConfig {
             ("margin_delta_e", self.eval.margin_delta_e),
         ] {
             if !(m > 0.0 && m.is_finite()) {
-                return Err(format!("eval.{key} {m} must be a positive number"));
+                return Err(Error::config(
+                    path,
+                    format!("eval.{key} {m} must be a positive number"),
+                ));
             }
         }
         let references = std::iter::once(("eval.reference", &self.eval.reference)).chain(
@@ -527,52 +556,68 @@ impl AblateConfig {
                     .iter()
                     .any(|&(row, col)| self.cell_id(row, col) == *r)
             {
-                return Err(format!("{what} '{r}' is not a cell of the grid"));
+                return Err(Error::config(
+                    path,
+                    format!("{what} '{r}' is not a cell of the grid"),
+                ));
             }
         }
         Ok(())
     }
 
     /// The primary test set and each `[[also]]`: names, how each is built, its options.
-    fn check_testsets(&self) -> std::result::Result<(), String> {
+    fn check_testsets(&self, path: &Path) -> Result<()> {
         let mut names = std::collections::BTreeSet::new();
         for (i, t) in std::iter::once(&self.testset).chain(&self.also).enumerate() {
             let what = match (i, &t.name) {
                 (0, _) => "testset".to_string(),
                 (_, Some(n)) => format!("also '{n}'"),
-                (_, None) => return Err("every [[also]] test set needs a `name`".into()),
+                (_, None) => {
+                    return Err(Error::config(
+                        path,
+                        "every [[also]] test set needs a `name`",
+                    ));
+                }
             };
             if i == 0 && t.name.is_some() {
-                return Err("testset: the primary test set has no `name`".into());
+                return Err(Error::config(
+                    path,
+                    "testset: the primary test set has no `name`",
+                ));
             }
             if i == 0 && t.validation {
-                return Err(
-                    "testset: the primary test set is a test; a validation set is an [[also]]"
-                        .into(),
-                );
+                return Err(Error::config(
+                    path,
+                    "testset: the primary test set is a test; a validation set is an [[also]]",
+                ));
             }
             if let Some(n) = &t.name
                 && (n.is_empty()
                     || !n.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
                     || !names.insert(n))
             {
-                return Err(format!(
-                    "{what}: names are letters, digits and '_', each used once"
+                return Err(Error::config(
+                    path,
+                    format!("{what}: names are letters, digits and '_', each used once"),
                 ));
             }
             if t.radiance.is_some() != t.profile.is_some() {
-                return Err(format!(
-                    "{what}: give both `radiance` and `profile` (to build it) or neither"
+                return Err(Error::config(
+                    path,
+                    format!("{what}: give both `radiance` and `profile` (to build it) or neither"),
                 ));
             }
             if t.noise_per_seed && (self.seeds.is_empty() || t.radiance.is_none()) {
-                return Err(format!(
-                    "{what}: noise_per_seed needs `seeds` and a test set built from `radiance`"
+                return Err(Error::config(
+                    path,
+                    format!(
+                        "{what}: noise_per_seed needs `seeds` and a test set built from `radiance`"
+                    ),
                 ));
             }
             t.options
                 .validate()
-                .map_err(|e| format!("{what}: {}", e.within("options")))?;
+                .map_err(|e| Error::config(path, format!("{what}: {}", e.within("options"))))?;
         }
         Ok(())
     }

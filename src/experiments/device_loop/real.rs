@@ -15,6 +15,48 @@ use std::path::Path;
 /// The row's name.
 pub(super) const REAL: &str = "real";
 
+/// Why the loop has no `real` row: a reason the report gives, not a failure.
+#[derive(Clone, Debug, PartialEq)]
+pub(super) enum NoRealRow {
+    /// `--gt-frames inputs`: the ground truth is the inputs' own merge.
+    GtIsInputs,
+    /// The calibration set of this name holds only its three inputs.
+    OnlyInputs(String),
+    /// A calibration set smaller than the fine-tune's crops.
+    TooSmall {
+        set: String,
+        width: usize,
+        height: usize,
+        patch: usize,
+    },
+}
+
+impl std::fmt::Display for NoRealRow {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            NoRealRow::GtIsInputs => write!(
+                f,
+                "the ground truth is the inputs' own merge (`--gt-frames inputs`)"
+            ),
+            NoRealRow::OnlyInputs(set) => write!(
+                f,
+                "calibration set '{set}' holds only its three inputs, so its ground truth is \
+                 their own merge"
+            ),
+            NoRealRow::TooSmall {
+                set,
+                width,
+                height,
+                patch,
+            } => write!(
+                f,
+                "calibration set '{set}' is {width}×{height}, smaller than the fine-tune's \
+                 {patch}-pixel crops"
+            ),
+        }
+    }
+}
+
 /// The row, where the calibration scenes' ground truth holds more than the inputs (every set
 /// has more frames than the three inputs, and `--gt-frames` is not `inputs`) and every set
 /// holds the fine-tune's crops of `patch` pixels; else why not.
@@ -24,19 +66,13 @@ pub(super) fn real_row(
     cal_scan: &ScanOptions,
     validation: &Path,
     patch: usize,
-) -> Result<std::result::Result<Axis, String>> {
+) -> Result<std::result::Result<Axis, NoRealRow>> {
     if opts.gt_frames == GtFrames::Inputs {
-        return Ok(Err(
-            "the ground truth is the inputs' own merge (`--gt-frames inputs`)".into(),
-        ));
+        return Ok(Err(NoRealRow::GtIsInputs));
     }
     let sets = folder.select(cal_scan)?.sets;
     if let Some(s) = sets.iter().find(|s| s.all_frames().count() <= 3) {
-        return Ok(Err(format!(
-            "calibration set '{}' holds only its three inputs, so its ground truth is their \
-             own merge",
-            s.name
-        )));
+        return Ok(Err(NoRealRow::OnlyInputs(s.name.clone())));
     }
     // The fine-tune crops `patch` pixels from each set: a smaller set is not refused later,
     // after every other row has run.
@@ -46,10 +82,12 @@ pub(super) fn real_row(
         .iter()
         .find(|s| s.width < patch || s.height < patch)
     {
-        return Ok(Err(format!(
-            "calibration set '{}' is {}×{}, smaller than the fine-tune's {patch}-pixel crops",
-            s.name, s.width, s.height
-        )));
+        return Ok(Err(NoRealRow::TooSmall {
+            set: s.name.clone(),
+            width: s.width,
+            height: s.height,
+            patch,
+        }));
     }
     let mut data = toml::Table::new();
     data.insert("dataset".into(), validation.display().to_string().into());
@@ -107,7 +145,7 @@ mod tests {
         write_hdr(&d.join("HDRImg.hdr"), &grey).expect("hdr");
     }
 
-    fn row(frames: usize, side: usize, gt: GtFrames) -> std::result::Result<Axis, String> {
+    fn row(frames: usize, side: usize, gt: GtFrames) -> std::result::Result<Axis, NoRealRow> {
         let tmp = tempfile::tempdir().expect("tmp");
         let (brackets, val) = (tmp.path().join("b"), tmp.path().join("v"));
         bracket(&brackets, frames);
@@ -135,7 +173,7 @@ mod tests {
         let made = row(5, 48, GtFrames::All).expect("made");
         assert_eq!(made.name, REAL);
         assert_eq!(made.set["data"]["profile"].as_str(), Some("pure"));
-        let why = |r: std::result::Result<Axis, String>| r.expect_err("no row");
+        let why = |r: std::result::Result<Axis, NoRealRow>| r.expect_err("no row").to_string();
         assert!(why(row(3, 48, GtFrames::All)).contains("only its three inputs"));
         assert!(why(row(5, 48, GtFrames::Inputs)).contains("--gt-frames inputs"));
         assert!(why(row(5, 16, GtFrames::All)).contains("smaller than the fine-tune's 32-pixel"));

@@ -205,7 +205,7 @@ pub(super) fn split_text(opts: &LoopOptions, cal: &[String], test: &[String]) ->
 }
 
 /// What the `real` row is, or why the loop has none.
-pub(super) fn real_text(real: &std::result::Result<Axis, String>) -> String {
+pub(super) fn real_text(real: &std::result::Result<Axis, super::real::NoRealRow>) -> String {
     match real {
         Ok(_) => "The `real` row fine-tunes the pretrained network of each seed on the \
                   calibration scenes' own frames (`validation/`) against their ground truth, \

@@ -306,11 +306,14 @@ pub fn run(opts: &Options) -> Result<String> {
     // commands it runs lock their own subfolders (data/…, pretrain, experiment).
     let _lock = crate::io::guard::OutputLock::acquire(out, "quickstart")?;
     if out.join("pretrain").join(train::RUN_CONFIG).is_file() {
-        return Err(Error::Invalid(format!(
-            "{} holds a main job of an earlier protocol (one pretraining for every seed); \
-             choose another --out or delete it",
-            out.display()
-        )));
+        return Err(Error::flag(
+            "--out",
+            format!(
+                "{} holds a main job of an earlier protocol (one pretraining for every seed); \
+                 choose another --out or delete it",
+                out.display()
+            ),
+        ));
     }
     let p = prepare(opts, &s, backend, began)?;
 

@@ -93,7 +93,23 @@ pub(super) fn describe_diff(d: &DiffEntry) -> String {
 }
 
 /// Why a real test set is absent, or its folder.
-pub(super) type Optional = std::result::Result<PathBuf, String>;
+pub(super) type Optional = std::result::Result<PathBuf, Absent>;
+
+/// A real test set's source that is neither given (`--FLAG`) nor at its shared default: a
+/// reason the report gives, not a failure.
+#[derive(Clone, Debug, PartialEq)]
+pub(super) struct Absent {
+    /// The shared default folder that does not exist.
+    pub default: String,
+    /// The flag, without its dashes, that names another.
+    pub flag: String,
+}
+
+impl std::fmt::Display for Absent {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} is absent; pass --{} DIR", self.default, self.flag)
+    }
+}
 
 /// The report of the grid `exp` (its run `summary`, its `tables`, the noise `ceiling`), up to
 /// the closing line the caller adds.

@@ -56,22 +56,25 @@ pub(super) fn optional_source(
     flag: Option<&PathBuf>,
     name: &str,
     default: &str,
-) -> Result<std::result::Result<PathBuf, String>> {
+) -> Result<reading::Optional> {
     if let Some(p) = flag {
         return if p.exists() {
             Ok(Ok(p.clone()))
         } else {
-            Err(Error::Invalid(format!(
-                "--{name} {}: no such file or folder",
-                p.display()
-            )))
+            Err(Error::flag(
+                format!("--{name}"),
+                format!("{}: no such file or folder", p.display()),
+            ))
         };
     }
     let d = Path::new(default);
     Ok(if d.is_dir() {
         Ok(d.to_path_buf())
     } else {
-        Err(format!("{default} is absent; pass --{name} DIR"))
+        Err(reading::Absent {
+            default: default.to_string(),
+            flag: name.to_string(),
+        })
     })
 }
 
