@@ -4,7 +4,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use super::cie::{A_XY, D50_XY, D65_XY, SRGB_TO_XYZ, bradford, xy_to_xyz};
-use super::parse_floats;
+use super::{expected_floats, floats, parse_floats};
 use crate::error::{Error, Result};
 use crate::io::Image;
 use crate::linalg::{Mat3, inverse3, mat_vec, mul3};
@@ -263,12 +263,15 @@ impl FromStr for Illuminant {
             "D50" => Ok(Illuminant::D50),
             "A" => Ok(Illuminant::A),
             _ => {
-                let v = parse_floats(s, 3, "illuminant gains")
-                    .map_err(|e| Error::Invalid(format!("{e} (or one of D65, D50, A)")))?;
+                const KEY: &str = "illuminant gains";
+                let v = floats(s, 3).ok_or_else(|| {
+                    Error::key(
+                        KEY,
+                        format!("{} (or one of D65, D50, A)", expected_floats(s, 3)),
+                    )
+                })?;
                 if v.iter().any(|g| *g <= 0.0) {
-                    return Err(Error::Invalid(format!(
-                        "illuminant gains '{s}' must be > 0"
-                    )));
+                    return Err(Error::key(KEY, format!("'{s}' must be > 0")));
                 }
                 Ok(Illuminant::Gains([v[0], v[1], v[2]]))
             }
