@@ -85,7 +85,7 @@ fn write_set(dir: &Path, size: usize, frames: usize) {
             });
         }
     }
-    let text = m.to_toml().unwrap();
+    let text = m.to_toml(&dir.join(MANIFEST_NAME)).unwrap();
     std::fs::write(dir.join(MANIFEST_NAME), text).unwrap();
 }
 

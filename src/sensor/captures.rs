@@ -240,8 +240,9 @@ impl CaptureManifest {
         Ok(())
     }
 
-    pub fn to_toml(&self) -> std::result::Result<String, String> {
-        toml::to_string(self).map_err(|e| e.to_string())
+    /// The manifest's TOML text (an error names `path`, where it is to be written).
+    pub fn to_toml(&self, path: &Path) -> Result<String> {
+        toml::to_string(self).map_err(|e| Error::encode(path, e))
     }
 }
 
@@ -572,9 +573,7 @@ pub fn write_capture_set(
             }
         }
     }
-    let text = manifest
-        .to_toml()
-        .map_err(|e| Error::encode(&manifest_path, e))?;
+    let text = manifest.to_toml(&manifest_path)?;
     for (b, imgs) in manifest.bursts.iter().zip(frames) {
         for (rel, img) in b.frames.iter().zip(imgs) {
             let code = img.map(|v| v.round() / 65535.0);

@@ -554,8 +554,9 @@ pub struct ImportOutcome {
 /// Import a camera's noise from the CSV into `req.out` (created or updated, atomically).
 pub fn import(req: &ImportRequest) -> Result<ImportOutcome> {
     if req.levels_source.trim().is_empty() {
-        return Err(Error::Invalid(
-            "the levels need a source (--levels-source)".into(),
+        return Err(Error::flag(
+            "--levels-source",
+            "is empty: the levels need a source",
         ));
     }
     let rows = read_csv(&req.csv)?;

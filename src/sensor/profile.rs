@@ -521,20 +521,23 @@ impl SensorProfile {
     /// Noise parameters (a, b) per channel at `iso`, interpolated linearly in log(ISO).
     pub fn noise_at(&self, iso: f64) -> Result<([f64; 3], [f64; 3])> {
         if self.noise.is_empty() {
-            return Err(Error::Invalid(format!(
-                "profile '{}' has no noise calibration (run `hdrsynth calibrate noise` or \
-                 `hdrsynth profile import-darktable`)",
-                self.name
-            )));
+            return Err(Error::profile(
+                &self.name,
+                "has no noise calibration (run `hdrsynth calibrate noise` or `hdrsynth profile \
+                 import-darktable`)",
+            ));
         }
         let first = &self.noise[0];
         let last = &self.noise[self.noise.len() - 1];
         let eps = 1e-9 * iso.abs();
         if !(iso >= first.iso - eps && iso <= last.iso + eps) {
-            return Err(Error::Invalid(format!(
-                "profile '{}': ISO {iso} is outside the calibrated range {}–{}",
-                self.name, first.iso, last.iso
-            )));
+            return Err(Error::profile(
+                &self.name,
+                format!(
+                    "ISO {iso} is outside the calibrated range {}–{}",
+                    first.iso, last.iso
+                ),
+            ));
         }
         let hi = self
             .noise
@@ -556,9 +559,10 @@ impl SensorProfile {
     /// and it leaves out the raw and output quantisation (≈ 0.29 DN and 0.29 code).
     pub fn noise_table(&self, fractions: &[f64], max_code: f64) -> Result<Vec<NoiseTableRow>> {
         if let Some(x) = fractions.iter().find(|x| !(**x > 0.0 && **x < 1.0)) {
-            return Err(Error::Invalid(format!(
-                "signal fraction {x} must be in (0, 1)"
-            )));
+            return Err(Error::flag(
+                "--at",
+                format!("signal fraction {x} must be in (0, 1)"),
+            ));
         }
         Ok(self
             .noise

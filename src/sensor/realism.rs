@@ -227,16 +227,16 @@ impl Scratch {
 impl Realism {
     pub fn new(profile: &SensorProfile, opts: &RealismOptions) -> Result<Realism> {
         let out_depth = BitDepth::from_bits(opts.output_bits).ok_or_else(|| {
-            Error::Invalid(format!("output bits {} must be 8 or 16", opts.output_bits))
+            Error::flag("--bits", format!("{} must be 8 or 16", opts.output_bits))
         })?;
         if !(opts.exposure > 0.0 && opts.exposure.is_finite()) {
-            return Err(Error::Invalid(format!(
-                "exposure {} must be > 0",
-                opts.exposure
-            )));
+            return Err(Error::flag(
+                "--exposure",
+                format!("{} must be > 0", opts.exposure),
+            ));
         }
         let plan = Plan::from_effects(&profile.effects)
-            .map_err(|m| Error::Invalid(format!("profile '{}': {m}", profile.name)))?;
+            .map_err(Error::within(format!("profile '{}'", profile.name)))?;
         let sat = profile.source_response.invert(1.0).max(1e-12);
         let source_lut = match &profile.source_response {
             Response::Linear => None,
@@ -246,11 +246,11 @@ impl Realism {
             ColourOp::Identity
         } else {
             let c = profile.colour.as_ref().ok_or_else(|| {
-                Error::Invalid(format!(
-                    "profile '{}' has no colour calibration (run `hdrsynth calibrate colour`, \
-                     or turn colour off)",
-                    profile.name
-                ))
+                Error::profile(
+                    &profile.name,
+                    "has no colour calibration (run `hdrsynth calibrate colour`, or turn colour \
+                     off)",
+                )
             })?;
             match (&c.root_polynomial, c.use_root_polynomial) {
                 (Some(rp), true) => ColourOp::RootPoly(rp.map(|r| r.map(|v| v as f32))),

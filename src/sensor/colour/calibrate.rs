@@ -130,14 +130,14 @@ fn load_input(path: &Path, given: Option<&Response>, clip_level: Option<f64>) ->
     if let Some(c) = clip_level
         && !(c > 0.0 && c.is_finite())
     {
-        return Err(Error::Invalid(format!("--clip-level {c} must be > 0")));
+        return Err(Error::flag("--clip-level", format!("{c} must be > 0")));
     }
     if is_dng {
         if given.is_some_and(|r| *r != Response::Linear) {
-            return Err(Error::Invalid(format!(
-                "{}: a raw DNG is linear; drop the response option",
-                path.display()
-            )));
+            return Err(Error::config(
+                path,
+                "a raw DNG is linear; drop the response option",
+            ));
         }
         let dng = read_dng(path)?;
         let what = format!("raw DNG, {}", dng.info.describe());
@@ -155,10 +155,10 @@ fn load_input(path: &Path, given: Option<&Response>, clip_level: Option<f64>) ->
     match info.format {
         Format::Exr | Format::Hdr => {
             if given.is_some_and(|r| *r != Response::Linear) {
-                return Err(Error::Invalid(format!(
-                    "{}: EXR/HDR files hold linear values; drop the response option",
-                    path.display()
-                )));
+                return Err(Error::config(
+                    path,
+                    "EXR/HDR files hold linear values; drop the response option",
+                ));
             }
             Ok(Input {
                 path: path.to_path_buf(),
@@ -199,10 +199,10 @@ fn load_input(path: &Path, given: Option<&Response>, clip_level: Option<f64>) ->
 
 fn sample(input: &Input, region: &ChartRegion) -> Result<Vec<PatchSample>> {
     let ctx = |e: Error| {
-        Error::Invalid(format!(
-            "{}: sampling the chart ({region}): {e}",
+        Error::within(format!(
+            "{}: sampling the chart ({region})",
             input.path.display()
-        ))
+        ))(e)
     };
     if let Some((img, level)) = &input.clip {
         chart::sample_chart(img, region, Some(*level)).map_err(ctx)?;
@@ -248,7 +248,7 @@ pub fn calibrate(opts: &CalibrateOptions) -> Result<(Calibration, InputsInfo)> {
         } => {
             let exposure = *exposure;
             if !(exposure > 0.0 && exposure.is_finite()) {
-                return Err(Error::Invalid(format!("--exposure {exposure} must be > 0")));
+                return Err(Error::flag("--exposure", format!("{exposure} must be > 0")));
             }
             let img = chart::render_chart(600, 400, illuminant, exposure);
             let s = chart::sample_chart(&img, &ChartRegion::FullFrame, None)?;
@@ -270,10 +270,7 @@ pub fn calibrate(opts: &CalibrateOptions) -> Result<(Calibration, InputsInfo)> {
                 .extension()
                 .is_some_and(|e| e.to_string_lossy().eq_ignore_ascii_case("dng"))
             {
-                return Err(Error::Invalid(format!(
-                    "{}: the synthetic chart cannot be a DNG",
-                    path.display()
-                )));
+                return Err(Error::config(path, "the synthetic chart cannot be a DNG"));
             }
             let syn = load_input(path, response.as_ref(), opts.clip_level)?;
             let what = format!("{} ({}), chart at {region}", path.display(), syn.what);
@@ -286,15 +283,15 @@ pub fn calibrate(opts: &CalibrateOptions) -> Result<(Calibration, InputsInfo)> {
     let fit = fit::fit_chart(&raw, &synthetic, opts.white_balance, opts.root_polynomial).map_err(
         |e| match e {
             ChartFitError::Fit(e) => e,
-            e => Error::Invalid(format!("{}: {e}", opts.real.display())),
+            e => Error::config(&opts.real, e),
         },
     )?;
     // The profile refuses a singular T; refuse it here, naming the capture it came from.
     if let Err(why) = crate::sensor::profile::check_colour_matrix(&fit.t()) {
-        return Err(Error::Invalid(format!(
-            "{}: the chart fit gives an unusable colour matrix ({why})",
-            opts.real.display()
-        )));
+        return Err(Error::config(
+            &opts.real,
+            format!("the chart fit gives an unusable colour matrix ({why})"),
+        ));
     }
     let (g, k, s) = (fit.white_balance_gains, fit.exposure_scale, fit.chart_scale);
     let real_std: Vec<[f64; 3]> = real_samples
@@ -540,16 +537,18 @@ fn new_profile(opts: &CalibrateOptions, inputs: &InputsInfo) -> Result<SensorPro
             ),
         ),
         _ => {
-            return Err(Error::Invalid(format!(
-                "{} does not exist and a new profile needs its levels: give --black, --white \
-                 and --bits together{}",
-                opts.out.display(),
-                if inputs.dng.is_some() {
-                    " (or none of them to take them from the DNG)"
-                } else {
-                    " (the real capture is not a DNG, whose tags would give them)"
-                }
-            )));
+            return Err(Error::config(
+                &opts.out,
+                format!(
+                    "does not exist and a new profile needs its levels: give --black, --white \
+                     and --bits together{}",
+                    if inputs.dng.is_some() {
+                        " (or none of them to take them from the DNG)"
+                    } else {
+                        " (the real capture is not a DNG, whose tags would give them)"
+                    }
+                ),
+            ));
         }
     };
     let name = opts
@@ -604,8 +603,9 @@ fn new_profile(opts: &CalibrateOptions, inputs: &InputsInfo) -> Result<SensorPro
 /// `scale`; [`fit::t_from_camera_xyz`]), recording `source` and the numbers as provenance.
 pub fn colour_from_matrix(matrix: &str, scale: f64, source: &str, out: &Path) -> Result<Mat3> {
     if source.trim().is_empty() {
-        return Err(Error::Invalid(
-            "--source must say where the matrix comes from".into(),
+        return Err(Error::flag(
+            "--source",
+            "must say where the matrix comes from",
         ));
     }
     let v = super::parse_floats(matrix, 9, "--matrix")?;

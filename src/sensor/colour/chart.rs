@@ -4,7 +4,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use super::cie::{A_XY, D50_XY, D65_XY, SRGB_TO_XYZ, bradford, xy_to_xyz};
-use super::parse_floats;
+use super::{expected_floats, floats, parse_floats};
 use crate::error::{Error, Result};
 use crate::io::Image;
 use crate::linalg::{Mat3, inverse3, mat_vec, mul3};
@@ -263,12 +263,15 @@ impl FromStr for Illuminant {
             "D50" => Ok(Illuminant::D50),
             "A" => Ok(Illuminant::A),
             _ => {
-                let v = parse_floats(s, 3, "illuminant gains")
-                    .map_err(|e| Error::Invalid(format!("{e} (or one of D65, D50, A)")))?;
+                const KEY: &str = "illuminant gains";
+                let v = floats(s, 3).ok_or_else(|| {
+                    Error::key(
+                        KEY,
+                        format!("{} (or one of D65, D50, A)", expected_floats(s, 3)),
+                    )
+                })?;
                 if v.iter().any(|g| *g <= 0.0) {
-                    return Err(Error::Invalid(format!(
-                        "illuminant gains '{s}' must be > 0"
-                    )));
+                    return Err(Error::key(KEY, format!("'{s}' must be > 0")));
                 }
                 Ok(Illuminant::Gains([v[0], v[1], v[2]]))
             }
@@ -336,9 +339,7 @@ impl Homography {
                 .max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))
                 .expect("non-empty");
             if a[piv][col].abs() < 1e-12 {
-                return Err(Error::Invalid(
-                    "chart corners are degenerate (three of them on a line?)".into(),
-                ));
+                return Err(Error::key(CORNERS, "degenerate (three of them on a line?)"));
             }
             a.swap(col, piv);
             for r in 0..8 {
@@ -445,7 +446,7 @@ pub fn sample_chart(
     let h = Homography::chart_to_image(corners)?;
     let inv = h
         .inverse()
-        .ok_or_else(|| Error::Invalid("chart corners give a singular mapping".into()))?;
+        .ok_or_else(|| Error::key(CORNERS, "a singular mapping"))?;
     check_convex(&corners, region)?;
     let mut out = Vec::with_capacity(24);
     for (p, patch) in COLORCHECKER24.iter().enumerate() {
@@ -458,6 +459,9 @@ pub fn sample_chart(
     Ok(out)
 }
 
+/// What corner errors name: the patch area's corners, as a flag or the full frame gives them.
+const CORNERS: &str = "chart corners";
+
 /// The patch area must be a convex quadrilateral in the given order (no flips or bow-ties).
 fn check_convex(corners: &[[f64; 2]; 4], region: &ChartRegion) -> Result<()> {
     let cross = |a: [f64; 2], b: [f64; 2], c: [f64; 2]| {
@@ -467,11 +471,13 @@ fn check_convex(corners: &[[f64; 2]; 4], region: &ChartRegion) -> Result<()> {
         .map(|k| cross(corners[k], corners[(k + 1) % 4], corners[(k + 2) % 4]))
         .collect();
     if !(turns.iter().all(|&t| t > 0.0) || turns.iter().all(|&t| t < 0.0)) {
-        return Err(Error::Invalid(format!(
-            "chart corners {} do not form a convex quadrilateral in the order top-left, \
-             top-right, bottom-right, bottom-left",
-            region
-        )));
+        return Err(Error::key(
+            CORNERS,
+            format!(
+                "{region} do not form a convex quadrilateral in the order top-left, top-right, \
+                 bottom-right, bottom-left"
+            ),
+        ));
     }
     Ok(())
 }

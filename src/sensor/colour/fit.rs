@@ -324,8 +324,9 @@ pub fn t_from_camera_xyz(cam_xyz: &Mat3) -> Result<Mat3> {
     for row in &mut t {
         let s: f64 = row.iter().sum();
         if s.abs() < 1e-9 {
-            return Err(Error::Invalid(
-                "colour matrix row sums to 0: cannot white-balance".into(),
+            return Err(Error::key(
+                "colour matrix",
+                "a row sums to 0: cannot white-balance",
             ));
         }
         for v in row.iter_mut() {

@@ -33,13 +33,20 @@ pub mod fit;
 use crate::error::{Error, Result};
 
 /// Parse `n` comma-separated numbers.
+/// `what` names the value (a flag or a key) in the error.
 pub fn parse_floats(s: &str, n: usize, what: &str) -> Result<Vec<f64>> {
+    floats(s, n).ok_or_else(|| Error::key(what, expected_floats(s, n)))
+}
+
+/// `n` comma-separated finite numbers, or None.
+pub(crate) fn floats(s: &str, n: usize) -> Option<Vec<f64>> {
     let v: std::result::Result<Vec<f64>, _> =
         s.split(',').map(|t| t.trim().parse::<f64>()).collect();
-    match v {
-        Ok(v) if v.len() == n && v.iter().all(|x| x.is_finite()) => Ok(v),
-        _ => Err(Error::Invalid(format!(
-            "{what}: expected {n} comma-separated numbers, got '{s}'"
-        ))),
-    }
+    v.ok()
+        .filter(|v| v.len() == n && v.iter().all(|x| x.is_finite()))
+}
+
+/// What [`parse_floats`] says of `s` when it holds no `n` numbers.
+pub(crate) fn expected_floats(s: &str, n: usize) -> String {
+    format!("expected {n} comma-separated numbers, got '{s}'")
 }

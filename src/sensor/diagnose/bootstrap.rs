@@ -2,7 +2,7 @@
 //! measured statistics compared with the simulated ones.
 
 use super::{DiagnoseOptions, Evaluation, Row, protocol};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::io::Image;
 use crate::rng::hash;
 use crate::sensor::captures::{BurstKind, CaptureSet};
@@ -162,7 +162,7 @@ pub(super) struct Context<'a> {
 /// Compare the measured statistics with K simulated replicates of `profile`.
 pub(super) fn evaluate(ctx: &Context, profile: &SensorProfile) -> Result<Evaluation> {
     let proto = protocol(ctx.set, profile, ctx.opts.max_pixels)?;
-    let plan = Plan::from_effects(&profile.effects).map_err(Error::Invalid)?;
+    let plan = Plan::from_effects(&profile.effects)?;
     let measured = statistics(&proto, ctx.measured);
     let tg = targets(&proto, ctx.measured, &plan);
     let k = ctx.opts.replicates;

@@ -119,7 +119,7 @@ pub struct Diagnosis {
 
 /// The capture protocol of a set under `profile`'s levels and effects.
 pub fn protocol(set: &CaptureSet, profile: &SensorProfile, max_pixels: usize) -> Result<Protocol> {
-    let plan = Plan::from_effects(&profile.effects).map_err(Error::Invalid)?;
+    let plan = Plan::from_effects(&profile.effects)?;
     Ok(Protocol {
         bursts: burst_infos(set, max_pixels),
         black: profile.levels.black_level + plan.black_offset as f64,
@@ -337,7 +337,7 @@ pub fn base_profile(
 /// without a flat keep their a; ISOs without dark or flat keep both. Used for the base model
 /// and after every step (never on a given profile, whose noise is the user's).
 pub fn refit_noise(profile: &mut SensorProfile, measured: &[Summary]) -> Result<()> {
-    let plan = Plan::from_effects(&profile.effects).map_err(Error::Invalid)?;
+    let plan = Plan::from_effects(&profile.effects)?;
     let range = profile.levels.white_level - profile.levels.black_level;
     let black = profile.levels.black_level + plan.black_offset as f64;
     let ptc = effects::summary::temporal_ptc(measured, black, (plan.row_sigma as f64).powi(2));
@@ -379,8 +379,12 @@ pub fn diagnose(
     opts: &DiagnoseOptions,
 ) -> Result<Diagnosis> {
     if opts.replicates < 2 {
-        return Err(Error::Invalid(
-            "at least 2 bootstrap replicates are needed".into(),
+        return Err(Error::flag(
+            "--replicates",
+            format!(
+                "{}: at least 2 bootstrap replicates are needed",
+                opts.replicates
+            ),
         ));
     }
     let m = Measurement::take(set, profile.as_ref(), opts)?;
@@ -627,11 +631,11 @@ impl Search {
         let proto = protocol(ctx.set, &self.model, ctx.opts.max_pixels)?;
         let params = match self.fit(ctx, &proto, entry) {
             Ok(p) => p,
-            Err(why) => {
+            Err(e) => {
                 return Ok(StepOutcome::Noted(Note::NotFitted {
                     effect: id.to_string(),
                     key: top.stat.key.clone(),
-                    why,
+                    why: effects::why_not_fitted(id, e),
                 }));
             }
         };
@@ -678,12 +682,7 @@ impl Search {
     }
 
     /// The named effect's parameters fitted under the current model (the error says why not).
-    fn fit(
-        &self,
-        ctx: &Context,
-        proto: &Protocol,
-        entry: &effects::Entry,
-    ) -> std::result::Result<toml::Table, String> {
+    fn fit(&self, ctx: &Context, proto: &Protocol, entry: &effects::Entry) -> Result<toml::Table> {
         let meas: Vec<Stat> = self.current.rows.iter().map(|r| r.stat.clone()).collect();
         let sim_mean: Vec<f64> = self.current.rows.iter().map(|r| r.sim_mean).collect();
         let fctx = FitCtx {

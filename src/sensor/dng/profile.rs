@@ -150,13 +150,15 @@ pub fn calibrate_dng(opts: &DngOptions) -> Result<DngCalibration> {
         .collect::<Result<Vec<_>>>()?;
     let first = &files[0];
     if let Some(f) = files.iter().find(|f| f.camera != first.camera) {
-        return Err(Error::Invalid(format!(
-            "{} is a \"{}\" but {} is a \"{}\": one profile describes one camera model",
-            f.path.display(),
-            f.camera,
-            first.path.display(),
-            first.camera
-        )));
+        return Err(Error::config(
+            &f.path,
+            format!(
+                "is a \"{}\" but {} is a \"{}\": one profile describes one camera model",
+                f.camera,
+                first.path.display(),
+                first.camera
+            ),
+        ));
     }
     let noise = if opts.noise {
         noise_rows(&files)?
@@ -204,12 +206,14 @@ fn noise_rows(files: &[DngFile]) -> Result<Vec<NoiseAtIso>> {
     }
     rows.sort_by(|a, b| a.0.iso.total_cmp(&b.0.iso));
     if let Some(w) = rows.windows(2).find(|w| w[0].0.iso == w[1].0.iso) {
-        return Err(Error::Invalid(format!(
-            "{} and {} are both ISO {}: one NoiseProfile per ISO",
-            w[0].1.display(),
-            w[1].1.display(),
-            w[0].0.iso
-        )));
+        return Err(Error::config(
+            w[1].1,
+            format!(
+                "ISO {}, as {} is: one NoiseProfile per ISO",
+                w[0].0.iso,
+                w[0].1.display()
+            ),
+        ));
     }
     Ok(rows.into_iter().map(|(r, _)| r).collect())
 }

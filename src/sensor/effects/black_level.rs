@@ -10,6 +10,7 @@
 
 use super::plan::id;
 use super::{Entry, FitCtx, Protocol, Stat, Summary, float, table};
+use crate::error::Result;
 use crate::sensor::captures::BurstKind;
 
 pub const ID: &str = id::BLACK_LEVEL;
@@ -37,7 +38,7 @@ fn statistics(p: &Protocol, s: &[Summary], out: &mut Vec<Stat>) {
     }
 }
 
-fn fit(ctx: &FitCtx) -> Result<toml::Table, String> {
+fn fit(ctx: &FitCtx) -> Result<toml::Table> {
     let d = ctx.mean_excess(ID, NAME)?;
     Ok(table(&[("offset_dn", float(d))]))
 }

@@ -11,8 +11,10 @@
 //! residual variance without its uncorrelated parts (quantisation, row offsets) — the
 //! correlation of the channels' noise. Fit: that correlation directly.
 
+use super::not_fitted;
 use super::plan::{RHO_MAX, id};
 use super::{Entry, FitCtx, Protocol, Stat, Summary, float, table};
+use crate::error::Result;
 use crate::sensor::captures::BurstKind;
 
 pub const ID: &str = id::CHANNEL_CORRELATION;
@@ -54,16 +56,19 @@ fn statistics(p: &Protocol, s: &[Summary], out: &mut Vec<Stat>) {
     }
 }
 
-fn fit(ctx: &FitCtx) -> Result<toml::Table, String> {
+fn fit(ctx: &FitCtx) -> Result<toml::Table> {
     let cs: Vec<f64> = super::of_kind(ctx.summaries, BurstKind::Dark)
         .filter_map(correlation)
         .collect();
     if cs.is_empty() {
-        return Err("no dark burst with ≥ 2 frames".into());
+        return Err(not_fitted(ID, "no dark burst with ≥ 2 frames"));
     }
     let rho = cs.iter().sum::<f64>() / cs.len() as f64;
     if rho <= 0.0 {
-        return Err("no positive correlation between the channels' noise".into());
+        return Err(not_fitted(
+            ID,
+            "no positive correlation between the channels' noise",
+        ));
     }
     Ok(table(&[("rho", float(rho.min(RHO_MAX)))]))
 }

@@ -8,8 +8,10 @@
 //! temporal photon transfer (`summary::temporal_ptc`, row-offset variance taken out of b) over
 //! the model's a, b at each ISO with dark and flat bursts, averaged over ISOs.
 
+use super::not_fitted;
 use super::plan::id;
 use super::{Entry, FitCtx, Protocol, Stat, Summary, float, table};
+use crate::error::Result;
 use crate::sensor::captures::BurstKind;
 
 pub const ID: &str = id::CHANNEL_NOISE;
@@ -47,7 +49,7 @@ fn statistics(p: &Protocol, s: &[Summary], out: &mut Vec<Stat>) {
     }
 }
 
-fn fit(ctx: &FitCtx) -> Result<toml::Table, String> {
+fn fit(ctx: &FitCtx) -> Result<toml::Table> {
     let range = ctx.profile.levels.white_level - ctx.profile.levels.black_level;
     let plan = super::Plan::from_effects(&ctx.profile.effects)?;
     let row_var = (plan.row_sigma as f64).powi(2);
@@ -60,7 +62,10 @@ fn fit(ctx: &FitCtx) -> Result<toml::Table, String> {
         for c in 0..3 {
             let (am, bm) = (a[c] * range, b[c] * range * range);
             if am <= 0.0 || bm <= 0.0 {
-                return Err(format!("model a or b is 0 at ISO {}", f.iso));
+                return Err(not_fitted(
+                    ID,
+                    format!("model a or b is 0 at ISO {}", f.iso),
+                ));
             }
             sa[c] += fa[c] / am;
             sb[c] += f.b[c] / bm;
@@ -68,7 +73,10 @@ fn fit(ctx: &FitCtx) -> Result<toml::Table, String> {
         n += 1.0;
     }
     if n == 0.0 {
-        return Err("no ISO with dark and flat bursts inside the model's range".into());
+        return Err(not_fitted(
+            ID,
+            "no ISO with dark and flat bursts inside the model's range",
+        ));
     }
     let arr = |s: [f64; 3]| toml::Value::Array(s.iter().map(|v| float(v / n)).collect());
     Ok(table(&[("a_scale", arr(sa)), ("b_scale", arr(sb))]))

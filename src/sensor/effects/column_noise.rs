@@ -10,6 +10,7 @@
 use super::plan::id;
 use super::{Entry, FitCtx, Protocol, Stat, Summary, float, hashed_normal};
 use super::{seed_value, table};
+use crate::error::Result;
 use crate::sensor::captures::BurstKind;
 
 pub const ID: &str = id::COLUMN_NOISE;
@@ -69,7 +70,7 @@ fn statistics(p: &Protocol, s: &[Summary], out: &mut Vec<Stat>) {
     }
 }
 
-fn fit(ctx: &FitCtx) -> Result<toml::Table, String> {
+fn fit(ctx: &FitCtx) -> Result<toml::Table> {
     let s = ctx.excess_sigma(ID, NAME, "column covariance")?;
     Ok(table(&[
         ("sigma_dn", float(s)),

@@ -15,8 +15,10 @@
 //! horizontally the row offsets), and the kernel width minimises the squared error at both
 //! lags.
 
+use super::not_fitted;
 use super::plan::{RHO_MAX, id, kernel, lag_correlation, width};
 use super::{Entry, FitCtx, Protocol, Stat, Summary, float, table};
+use crate::error::Result;
 use crate::sensor::captures::BurstKind;
 
 pub const ID: &str = id::CORRELATED_NOISE;
@@ -92,12 +94,12 @@ fn fit_axis(m1: f64, m2: f64) -> f64 {
     lag_correlation(&kernel(0.5 * (lo + hi)), 1)
 }
 
-fn fit(ctx: &FitCtx) -> Result<toml::Table, String> {
+fn fit(ctx: &FitCtx) -> Result<toml::Table> {
     let cs: Vec<[[f64; 2]; 2]> = super::of_kind(ctx.summaries, BurstKind::Dark)
         .filter_map(correlations)
         .collect();
     if cs.is_empty() {
-        return Err("no dark burst with ≥ 2 frames".into());
+        return Err(not_fitted(ID, "no dark burst with ≥ 2 frames"));
     }
     let n = cs.len() as f64;
     let mean = |a: usize, l: usize| cs.iter().map(|c| c[a][l]).sum::<f64>() / n;
@@ -106,7 +108,10 @@ fn fit(ctx: &FitCtx) -> Result<toml::Table, String> {
         fit_axis(mean(1, 0), mean(1, 1)),
     );
     if v.max(h) <= 0.0 {
-        return Err("no positive noise correlation at lags 1 and 2".into());
+        return Err(not_fitted(
+            ID,
+            "no positive noise correlation at lags 1 and 2",
+        ));
     }
     Ok(table(&[("rho_h", float(h)), ("rho_v", float(v))]))
 }

@@ -2,7 +2,9 @@
 //! written), shared by that effect, the realism plan ([`super::plan::Plan`]) and the
 //! statistics' protocol ([`super::summary::Protocol`]).
 
-use super::params::{Finite, float, parse, table};
+use super::params::{Finite, fault, float, parse, table};
+use super::plan::id::NONLINEAR_RESPONSE as ID;
+use crate::error::Result;
 use serde::Deserialize;
 use serde::de::IgnoredAny;
 
@@ -92,43 +94,46 @@ impl Curve {
 
 /// The curve of a profile's `nonlinear_response` parameters (`shape` defaults to `power_law`,
 /// which is what profiles written before the toe/shoulder family hold).
-pub fn curve(p: &toml::Table) -> Result<Curve, String> {
+pub fn curve(p: &toml::Table) -> Result<Curve> {
     let shape = match p.get("shape") {
         None => "power_law",
         Some(toml::Value::String(s)) => s.as_str(),
-        Some(v) => return Err(format!("'shape' must be a string, got {v}")),
+        Some(v) => return Err(fault(ID, format!("'shape' must be a string, got {v}"))),
     };
     let (toe, shoulder) = match shape {
         "power_law" => {
             let PowerLaw {
                 exponent: Finite(e),
                 ..
-            } = parse(p)?;
+            } = parse(ID, p)?;
             if !(0.2..=5.0).contains(&e) {
-                return Err(format!("exponent {e} must be in [0.2, 5]"));
+                return Err(fault(ID, format!("exponent {e} must be in [0.2, 5]")));
             }
             return Ok(Curve::Power(e));
         }
-        "toe" => (Some(parse::<Toe>(p)?.toe.0), None),
-        "shoulder" => (None, Some(parse::<Shoulder>(p)?.shoulder.0)),
+        "toe" => (Some(parse::<Toe>(ID, p)?.toe.0), None),
+        "shoulder" => (None, Some(parse::<Shoulder>(ID, p)?.shoulder.0)),
         "toe_shoulder" => {
-            let t: ToeShoulder = parse(p)?;
+            let t: ToeShoulder = parse(ID, p)?;
             (Some(t.toe.0), Some(t.shoulder.0))
         }
         s => {
-            return Err(format!(
-                "unknown shape '{s}' (expected power_law, toe, shoulder or toe_shoulder)"
+            return Err(fault(
+                ID,
+                format!("unknown shape '{s}' (expected power_law, toe, shoulder or toe_shoulder)"),
             ));
         }
     };
     if let Some(toe) = toe.filter(|t| !(*t > 0.0 && *t <= 0.5)) {
-        return Err(format!(
-            "toe {toe} must be in (0, 0.5] (a fraction of the range)"
+        return Err(fault(
+            ID,
+            format!("toe {toe} must be in (0, 0.5] (a fraction of the range)"),
         ));
     }
     if let Some(shoulder) = shoulder.filter(|s| !(0.2..=20.0).contains(s)) {
-        return Err(format!(
-            "shoulder {shoulder} must be in [0.2, 20] (a fraction of the range)"
+        return Err(fault(
+            ID,
+            format!("shoulder {shoulder} must be in [0.2, 20] (a fraction of the range)"),
         ));
     }
     Ok(Curve::ToeShoulder {

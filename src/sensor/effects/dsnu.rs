@@ -9,6 +9,7 @@
 use super::plan::id;
 use super::{Entry, FitCtx, Protocol, Stat, Summary, float, hashed_normal};
 use super::{prnu::fixed_excess, seed_value, table};
+use crate::error::Result;
 use crate::sensor::captures::BurstKind;
 
 pub const ID: &str = id::DSNU;
@@ -36,7 +37,7 @@ fn statistics(p: &Protocol, s: &[Summary], out: &mut Vec<Stat>) {
     }
 }
 
-fn fit(ctx: &FitCtx) -> Result<toml::Table, String> {
+fn fit(ctx: &FitCtx) -> Result<toml::Table> {
     let s = ctx.excess_sigma(ID, NAME, "fixed variance")?;
     Ok(table(&[
         ("sigma_dn", float(s)),

@@ -10,8 +10,10 @@
 //! the excess over the simulated value, times m2², gives κ4 of the read noise, its excess
 //! kurtosis κ = κ4 / b², and the Student-t with that kurtosis has dof = 4 + 6/κ.
 
+use super::not_fitted;
 use super::plan::id;
 use super::{Entry, FitCtx, Protocol, Stat, Summary, float, table};
+use crate::error::Result;
 use crate::sensor::captures::BurstKind;
 
 pub const ID: &str = id::HEAVY_TAILED_READ_NOISE;
@@ -44,7 +46,7 @@ fn statistics(p: &Protocol, s: &[Summary], out: &mut Vec<Stat>) {
     }
 }
 
-fn fit(ctx: &FitCtx) -> Result<toml::Table, String> {
+fn fit(ctx: &FitCtx) -> Result<toml::Table> {
     let range = ctx.profile.levels.white_level - ctx.profile.levels.black_level;
     let plan = super::Plan::from_effects(&ctx.profile.effects)?;
     let mut kappas = Vec::new();
@@ -66,11 +68,14 @@ fn fit(ctx: &FitCtx) -> Result<toml::Table, String> {
         kappas.push(k);
     }
     if kappas.is_empty() {
-        return Err("no dark burst with ≥ 2 frames".into());
+        return Err(not_fitted(ID, "no dark burst with ≥ 2 frames"));
     }
     let k = kappas.iter().sum::<f64>() / kappas.len() as f64;
     if k <= 0.0 {
-        return Err(format!("read-noise excess kurtosis {k:.3} is not positive"));
+        return Err(not_fitted(
+            ID,
+            format!("read-noise excess kurtosis {k:.3} is not positive"),
+        ));
     }
     Ok(table(&[("dof", float(4.0 + 6.0 / k))]))
 }

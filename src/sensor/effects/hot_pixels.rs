@@ -7,9 +7,11 @@
 //! single-frame spike of s DN moves it by s/L only. Fit: fraction = measured − simulated;
 //! offset = median residual of the measured hot values.
 
+use super::not_fitted;
 use super::plan::id;
 use super::{Entry, FitCtx, Protocol, Stat, Summary, float, hashed_unit};
 use super::{seed_value, table};
+use crate::error::Result;
 use crate::sensor::captures::BurstKind;
 
 pub const ID: &str = id::HOT_PIXELS;
@@ -46,7 +48,7 @@ fn statistics(p: &Protocol, s: &[Summary], out: &mut Vec<Stat>) {
     }
 }
 
-fn fit(ctx: &FitCtx) -> Result<toml::Table, String> {
+fn fit(ctx: &FitCtx) -> Result<toml::Table> {
     let f = ctx.mean_excess(ID, NAME)?;
     let mut excess: Vec<f64> = ctx
         .summaries
@@ -61,7 +63,10 @@ fn fit(ctx: &FitCtx) -> Result<toml::Table, String> {
         })
         .collect();
     if f <= 0.0 || excess.is_empty() {
-        return Err(format!("excess hot fraction {f:.2e} is not positive"));
+        return Err(not_fitted(
+            ID,
+            format!("excess hot fraction {f:.2e} is not positive"),
+        ));
     }
     let mid = excess.len() / 2;
     let off = *excess.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1;

@@ -20,6 +20,7 @@
 //! and the pixel coordinates, so they are the same in every frame and every run; per-frame
 //! draws (row offsets, noise) come from the frame seed.
 
+use crate::error::{Error, Result};
 use crate::rng::{hash, unit_f32};
 use crate::sensor::captures::BurstKind;
 use crate::sensor::profile::SensorProfile;
@@ -55,8 +56,8 @@ pub struct Entry {
     /// The effect's diagnostic statistics of one capture set (measured or simulated).
     pub statistics: fn(&Protocol, &[Summary], &mut Vec<Stat>),
     /// Fit the parameters from the captures (measured statistics against the current model's
-    /// simulated ones, the measured summaries).
-    pub fit: fn(&FitCtx) -> Result<toml::Table, String>,
+    /// simulated ones, the measured summaries); a refusal is [`not_fitted`].
+    pub fit: fn(&FitCtx) -> Result<toml::Table>,
     /// Change the rest of a *given* profile when the effect is added (e.g. row noise is already
     /// in its b, which must then shrink by its variance). A base model fitted from the captures
     /// is refitted instead (`diagnose::refit_noise`).
@@ -243,21 +244,42 @@ impl FitCtx<'_> {
 
     /// σ (DN) of offsets whose variance is the mean excess of the DN² statistics `name`
     /// (`what` names them when the excess is not positive).
-    pub fn excess_sigma(&self, effect: &str, name: &str, what: &str) -> Result<f64, String> {
+    pub fn excess_sigma(&self, effect: &str, name: &str, what: &str) -> Result<f64> {
         let v = self.mean_excess(effect, name)?;
         if v <= 0.0 {
-            return Err(format!("excess {what} {v:.4} DN² is not positive"));
+            return Err(not_fitted(
+                effect,
+                format!("excess {what} {v:.4} DN² is not positive"),
+            ));
         }
         Ok(v.sqrt())
     }
 
     /// Mean of measured − simulated over this effect's statistics named `name`.
-    pub fn mean_excess(&self, effect: &str, name: &str) -> Result<f64, String> {
+    pub fn mean_excess(&self, effect: &str, name: &str) -> Result<f64> {
         let p = self.pairs(effect, name);
         if p.is_empty() {
-            return Err(format!("no '{name}' statistic in these captures"));
+            return Err(not_fitted(
+                effect,
+                format!("no '{name}' statistic in these captures"),
+            ));
         }
         Ok(p.iter().map(|(m, s)| m - s).sum::<f64>() / p.len() as f64)
+    }
+}
+
+/// Why effect `id`'s parameters cannot be fitted from these captures: a key error on the
+/// effect (the parameters it would have).
+pub fn not_fitted(id: &str, why: impl ToString) -> Error {
+    Error::key(id, why)
+}
+
+/// The reason in a fit's error, without the effect's name where the error is
+/// [`not_fitted`]'s for `id` (the diagnosis's note names the effect itself).
+pub fn why_not_fitted(id: &str, e: Error) -> String {
+    match e {
+        Error::Key { key, msg } if key == id => msg,
+        e => e.to_string(),
     }
 }
 

@@ -28,8 +28,10 @@
 //! simulated) over its statistics.
 
 use super::curve::MAX_LINEAR;
+use super::not_fitted;
 use super::plan::id;
 use super::{Entry, FitCtx, Protocol, Stat, Summary};
+use crate::error::Result;
 use crate::sensor::captures::BurstKind;
 
 pub const ID: &str = id::NONLINEAR_RESPONSE;
@@ -163,10 +165,13 @@ fn statistics(p: &Protocol, s: &[Summary], out: &mut Vec<Stat>) {
     }
 }
 
-fn fit(ctx: &FitCtx) -> Result<toml::Table, String> {
+fn fit(ctx: &FitCtx) -> Result<toml::Table> {
     let pairs = exposure_pairs(ctx.protocol, ctx.summaries);
     if pairs.is_empty() {
-        return Err("no scene bursts at two exposures and no flat series".into());
+        return Err(not_fitted(
+            ID,
+            "no scene bursts at two exposures and no flat series",
+        ));
     }
     let (shape, _) = choose(&fit_shapes(&pairs));
     if let Curve::ToeShoulder { .. } = shape {
@@ -176,12 +181,15 @@ fn fit(ctx: &FitCtx) -> Result<toml::Table, String> {
     // what the statistics' pixel selection does to a curve).
     let stats = ctx.pairs(ID, "");
     if stats.is_empty() {
-        return Err("no response statistic in these captures".into());
+        return Err(not_fitted(ID, "no response statistic in these captures"));
     }
     let ratio = stats.iter().map(|(m, s)| m / s).sum::<f64>() / stats.len() as f64;
     let e = ctx.protocol.exponent() * ratio;
     if !(0.2..=5.0).contains(&e) {
-        return Err(format!("fitted exponent {e:.4} is outside [0.2, 5]"));
+        return Err(not_fitted(
+            ID,
+            format!("fitted exponent {e:.4} is outside [0.2, 5]"),
+        ));
     }
     Ok(Curve::Power(e).params())
 }

@@ -5,6 +5,7 @@
 //! where it falls, so the first fault found is the one the message names. [`float`], [`table`]
 //! and [`seed_value`] write parameters (fits, reports, profiles).
 
+use crate::error::Error;
 use serde::Deserialize;
 use serde::de::{
     self, DeserializeOwned, DeserializeSeed, Deserializer, IntoDeserializer, MapAccess, SeqAccess,
@@ -12,9 +13,16 @@ use serde::de::{
 };
 use std::fmt;
 
-/// The effect's parameters from its table (the `id` key already taken out).
-pub fn parse<T: DeserializeOwned>(p: &toml::Table) -> Result<T, String> {
-    T::deserialize(Table(p)).map_err(|e| e.to_string())
+/// The effect's parameters from its table (the `id` key already taken out); an error names
+/// effect `id` and, in its message, the parameter.
+pub fn parse<T: DeserializeOwned>(id: &str, p: &toml::Table) -> crate::error::Result<T> {
+    T::deserialize(Table(p)).map_err(|e| fault(id, e))
+}
+
+/// A fault in effect `id`'s parameters: the key names the effect ("effect 'prnu'"), the
+/// message the parameter, as profiles and the realism operator print them.
+pub fn fault(id: &str, msg: impl ToString) -> Error {
+    Error::key(format!("effect '{id}'"), msg)
 }
 
 // Writing parameters (fits, reports and profiles).
@@ -98,11 +106,11 @@ pub struct OffsetPattern {
 }
 
 impl OffsetPattern {
-    /// (σ, seed) for the plan; σ must be ≥ 0.
-    pub fn checked(self) -> Result<(f32, u64), String> {
+    /// (σ, seed) for effect `id`'s plan; σ must be ≥ 0.
+    pub fn checked(self, id: &str) -> crate::error::Result<(f32, u64)> {
         let s = self.sigma_dn.0;
         if s < 0.0 {
-            return Err(format!("sigma_dn {s} must be ≥ 0"));
+            return Err(fault(id, format!("sigma_dn {s} must be ≥ 0")));
         }
         Ok((s as f32, self.seed.0))
     }

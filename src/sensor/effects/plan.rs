@@ -8,8 +8,9 @@
 //! response curve ([`super::curve`]).
 
 use super::curve::{Curve, curve};
-use super::params::{Finite, OffsetPattern, Seed, Triple, parse};
+use super::params::{Finite, OffsetPattern, Seed, Triple, fault, parse};
 use crate::config::KeyError;
+use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 
 /// An extra physical effect, applied by the realism operator in physical order. Filled by the
@@ -75,8 +76,8 @@ impl Default for Plan {
 }
 
 impl Plan {
-    pub fn from_effects(effects: &[EffectSpec]) -> Result<Plan, String> {
-        Self::compile(effects).map_err(|(_, m)| m)
+    pub fn from_effects(effects: &[EffectSpec]) -> Result<Plan> {
+        Self::compile(effects).map_err(|(_, e)| e)
     }
 
     /// [`Plan::from_effects`]'s checks as a profile's key rule: an error names the
@@ -84,27 +85,28 @@ impl Plan {
     pub fn check(effects: &[EffectSpec]) -> Result<(), KeyError> {
         Self::compile(effects)
             .map(|_| ())
-            .map_err(|(i, m)| KeyError::new(format!("effects[{i}]"), m))
+            .map_err(|(i, e)| KeyError::new(format!("effects[{i}]"), e.to_string()))
     }
 
     /// The plan, or the index of the first effect refused and why.
-    fn compile(effects: &[EffectSpec]) -> Result<Plan, (usize, String)> {
+    fn compile(effects: &[EffectSpec]) -> Result<Plan, (usize, Error)> {
         let mut plan = Plan::default();
         let mut seen = Vec::new();
         for (i, e) in effects.iter().enumerate() {
             let (_, install) = INSTALL.iter().find(|(id, _)| *id == e.id).ok_or_else(|| {
                 let m = format!(
-                    "effects: '{}' is not in this build's effect catalogue ({})",
+                    "'{}' is not in this build's effect catalogue ({})",
                     e.id,
                     ids().join(", ")
                 );
-                (i, m)
+                (i, Error::key("effects", m))
             })?;
             if seen.contains(&e.id) {
-                return Err((i, format!("effects: '{}' is listed twice", e.id)));
+                let m = format!("'{}' is listed twice", e.id);
+                return Err((i, Error::key("effects", m)));
             }
             seen.push(e.id.clone());
-            install(&e.params, &mut plan).map_err(|m| (i, format!("effect '{}': {m}", e.id)))?;
+            install(&e.params, &mut plan).map_err(|err| (i, err))?;
         }
         Ok(plan)
     }
@@ -136,8 +138,9 @@ pub mod id {
     pub const HOT_PIXELS: &str = "hot_pixels";
 }
 
-/// Check an effect's parameters and add it to the plan.
-type Install = fn(&toml::Table, &mut Plan) -> Result<(), String>;
+/// Check an effect's parameters and add it to the plan (an error names the effect:
+/// [`fault`]).
+type Install = fn(&toml::Table, &mut Plan) -> Result<()>;
 
 /// Every effect's install, in physical order (the order of `effects::CATALOGUE`).
 const INSTALL: [(&str, Install); 12] = [
@@ -169,12 +172,15 @@ struct Vignetting {
     strength: Finite,
 }
 
-fn vignetting(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
+fn vignetting(p: &toml::Table, plan: &mut Plan) -> Result<()> {
     let Vignetting {
         strength: Finite(k),
-    } = parse(p)?;
+    } = parse(id::VIGNETTING, p)?;
     if !(0.0..1.0).contains(&k) {
-        return Err(format!("strength {k} must be in [0, 1)"));
+        return Err(fault(
+            id::VIGNETTING,
+            format!("strength {k} must be in [0, 1)"),
+        ));
     }
     plan.vignetting_k = k as f32;
     Ok(())
@@ -187,19 +193,19 @@ struct Prnu {
     seed: Seed,
 }
 
-fn prnu(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
+fn prnu(p: &toml::Table, plan: &mut Plan) -> Result<()> {
     let Prnu {
         sigma: Finite(s),
         seed,
-    } = parse(p)?;
+    } = parse(id::PRNU, p)?;
     if !(0.0..0.5).contains(&s) {
-        return Err(format!("sigma {s} must be in [0, 0.5)"));
+        return Err(fault(id::PRNU, format!("sigma {s} must be in [0, 0.5)")));
     }
     plan.prnu = Some((s as f32, seed.0));
     Ok(())
 }
 
-fn nonlinear_response(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
+fn nonlinear_response(p: &toml::Table, plan: &mut Plan) -> Result<()> {
     plan.response = Some(curve(p)?);
     Ok(())
 }
@@ -211,11 +217,11 @@ struct ChannelNoise {
     b_scale: Triple,
 }
 
-fn channel_noise(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
+fn channel_noise(p: &toml::Table, plan: &mut Plan) -> Result<()> {
     let ChannelNoise {
         a_scale: Triple(a),
         b_scale: Triple(b),
-    } = parse(p)?;
+    } = parse(id::CHANNEL_NOISE, p)?;
     for c in 0..3 {
         plan.a_scale[c] *= a[c] as f32;
         plan.b_scale[c] *= b[c] as f32;
@@ -229,10 +235,13 @@ struct HeavyTailedReadNoise {
     dof: Finite,
 }
 
-fn heavy_tailed_read_noise(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
-    let HeavyTailedReadNoise { dof: Finite(d) } = parse(p)?;
+fn heavy_tailed_read_noise(p: &toml::Table, plan: &mut Plan) -> Result<()> {
+    let HeavyTailedReadNoise { dof: Finite(d) } = parse(id::HEAVY_TAILED_READ_NOISE, p)?;
     if !(d > 4.0 && d.is_finite()) {
-        return Err(format!("dof {d} must be > 4 (finite kurtosis)"));
+        return Err(fault(
+            id::HEAVY_TAILED_READ_NOISE,
+            format!("dof {d} must be > 4 (finite kurtosis)"),
+        ));
     }
     plan.heavy_dof = Some(d as f32);
     Ok(())
@@ -286,25 +295,29 @@ struct CorrelatedNoise {
     rho_v: Option<Finite>,
 }
 
-fn rho(r: Option<Finite>, key: &str) -> Result<Option<f64>, String> {
+fn rho(r: Option<Finite>, key: &str) -> Result<Option<f64>> {
     match r {
-        Some(Finite(r)) if !(0.0..=RHO_MAX).contains(&r) => {
-            Err(format!("{key} {r} must be in [0, {RHO_MAX}]"))
-        }
+        Some(Finite(r)) if !(0.0..=RHO_MAX).contains(&r) => Err(fault(
+            id::CORRELATED_NOISE,
+            format!("{key} {r} must be in [0, {RHO_MAX}]"),
+        )),
         r => Ok(r.map(|r| r.0)),
     }
 }
 
-fn correlated_noise(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
+fn correlated_noise(p: &toml::Table, plan: &mut Plan) -> Result<()> {
     let CorrelatedNoise {
         rho: r,
         rho_h,
         rho_v,
-    } = parse(p)?;
+    } = parse(id::CORRELATED_NOISE, p)?;
     let both = rho(r, "rho")?;
     let (h, v) = (rho(rho_h, "rho_h")?.or(both), rho(rho_v, "rho_v")?.or(both));
     let (Some(h), Some(v)) = (h, v) else {
-        return Err("needs rho_h and rho_v (or rho for both axes)".into());
+        return Err(fault(
+            id::CORRELATED_NOISE,
+            "needs rho_h and rho_v (or rho for both axes)",
+        ));
     };
     let f = |r: f64| kernel(width(r)).iter().map(|&x| x as f32).collect();
     plan.corr_kernels = Some((f(h), f(v)));
@@ -327,10 +340,13 @@ pub fn channel_mix(rho: f64) -> (f64, f64) {
     (a, -a / r3 + (a * a / 3.0 + rho).sqrt())
 }
 
-fn channel_correlation(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
-    let ChannelCorrelation { rho: Finite(r) } = parse(p)?;
+fn channel_correlation(p: &toml::Table, plan: &mut Plan) -> Result<()> {
+    let ChannelCorrelation { rho: Finite(r) } = parse(id::CHANNEL_CORRELATION, p)?;
     if !(0.0..=RHO_MAX).contains(&r) {
-        return Err(format!("rho {r} must be in [0, {RHO_MAX}]"));
+        return Err(fault(
+            id::CHANNEL_CORRELATION,
+            format!("rho {r} must be in [0, {RHO_MAX}]"),
+        ));
     }
     let (a, b) = channel_mix(r);
     plan.channel_mix = Some((a as f32, b as f32));
@@ -343,8 +359,8 @@ struct BlackLevel {
     offset_dn: Finite,
 }
 
-fn black_level(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
-    let BlackLevel { offset_dn } = parse(p)?;
+fn black_level(p: &toml::Table, plan: &mut Plan) -> Result<()> {
+    let BlackLevel { offset_dn } = parse(id::BLACK_LEVEL, p)?;
     plan.black_offset += offset_dn.0 as f32;
     Ok(())
 }
@@ -356,24 +372,24 @@ pub struct RowNoise {
     pub sigma_dn: Finite,
 }
 
-fn row_noise(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
+fn row_noise(p: &toml::Table, plan: &mut Plan) -> Result<()> {
     let RowNoise {
         sigma_dn: Finite(s),
-    } = parse(p)?;
+    } = parse(id::ROW_NOISE, p)?;
     if s < 0.0 {
-        return Err(format!("sigma_dn {s} must be ≥ 0"));
+        return Err(fault(id::ROW_NOISE, format!("sigma_dn {s} must be ≥ 0")));
     }
     plan.row_sigma = s as f32;
     Ok(())
 }
 
-fn column_noise(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
-    plan.column = Some(parse::<OffsetPattern>(p)?.checked()?);
+fn column_noise(p: &toml::Table, plan: &mut Plan) -> Result<()> {
+    plan.column = Some(parse::<OffsetPattern>(id::COLUMN_NOISE, p)?.checked(id::COLUMN_NOISE)?);
     Ok(())
 }
 
-fn dsnu(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
-    plan.dsnu = Some(parse::<OffsetPattern>(p)?.checked()?);
+fn dsnu(p: &toml::Table, plan: &mut Plan) -> Result<()> {
+    plan.dsnu = Some(parse::<OffsetPattern>(id::DSNU, p)?.checked(id::DSNU)?);
     Ok(())
 }
 
@@ -385,16 +401,15 @@ struct HotPixels {
     seed: Seed,
 }
 
-fn hot_pixels(p: &toml::Table, plan: &mut Plan) -> Result<(), String> {
+fn hot_pixels(p: &toml::Table, plan: &mut Plan) -> Result<()> {
     let HotPixels {
         fraction: Finite(f),
         offset_dn: Finite(o),
         seed,
-    } = parse(p)?;
+    } = parse(id::HOT_PIXELS, p)?;
     if !(0.0..0.1).contains(&f) || o < 0.0 {
-        return Err(format!(
-            "fraction {f} must be in [0, 0.1) and offset_dn {o} ≥ 0"
-        ));
+        let m = format!("fraction {f} must be in [0, 0.1) and offset_dn {o} ≥ 0");
+        return Err(fault(id::HOT_PIXELS, m));
     }
     plan.hot = Some((f as f32, o as f32, seed.0));
     Ok(())

@@ -7,9 +7,11 @@
 //! offset-only excess of a dark burst at the same ISO (DSNU), divided by the squared mean
 //! signal: an estimate of σ². Fit: σ² = measured − simulated.
 
+use super::not_fitted;
 use super::plan::id;
 use super::{Entry, FitCtx, Protocol, Stat, Summary, float, hashed_normal};
 use super::{seed_value, table};
+use crate::error::Result;
 use crate::sensor::captures::BurstKind;
 
 pub const ID: &str = id::PRNU;
@@ -54,10 +56,13 @@ fn statistics(p: &Protocol, s: &[Summary], out: &mut Vec<Stat>) {
     }
 }
 
-fn fit(ctx: &FitCtx) -> Result<toml::Table, String> {
+fn fit(ctx: &FitCtx) -> Result<toml::Table> {
     let v = ctx.mean_excess(ID, NAME)?;
     if v <= 0.0 {
-        return Err(format!("excess PRNU variance {v:.3e} is not positive"));
+        return Err(not_fitted(
+            ID,
+            format!("excess PRNU variance {v:.3e} is not positive"),
+        ));
     }
     Ok(table(&[
         ("sigma", float(v.sqrt())),

@@ -11,6 +11,7 @@
 use super::params::parse;
 use super::plan::{RowNoise, id};
 use super::{Entry, FitCtx, Protocol, Stat, Summary, float, table};
+use crate::error::Result;
 use crate::sensor::captures::BurstKind;
 use crate::sensor::profile::SensorProfile;
 
@@ -34,13 +35,13 @@ fn statistics(p: &Protocol, s: &[Summary], out: &mut Vec<Stat>) {
     }
 }
 
-fn fit(ctx: &FitCtx) -> Result<toml::Table, String> {
+fn fit(ctx: &FitCtx) -> Result<toml::Table> {
     let s = ctx.excess_sigma(ID, NAME, "row covariance")?;
     Ok(table(&[("sigma_dn", float(s))]))
 }
 
 fn adjust(profile: &mut SensorProfile, params: &toml::Table) {
-    let s = parse::<RowNoise>(params).map_or(0.0, |p| p.sigma_dn.0);
+    let s = parse::<RowNoise>(ID, params).map_or(0.0, |p| p.sigma_dn.0);
     let range = profile.levels.white_level - profile.levels.black_level;
     for n in &mut profile.noise {
         for b in &mut n.b {

@@ -8,9 +8,11 @@
 //! quadratic surface first, so the two do not confuse each other.
 //! Fit: k = measured k̂ − simulated k̂ (the simulated model has no vignetting).
 
+use super::not_fitted;
 use super::plan::id;
 use super::summary::normalised_xy;
 use super::{Entry, FitCtx, Protocol, Stat, Summary, float, table};
+use crate::error::Result;
 use crate::sensor::captures::BurstKind;
 
 pub const ID: &str = id::VIGNETTING;
@@ -69,10 +71,13 @@ fn statistics(p: &Protocol, s: &[Summary], out: &mut Vec<Stat>) {
     }
 }
 
-fn fit(ctx: &FitCtx) -> Result<toml::Table, String> {
+fn fit(ctx: &FitCtx) -> Result<toml::Table> {
     let k = ctx.mean_excess(ID, NAME)?;
     if !(0.0..0.99).contains(&k) {
-        return Err(format!("fitted falloff {k:.4} is outside [0, 0.99)"));
+        return Err(not_fitted(
+            ID,
+            format!("fitted falloff {k:.4} is outside [0, 0.99)"),
+        ));
     }
     Ok(table(&[("strength", float(k))]))
 }
