@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
-"""Dev-time oracle for tests/brackets.rs: OpenCV's CalibrateDebevec response and
-AlignMTB shifts on small deterministic brackets. Writes tests/data/brackets/:
+"""Dev-time oracle for tests/brackets/response.rs and alignment.rs: OpenCV's
+CalibrateDebevec response and AlignMTB shifts on small deterministic brackets. Writes
+tests/data/brackets/:
   crf_{0..4}.png      an 8-bit bracket (times in crf_times.txt) of a synthetic scene through a
                       non-gamma response (1 - exp(-4x)) / (1 - exp(-4))
   crf_debevec.csv     OpenCV's response, 256 rows "r,g,b" (exp g(z), g(128) = 0), defaults

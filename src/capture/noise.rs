@@ -336,8 +336,9 @@ pub(crate) struct Measured {
 /// pairs), else from every frame's flat regions. The noise's spatial and channel correlation
 /// come from the same pairs or, without repeats, from each frame's [`cross_residuals`] against
 /// the other frames of its set: on a single frame's flat regions scene texture passes for
-/// correlated noise (tests/brackets.rs: on gratings of 15 % contrast, white noise read as
-/// lag-1 0.226 and channel correlation 0.066; on the residual, under 0.02 and 0.05).
+/// correlated noise (tests/brackets/noise_correlation.rs: on gratings of 15 % contrast, white
+/// noise read as lag-1 0.226 and channel correlation 0.066; on the residual, under 0.02 and
+/// 0.05).
 pub(crate) fn measure_noise(
     sets: &[BracketSet],
     response: &Response,
