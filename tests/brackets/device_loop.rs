@@ -14,9 +14,9 @@ use std::path::{Path, PathBuf};
 
 #[test]
 fn a_network_is_never_scored_on_captures_that_calibrated_its_profile() {
-    use hdrsynth::runner::method::from_checkpoint;
     use hdrsynth::eval::evaluate::{self, EvalOptions};
     use hdrsynth::eval::infer::NetworkOptions;
+    use hdrsynth::runner::method::from_checkpoint;
     let tmp = tempfile::tempdir().expect("tmp");
     noisy_png_bracket(
         &tmp.path().join("scene"),

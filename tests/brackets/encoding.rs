@@ -157,9 +157,9 @@ fn an_estimated_response_is_recorded_as_the_curve_of_the_device_codes() {
 
 #[test]
 fn eval_warns_when_a_network_meets_a_curve_it_was_not_trained_on() {
-    use hdrsynth::runner::method::from_checkpoint;
     use hdrsynth::eval::evaluate::{self, EvalOptions};
     use hdrsynth::eval::infer::NetworkOptions;
+    use hdrsynth::runner::method::from_checkpoint;
     let tmp = tempfile::tempdir().expect("tmp");
     bracket_folder(tmp.path());
     let beside = tempfile::tempdir().expect("tmp");
