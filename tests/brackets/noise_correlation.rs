@@ -118,6 +118,23 @@ fn correlated_output_noise_is_fitted_as_the_catalogues_kernel_with_its_per_pixel
         (rho - rho_true).abs() < 0.04,
         "fitted lag-1 correlation {rho}, true {rho_true:.3}"
     );
+    // The provenance reads as one sentence per measurement: a string continued across source
+    // lines without its `\` would carry the next line's indentation as a run of spaces.
+    let prov = &cal.profile.provenance;
+    for text in [&prov.noise, &prov.response, &prov.colour, &prov.levels] {
+        assert!(
+            text.contains("bracket folder")
+                || text.contains("output domain")
+                || text.contains("identity"),
+            "{text}"
+        );
+        assert!(!text.contains("  ") && !text.contains('\n'), "{text:?}");
+    }
+    assert!(
+        prov.noise.contains("spatially correlated as measured"),
+        "{}",
+        prov.noise
+    );
     // a is the per-pixel variance's again, not the fraction Immerkær's residual sees.
     for c in 0..3 {
         let got = cal.profile.noise[0].a[c];
