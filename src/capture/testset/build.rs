@@ -83,27 +83,14 @@ fn build_set(
     out: &Path,
     notes: &mut Vec<String>,
 ) -> Result<BuiltBracketSet> {
-    let n = set.frames.len();
     let idx = sel.indices;
-    let gt_idx: Vec<usize> = match opts.gt_frames {
-        GtFrames::Inputs => idx.to_vec(),
-        GtFrames::All | GtFrames::Others => (0..n).collect(),
-    };
+    let MergedFrames {
+        gt_idx,
+        dropped,
+        ref_pos,
+        stops,
+    } = merged_frames(set, sel, opts, notes);
     let chosen: Vec<&BracketFrame> = idx.iter().map(|&i| &set.frames[i]).collect();
-    let dropped: Vec<PathBuf> = (0..n)
-        .filter(|i| !gt_idx.contains(i))
-        .map(|i| set.frames[i].path.clone())
-        .collect();
-    if n > 3 || opts.inputs != InputChoice::Spread || gt_idx.len() == idx.len() {
-        notes.push(selection_note(set, sel, gt_idx.len(), dropped.len()));
-    }
-    // Position of the reference among the merged frames.
-    let ref_pos = gt_idx.iter().position(|&i| i == idx[1]).unwrap_or(0);
-    // Stops relative to the shortest input, rounded as written.
-    let stops: Vec<f64> = gt_idx
-        .iter()
-        .map(|&i| written_stop(set.frames[i].stop - chosen[0].stop))
-        .collect();
     // The hat merge weighs each frame by its code values as stored: kept, aligned alike.
     let hat = Hat::of(gt_idx != idx, opts.gt_frames);
     let SetCodes {
@@ -114,20 +101,8 @@ fn build_set(
     } = set_codes(set, &gt_idx, idx, ref_pos, lin, hat != Hat::No, how.encode)?;
     let mut gt_shifts: Vec<Option<[i32; 2]>> = vec![None; gt_idx.len()];
     if let Some(mtb) = opts.align {
-        let s = align_codes(
-            &mut codes,
-            &mut stored,
-            &mut written,
-            (&gt_idx, idx, ref_pos),
-            mtb,
-        );
-        if codes[ref_pos].width == 0 || codes[ref_pos].height == 0 {
-            return Err(Error::layout(
-                &set.frames[idx[1]].path,
-                format!("set '{}': MTB shifts {s:?} leave no common area", set.name),
-            ));
-        }
-        gt_shifts = s.iter().map(|&(x, y)| Some([x, y])).collect();
+        let kept = [&mut codes, &mut stored, &mut written];
+        gt_shifts = aligned(set, kept, (&gt_idx, idx, ref_pos), mtb)?;
     }
     let (w, h) = scan::scorable_size(&set.frames[idx[1]], &codes[ref_pos])?;
     let pos = idx.map(|i| gt_idx.iter().position(|&g| g == i).unwrap_or(0));
@@ -193,6 +168,68 @@ fn build_set(
         toml::to_string_pretty(&record).map_err(|e| Error::encode(set_dir.join(RECORD), e))?;
     crate::io::atomic::write_atomic(&set_dir.join(RECORD), toml.as_bytes())?;
     Ok(record)
+}
+
+/// The frames a set's ground truth merges (indices into the set), the frames it leaves out,
+/// the reference's position among the merged frames and their stops relative to the shortest
+/// input, rounded as exposure.txt writes them.
+struct MergedFrames {
+    gt_idx: Vec<usize>,
+    dropped: Vec<PathBuf>,
+    ref_pos: usize,
+    stops: Vec<f64>,
+}
+
+fn merged_frames(
+    set: &scan::BracketSet,
+    sel: &InputSelection,
+    opts: &BracketOptions,
+    notes: &mut Vec<String>,
+) -> MergedFrames {
+    let n = set.frames.len();
+    let idx = sel.indices;
+    let gt_idx: Vec<usize> = match opts.gt_frames {
+        GtFrames::Inputs => idx.to_vec(),
+        GtFrames::All | GtFrames::Others => (0..n).collect(),
+    };
+    let dropped: Vec<PathBuf> = (0..n)
+        .filter(|i| !gt_idx.contains(i))
+        .map(|i| set.frames[i].path.clone())
+        .collect();
+    if n > 3 || opts.inputs != InputChoice::Spread || gt_idx.len() == idx.len() {
+        notes.push(selection_note(set, sel, gt_idx.len(), dropped.len()));
+    }
+    let ref_pos = gt_idx.iter().position(|&i| i == idx[1]).unwrap_or(0);
+    let shortest = set.frames[idx[0]].stop;
+    let stops = gt_idx
+        .iter()
+        .map(|&i| written_stop(set.frames[i].stop - shortest))
+        .collect();
+    MergedFrames {
+        gt_idx,
+        dropped,
+        ref_pos,
+        stops,
+    }
+}
+
+/// [`align_codes`] on a set's kept images (the γ codes, the stored codes, the written
+/// inputs), refused where the shifts leave no common area; each merged frame's shift.
+fn aligned(
+    set: &scan::BracketSet,
+    [codes, stored, written]: [&mut Vec<Image>; 3],
+    at: (&[usize], [usize; 3], usize),
+    mtb: MtbOptions,
+) -> Result<Vec<Option<[i32; 2]>>> {
+    let (_, idx, ref_pos) = at;
+    let s = align_codes(codes, stored, written, at, mtb);
+    if codes[ref_pos].width == 0 || codes[ref_pos].height == 0 {
+        return Err(Error::layout(
+            &set.frames[idx[1]].path,
+            format!("set '{}': MTB shifts {s:?} leave no common area", set.name),
+        ));
+    }
+    Ok(s.iter().map(|&(x, y)| Some([x, y])).collect())
 }
 
 /// MTB-align every ground-truth frame's codes to the reference (at `ref_pos`) and crop all
