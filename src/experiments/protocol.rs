@@ -21,7 +21,7 @@
 use crate::data::generate::{GenerateConfig, generate};
 use crate::error::{Error, Result};
 use crate::experiments::ablate::{self, AblateConfig, Axis, AxisKind, EvalSpec, TestsetSpec};
-use crate::experiments::presets::{Preset, Sizes};
+use crate::experiments::presets::{self, Preset, Sizes};
 use crate::experiments::quickstart::{self, Options};
 use crate::experiments::recipe::{
     self, DSLR_ISOS, PRETRAIN_PROFILE, Stage, TARGET_ISOS, TRAIN_SCENE_SEED, control_row, data_set,
@@ -441,7 +441,7 @@ pub fn run(opts: &Options) -> Result<String> {
         heldout: true,
         ..opts.clone()
     })?;
-    let s = quickstart::sizes_with_seeds(opts.preset, opts.seeds.as_deref())?;
+    let s = presets::sizes_with_seeds(opts.preset, opts.seeds.as_deref())?;
     let backend = opts.backend.as_deref().unwrap_or(s.backend);
     let out = &opts.out;
     let _lock = crate::io::guard::OutputLock::acquire(&out.join("protocol"), "protocol")?;
@@ -659,7 +659,7 @@ mod tests {
     fn the_grids_follow_the_protocol_and_parse_back() {
         let out = Path::new("/o");
         let target = out.join("target.toml");
-        let s = quickstart::sizes(Preset::Cpu);
+        let s = presets::sizes(Preset::Cpu);
         let parse = |cfg: &AblateConfig| {
             let text = toml::to_string(cfg).expect("serialise");
             AblateConfig::parse(&text, Path::new("grid.toml")).expect(&text)
