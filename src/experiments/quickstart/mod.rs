@@ -29,7 +29,11 @@ mod reading;
 mod test_sets;
 pub use crate::experiments::presets::Preset;
 pub(crate) use crate::experiments::presets::{Sizes, sizes, sizes_with_seeds};
-use crate::experiments::recipe::*;
+use crate::experiments::recipe::{
+    CONTROL_LABEL, DSLR_ISOS, PRETRAIN_PROFILE, REFERENCE, Stage, TARGET_ISOS, TEST_SCENE_SEED,
+    TRAIN_SCENE_SEED, data_set, generate_config, isos, net_o_row, net_p_row, net_r_row, net_s_row,
+    row, stage, target_profile, train_config, train_resumable, write, write_config,
+};
 pub use reading::Decision;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};

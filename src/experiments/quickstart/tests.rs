@@ -1,6 +1,7 @@
 use super::*;
 use crate::config::parse_toml;
 use crate::experiments::ablate::DiffEntry;
+use crate::experiments::recipe::{TARGET_PROFILE, control_row};
 use crate::models::ModelConfig;
 use crate::models::wu::Linearise;
 use serde::Serialize;
