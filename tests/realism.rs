@@ -226,3 +226,40 @@ fn non_finite_inputs_cannot_escape_the_dn_range() {
         assert!(ldr.data.iter().all(|v| (0.0..=1.0).contains(v)));
     }
 }
+
+#[test]
+fn an_output_floor_crushes_the_signal_under_it_and_keeps_white() {
+    use hdrsynth::sensor::effects::EffectSpec;
+    let mut p = profile(LINEAR, r#"{ kind = "srgb" }"#, IDENTITY);
+    p.effects.push(EffectSpec {
+        id: "floor".into(),
+        params: toml::toml! { threshold = 0.01 },
+    });
+    let mut o = RealismOptions::new(100.0);
+    o.noise = NoiseModel::None;
+    o.colour = false;
+    let r = Realism::new(&p, &o).expect("realism");
+    // DN = round(64 + v·4031); the floor maps x = (DN − 64)/4031 to (x − 0.01)/0.99, then
+    // IEC 61966-2-1's sRGB, 8 bits.
+    let srgb = |x: f64| {
+        if x <= 0.003_130_8 {
+            12.92 * x
+        } else {
+            1.055 * x.powf(1.0 / 2.4) - 0.055
+        }
+    };
+    for v in [0.0f64, 0.005, 0.0099, 0.02, 0.18, 0.5, 1.0] {
+        let dn = (64.0 + v * 4031.0).round();
+        let x = ((dn - 64.0) / 4031.0 - 0.01).max(0.0) / 0.99;
+        let want = (srgb(x) * 255.0).round() / 255.0;
+        let got = r.apply(&flat(2, 2, [v as f32; 3]), 1).get(0, 0);
+        assert!((got[0] as f64 - want).abs() < 1e-6, "{v}: {} for {want}", got[0]);
+    }
+    // Under the threshold: code 0; white stays white.
+    assert_eq!(r.apply(&flat(1, 1, [0.0099; 3]), 1).get(0, 0), [0.0; 3]);
+    assert_eq!(r.apply(&flat(1, 1, [1.0; 3]), 1).get(0, 0), [1.0; 3]);
+    // A threshold out of range is refused, naming the effect and the parameter.
+    p.effects[0].params = toml::toml! { threshold = 0.2 };
+    let e = Realism::new(&p, &o).err().expect("refused").to_string();
+    assert!(e.contains("floor") && e.contains("threshold"), "{e}");
+}

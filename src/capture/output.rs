@@ -30,6 +30,10 @@
 //! denoises chroma harder than luma, or subsamples chroma as JPEG does, makes its channels'
 //! noise move together). Each names what would close it: the profile's noise a and b, the
 //! catalogue's `correlated_noise` and `channel_correlation`.
+//!
+//! On each set's frames as they are, the floor: the radiance → code map under the toe, read
+//! from the frames that see those pixels at mid codes (output/floor.rs), which the
+//! catalogue's `floor` closes.
 
 use crate::capture::linearise::Linearise;
 use crate::capture::linearise::{code_frame, linearise};
@@ -114,6 +118,7 @@ struct FrameStats {
     bins: Vec<NoiseBin>,
     cross: [f64; 3],
     square: [f64; 3],
+    floor: floor::FloorMoments,
 }
 
 /// What the statistics are taken on: a frame, or, where the sets hold repeated captures, a
@@ -140,43 +145,60 @@ impl Unit {
 /// different seeds), each set's frames taken against the others as the real ones are.
 fn simulate(
     profile: &SensorProfile,
-    scenes: &[(Image, f64, bool)],
-    groups: &Groups,
+    prep: &Prepared,
     opts: &OutputCheckOptions,
     r: usize,
 ) -> Result<FrameStats> {
-    let mut units = scenes
+    let units = prep
+        .scenes
         .iter()
         .enumerate()
         .map(|(j, (scene, iso, pair))| {
-            let realism = Realism::new(
-                profile,
-                &RealismOptions {
-                    iso: *iso,
-                    exposure: 1.0,
-                    noise: if opts.noise {
-                        NoiseModel::Gaussian
-                    } else {
-                        NoiseModel::None
-                    },
-                    colour: false,
-                    output_bits: 8,
-                },
-            )?;
-            let seed = |k: u64| {
-                crate::rng::mix64(opts.seed ^ crate::rng::mix64((r * 7919 + j) as u64) ^ k)
-            };
+            let (realism, seed) = render(profile, opts, *iso, r, j)?;
             let a = realism.apply(scene, seed(0));
             let unit = if *pair {
                 Unit::Pair(Pair::new(&a, &realism.apply(scene, seed(1 << 40))))
             } else {
-                Unit::Frame(a)
+                Unit::Frame(a.clone())
             };
-            Ok((unit, *iso))
+            Ok(((unit, *iso), a))
         })
         .collect::<Result<Vec<_>>>()?;
-    residualise(&mut units, groups, &profile.response)?;
-    Ok(measure(&units, &profile.response))
+    let (mut units, firsts): (Vec<(Unit, f64)>, Vec<Image>) = units.into_iter().unzip();
+    let floor = prep.floor_of(|i| &firsts[i], &profile.response);
+    drop(firsts);
+    residualise(&mut units, &prep.groups, &profile.response)?;
+    Ok(FrameStats {
+        floor,
+        ..measure(&units, &profile.response)
+    })
+}
+
+/// The realism operator of scene `j` of replicate `r` (noise as `opts` asks), and the seeds
+/// of its renders.
+fn render(
+    profile: &SensorProfile,
+    opts: &OutputCheckOptions,
+    iso: f64,
+    r: usize,
+    j: usize,
+) -> Result<(Realism, impl Fn(u64) -> u64 + use<>)> {
+    let realism = Realism::new(
+        profile,
+        &RealismOptions {
+            iso,
+            exposure: 1.0,
+            noise: if opts.noise {
+                NoiseModel::Gaussian
+            } else {
+                NoiseModel::None
+            },
+            colour: false,
+            output_bits: 8,
+        },
+    )?;
+    let base = opts.seed ^ crate::rng::mix64((r * 7919 + j) as u64);
+    Ok((realism, move |k: u64| crate::rng::mix64(base ^ k)))
 }
 
 /// The units of each set of single frames (indices into the units, relative exposure times).
@@ -247,7 +269,7 @@ const DARK_BINS: usize = noise::BINS / 8;
 /// [`STATS`]: per channel the weighted mean ln σ² (weights: the real frames' pixels) over the
 /// bins from [`DARK_BINS`] up, the same under it (NaN where no bin is there), and the median
 /// correlation ratio (as `calibrate brackets` takes it: a bin whose noise falls under the
-/// 8-bit step has a ratio without bound); then the mean channel correlation.
+/// 8-bit step has a ratio without bound); then the mean channel correlation and the floor.
 fn values(s: &FrameStats, keys: &[(usize, usize, f64)]) -> Vec<f64> {
     let mut out = Vec::new();
     for c in 0..3 {
@@ -272,6 +294,7 @@ fn values(s: &FrameStats, keys: &[(usize, usize, f64)]) -> Vec<f64> {
     let corr =
         |k: usize, a: usize, b: usize| s.cross[k] / (s.square[a] * s.square[b]).sqrt().max(1e-30);
     out.push((corr(0, 0, 1) + corr(1, 1, 2) + corr(2, 0, 2)) / 3.0);
+    out.push(s.floor.value());
     out
 }
 
@@ -291,72 +314,163 @@ pub fn check_scanned(
     profile: &SensorProfile,
     opts: &OutputCheckOptions,
 ) -> Result<OutputCheck> {
-    if let Some(f) = scan
-        .sets
-        .iter()
-        .flat_map(|s| &s.frames)
-        .find(|f| f.kind == scan::FrameKind::Dng)
-    {
-        return Err(crate::error::Error::layout(
-            &f.path,
-            "a DNG is linear raw, not the device's output: the device-output check reads \
-             JPEG/PNG/TIFF frames",
-        ));
-    }
-    let lin = Linearise::Curve(profile.response.clone());
-    // The scene estimate is linear: rendered as it is, not read through the profile's source
-    // curve (a measured profile's is the scene engine's display curve, which would darken
-    // every simulated frame and compare the noise at other codes than the frames').
+    check_prepared(&Prepared::new(scan, profile)?, profile, opts)
+}
+
+/// The scene estimate is linear: rendered as it is, not read through the profile's source
+/// curve (a measured profile's is the scene engine's display curve, which would darken every
+/// simulated frame and compare the noise at other codes than the frames').
+fn device(profile: &SensorProfile) -> SensorProfile {
     let mut device = profile.clone();
     device.source_response = crate::sensor::profile::Response::Linear;
-    let profile = &device;
-    let temporal = scan.sets.iter().any(|s| !s.repeats.is_empty());
-    // Per set: the real units with their ISO, and the scene at each unit's exposure (a pair:
-    // rendered twice).
-    let mut real: Vec<(Unit, f64)> = Vec::new();
-    // Sets of single frames: the units' indices and relative exposure times.
-    let mut groups: Groups = Vec::new();
-    let mut scenes: Vec<(Image, f64, bool)> = Vec::new();
-    for set in &scan.sets {
-        let mut gamma = Vec::new();
-        let mut stored = Vec::new();
-        let mut times = Vec::new();
-        for f in &set.frames {
-            let code = window(code_frame(f)?);
-            let linear = linearise(f, code.clone(), &lin);
-            gamma.push(linear.map(|v| v.clamp(0.0, 1.0).powf(1.0 / FIELD_GAMMA)));
-            stored.push(code);
-            times.push(f.stop.exp2());
-        }
-        let radiance = smooth(&testset::hat_merge(&gamma, &stored, &times, FIELD_GAMMA)?);
-        if !temporal {
-            groups.push((
-                (real.len()..real.len() + set.frames.len()).collect(),
-                times.clone(),
+    device
+}
+
+/// What a check reads of a folder, whatever profile it simulates (of one response: the one
+/// the frames are linearised and their statistics binned with).
+struct Prepared {
+    /// The real units with their ISO, measured.
+    measured: FrameStats,
+    /// Sets of single frames: the units' indices and relative exposure times.
+    groups: Groups,
+    /// The scene at each unit's exposure (a pair: rendered twice) and its ISO.
+    scenes: Vec<(Image, f64, bool)>,
+    /// Per set, the unit of each of its frames (the first capture of an exposure) and the
+    /// frames' relative exposure times: what the floor statistic reads.
+    floor_groups: Groups,
+}
+
+impl Prepared {
+    fn new(scan: scan::BracketScan, profile: &SensorProfile) -> Result<Prepared> {
+        if let Some(f) = scan
+            .sets
+            .iter()
+            .flat_map(|s| &s.frames)
+            .find(|f| f.kind == scan::FrameKind::Dng)
+        {
+            return Err(crate::error::Error::layout(
+                &f.path,
+                "a DNG is linear raw, not the device's output: the device-output check reads \
+                 JPEG/PNG/TIFF frames",
             ));
         }
-        for ((f, t), code) in set.frames.iter().zip(&times).zip(stored) {
-            let iso = f.exif.iso.unwrap_or(100.0);
-            let scene = radiance.map(|v| v * *t as f32);
-            if !temporal {
-                real.push((Unit::Frame(code), iso));
-                scenes.push((scene, iso, false));
-                continue;
+        let lin = Linearise::Curve(profile.response.clone());
+        let temporal = scan.sets.iter().any(|s| !s.repeats.is_empty());
+        let mut real: Vec<(Unit, f64)> = Vec::new();
+        let mut groups: Groups = Vec::new();
+        let mut floor_groups: Groups = Vec::new();
+        let mut scenes: Vec<(Image, f64, bool)> = Vec::new();
+        let mut floor = floor::FloorMoments::default();
+        for set in &scan.sets {
+            let mut gamma = Vec::new();
+            let mut stored = Vec::new();
+            let mut times = Vec::new();
+            for f in &set.frames {
+                let code = window(code_frame(f)?);
+                let linear = linearise(f, code.clone(), &lin);
+                gamma.push(linear.map(|v| v.clamp(0.0, 1.0).powf(1.0 / FIELD_GAMMA)));
+                stored.push(code);
+                times.push(f.stop.exp2());
             }
-            let mut prev = (code, &f.path);
-            for r in set.repeats_of(f) {
-                let next = window(code_frame(r)?);
-                let pair = noise::checked_pair(&prev.0, &next, prev.1, &r.path)?;
-                real.push((Unit::Pair(pair), iso));
-                scenes.push((scene.clone(), iso, true));
-                prev = (next, &r.path);
+            let frames: Vec<&Image> = stored.iter().collect();
+            floor.add(&floor::moments(&frames, &times, &profile.response));
+            let radiance = smooth(&testset::hat_merge(&gamma, &stored, &times, FIELD_GAMMA)?);
+            if !temporal {
+                groups.push((
+                    (real.len()..real.len() + set.frames.len()).collect(),
+                    times.clone(),
+                ));
+            }
+            let mut firsts = Vec::new();
+            for ((f, t), code) in set.frames.iter().zip(&times).zip(stored) {
+                let iso = f.exif.iso.unwrap_or(100.0);
+                let scene = radiance.map(|v| v * *t as f32);
+                let first = real.len();
+                if !temporal {
+                    firsts.push(first);
+                    real.push((Unit::Frame(code), iso));
+                    scenes.push((scene, iso, false));
+                    continue;
+                }
+                let mut prev = (code, &f.path);
+                for r in set.repeats_of(f) {
+                    let next = window(code_frame(r)?);
+                    let pair = noise::checked_pair(&prev.0, &next, prev.1, &r.path)?;
+                    real.push((Unit::Pair(pair), iso));
+                    scenes.push((scene.clone(), iso, true));
+                    prev = (next, &r.path);
+                }
+                if real.len() > first {
+                    firsts.push(first);
+                }
+            }
+            // A frame without repeats has no unit in a temporal check: no floor there.
+            if firsts.len() == set.frames.len() {
+                floor_groups.push((firsts, times));
             }
         }
+        residualise(&mut real, &groups, &profile.response)?;
+        let measured = FrameStats {
+            floor,
+            ..measure(&real, &profile.response)
+        };
+        Ok(Prepared {
+            measured,
+            groups,
+            scenes,
+            floor_groups,
+        })
     }
-    residualise(&mut real, &groups, &profile.response)?;
-    let measured = measure(&real, &profile.response);
+
+    /// The floor moments of one side, `frame(i)` the codes of unit i's first render.
+    fn floor_of<'a>(
+        &self,
+        frame: impl Fn(usize) -> &'a Image,
+        response: &crate::sensor::profile::Response,
+    ) -> floor::FloorMoments {
+        let mut m = floor::FloorMoments::default();
+        for (indices, times) in &self.floor_groups {
+            let frames: Vec<&Image> = indices.iter().map(|&i| frame(i)).collect();
+            m.add(&floor::moments(&frames, times, response));
+        }
+        m
+    }
+
+    /// The floor statistic of `profile`'s simulation, the mean over the first `replicates`
+    /// replicates (the check's seeds): only the frames the statistic reads are rendered.
+    fn floor_value(
+        &self,
+        profile: &SensorProfile,
+        opts: &OutputCheckOptions,
+        replicates: usize,
+    ) -> Result<f64> {
+        let profile = &device(profile);
+        let mut sum = 0.0;
+        for r in 0..replicates {
+            let mut firsts: Vec<Option<Image>> = vec![None; self.scenes.len()];
+            for &i in self.floor_groups.iter().flat_map(|g| &g.0) {
+                let (scene, iso, _) = &self.scenes[i];
+                let (realism, seed) = render(profile, opts, *iso, r, i)?;
+                firsts[i] = Some(realism.apply(scene, seed(0)));
+            }
+            let empty = Image::new(0, 0);
+            let m = self.floor_of(|i| firsts[i].as_ref().unwrap_or(&empty), &profile.response);
+            sum += m.value();
+        }
+        Ok(sum / replicates.max(1) as f64)
+    }
+}
+
+/// The check of `profile` on what `prep` read (`prep` made with the same response).
+fn check_prepared(
+    prep: &Prepared,
+    profile: &SensorProfile,
+    opts: &OutputCheckOptions,
+) -> Result<OutputCheck> {
+    let profile = &device(profile);
+    let measured = &prep.measured;
     let sims = (0..opts.replicates)
-        .map(|r| simulate(profile, &scenes, &groups, opts, r))
+        .map(|r| simulate(profile, prep, opts, r))
         .collect::<Result<Vec<_>>>()?;
     // The bins every replicate and the real frames have, weighted by the real pixels.
     let keys: Vec<(usize, usize, f64)> = measured
@@ -387,14 +501,14 @@ pub fn check_scanned(
     Ok(OutputCheck {
         bins,
         ..compare(
-            &values(&measured, &keys),
+            &values(measured, &keys),
             &sims.iter().map(|s| values(s, &keys)).collect::<Vec<_>>(),
         )
     })
 }
 
 /// (name, what closes it, minimum effect) of each value of [`values`].
-const STATS: [(&str, &str, f64); 10] = [
+const STATS: [(&str, &str, f64); 11] = [
     (
         "R noise level (mean ln σ², codes from 1/8)",
         "noise a, b",
@@ -444,6 +558,11 @@ const STATS: [(&str, &str, f64); 10] = [
         "channel correlation of the noise (mean of RG, GB, RB)",
         "channel_correlation",
         0.05,
+    ),
+    (
+        "floor: mean code − the code a longer frame predicts, under code 16/255 (×255)",
+        "floor",
+        1.0,
     ),
 ];
 
@@ -514,8 +633,13 @@ fn smooth(img: &Image) -> Image {
 const LEVEL: [usize; 3] = [0, 3, 6];
 const FLOOR: [usize; 3] = [1, 4, 7];
 
+/// Index in [`STATS`] of the floor statistic.
+const FLOOR_STAT: usize = 10;
+
 mod fit;
-pub use fit::{NoiseFit, fit_noise_level};
+mod floor;
+pub use fit::{MAX_LEVEL_SCALE, NoiseFit, fit_noise_level};
+pub use floor::{FloorFit, fit_floor, refusal as floor_refusal, with_floor};
 
 impl OutputCheck {
     /// Whether a channel's noise level or floor is a significant statistic (the profile's
@@ -551,10 +675,15 @@ impl OutputCheck {
             s,
             "\nGap (largest significant |z|; threshold {:.2}): {:.1}.\n\nNot tested by this check \
              (no statistic yet): local or scene-dependent tone mapping, sharpening halos, \
-             compression artefacts.",
+             compression artefacts, denoising.",
             self.threshold, self.gap
         );
         s
+    }
+
+    /// The floor statistic.
+    pub fn floor_stat(&self) -> &OutputStat {
+        &self.stats[FLOOR_STAT]
     }
 
     /// What the largest significant statistic names (None when nothing is significant).

@@ -29,6 +29,7 @@ use crate::sensor::profile::SensorProfile;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
+mod floor;
 mod handover;
 mod level;
 mod pictures;
@@ -170,8 +171,14 @@ pub fn run(opts: &LoopOptions) -> Result<LoopSummary> {
         .next()
         .unwrap_or(&calibrated)
         .clone();
-    let (level, checked) = level::level_step(opts, &folder, &cal_scan, &last_noise, &profiles)?;
+    let (floor, floor_note, mut checked) =
+        floor::floor_step(opts, &folder, &cal_scan, &last_noise, &profiles)?;
+    let start = floor.as_ref().map_or(&last_noise, |f| &f.profile).clone();
+    let (level, level_note) =
+        level::level_step(opts, &folder, &cal_scan, &start, &profiles, &mut checked)?;
+    extra.floor = floor;
     extra.level = level;
+    extra.notes = floor_note + &level_note;
     let fit = &cal_result.correlation;
     let testset = opts.out.join("testset");
     build_set(opts, &folder, &test_scan, &calibrated, &testset, "test")?;
@@ -340,7 +347,9 @@ fn calibrate(
     let steps = Extra {
         correlated: save(spatial, "correlated.toml")?,
         chroma: save(chroma, "chroma.toml")?,
+        floor: None,
         level: None,
+        notes: String::new(),
     };
     Ok((cal, calibrated, steps))
 }
@@ -349,8 +358,12 @@ fn calibrate(
 struct Extra {
     correlated: Option<PathBuf>,
     chroma: Option<PathBuf>,
-    /// The last noise step's profile with the noise level the device-output check measures.
+    /// The last noise step's profile with the output floor the device-output check measures.
+    floor: Option<floor::Floor>,
+    /// The last step's profile with the noise level the device-output check measures.
     level: Option<level::Level>,
+    /// The report's sentences on the floor and level steps (taken or not, and why).
+    notes: String,
 }
 
 /// A profile's device-output check with noise (`true`) or without: checks already made are
@@ -410,8 +423,8 @@ fn stage(opts: &LoopOptions, what: &str) {
 
 /// The loop's steps, each adding one measured effect to the one before: the response alone,
 /// its white output noise, that noise's spatial correlation and the channels' correlation
-/// where each reaches the catalogue's minimum effect, the noise level the device-output check
-/// fits where it finds the level off, and the device's exposure rule where EXIF marks its
+/// where each reaches the catalogue's minimum effect, the output floor and then the noise level
+/// the device-output check fits where it finds each off (and the fit closes its gap), and the device's exposure rule where EXIF marks its
 /// auto-exposed frames.
 fn steps(
     calibrated: &Path,
@@ -455,6 +468,18 @@ fn steps(
                 "+ the channels' noise correlation (channel_correlation, {channel_rho:.3})"
             ),
             profile: p.to_path_buf(),
+            noise: true,
+            metering: None,
+        });
+    }
+    if let Some(f) = &extra.floor {
+        steps.push(Step {
+            name: "floor",
+            label: format!(
+                "+ the output floor the frames hold under the toe (floor, {:.3e} of white)",
+                f.threshold
+            ),
+            profile: f.profile.clone(),
             noise: true,
             metering: None,
         });

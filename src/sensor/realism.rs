@@ -11,7 +11,8 @@
 //! 5. add the black level; 6. extra effects of the profile (src/sensor/effects: signal-stage
 //!    effects act before step 4, noise-stage ones change step 4, offsets come here);
 //! 7. clip to [0, white]; 8. quantise to integer DN;
-//! 9. device response of (DN − black)/(white − black) → code value, quantised to 8 or 16 bits.
+//! 9. device response of (DN − black)/(white − black) → code value, quantised to 8 or 16 bits
+//!    (after the output floor, where the profile has one).
 //!
 //! Random draws come from a generator seeded by (seed, row), so output bits do not depend on the
 //! number of threads. The same operator simulates captures for the sim-to-real gap workflow
@@ -273,7 +274,10 @@ impl Realism {
         let max_code = out_depth.max_code() as f64;
         let output_lut = (0..=white_dn)
             .map(|dn| {
-                let x = (dn as f64 - l.black_level) / range;
+                let x = crate::sensor::effects::floor::crush(
+                    (dn as f64 - l.black_level) / range,
+                    plan.floor,
+                );
                 ((profile.response.apply(x) * max_code).round() / max_code) as f32
             })
             .collect();

@@ -410,6 +410,20 @@ pub fn noisy_png_bracket(dir: &Path, a: f64, b: f64, stops: &[f64], spatial: Spa
 /// [`noisy_png_bracket`] of a scene with fine texture: the ramp times 1 + `texture`·(a sum of
 /// three gratings of periods 3.7 to 9.3 px, in [−1, 1]), the same in every frame.
 pub fn noisy_png_scene(dir: &Path, a: f64, b: f64, stops: &[f64], spatial: Spatial, texture: f64) {
+    noisy_png_scene_with_floor(dir, a, b, stops, spatial, texture, 0.0);
+}
+
+/// [`noisy_png_scene`] from a device whose processing crushes its shadows: the noisy linear
+/// signal x becomes max(0, x − `floor`)/(1 − `floor`) before the encoding.
+pub fn noisy_png_scene_with_floor(
+    dir: &Path,
+    a: f64,
+    b: f64,
+    stops: &[f64],
+    spatial: Spatial,
+    texture: f64,
+    floor: f64,
+) {
     std::fs::create_dir_all(dir).expect("mkdir");
     let (w, h) = (192usize, 144usize);
     let pad = 8usize;
@@ -478,7 +492,8 @@ pub fn noisy_png_scene(dir: &Path, a: f64, b: f64, stops: &[f64], spatial: Spati
                 let px = [(0, 0.9), (1, 1.0), (2, 0.8)].map(|(c, k): (usize, f64)| {
                     let l = (k * l0).min(1.0);
                     let n = (a * l + b).sqrt() * draw(x, y, c);
-                    (srgb(l + n) * 255.0).round() as u8
+                    let crushed = ((l + n - floor) / (1.0 - floor)).max(0.0);
+                    (srgb(crushed) * 255.0).round() as u8
                 });
                 img.put_pixel(x as u32, y as u32, image::Rgb(px));
             }

@@ -66,7 +66,7 @@ fn the_device_output_check_finds_what_a_profile_misses_and_nothing_when_it_has_i
         )
         .expect("diagnose");
         let c = d.device_output.expect("checked");
-        assert_eq!((c.stats.len(), c.replicates), (10, 30));
+        assert_eq!((c.stats.len(), c.replicates), (11, 30));
         assert!(named_beside_the_floor(&c).is_none(), "{}", c.markdown());
         let md = std::fs::read_to_string(out.join("device_output.md")).expect("written");
         assert!(md.contains("channel correlation"), "{md}");
@@ -287,4 +287,85 @@ fn chroma_noise_is_measured_fitted_and_closes_the_device_output_gap() {
         "{}",
         closed.markdown()
     );
+}
+
+#[test]
+fn an_output_floor_the_profile_lacks_is_named_and_its_threshold_fitted_back() {
+    use crate::helpers::noisy_png_scene_with_floor;
+    use hdrsynth::capture::output::{OutputCheckOptions, check_scanned, fit_floor};
+    // A device that subtracts 0.4 % of white before its sRGB curve: linear signal under it
+    // (codes up to 13/255 of a plain sRGB encoding) leaves the camera as noise about code 0.
+    let truth = 0.004;
+    let tmp = tempfile::tempdir().expect("tmp");
+    noisy_png_scene_with_floor(
+        &tmp.path().join("scene"),
+        4e-4,
+        1e-5,
+        &[-2.0, 0.0, 2.0],
+        Spatial::White,
+        0.0,
+        truth,
+    );
+    let beside = tempfile::tempdir().expect("tmp");
+    let cal = calibrate_srgb(
+        tmp.path(),
+        ScanOptions::default(),
+        &beside.path().join("p.toml"),
+        false,
+    );
+    let opts = OutputCheckOptions {
+        scan: ScanOptions::default(),
+        replicates: 10,
+        seed: 1,
+        noise: true,
+    };
+    let scan = scan::scan(tmp.path(), &opts.scan).expect("scan");
+    let before = check_scanned(scan.clone(), &cal.profile, &opts).expect("check");
+    let floor = before.floor_stat();
+    assert!(
+        floor.significant && floor.measured < floor.sim_mean - 2.0,
+        "{}",
+        before.markdown()
+    );
+    assert_eq!(floor.names, "floor");
+    let fit = fit_floor(&scan, &cal.profile, &before, &opts).expect("fit");
+    eprintln!("threshold {}\n{}", fit.threshold, fit.check.markdown());
+    assert!(!fit.at_bound);
+    assert!(
+        (fit.threshold / truth - 1.0).abs() < 0.15,
+        "threshold {} for {truth}",
+        fit.threshold
+    );
+    let after = fit.check.floor_stat();
+    assert!(!after.significant, "{}", fit.check.markdown());
+    assert!(
+        (after.measured - after.sim_mean).abs() < 0.25 * (floor.measured - floor.sim_mean).abs(),
+        "{}",
+        fit.check.markdown()
+    );
+    assert!(fit.check.gap < before.gap, "{} → {}", before.gap, fit.check.gap);
+    // The fitted profile names its floor and loads back as it was written.
+    let path = beside.path().join("floored.toml");
+    fit.profile.save(&path).expect("save");
+    let back = hdrsynth::sensor::profile::SensorProfile::load(&path).expect("load");
+    assert_eq!(back.effects, fit.profile.effects);
+    assert!(back.provenance.response.contains("output floor"));
+}
+
+#[test]
+fn a_bracket_without_a_floor_is_not_given_one() {
+    use hdrsynth::capture::output::{fit_floor, floor_refusal};
+    let (_frames, profile, opts, scan) = white_bracket_for_the_check(4e-4, 1e-5);
+    let c = hdrsynth::capture::output::check_scanned(scan.clone(), &profile, &opts).expect("check");
+    let floor = c.floor_stat();
+    assert!(floor.measured.is_finite() && !floor.significant, "{}", c.markdown());
+    // Asked anyway, the fit either refuses (the frames are not under the simulation) or finds
+    // a threshold too small to matter: under 0.05 % of white.
+    match fit_floor(&scan, &profile, &c, &opts) {
+        Ok(f) => assert!(f.threshold < 5e-4, "{}", f.threshold),
+        Err(e) => {
+            let why = floor_refusal(e).expect("a refusal, not a failure");
+            assert!(why.contains("only lowers"), "{why}");
+        }
+    }
 }

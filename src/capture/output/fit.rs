@@ -8,7 +8,7 @@ use crate::sensor::profile::SensorProfile;
 
 /// The fitted scale of a channel's noise stays within this factor of the measured one: a
 /// larger gap is not a level error the fit should paper over.
-const MAX_LEVEL_SCALE: f64 = 16.0;
+pub const MAX_LEVEL_SCALE: f64 = 16.0;
 
 /// What [`fit_noise_level`] found.
 #[derive(Clone, Debug)]

@@ -5,10 +5,11 @@
 //! differs significantly for the last noise step, the same profile with each channel's noise
 //! scaled, and a floor added where the floor is off, until the check's statistics match
 //! (`output::fit_noise_level`) is one more step: the missing effect named, fitted,
-//! and its gap shown closing.
+//! and its gap shown closing. A fit that reaches its bound or leaves the gap as large is said
+//! so in the report and is not a step.
 
 use super::{Checked, LoopOptions, check_options, stage};
-use crate::capture::output;
+use crate::capture::output::{self, MAX_LEVEL_SCALE};
 use crate::capture::scan::{FolderScan, ScanOptions};
 use crate::error::Result;
 use crate::sensor::profile::SensorProfile;
@@ -29,30 +30,55 @@ pub(super) struct Level {
     pub gap: (f64, f64),
 }
 
-/// `profiles/level.toml` where the check of `last_noise` (the last noise step's profile) finds
-/// the frames' noise level off; `None` where it does not. Fitted on every run (deterministic:
-/// a rerun writes the same profile). Also the checks it made, for the steps' own.
+/// `profiles/level.toml` where the check of `start` (the last noise step's profile, or the
+/// floor step's) finds the frames' noise level off and the fit makes the check's gap smaller
+/// without reaching its bound; `None` otherwise, with why in the report's sentence. `checked`
+/// holds the check of `start` (made by the floor step); the level's fit is added to it.
 pub(super) fn level_step(
     opts: &LoopOptions,
     folder: &FolderScan,
     cal_scan: &ScanOptions,
-    last_noise: &Path,
+    start: &Path,
     profiles: &Path,
-) -> Result<(Option<Level>, Checked)> {
-    let profile = SensorProfile::load(last_noise)?;
+    checked: &mut Checked,
+) -> Result<(Option<Level>, String)> {
+    let profile = SensorProfile::load(start)?;
     let check = check_options(cal_scan, true);
     let scan = folder.select(cal_scan)?;
-    let before = output::check_scanned(scan.clone(), &profile, &check)?;
+    let before = match checked.iter().find(|(p, noise, _)| p == start && *noise) {
+        Some((_, _, c)) => c.clone(),
+        None => {
+            let c = output::check_scanned(scan.clone(), &profile, &check)?;
+            checked.push((start.to_path_buf(), true, c.clone()));
+            c
+        }
+    };
     let gap = before.gap;
-    let mut checked = vec![(last_noise.to_path_buf(), true, before)];
-    if !checked[0].2.level_off() {
-        return Ok((None, checked));
+    if !before.level_off() {
+        let note = "The device-output check finds the frames' noise level and floor as the last \
+                    step simulates them: no noise-level step.\n\n";
+        return Ok((None, note.into()));
     }
     stage(
         opts,
         "fitting the noise level and floor the frames hold against each other",
     );
-    let fit = output::fit_noise_level(&scan, &profile, &checked[0].2, &check, ROUNDS)?;
+    let fit = output::fit_noise_level(&scan, &profile, &before, &check, ROUNDS)?;
+    let at_bound = fit.scale.iter().any(|k| k.ln().abs() >= MAX_LEVEL_SCALE.ln() - 1e-9);
+    if at_bound || fit.check.gap >= gap {
+        let why = if at_bound {
+            format!("a channel's scale reached the fit's bound ×{MAX_LEVEL_SCALE} or its inverse")
+        } else {
+            "the fit did not make the gap smaller".to_string()
+        };
+        let note = format!(
+            "The device-output check finds the frames' noise level or floor off the last step's \
+             simulation (gap {gap:.1}); the fitted scale ({:.3}, {:.3}, {:.3}) gives gap {:.1}: \
+             {why}, not a step.\n\n",
+            fit.scale[0], fit.scale[1], fit.scale[2], fit.check.gap
+        );
+        return Ok((None, note));
+    }
     let path = profiles.join("level.toml");
     fit.profile.save(&path)?;
     let level = Level {
@@ -67,6 +93,37 @@ pub(super) fn level_step(
             .collect(),
         gap: (gap, fit.check.gap),
     };
+    let note = level.note();
     checked.push((path, true, fit.check));
-    Ok((Some(level), checked))
+    Ok((Some(level), note))
+}
+
+impl Level {
+    /// The report's sentence on the step.
+    fn note(&self) -> String {
+        let floor = if self.floor.iter().any(Option::is_some) {
+            let b = |v: [f64; 3]| format!("{:.2e}, {:.2e}, {:.2e}", v[0], v[1], v[2]);
+            let per_iso: Vec<String> = self
+                .b
+                .iter()
+                .map(|(iso, before, after)| {
+                    format!("{} at ISO {iso} (was {})", b(*after), b(*before))
+                })
+                .collect();
+            format!(
+                ", and, where the floor (codes under 1/8) was still off, a read-noise floor \
+                 fitted into b: b = {}",
+                per_iso.join("; ")
+            )
+        } else {
+            String::new()
+        };
+        format!(
+            "The device-output check finds the frames' noise level or floor off the last \
+             step's simulation (gap {:.1}): the same profile with a, b scaled by {:.3}, {:.3}, \
+             {:.3} (R, G, B){floor}, is a step of the loop (gap {:.1} after the fit; \
+             `profiles/level.toml`).\n\n",
+            self.gap.0, self.scale[0], self.scale[1], self.scale[2], self.gap.1
+        )
+    }
 }

@@ -34,36 +34,8 @@ pub(super) fn measured_text(cal: &BracketCalibration, extra: &Extra) -> String {
         step(extra.correlated.is_some()),
         cal.channel_correlation,
         step(extra.chroma.is_some()),
-    ) + &match &extra.level {
-        Some(l) => {
-            let floor = if l.floor.iter().any(Option::is_some) {
-                let b = |v: [f64; 3]| format!("{:.2e}, {:.2e}, {:.2e}", v[0], v[1], v[2]);
-                let per_iso: Vec<String> =
-                    l.b.iter()
-                        .map(|(iso, before, after)| {
-                            format!("{} at ISO {iso} (was {})", b(*after), b(*before))
-                        })
-                        .collect();
-                format!(
-                    ", and, where the floor (codes under 1/8) was still off, a read-noise floor \
-                     fitted into b: b = {}",
-                    per_iso.join("; ")
-                )
-            } else {
-                String::new()
-            };
-            format!(
-                "The device-output check finds the frames' noise level or floor off the last \
-                 noise step's simulation (gap {:.1}): the same profile with a, b scaled by \
-                 {:.3}, {:.3}, {:.3} (R, G, B){floor}, is a step of the loop (gap {:.1} after \
-                 the fit; `profiles/level.toml`).\n\n",
-                l.gap.0, l.scale[0], l.scale[1], l.scale[2], l.gap.1
-            )
-        }
-        None => "The device-output check finds the frames' noise level and floor as the last \
-                 noise step simulates them: no noise-level step.\n\n"
-            .to_string(),
-    } + &match metering_rule(&cal.metering) {
+    ) + &extra.notes
+        + &match metering_rule(&cal.metering) {
         Some(m) => format!(
             "Exposure rule of the auto-exposed frames: mid grey {:.4}, at most {:.2} % \
              clipped (a step of the loop).\n\n",

@@ -14,7 +14,8 @@
 //! noise by a Student-t of the same variance; correlated noise filters the normal draws with a
 //! separable Gaussian kernel;
 //! offset stage (after the black level): black-level offset, row offsets (new every frame),
-//! column offsets, DSNU, hot pixels (fixed patterns); then clip and quantise.
+//! column offsets, DSNU, hot pixels (fixed patterns); then clip and quantise;
+//! output stage (at the device response): the output floor.
 //!
 //! Fixed patterns (column, DSNU, PRNU, hot pixels) derive from the effect's `seed` parameter
 //! and the pixel coordinates, so they are the same in every frame and every run; per-frame
@@ -32,6 +33,7 @@ pub mod column_noise;
 pub mod correlated_noise;
 pub mod curve;
 pub mod dsnu;
+pub mod floor;
 pub mod heavy_tailed_read_noise;
 pub mod hot_pixels;
 pub mod nonlinear_response;
@@ -65,7 +67,7 @@ pub struct Entry {
 }
 
 /// The catalogue in physical order (the order `statistics` are listed in reports).
-pub const CATALOGUE: [Entry; 12] = [
+pub const CATALOGUE: [Entry; 13] = [
     vignetting::ENTRY,
     prnu::ENTRY,
     nonlinear_response::ENTRY,
@@ -78,6 +80,7 @@ pub const CATALOGUE: [Entry; 12] = [
     column_noise::ENTRY,
     dsnu::ENTRY,
     hot_pixels::ENTRY,
+    floor::ENTRY,
 ];
 
 /// Ids of the effects this build implements, in physical order.

@@ -53,6 +53,8 @@ pub struct Plan {
     pub dsnu: Option<(f32, u64)>,
     /// Hot pixels (fraction of values, offset DN, seed).
     pub hot: Option<(f32, f32, u64)>,
+    /// Output floor: the fraction of white the output response subtracts first (0: none).
+    pub floor: f64,
 }
 
 impl Default for Plan {
@@ -71,6 +73,7 @@ impl Default for Plan {
             column: None,
             dsnu: None,
             hot: None,
+            floor: 0.0,
         }
     }
 }
@@ -111,12 +114,14 @@ impl Plan {
         Ok(plan)
     }
 
-    /// True when the plan changes nothing in the pixel loop (the realism fast path).
+    /// True when the plan changes nothing in the pixel loop (the realism fast path): the
+    /// noise scales act on a and b, the floor on the output table.
     pub fn per_pixel_neutral(&self) -> bool {
         let d = Plan::default();
         Plan {
             a_scale: d.a_scale,
             b_scale: d.b_scale,
+            floor: d.floor,
             ..self.clone()
         } == d
     }
@@ -136,6 +141,7 @@ pub mod id {
     pub const COLUMN_NOISE: &str = "column_noise";
     pub const DSNU: &str = "dsnu";
     pub const HOT_PIXELS: &str = "hot_pixels";
+    pub const FLOOR: &str = "floor";
 }
 
 /// Check an effect's parameters and add it to the plan (an error names the effect:
@@ -143,7 +149,7 @@ pub mod id {
 type Install = fn(&toml::Table, &mut Plan) -> Result<()>;
 
 /// Every effect's install, in physical order (the order of `effects::CATALOGUE`).
-const INSTALL: [(&str, Install); 12] = [
+const INSTALL: [(&str, Install); 13] = [
     (id::VIGNETTING, vignetting),
     (id::PRNU, prnu),
     (id::NONLINEAR_RESPONSE, nonlinear_response),
@@ -156,6 +162,7 @@ const INSTALL: [(&str, Install); 12] = [
     (id::COLUMN_NOISE, column_noise),
     (id::DSNU, dsnu),
     (id::HOT_PIXELS, hot_pixels),
+    (id::FLOOR, floor),
 ];
 
 /// Ids of the effects this build implements, in physical order.
@@ -412,5 +419,29 @@ fn hot_pixels(p: &toml::Table, plan: &mut Plan) -> Result<()> {
         return Err(fault(id::HOT_PIXELS, m));
     }
     plan.hot = Some((f as f32, o as f32, seed.0));
+    Ok(())
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Floor {
+    threshold: Finite,
+}
+
+/// Largest output floor, a fraction of white: beyond it a fit is papering over a wrong
+/// response, not finding a black point.
+pub const FLOOR_MAX: f64 = 0.05;
+
+fn floor(p: &toml::Table, plan: &mut Plan) -> Result<()> {
+    let Floor {
+        threshold: Finite(t),
+    } = parse(id::FLOOR, p)?;
+    if !(0.0..=FLOOR_MAX).contains(&t) {
+        return Err(fault(
+            id::FLOOR,
+            format!("threshold {t} must be in [0, {FLOOR_MAX}] (a fraction of white)"),
+        ));
+    }
+    plan.floor = t;
     Ok(())
 }
