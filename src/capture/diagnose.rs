@@ -121,6 +121,48 @@ pub struct BracketDiagnosis {
     pub captures: PathBuf,
     /// The device-output check, when asked for.
     pub device_output: Option<crate::capture::output::OutputCheck>,
+    /// Each output-domain effect that check names, fitted in turn (each on the profile the
+    /// last closing fit left), and the profile written for it where its fit closes its gap.
+    pub fitted: Vec<EffectDiagnosis>,
+}
+
+/// An output-domain effect of the catalogue fitted to the folder where the device-output
+/// check names it.
+pub struct EffectDiagnosis {
+    pub id: &'static str,
+    /// The fit, or why there is none.
+    pub fit: std::result::Result<crate::capture::output::EffectFit, String>,
+    /// The check of the profile the fit started from.
+    pub before: crate::capture::output::OutputCheck,
+}
+
+impl EffectDiagnosis {
+    /// The fit closes its gap: a profile to hand on.
+    pub fn closes(&self) -> bool {
+        self.fit.as_ref().is_ok_and(|f| f.closes(&self.before))
+    }
+
+    /// `OUT/profile_<id>.toml`: where a closing fit's profile is written.
+    pub fn file(&self) -> String {
+        format!("profile_{}.toml", self.id)
+    }
+
+    fn markdown(&self) -> String {
+        match &self.fit {
+            Err(why) => format!("\n## `{}`\n\nNamed, not fitted: {why}.\n", self.id),
+            Ok(f) => format!(
+                "\n## `{}`, fitted\n\n{}{}.\n\n{}",
+                self.id,
+                f.text(&self.before),
+                if self.closes() {
+                    format!(" (the profile with it: `{}`)", self.file())
+                } else {
+                    "; the fit does not close its gap, no profile written".to_string()
+                },
+                f.check.markdown()
+            ),
+        }
+    }
 }
 
 /// Linear frames of one set (1 = clipping white), upright, checked for one size.
@@ -311,6 +353,10 @@ pub fn diagnose_brackets(
     let set = CaptureSet::load(&captures)?;
     let diagnosis = diagnose::diagnose(&set, None, &opts.diagnose)?;
     let device_output = device_output_check(dir, opts)?;
+    let fitted = match (&device_output, &opts.device_output) {
+        (Some(c), Some(p)) => fit_output_effects(dir, p, c, opts)?,
+        _ => Vec::new(),
+    };
     diagnosis.write(out)?;
     let summary = BracketDiagnosis {
         diagnosis,
@@ -330,6 +376,7 @@ pub fn diagnose_brackets(
         ratios,
         captures,
         device_output,
+        fitted,
     };
     summary.write(out)?;
     Ok(summary)
@@ -346,14 +393,54 @@ fn device_output_check(
     crate::capture::output::check(
         dir,
         &crate::sensor::profile::SensorProfile::load(p)?,
-        &crate::capture::output::OutputCheckOptions {
-            scan: opts.scan.clone(),
-            replicates: opts.diagnose.replicates,
-            seed: opts.diagnose.seed,
-            noise: true,
-        },
+        &check_options(opts),
     )
     .map(Some)
+}
+
+fn check_options(opts: &BracketDiagnoseOptions) -> crate::capture::output::OutputCheckOptions {
+    crate::capture::output::OutputCheckOptions {
+        scan: opts.scan.clone(),
+        replicates: opts.diagnose.replicates,
+        seed: opts.diagnose.seed,
+        noise: true,
+    }
+}
+
+/// Each output-domain effect the check of `profile` names, fitted in turn on the profile the
+/// last closing fit left, checked again before each.
+fn fit_output_effects(
+    dir: &Path,
+    profile: &Path,
+    first: &crate::capture::output::OutputCheck,
+    opts: &BracketDiagnoseOptions,
+) -> Result<Vec<EffectDiagnosis>> {
+    use crate::capture::output;
+    let scan = crate::capture::scan::scan(dir, &opts.scan)?;
+    let mut profile = crate::sensor::profile::SensorProfile::load(profile)?;
+    let mut check = first.clone();
+    let mut out = Vec::new();
+    for id in output::OUTPUT_EFFECTS {
+        if !output::names(&check, id) {
+            continue;
+        }
+        let fit = match output::fit_output_effect(id, &scan, &profile, &check, &check_options(opts))
+        {
+            Ok(f) => Ok(f),
+            Err(e) => Err(output::refusal(id, e)?),
+        };
+        let d = EffectDiagnosis {
+            id,
+            fit,
+            before: check.clone(),
+        };
+        if let (true, Ok(f)) = (d.closes(), &d.fit) {
+            profile = f.profile.clone();
+            check = f.check.clone();
+        }
+        out.push(d);
+    }
+    Ok(out)
 }
 
 #[derive(Serialize)]
@@ -397,6 +484,9 @@ impl BracketDiagnosis {
         }
         if let Some(c) = &self.device_output {
             let _ = write!(s, "device-output check:\n{}", c.markdown());
+        }
+        for f in &self.fitted {
+            s.push_str(&f.markdown());
         }
         s
     }
@@ -454,10 +544,16 @@ impl BracketDiagnosis {
     pub fn write(&self, out: &Path) -> Result<()> {
         crate::io::atomic::write_atomic(&out.join(REPORT_MD), self.report_md().as_bytes())?;
         if let Some(c) = &self.device_output {
+            let fitted: String = self.fitted.iter().map(|f| f.markdown()).collect();
             crate::io::atomic::write_atomic(
                 &out.join(DEVICE_OUTPUT_MD),
-                format!("# The device-output check\n\n{}", c.markdown()).as_bytes(),
+                format!("# The device-output check\n\n{}{fitted}", c.markdown()).as_bytes(),
             )?;
+        }
+        for d in self.fitted.iter().filter(|d| d.closes()) {
+            if let Ok(f) = &d.fit {
+                f.profile.save(&out.join(d.file()))?;
+            }
         }
         let rec = Record {
             linearisation: &self.linearisation,

@@ -33,7 +33,8 @@
 //!
 //! On each set's frames as they are, the floor: the radiance → code map under the toe, read
 //! from the frames that see those pixels at mid codes (output/floor.rs), which the
-//! catalogue's `floor` closes.
+//! catalogue's `floor` closes; and on the units' residuals, JPEG's blockiness
+//! (output/jpeg.rs), which the catalogue's `jpeg` closes.
 
 use crate::capture::linearise::Linearise;
 use crate::capture::linearise::{code_frame, linearise};
@@ -119,6 +120,7 @@ struct FrameStats {
     cross: [f64; 3],
     square: [f64; 3],
     floor: floor::FloorMoments,
+    blocks: jpeg::BlockMoments,
 }
 
 /// What the statistics are taken on: a frame, or, where the sets hold repeated captures, a
@@ -241,6 +243,7 @@ fn measure(units: &[(Unit, f64)], response: &crate::sensor::profile::Response) -
             s.cross[k] += cross[k];
             s.square[k] += square[k];
         }
+        s.blocks.add(&jpeg::moments(unit.planes()));
     }
     s.bins = noise::merge_bins(&s.bins);
     s
@@ -269,7 +272,8 @@ const DARK_BINS: usize = noise::BINS / 8;
 /// [`STATS`]: per channel the weighted mean ln σ² (weights: the real frames' pixels) over the
 /// bins from [`DARK_BINS`] up, the same under it (NaN where no bin is there), and the median
 /// correlation ratio (as `calibrate brackets` takes it: a bin whose noise falls under the
-/// 8-bit step has a ratio without bound); then the mean channel correlation and the floor.
+/// 8-bit step has a ratio without bound); then the mean channel correlation, the floor and the
+/// blockiness.
 fn values(s: &FrameStats, keys: &[(usize, usize, f64)]) -> Vec<f64> {
     let mut out = Vec::new();
     for c in 0..3 {
@@ -295,6 +299,7 @@ fn values(s: &FrameStats, keys: &[(usize, usize, f64)]) -> Vec<f64> {
         |k: usize, a: usize, b: usize| s.cross[k] / (s.square[a] * s.square[b]).sqrt().max(1e-30);
     out.push((corr(0, 0, 1) + corr(1, 1, 2) + corr(2, 0, 2)) / 3.0);
     out.push(s.floor.value());
+    out.push(s.blocks.value());
     out
 }
 
@@ -508,7 +513,7 @@ fn check_prepared(
 }
 
 /// (name, what closes it, minimum effect) of each value of [`values`].
-const STATS: [(&str, &str, f64); 11] = [
+const STATS: [(&str, &str, f64); 12] = [
     (
         "R noise level (mean ln σ², codes from 1/8)",
         "noise a, b",
@@ -562,6 +567,12 @@ const STATS: [(&str, &str, f64); 11] = [
     (
         "floor: mean code − the code a longer frame predicts, under code 16/255 (×255)",
         "floor",
+        // Half the 8-bit step: rounding alone moves a mean code by at most that.
+        0.5,
+    ),
+    (
+        "blockiness: neighbour differences across the strongest 8-pixel phase over the others (%)",
+        "jpeg",
         1.0,
     ),
 ];
@@ -633,13 +644,125 @@ fn smooth(img: &Image) -> Image {
 const LEVEL: [usize; 3] = [0, 3, 6];
 const FLOOR: [usize; 3] = [1, 4, 7];
 
-/// Index in [`STATS`] of the floor statistic.
+/// Index in [`STATS`] of the floor statistic, and of the blockiness.
 const FLOOR_STAT: usize = 10;
+const BLOCK_STAT: usize = 11;
 
 mod fit;
 mod floor;
+mod jpeg;
+
+/// An output-domain effect of the catalogue fitted to a folder by the device-output check
+/// (`floor`, `jpeg`).
+#[derive(Clone, Debug)]
+pub struct EffectFit {
+    pub id: &'static str,
+    /// The fitted parameter in words ("threshold 4.199e-4 of white").
+    pub fitted: String,
+    /// The fit reached its bound without closing its statistic.
+    pub at_bound: bool,
+    pub profile: SensorProfile,
+    /// The check of `profile`.
+    pub check: OutputCheck,
+}
+
+impl EffectFit {
+    /// The gap in the statistics this effect closes (their largest |z|, significant or not)
+    /// in check `c`.
+    pub fn own_gap(&self, c: &OutputCheck) -> f64 {
+        c.stats
+            .iter()
+            .filter(|s| s.names == self.id)
+            .map(|s| s.z.abs())
+            .filter(|z| z.is_finite())
+            .fold(0.0, f64::max)
+    }
+
+    /// Inside its range and its own gap smaller than in `before` (the check of the profile it
+    /// was fitted to): a step to hand on.
+    pub fn closes(&self, before: &OutputCheck) -> bool {
+        !self.at_bound && self.own_gap(&self.check) < self.own_gap(before)
+    }
+
+    /// One sentence: the fit and what it did to its gap and the check's.
+    pub fn text(&self, before: &OutputCheck) -> String {
+        format!(
+            "`{}` {}{}: its gap (the |z| of its statistic) {:.1} → {:.1}, the check's {:.1} → {:.1}",
+            self.id,
+            self.fitted,
+            if self.at_bound { " (the fit's bound)" } else { "" },
+            self.own_gap(before),
+            self.own_gap(&self.check),
+            before.gap,
+            self.check.gap
+        )
+    }
+}
+
+/// Output-domain effects the check can fit, in the order they are fitted: the floor acts on
+/// the signal the JPEG stage then stores.
+pub const OUTPUT_EFFECTS: [&str; 2] = [
+    crate::sensor::effects::floor::ID,
+    crate::sensor::effects::jpeg::ID,
+];
+
+/// Whether `c` names effect `id` (one of [`OUTPUT_EFFECTS`]): its statistic is significant.
+pub fn names(c: &OutputCheck, id: &str) -> bool {
+    c.stats.iter().any(|s| s.names == id && s.significant)
+}
+
+/// Effect `id` (one of [`OUTPUT_EFFECTS`]) fitted to `scan` on top of `profile`, whose check
+/// is `first`. A refusal (no such frames, nothing a floor can close) is
+/// [`crate::sensor::effects::not_fitted`]'s key error on `id`: [`refusal`] reads it.
+pub fn fit_output_effect(
+    id: &str,
+    scan: &scan::BracketScan,
+    profile: &SensorProfile,
+    first: &OutputCheck,
+    opts: &OutputCheckOptions,
+) -> Result<EffectFit> {
+    if id == crate::sensor::effects::floor::ID {
+        let f = fit_floor(scan, profile, first, opts)?;
+        Ok(EffectFit {
+            id: crate::sensor::effects::floor::ID,
+            fitted: format!("threshold {:.3e} of white", f.threshold),
+            at_bound: f.at_bound,
+            profile: f.profile,
+            check: f.check,
+        })
+    } else if id == crate::sensor::effects::jpeg::ID {
+        let f = fit_jpeg(scan, profile, opts)?;
+        Ok(EffectFit {
+            id: crate::sensor::effects::jpeg::ID,
+            fitted: format!(
+                "quality {} (the frames' tables, {:.2} from libjpeg's on average)",
+                f.quality, f.mismatch
+            ),
+            at_bound: false,
+            profile: f.profile,
+            check: f.check,
+        })
+    } else {
+        Err(crate::sensor::effects::not_fitted(
+            id,
+            "not an output-domain effect the device-output check fits",
+        ))
+    }
+}
+
+/// Why a fit of effect `id` was refused, in words, where `e` is its refusal; any other error
+/// as it is.
+pub fn refusal(id: &str, e: crate::error::Error) -> Result<String> {
+    match e {
+        crate::error::Error::Key { ref key, .. } if key == id => {
+            Ok(crate::sensor::effects::why_not_fitted(id, e))
+        }
+        e => Err(e),
+    }
+}
 pub use fit::{MAX_LEVEL_SCALE, NoiseFit, fit_noise_level};
-pub use floor::{FloorFit, fit_floor, refusal as floor_refusal, with_floor};
+pub use floor::{FloorFit, fit_floor, with_floor};
+pub use jpeg::{JpegFit, fit_jpeg, folder_quality, with_jpeg};
 
 impl OutputCheck {
     /// Whether a channel's noise level or floor is a significant statistic (the profile's
@@ -675,7 +798,7 @@ impl OutputCheck {
             s,
             "\nGap (largest significant |z|; threshold {:.2}): {:.1}.\n\nNot tested by this check \
              (no statistic yet): local or scene-dependent tone mapping, sharpening halos, \
-             compression artefacts, denoising.",
+             denoising, JPEG's ringing and chroma subsampling.",
             self.threshold, self.gap
         );
         s
@@ -684,6 +807,28 @@ impl OutputCheck {
     /// The floor statistic.
     pub fn floor_stat(&self) -> &OutputStat {
         &self.stats[FLOOR_STAT]
+    }
+
+    /// The blockiness statistic.
+    pub fn block_stat(&self) -> &OutputStat {
+        &self.stats[BLOCK_STAT]
+    }
+
+    /// The gap in the floor statistic alone (its |z|, significant or not): what the floor's
+    /// fit must shrink.
+    pub fn floor_gap(&self) -> f64 {
+        self.floor_stat().z.abs()
+    }
+
+    /// The gap in the noise level and floor statistics alone (their largest |z|, significant
+    /// or not): what the noise-level fit must shrink.
+    pub fn level_gap(&self) -> f64 {
+        LEVEL
+            .iter()
+            .chain(&FLOOR)
+            .map(|&i| self.stats[i].z.abs())
+            .filter(|z| z.is_finite())
+            .fold(0.0, f64::max)
     }
 
     /// What the largest significant statistic names (None when nothing is significant).

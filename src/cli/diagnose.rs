@@ -93,7 +93,7 @@ pub fn run(args: &Args) -> Result<String> {
                 .with_context(|| format!("diagnosing the brackets in {}", dir.display()))?;
             let files = if args.device_output {
                 "brackets.md, brackets.toml, captures/, device_output.md, profile.toml, \
-                 report.md, report.json, *.png"
+                 profile_<effect>.toml (each output effect fitted), report.md, report.json, *.png"
             } else {
                 "brackets.md, brackets.toml, captures/, profile.toml, report.md, report.json, \
                  *.png"

@@ -29,9 +29,9 @@ use crate::sensor::profile::SensorProfile;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-mod floor;
 mod handover;
 mod level;
+mod output_steps;
 mod pictures;
 mod real;
 mod report;
@@ -171,14 +171,14 @@ pub fn run(opts: &LoopOptions) -> Result<LoopSummary> {
         .next()
         .unwrap_or(&calibrated)
         .clone();
-    let (floor, floor_note, mut checked) =
-        floor::floor_step(opts, &folder, &cal_scan, &last_noise, &profiles)?;
-    let start = floor.as_ref().map_or(&last_noise, |f| &f.profile).clone();
+    let (output, output_note, mut checked) =
+        output_steps::output_steps(opts, &folder, &cal_scan, &last_noise, &profiles)?;
+    let start = output.last().map_or(&last_noise, |f| &f.profile).clone();
     let (level, level_note) =
         level::level_step(opts, &folder, &cal_scan, &start, &profiles, &mut checked)?;
-    extra.floor = floor;
+    extra.output = output;
     extra.level = level;
-    extra.notes = floor_note + &level_note;
+    extra.notes = output_note + &level_note;
     let fit = &cal_result.correlation;
     let testset = opts.out.join("testset");
     build_set(opts, &folder, &test_scan, &calibrated, &testset, "test")?;
@@ -347,7 +347,7 @@ fn calibrate(
     let steps = Extra {
         correlated: save(spatial, "correlated.toml")?,
         chroma: save(chroma, "chroma.toml")?,
-        floor: None,
+        output: Vec::new(),
         level: None,
         notes: String::new(),
     };
@@ -358,8 +358,9 @@ fn calibrate(
 struct Extra {
     correlated: Option<PathBuf>,
     chroma: Option<PathBuf>,
-    /// The last noise step's profile with the output floor the device-output check measures.
-    floor: Option<floor::Floor>,
+    /// The output-domain effects the device-output check names and their fits close, each on
+    /// the one before (from the last noise step's profile).
+    output: Vec<output_steps::Fitted>,
     /// The last step's profile with the noise level the device-output check measures.
     level: Option<level::Level>,
     /// The report's sentences on the floor and level steps (taken or not, and why).
@@ -423,9 +424,9 @@ fn stage(opts: &LoopOptions, what: &str) {
 
 /// The loop's steps, each adding one measured effect to the one before: the response alone,
 /// its white output noise, that noise's spatial correlation and the channels' correlation
-/// where each reaches the catalogue's minimum effect, the output floor and then the noise level
-/// the device-output check fits where it finds each off (and the fit closes its gap), and the device's exposure rule where EXIF marks its
-/// auto-exposed frames.
+/// where each reaches the catalogue's minimum effect, the output-domain effects (floor, JPEG)
+/// and then the noise level the device-output check fits where it finds each off (and the fit
+/// closes its gap), and the device's exposure rule where EXIF marks its auto-exposed frames.
 fn steps(
     calibrated: &Path,
     extra: &Extra,
@@ -472,13 +473,11 @@ fn steps(
             metering: None,
         });
     }
-    if let Some(f) = &extra.floor {
+    for f in &extra.output {
+        let about = crate::sensor::effects::entry(f.id).map_or("", |e| e.about);
         steps.push(Step {
-            name: "floor",
-            label: format!(
-                "+ the output floor the frames hold under the toe (floor, {:.3e} of white)",
-                f.threshold
-            ),
+            name: f.id,
+            label: format!("+ {about} (`{}`, {})", f.id, f.fitted),
             profile: f.profile.clone(),
             noise: true,
             metering: None,

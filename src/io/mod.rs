@@ -9,6 +9,7 @@ pub mod atomic;
 mod exr;
 pub mod guard;
 mod hdr;
+pub mod jpeg;
 pub mod image;
 mod ldr;
 pub mod limits;

@@ -12,7 +12,8 @@
 //!    effects act before step 4, noise-stage ones change step 4, offsets come here);
 //! 7. clip to [0, white]; 8. quantise to integer DN;
 //! 9. device response of (DN − black)/(white − black) → code value, quantised to 8 or 16 bits
-//!    (after the output floor, where the profile has one).
+//!    (after the output floor, where the profile has one); 10. JPEG storage, where the profile
+//!    has it (the whole frame encoded and decoded again).
 //!
 //! Random draws come from a generator seeded by (seed, row), so output bits do not depend on the
 //! number of threads. The same operator simulates captures for the sim-to-real gap workflow
@@ -238,6 +239,12 @@ impl Realism {
         }
         let plan = Plan::from_effects(&profile.effects)
             .map_err(Error::within(format!("profile '{}'", profile.name)))?;
+        if plan.jpeg.is_some() && out_depth != BitDepth::Eight {
+            return Err(Error::profile(
+                &profile.name,
+                "its `jpeg` effect stores 8-bit frames: the output must be 8 bits",
+            ));
+        }
         let sat = profile.source_response.invert(1.0).max(1e-12);
         let source_lut = match &profile.source_response {
             Response::Linear => None,
@@ -576,6 +583,9 @@ impl Realism {
     /// `apply` into a caller's buffer (resized as needed), so loaders reuse their allocations.
     pub fn apply_into(&self, input: &Image, seed: u64, out: &mut Image) {
         self.rows_into(input, seed, out, true);
+        if let Some(q) = self.plan.jpeg {
+            crate::sensor::effects::jpeg::round_trip(out, q);
+        }
     }
 
     /// Rows in parallel into `out`: DN, then (with `ldr`) the device response.

@@ -388,6 +388,11 @@ fn the_loop_trains_the_device_rule_in_its_metering_step_only() {
             .any(|l| l.starts_with("- Against the triangle merge of the inputs: beat it")),
         "{report}"
     );
+    // The output-domain effects the device-output check reads, each said taken or not and
+    // why.
+    for id in ["`floor`: floor: mean code", "`jpeg`: blockiness"] {
+        assert!(report.contains(id), "{id}: {report}");
+    }
     // A picture per test scene, linked from the report.
     assert!(
         report.contains("- [kitchen](pictures/kitchen.png)"),

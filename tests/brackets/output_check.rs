@@ -66,7 +66,7 @@ fn the_device_output_check_finds_what_a_profile_misses_and_nothing_when_it_has_i
         )
         .expect("diagnose");
         let c = d.device_output.expect("checked");
-        assert_eq!((c.stats.len(), c.replicates), (11, 30));
+        assert_eq!((c.stats.len(), c.replicates), (12, 30));
         assert!(named_beside_the_floor(&c).is_none(), "{}", c.markdown());
         let md = std::fs::read_to_string(out.join("device_output.md")).expect("written");
         assert!(md.contains("channel correlation"), "{md}");
@@ -354,7 +354,7 @@ fn an_output_floor_the_profile_lacks_is_named_and_its_threshold_fitted_back() {
 
 #[test]
 fn a_bracket_without_a_floor_is_not_given_one() {
-    use hdrsynth::capture::output::{fit_floor, floor_refusal};
+    use hdrsynth::capture::output::{fit_floor, refusal};
     let (_frames, profile, opts, scan) = white_bracket_for_the_check(4e-4, 1e-5);
     let c = hdrsynth::capture::output::check_scanned(scan.clone(), &profile, &opts).expect("check");
     let floor = c.floor_stat();
@@ -364,8 +364,63 @@ fn a_bracket_without_a_floor_is_not_given_one() {
     match fit_floor(&scan, &profile, &c, &opts) {
         Ok(f) => assert!(f.threshold < 5e-4, "{}", f.threshold),
         Err(e) => {
-            let why = floor_refusal(e).expect("a refusal, not a failure");
+            let why = refusal("floor", e).expect("a refusal, not a failure");
             assert!(why.contains("only lowers"), "{why}");
         }
     }
+}
+
+#[test]
+fn jpeg_blocks_the_profile_lacks_are_named_and_closed_by_the_frames_own_quality() {
+    use hdrsynth::capture::output::{OutputCheckOptions, check_scanned, fit_jpeg};
+    // The white-noise bracket, stored as JPEG at quality 60 (libjpeg's scaling, 4:4:4).
+    let tmp = tempfile::tempdir().expect("tmp");
+    let dir = tmp.path().join("scene");
+    noisy_png_bracket(&dir, 4e-4, 1e-5, &[-2.0, 0.0, 2.0], Spatial::White);
+    // The profile of the frames before their storage (calibrated on the JPEGs, the noise fit
+    // finds no flat region left: quality 60 smooths it away).
+    let beside = tempfile::tempdir().expect("tmp");
+    let cal = calibrate_srgb(
+        tmp.path(),
+        ScanOptions::default(),
+        &beside.path().join("p.toml"),
+        false,
+    );
+    for i in 0..3 {
+        let png = dir.join(format!("f{i}.png"));
+        let img = image::open(&png).expect("png").to_rgb8();
+        let mut jpg = Vec::new();
+        image::codecs::jpeg::JpegEncoder::new_with_quality(&mut jpg, 60)
+            .encode(img.as_raw(), img.width(), img.height(), image::ExtendedColorType::Rgb8)
+            .expect("encode");
+        std::fs::write(dir.join(format!("f{i}.jpg")), jpg).expect("jpg");
+        std::fs::remove_file(png).expect("rm");
+    }
+    let opts = OutputCheckOptions {
+        scan: ScanOptions::default(),
+        replicates: 10,
+        seed: 1,
+        noise: true,
+    };
+    let scan = scan::scan(tmp.path(), &opts.scan).expect("scan");
+    let before = check_scanned(scan.clone(), &cal.profile, &opts).expect("check");
+    let blocks = before.block_stat();
+    assert!(
+        blocks.significant && blocks.measured > blocks.sim_mean,
+        "{}",
+        before.markdown()
+    );
+    assert_eq!(blocks.names, "jpeg");
+    let fit = fit_jpeg(&scan, &cal.profile, &opts).expect("fit");
+    eprintln!("{}", fit.check.markdown());
+    assert_eq!((fit.quality, fit.mismatch), (60, 0.0));
+    let after = fit.check.block_stat();
+    assert!(!after.significant, "{}", fit.check.markdown());
+    assert!(after.z.abs() < blocks.z.abs());
+    // Frames that are not JPEGs have no quality to read.
+    let (_frames, profile, opts, scan) = white_bracket_for_the_check(4e-4, 1e-5);
+    let e = fit_jpeg(&scan, &profile, &opts).unwrap_err().to_string();
+    assert!(e.contains("no frame") && e.contains("JPEG"), "{e}");
+    let c = check_scanned(scan, &profile, &opts).expect("check");
+    assert!(!c.block_stat().significant, "{}", c.markdown());
 }

@@ -13,11 +13,11 @@
 
 use super::{OutputCheck, OutputCheckOptions, Prepared, check_prepared};
 use crate::capture::scan;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::io::Image;
 use crate::sensor::effects::floor::{self as effect, ID};
 use crate::sensor::effects::plan::FLOOR_MAX;
-use crate::sensor::effects::{EffectSpec, why_not_fitted};
+use crate::sensor::effects::EffectSpec;
 use crate::sensor::profile::{Response, SensorProfile};
 
 /// Codes at which a longer frame reads a pixel's radiance.
@@ -183,12 +183,4 @@ pub fn fit_floor(
         profile,
         check,
     })
-}
-
-/// Why [`fit_floor`] refused, in words, where `e` is its refusal; any other error as it is.
-pub fn refusal(e: Error) -> Result<String> {
-    match e {
-        Error::Key { ref key, .. } if key == ID => Ok(why_not_fitted(ID, e)),
-        e => Err(e),
-    }
 }

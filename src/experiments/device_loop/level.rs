@@ -5,8 +5,8 @@
 //! differs significantly for the last noise step, the same profile with each channel's noise
 //! scaled, and a floor added where the floor is off, until the check's statistics match
 //! (`output::fit_noise_level`) is one more step: the missing effect named, fitted,
-//! and its gap shown closing. A fit that reaches its bound or leaves the gap as large is said
-//! so in the report and is not a step.
+//! and its gap shown closing. A fit that reaches its bound or leaves its own statistics' gap
+//! as large is said so in the report and is not a step.
 
 use super::{Checked, LoopOptions, check_options, stage};
 use crate::capture::output::{self, MAX_LEVEL_SCALE};
@@ -31,8 +31,8 @@ pub(super) struct Level {
 }
 
 /// `profiles/level.toml` where the check of `start` (the last noise step's profile, or the
-/// floor step's) finds the frames' noise level off and the fit makes the check's gap smaller
-/// without reaching its bound; `None` otherwise, with why in the report's sentence. `checked`
+/// floor step's) finds the frames' noise level off and the fit makes its own gap (the level
+/// and floor statistics' largest |z|) smaller without reaching its bound; `None` otherwise, with why in the report's sentence. `checked`
 /// holds the check of `start` (made by the floor step); the level's fit is added to it.
 pub(super) fn level_step(
     opts: &LoopOptions,
@@ -65,7 +65,8 @@ pub(super) fn level_step(
     );
     let fit = output::fit_noise_level(&scan, &profile, &before, &check, ROUNDS)?;
     let at_bound = fit.scale.iter().any(|k| k.ln().abs() >= MAX_LEVEL_SCALE.ln() - 1e-9);
-    if at_bound || fit.check.gap >= gap {
+    let own = (before.level_gap(), fit.check.level_gap());
+    if at_bound || own.1 >= own.0 {
         let why = if at_bound {
             format!("a channel's scale reached the fit's bound ×{MAX_LEVEL_SCALE} or its inverse")
         } else {
@@ -73,9 +74,9 @@ pub(super) fn level_step(
         };
         let note = format!(
             "The device-output check finds the frames' noise level or floor off the last step's \
-             simulation (gap {gap:.1}); the fitted scale ({:.3}, {:.3}, {:.3}) gives gap {:.1}: \
-             {why}, not a step.\n\n",
-            fit.scale[0], fit.scale[1], fit.scale[2], fit.check.gap
+             simulation (their gap {:.1}, the check's {gap:.1}); the fitted scale ({:.3}, {:.3}, \
+             {:.3}) gives {:.1} and {:.1}: {why}, not a step.\n\n",
+            own.0, fit.scale[0], fit.scale[1], fit.scale[2], own.1, fit.check.gap
         );
         return Ok((None, note));
     }

@@ -123,7 +123,7 @@ fn check_plots(
 }
 
 /// A statistic's name in a few characters, for a plot's axis: "R level", "G spatial",
-/// "chroma".
+/// "chroma", "toe", "JPEG blocks".
 fn short_statistic(name: &str) -> String {
     let channel = name.split_whitespace().next().unwrap_or("");
     if name.contains("channel correlation") {
@@ -134,6 +134,10 @@ fn short_statistic(name: &str) -> String {
         format!("{channel} floor")
     } else if name.contains("spatial correlation") {
         format!("{channel} spatial")
+    } else if name.starts_with("floor:") {
+        "toe".to_string()
+    } else if name.starts_with("blockiness") {
+        "JPEG blocks".to_string()
     } else {
         name.chars().take(10).collect()
     }

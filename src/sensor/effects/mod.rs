@@ -15,7 +15,7 @@
 //! separable Gaussian kernel;
 //! offset stage (after the black level): black-level offset, row offsets (new every frame),
 //! column offsets, DSNU, hot pixels (fixed patterns); then clip and quantise;
-//! output stage (at the device response): the output floor.
+//! output stage (at the device response): the output floor; then JPEG storage of the frame.
 //!
 //! Fixed patterns (column, DSNU, PRNU, hot pixels) derive from the effect's `seed` parameter
 //! and the pixel coordinates, so they are the same in every frame and every run; per-frame
@@ -36,6 +36,7 @@ pub mod dsnu;
 pub mod floor;
 pub mod heavy_tailed_read_noise;
 pub mod hot_pixels;
+pub mod jpeg;
 pub mod nonlinear_response;
 pub mod params;
 pub mod plan;
@@ -67,7 +68,7 @@ pub struct Entry {
 }
 
 /// The catalogue in physical order (the order `statistics` are listed in reports).
-pub const CATALOGUE: [Entry; 13] = [
+pub const CATALOGUE: [Entry; 14] = [
     vignetting::ENTRY,
     prnu::ENTRY,
     nonlinear_response::ENTRY,
@@ -81,6 +82,7 @@ pub const CATALOGUE: [Entry; 13] = [
     dsnu::ENTRY,
     hot_pixels::ENTRY,
     floor::ENTRY,
+    jpeg::ENTRY,
 ];
 
 /// Ids of the effects this build implements, in physical order.

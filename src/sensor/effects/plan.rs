@@ -55,6 +55,8 @@ pub struct Plan {
     pub hot: Option<(f32, f32, u64)>,
     /// Output floor: the fraction of white the output response subtracts first (0: none).
     pub floor: f64,
+    /// JPEG storage at this IJG quality.
+    pub jpeg: Option<u8>,
 }
 
 impl Default for Plan {
@@ -74,6 +76,7 @@ impl Default for Plan {
             dsnu: None,
             hot: None,
             floor: 0.0,
+            jpeg: None,
         }
     }
 }
@@ -115,13 +118,14 @@ impl Plan {
     }
 
     /// True when the plan changes nothing in the pixel loop (the realism fast path): the
-    /// noise scales act on a and b, the floor on the output table.
+    /// noise scales act on a and b, the floor on the output table, JPEG on the whole frame.
     pub fn per_pixel_neutral(&self) -> bool {
         let d = Plan::default();
         Plan {
             a_scale: d.a_scale,
             b_scale: d.b_scale,
             floor: d.floor,
+            jpeg: d.jpeg,
             ..self.clone()
         } == d
     }
@@ -142,6 +146,7 @@ pub mod id {
     pub const DSNU: &str = "dsnu";
     pub const HOT_PIXELS: &str = "hot_pixels";
     pub const FLOOR: &str = "floor";
+    pub const JPEG: &str = "jpeg";
 }
 
 /// Check an effect's parameters and add it to the plan (an error names the effect:
@@ -149,7 +154,7 @@ pub mod id {
 type Install = fn(&toml::Table, &mut Plan) -> Result<()>;
 
 /// Every effect's install, in physical order (the order of `effects::CATALOGUE`).
-const INSTALL: [(&str, Install); 13] = [
+const INSTALL: [(&str, Install); 14] = [
     (id::VIGNETTING, vignetting),
     (id::PRNU, prnu),
     (id::NONLINEAR_RESPONSE, nonlinear_response),
@@ -163,6 +168,7 @@ const INSTALL: [(&str, Install); 13] = [
     (id::DSNU, dsnu),
     (id::HOT_PIXELS, hot_pixels),
     (id::FLOOR, floor),
+    (id::JPEG, jpeg),
 ];
 
 /// Ids of the effects this build implements, in physical order.
@@ -443,5 +449,25 @@ fn floor(p: &toml::Table, plan: &mut Plan) -> Result<()> {
         ));
     }
     plan.floor = t;
+    Ok(())
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Jpeg {
+    quality: Finite,
+}
+
+fn jpeg(p: &toml::Table, plan: &mut Plan) -> Result<()> {
+    let Jpeg {
+        quality: Finite(q),
+    } = parse(id::JPEG, p)?;
+    if !(1.0..=100.0).contains(&q) || q.fract() != 0.0 {
+        return Err(fault(
+            id::JPEG,
+            format!("quality {q} must be a whole number in [1, 100] (IJG quality)"),
+        ));
+    }
+    plan.jpeg = Some(q as u8);
     Ok(())
 }
