@@ -37,13 +37,18 @@ fn the_tables_read_are_the_ones_libjpeg_wrote_and_give_back_its_quality() {
 fn a_file_that_is_not_a_jpeg_or_is_cut_short_is_named() {
     let path = Path::new("frame.jpg");
     let e = quant_tables(b"\x89PNG\r\n", path).unwrap_err().to_string();
-    assert!(e.contains("frame.jpg") && e.contains("start-of-image"), "{e}");
+    assert!(
+        e.contains("frame.jpg") && e.contains("start-of-image"),
+        "{e}"
+    );
     let bytes = std::fs::read(data("q75.jpg")).expect("read");
     // Cut inside the first DQT segment.
     let dqt = bytes
         .windows(2)
         .position(|w| w == [0xFF, 0xDB])
         .expect("a DQT");
-    let e = quant_tables(&bytes[..dqt + 30], path).unwrap_err().to_string();
+    let e = quant_tables(&bytes[..dqt + 30], path)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("frame.jpg") && e.contains("past the end"), "{e}");
 }

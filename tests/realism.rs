@@ -253,7 +253,11 @@ fn an_output_floor_crushes_the_signal_under_it_and_keeps_white() {
         let x = ((dn - 64.0) / 4031.0 - 0.01).max(0.0) / 0.99;
         let want = (srgb(x) * 255.0).round() / 255.0;
         let got = r.apply(&flat(2, 2, [v as f32; 3]), 1).get(0, 0);
-        assert!((got[0] as f64 - want).abs() < 1e-6, "{v}: {} for {want}", got[0]);
+        assert!(
+            (got[0] as f64 - want).abs() < 1e-6,
+            "{v}: {} for {want}",
+            got[0]
+        );
     }
     // Under the threshold: code 0; white stays white.
     assert_eq!(r.apply(&flat(1, 1, [0.0099; 3]), 1).get(0, 0), [0.0; 3]);

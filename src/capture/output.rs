@@ -441,8 +441,9 @@ impl Prepared {
         m
     }
 
-    /// The floor statistic of `profile`'s simulation, the mean over the first `replicates`
-    /// replicates (the check's seeds): only the frames the statistic reads are rendered.
+    /// The floor statistic of `profile`'s simulation, the mean over those of the first
+    /// `replicates` replicates (the check's seeds) that have one (NaN where none has): only
+    /// the frames the statistic reads are rendered.
     fn floor_value(
         &self,
         profile: &SensorProfile,
@@ -450,7 +451,7 @@ impl Prepared {
         replicates: usize,
     ) -> Result<f64> {
         let profile = &device(profile);
-        let mut sum = 0.0;
+        let (mut sum, mut n) = (0.0, 0usize);
         for r in 0..replicates {
             let mut firsts: Vec<Option<Image>> = vec![None; self.scenes.len()];
             for &i in self.floor_groups.iter().flat_map(|g| &g.0) {
@@ -459,10 +460,16 @@ impl Prepared {
                 firsts[i] = Some(realism.apply(scene, seed(0)));
             }
             let empty = Image::new(0, 0);
-            let m = self.floor_of(|i| firsts[i].as_ref().unwrap_or(&empty), &profile.response);
-            sum += m.value();
+            let v = self
+                .floor_of(|i| firsts[i].as_ref().unwrap_or(&empty), &profile.response)
+                .value();
+            // A replicate with too few values under the toe has no statistic, as in the check.
+            if v.is_finite() {
+                sum += v;
+                n += 1;
+            }
         }
-        Ok(sum / replicates.max(1) as f64)
+        Ok(if n == 0 { f64::NAN } else { sum / n as f64 })
     }
 }
 
@@ -690,7 +697,11 @@ impl EffectFit {
             "`{}` {}{}: its gap (the |z| of its statistic) {:.1} → {:.1}, the check's {:.1} → {:.1}",
             self.id,
             self.fitted,
-            if self.at_bound { " (the fit's bound)" } else { "" },
+            if self.at_bound {
+                " (the fit's bound)"
+            } else {
+                ""
+            },
             self.own_gap(before),
             self.own_gap(&self.check),
             before.gap,

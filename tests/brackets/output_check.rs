@@ -343,7 +343,12 @@ fn an_output_floor_the_profile_lacks_is_named_and_its_threshold_fitted_back() {
         "{}",
         fit.check.markdown()
     );
-    assert!(fit.check.gap < before.gap, "{} → {}", before.gap, fit.check.gap);
+    assert!(
+        fit.check.gap < before.gap,
+        "{} → {}",
+        before.gap,
+        fit.check.gap
+    );
     // The fitted profile names its floor and loads back as it was written.
     let path = beside.path().join("floored.toml");
     fit.profile.save(&path).expect("save");
@@ -358,7 +363,11 @@ fn a_bracket_without_a_floor_is_not_given_one() {
     let (_frames, profile, opts, scan) = white_bracket_for_the_check(4e-4, 1e-5);
     let c = hdrsynth::capture::output::check_scanned(scan.clone(), &profile, &opts).expect("check");
     let floor = c.floor_stat();
-    assert!(floor.measured.is_finite() && !floor.significant, "{}", c.markdown());
+    assert!(
+        floor.measured.is_finite() && !floor.significant,
+        "{}",
+        c.markdown()
+    );
     // Asked anyway, the fit either refuses (the frames are not under the simulation) or finds
     // a threshold too small to matter: under 0.05 % of white.
     match fit_floor(&scan, &profile, &c, &opts) {
@@ -391,7 +400,12 @@ fn jpeg_blocks_the_profile_lacks_are_named_and_closed_by_the_frames_own_quality(
         let img = image::open(&png).expect("png").to_rgb8();
         let mut jpg = Vec::new();
         image::codecs::jpeg::JpegEncoder::new_with_quality(&mut jpg, 60)
-            .encode(img.as_raw(), img.width(), img.height(), image::ExtendedColorType::Rgb8)
+            .encode(
+                img.as_raw(),
+                img.width(),
+                img.height(),
+                image::ExtendedColorType::Rgb8,
+            )
             .expect("encode");
         std::fs::write(dir.join(format!("f{i}.jpg")), jpg).expect("jpg");
         std::fs::remove_file(png).expect("rm");

@@ -15,9 +15,9 @@ use super::{OutputCheck, OutputCheckOptions, Prepared, check_prepared};
 use crate::capture::scan;
 use crate::error::Result;
 use crate::io::Image;
+use crate::sensor::effects::EffectSpec;
 use crate::sensor::effects::floor::{self as effect, ID};
 use crate::sensor::effects::plan::FLOOR_MAX;
-use crate::sensor::effects::EffectSpec;
 use crate::sensor::profile::{Response, SensorProfile};
 
 /// Codes at which a longer frame reads a pixel's radiance.
@@ -149,6 +149,12 @@ pub fn fit_floor(
     }
     let at = |t: f64| prep.floor_value(&with_floor(profile, t), opts, FIT_REPLICATES);
     let none = at(0.0)?;
+    if !none.is_finite() {
+        return Err(crate::sensor::effects::not_fitted(
+            ID,
+            "the simulated frames hold too few values under code 16/255 for the statistic",
+        ));
+    }
     if measured >= none {
         return Err(crate::sensor::effects::not_fitted(
             ID,
@@ -159,11 +165,13 @@ pub fn fit_floor(
         ));
     }
     let (mut lo, mut hi) = (FLOOR_MIN.ln(), FLOOR_MAX.ln());
-    let at_bound = at(FLOOR_MAX)? > measured;
+    // A point without a value (every replicate too few values) counts as still above.
+    let above = |t: f64| -> Result<bool> { Ok(!(at(t)? <= measured)) };
+    let at_bound = above(FLOOR_MAX)?;
     if !at_bound {
         for _ in 0..FIT_STEPS {
             let mid = 0.5 * (lo + hi);
-            if at(mid.exp())? > measured {
+            if above(mid.exp())? {
                 lo = mid;
             } else {
                 hi = mid;

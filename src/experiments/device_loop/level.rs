@@ -64,7 +64,10 @@ pub(super) fn level_step(
         "fitting the noise level and floor the frames hold against each other",
     );
     let fit = output::fit_noise_level(&scan, &profile, &before, &check, ROUNDS)?;
-    let at_bound = fit.scale.iter().any(|k| k.ln().abs() >= MAX_LEVEL_SCALE.ln() - 1e-9);
+    let at_bound = fit
+        .scale
+        .iter()
+        .any(|k| k.ln().abs() >= MAX_LEVEL_SCALE.ln() - 1e-9);
     let own = (before.level_gap(), fit.check.level_gap());
     if at_bound || own.1 >= own.0 {
         let why = if at_bound {

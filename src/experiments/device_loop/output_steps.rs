@@ -54,7 +54,9 @@ pub(super) fn output_steps(
             Ok(f) => f,
             Err(e) => {
                 let why = output::refusal(id, e)?;
-                notes.push_str(&format!("`{id}`: {stat_text}; not fitted: {why}. No step.\n\n"));
+                notes.push_str(&format!(
+                    "`{id}`: {stat_text}; not fitted: {why}. No step.\n\n"
+                ));
                 continue;
             }
         };
@@ -65,7 +67,9 @@ pub(super) fn output_steps(
             } else {
                 "the fit did not make its gap smaller"
             };
-            notes.push_str(&format!("`{id}`: {stat_text}; {text}: {why}, not a step.\n\n"));
+            notes.push_str(&format!(
+                "`{id}`: {stat_text}; {text}: {why}, not a step.\n\n"
+            ));
             continue;
         }
         let path = profiles.join(format!("{id}.toml"));

@@ -36,17 +36,17 @@ pub(super) fn measured_text(cal: &BracketCalibration, extra: &Extra) -> String {
         step(extra.chroma.is_some()),
     ) + &extra.notes
         + &match metering_rule(&cal.metering) {
-        Some(m) => format!(
-            "Exposure rule of the auto-exposed frames: mid grey {:.4}, at most {:.2} % \
+            Some(m) => format!(
+                "Exposure rule of the auto-exposed frames: mid grey {:.4}, at most {:.2} % \
              clipped (a step of the loop).\n\n",
-            m.mid_grey,
-            100.0 * m.max_clipped
-        ),
-        None => "Exposure rule: not measured — no set marks its auto-exposed frame by EXIF \
+                m.mid_grey,
+                100.0 * m.max_clipped
+            ),
+            None => "Exposure rule: not measured — no set marks its auto-exposed frame by EXIF \
                  ExposureBiasValue (a manual bracket says nothing about the device's meter); \
                  the main job's rule stays.\n\n"
-            .to_string(),
-    }
+                .to_string(),
+        }
 }
 
 /// Each step's device-output check on the calibration scenes: the gap, what it names, and

@@ -459,9 +459,7 @@ struct Jpeg {
 }
 
 fn jpeg(p: &toml::Table, plan: &mut Plan) -> Result<()> {
-    let Jpeg {
-        quality: Finite(q),
-    } = parse(id::JPEG, p)?;
+    let Jpeg { quality: Finite(q) } = parse(id::JPEG, p)?;
     if !(1.0..=100.0).contains(&q) || q.fract() != 0.0 {
         return Err(fault(
             id::JPEG,
