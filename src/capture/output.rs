@@ -572,7 +572,7 @@ const STATS: [(&str, &str, f64); 12] = [
         0.05,
     ),
     (
-        "floor: mean code − the code a longer frame predicts, under code 16/255 (×255)",
+        "floor: mean code − the code a longer frame predicts there, codes 4–16/255 (×255)",
         "floor",
         // Half the 8-bit step: rounding alone moves a mean code by at most that.
         0.5,

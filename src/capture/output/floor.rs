@@ -5,11 +5,14 @@
 //! pixels at mid codes: for each frame, each value that a frame of the same set exposed at
 //! least twice as long holds at a mid code (26–230 of 255) is predicted at the shorter
 //! exposure through the profile's response (the longer frame's code linearised, scaled by the
-//! exposure ratio, encoded back); where that prediction is under code 16/255, the frame's own
-//! code is compared with it. The statistic is the mean of (code − predicted code) over those
+//! exposure ratio, encoded back); where that prediction is between codes 4/255 and 16/255 —
+//! where the map must rise out of the noise about code 0 — the frame's own code is compared
+//! with it. The statistic is the mean of (code − predicted code) over those
 //! values, ×255, on the real frames and on every simulated replicate alike. A device whose
 //! processing crushes its shadows (the 550D: radiance that predicts code 12 comes out at 4)
-//! shows a negative value the simulation without a floor lacks.
+//! shows a negative value the simulation without a floor lacks. Under code 4/255 the codes are
+//! the noise about code 0, whose mean the floor's threshold does not set; the band leaves them
+//! out.
 
 use super::{OutputCheck, OutputCheckOptions, Prepared, check_prepared};
 use crate::capture::scan;
@@ -22,8 +25,10 @@ use crate::sensor::profile::{Response, SensorProfile};
 
 /// Codes at which a longer frame reads a pixel's radiance.
 const MID: (f32, f32) = (26.0 / 255.0, 230.0 / 255.0);
-/// Predicted codes under this are the statistic's.
-pub(super) const UNDER: f64 = 16.0 / 255.0;
+/// Predicted codes in this band are the statistic's: where the radiance → code map must rise
+/// out of the noise about code 0 (under 4/255 the noise's own mean, not the map, sets the
+/// codes).
+pub(super) const BAND: (f64, f64) = (4.0 / 255.0, 16.0 / 255.0);
 /// A longer frame reads a shorter one's radiance where it is exposed at least this much longer.
 const MIN_RATIO: f64 = 2.0;
 /// Entries of the prediction table over the longer frame's code.
@@ -76,7 +81,7 @@ pub(super) fn moments(frames: &[&Image], times: &[f64], response: &Response) -> 
                     .contains(&v)
                     .then(|| t[(v * (TABLE - 1) as f32).round() as usize])
             });
-            if let Some(p) = read.filter(|&p| (p as f64) < UNDER) {
+            if let Some(p) = read.filter(|&p| (BAND.0..BAND.1).contains(&(p as f64))) {
                 m.code += u as f64;
                 m.predicted += p as f64;
                 m.n += 1.0;
@@ -144,7 +149,8 @@ pub fn fit_floor(
     if !measured.is_finite() {
         return Err(crate::sensor::effects::not_fitted(
             ID,
-            "no value of these frames is read by a longer frame at a mid code under code 16/255",
+            "no value of these frames is read by a longer frame at a mid code and predicted \
+             between codes 4/255 and 16/255",
         ));
     }
     let at = |t: f64| prep.floor_value(&with_floor(profile, t), opts, FIT_REPLICATES);
@@ -152,7 +158,8 @@ pub fn fit_floor(
     if !none.is_finite() {
         return Err(crate::sensor::effects::not_fitted(
             ID,
-            "the simulated frames hold too few values under code 16/255 for the statistic",
+            "the simulated frames hold too few values between codes 4/255 and 16/255 for the \
+             statistic",
         ));
     }
     if measured >= none {

@@ -7,7 +7,7 @@
 //!
 //! Raw bursts cannot show it (it is the output's, not the sensor's). Its statistic and fit are
 //! the device-output check's on a bracket folder (src/capture/output/floor.rs): the mean code
-//! of the pixels a longer frame of the same set puts under code 16/255, against the code that
+//! of the pixels a longer frame of the same set puts between codes 4/255 and 16/255, against the code that
 //! frame predicts through the profile's response, real and simulated alike.
 
 use super::plan::id;
