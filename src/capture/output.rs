@@ -655,122 +655,12 @@ const FLOOR: [usize; 3] = [1, 4, 7];
 const FLOOR_STAT: usize = 10;
 const BLOCK_STAT: usize = 11;
 
+mod effects;
 mod fit;
 mod floor;
 mod jpeg;
 
-/// An output-domain effect of the catalogue fitted to a folder by the device-output check
-/// (`floor`, `jpeg`).
-#[derive(Clone, Debug)]
-pub struct EffectFit {
-    pub id: &'static str,
-    /// The fitted parameter in words ("threshold 4.199e-4 of white").
-    pub fitted: String,
-    /// The fit reached its bound without closing its statistic.
-    pub at_bound: bool,
-    pub profile: SensorProfile,
-    /// The check of `profile`.
-    pub check: OutputCheck,
-}
-
-impl EffectFit {
-    /// The gap in the statistics this effect closes (their largest |z|, significant or not)
-    /// in check `c`.
-    pub fn own_gap(&self, c: &OutputCheck) -> f64 {
-        c.stats
-            .iter()
-            .filter(|s| s.names == self.id)
-            .map(|s| s.z.abs())
-            .filter(|z| z.is_finite())
-            .fold(0.0, f64::max)
-    }
-
-    /// Inside its range and its own gap smaller than in `before` (the check of the profile it
-    /// was fitted to): a step to hand on.
-    pub fn closes(&self, before: &OutputCheck) -> bool {
-        !self.at_bound && self.own_gap(&self.check) < self.own_gap(before)
-    }
-
-    /// One sentence: the fit and what it did to its gap and the check's.
-    pub fn text(&self, before: &OutputCheck) -> String {
-        format!(
-            "`{}` {}{}: its gap (the |z| of its statistic) {:.1} → {:.1}, the check's {:.1} → {:.1}",
-            self.id,
-            self.fitted,
-            if self.at_bound {
-                " (the fit's bound)"
-            } else {
-                ""
-            },
-            self.own_gap(before),
-            self.own_gap(&self.check),
-            before.gap,
-            self.check.gap
-        )
-    }
-}
-
-/// Output-domain effects the check can fit, in the order they are fitted: the floor acts on
-/// the signal the JPEG stage then stores.
-pub const OUTPUT_EFFECTS: [&str; 2] = [
-    crate::sensor::effects::floor::ID,
-    crate::sensor::effects::jpeg::ID,
-];
-
-/// Whether `c` names effect `id` (one of [`OUTPUT_EFFECTS`]): its statistic is significant.
-pub fn names(c: &OutputCheck, id: &str) -> bool {
-    c.stats.iter().any(|s| s.names == id && s.significant)
-}
-
-/// Effect `id` (one of [`OUTPUT_EFFECTS`]) fitted to `scan` on top of `profile`, whose check
-/// is `first`. A refusal (no such frames, nothing a floor can close) is
-/// [`crate::sensor::effects::not_fitted`]'s key error on `id`: [`refusal`] reads it.
-pub fn fit_output_effect(
-    id: &str,
-    scan: &scan::BracketScan,
-    profile: &SensorProfile,
-    first: &OutputCheck,
-    opts: &OutputCheckOptions,
-) -> Result<EffectFit> {
-    if id == crate::sensor::effects::floor::ID {
-        let f = fit_floor(scan, profile, first, opts)?;
-        Ok(EffectFit {
-            id: crate::sensor::effects::floor::ID,
-            fitted: format!("threshold {:.3e} of white", f.threshold),
-            at_bound: f.at_bound,
-            profile: f.profile,
-            check: f.check,
-        })
-    } else if id == crate::sensor::effects::jpeg::ID {
-        let f = fit_jpeg(scan, profile, opts)?;
-        Ok(EffectFit {
-            id: crate::sensor::effects::jpeg::ID,
-            fitted: format!(
-                "quality {} (the frames' tables, {:.2} from libjpeg's on average)",
-                f.quality, f.mismatch
-            ),
-            at_bound: false,
-            profile: f.profile,
-            check: f.check,
-        })
-    } else {
-        Err(crate::sensor::effects::not_fitted(
-            id,
-            "not an output-domain effect the device-output check fits",
-        ))
-    }
-}
-
-/// Why a fit of effect `id` was refused, in words, where `e` is its refusal; any other error
-/// as it is.
-pub fn refusal(id: &str, e: crate::error::Error) -> Result<String> {
-    match e {
-        crate::error::Error::Key { ref key, .. } if key == id => {
-            Ok(crate::sensor::effects::why_not_fitted(id, e))
-        }
-        e => Err(e),
-    }
-}
+pub use effects::{EffectFit, OUTPUT_EFFECTS, fit_output_effect, names, refusal};
 pub use fit::{MAX_LEVEL_SCALE, NoiseFit, fit_noise_level};
 pub use floor::{FloorFit, fit_floor, with_floor};
 pub use jpeg::{JpegFit, fit_jpeg, folder_quality, with_jpeg};
