@@ -173,7 +173,10 @@ pub fn fit_floor(
     }
     let (mut lo, mut hi) = (FLOOR_MIN.ln(), FLOOR_MAX.ln());
     // A point without a value (every replicate too few values) counts as still above.
-    let above = |t: f64| -> Result<bool> { Ok(!(at(t)? <= measured)) };
+    let above = |t: f64| -> Result<bool> {
+        let v = at(t)?;
+        Ok(v.is_nan() || v > measured)
+    };
     let at_bound = above(FLOOR_MAX)?;
     if !at_bound {
         for _ in 0..FIT_STEPS {
