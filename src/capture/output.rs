@@ -715,12 +715,6 @@ impl OutputCheck {
         &self.stats[BLOCK_STAT]
     }
 
-    /// The gap in the floor statistic alone (its |z|, significant or not): what the floor's
-    /// fit must shrink.
-    pub fn floor_gap(&self) -> f64 {
-        self.floor_stat().z.abs()
-    }
-
     /// The gap in the noise level and floor statistics alone (their largest |z|, significant
     /// or not): what the noise-level fit must shrink.
     pub fn level_gap(&self) -> f64 {
