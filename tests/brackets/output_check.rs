@@ -108,13 +108,7 @@ fn white_bracket_for_the_check(
         &beside.path().join("p.toml"),
         false,
     );
-    let opts = hdrsynth::capture::output::OutputCheckOptions {
-        scan: ScanOptions::default(),
-        replicates: 10,
-        seed: 1,
-        noise: true,
-    };
-    let scan = scan::scan(tmp.path(), &opts.scan).expect("scan");
+    let (opts, scan) = check_options_and_scan(tmp.path());
     (tmp, cal.profile, opts, scan)
 }
 
@@ -292,7 +286,7 @@ fn chroma_noise_is_measured_fitted_and_closes_the_device_output_gap() {
 #[test]
 fn an_output_floor_the_profile_lacks_is_named_and_its_threshold_fitted_back() {
     use crate::helpers::noisy_png_scene_with_floor;
-    use hdrsynth::capture::output::{OutputCheckOptions, check_scanned, fit_floor};
+    use hdrsynth::capture::output::{check_scanned, fit_floor};
     // A device that subtracts 0.4 % of white before its sRGB curve: linear signal under it
     // (codes up to 13/255 of a plain sRGB encoding) leaves the camera as noise about code 0.
     let truth = 0.004;
@@ -313,13 +307,7 @@ fn an_output_floor_the_profile_lacks_is_named_and_its_threshold_fitted_back() {
         &beside.path().join("p.toml"),
         false,
     );
-    let opts = OutputCheckOptions {
-        scan: ScanOptions::default(),
-        replicates: 10,
-        seed: 1,
-        noise: true,
-    };
-    let scan = scan::scan(tmp.path(), &opts.scan).expect("scan");
+    let (opts, scan) = check_options_and_scan(tmp.path());
     let before = check_scanned(scan.clone(), &cal.profile, &opts).expect("check");
     let floor = before.floor_stat();
     assert!(
@@ -381,7 +369,7 @@ fn a_bracket_without_a_floor_is_not_given_one() {
 
 #[test]
 fn jpeg_blocks_the_profile_lacks_are_named_and_closed_by_the_frames_own_quality() {
-    use hdrsynth::capture::output::{OutputCheckOptions, check_scanned, fit_jpeg};
+    use hdrsynth::capture::output::{check_scanned, fit_jpeg};
     // The white-noise bracket, stored as JPEG at quality 60 (libjpeg's scaling, 4:4:4).
     let tmp = tempfile::tempdir().expect("tmp");
     let dir = tmp.path().join("scene");
@@ -410,13 +398,7 @@ fn jpeg_blocks_the_profile_lacks_are_named_and_closed_by_the_frames_own_quality(
         std::fs::write(dir.join(format!("f{i}.jpg")), jpg).expect("jpg");
         std::fs::remove_file(png).expect("rm");
     }
-    let opts = OutputCheckOptions {
-        scan: ScanOptions::default(),
-        replicates: 10,
-        seed: 1,
-        noise: true,
-    };
-    let scan = scan::scan(tmp.path(), &opts.scan).expect("scan");
+    let (opts, scan) = check_options_and_scan(tmp.path());
     let before = check_scanned(scan.clone(), &cal.profile, &opts).expect("check");
     let blocks = before.block_stat();
     assert!(
@@ -437,4 +419,22 @@ fn jpeg_blocks_the_profile_lacks_are_named_and_closed_by_the_frames_own_quality(
     assert!(e.contains("no frame") && e.contains("JPEG"), "{e}");
     let c = check_scanned(scan, &profile, &opts).expect("check");
     assert!(!c.block_stat().significant, "{}", c.markdown());
+}
+
+/// The check's options as these tests run it (10 replicates, seed 1, with noise) and the scan
+/// of the folder `dir`.
+fn check_options_and_scan(
+    dir: &std::path::Path,
+) -> (
+    hdrsynth::capture::output::OutputCheckOptions,
+    scan::BracketScan,
+) {
+    let opts = hdrsynth::capture::output::OutputCheckOptions {
+        scan: ScanOptions::default(),
+        replicates: 10,
+        seed: 1,
+        noise: true,
+    };
+    let scan = scan::scan(dir, &opts.scan).expect("scan");
+    (opts, scan)
 }

@@ -5,7 +5,26 @@
 use super::{OutputCheck, OutputCheckOptions, fit_floor, fit_jpeg};
 use crate::capture::scan;
 use crate::error::Result;
+use crate::sensor::effects::EffectSpec;
 use crate::sensor::profile::SensorProfile;
+
+/// `profile` with effect `id` at `params` (any `id` it held replaced), `note` added to the
+/// provenance of its response (the output effects act at the response).
+pub(super) fn with_effect(
+    profile: &SensorProfile,
+    id: &str,
+    params: toml::Table,
+    note: &str,
+) -> SensorProfile {
+    let mut p = profile.clone();
+    p.effects.retain(|e| e.id != id);
+    p.effects.push(EffectSpec {
+        id: id.into(),
+        params,
+    });
+    p.provenance.response = format!("{}; {note}", profile.provenance.response);
+    p
+}
 
 /// An output-domain effect of the catalogue fitted to a folder by the device-output check
 /// (`floor`, `jpeg`).

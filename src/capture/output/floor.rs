@@ -14,11 +14,11 @@
 //! the noise about code 0, whose mean the floor's threshold does not set; the band leaves them
 //! out.
 
+use super::effects::with_effect;
 use super::{OutputCheck, OutputCheckOptions, Prepared, check_prepared};
 use crate::capture::scan;
 use crate::error::Result;
 use crate::io::Image;
-use crate::sensor::effects::EffectSpec;
 use crate::sensor::effects::floor::{self as effect, ID};
 use crate::sensor::effects::plan::FLOOR_MAX;
 use crate::sensor::profile::{Response, SensorProfile};
@@ -100,18 +100,11 @@ fn prediction_table(response: &Response, ratio: f64) -> Vec<f32> {
 
 /// `profile` with the output floor `t` (any floor it held replaced).
 pub fn with_floor(profile: &SensorProfile, t: f64) -> SensorProfile {
-    let mut p = profile.clone();
-    p.effects.retain(|e| e.id != ID);
-    p.effects.push(EffectSpec {
-        id: ID.into(),
-        params: effect::params(t),
-    });
-    p.provenance.response = format!(
-        "{}; an output floor at {t:.3e} of white fitted to the frames' codes under the toe (the \
-         device-output check's floor statistic)",
-        profile.provenance.response
+    let note = format!(
+        "an output floor at {t:.3e} of white fitted to the frames' codes under the toe (the \
+         device-output check's floor statistic)"
     );
-    p
+    with_effect(profile, ID, effect::params(t), &note)
 }
 
 /// What [`fit_floor`] found.

@@ -10,12 +10,13 @@
 //! window read), and the statistic is their average less 1, in per cent. The same code reads
 //! the real and every simulated replicate.
 
+use super::effects::with_effect;
 use super::{OutputCheck, OutputCheckOptions, Prepared, check_prepared};
 use crate::capture::noise::Planes;
 use crate::capture::scan::{self, FrameKind};
 use crate::error::Result;
 use crate::sensor::effects::jpeg::{self as effect, ID};
-use crate::sensor::effects::{EffectSpec, not_fitted};
+use crate::sensor::effects::not_fitted;
 use crate::sensor::profile::SensorProfile;
 
 /// Codes (of 1) between which a value is recorded.
@@ -111,18 +112,11 @@ pub fn folder_quality(scan: &scan::BracketScan) -> Result<Option<(u32, f64)>> {
 
 /// `profile` storing its frames as JPEG at `quality` (any `jpeg` it held replaced).
 pub fn with_jpeg(profile: &SensorProfile, quality: u32, mismatch: f64) -> SensorProfile {
-    let mut p = profile.clone();
-    p.effects.retain(|e| e.id != ID);
-    p.effects.push(EffectSpec {
-        id: ID.into(),
-        params: effect::params(quality),
-    });
-    p.provenance.response = format!(
-        "{}; JPEG storage at IJG quality {quality}, read from the frames' quantisation tables \
-         (mean difference from libjpeg's {mismatch:.2})",
-        profile.provenance.response
+    let note = format!(
+        "JPEG storage at IJG quality {quality}, read from the frames' quantisation tables (mean \
+         difference from libjpeg's {mismatch:.2})"
     );
-    p
+    with_effect(profile, ID, effect::params(quality), &note)
 }
 
 /// What [`fit_jpeg`] found.
