@@ -410,20 +410,32 @@ pub fn noisy_png_bracket(dir: &Path, a: f64, b: f64, stops: &[f64], spatial: Spa
 /// [`noisy_png_bracket`] of a scene with fine texture: the ramp times 1 + `texture`·(a sum of
 /// three gratings of periods 3.7 to 9.3 px, in [−1, 1]), the same in every frame.
 pub fn noisy_png_scene(dir: &Path, a: f64, b: f64, stops: &[f64], spatial: Spatial, texture: f64) {
-    noisy_png_scene_with_floor(dir, a, b, stops, spatial, texture, 0.0);
+    noisy_png_device(dir, a, b, stops, spatial, texture, Isp::default());
 }
 
-/// [`noisy_png_scene`] from a device whose processing crushes its shadows: the noisy linear
-/// signal x becomes max(0, x − `floor`)/(1 − `floor`) before the encoding.
-pub fn noisy_png_scene_with_floor(
+/// What a device's processing does beyond noise and its sRGB curve, in [`noisy_png_device`].
+#[derive(Clone, Copy, Default)]
+pub struct Isp {
+    /// The noisy linear signal x becomes max(0, x − floor)/(1 − floor) before the encoding
+    /// (crushed shadows).
+    pub floor: f64,
+    /// Frame i's linear signal is multiplied by 1 + shading·sin(2π(x cos θᵢ + y sin θᵢ)/48),
+    /// θᵢ = i·60°: a gain that varies over the frame and differs between the frames, as a
+    /// local tone mapper's does.
+    pub shading: f64,
+}
+
+/// [`noisy_png_scene`] from a device whose processing does what `isp` says.
+pub fn noisy_png_device(
     dir: &Path,
     a: f64,
     b: f64,
     stops: &[f64],
     spatial: Spatial,
     texture: f64,
-    floor: f64,
+    isp: Isp,
 ) {
+    let floor = isp.floor;
     std::fs::create_dir_all(dir).expect("mkdir");
     let (w, h) = (192usize, 144usize);
     let pad = 8usize;
@@ -486,9 +498,13 @@ pub fn noisy_png_scene_with_floor(
                     + (tau * (xf + yf) / 9.3).sin()
                     + (tau * (xf - 2.0 * yf) / 6.1).cos())
                     / 3.0;
+                let theta = i as f64 * tau / 6.0;
+                let gain =
+                    1.0 + isp.shading * (tau * (xf * theta.cos() + yf * theta.sin()) / 48.0).sin();
                 let l0 = (-7.0 + 7.0 * x as f64 / (w - 1) as f64).exp2()
                     * s.exp2()
-                    * (1.0 + texture * grating);
+                    * (1.0 + texture * grating)
+                    * gain;
                 let px = [(0, 0.9), (1, 1.0), (2, 0.8)].map(|(c, k): (usize, f64)| {
                     let l = (k * l0).min(1.0);
                     let n = (a * l + b).sqrt() * draw(x, y, c);

@@ -66,7 +66,7 @@ fn the_device_output_check_finds_what_a_profile_misses_and_nothing_when_it_has_i
         )
         .expect("diagnose");
         let c = d.device_output.expect("checked");
-        assert_eq!((c.stats.len(), c.replicates), (12, 30));
+        assert_eq!((c.stats.len(), c.replicates), (14, 30));
         assert!(named_beside_the_floor(&c).is_none(), "{}", c.markdown());
         let md = std::fs::read_to_string(out.join("device_output.md")).expect("written");
         assert!(md.contains("channel correlation"), "{md}");
@@ -285,20 +285,23 @@ fn chroma_noise_is_measured_fitted_and_closes_the_device_output_gap() {
 
 #[test]
 fn an_output_floor_the_profile_lacks_is_named_and_its_threshold_fitted_back() {
-    use crate::helpers::noisy_png_scene_with_floor;
+    use crate::helpers::{Isp, noisy_png_device};
     use hdrsynth::capture::output::{check_scanned, fit_floor};
     // A device that subtracts 0.4 % of white before its sRGB curve: linear signal under it
     // (codes up to 13/255 of a plain sRGB encoding) leaves the camera as noise about code 0.
     let truth = 0.004;
     let tmp = tempfile::tempdir().expect("tmp");
-    noisy_png_scene_with_floor(
+    noisy_png_device(
         &tmp.path().join("scene"),
         4e-4,
         1e-5,
         &[-2.0, 0.0, 2.0],
         Spatial::White,
         0.0,
-        truth,
+        Isp {
+            floor: truth,
+            ..Isp::default()
+        },
     );
     let beside = tempfile::tempdir().expect("tmp");
     let cal = calibrate_srgb(
@@ -437,4 +440,51 @@ fn check_options_and_scan(
     };
     let scan = scan::scan(dir, &opts.scan).expect("scan");
     (opts, scan)
+}
+
+#[test]
+fn frames_that_disagree_at_coarse_scales_are_named_and_a_device_without_it_is_not() {
+    use crate::helpers::{Isp, noisy_png_device};
+    use hdrsynth::capture::output::check_scanned;
+    let disagreement = |shading: f64| {
+        let tmp = tempfile::tempdir().expect("tmp");
+        noisy_png_device(
+            &tmp.path().join("scene"),
+            4e-4,
+            1e-5,
+            &[-2.0, 0.0, 2.0],
+            Spatial::White,
+            0.0,
+            Isp {
+                shading,
+                ..Isp::default()
+            },
+        );
+        let beside = tempfile::tempdir().expect("tmp");
+        let cal = calibrate_srgb(
+            tmp.path(),
+            ScanOptions::default(),
+            &beside.path().join("p.toml"),
+            false,
+        );
+        let (opts, scan) = check_options_and_scan(tmp.path());
+        let c = check_scanned(scan, &cal.profile, &opts).expect("check");
+        eprintln!("shading {shading}\n{}", c.markdown());
+        c.stats
+            .into_iter()
+            .filter(|s| s.name.starts_with("disagreement"))
+            .collect::<Vec<_>>()
+    };
+    // Each frame's gain varies by ±3 % over 48-pixel waves, differently in each frame: under
+    // the noise per pixel at most codes, plain in 16-pixel means.
+    let shaded = disagreement(0.03);
+    let coarse = &shaded[1];
+    assert!(
+        coarse.significant && coarse.measured > coarse.sim_mean + 0.3,
+        "{coarse:?}"
+    );
+    // The same device without the shading: its frames agree as its simulation's do.
+    for s in disagreement(0.0) {
+        assert!(!s.significant, "{s:?}");
+    }
 }
