@@ -444,3 +444,43 @@ fn network2_takes_a_three_frame_set_at_the_stops_it_records() {
         ldr / want[0]
     );
 }
+
+#[test]
+fn a_mixed_stream_takes_its_share_from_the_second_loader_and_replays_on_resume() {
+    let (a, b) = (
+        tempfile::tempdir().expect("tmp"),
+        tempfile::tempdir().expect("tmp"),
+    );
+    dataset("[-3.0, 0.0]", a.path());
+    dataset("[-3.0, 0.0]", b.path());
+    let own = |dir: &Path| Loader::new(&loader_cfg(dir, "network1", 1, true)).expect("loader");
+    let other = |seed: u64| {
+        let mut c = loader_cfg(b.path(), "network1", 1, true);
+        c.seed = seed;
+        Loader::new(&c).expect("loader")
+    };
+    let n = 200u64;
+    // Samples of the two streams differ (their seeds do), so each mixed sample says whose it is.
+    let from_other = |mixed: &Loader| -> Vec<bool> {
+        let second = other(77);
+        (0..n)
+            .map(|g| {
+                let s = mixed.stream_sample(g).expect("sample");
+                let o = second.stream_sample(g).expect("sample");
+                let mine = own(a.path()).stream_sample(g).expect("sample");
+                assert!(s == o || s == mine, "sample {g} is neither stream's");
+                s == o
+            })
+            .collect()
+    };
+    let none = from_other(&own(a.path()).mixed(other(77), 0.0));
+    assert!(none.iter().all(|&x| !x));
+    let all = from_other(&own(a.path()).mixed(other(77), 1.0));
+    assert!(all.iter().all(|&x| x));
+    let half = from_other(&own(a.path()).mixed(other(77), 0.5));
+    let k = half.iter().filter(|&&x| x).count();
+    // Binomial(200, ½): 100 ± 7; outside 70–130 is a 1-in-10⁵ event for a fair draw.
+    assert!((70..=130).contains(&k), "{k} of {n} from the second stream");
+    // A fresh loader (a resumed run) draws the same choice for every index.
+    assert_eq!(half, from_other(&own(a.path()).mixed(other(77), 0.5)));
+}

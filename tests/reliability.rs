@@ -3231,3 +3231,31 @@ fn a_cause_the_message_already_holds_is_not_repeated() {
         "{text}"
     );
 }
+
+/// `[mix]`: its share is a fraction and its stream must batch with `[data]`'s.
+#[test]
+fn a_mix_whose_crops_differ_from_the_data_or_whose_share_is_out_of_range_is_refused() {
+    use hdrsynth::config::parse_toml;
+    use hdrsynth::train::config::TrainConfig;
+    let base = "[run]\nout = \"r\"\nseed = 1\nsteps = 1\n[model]\nkind = \"wu\"\n\
+                [data]\ndataset = \"d\"\npatch = 64\nbatch_size = 2\nprofile = \"pure\"\n\
+                [mix]\nfraction = 0.5\n[mix.data]\ndataset = \"e\"\nbatch_size = 2\npatch = 64\n\
+                profile = \"pure\"\n";
+    let cfg = parse_toml::<TrainConfig>(base, Path::new("t.toml")).expect("config");
+    cfg.validate().expect("a matching mix is valid");
+    assert_eq!(cfg.mix.as_ref().map(|m| m.fraction), Some(0.5));
+    for (from, to, key) in [
+        ("fraction = 0.5", "fraction = 1.5", "mix.fraction"),
+        (
+            "batch_size = 2\npatch = 64",
+            "batch_size = 2\npatch = 32",
+            "mix.data",
+        ),
+    ] {
+        let text = base.replace(from, to);
+        assert_ne!(text, base, "{to}");
+        let cfg = parse_toml::<TrainConfig>(&text, Path::new("t.toml")).expect("parses");
+        let e = cfg.validate().expect_err(to).to_string();
+        assert!(e.contains(key), "{to}: {e}");
+    }
+}

@@ -135,6 +135,7 @@ pub(crate) fn train_config(s: &Sizes, backend: &str, data: &Path, st: &Stage) ->
             ..LossConfig::default()
         },
         validation: None,
+        mix: None,
     }
 }
 

@@ -28,7 +28,25 @@ pub struct TrainConfig {
     pub loss: LossConfig,
     #[serde(default)]
     pub validation: Option<ValidationConfig>,
+    /// A second training stream mixed into `[data]`'s (e.g. a device's real frames with
+    /// simulated moving subjects, so a fine-tune on the one does not unlearn the other).
+    #[serde(default)]
+    pub mix: Option<MixConfig>,
 }
+
+/// `[mix]`: a share of the training samples drawn from a second stream.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MixConfig {
+    /// The share of samples from `data` (each sample's choice drawn from its stream index).
+    pub fraction: f64,
+    /// The second stream, a `[data]` table of its own; its `patch` and `batch_size` must be
+    /// `[data]`'s.
+    pub data: DataConfig,
+}
+
+/// Tag of the mixed-in stream's seed ([`TrainConfig::mix_loader`]).
+const MIX_STREAM: u64 = 0x31c5;
 
 /// Tag of a fine-tuning run's training stream ([`TrainConfig::stream_seed`]).
 const FINE_TUNE_STREAM: u64 = 0xf17e;
@@ -694,6 +712,18 @@ impl TrainConfig {
         Ok(lc)
     }
 
+    /// The loader of `[mix]`'s stream (None without one): a seed of its own, Network-2's
+    /// input curve as `[data]`'s.
+    pub fn mix_loader(&self, kind: SampleKind) -> Result<Option<(LoaderConfig, f64)>> {
+        let Some(m) = &self.mix else {
+            return Ok(None);
+        };
+        let seed = crate::rng::hash(self.stream_seed(), &[MIX_STREAM]);
+        let mut lc = m.data.loader(kind, seed)?;
+        lc.input_response = self.model.input_response();
+        Ok(Some((lc, m.fraction)))
+    }
+
     /// Seed of the training stream (crops, flips, ISO, noise). A fine-tuning run (`[init]`)
     /// draws from a stream of its own: with `run.seed` itself it would replay the crops of
     /// its pretraining's first steps (the same scenes, same positions, same noise draws).
@@ -751,6 +781,16 @@ impl TrainConfig {
         self.loss.validate().map_err(|e| e.within("loss"))?;
         if let Some(v) = &self.validation {
             v.validate(m).map_err(|e| e.within("validation"))?;
+        }
+        if let Some(x) = &self.mix {
+            in_range("mix.fraction", x.fraction, Range::UNIT)?;
+            x.data.validate(m).map_err(|e| e.within("mix.data"))?;
+            if (x.data.patch, x.data.batch_size) != (self.data.patch, self.data.batch_size) {
+                return Err(KeyError::new(
+                    "mix.data",
+                    "`patch` and `batch_size` must be [data]'s: one batch holds both streams",
+                ));
+            }
         }
         Ok(())
     }

@@ -208,7 +208,11 @@ pub fn run(cfg: &TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
     // The loader resolves the exposure rule itself, so `data_source.txt` says where it came
     // from; the run's recorded config holds the rule's values.
     let cfg = &cfg.with_resolved_model()?;
-    let loader = Arc::new(Loader::new(&cfg.loader(kind)?)?);
+    let mut loader = Loader::new(&cfg.loader(kind)?)?;
+    if let Some((lc, fraction)) = cfg.mix_loader(kind)? {
+        loader = loader.mixed(Loader::new(&lc)?, fraction);
+    }
+    let loader = Arc::new(loader);
     let cfg = &cfg.with_resolved_metering()?;
     match &cfg.model {
         ModelConfig::BlendUnet(m) => {

@@ -84,7 +84,12 @@ pub struct Loader {
     /// of whole files, and decoding a device's full-size frames costs more than the step.
     images: Mutex<HashMap<PathBuf, Arc<Image>>>,
     cached_bytes: AtomicUsize,
+    /// A second stream and the share of the stream's samples drawn from it ([`Loader::mixed`]).
+    mix: Option<(Box<Loader>, f64)>,
 }
+
+/// Tag of the draw that picks a mixed stream's samples ([`Loader::mixed`]).
+const MIX_DRAW: u64 = 0x313c;
 
 /// Most bytes of decoded files a loader keeps.
 const CACHE_BYTES: usize = 2 << 30;
@@ -313,6 +318,7 @@ impl Loader {
             keys: info.sets.iter().map(|_| OnceLock::new()).collect(),
             images: Mutex::new(HashMap::new()),
             cached_bytes: AtomicUsize::new(0),
+            mix: None,
             sets: info.sets,
             realism,
             clean,
@@ -343,6 +349,18 @@ impl Loader {
 
     /// What the training frames are made from, for logs and reports.
     pub fn describe_source(&self) -> String {
+        let own = self.describe_own();
+        match &self.mix {
+            Some((other, f)) => format!(
+                "{own}; a share {f} of the samples from {}: {}",
+                other.cfg.dataset.display(),
+                other.describe_own()
+            ),
+            None => own,
+        }
+    }
+
+    fn describe_own(&self) -> String {
         match (&self.cfg.realism, self.metering) {
             (Some(r), Some(m)) => format!(
                 "sensor realism ({}) from {}; exposure metered per set ({m}) × {} ± {} EV",
@@ -636,8 +654,21 @@ impl Loader {
     /// `g div len`. A training step s reads g = s·batch_size … (s+1)·batch_size − 1, so a
     /// resumed run reads exactly the samples an uninterrupted one would have.
     pub fn stream_sample(&self, g: u64) -> Result<Sample> {
+        if let Some((other, f)) = &self.mix
+            && Rng::from_parts(self.cfg.seed, &[MIX_DRAW, g]).range(0.0, 1.0) < *f as f32
+        {
+            return other.stream_sample(g);
+        }
         let n = self.len() as u64;
         self.sample(g / n, (g % n) as usize)
+    }
+
+    /// This stream with `other`'s samples in a share `fraction` of its places: stream sample g
+    /// is `other`'s sample g where a draw from (this stream's seed, g) falls under `fraction`,
+    /// so a resumed run reads the same samples.
+    pub fn mixed(mut self, other: Loader, fraction: f64) -> Loader {
+        self.mix = Some((Box::new(other), fraction));
+        self
     }
 
     /// Batches of the stream samples `start..end` (see [`stream_sample`](Self::stream_sample)),
