@@ -461,13 +461,13 @@ fn a_mixed_stream_takes_its_share_from_the_second_loader_and_replays_on_resume()
     };
     let n = 200u64;
     // Samples of the two streams differ (their seeds do), so each mixed sample says whose it is.
+    let (first, second) = (own(a.path()), other(77));
     let from_other = |mixed: &Loader| -> Vec<bool> {
-        let second = other(77);
         (0..n)
             .map(|g| {
                 let s = mixed.stream_sample(g).expect("sample");
                 let o = second.stream_sample(g).expect("sample");
-                let mine = own(a.path()).stream_sample(g).expect("sample");
+                let mine = first.stream_sample(g).expect("sample");
                 assert!(s == o || s == mine, "sample {g} is neither stream's");
                 s == o
             })
