@@ -58,6 +58,10 @@ fn window(img: Image) -> Image {
     Image::from_fn(w, h, |x, y| img.get(x0 + x, y0 + y))
 }
 
+/// Codes (of 1) between which a residual's value counts as recorded, for the blockiness and
+/// the disagreement statistics.
+const RECORDED: (f32, f32) = (3.0 / 255.0, 250.0 / 255.0);
+
 /// Width of the Gaussian that smooths the scene estimate, pixels.
 const SMOOTH_SIGMA: f32 = 1.5;
 

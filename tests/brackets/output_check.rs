@@ -93,13 +93,29 @@ fn white_bracket_for_the_check(
     hdrsynth::capture::output::OutputCheckOptions,
     scan::BracketScan,
 ) {
+    bracket_for_the_check(a, b, crate::helpers::Isp::default())
+}
+
+/// [`white_bracket_for_the_check`] of a device whose processing does what `isp` says.
+fn bracket_for_the_check(
+    a: f64,
+    b: f64,
+    isp: crate::helpers::Isp,
+) -> (
+    tempfile::TempDir,
+    hdrsynth::sensor::profile::SensorProfile,
+    hdrsynth::capture::output::OutputCheckOptions,
+    scan::BracketScan,
+) {
     let tmp = tempfile::tempdir().expect("tmp");
-    noisy_png_bracket(
+    crate::helpers::noisy_png_device(
         &tmp.path().join("scene"),
         a,
         b,
         &[-2.0, 0.0, 2.0],
         Spatial::White,
+        0.0,
+        isp,
     );
     let beside = tempfile::tempdir().expect("tmp");
     let cal = calibrate_srgb(
@@ -285,33 +301,20 @@ fn chroma_noise_is_measured_fitted_and_closes_the_device_output_gap() {
 
 #[test]
 fn an_output_floor_the_profile_lacks_is_named_and_its_threshold_fitted_back() {
-    use crate::helpers::{Isp, noisy_png_device};
+    use crate::helpers::Isp;
     use hdrsynth::capture::output::{check_scanned, fit_floor};
     // A device that subtracts 0.4 % of white before its sRGB curve: linear signal under it
     // (codes up to 13/255 of a plain sRGB encoding) leaves the camera as noise about code 0.
     let truth = 0.004;
-    let tmp = tempfile::tempdir().expect("tmp");
-    noisy_png_device(
-        &tmp.path().join("scene"),
+    let (_frames, profile, opts, scan) = bracket_for_the_check(
         4e-4,
         1e-5,
-        &[-2.0, 0.0, 2.0],
-        Spatial::White,
-        0.0,
         Isp {
             floor: truth,
             ..Isp::default()
         },
     );
-    let beside = tempfile::tempdir().expect("tmp");
-    let cal = calibrate_srgb(
-        tmp.path(),
-        ScanOptions::default(),
-        &beside.path().join("p.toml"),
-        false,
-    );
-    let (opts, scan) = check_options_and_scan(tmp.path());
-    let before = check_scanned(scan.clone(), &cal.profile, &opts).expect("check");
+    let before = check_scanned(scan.clone(), &profile, &opts).expect("check");
     let floor = before.floor_stat();
     assert!(
         floor.significant && floor.measured < floor.sim_mean - 2.0,
@@ -319,7 +322,7 @@ fn an_output_floor_the_profile_lacks_is_named_and_its_threshold_fitted_back() {
         before.markdown()
     );
     assert_eq!(floor.names, "floor");
-    let fit = fit_floor(&scan, &cal.profile, &before, &opts).expect("fit");
+    let fit = fit_floor(&scan, &profile, &before, &opts).expect("fit");
     eprintln!("threshold {}\n{}", fit.threshold, fit.check.markdown());
     assert!(!fit.at_bound);
     assert!(
@@ -341,6 +344,7 @@ fn an_output_floor_the_profile_lacks_is_named_and_its_threshold_fitted_back() {
         fit.check.gap
     );
     // The fitted profile names its floor and loads back as it was written.
+    let beside = tempfile::tempdir().expect("tmp");
     let path = beside.path().join("floored.toml");
     fit.profile.save(&path).expect("save");
     let back = hdrsynth::sensor::profile::SensorProfile::load(&path).expect("load");
@@ -444,31 +448,18 @@ fn check_options_and_scan(
 
 #[test]
 fn frames_that_disagree_at_coarse_scales_are_named_and_a_device_without_it_is_not() {
-    use crate::helpers::{Isp, noisy_png_device};
+    use crate::helpers::Isp;
     use hdrsynth::capture::output::check_scanned;
     let disagreement = |shading: f64| {
-        let tmp = tempfile::tempdir().expect("tmp");
-        noisy_png_device(
-            &tmp.path().join("scene"),
+        let (_frames, profile, opts, scan) = bracket_for_the_check(
             4e-4,
             1e-5,
-            &[-2.0, 0.0, 2.0],
-            Spatial::White,
-            0.0,
             Isp {
                 shading,
                 ..Isp::default()
             },
         );
-        let beside = tempfile::tempdir().expect("tmp");
-        let cal = calibrate_srgb(
-            tmp.path(),
-            ScanOptions::default(),
-            &beside.path().join("p.toml"),
-            false,
-        );
-        let (opts, scan) = check_options_and_scan(tmp.path());
-        let c = check_scanned(scan, &cal.profile, &opts).expect("check");
+        let c = check_scanned(scan, &profile, &opts).expect("check");
         eprintln!("shading {shading}\n{}", c.markdown());
         c.stats
             .into_iter()

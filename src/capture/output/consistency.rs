@@ -11,13 +11,11 @@
 //! statistic per scale is ½ ln(mean block mean² · B² / mean block variance): 0 for white
 //! noise. Networks read such disagreement between frames of a static scene as motion.
 
+use super::RECORDED;
 use crate::capture::noise::Planes;
 
 /// The block sizes, pixels.
 pub(super) const SCALES: [usize; 2] = [4, 16];
-
-/// Codes (of 1) between which a value is recorded.
-const RECORDED: (f32, f32) = (3.0 / 255.0, 250.0 / 255.0);
 
 /// Per scale the sums of block mean², of block variance, and the blocks.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]

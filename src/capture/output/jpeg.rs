@@ -11,16 +11,13 @@
 //! the real and every simulated replicate.
 
 use super::effects::with_effect;
-use super::{OutputCheck, OutputCheckOptions, Prepared, check_prepared};
+use super::{OutputCheck, OutputCheckOptions, Prepared, RECORDED, check_prepared};
 use crate::capture::noise::Planes;
 use crate::capture::scan::{self, FrameKind};
 use crate::error::Result;
 use crate::sensor::effects::jpeg::{self as effect, ID};
 use crate::sensor::effects::not_fitted;
 use crate::sensor::profile::SensorProfile;
-
-/// Codes (of 1) between which a value is recorded.
-const RECORDED: (f32, f32) = (3.0 / 255.0, 250.0 / 255.0);
 
 /// Per phase (x mod 8, y mod 8) the sums of |neighbour differences| and their counts.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
