@@ -206,8 +206,8 @@ mod tests {
 mod heap_tests {
     /// A 48 MiB block (over glibc's largest mmap threshold, under its 64 MiB per-thread heap:
     /// the test runs on a harness thread) must come from the heap once the setting is on:
-    /// mallinfo2 counts no more mmapped blocks while it is alive than before it (blocks other
-    /// tests mapped earlier, e.g. lazily built lookup tables, stay mapped for the process).
+    /// mallinfo2 counts no more mmapped blocks while it is alive than before it. "No more", not
+    /// "as many": tests on other threads may free blocks they mapped before the setting took.
     #[test]
     fn large_blocks_stay_in_the_heap() {
         assert!(super::retain_freed_memory());
@@ -217,8 +217,8 @@ mod heap_tests {
         let block = std::hint::black_box(vec![1u8; 48 << 20]);
         // SAFETY: as above.
         let info = unsafe { libc::mallinfo2() };
-        assert_eq!(
-            info.hblks, before,
+        assert!(
+            info.hblks <= before,
             "{} mmapped blocks, {before} before",
             info.hblks
         );

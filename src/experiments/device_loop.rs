@@ -23,6 +23,7 @@ use crate::capture::scan::{self, FolderScan, Region, ScanOptions};
 use crate::capture::testset::{self, BracketOptions, GtFrames, InputChoice};
 use crate::error::{Error, Result};
 use crate::experiments::ablate::{self, AblateConfig, Axis, AxisKind, EvalSpec, TestsetSpec};
+use crate::experiments::quickstart::DYNAMIC;
 use crate::io::source::{Source, overlapping};
 use crate::sensor::metering::Metering;
 use crate::sensor::profile::SensorProfile;
@@ -205,13 +206,26 @@ pub fn run(opts: &LoopOptions) -> Result<LoopSummary> {
         .iter()
         .map(|r| r.iso.into())
         .collect();
+    let mut trained_on_real: Vec<Axis> = real.iter().cloned().collect();
+    if let (Some(r), Some(last)) = (trained_on_real.first(), steps.last()) {
+        let base_data =
+            crate::config::parse_toml::<toml::Table>(&crate::io::guard::read_text(&base)?, &base)?
+                .get("data")
+                .and_then(|d| d.as_table())
+                .cloned()
+                .unwrap_or_default();
+        let mixed = real::mixed_row(r, &base_data, &step_set(last, &isos));
+        trained_on_real.push(mixed);
+    }
+    let dynamic = dynamic_set(&opts.quickstart)?;
     let cfg = ablate_config(
         opts,
         &base,
         [&testset, &validation],
         &steps,
         &isos,
-        real.as_ref().ok(),
+        &trained_on_real,
+        dynamic,
     );
     let cfg_path = opts.out.join("loop_ablate.toml");
     crate::io::atomic::write_atomic(
@@ -231,6 +245,7 @@ pub fn run(opts: &LoopOptions) -> Result<LoopSummary> {
     report.push_str(&steps_table(&cfg, &steps)?);
     let networks = networks(&cfg, &steps);
     report.push_str(&what_a_user_gets(&cfg, &networks)?);
+    report.push_str(&dynamic_text(&cfg, &networks)?);
     report.push_str(&handover::handover_text(opts, &cfg, &cfg_path, &networks)?);
     report.push_str(&pictures_text(&cfg, &testset, &steps, &opts.out)?);
     report.push_str("\n## Every row against the fair baseline\n\n");
@@ -277,12 +292,12 @@ fn build_set(
 }
 
 /// The grid's network rows, the least trained first (the handed-over network is chosen from
-/// them; a tie keeps the first), the `real` row last.
+/// them; a tie keeps the first), the rows trained on real frames last.
 fn networks<'a>(cfg: &'a AblateConfig, steps: &'a [Step]) -> Vec<&'a str> {
     ["net_o", NET_S, "control", GENERIC]
         .into_iter()
         .chain(steps.iter().map(|s| s.name))
-        .chain([real::REAL])
+        .chain([real::REAL, real::REAL_MIX])
         .filter(|n| cfg.rows.iter().any(|r| r.name == *n))
         .collect()
 }
@@ -590,7 +605,8 @@ fn ablate_config(
     [testset, validation]: [&Path; 2],
     steps: &[Step],
     isos: &[toml::Value],
-    real: Option<&Axis>,
+    real: &[Axis],
+    dynamic: Option<TestsetSpec>,
 ) -> AblateConfig {
     let row = |name: &str, label: &str, set: toml::Table, train: bool, kind: AxisKind| Axis {
         name: name.into(),
@@ -646,7 +662,7 @@ fn ablate_config(
             AxisKind::Finetune,
         ));
     }
-    rows.extend(real.cloned());
+    rows.extend(real.iter().cloned());
     rows.extend(Axis::classical_rows());
     AblateConfig {
         title: format!(
@@ -675,7 +691,10 @@ fn ablate_config(
             ),
             validation: true,
             ..test_spec(validation)
-        }],
+        }]
+        .into_iter()
+        .chain(dynamic)
+        .collect(),
         eval: EvalSpec {
             reference: Some(steps[0].name.into()),
             ..EvalSpec::default()
@@ -684,6 +703,23 @@ fn ablate_config(
         columns: Vec::new(),
         jobs: ablate::GRID_JOBS,
     }
+}
+
+/// The main job's dynamic test set (simulated moving subjects, its stock sensor) where the
+/// main job at `quickstart` declares one: every row is scored there too, so the table shows
+/// whether a fine-tune on the device keeps the deghosting the pretraining taught.
+fn dynamic_set(quickstart: &Path) -> Result<Option<TestsetSpec>> {
+    let path = quickstart.join("configs/experiment.toml");
+    if !path.is_file() {
+        return Ok(None);
+    }
+    let main: AblateConfig =
+        crate::config::parse_toml(&crate::io::guard::read_text(&path)?, &path)?;
+    Ok(main
+        .also
+        .into_iter()
+        .find(|t| t.name.as_deref() == Some(DYNAMIC))
+        .filter(|t| t.dir.exists() || t.radiance.as_ref().is_some_and(|r| r.exists())))
 }
 
 /// A test set the loop built from brackets.

@@ -335,6 +335,25 @@ fn the_loop_trains_the_device_rule_in_its_metering_step_only() {
         q.join("configs/sensors/composite_phone.toml"),
     )
     .expect("copy");
+    // The main job's dynamic test set, as its grid declares it: built by the loop from the
+    // generated moving scenes through the stock profile, noise per seed.
+    common::generate(&q.join("data/moving"), 9, 2, (64, 64), "[-2.0, 0.0, 2.0]");
+    std::fs::write(
+        q.join("configs/experiment.toml"),
+        format!(
+            "title = \"main job\"\nout = {:?}\nbase = {:?}\nseeds = [1]\nrows = []\n\
+             [testset]\ndir = {:?}\n[[also]]\nname = \"dynamic\"\ndir = {:?}\nradiance = {:?}\n\
+             profile = {:?}\nnoise_per_seed = true\n[also.options]\nisos = [100.0]\n\
+             evs = [-2.0, 0.0, 2.0]\n",
+            q.join("experiment"),
+            q.join("configs/finetune.toml"),
+            q.join("data/testset"),
+            q.join("data/testset_dynamic"),
+            q.join("data/moving"),
+            q.join("configs/sensors/composite_phone.toml"),
+        ),
+    )
+    .expect("experiment.toml");
     let out = beside.path().join("loop");
     let opts = LoopOptions {
         brackets: tmp.path().to_path_buf(),
@@ -424,10 +443,19 @@ fn the_loop_trains_the_device_rule_in_its_metering_step_only() {
             "{report}"
         );
     }
-    // The network handed over: the `real` row, by rule (its calibration-scene score is
+    // Every network scored where subjects move too, against the triangle merge.
+    let moving = report
+        .split("## Where subjects move")
+        .nth(1)
+        .unwrap_or_else(|| panic!("{report}"));
+    for row in ["| net_o | ", "| response | ", "| real | ", "| real_mix | "] {
+        assert!(moving.contains(row), "{row}: {moving}");
+    }
+    // The network handed over: the `real_mix` row, by rule (its calibration-scene score is
     // in-sample), whatever scores best there.
     assert!(
-        report.contains("## The network the loop hands over") && report.contains("the `real` row"),
+        report.contains("## The network the loop hands over")
+            && report.contains("the `real_mix` row"),
         "{report}"
     );
     let handed: toml::Table = std::fs::read_to_string(out.join("handover.toml"))
@@ -435,19 +463,37 @@ fn the_loop_trains_the_device_rule_in_its_metering_step_only() {
         .parse()
         .expect("handover.toml parses");
     let seed1 = handed["seed1"].as_table().expect("[seed1]");
-    assert_eq!(seed1["row"].as_str(), Some("real"), "{handed}");
+    assert_eq!(seed1["row"].as_str(), Some("real_mix"), "{handed}");
     let checkpoint = Path::new(seed1["checkpoint"].as_str().expect("checkpoint"));
     assert!(
-        checkpoint.ends_with("cells/real/seed1/run"),
+        checkpoint.ends_with("cells/real_mix/seed1/run"),
         "{}",
         checkpoint.display()
     );
     assert!(checkpoint.is_dir(), "{}", checkpoint.display());
-    // It trained on the calibration scene's own frames (no profile), through their curve.
-    let real: hdrsynth::train::config::TrainConfig =
+    // It trained on the calibration scene's own frames (no profile), through their curve, and
+    // half its samples on the main job's training scenes through the last step's profile.
+    let mixed: hdrsynth::train::config::TrainConfig =
         hdrsynth::config::load_toml(&checkpoint.join("config.toml")).expect("config");
-    assert_eq!(real.data.dataset, out.join("validation"));
-    assert_eq!(real.data.realism.profile, Path::new("pure"));
+    assert_eq!(mixed.data.dataset, out.join("validation"));
+    assert_eq!(mixed.data.realism.profile, Path::new("pure"));
+    let mix = mixed.mix.as_ref().expect("[mix]");
+    assert_eq!(mix.fraction, 0.5);
+    assert_eq!(mix.data.dataset, q.join("data/train"));
+    let grid_text = std::fs::read_to_string(out.join("loop_ablate.toml")).expect("grid");
+    let grid: toml::Table = toml::from_str(&grid_text).expect("toml");
+    let rows = grid["rows"].as_array().expect("rows");
+    let real_at = rows
+        .iter()
+        .position(|r| r["name"].as_str() == Some("real"))
+        .expect("real");
+    // The row before `real` is the last step.
+    let last_step = rows[real_at - 1]["set"]["data"]["profile"].as_str();
+    assert_eq!(
+        mix.data.realism.profile.to_str(),
+        last_step,
+        "{grid_text}"
+    );
     // The same folders spelled another way resume it (every cell kept); another split is
     // refused.
     let respelled = LoopOptions {

@@ -1,10 +1,10 @@
-//! The network the loop hands over, per seed: the `real` row where the loop made one (the
-//! only network trained against the device's own frames; its calibration-scene score is
-//! in-sample, so those scenes cannot choose it), else the network row that scores best on the
-//! validation set (the calibration scenes, which no test scene is); then scored on the test
-//! scenes against the copied reference and the triangle merge. Choosing on the calibration
-//! scenes keeps a fine-tune that hurts from being handed over, and says so where the
-//! triangle merge is better than every network there.
+//! The network the loop hands over, per seed: the row trained on the device's own frames where
+//! the loop made one (`real_mix`, which keeps the simulation's moving subjects, before `real`;
+//! their calibration-scene scores are in-sample, so those scenes cannot choose them), else the
+//! network row that scores best on the validation set (the calibration scenes, which no test
+//! scene is); then scored on the test scenes against the copied reference and the triangle
+//! merge. Choosing on the calibration scenes keeps a fine-tune that hurts from being handed
+//! over, and says so where the triangle merge is better than every network there.
 
 use super::LoopOptions;
 use crate::error::Result;
@@ -33,18 +33,23 @@ fn paired(a: &BTreeMap<String, f64>, b: &BTreeMap<String, f64>) -> Option<f64> {
     mean(a.iter().filter_map(|(n, x)| b.get(n).map(|y| x - y)))
 }
 
-/// The seed's `real` row where there is one, else its row with the highest mean PSNR-T on the
-/// validation set (never the `real` row, trained there); the first listed wins a tie
+/// The rows trained on the device's own frames, in the order they are handed over.
+const ON_REAL: [&str; 2] = [super::real::REAL_MIX, super::real::REAL];
+
+/// The seed's first row of [`ON_REAL`] where there is one, else its row with the highest mean
+/// PSNR-T on the validation set (never a row trained there); the first listed wins a tie
 /// (candidates are listed from the least trained). With the row, its mean there.
 fn choose<'a>(val: &[(&'a str, Scores)], seed: u64) -> Option<(&'a str, f64)> {
     let seed_mean = |s: &Scores| of_seed(s, seed).and_then(|v| mean(v.values().copied()));
-    let is_real = |r: &str| r == super::real::REAL;
-    if let Some(hit) = val
-        .iter()
-        .find(|(r, _)| is_real(r))
-        .and_then(|(r, s)| seed_mean(s).map(|m| (*r, m)))
-    {
-        return Some(hit);
+    let is_real = |r: &str| ON_REAL.contains(&r);
+    for on_real in ON_REAL {
+        if let Some(hit) = val
+            .iter()
+            .find(|(r, _)| *r == on_real)
+            .and_then(|(r, s)| seed_mean(s).map(|m| (*r, m)))
+        {
+            return Some(hit);
+        }
     }
     let mut best: Option<(&str, f64)> = None;
     for (row, s) in val.iter().filter(|(r, _)| !is_real(r)) {
@@ -79,28 +84,32 @@ pub(super) fn handover_text(
         scores(&cfg.testset, "triangle")?,
         scores(&cfg.testset, "copy")?,
     );
-    let real = candidates.contains(&super::real::REAL);
-    let mut s = String::from(if real {
-        "\n## The network the loop hands over\n\n\
-         Per seed, the `real` row: the network fine-tuned on the calibration scenes' own frames \
-         (its PSNR-T on them, below, is in-sample and chooses nothing), scored on the test \
-         scenes. Its checkpoint per seed is in `handover.toml`.\n\n"
-    } else {
-        "\n## The network the loop hands over\n\n\
-         Per seed, the network (Net_O, the control, the uncalibrated rows and every step) with \
-         the highest mean PSNR-T on the calibration scenes (`validation/`, a validation set: \
-         they calibrated the profiles, so the score there chooses and tests nothing), then \
-         scored on the test scenes. Its checkpoint per seed is in `handover.toml`.\n\n"
-    });
+    let on_real = ON_REAL.into_iter().find(|r| candidates.contains(r));
+    let mut s = match on_real {
+        Some(row) => format!(
+            "\n## The network the loop hands over\n\n\
+             Per seed, the `{row}` row: the network fine-tuned on the calibration scenes' own \
+             frames (its PSNR-T on them, below, is in-sample and chooses nothing), scored on the \
+             test scenes. Its checkpoint per seed is in `handover.toml`.\n\n"
+        ),
+        None => "\n## The network the loop hands over\n\n\
+                 Per seed, the network (Net_O, the control, the uncalibrated rows and every \
+                 step) with the highest mean PSNR-T on the calibration scenes (`validation/`, a \
+                 validation set: they calibrated the profiles, so the score there chooses and \
+                 tests nothing), then scored on the test scenes. Its checkpoint per seed is in \
+                 `handover.toml`.\n\n"
+            .to_string(),
+    };
+    let real = on_real.is_some();
     s.push_str(
         "| seed | handed over | validation PSNR-T | triangle merge there | test PSNR-T | − triangle \
          merge | − copy |\n|---|---|---|---|---|---|---|\n",
     );
-    let mut toml_text = String::from(if real {
-        "# The network the loop hands over per seed: the `real` row.\n"
-    } else {
-        "# The network the loop hands over per seed: the best on the calibration scenes.\n"
-    });
+    let mut toml_text = match on_real {
+        Some(row) => format!("# The network the loop hands over per seed: the `{row}` row.\n"),
+        None => "# The network the loop hands over per seed: the best on the calibration scenes.\n"
+            .to_string(),
+    };
     let (mut beats, mut under_tri_on_val, mut n) = (0, Vec::new(), 0);
     for &seed in &cfg.seeds {
         let Some((row, v)) = choose(&val_rows, seed) else {
@@ -191,6 +200,10 @@ mod tests {
         with_real.push(("real", vec![(Some(1), sets(&[("a", 20.0), ("b", 20.0)]))]));
         assert_eq!(choose(&with_real, 1), Some(("real", 20.0)));
         // Without one for a seed, the choice on the calibration scenes.
+        assert_eq!(choose(&with_real, 2), Some(("net_o", 31.0)));
+        // The mixed row before the `real` row, wherever it is listed.
+        with_real.push(("real_mix", vec![(Some(1), sets(&[("a", 19.0)]))]));
+        assert_eq!(choose(&with_real, 1), Some(("real_mix", 19.0)));
         assert_eq!(choose(&with_real, 2), Some(("net_o", 31.0)));
     }
 

@@ -14,6 +14,11 @@ use std::path::Path;
 
 /// The row's name.
 pub(super) const REAL: &str = "real";
+/// The row trained on the device's frames and the simulation together.
+pub(super) const REAL_MIX: &str = "real_mix";
+/// The share of `real_mix`'s samples drawn from the simulation: fixed before any run, not
+/// tuned.
+const MIX_FRACTION: f64 = 0.5;
 
 /// Why the loop has no `real` row: a reason the report gives, not a failure.
 #[derive(Clone, Debug, PartialEq)]
@@ -109,6 +114,34 @@ pub(super) fn real_row(
     }))
 }
 
+/// The `real_mix` row: the `real` row's fine-tune with a share of its samples (`[mix]`) from
+/// the last step's simulated stream, `base_data` (the main job's `[data]`) laid under the
+/// step's `[data]`. The calibration scenes hold no moving subject, so a fine-tune on them alone
+/// unlearns deghosting; the simulated half keeps it while the real half carries what no step
+/// models.
+pub(super) fn mixed_row(real: &Axis, base_data: &toml::Table, last_step: &toml::Table) -> Axis {
+    let mut sim = base_data.clone();
+    if let Some(step) = last_step.get("data").and_then(|d| d.as_table()) {
+        crate::config::merge_tables(&mut sim, step);
+    }
+    let mix = toml::Table::from_iter([
+        ("fraction".to_string(), MIX_FRACTION.into()),
+        ("data".to_string(), sim.into()),
+    ]);
+    let mut set = real.set.clone();
+    set.insert("mix".into(), mix.into());
+    Axis {
+        name: REAL_MIX.into(),
+        label: Some(format!(
+            "real + simulation: the `real` row's fine-tune with {:.0} % of its samples from \
+             the last step's simulated stream",
+            100.0 * MIX_FRACTION
+        )),
+        set,
+        ..real.clone()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -177,5 +210,27 @@ mod tests {
         assert!(why(row(3, 48, GtFrames::All)).contains("only its three inputs"));
         assert!(why(row(5, 48, GtFrames::Inputs)).contains("--gt-frames inputs"));
         assert!(why(row(5, 16, GtFrames::All)).contains("smaller than the fine-tune's 32-pixel"));
+    }
+
+    #[test]
+    fn the_mixed_row_is_the_real_row_with_the_last_steps_stream_laid_over_the_main_jobs() {
+        let real = row(5, 48, GtFrames::All).expect("made");
+        let base: toml::Table =
+            toml::from_str("dataset = \"train\"\npatch = 64\nnoise = \"gaussian\"\n").unwrap();
+        let step: toml::Table =
+            toml::from_str("[data]\nprofile = \"level.toml\"\nnoise = \"none\"\n").unwrap();
+        let mixed = mixed_row(&real, &base, &step);
+        assert_eq!(mixed.name, REAL_MIX);
+        // The real half is the `real` row's, unchanged.
+        assert_eq!(mixed.set["data"], real.set["data"]);
+        assert!(mixed.train && mixed.kind == real.kind);
+        let mix = mixed.set["mix"].as_table().expect("[mix]");
+        assert_eq!(mix["fraction"].as_float(), Some(0.5));
+        // The main job's keys kept where the step sets none; the step's win where it does.
+        let data = mix["data"].as_table().expect("[mix.data]");
+        assert_eq!(data["dataset"].as_str(), Some("train"));
+        assert_eq!(data["patch"].as_integer(), Some(64));
+        assert_eq!(data["profile"].as_str(), Some("level.toml"));
+        assert_eq!(data["noise"].as_str(), Some("none"));
     }
 }

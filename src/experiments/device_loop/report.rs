@@ -186,8 +186,11 @@ pub(super) fn real_text(real: &std::result::Result<Axis, super::real::NoRealRow>
         Ok(_) => "The `real` row fine-tunes the pretrained network of each seed on the \
                   calibration scenes' own frames (`validation/`) against their ground truth, \
                   merged from every frame of each set, with no simulation: what the device's \
-                  frames carry that no step models. Its score on the calibration scenes is \
-                  in-sample; the test scenes never enter it.\n\n"
+                  frames carry that no step models. The `real_mix` row is the same fine-tune \
+                  with half its samples from the last step's simulated stream, whose moving \
+                  subjects keep the deghosting that static calibration scenes cannot teach. \
+                  Their scores on the calibration scenes are in-sample; the test scenes never \
+                  enter them.\n\n"
             .into(),
         Err(why) => {
             format!("No `real` row (fine-tuning on the calibration scenes' own frames): {why}.\n\n")
@@ -211,17 +214,17 @@ pub(super) fn pictures_text(
     .map(|(l, n)| (l.to_string(), n))
     .chain(steps.iter().map(|st| (st.name.to_string(), st.name)))
     .chain(
-        cfg.rows
-            .iter()
-            .any(|r| r.name == real::REAL)
-            .then(|| (real::REAL.to_string(), real::REAL)),
+        [real::REAL, real::REAL_MIX]
+            .into_iter()
+            .filter(|n| cfg.rows.iter().any(|r| r.name == *n))
+            .map(|n| (n.to_string(), n)),
     )
     .collect();
     let written = pictures::write(cfg, testset, &rows, &out.join(PICTURES))?;
     let mut s = format!(
         "\n## Pictures\n\nPer test scene, the crop (up to {0}×{0}) of the ground truth with the \
          widest range: the reference frame as the device wrote it, the triangle merge, Net_O, \
-         every step's network and the `real` row's where there is one (seed {1}), then the \
+         every step's network and the rows trained on real frames where there are (seed {1}), then the \
          ground truth, the HDR images tone-mapped alike (μ-law, the T of PSNR-T).\n\n",
         pictures::CROP,
         cfg.seeds.first().map_or("–".to_string(), u64::to_string)
@@ -288,6 +291,54 @@ pub(super) fn what_a_user_gets(cfg: &AblateConfig, names: &[&str]) -> Result<Str
     Ok(s)
 }
 
+/// Where subjects move (the main job's dynamic test set, where the loop has it): each
+/// network against the triangle merge, which ghosts there, paired within seed and scene. A
+/// fine-tune on static calibration scenes can unlearn the deghosting the pretraining taught;
+/// this is where that shows.
+pub(super) fn dynamic_text(cfg: &AblateConfig, names: &[&str]) -> Result<String> {
+    let Some(spec) = cfg
+        .also
+        .iter()
+        .find(|t| t.name.as_deref() == Some(super::DYNAMIC))
+    else {
+        return Ok(String::new());
+    };
+    let mut s = String::from(
+        "\n## Where subjects move\n\nThe main job's dynamic test set (simulated moving \
+         subjects through its stock sensor, not this device's): PSNR-T of each network minus \
+         the triangle merge's, paired within seed and scene.\n\n\
+         | network | mean Δ | seeds with its sign | per seed |\n|---|---|---|---|\n",
+    );
+    for row in names {
+        let entries = ablate::paired_rows(cfg, spec, row, "triangle")?;
+        let Some(d) = entries
+            .iter()
+            .find(|e| e.metric == "psnr_t")
+            .and_then(|e| e.diff.as_ref())
+        else {
+            continue;
+        };
+        let signed = |x: f64| format!("{x:+.2}").replace('-', "−");
+        let per_seed: Vec<String> = d
+            .per_seed
+            .iter()
+            .map(|(k, v)| match k {
+                Some(k) => format!("s{k} {}", signed(*v)),
+                None => signed(*v),
+            })
+            .collect();
+        let _ = writeln!(
+            s,
+            "| {row} | {} | {}/{} | {} |",
+            signed(d.mean),
+            d.sign_holds,
+            d.n_seeds,
+            per_seed.join(", ")
+        );
+    }
+    Ok(s)
+}
+
 /// The gain each step buys over the step before (and each step against Net_O, the control,
 /// the classical rows and the uncalibrated rows: calibrating against not calibrating), PSNR-T
 /// and SSIM-T, every seed.
@@ -302,13 +353,15 @@ pub(super) fn steps_table(cfg: &AblateConfig, steps: &[Step]) -> Result<String> 
         pairs
             .extend(["net_o", "control", GENERIC, NET_S, "copy", "triangle"].map(|v| (st.name, v)));
     }
-    // The `real` row against the same, and against the last simulated step.
-    if cfg.rows.iter().any(|r| r.name == real::REAL) {
-        let versus = ["net_o", "control", GENERIC, NET_S]
-            .into_iter()
-            .chain(steps.last().map(|s| s.name))
-            .chain(["copy", "triangle"]);
-        pairs.extend(versus.map(|v| (real::REAL, v)));
+    // The rows trained on real frames against the same, and against the last simulated step.
+    for on_real in [real::REAL, real::REAL_MIX] {
+        if cfg.rows.iter().any(|r| r.name == on_real) {
+            let versus = ["net_o", "control", GENERIC, NET_S]
+                .into_iter()
+                .chain(steps.last().map(|s| s.name))
+                .chain(["copy", "triangle"]);
+            pairs.extend(versus.map(|v| (on_real, v)));
+        }
     }
     for (row, versus) in pairs {
         for e in ablate::paired_rows(cfg, &cfg.testset, row, versus)? {

@@ -34,6 +34,7 @@ use crate::experiments::recipe::{
     TRAIN_SCENE_SEED, data_set, generate_config, isos, net_o_row, net_p_row, net_r_row, net_s_row,
     row, stage, target_profile, train_config, train_resumable, write, write_config,
 };
+pub(crate) use reading::DYNAMIC;
 pub use reading::Decision;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};

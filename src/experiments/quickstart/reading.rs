@@ -9,7 +9,7 @@ use std::path::PathBuf;
 pub(super) const MIN_SEEDS_FOR_RUNS: usize = 5;
 
 /// Name of the dynamic test set among the grid's `also` sets.
-pub(super) const DYNAMIC: &str = "dynamic";
+pub(crate) const DYNAMIC: &str = "dynamic";
 
 /// The protocol's decision on the primary comparison (docs/protocol.md).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
