@@ -157,6 +157,23 @@ fn simulate(
     opts: &OutputCheckOptions,
     r: usize,
 ) -> Result<FrameStats> {
+    let (mut units, firsts) = simulated_units(profile, prep, opts, r)?;
+    let floor = prep.floor_of(|i| &firsts[i], &profile.response);
+    drop(firsts);
+    residualise(&mut units, &prep.groups, &profile.response)?;
+    Ok(FrameStats {
+        floor,
+        ..measure(&units, &profile.response)
+    })
+}
+
+/// Replicate `r`'s units before their residuals, and each unit's first render.
+fn simulated_units(
+    profile: &SensorProfile,
+    prep: &Prepared,
+    opts: &OutputCheckOptions,
+    r: usize,
+) -> Result<(Vec<(Unit, f64)>, Vec<Image>)> {
     let units = prep
         .scenes
         .iter()
@@ -172,14 +189,7 @@ fn simulate(
             Ok(((unit, *iso), a))
         })
         .collect::<Result<Vec<_>>>()?;
-    let (mut units, firsts): (Vec<(Unit, f64)>, Vec<Image>) = units.into_iter().unzip();
-    let floor = prep.floor_of(|i| &firsts[i], &profile.response);
-    drop(firsts);
-    residualise(&mut units, &prep.groups, &profile.response)?;
-    Ok(FrameStats {
-        floor,
-        ..measure(&units, &profile.response)
-    })
+    Ok(units.into_iter().unzip())
 }
 
 /// The realism operator of scene `j` of replicate `r` (noise as `opts` asks), and the seeds
@@ -592,19 +602,15 @@ const STATS: [(&str, &str, f64); 14] = [
     ),
     (
         "disagreement between frames, 4-px blocks (½ ln of block-mean power over the noise's)",
-        CONSISTENCY_NAMES,
+        crate::sensor::effects::local_gain::ID,
         0.1,
     ),
     (
         "disagreement between frames, 16-px blocks (½ ln of block-mean power over the noise's)",
-        CONSISTENCY_NAMES,
+        crate::sensor::effects::local_gain::ID,
         0.1,
     ),
 ];
-
-/// What would close the disagreement statistics: nothing the catalogue holds yet.
-const CONSISTENCY_NAMES: &str =
-    "none in the catalogue (a tone curve that varies over the frame, local tone mapping)";
 
 fn compare(measured: &[f64], sims: &[Vec<f64>]) -> OutputCheck {
     let k = sims.len().max(1) as f64;
@@ -690,11 +696,13 @@ mod effects;
 mod fit;
 mod floor;
 mod jpeg;
+mod local_gain;
 
 pub use effects::{EffectFit, OUTPUT_EFFECTS, fit_output_effect, names, refusal};
 pub use fit::{MAX_LEVEL_SCALE, NoiseFit, fit_noise_level};
 pub use floor::{FloorFit, fit_floor, with_floor};
 pub use jpeg::{JpegFit, fit_jpeg, folder_quality, with_jpeg};
+pub use local_gain::{LocalGainFit, fit_local_gain, with_local_gain};
 
 impl OutputCheck {
     /// Whether a channel's noise level or floor is a significant statistic (the profile's

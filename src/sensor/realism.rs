@@ -177,6 +177,8 @@ struct Patterns {
 /// Tags that separate the per-row draws of the effects from the noise draws.
 const ROW_TAG: u64 = 0x524f_5721;
 const HEAVY_TAG: u64 = 0x4845_4156;
+/// Tag of a frame's local gain field in its seed.
+const LOCAL_GAIN_TAG: u64 = 0x4c47_4149;
 
 /// x limited to [0, hi], with NaN → 0 (f32::clamp would pass NaN through).
 #[inline(always)]
@@ -582,7 +584,20 @@ impl Realism {
 
     /// `apply` into a caller's buffer (resized as needed), so loaders reuse their allocations.
     pub fn apply_into(&self, input: &Image, seed: u64, out: &mut Image) {
-        self.rows_into(input, seed, out, true);
+        match self.plan.local_gain {
+            None => self.rows_into(input, seed, out, true),
+            // The field spans the frame: applied to the whole DN frame, then the response.
+            Some((sigma, scale)) => {
+                self.rows_into(input, seed, out, false);
+                let field_seed = hash(seed, &[LOCAL_GAIN_TAG]);
+                crate::sensor::effects::local_gain::apply_dn(
+                    out, self.black, sigma, scale, field_seed,
+                );
+                for d in &mut out.data {
+                    *d = self.output_lut[index(bound(d.round(), self.white))];
+                }
+            }
+        }
         if let Some(q) = self.plan.jpeg {
             crate::sensor::effects::jpeg::round_trip(out, q);
         }

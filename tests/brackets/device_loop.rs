@@ -489,11 +489,7 @@ fn the_loop_trains_the_device_rule_in_its_metering_step_only() {
         .expect("real");
     // The row before `real` is the last step.
     let last_step = rows[real_at - 1]["set"]["data"]["profile"].as_str();
-    assert_eq!(
-        mix.data.realism.profile.to_str(),
-        last_step,
-        "{grid_text}"
-    );
+    assert_eq!(mix.data.realism.profile.to_str(), last_step, "{grid_text}");
     // The same folders spelled another way resume it (every cell kept); another split is
     // refused.
     let respelled = LoopOptions {

@@ -479,3 +479,81 @@ fn frames_that_disagree_at_coarse_scales_are_named_and_a_device_without_it_is_no
         assert!(!s.significant, "{s:?}");
     }
 }
+
+/// Frames made by a profile's own simulation with a known local gain field (σ 0.04 of ln
+/// gain, 16 px) are named by the disagreement statistics against the profile without it; the
+/// fit gives the field back (σ within 25 %, the length within a factor of two) and closes
+/// its gap; the same frames made without the field are not named.
+#[test]
+fn a_local_gain_field_is_named_and_fitted_back_from_frames_made_with_it() {
+    use hdrsynth::capture::output::{check_scanned, fit_output_effect, names, with_local_gain};
+    use hdrsynth::io::{BitDepth, Image, write_ldr};
+    use hdrsynth::sensor::effects::local_gain::ID;
+    use hdrsynth::sensor::realism::{NoiseModel, Realism, RealismOptions};
+    // A device profile as a user's calibration gives it, from a bracket without the field.
+    let (_calibration, profile, opts, _) = white_bracket_for_the_check(4e-4, 1e-5);
+    let frames_of = |sigma: f64| {
+        let mut device = if sigma > 0.0 {
+            with_local_gain(&profile, sigma, 16.0)
+        } else {
+            profile.clone()
+        };
+        // The scene below is linear, as the check's own scene estimate is.
+        device.source_response = hdrsynth::sensor::profile::Response::Linear;
+        let realism = Realism::new(
+            &device,
+            &RealismOptions {
+                iso: 100.0,
+                exposure: 1.0,
+                noise: NoiseModel::Gaussian,
+                colour: false,
+                output_bits: 8,
+            },
+        )
+        .expect("realism");
+        let tmp = tempfile::tempdir().expect("tmp");
+        let dir = tmp.path().join("scene");
+        std::fs::create_dir_all(&dir).expect("mkdir");
+        let stops = [-2.0f64, 0.0, 2.0];
+        for (i, s) in stops.iter().enumerate() {
+            // A ramp from 2^−7 to 2^0 of white at stop 0, tinted per channel.
+            let scene = Image::from_fn(192, 144, |x, _| {
+                let l = (-7.0 + 7.0 * x as f64 / 191.0).exp2() * s.exp2();
+                [0.9, 1.0, 0.8].map(|k| (k * l).min(1.0) as f32)
+            });
+            let frame = realism.apply(&scene, 1000 + i as u64);
+            write_ldr(&dir.join(format!("f{i}.png")), &frame, BitDepth::Eight).expect("png");
+        }
+        std::fs::write(dir.join("exposure.txt"), "-2\n0\n2\n").expect("exposure.txt");
+        let scan = scan::scan(tmp.path(), &opts.scan).expect("scan");
+        let first = check_scanned(scan.clone(), &profile, &opts).expect("check");
+        (tmp, scan, first)
+    };
+    let (_frames, scan, first) = frames_of(0.04);
+    assert!(names(&first, ID), "{}", first.markdown());
+    let fit = fit_output_effect(ID, &scan, &profile, &first, &opts).expect("fit");
+    let spec = fit
+        .profile
+        .effects
+        .iter()
+        .find(|e| e.id == ID)
+        .expect("the fitted effect");
+    let (sigma, scale) = (
+        spec.params["sigma"].as_float().expect("sigma"),
+        spec.params["scale"].as_float().expect("scale"),
+    );
+    assert!((sigma / 0.04 - 1.0).abs() < 0.25, "σ {sigma}: {}", fit.text(&first));
+    assert!((8.0..=32.0).contains(&scale), "scale {scale}");
+    assert!(fit.closes(&first), "{}", fit.text(&first));
+    assert!(!names(&fit.check, ID), "{}", fit.check.markdown());
+    eprintln!("{}", fit.text(&first));
+    // Without the field the frames agree as the simulation's do: nothing named (so no step),
+    // and a fit forced on them finds at most a quarter of the field above.
+    let (_plain, scan, first) = frames_of(0.0);
+    assert!(!names(&first, ID), "{}", first.markdown());
+    if let Ok(f) = fit_output_effect(ID, &scan, &profile, &first, &opts) {
+        let spec = f.profile.effects.iter().find(|e| e.id == ID).expect("fitted");
+        let sigma = spec.params["sigma"].as_float().expect("sigma");
+        assert!(sigma < 0.01, "{}", f.text(&first));
+    }
+}

@@ -1,8 +1,8 @@
 //! The output-domain effects of the catalogue the device-output check fits to a folder
-//! (`floor`, `jpeg`), one interface for `diagnose --brackets --device-output` and the loop:
+//! (`floor`, `jpeg`, `local_gain`), one interface for `diagnose --brackets --device-output` and the loop:
 //! the fit, its own gap before and after, and whether it is a step to hand on.
 
-use super::{OutputCheck, OutputCheckOptions, fit_floor, fit_jpeg};
+use super::{OutputCheck, OutputCheckOptions, fit_floor, fit_jpeg, fit_local_gain};
 use crate::capture::scan;
 use crate::error::Result;
 use crate::sensor::effects::EffectSpec;
@@ -27,7 +27,7 @@ pub(super) fn with_effect(
 }
 
 /// An output-domain effect of the catalogue fitted to a folder by the device-output check
-/// (`floor`, `jpeg`).
+/// (`floor`, `jpeg`, `local_gain`).
 #[derive(Clone, Debug)]
 pub struct EffectFit {
     pub id: &'static str,
@@ -78,10 +78,12 @@ impl EffectFit {
 }
 
 /// Output-domain effects the check can fit, in the order they are fitted: the floor acts on
-/// the signal the JPEG stage then stores.
-pub const OUTPUT_EFFECTS: [&str; 2] = [
+/// the signal the JPEG stage then stores; the local gain last, since JPEG's blocks also raise
+/// the frames' disagreement, which the gain field is fitted to.
+pub const OUTPUT_EFFECTS: [&str; 3] = [
     crate::sensor::effects::floor::ID,
     crate::sensor::effects::jpeg::ID,
+    crate::sensor::effects::local_gain::ID,
 ];
 
 /// Whether `c` names effect `id` (one of [`OUTPUT_EFFECTS`]): its statistic is significant.
@@ -117,6 +119,15 @@ pub fn fit_output_effect(
                 f.quality, f.mismatch
             ),
             at_bound: false,
+            profile: f.profile,
+            check: f.check,
+        })
+    } else if id == crate::sensor::effects::local_gain::ID {
+        let f = fit_local_gain(scan, profile, first, opts)?;
+        Ok(EffectFit {
+            id: crate::sensor::effects::local_gain::ID,
+            fitted: format!("σ {:.3} of ln gain, {:.0} px", f.sigma, f.scale),
+            at_bound: f.at_bound,
             profile: f.profile,
             check: f.check,
         })

@@ -15,7 +15,8 @@
 //! separable Gaussian kernel;
 //! offset stage (after the black level): black-level offset, row offsets (new every frame),
 //! column offsets, DSNU, hot pixels (fixed patterns); then clip and quantise;
-//! output stage (at the device response): the output floor; then JPEG storage of the frame.
+//! output stage (at the device response): a local gain field per frame; the output floor;
+//! then JPEG storage of the frame.
 //!
 //! Fixed patterns (column, DSNU, PRNU, hot pixels) derive from the effect's `seed` parameter
 //! and the pixel coordinates, so they are the same in every frame and every run; per-frame
@@ -37,6 +38,7 @@ pub mod floor;
 pub mod heavy_tailed_read_noise;
 pub mod hot_pixels;
 pub mod jpeg;
+pub mod local_gain;
 pub mod nonlinear_response;
 pub mod params;
 pub mod plan;
@@ -68,7 +70,7 @@ pub struct Entry {
 }
 
 /// The catalogue in physical order (the order `statistics` are listed in reports).
-pub const CATALOGUE: [Entry; 14] = [
+pub const CATALOGUE: [Entry; 15] = [
     vignetting::ENTRY,
     prnu::ENTRY,
     nonlinear_response::ENTRY,
@@ -81,6 +83,7 @@ pub const CATALOGUE: [Entry; 14] = [
     column_noise::ENTRY,
     dsnu::ENTRY,
     hot_pixels::ENTRY,
+    local_gain::ENTRY,
     floor::ENTRY,
     jpeg::ENTRY,
 ];

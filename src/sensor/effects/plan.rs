@@ -53,6 +53,9 @@ pub struct Plan {
     pub dsnu: Option<(f32, u64)>,
     /// Hot pixels (fraction of values, offset DN, seed).
     pub hot: Option<(f32, f32, u64)>,
+    /// Local gain: a smooth gain field per frame (σ of ln gain, correlation length in pixels),
+    /// applied to the DN frame before the output response.
+    pub local_gain: Option<(f32, f32)>,
     /// Output floor: the fraction of white the output response subtracts first (0: none).
     pub floor: f64,
     /// JPEG storage at this IJG quality.
@@ -75,6 +78,7 @@ impl Default for Plan {
             column: None,
             dsnu: None,
             hot: None,
+            local_gain: None,
             floor: 0.0,
             jpeg: None,
         }
@@ -118,12 +122,14 @@ impl Plan {
     }
 
     /// True when the plan changes nothing in the pixel loop (the realism fast path): the
-    /// noise scales act on a and b, the floor on the output table, JPEG on the whole frame.
+    /// noise scales act on a and b, the floor on the output table, the local gain and JPEG on
+    /// the whole frame.
     pub fn per_pixel_neutral(&self) -> bool {
         let d = Plan::default();
         Plan {
             a_scale: d.a_scale,
             b_scale: d.b_scale,
+            local_gain: d.local_gain,
             floor: d.floor,
             jpeg: d.jpeg,
             ..self.clone()
@@ -145,6 +151,7 @@ pub mod id {
     pub const COLUMN_NOISE: &str = "column_noise";
     pub const DSNU: &str = "dsnu";
     pub const HOT_PIXELS: &str = "hot_pixels";
+    pub const LOCAL_GAIN: &str = "local_gain";
     pub const FLOOR: &str = "floor";
     pub const JPEG: &str = "jpeg";
 }
@@ -154,7 +161,7 @@ pub mod id {
 type Install = fn(&toml::Table, &mut Plan) -> Result<()>;
 
 /// Every effect's install, in physical order (the order of `effects::CATALOGUE`).
-const INSTALL: [(&str, Install); 14] = [
+const INSTALL: [(&str, Install); 15] = [
     (id::VIGNETTING, vignetting),
     (id::PRNU, prnu),
     (id::NONLINEAR_RESPONSE, nonlinear_response),
@@ -167,6 +174,7 @@ const INSTALL: [(&str, Install); 14] = [
     (id::COLUMN_NOISE, column_noise),
     (id::DSNU, dsnu),
     (id::HOT_PIXELS, hot_pixels),
+    (id::LOCAL_GAIN, local_gain),
     (id::FLOOR, floor),
     (id::JPEG, jpeg),
 ];
@@ -425,6 +433,35 @@ fn hot_pixels(p: &toml::Table, plan: &mut Plan) -> Result<()> {
         return Err(fault(id::HOT_PIXELS, m));
     }
     plan.hot = Some((f as f32, o as f32, seed.0));
+    Ok(())
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LocalGain {
+    sigma: Finite,
+    scale: Finite,
+}
+
+/// Largest local gain, σ of ln gain: ±1 σ is then ±35 %, more than any tone mapper's
+/// disagreement between the frames of a static scene.
+pub const LOCAL_GAIN_MAX: f64 = 0.3;
+
+fn local_gain(p: &toml::Table, plan: &mut Plan) -> Result<()> {
+    let LocalGain {
+        sigma: Finite(sigma),
+        scale: Finite(scale),
+    } = parse(id::LOCAL_GAIN, p)?;
+    if !(0.0..=LOCAL_GAIN_MAX).contains(&sigma) || !(1.0..=4096.0).contains(&scale) {
+        return Err(fault(
+            id::LOCAL_GAIN,
+            format!(
+                "sigma {sigma} must be in [0, {LOCAL_GAIN_MAX}] (ln gain) and scale {scale} in \
+                 [1, 4096] (pixels)"
+            ),
+        ));
+    }
+    plan.local_gain = Some((sigma as f32, scale as f32));
     Ok(())
 }
 
