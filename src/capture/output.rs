@@ -167,13 +167,16 @@ fn simulate(
     })
 }
 
+/// Units with their ISO.
+type Units = Vec<(Unit, f64)>;
+
 /// Replicate `r`'s units before their residuals, and each unit's first render.
 fn simulated_units(
     profile: &SensorProfile,
     prep: &Prepared,
     opts: &OutputCheckOptions,
     r: usize,
-) -> Result<(Vec<(Unit, f64)>, Vec<Image>)> {
+) -> Result<(Units, Vec<Image>)> {
     let units = prep
         .scenes
         .iter()

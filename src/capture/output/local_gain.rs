@@ -104,7 +104,8 @@ pub fn fit_local_gain(
         ));
     }
     let none = prep.disagreement(profile, opts, FIT_REPLICATES)?;
-    if !(measured[1] > none[1]) {
+    // NaN (no simulated value) counts as not under the frames'.
+    if none[1].is_nan() || measured[1] <= none[1] {
         return Err(not_fitted(
             ID,
             format!(
@@ -125,7 +126,7 @@ pub fn fit_local_gain(
             )
         };
         let top = at(LOCAL_GAIN_MAX)?;
-        if !(top[1] >= measured[1]) {
+        if top[1].is_nan() || top[1] < measured[1] {
             tried.push((LOCAL_GAIN_MAX, top[0], true, scale));
             continue;
         }
