@@ -321,6 +321,7 @@ fn values(s: &FrameStats, keys: &[(usize, usize, f64)]) -> Vec<f64> {
     out.push(s.floor.value());
     out.push(s.blocks.value());
     out.extend((0..consistency::SCALES.len()).map(|k| s.bands.value(k)));
+    out.extend((0..consistency::LEVELS.len()).map(|k| s.bands.level_value(k)));
     out
 }
 
@@ -540,130 +541,6 @@ fn check_prepared(
     })
 }
 
-/// (name, what closes it, minimum effect) of each value of [`values`].
-const STATS: [(&str, &str, f64); 14] = [
-    (
-        "R noise level (mean ln σ², codes from 1/8)",
-        "noise a, b",
-        0.1,
-    ),
-    (
-        "R noise floor (mean ln σ², codes under 1/8)",
-        "noise b",
-        0.1,
-    ),
-    (
-        "R spatial correlation (median low/high-order ratio)",
-        "correlated_noise",
-        0.05,
-    ),
-    (
-        "G noise level (mean ln σ², codes from 1/8)",
-        "noise a, b",
-        0.1,
-    ),
-    (
-        "G noise floor (mean ln σ², codes under 1/8)",
-        "noise b",
-        0.1,
-    ),
-    (
-        "G spatial correlation (median low/high-order ratio)",
-        "correlated_noise",
-        0.05,
-    ),
-    (
-        "B noise level (mean ln σ², codes from 1/8)",
-        "noise a, b",
-        0.1,
-    ),
-    (
-        "B noise floor (mean ln σ², codes under 1/8)",
-        "noise b",
-        0.1,
-    ),
-    (
-        "B spatial correlation (median low/high-order ratio)",
-        "correlated_noise",
-        0.05,
-    ),
-    (
-        "channel correlation of the noise (mean of RG, GB, RB)",
-        "channel_correlation",
-        0.05,
-    ),
-    (
-        "floor: mean code − the code a longer frame predicts there, codes 4–16/255 (×255)",
-        "floor",
-        // Half the 8-bit step: rounding alone moves a mean code by at most that.
-        0.5,
-    ),
-    (
-        "blockiness: neighbour differences across the strongest 8-pixel phase over the others (%)",
-        "jpeg",
-        1.0,
-    ),
-    (
-        "disagreement between frames, 4-px blocks (½ ln of block-mean power over the noise's)",
-        crate::sensor::effects::local_gain::ID,
-        0.1,
-    ),
-    (
-        "disagreement between frames, 16-px blocks (½ ln of block-mean power over the noise's)",
-        crate::sensor::effects::local_gain::ID,
-        0.1,
-    ),
-];
-
-fn compare(measured: &[f64], sims: &[Vec<f64>]) -> OutputCheck {
-    let k = sims.len().max(1) as f64;
-    let m = STATS.len() as f64;
-    let threshold = (crate::stats::normal_quantile(1.0 - 0.05 / (2.0 * m))).max(3.0);
-    let stats: Vec<OutputStat> = STATS
-        .iter()
-        .enumerate()
-        .map(|(i, &(name, names, min_effect))| {
-            let v: Vec<f64> = sims
-                .iter()
-                .map(|s| s[i])
-                .filter(|x| x.is_finite())
-                .collect();
-            let mean = v.iter().sum::<f64>() / v.len().max(1) as f64;
-            let sd = (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>()
-                / (v.len().max(2) - 1) as f64)
-                .sqrt()
-                .max(1e-4);
-            let z = (measured[i] - mean) / (sd * (1.0 + 1.0 / k).sqrt());
-            let significant = z.abs() > threshold
-                && (measured[i] - mean).abs() > min_effect
-                && z.is_finite()
-                && (z > 0.0 || !DISAGREEMENT.contains(&i));
-            OutputStat {
-                name: name.into(),
-                names,
-                measured: measured[i],
-                sim_mean: mean,
-                sim_sd: sd,
-                z,
-                min_effect,
-                significant,
-            }
-        })
-        .collect();
-    let gap = stats
-        .iter()
-        .filter(|s| s.significant)
-        .map(|s| s.z.abs())
-        .fold(0.0, f64::max);
-    OutputCheck {
-        stats,
-        threshold,
-        gap,
-        replicates: sims.len(),
-        bins: Vec::new(),
-    }
-}
-
 /// `img` smoothed per channel by [`crate::data::ground_truth::gaussian_blur`] of width
 /// [`SMOOTH_SIGMA`].
 fn smooth(img: &Image) -> Image {
@@ -680,26 +557,14 @@ fn smooth(img: &Image) -> Image {
     })
 }
 
-/// Indices in [`STATS`] of the three channels' noise level and noise floor.
-const LEVEL: [usize; 3] = [0, 3, 6];
-const FLOOR: [usize; 3] = [1, 4, 7];
-
-/// Index in [`STATS`] of the floor statistic, and of the blockiness.
-const FLOOR_STAT: usize = 10;
-const BLOCK_STAT: usize = 11;
-
-/// Indices in [`STATS`] of the disagreement statistics: one-sided. The scene estimate is
-/// smoothed, and on a textured scene that alone raises the simulated value (tested: a textured
-/// bracket's own profile, 16 px, −0.11); only frames that disagree more than their simulation
-/// are named.
-const DISAGREEMENT: [usize; 2] = [12, 13];
-
 mod consistency;
 mod effects;
 mod fit;
 mod floor;
 mod jpeg;
 mod local_gain;
+mod statistics;
+use statistics::*;
 
 pub use effects::{EffectFit, OUTPUT_EFFECTS, fit_output_effect, names, refusal};
 pub use fit::{MAX_LEVEL_SCALE, NoiseFit, fit_noise_level};

@@ -66,7 +66,7 @@ fn the_device_output_check_finds_what_a_profile_misses_and_nothing_when_it_has_i
         )
         .expect("diagnose");
         let c = d.device_output.expect("checked");
-        assert_eq!((c.stats.len(), c.replicates), (14, 30));
+        assert_eq!((c.stats.len(), c.replicates), (17, 30));
         assert!(named_beside_the_floor(&c).is_none(), "{}", c.markdown());
         let md = std::fs::read_to_string(out.join("device_output.md")).expect("written");
         assert!(md.contains("channel correlation"), "{md}");
@@ -542,7 +542,11 @@ fn a_local_gain_field_is_named_and_fitted_back_from_frames_made_with_it() {
         spec.params["sigma"].as_float().expect("sigma"),
         spec.params["scale"].as_float().expect("scale"),
     );
-    assert!((sigma / 0.04 - 1.0).abs() < 0.25, "σ {sigma}: {}", fit.text(&first));
+    assert!(
+        (sigma / 0.04 - 1.0).abs() < 0.25,
+        "σ {sigma}: {}",
+        fit.text(&first)
+    );
     assert!((8.0..=32.0).contains(&scale), "scale {scale}");
     assert!(fit.closes(&first), "{}", fit.text(&first));
     assert!(!names(&fit.check, ID), "{}", fit.check.markdown());
@@ -552,7 +556,12 @@ fn a_local_gain_field_is_named_and_fitted_back_from_frames_made_with_it() {
     let (_plain, scan, first) = frames_of(0.0);
     assert!(!names(&first, ID), "{}", first.markdown());
     if let Ok(f) = fit_output_effect(ID, &scan, &profile, &first, &opts) {
-        let spec = f.profile.effects.iter().find(|e| e.id == ID).expect("fitted");
+        let spec = f
+            .profile
+            .effects
+            .iter()
+            .find(|e| e.id == ID)
+            .expect("fitted");
         let sigma = spec.params["sigma"].as_float().expect("sigma");
         assert!(sigma < 0.01, "{}", f.text(&first));
     }

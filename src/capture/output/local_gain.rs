@@ -10,7 +10,7 @@
 use super::consistency::{BandMoments, SCALES};
 use super::effects::with_effect;
 use super::{
-    DISAGREEMENT, OutputCheck, OutputCheckOptions, Prepared, check_prepared, device, residualise,
+    OutputCheck, OutputCheckOptions, POOLED, Prepared, check_prepared, device, residualise,
     simulated_units,
 };
 use crate::capture::scan;
@@ -96,7 +96,7 @@ pub fn fit_local_gain(
     opts: &OutputCheckOptions,
 ) -> Result<LocalGainFit> {
     let prep = Prepared::new(scan.clone(), profile)?;
-    let measured: [f64; 2] = DISAGREEMENT.map(|i| first.stats[i].measured);
+    let measured: [f64; 2] = POOLED.map(|i| first.stats[i].measured);
     if !measured.iter().all(|v| v.is_finite()) {
         return Err(not_fitted(
             ID,
