@@ -138,6 +138,20 @@ mod tests {
     use super::*;
     use crate::io::Image;
 
+    /// Standard normal draws: Box–Muller on a small LCG, a fixed, outside-free white noise.
+    fn gauss(mut state: u64) -> impl FnMut() -> f32 {
+        move || {
+            let mut u = || {
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+            };
+            let (a, b) = (u(), u());
+            ((-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()) as f32
+        }
+    }
+
     fn planes_of(noise: &Image, signal: &Image) -> BandMoments {
         moments(Planes {
             signal,
@@ -152,18 +166,7 @@ mod tests {
     #[test]
     fn white_noise_is_zero_and_a_shading_is_not() {
         let (w, h) = (256, 256);
-        let mut state = 12345u64;
-        let mut gauss = || {
-            // Box–Muller on a small LCG: a fixed, outside-free white noise.
-            let mut u = || {
-                state = state
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-            };
-            let (a, b) = (u(), u());
-            ((-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()) as f32
-        };
+        let mut gauss = gauss(12345);
         let noise = Image::from_fn(w, h, |_, _| {
             [gauss() * 0.01, gauss() * 0.01, gauss() * 0.01]
         });
@@ -191,17 +194,7 @@ mod tests {
     #[test]
     fn a_disagreement_in_the_highlights_is_seen_in_their_band_alone() {
         let (w, h) = (256, 256);
-        let mut state = 99u64;
-        let mut gauss = || {
-            let mut u = || {
-                state = state
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-            };
-            let (a, b) = (u(), u());
-            ((-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()) as f32
-        };
+        let mut gauss = gauss(99);
         // Three vertical stripes: codes 0.1, 0.5 and 0.85.
         let signal = Image::from_fn(w, h, |x, _| [[0.1, 0.5, 0.85][x * 3 / w]; 3]);
         let noise = Image::from_fn(w, h, |x, y| {

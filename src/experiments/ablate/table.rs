@@ -345,6 +345,20 @@ fn write_table_for(cfg: &AblateConfig, t: &TestsetSpec) -> Result<Table> {
 /// of `also`): each metric's [`TableEntry`], its `diff` the paired difference row − versus
 /// (within seed, scene and set), as the table computes its differences to the reference.
 /// Empty until both rows have finished runs.
+/// Row `row` against `versus` in PSNR-T on test set `t`, paired as [`paired_rows`] pairs; None
+/// where either row has no scores.
+pub fn paired_psnr_t(
+    cfg: &AblateConfig,
+    t: &TestsetSpec,
+    row: &str,
+    versus: &str,
+) -> Result<Option<DiffEntry>> {
+    Ok(paired_rows(cfg, t, row, versus)?
+        .into_iter()
+        .find(|e| e.metric == "psnr_t")
+        .and_then(|e| e.diff))
+}
+
 pub fn paired_rows(
     cfg: &AblateConfig,
     t: &TestsetSpec,

@@ -255,12 +255,7 @@ pub(super) fn what_a_user_gets(cfg: &AblateConfig, names: &[&str]) -> Result<Str
     ] {
         let (mut beats, mut loses, mut neither) = (Vec::new(), Vec::new(), Vec::new());
         for row in names {
-            let entries = ablate::paired_rows(cfg, &cfg.testset, row, versus)?;
-            let Some(d) = entries
-                .iter()
-                .find(|e| e.metric == "psnr_t")
-                .and_then(|e| e.diff.as_ref())
-            else {
+            let Some(d) = ablate::paired_psnr_t(cfg, &cfg.testset, row, versus)? else {
                 continue;
             };
             let text = format!("{row} ({} dB)", format!("{:+.2}", d.mean).replace('-', "−"));
@@ -310,12 +305,7 @@ pub(super) fn dynamic_text(cfg: &AblateConfig, names: &[&str]) -> Result<String>
          | network | mean Δ | seeds with its sign | per seed |\n|---|---|---|---|\n",
     );
     for row in names {
-        let entries = ablate::paired_rows(cfg, spec, row, "triangle")?;
-        let Some(d) = entries
-            .iter()
-            .find(|e| e.metric == "psnr_t")
-            .and_then(|e| e.diff.as_ref())
-        else {
+        let Some(d) = ablate::paired_psnr_t(cfg, spec, row, "triangle")? else {
             continue;
         };
         let signed = |x: f64| format!("{x:+.2}").replace('-', "−");

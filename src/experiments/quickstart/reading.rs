@@ -199,14 +199,7 @@ fn primary_reading(report: &mut String, primary: &ablate::Table, alpha: f64) {
 fn classical_reading(report: &mut String, exp: &AblateConfig, t: &TestsetSpec, what: &str) {
     for row in ["net_s", "net_r"] {
         for versus in ["copy", "triangle"] {
-            let Ok(entries) = ablate::paired_rows(exp, t, row, versus) else {
-                continue;
-            };
-            let Some(d) = entries
-                .iter()
-                .find(|e| e.metric == "psnr_t")
-                .and_then(|e| e.diff.as_ref())
-            else {
+            let Ok(Some(d)) = ablate::paired_psnr_t(exp, t, row, versus) else {
                 continue;
             };
             let per_seed: Vec<String> =
@@ -215,7 +208,7 @@ fn classical_reading(report: &mut String, exp: &AblateConfig, t: &TestsetSpec, w
             let _ = writeln!(
                 report,
                 "- {what}{row} − {versus}, PSNR-T: {} (per seed {}): {} in {beats} of {} seeds.",
-                describe_diff(d),
+                describe_diff(&d),
                 per_seed.join(", "),
                 if beats == d.per_seed.len() {
                     "better"
